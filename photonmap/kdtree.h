@@ -1,0 +1,148 @@
+/* kdtree.h: a left-balanced kd-tree stored as an implicit heap, over any records that carry
+ * a float[3] position.
+ *
+ * WHAT IT INDEXES. An array of n records of `stride` bytes each, with a float[3] position at
+ * byte `pos_offset` of each record. A pm_photon array is one case (stride 20, offset 0), but
+ * any struct works. pm_kdtree_build REORDERS THE CALLER'S RECORDS IN PLACE into tree order and
+ * keeps no copy of them: query results are indices into the reordered array. If the caller
+ * needs to map back, it passes a perm array and gets perm[i] = the original index of the
+ * record now at position i. The records must outlive the tree, and their positions must not
+ * change while it exists (other fields may).
+ *
+ * LAYOUT. Nodes are numbered as an implicit heap: the root is node 1 and node i has children
+ * 2i and 2i+1; there are no child pointers. With bucket size B = 1 this is exactly Jensen's
+ * classic balanced tree: record i-1 is node i. With B > 1, the nodes whose subtree holds at
+ * most B records are leaves (buckets) whose records are stored contiguously after the internal
+ * nodes, so a bucket is scanned linearly. Each internal node is one record: the median along
+ * the axis of largest extent of its subtree's bounding box. The split axis (2 bits per internal
+ * node) is kept in the byte at `axis_offset` of the record when the caller gives one (the low
+ * two bits of pm_photon.flag; the other bits of that byte are preserved), or else in a small
+ * array the tree owns. Every record in the left subtree of a node has coordinate <= the split
+ * value on its axis, and every record in the right subtree has coordinate >= it.
+ *
+ * NON-FINITE INPUT. Records whose position has a NaN or infinite coordinate are DROPPED AND
+ * COUNTED, not indexed: the build moves them to the tail of the array, after the n indexed
+ * records, and pm_kdtree_dropped() tells how many there are.
+ *
+ * QUERIES. Distances are squared Euclidean distances, in float. A record is "within" a squared
+ * radius r2 when its dist2 < r2 (strict, as in Jensen's notes and FLANN); r2 = INFINITY means
+ * unlimited. Results go to caller-owned arrays; queries use only a fixed-size stack scratch of
+ * at most PM_KDTREE_MAX_DEPTH entries, never allocate, never lock, and never write to the tree,
+ * so any number of threads may query one tree at once.
+ *
+ * TIES. The k nearest are the k records of smallest dist2. When several records share the k-th
+ * smallest distance, which of them are returned depends on the tree order (the first met in
+ * the traversal wins), but the multiset of returned distances always equals that of a brute
+ * force scan, and every record strictly closer than the k-th distance is returned. The
+ * iterative and recursive searches visit nodes in the same order and return identical arrays.
+ * With PM_SORT, results are ordered by (dist2, index) ascending.
+ *
+ * DEFINED EDGE CASES. k = 0, an empty tree, or r2 <= 0 give 0 results. k > n gives at most n
+ * results. A NaN r2 or a non-finite query coordinate returns PM_ENONFINITE. None of these
+ * crash, loop or read out of bounds.
+ *
+ * OWNERSHIP. pm_kdtree_build allocates the tree (not the records); pm_kdtree_free frees it.
+ */
+#ifndef PM_KDTREE_H
+#define PM_KDTREE_H
+
+#include "common.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The deepest tree a query's fixed stack can handle; build refuses more records than fit. */
+#define PM_KDTREE_MAX_DEPTH 64
+
+/* Query flags. */
+#define PM_SORT 1u /* sort results by (dist2, index) ascending */
+
+typedef struct pm_kdtree pm_kdtree;
+
+typedef struct pm_kdtree_config {
+    size_t stride;     /* bytes from one record to the next; >= 12 */
+    size_t pos_offset; /* byte offset of the float[3] position; pos_offset + 12 <= stride */
+    int axis_offset;   /* byte offset of a uint8 whose low 2 bits may hold the split axis, or
+                          -1 for a tree-owned axis array */
+    unsigned bucket;   /* leaf bucket size B >= 1; 1 is Jensen's classic tree */
+} pm_kdtree_config;
+
+/* A config for pm_photon records with bucket size B (axis in the flag byte). */
+pm_kdtree_config pm_kdtree_photon_config(unsigned bucket);
+
+/* Build a tree over records[0..n). Reorders records in place (see the top of this file).
+ * perm is optional (may be NULL); if given it must hold n entries. n = 0 builds an empty tree.
+ * Returns 0 and sets *out, or a negative PM_E* code (PM_EINVAL for a bad config, PM_ERANGE
+ * for n >= 2^32 - 1, PM_ENOMEM) and leaves *out NULL and the records unchanged. */
+int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_config *cfg,
+                    uint32_t *perm);
+void pm_kdtree_free(pm_kdtree *tree);
+
+size_t pm_kdtree_size(const pm_kdtree *tree);        /* records indexed */
+size_t pm_kdtree_dropped(const pm_kdtree *tree);     /* non-finite records moved to the tail */
+size_t pm_kdtree_index_bytes(const pm_kdtree *tree); /* bytes the tree owns, not counting the records */
+unsigned pm_kdtree_bucket(const pm_kdtree *tree);
+const void *pm_kdtree_records(const pm_kdtree *tree);
+/* Position of record i (0 <= i < size). */
+const float *pm_kdtree_pos(const pm_kdtree *tree, uint32_t i);
+/* Height of record i above the bottom of the tree: 0 for a record in a leaf (a bucket, or a
+ * node without children), 1 for a node whose children are all leaves, and so on. Precomputed
+ * irradiance uses it to pick "the photons that are neither leaves nor parents of leaves". */
+int pm_kdtree_height(const pm_kdtree *tree, uint32_t i);
+
+/* The k nearest records with dist2 < max_dist2. out must hold k entries. Returns the number
+ * found (0..k) or a negative code. Iterative: an explicit stack of plane distances and far
+ * children, a plain array until k candidates are found, then a max-heap whose top shrinks the
+ * search radius. Unsorted (heap order) unless flags has PM_SORT. */
+int pm_kdtree_knn(const pm_kdtree *tree, const float q[3], unsigned k, float max_dist2,
+                  pm_neighbor *out, unsigned flags, pm_query_stats *stats);
+/* The same search written recursively, for comparison; identical results. */
+int pm_kdtree_knn_recursive(const pm_kdtree *tree, const float q[3], unsigned k,
+                            float max_dist2, pm_neighbor *out, unsigned flags,
+                            pm_query_stats *stats);
+
+/* A caller predicate: nonzero to accept the record. */
+typedef int (*pm_filter_fn)(void *user, const void *record, uint32_t index);
+
+/* k nearest with options, for leak control in radiance estimates:
+ *   - normal, squash: if normal is non-NULL (unit length) and squash > 1, distances are
+ *     measured in an ellipsoid metric compressed along the normal,
+ *       dist2 = |d|^2 + (squash - 1) * (d . normal)^2,
+ *     so records off the tangent plane count as farther (a "disc-shaped" search). The
+ *     returned dist2 values are in this metric.
+ *   - filter: if non-NULL, records it rejects are skipped (e.g. photons arriving from
+ *     behind the surface).
+ * Otherwise as pm_kdtree_knn. */
+typedef struct pm_knn_options {
+    const float *normal;
+    float squash;
+    pm_filter_fn filter;
+    void *filter_user;
+    unsigned flags;
+} pm_knn_options;
+int pm_kdtree_knn_ex(const pm_kdtree *tree, const float q[3], unsigned k, float max_dist2,
+                     const pm_knn_options *opt, pm_neighbor *out, pm_query_stats *stats);
+
+/* All records with dist2 < r2. Writes at most cap of them to out (in traversal order, or by
+ * (dist2, index) with PM_SORT when all fit) and returns the TOTAL number within the radius,
+ * which may exceed cap, or a negative code. out may be NULL when cap is 0 (a pure count). */
+long pm_kdtree_radius(const pm_kdtree *tree, const float q[3], float r2, pm_neighbor *out,
+                      size_t cap, unsigned flags, pm_query_stats *stats);
+/* The same, calling fn for each record within the radius; fn returns nonzero to stop early.
+ * Returns the number of calls made. */
+typedef int (*pm_visit_fn)(void *user, uint32_t index, float dist2);
+long pm_kdtree_radius_cb(const pm_kdtree *tree, const float q[3], float r2, pm_visit_fn fn,
+                         void *user, pm_query_stats *stats);
+
+/* The single nearest record with dist2 < max_dist2 that pred accepts (pred may be NULL).
+ * Returns 1 and fills *out, 0 if there is none, or a negative code. */
+int pm_kdtree_nearest_if(const pm_kdtree *tree, const float q[3], float max_dist2,
+                         pm_filter_fn pred, void *user, pm_neighbor *out,
+                         pm_query_stats *stats);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* PM_KDTREE_H */

@@ -1,0 +1,217 @@
+/* runner.c: runs every registered test, each in its own forked child.
+ *
+ * Usage: run_tests [--list] [-j N] [PATTERN...]
+ *   PATTERN selects tests whose name or file contains it (any pattern matches).
+ *   -j N runs N tests at once (default: PM_TEST_JOBS, else 2). Each child's output is
+ *   captured and printed whole when it ends, so parallel output does not interleave.
+ *   PM_TEST_TIMEOUT (seconds, default 300) kills a test that runs too long.
+ * The last line printed is "N passed, N failed"; the exit status is 1 if any test failed.
+ */
+#define _GNU_SOURCE
+#include "test.h"
+
+#include <errno.h>
+#include <signal.h>
+#include <stdarg.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/time.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+typedef struct {
+    const char *name, *file;
+    pm_test_fn fn;
+} test_entry;
+
+static test_entry *g_tests;
+static int g_ntests, g_cap;
+static int g_failures;       /* in the child: failures of the running test */
+static char g_tmpdir[512];
+
+void pm_test_register(const char *name, const char *file, pm_test_fn fn) {
+    if (g_ntests == g_cap) {
+        g_cap = g_cap ? 2 * g_cap : 64;
+        g_tests = realloc(g_tests, (size_t)g_cap * sizeof *g_tests);
+        if (!g_tests) abort();
+    }
+    g_tests[g_ntests++] = (test_entry){name, file, fn};
+}
+
+void pm_test_fail(const char *file, int line, const char *fmt, ...) {
+    va_list ap;
+    g_failures++;
+    if (g_failures > 20) return; /* one broken loop should not flood the log */
+    fprintf(stdout, "    %s:%d: ", file, line);
+    va_start(ap, fmt);
+    vfprintf(stdout, fmt, ap);
+    va_end(ap);
+    fputc('\n', stdout);
+    fflush(stdout);
+}
+
+int pm_test_failed(void) { return g_failures; }
+
+const char *pm_test_build_dir(void) {
+    const char *d = getenv("PM_BUILD_DIR");
+    return d && *d ? d : "build/release";
+}
+
+const char *pm_test_source_dir(void) {
+    const char *d = getenv("PM_SOURCE_DIR");
+    return d && *d ? d : ".";
+}
+
+const char *pm_test_tmpdir(void) {
+    if (!g_tmpdir[0]) {
+        const char *base = getenv("TMPDIR");
+        snprintf(g_tmpdir, sizeof g_tmpdir, "%s/pmtest.XXXXXX", base && *base ? base : "/tmp");
+        if (!mkdtemp(g_tmpdir)) {
+            perror("mkdtemp");
+            abort();
+        }
+    }
+    return g_tmpdir;
+}
+
+int pm_test_run(const char *cmd, char *buf, size_t cap) {
+    FILE *p;
+    size_t len = 0;
+    int status;
+    char *full = malloc(strlen(cmd) + 16);
+    if (!full) return -1;
+    sprintf(full, "(%s) 2>&1", cmd);
+    fflush(NULL);
+    p = popen(full, "r");
+    free(full);
+    if (!p) return -1;
+    if (buf && cap) {
+        size_t got;
+        while (len + 1 < cap && (got = fread(buf + len, 1, cap - 1 - len, p)) > 0) len += got;
+        buf[len] = 0;
+    }
+    {   /* drain whatever did not fit */
+        char sink[4096];
+        while (fread(sink, 1, sizeof sink, p) > 0) {}
+    }
+    status = pclose(p);
+    if (status == -1 || !WIFEXITED(status)) return -1;
+    return WEXITSTATUS(status);
+}
+
+static double now_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+/* Child side: run one test with stdout/stderr going to fd `out`. */
+static void run_child(const test_entry *t, int out, unsigned timeout) {
+    dup2(out, 1);
+    dup2(out, 2);
+    close(out);
+    setvbuf(stdout, NULL, _IOLBF, 0);
+    alarm(timeout);
+    t->fn();
+    fflush(NULL);
+    if (g_tmpdir[0] && !g_failures) {
+        char cmd[600];
+        snprintf(cmd, sizeof cmd, "rm -rf '%s'", g_tmpdir);
+        if (system(cmd) != 0) {}
+    } else if (g_tmpdir[0]) {
+        printf("    (scratch kept in %s)\n", g_tmpdir);
+    }
+    _exit(g_failures ? 1 : 0);
+}
+
+typedef struct {
+    pid_t pid;
+    int idx;
+    FILE *log;
+    double t0;
+} running;
+
+static int selected(const test_entry *t, int npat, char **pat) {
+    if (npat == 0) return 1;
+    for (int i = 0; i < npat; i++)
+        if (strstr(t->name, pat[i]) || strstr(t->file, pat[i])) return 1;
+    return 0;
+}
+
+int main(int argc, char **argv) {
+    int jobs = 2, npat = 0, list = 0, passed = 0, failed = 0;
+    char **pat = calloc((size_t)argc, sizeof *pat);
+    const char *env;
+    unsigned timeout = 300;
+    running *run;
+    int nrun = 0, next = 0;
+
+    if ((env = getenv("PM_TEST_JOBS")) && atoi(env) > 0) jobs = atoi(env);
+    if ((env = getenv("PM_TEST_TIMEOUT")) && atoi(env) > 0) timeout = (unsigned)atoi(env);
+    for (int i = 1; i < argc; i++) {
+        if (!strcmp(argv[i], "--list")) list = 1;
+        else if (!strcmp(argv[i], "-j") && i + 1 < argc) jobs = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) {
+            printf("usage: %s [--list] [-j N] [PATTERN...]\n", argv[0]);
+            return 0;
+        } else pat[npat++] = argv[i];
+    }
+    if (jobs < 1) jobs = 1;
+    if (list) {
+        for (int i = 0; i < g_ntests; i++)
+            if (selected(&g_tests[i], npat, pat)) printf("%s  (%s)\n", g_tests[i].name, g_tests[i].file);
+        return 0;
+    }
+    run = calloc((size_t)jobs, sizeof *run);
+    signal(SIGPIPE, SIG_IGN);
+    while (next < g_ntests || nrun > 0) {
+        while (nrun < jobs && next < g_ntests) {
+            int i = next++;
+            FILE *log;
+            pid_t pid;
+            if (!selected(&g_tests[i], npat, pat)) continue;
+            log = tmpfile();
+            if (!log) { perror("tmpfile"); return 2; }
+            fflush(NULL);
+            pid = fork();
+            if (pid < 0) { perror("fork"); return 2; }
+            if (pid == 0) run_child(&g_tests[i], fileno(log), timeout);
+            run[nrun++] = (running){pid, i, log, now_s()};
+        }
+        if (nrun == 0) break;
+        {
+            int status, k;
+            pid_t pid = wait(&status);
+            char buf[4096];
+            size_t got;
+            const test_entry *t;
+            int ok;
+            if (pid < 0) {
+                if (errno == EINTR) continue;
+                perror("wait");
+                return 2;
+            }
+            for (k = 0; k < nrun && run[k].pid != pid; k++) {}
+            if (k == nrun) continue;
+            t = &g_tests[run[k].idx];
+            ok = WIFEXITED(status) && WEXITSTATUS(status) == 0;
+            printf("%s %s (%.2fs)\n", ok ? "PASS" : "FAIL", t->name, now_s() - run[k].t0);
+            rewind(run[k].log);
+            while ((got = fread(buf, 1, sizeof buf, run[k].log)) > 0) fwrite(buf, 1, got, stdout);
+            if (WIFSIGNALED(status))
+                printf("    killed by signal %d%s\n", WTERMSIG(status),
+                       WTERMSIG(status) == SIGALRM ? " (time limit; PM_TEST_TIMEOUT)" : "");
+            fflush(stdout);
+            fclose(run[k].log);
+            if (ok) passed++;
+            else failed++;
+            run[k] = run[--nrun];
+        }
+    }
+    printf("%d passed, %d failed\n", passed, failed);
+    free(run);
+    free(pat);
+    return failed ? 1 : 0;
+}
