@@ -44,10 +44,11 @@ ifeq ($(SIMD),avx2)
 endif
 ifneq ($(SANITIZE),)
   SAN_FLAGS := -fsanitize=$(SANITIZE) -fno-omit-frame-pointer -fno-sanitize-recover=all
+  SAN_DEFS := -DPM_SANITIZED=1
 endif
 CFLAGS ?=
 LDFLAGS ?=
-ALL_CFLAGS = $(CFLAGS_BASE) $(SAN_FLAGS) $(CFLAGS)
+ALL_CFLAGS = $(CFLAGS_BASE) $(SAN_FLAGS) $(SAN_DEFS) $(CFLAGS)
 ALL_LDFLAGS = $(SAN_FLAGS) $(OMP_LIBS) $(LDFLAGS)
 
 # ---- sources -------------------------------------------------------------------------------

@@ -27,6 +27,14 @@
 #include <math.h>
 #include <stdio.h>
 
+/* 1 in a sanitizer build (ASan/UBSan): tests may shrink their problem sizes, keeping the same
+ * oracle and tolerance, so that `make test SANITIZE=address,undefined` stays fast. */
+#if defined(__SANITIZE_ADDRESS__) || defined(PM_SANITIZED)
+#define PM_TEST_SANITIZED 1
+#else
+#define PM_TEST_SANITIZED 0
+#endif
+
 typedef void (*pm_test_fn)(void);
 void pm_test_register(const char *name, const char *file, pm_test_fn fn);
 void pm_test_fail(const char *file, int line, const char *fmt, ...)
