@@ -1,0 +1,379 @@
+/* kdtree.c: building the left-balanced heap kd-tree of kdtree.h, and its small accessors.
+ *
+ * SHAPE. For n records and bucket size B the tree has depth D, the smallest D >= 0 with
+ * n + 1 <= (B + 1) * 2^D. Heap nodes 1 .. 2^D - 1 are internal and hold one record each, at
+ * record index node - 1; heap nodes 2^D .. 2^(D+1) - 1 are the L = 2^D leaf buckets. The
+ * remaining n - (2^D - 1) records are spread as evenly as possible over the buckets, the
+ * first `extra` buckets holding one record more (q or q + 1 records each), and stored
+ * contiguously after the internal records. Leaf j starts at record (2^D - 1) + j*q + min(j,
+ * extra). With B = 1 this is exactly Jensen's balanced heap (record i - 1 is node i), and the
+ * size of every subtree, hence the rank of every median, follows from (D, q, extra) alone.
+ *
+ * BUILD. The finite positions are copied with their original indices into a 16-byte work
+ * array (the records themselves may be large). An explicit stack walks the heap depth first;
+ * each internal node takes the tight bounding box of its range, picks the axis of largest
+ * extent (ties: lowest axis) and moves the record of the left subtree's size to its rank with
+ * an introselect (random median-of-3 pivot, 3-way partition so runs of equal keys are linear,
+ * a heapsort fallback when the pivots keep failing), which leaves every smaller-rank key <=
+ * and every larger-rank key >= the median. Each level costs O(n), so the build is O(n log n)
+ * with no recursion. The caller's records are then permuted in place by following cycles.
+ *
+ * DUPLICATES. A subtree whose records all share one position (zero extent) is marked with
+ * axis code 3, "uniform", and is not split further: queries handle it as a single distance
+ * (kdtree_query.c). When a median splits a run of records identical to it, both children keep
+ * the parent's axis (when they still have extent there): the duplicates then sit at the
+ * children's boundary along that axis and end up in few uniform subtrees instead of being
+ * scattered over many mixed nodes by splits on other axes. This keeps the number of nodes a
+ * query visits near a heavy duplicate bounded.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "kdtree_internal.h"
+
+/* ---- small accessors --------------------------------------------------------------------- */
+
+pm_kdtree_config pm_kdtree_photon_config(unsigned bucket) {
+    pm_kdtree_config c;
+    c.stride = 20;
+    c.pos_offset = 0;
+    c.axis_offset = 18; /* pm_photon.flag; see photon.h */
+    c.bucket = bucket;
+    return c;
+}
+
+size_t pm_kdtree_size(const pm_kdtree *t) { return t ? t->n : 0; }
+size_t pm_kdtree_dropped(const pm_kdtree *t) { return t ? t->dropped : 0; }
+unsigned pm_kdtree_bucket(const pm_kdtree *t) { return t ? t->bucket : 0; }
+const void *pm_kdtree_records(const pm_kdtree *t) { return t ? t->rec : NULL; }
+
+size_t pm_kdtree_index_bytes(const pm_kdtree *t) {
+    if (!t) return 0;
+    return sizeof *t + (t->axes ? (size_t)t->ninternal : 0);
+}
+
+const float *pm_kdtree_pos(const pm_kdtree *t, uint32_t i) {
+    if (!t || i >= t->n) return NULL;
+    return (const float *)(t->rec + (size_t)i * t->stride + t->pos_offset);
+}
+
+void pm_kdtree_free(pm_kdtree *t) {
+    if (!t) return;
+    free(t->axes);
+    free(t);
+}
+
+int pm_kdtree_height(const pm_kdtree *t, uint32_t i) {
+    if (!t || i >= t->n || i >= t->ninternal) return 0;
+    uint32_t p = i + 1;
+    int level = pm__ilog2(p);
+    int below = (int)t->depth - 1 - level; /* internal levels under p */
+    /* Records in the buckets under p: p's subtree spans 2^(D - level) buckets. */
+    uint64_t span = (uint64_t)1 << (t->depth - level);
+    uint64_t j0 = (uint64_t)p * span - t->nleaves;
+    uint64_t inb = pm__cum(t, j0 + span) - pm__cum(t, j0);
+    return below + (inb > 0 ? 1 : 0);
+}
+
+/* ---- build ------------------------------------------------------------------------------- */
+
+typedef struct {
+    float p[3];
+    uint32_t idx;
+} item;
+
+static inline float key(const item *it, int a) { return it->p[a]; }
+
+static inline void swap_item(item *a, item *b) {
+    item t = *a;
+    *a = *b;
+    *b = t;
+}
+
+static void sift(item *a, size_t n, size_t i, int ax) {
+    for (;;) {
+        size_t c = 2 * i + 1;
+        if (c >= n) return;
+        if (c + 1 < n && key(&a[c + 1], ax) > key(&a[c], ax)) c++;
+        if (!(key(&a[c], ax) > key(&a[i], ax))) return;
+        swap_item(&a[c], &a[i]);
+        i = c;
+    }
+}
+
+static void heapsort_items(item *a, size_t n, int ax) {
+    if (n < 2) return;
+    for (size_t i = n / 2; i-- > 0;) sift(a, n, i, ax);
+    for (size_t e = n - 1; e > 0; e--) {
+        swap_item(&a[0], &a[e]);
+        sift(a, e, 0, ax);
+    }
+}
+
+static void insertion_items(item *a, size_t n, int ax) {
+    for (size_t i = 1; i < n; i++) {
+        item v = a[i];
+        size_t j = i;
+        while (j > 0 && key(&a[j - 1], ax) > key(&v, ax)) {
+            a[j] = a[j - 1];
+            j--;
+        }
+        a[j] = v;
+    }
+}
+
+static inline uint64_t xorshift(uint64_t *s) {
+    uint64_t x = *s;
+    x ^= x << 13;
+    x ^= x >> 7;
+    x ^= x << 17;
+    *s = x;
+    return x;
+}
+
+/* Put the element of rank k of a[0..n) (by coordinate ax) at a[k], smaller-or-equal keys
+ * before it and greater-or-equal after. Expected linear; worst case O(n log n). */
+static void select_rank(item *a, size_t n, size_t k, int ax, uint64_t *rng) {
+    size_t lo = 0, hi = n;
+    int budget = 2 * pm__ilog2((uint32_t)(n | 1)) + 16;
+    while (hi - lo > 24) {
+        if (budget-- <= 0) {
+            heapsort_items(a + lo, hi - lo, ax);
+            return;
+        }
+        size_t m = hi - lo;
+        float x = key(&a[lo + xorshift(rng) % m], ax);
+        float y = key(&a[lo + xorshift(rng) % m], ax);
+        float z = key(&a[lo + xorshift(rng) % m], ax);
+        float piv = x < y ? (y < z ? y : (x < z ? z : x)) : (x < z ? x : (y < z ? z : y));
+        /* Dijkstra's 3-way partition: [lo,lt) < piv, [lt,i) == piv, (gt,hi) > piv. */
+        size_t lt = lo, i = lo, gt = hi;
+        while (i < gt) {
+            float v = key(&a[i], ax);
+            if (v < piv)
+                swap_item(&a[lt++], &a[i++]);
+            else if (v > piv)
+                swap_item(&a[i], &a[--gt]);
+            else
+                i++;
+        }
+        if (k < lt)
+            hi = lt;
+        else if (k >= gt)
+            lo = gt;
+        else
+            return;
+    }
+    insertion_items(a + lo, hi - lo, ax);
+}
+
+static int config_ok(const pm_kdtree_config *c, const void *records) {
+    if (c->stride < 12 || c->pos_offset > c->stride - 12 || c->bucket < 1) return 0;
+    if (c->stride % 4 != 0 || ((uintptr_t)records + c->pos_offset) % 4 != 0) return 0;
+    if (c->axis_offset >= 0) {
+        size_t a = (size_t)c->axis_offset;
+        if (a >= c->stride) return 0;
+        if (a >= c->pos_offset && a < c->pos_offset + 12) return 0;
+    } else if (c->axis_offset != -1) {
+        return 0;
+    }
+    return 1;
+}
+
+/* Subtree size of heap node p at the given level. */
+static uint64_t subtree_size(const pm_kdtree *t, uint64_t p, int level) {
+    uint64_t span = (uint64_t)1 << (t->depth - level);
+    uint64_t j0 = p * span - t->nleaves;
+    return (span - 1) + pm__cum(t, j0 + span) - pm__cum(t, j0);
+}
+
+/* Write the original indices of w[0..cnt) into the record slots of the subtree of node p
+ * (in the order of pm__subtree_ranges). Used for uniform subtrees and leaves. */
+static void place_subtree(const pm_kdtree *t, uint32_t *order, uint8_t *ax, uint64_t p,
+                          int level, const item *w) {
+    pm__range r[PM_KDTREE_MAX_DEPTH + 1];
+    int nr = pm__subtree_ranges(t, p, level, r);
+    size_t k = 0;
+    for (int s = 0; s < nr; s++) {
+        for (uint64_t i = r[s].begin; i < r[s].end; i++) {
+            order[i] = w[k++].idx;
+            if (i < t->ninternal) ax[i] = PM__AXIS_UNIFORM;
+        }
+    }
+}
+
+int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_config *cfg,
+                    uint32_t *perm) {
+    if (!out) return PM_EINVAL;
+    *out = NULL;
+    if (!cfg || (n > 0 && !records) || !config_ok(cfg, records)) return PM_EINVAL;
+    if (n >= 0xFFFFFFFFu) return PM_ERANGE;
+
+    pm_kdtree *t = calloc(1, sizeof *t);
+    item *w = malloc((n ? n : 1) * sizeof *w);
+    uint32_t *order = malloc((n ? n : 1) * sizeof *order);
+    uint8_t *ax = NULL;
+    uint8_t *done = NULL;
+    unsigned char *tmp = malloc(cfg->stride);
+    if (!t || !w || !order || !tmp) goto nomem;
+
+    t->rec = records;
+    t->stride = cfg->stride;
+    t->pos_offset = cfg->pos_offset;
+    t->axis_offset = cfg->axis_offset;
+    t->bucket = cfg->bucket;
+
+    /* Finite records to the work array; non-finite ones to the tail, in original order. */
+    char *base = records;
+    size_t m = 0, nd = 0;
+    for (size_t i = 0; i < n; i++) {
+        const float *p = (const float *)(base + i * cfg->stride + cfg->pos_offset);
+        if (isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2])) {
+            w[m].p[0] = p[0];
+            w[m].p[1] = p[1];
+            w[m].p[2] = p[2];
+            w[m].idx = (uint32_t)i;
+            m++;
+        } else {
+            order[n - 1 - nd++] = (uint32_t)i;
+        }
+    }
+    for (size_t a = 0, b = nd; a < b / 2; a++) {
+        uint32_t s = order[m + a];
+        order[m + a] = order[n - 1 - a];
+        order[n - 1 - a] = s;
+    }
+    t->n = (uint32_t)m;
+    t->dropped = (uint32_t)nd;
+
+    /* Shape: smallest D with m + 1 <= (B + 1) * 2^D. */
+    int D = 0;
+    while ((uint64_t)m + 1 > ((uint64_t)cfg->bucket + 1) << D) D++;
+    t->depth = (uint32_t)D;
+    t->nleaves = (uint32_t)1 << D;
+    t->ninternal = t->nleaves - 1;
+    t->leaf_q = (uint32_t)((m - t->ninternal) / t->nleaves);
+    t->leaf_extra = (uint32_t)((m - t->ninternal) % t->nleaves);
+
+    ax = malloc(t->ninternal ? t->ninternal : 1);
+    done = calloc(n / 8 + 1, 1);
+    if (!ax || !done) goto nomem;
+
+    /* Depth-first walk with an explicit stack: (node, range, level, sticky axis). */
+    struct {
+        uint64_t p;
+        size_t lo, hi;
+        int level, sticky;
+    } st[PM_KDTREE_MAX_DEPTH + 2];
+    int sp = 0;
+    uint64_t rng = 0x9E3779B97F4A7C15ull;
+    if (m > 0) {
+        st[sp].p = 1, st[sp].lo = 0, st[sp].hi = m, st[sp].level = 0, st[sp].sticky = -1;
+        sp++;
+    }
+    while (sp > 0) {
+        sp--;
+        uint64_t p = st[sp].p;
+        size_t lo = st[sp].lo, hi = st[sp].hi;
+        int level = st[sp].level, sticky = st[sp].sticky;
+        if (p >= t->nleaves) { /* a bucket: its records in work order */
+            place_subtree(t, order, ax, p, level, w + lo);
+            continue;
+        }
+        float mn[3], mx[3];
+        for (int a = 0; a < 3; a++) mn[a] = mx[a] = w[lo].p[a];
+        for (size_t i = lo + 1; i < hi; i++) {
+            for (int a = 0; a < 3; a++) {
+                float v = w[i].p[a];
+                if (v < mn[a]) mn[a] = v;
+                if (v > mx[a]) mx[a] = v;
+            }
+        }
+        float ext[3] = {mx[0] - mn[0], mx[1] - mn[1], mx[2] - mn[2]};
+        /* Extents of huge coordinates may overflow to inf; that is still the largest. */
+        if (!(ext[0] > 0) && !(ext[1] > 0) && !(ext[2] > 0)) {
+            place_subtree(t, order, ax, p, level, w + lo);
+            continue;
+        }
+        int a = 0;
+        if (ext[1] > ext[a]) a = 1;
+        if (ext[2] > ext[a]) a = 2;
+        if (sticky >= 0 && ext[sticky] > 0) a = sticky;
+        size_t r = (size_t)subtree_size(t, 2 * p, level + 1);
+        select_rank(w + lo, hi - lo, r, a, &rng);
+        const item *med = &w[lo + r];
+        /* Does the median split a run of records identical to it? */
+        int left_dup = 0, right_dup = 0;
+        for (size_t i = lo; i < hi; i++) {
+            if (i == lo + r || w[i].p[a] != med->p[a]) continue;
+            if (w[i].p[0] == med->p[0] && w[i].p[1] == med->p[1] && w[i].p[2] == med->p[2]) {
+                if (i < lo + r)
+                    left_dup = 1;
+                else
+                    right_dup = 1;
+            }
+        }
+        int child_sticky = (left_dup && right_dup) ? a : -1;
+        order[p - 1] = med->idx;
+        ax[p - 1] = (uint8_t)a;
+        st[sp].p = 2 * p + 1, st[sp].lo = lo + r + 1, st[sp].hi = hi;
+        st[sp].level = level + 1, st[sp].sticky = child_sticky;
+        sp++;
+        st[sp].p = 2 * p, st[sp].lo = lo, st[sp].hi = lo + r;
+        st[sp].level = level + 1, st[sp].sticky = child_sticky;
+        sp++;
+    }
+    free(w);
+    w = NULL;
+
+    /* Permute the records in place: slot i receives the record that was at order[i]. */
+    for (size_t i = 0; i < n; i++) {
+        if (done[i / 8] & (1u << (i % 8))) continue;
+        if (order[i] == i) {
+            done[i / 8] |= (uint8_t)(1u << (i % 8));
+            continue;
+        }
+        memcpy(tmp, base + i * cfg->stride, cfg->stride);
+        size_t j = i;
+        for (;;) {
+            size_t src = order[j];
+            done[j / 8] |= (uint8_t)(1u << (j % 8));
+            if (src == i) {
+                memcpy(base + j * cfg->stride, tmp, cfg->stride);
+                break;
+            }
+            memcpy(base + j * cfg->stride, base + src * cfg->stride, cfg->stride);
+            j = src;
+        }
+    }
+    if (perm) memcpy(perm, order, n * sizeof *perm);
+
+    if (cfg->axis_offset >= 0) {
+        /* Axis bits in the records: internal nodes get their axis (or 3, uniform); bucket
+         * records get 0. The other six bits of the byte are preserved. */
+        for (size_t i = 0; i < m; i++) {
+            uint8_t *b = (uint8_t *)base + i * cfg->stride + cfg->axis_offset;
+            uint8_t v = i < t->ninternal ? ax[i] : 0;
+            *b = (uint8_t)((*b & ~PM__AXIS_MASK) | v);
+        }
+        free(ax);
+        t->axes = NULL;
+    } else {
+        t->axes = ax;
+    }
+    free(order);
+    free(done);
+    free(tmp);
+    *out = t;
+    return PM_OK;
+
+nomem:
+    free(t);
+    free(w);
+    free(order);
+    free(ax);
+    free(done);
+    free(tmp);
+    return PM_ENOMEM;
+}

@@ -1,0 +1,522 @@
+/* kdtree_query.c: k-nearest, radius and predicate queries on the heap kd-tree.
+ *
+ * TRAVERSAL. Christensen's "iteration instead of recursion": walk down to the bucket on the
+ * query's side of every split, pushing (squared plane distance, far child) on a fixed stack of
+ * at most D entries; scan the bucket; then pop entries until one has plane dist2 < r2, where r2
+ * is the current search radius. Only then is that node's own record tested (it lies on the
+ * plane, so its dist2 is at least the plane dist2: when the far side is pruned, so is the
+ * record) and the walk continues down its far child. The recursive version makes the same
+ * decisions in the same order, so both return identical arrays.
+ *
+ * RADIUS. r2 = +INFINITY is stored internally as NaN, and every test is written as
+ * !(x >= r2): against NaN that is always true, so an unlimited search also accepts records
+ * whose float dist2 overflowed to +inf; against a finite r2 it is the strict x < r2. dist2 and
+ * plane distances are never NaN (positions and queries are finite), so no other case arises.
+ *
+ * K-NN. Candidates go to the caller's array in arrival order until k are found; the array is
+ * then turned into a max-heap on dist2 and r2 becomes its top, so the radius shrinks as closer
+ * records replace the top. A record is accepted only with dist2 < r2, so among records tied at
+ * the k-th distance the first met wins.
+ *
+ * UNIFORM SUBTREES (axis code 3, all records at one position) are handled as one distance:
+ * records are taken from them only while they can still enter the result, so a million
+ * identical points cost O(k) instead of a full scan.
+ */
+#include <math.h>
+#include <string.h>
+
+#include "kdtree_internal.h"
+
+#if defined(__GNUC__)
+#define PM__INLINE static inline __attribute__((always_inline))
+#else
+#define PM__INLINE static inline
+#endif
+
+typedef struct {
+    const char *pos;    /* records + pos_offset */
+    const char *rec;    /* records */
+    size_t stride;
+    const uint8_t *axb; /* axis byte of record i at axb[i * axs] */
+    size_t axs;
+    uint64_t L;         /* leaf nodes start here */
+    const struct pm_kdtree *t;
+} view;
+
+PM__INLINE const float *P(const view *v, uint64_t i) {
+    return (const float *)(v->pos + i * v->stride);
+}
+PM__INLINE unsigned AX(const view *v, uint64_t node) {
+    return v->axb[(node - 1) * v->axs] & PM__AXIS_MASK;
+}
+
+static view make_view(const pm_kdtree *t) {
+    view v;
+    v.rec = t->rec;
+    v.pos = t->rec + t->pos_offset;
+    v.stride = t->stride;
+    if (t->axis_offset >= 0) {
+        v.axb = (const uint8_t *)t->rec + t->axis_offset;
+        v.axs = t->stride;
+    } else {
+        v.axb = t->axes;
+        v.axs = 1;
+    }
+    v.L = t->nleaves;
+    v.t = t;
+    return v;
+}
+
+PM__INLINE void bucket_range(const pm_kdtree *t, uint64_t node, uint64_t *b, uint64_t *e) {
+    uint64_t j = node - t->nleaves;
+    *b = t->ninternal + pm__cum(t, j);
+    *e = *b + t->leaf_q + (j < t->leaf_extra);
+}
+
+static int check_query(const pm_kdtree *t, const float q[3], float r2) {
+    if (!t || !q) return PM_EINVAL;
+    if (isnan(r2)) return PM_ENONFINITE;
+    if (!isfinite(q[0]) || !isfinite(q[1]) || !isfinite(q[2])) return PM_ENONFINITE;
+    return PM_OK;
+}
+
+/* ---- sorting results (no allocation) ----------------------------------------------------- */
+
+PM__INLINE int nb_less(const pm_neighbor *a, const pm_neighbor *b) {
+    return a->dist2 < b->dist2 || (a->dist2 == b->dist2 && a->index < b->index);
+}
+
+static void nb_sift(pm_neighbor *a, size_t n, size_t i) {
+    for (;;) {
+        size_t c = 2 * i + 1;
+        if (c >= n) return;
+        if (c + 1 < n && nb_less(&a[c], &a[c + 1])) c++;
+        if (!nb_less(&a[i], &a[c])) return;
+        pm_neighbor s = a[i];
+        a[i] = a[c];
+        a[c] = s;
+        i = c;
+    }
+}
+
+static void sort_neighbors(pm_neighbor *a, size_t n) {
+    if (n <= 24) {
+        for (size_t i = 1; i < n; i++) {
+            pm_neighbor v = a[i];
+            size_t j = i;
+            while (j > 0 && nb_less(&v, &a[j - 1])) {
+                a[j] = a[j - 1];
+                j--;
+            }
+            a[j] = v;
+        }
+        return;
+    }
+    for (size_t i = n / 2; i-- > 0;) nb_sift(a, n, i);
+    for (size_t e = n - 1; e > 0; e--) {
+        pm_neighbor s = a[0];
+        a[0] = a[e];
+        a[e] = s;
+        nb_sift(a, e, 0);
+    }
+}
+
+/* ---- k nearest --------------------------------------------------------------------------- */
+
+typedef struct {
+    float q[3];
+    float r2;             /* current radius; NaN = unlimited */
+    pm_neighbor *out;
+    unsigned k, found;
+    const float *nrm;     /* ellipsoid metric normal, or NULL */
+    float sq1;            /* squash - 1 */
+    pm_filter_fn filter;
+    void *user;
+    uint64_t nodes, evals;
+} knn_state;
+
+/* Max-heap on dist2 in out[0..k). */
+PM__INLINE void heap_down(pm_neighbor *h, unsigned n, pm_neighbor v) {
+    unsigned i = 0;
+    for (;;) {
+        unsigned c = 2 * i + 1;
+        if (c >= n) break;
+        if (c + 1 < n && h[c + 1].dist2 > h[c].dist2) c++;
+        if (!(h[c].dist2 > v.dist2)) break;
+        h[i] = h[c];
+        i = c;
+    }
+    h[i] = v;
+}
+
+static void heapify(pm_neighbor *h, unsigned n) {
+    for (unsigned i = n / 2; i-- > 0;) {
+        pm_neighbor v = h[i];
+        unsigned j = i;
+        for (;;) {
+            unsigned c = 2 * j + 1;
+            if (c >= n) break;
+            if (c + 1 < n && h[c + 1].dist2 > h[c].dist2) c++;
+            if (!(h[c].dist2 > v.dist2)) break;
+            h[j] = h[c];
+            j = c;
+        }
+        h[j] = v;
+    }
+}
+
+/* Precondition: !(d2 >= s->r2). */
+PM__INLINE void knn_push(knn_state *s, float d2, uint32_t idx) {
+    pm_neighbor nb;
+    nb.dist2 = d2;
+    nb.index = idx;
+    if (s->found < s->k) {
+        s->out[s->found++] = nb;
+        if (s->found == s->k) {
+            heapify(s->out, s->k);
+            s->r2 = s->out[0].dist2;
+        }
+    } else {
+        heap_down(s->out, s->k, nb);
+        s->r2 = s->out[0].dist2;
+    }
+}
+
+PM__INLINE float knn_dist2(const knn_state *s, const float *p, int metric) {
+    float dx = s->q[0] - p[0], dy = s->q[1] - p[1], dz = s->q[2] - p[2];
+    float d2 = dx * dx + dy * dy + dz * dz;
+    if (metric) {
+        float dn = dx * s->nrm[0] + dy * s->nrm[1] + dz * s->nrm[2];
+        d2 += s->sq1 * (dn * dn);
+    }
+    return d2;
+}
+
+PM__INLINE void knn_consider(knn_state *s, const view *v, uint64_t i, int metric, int filter) {
+    float d2 = knn_dist2(s, P(v, i), metric);
+    s->evals++;
+    if (!(d2 >= s->r2)) {
+        if (filter && !s->filter(s->user, v->rec + i * v->stride, (uint32_t)i)) return;
+        knn_push(s, d2, (uint32_t)i);
+    }
+}
+
+/* A uniform subtree rooted at internal node `node`: one distance for all its records. */
+static void knn_uniform(knn_state *s, const view *v, uint64_t node, int metric, int filter) {
+    float d2 = knn_dist2(s, P(v, node - 1), metric);
+    s->evals++;
+    if (d2 >= s->r2) return;
+    pm__range r[PM_KDTREE_MAX_DEPTH + 1];
+    int nr = pm__subtree_ranges(v->t, node, pm__ilog2(node), r);
+    for (int g = 0; g < nr; g++) {
+        for (uint64_t i = r[g].begin; i < r[g].end; i++) {
+            if (d2 >= s->r2) return;
+            if (filter && !s->filter(s->user, v->rec + i * v->stride, (uint32_t)i)) continue;
+            knn_push(s, d2, (uint32_t)i);
+        }
+    }
+}
+
+PM__INLINE void knn_bucket(knn_state *s, const view *v, uint64_t node, int metric, int filter) {
+    uint64_t b, e;
+    bucket_range(v->t, node, &b, &e);
+    for (uint64_t i = b; i < e; i++) knn_consider(s, v, i, metric, filter);
+}
+
+PM__INLINE void knn_iter(knn_state *s, const view *v, int metric, int filter) {
+    struct {
+        float d2;
+        uint32_t node;
+    } stack[PM_KDTREE_MAX_DEPTH];
+    int sp = 0;
+    uint64_t node = 1;
+    const uint64_t L = v->L;
+    for (;;) {
+        while (node < L) {
+            unsigned a = AX(v, node);
+            s->nodes++;
+            if (a == PM__AXIS_UNIFORM) {
+                knn_uniform(s, v, node, metric, filter);
+                goto pop;
+            }
+            float d = s->q[a] - P(v, node - 1)[a];
+            uint64_t near = 2 * node + (d >= 0);
+            stack[sp].d2 = d * d;
+            stack[sp].node = (uint32_t)(near ^ 1);
+            sp++;
+            node = near;
+        }
+        s->nodes++;
+        knn_bucket(s, v, node, metric, filter);
+    pop:
+        for (;;) {
+            if (sp == 0) return;
+            sp--;
+            if (!(stack[sp].d2 >= s->r2)) {
+                node = stack[sp].node;
+                knn_consider(s, v, (node >> 1) - 1, metric, filter);
+                break;
+            }
+        }
+    }
+}
+
+static void knn_rec(knn_state *s, const view *v, uint64_t node, int metric, int filter) {
+    s->nodes++;
+    if (node >= v->L) {
+        knn_bucket(s, v, node, metric, filter);
+        return;
+    }
+    unsigned a = AX(v, node);
+    if (a == PM__AXIS_UNIFORM) {
+        knn_uniform(s, v, node, metric, filter);
+        return;
+    }
+    float d = s->q[a] - P(v, node - 1)[a];
+    uint64_t near = 2 * node + (d >= 0);
+    knn_rec(s, v, near, metric, filter);
+    if (!(d * d >= s->r2)) {
+        knn_consider(s, v, node - 1, metric, filter);
+        knn_rec(s, v, near ^ 1, metric, filter);
+    }
+}
+
+static void knn_iter_plain(knn_state *s, const view *v) { knn_iter(s, v, 0, 0); }
+static void knn_iter_general(knn_state *s, const view *v) {
+    int metric = s->nrm != NULL, filter = s->filter != NULL;
+    if (metric && filter)
+        knn_iter(s, v, 1, 1);
+    else if (metric)
+        knn_iter(s, v, 1, 0);
+    else if (filter)
+        knn_iter(s, v, 0, 1);
+    else
+        knn_iter(s, v, 0, 0);
+}
+
+/* Common front end. Returns > 0 to go on with the search, else the final return value. */
+static int knn_setup(knn_state *s, const pm_kdtree *t, const float q[3], unsigned k,
+                     float max_dist2, pm_neighbor *out) {
+    int rc = check_query(t, q, max_dist2);
+    if (rc < 0) return rc;
+    if (k == 0 || t->n == 0 || !(max_dist2 > 0)) return 0;
+    if (!out) return PM_EINVAL;
+    memset(s, 0, sizeof *s);
+    s->q[0] = q[0], s->q[1] = q[1], s->q[2] = q[2];
+    s->r2 = max_dist2 == INFINITY ? NAN : max_dist2;
+    s->out = out;
+    s->k = k;
+    return 1;
+}
+
+static int knn_finish(knn_state *s, unsigned flags, pm_query_stats *stats) {
+    if (stats) {
+        stats->nodes_visited += s->nodes;
+        stats->dist_evals += s->evals;
+    }
+    if (flags & PM_SORT) sort_neighbors(s->out, s->found);
+    return (int)s->found;
+}
+
+int pm_kdtree_knn(const pm_kdtree *tree, const float q[3], unsigned k, float max_dist2,
+                  pm_neighbor *out, unsigned flags, pm_query_stats *stats) {
+    knn_state s;
+    int rc = knn_setup(&s, tree, q, k, max_dist2, out);
+    if (rc <= 0) return rc;
+    view v = make_view(tree);
+    knn_iter_plain(&s, &v);
+    return knn_finish(&s, flags, stats);
+}
+
+int pm_kdtree_knn_recursive(const pm_kdtree *tree, const float q[3], unsigned k,
+                            float max_dist2, pm_neighbor *out, unsigned flags,
+                            pm_query_stats *stats) {
+    knn_state s;
+    int rc = knn_setup(&s, tree, q, k, max_dist2, out);
+    if (rc <= 0) return rc;
+    view v = make_view(tree);
+    knn_rec(&s, &v, 1, 0, 0);
+    return knn_finish(&s, flags, stats);
+}
+
+int pm_kdtree_knn_ex(const pm_kdtree *tree, const float q[3], unsigned k, float max_dist2,
+                     const pm_knn_options *opt, pm_neighbor *out, pm_query_stats *stats) {
+    knn_state s;
+    int rc = knn_setup(&s, tree, q, k, max_dist2, out);
+    if (rc <= 0) return rc;
+    unsigned flags = 0;
+    if (opt) {
+        flags = opt->flags;
+        if (opt->normal) {
+            if (isnan(opt->squash)) return PM_ENONFINITE;
+            if (opt->squash > 1) {
+                const float *nm = opt->normal;
+                if (!isfinite(nm[0]) || !isfinite(nm[1]) || !isfinite(nm[2]) ||
+                    !isfinite(opt->squash))
+                    return PM_ENONFINITE;
+                s.nrm = nm;
+                s.sq1 = opt->squash - 1;
+            }
+        }
+        s.filter = opt->filter;
+        s.user = opt->filter_user;
+    }
+    view v = make_view(tree);
+    knn_iter_general(&s, &v);
+    return knn_finish(&s, flags, stats);
+}
+
+int pm_kdtree_nearest_if(const pm_kdtree *tree, const float q[3], float max_dist2,
+                         pm_filter_fn pred, void *user, pm_neighbor *out,
+                         pm_query_stats *stats) {
+    knn_state s;
+    int rc = knn_setup(&s, tree, q, 1, max_dist2, out);
+    if (rc <= 0) return rc;
+    s.filter = pred;
+    s.user = user;
+    view v = make_view(tree);
+    knn_iter_general(&s, &v);
+    return knn_finish(&s, 0, stats);
+}
+
+/* ---- radius ------------------------------------------------------------------------------ */
+
+typedef struct {
+    float q[3];
+    float r2; /* NaN = unlimited */
+    pm_neighbor *out;
+    size_t cap;
+    uint64_t total;
+    pm_visit_fn fn;
+    void *user;
+    int stop;
+    uint64_t nodes, evals;
+} rad_state;
+
+PM__INLINE void rad_take(rad_state *s, uint64_t i, float d2) {
+    if (s->fn) {
+        s->total++;
+        if (s->fn(s->user, (uint32_t)i, d2)) s->stop = 1;
+        return;
+    }
+    if (s->total < s->cap) {
+        s->out[s->total].dist2 = d2;
+        s->out[s->total].index = (uint32_t)i;
+    }
+    s->total++;
+}
+
+PM__INLINE float rad_dist2(const rad_state *s, const float *p) {
+    float dx = s->q[0] - p[0], dy = s->q[1] - p[1], dz = s->q[2] - p[2];
+    return dx * dx + dy * dy + dz * dz;
+}
+
+PM__INLINE void rad_consider(rad_state *s, const view *v, uint64_t i) {
+    float d2 = rad_dist2(s, P(v, i));
+    s->evals++;
+    if (!(d2 >= s->r2)) rad_take(s, i, d2);
+}
+
+static void rad_uniform(rad_state *s, const view *v, uint64_t node) {
+    float d2 = rad_dist2(s, P(v, node - 1));
+    s->evals++;
+    if (d2 >= s->r2) return;
+    pm__range r[PM_KDTREE_MAX_DEPTH + 1];
+    int nr = pm__subtree_ranges(v->t, node, pm__ilog2(node), r);
+    for (int g = 0; g < nr; g++) {
+        if (!s->fn && s->total >= s->cap) { /* nothing more to write: just count */
+            s->total += r[g].end - r[g].begin;
+            continue;
+        }
+        for (uint64_t i = r[g].begin; i < r[g].end && !s->stop; i++) rad_take(s, i, d2);
+        if (s->stop) return;
+    }
+}
+
+static void rad_iter(rad_state *s, const view *v) {
+    struct {
+        float d2;
+        uint32_t node;
+    } stack[PM_KDTREE_MAX_DEPTH];
+    int sp = 0;
+    uint64_t node = 1;
+    const uint64_t L = v->L;
+    for (;;) {
+        while (node < L) {
+            unsigned a = AX(v, node);
+            s->nodes++;
+            if (a == PM__AXIS_UNIFORM) {
+                rad_uniform(s, v, node);
+                goto pop;
+            }
+            float d = s->q[a] - P(v, node - 1)[a];
+            uint64_t near = 2 * node + (d >= 0);
+            stack[sp].d2 = d * d;
+            stack[sp].node = (uint32_t)(near ^ 1);
+            sp++;
+            node = near;
+        }
+        s->nodes++;
+        {
+            uint64_t b, e;
+            bucket_range(v->t, node, &b, &e);
+            for (uint64_t i = b; i < e && !s->stop; i++) rad_consider(s, v, i);
+        }
+    pop:
+        for (;;) {
+            if (sp == 0 || s->stop) return;
+            sp--;
+            if (!(stack[sp].d2 >= s->r2)) {
+                node = stack[sp].node;
+                rad_consider(s, v, (node >> 1) - 1);
+                if (s->stop) return;
+                break;
+            }
+        }
+    }
+}
+
+static int rad_setup(rad_state *s, const pm_kdtree *t, const float q[3], float r2) {
+    int rc = check_query(t, q, r2);
+    if (rc < 0) return rc;
+    if (t->n == 0 || !(r2 > 0)) return 0;
+    memset(s, 0, sizeof *s);
+    s->q[0] = q[0], s->q[1] = q[1], s->q[2] = q[2];
+    s->r2 = r2 == INFINITY ? NAN : r2;
+    return 1;
+}
+
+long pm_kdtree_radius(const pm_kdtree *tree, const float q[3], float r2, pm_neighbor *out,
+                      size_t cap, unsigned flags, pm_query_stats *stats) {
+    rad_state s;
+    int rc = rad_setup(&s, tree, q, r2);
+    if (rc <= 0) return rc;
+    if (!out && cap > 0) return PM_EINVAL;
+    s.out = out;
+    s.cap = cap;
+    view v = make_view(tree);
+    rad_iter(&s, &v);
+    if (stats) {
+        stats->nodes_visited += s.nodes;
+        stats->dist_evals += s.evals;
+    }
+    if ((flags & PM_SORT) && s.total <= cap) sort_neighbors(out, (size_t)s.total);
+    return (long)s.total;
+}
+
+long pm_kdtree_radius_cb(const pm_kdtree *tree, const float q[3], float r2, pm_visit_fn fn,
+                         void *user, pm_query_stats *stats) {
+    rad_state s;
+    if (!fn) return PM_EINVAL;
+    int rc = rad_setup(&s, tree, q, r2);
+    if (rc <= 0) return rc;
+    s.fn = fn;
+    s.user = user;
+    view v = make_view(tree);
+    rad_iter(&s, &v);
+    if (stats) {
+        stats->nodes_visited += s.nodes;
+        stats->dist_evals += s.evals;
+    }
+    return (long)s.total;
+}
