@@ -1,0 +1,115 @@
+/* irradiance.h: precomputed irradiance (Christensen, "Faster photon map global illumination")
+ * and the combination of several independent photon maps.
+ *
+ * PRECOMPUTED IRRADIANCE. pm_irradiance_build takes a built pm_kdtree over pm_photon records
+ * and computes, at a chosen set of photons, the irradiance E (or, given a diffuse reflectance
+ * rho, the radiance rho E / pi) with the bias-corrected disc estimate of k photons, using the
+ * photon's own quantized normal (pm_photon.normal) as the surface normal and rejecting photons
+ * that arrived from behind that surface. The set is either every photon or about a quarter of
+ * them: those with pm_kdtree_height(tree, i) >= 2, i.e. neither leaves nor parents of leaves
+ * (for the classic tree, B = 1, exactly the records i with 4 (i + 1) <= n). The loop runs in
+ * parallel with OpenMP when the build has it.
+ *
+ * STORAGE AND COST. One RGBE value (4 bytes) per photon of the map, in tree order, plus one bit
+ * per photon that says whether it was precomputed, plus (only if opt.store_radius) the float
+ * radius^2 of the photon's own estimate (4 bytes): 4.125 bytes per photon, or 8.125 with
+ * radii; pm_irradiance_bytes_per_photon() reports it. The photons themselves are not copied.
+ * RGBE keeps a relative error below 2^-8 in the largest channel.
+ *
+ * LOOKUP. pm_irradiance_lookup finds, with pm_kdtree_nearest_if, the single nearest
+ * precomputed photon whose decoded normal has dot(normal, n) >= cos_min, within
+ * radius^2 max_dist2 and (with stored radii) within that photon's own estimate radius, and
+ * returns its value; if there is none, black (rgb = 0) and 0.
+ *
+ * COMBINED MAPS. M independent maps of one scene (say, built by M threads or machines, each
+ * emitting 1/M of the photons, with photon powers scaled for the total emission, so that the
+ * union of the maps is an ordinary map). A lookup gathers k/M photons in each map m, with
+ * power sum P_m and radius^2 r_m^2, and combines them as
+ *     E = (M / pi) * sum_m P_m / sum_m r_m^2,
+ * the density of all the photons over the mean disc, which behaves like one map's estimate
+ * with k photons. The naive alternative, the sum of the M per-map estimates P_m/(pi r_m^2), is
+ * returned beside it for comparison: it averages M noisier ratios and has a higher variance.
+ * The per-map bias rule is that of the disc estimate (estimate.h). pm_combine_* are the core
+ * (on neighbour lists), pm_estimate_combined the wrapper over M trees.
+ *
+ * THREADS. A built pm_irradiance is read-only: lookups never allocate or lock and may run on
+ * any number of threads. pm_irradiance_build allocates (the caller frees with
+ * pm_irradiance_free); the tree and photons must outlive it.
+ */
+#ifndef PM_IRRADIANCE_H
+#define PM_IRRADIANCE_H
+
+#include "common.h"
+#include "photon.h"
+#include "kdtree.h"
+#include "estimate.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+enum { PM_PRECOMP_ALL = 0, PM_PRECOMP_QUARTER = 1 };
+
+typedef struct pm_irradiance_options {
+    unsigned k;           /* photons per estimate (>= 1) */
+    float max_dist2;      /* search radius^2, INFINITY for none */
+    int fraction;         /* PM_PRECOMP_ALL or PM_PRECOMP_QUARTER */
+    int bias;             /* PM_BIAS_* of the disc estimate (default PM_BIAS_AREA) */
+    float squash;         /* > 1: ellipsoid search along the photon's normal (default 1) */
+    int reject_behind;    /* skip photons from behind the photon's surface (default 1) */
+    const float *diffuse; /* RGB reflectance: store radiance rho E / pi; NULL: irradiance */
+    int store_radius;     /* keep each estimate's radius^2 as a per-photon cut-off */
+    int threads;          /* OpenMP threads, 0 = the runtime's default */
+} pm_irradiance_options;
+
+typedef struct pm_irradiance pm_irradiance;
+
+void pm_irradiance_options_init(pm_irradiance_options *opt, unsigned k);
+/* Build: see the top of this file. Returns 0 and sets *out, or a negative code (PM_EINVAL,
+ * PM_ENOMEM, PM_EEMPTY for an empty tree). */
+int pm_irradiance_build(pm_irradiance **out, const pm_kdtree *tree,
+                        const pm_irradiance_options *opt);
+void pm_irradiance_free(pm_irradiance *irr);
+
+size_t pm_irradiance_count(const pm_irradiance *irr);    /* photons precomputed */
+size_t pm_irradiance_bytes(const pm_irradiance *irr);    /* bytes it owns */
+double pm_irradiance_bytes_per_photon(const pm_irradiance *irr); /* per photon of the map */
+/* 1 and the stored value if photon i was precomputed, else 0. */
+int pm_irradiance_value(const pm_irradiance *irr, uint32_t i, float rgb[3]);
+
+/* Lookup: returns 1 (found; rgb set), 0 (none: rgb = 0) or a negative code. n is the unit
+ * normal at x; cos_min the threshold on dot(photon normal, n), e.g. 0.9. If max_dist2 is not
+ * finite and no radii were stored, the whole map is searched. */
+int pm_irradiance_lookup(const pm_irradiance *irr, const float x[3], const float n[3],
+                         float max_dist2, float cos_min, float rgb[3], pm_query_stats *stats);
+
+/* Combined maps, core: zero the accumulator, add each map's neighbour list, finish. */
+typedef struct pm_combine_acc {
+    double power[3];     /* sum over maps of P_m (per channel) */
+    double r2_sum;       /* sum over maps of r_m^2 */
+    double naive[3];     /* sum over maps of P_m / (pi r_m^2) */
+    unsigned maps;       /* maps added */
+    unsigned flags;      /* PM_EST_F_* seen in any map */
+} pm_combine_acc;
+void pm_combine_init(pm_combine_acc *acc);
+/* Add one map: nb[0..count) found with k_per_map requested and max_dist2 (for the radius
+ * rule), at point x; bias is a PM_BIAS_*. Irradiance only (multiply by a BRDF afterwards). */
+int pm_combine_add(pm_combine_acc *acc, const pm_photon *photons, const pm_neighbor *nb,
+                   unsigned count, unsigned k_per_map, float max_dist2, int bias,
+                   const float x[3]);
+/* combined = (M/pi) sum P_m / sum r_m^2, naive = sum P_m/(pi r_m^2), M = maps added; either
+ * output may be NULL. Always finite and non-negative. */
+void pm_combine_finish(const pm_combine_acc *acc, double combined[3], double naive[3]);
+
+/* Wrapper: k total photons, k/M (at least 1) from each of trees[0..M) (pm_photon records),
+ * with the search options of opt (max_dist2, bias, squash, reject_behind; kind, BRDF and the
+ * rest are ignored). scratch: ceil(k/M) * 8 bytes. */
+int pm_estimate_combined(const pm_kdtree *const *trees, unsigned M, const float x[3],
+                         const float n[3], const pm_estimate_options *opt, void *scratch,
+                         double combined[3], double naive[3], pm_query_stats *stats);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* PM_IRRADIANCE_H */
