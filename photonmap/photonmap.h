@@ -30,5 +30,7 @@
 #include "common.h"
 #include "photon.h"
 #include "kdtree.h"
+#include "estimate.h"
+#include "irradiance.h"
 
 #endif /* PM_PHOTONMAP_H */
