@@ -1,0 +1,216 @@
+/* film.c: framebuffer, PFM read/write, auto exposure and PNG via libpng; see film.h.
+ *
+ * Temporary files are made with mkstemp in the target's directory (so rename() stays on one
+ * filesystem and is atomic), named "<target>.tmpXXXXXX".
+ */
+#include "film.h"
+
+#include <errno.h>
+#include <png.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "common.h"
+
+#define HABLE_W 11.2
+
+int film_init(film *f, int width, int height) {
+    f->width = width;
+    f->height = height;
+    f->px = calloc((size_t)width * (size_t)height * 3, sizeof(float));
+    return f->px ? 0 : PM_ENOMEM;
+}
+
+void film_free(film *f) {
+    free(f->px);
+    f->px = NULL;
+    f->width = f->height = 0;
+}
+
+/* Open a temporary file beside path; fills tmp (cap bytes). */
+static FILE *open_tmp(const char *path, char *tmp, size_t cap) {
+    if ((size_t)snprintf(tmp, cap, "%s.tmpXXXXXX", path) >= cap) {
+        errno = ENAMETOOLONG;
+        return NULL;
+    }
+    int fd = mkstemp(tmp);
+    if (fd < 0) return NULL;
+    FILE *fp = fdopen(fd, "wb");
+    if (!fp) {
+        close(fd);
+        unlink(tmp);
+    }
+    return fp;
+}
+
+/* Close and rename on success, or remove the temporary file. */
+static int finish_tmp(FILE *fp, const char *tmp, const char *path, int ok) {
+    if (fclose(fp) != 0) ok = 0;
+    if (ok && rename(tmp, path) == 0) return 0;
+    int saved = errno;
+    unlink(tmp);
+    errno = saved;
+    return PM_EIO;
+}
+
+int film_write_pfm(const film *f, const char *path) {
+    char tmp[4096];
+    FILE *fp = open_tmp(path, tmp, sizeof tmp);
+    if (!fp) return PM_EIO;
+    int ok = fprintf(fp, "PF\n%d %d\n-1.0\n", f->width, f->height) > 0;
+    for (int y = f->height - 1; y >= 0 && ok; y--) {
+        const float *row = f->px + (size_t)y * f->width * 3;
+        /* The format is little-endian with scale -1; x86 is little-endian already, but write
+         * byte by byte so the file is right on any host. */
+        for (int i = 0; i < f->width * 3 && ok; i++) {
+            uint32_t u;
+            memcpy(&u, &row[i], 4);
+            unsigned char b[4] = {(unsigned char)u, (unsigned char)(u >> 8), (unsigned char)(u >> 16),
+                                  (unsigned char)(u >> 24)};
+            ok = fwrite(b, 1, 4, fp) == 4;
+        }
+    }
+    return finish_tmp(fp, tmp, path, ok);
+}
+
+int film_read_pfm(film *f, const char *path) {
+    memset(f, 0, sizeof *f);
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return PM_EIO;
+    char magic[3] = {0};
+    int w, h;
+    double scale;
+    int rc = PM_EFORMAT;
+    if (fscanf(fp, "%2s %d %d %lf", magic, &w, &h, &scale) == 4 && strcmp(magic, "PF") == 0 &&
+        w > 0 && h > 0 && w <= (1 << 16) && h <= (1 << 16) && scale != 0 && fgetc(fp) != EOF) {
+        if (film_init(f, w, h) < 0) {
+            fclose(fp);
+            return PM_ENOMEM;
+        }
+        int little = scale < 0;
+        rc = 0;
+        for (int y = h - 1; y >= 0 && rc == 0; y--) {
+            for (int i = 0; i < w * 3; i++) {
+                unsigned char b[4];
+                if (fread(b, 1, 4, fp) != 4) {
+                    rc = PM_EFORMAT;
+                    break;
+                }
+                uint32_t u = little ? (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 |
+                                          (uint32_t)b[3] << 24
+                                    : (uint32_t)b[3] | (uint32_t)b[2] << 8 | (uint32_t)b[1] << 16 |
+                                          (uint32_t)b[0] << 24;
+                memcpy(&f->px[(size_t)y * w * 3 + i], &u, 4);
+            }
+        }
+        if (rc < 0) film_free(f);
+    }
+    fclose(fp);
+    return rc;
+}
+
+static double hable_raw(double x) {
+    const double A = 0.15, B = 0.50, C = 0.10, D = 0.20, E = 0.02, F = 0.30;
+    return ((x * (A * x + C * B) + D * E) / (x * (A * x + B) + D * F)) - E / F;
+}
+
+double film_hable(double x) { return hable_raw(x) / hable_raw(HABLE_W); }
+
+double film_srgb_encode(double v) {
+    v = fmin(1.0, fmax(0.0, v));
+    return v <= 0.0031308 ? 12.92 * v : 1.055 * pow(v, 1.0 / 2.4) - 0.055;
+}
+
+double film_auto_exposure(const film *f, int tone, double clip_percent) {
+    enum { NB = 4096 };
+    long n = (long)f->width * f->height;
+    double lmin = INFINITY, lmax = 0;
+    for (long i = 0; i < n; i++) {
+        double l = rgb_lum(v3(f->px[3 * i], f->px[3 * i + 1], f->px[3 * i + 2]));
+        if (l > 0 && isfinite(l)) {
+            lmin = fmin(lmin, l);
+            lmax = fmax(lmax, l);
+        }
+    }
+    if (!(lmax > 0)) return 1.0;
+    double clip_level = tone == FILM_TONE_SRGB ? 1.0 : HABLE_W;
+    double lo = log2(lmin), hi = log2(lmax) + 1e-9;
+    if (!(hi > lo)) return clip_level / lmax;
+    long *hist = calloc(NB, sizeof *hist);
+    if (!hist) return clip_level / lmax;
+    for (long i = 0; i < n; i++) {
+        double l = rgb_lum(v3(f->px[3 * i], f->px[3 * i + 1], f->px[3 * i + 2]));
+        if (!(l > 0) || !isfinite(l)) continue;
+        int b = (int)((log2(l) - lo) / (hi - lo) * NB);
+        hist[b < 0 ? 0 : b >= NB ? NB - 1 : b]++;
+    }
+    /* Walk down from the top until clip_percent % of all pixels are above the level. */
+    long want = (long)(clip_percent / 100.0 * (double)n), acc = 0;
+    int b = NB - 1;
+    for (; b > 0; b--) {
+        acc += hist[b];
+        if (acc > want) break;
+    }
+    free(hist);
+    double level = exp2(lo + (double)b / NB * (hi - lo)); /* lower edge of the bin */
+    return clip_level / level;
+}
+
+static void png_err(png_structp p, png_const_charp msg) {
+    (void)msg;
+    png_longjmp(p, 1);
+}
+static void png_warn(png_structp p, png_const_charp msg) {
+    (void)p;
+    (void)msg;
+}
+
+int film_write_png(const film *f, const char *path, int tone, double exposure, double clip_percent,
+                   double *used) {
+    if (!(exposure > 0)) exposure = film_auto_exposure(f, tone, clip_percent);
+    if (used) *used = exposure;
+    size_t rowbytes = (size_t)f->width * 3;
+    unsigned char *img = malloc(rowbytes * (size_t)f->height);
+    png_bytep *rows = malloc((size_t)f->height * sizeof *rows);
+    if (!img || !rows) {
+        free(img);
+        free(rows);
+        return PM_ENOMEM;
+    }
+    for (long i = 0; i < (long)f->width * f->height * 3; i++) {
+        double v = f->px[i] * exposure;
+        if (!(v >= 0)) v = 0; /* NaN and negative noise show as black, not garbage */
+        if (tone == FILM_TONE_FILMIC) v = film_hable(fmin(v, 1e6));
+        img[i] = (unsigned char)lrint(255.0 * film_srgb_encode(v));
+    }
+    for (int y = 0; y < f->height; y++) rows[y] = img + (size_t)y * rowbytes;
+    char tmp[4096];
+    FILE *fp = open_tmp(path, tmp, sizeof tmp);
+    if (!fp) {
+        free(img);
+        free(rows);
+        return PM_EIO;
+    }
+    volatile int ok = 0;
+    png_structp p = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, png_err, png_warn);
+    png_infop info = p ? png_create_info_struct(p) : NULL;
+    if (p && info) {
+        if (setjmp(png_jmpbuf(p)) == 0) {
+            png_init_io(p, fp);
+            png_set_IHDR(p, info, (png_uint_32)f->width, (png_uint_32)f->height, 8, PNG_COLOR_TYPE_RGB,
+                         PNG_INTERLACE_NONE, PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+            png_set_sRGB(p, info, PNG_sRGB_INTENT_PERCEPTUAL);
+            png_write_info(p, info);
+            png_write_image(p, rows);
+            png_write_end(p, NULL);
+            ok = 1;
+        }
+    }
+    png_destroy_write_struct(p ? &p : NULL, info ? &info : NULL);
+    free(img);
+    free(rows);
+    return finish_tmp(fp, tmp, path, ok);
+}

@@ -1,0 +1,67 @@
+/* integrator.h: the interface every rendering algorithm implements, and the mode registry.
+ *
+ * An integrator computes the radiance arriving at the camera along one ray. The renderer
+ * (renderer.h) owns the image loop: tiles, threads, strata, random streams, the film and the
+ * progress bar; it asks the integrator only for li(ray). So a new algorithm is one file:
+ *
+ *   static int my_create(integrator *it, const scene *s, char *err, size_t cap) {
+ *       it->li = my_li; ...; return 0;
+ *   }
+ *   INTEGRATOR_REGISTER(my, "pm", "photon mapping (Jensen)", my_create)
+ *
+ * and `render --mode pm` selects it (the scene's "render.mode" sets the default). The path
+ * tracer (pathtracer.c) registers "path".
+ *
+ * Life cycle, called by the renderer:
+ *   create(it, scene)       set the hooks and it->data; no heavy work
+ *   preprocess(it, scene)   optional; once, on the main thread, before any li (it may use
+ *                           OpenMP itself): e.g. trace and balance photon maps
+ *   thread_begin(it)        optional; per worker thread, returns that thread's scratch
+ *   li(it, scene, ray, rng, scratch)   radiance along the camera ray; called concurrently,
+ *                           so it must only read shared state; g is this sample's own stream
+ *   thread_end(it, scratch) optional
+ *   destroy(it)             optional; frees it->data
+ * Failures return a negative PM_E* code with a message in err (preprocess, create).
+ */
+#ifndef RENDER_INTEGRATOR_H
+#define RENDER_INTEGRATOR_H
+
+#include <stddef.h>
+#include <stdio.h>
+
+#include "rng.h"
+#include "scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct integrator integrator;
+struct integrator {
+    const char *name;
+    void *data;
+    int (*preprocess)(integrator *self, const scene *s, char *err, size_t errcap);
+    void *(*thread_begin)(const integrator *self);
+    rgb (*li)(const integrator *self, const scene *s, ray r, rng *g, void *scratch);
+    void (*thread_end)(const integrator *self, void *scratch);
+    void (*destroy)(integrator *self);
+};
+
+typedef int (*integrator_create_fn)(integrator *it, const scene *s, char *err, size_t errcap);
+
+void integrator_register(const char *name, const char *help, integrator_create_fn create);
+/* Fill *it for mode name; 0, or PM_EINVAL with "unknown mode" and the list of modes. */
+int integrator_create(const char *name, const scene *s, integrator *it, char *err, size_t errcap);
+void integrator_destroy(integrator *it);
+/* Print "  name   help" lines for --help. */
+void integrator_list(FILE *f);
+
+#define INTEGRATOR_REGISTER(id, name, help, create)                                  \
+    __attribute__((constructor)) static void integrator__register_##id(void) {       \
+        integrator_register(name, help, create);                                     \
+    }
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_INTEGRATOR_H */

@@ -1,0 +1,241 @@
+/* json.c: path-reporting getters over cJSON, and file parsing with line and column.
+ *
+ * cJSON_ParseWithOpts returns where parsing stopped through its return_parse_end argument
+ * (its global error pointer is not thread-safe, so it is not used); the line and column are
+ * counted from the start of the text to that point.
+ */
+#include "json.h"
+
+#include <errno.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common.h"
+
+int json_fail(json_err *e, int code, const char *fmt, ...) {
+    if (e) {
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(e->msg, sizeof e->msg, fmt, ap);
+        va_end(ap);
+    }
+    return code;
+}
+
+void json_path_key(char *buf, size_t cap, const char *path, const char *key) {
+    snprintf(buf, cap, "%s.%s", path, key);
+}
+
+void json_path_index(char *buf, size_t cap, const char *path, int index) {
+    snprintf(buf, cap, "%s[%d]", path, index);
+}
+
+const char *json_type_name(const cJSON *it) {
+    if (!it) return "nothing";
+    if (cJSON_IsNumber(it)) return "a number";
+    if (cJSON_IsString(it)) return "a string";
+    if (cJSON_IsArray(it)) return "an array";
+    if (cJSON_IsObject(it)) return "an object";
+    if (cJSON_IsBool(it)) return "a boolean";
+    if (cJSON_IsNull(it)) return "null";
+    return "an invalid value";
+}
+
+int json_parse_text(const char *text, cJSON **root, json_err *e) {
+    const char *end = NULL;
+    *root = cJSON_ParseWithOpts(text, &end, 1);
+    if (*root) return 0;
+    if (!end) end = text;
+    int line = 1, col = 1;
+    for (const char *c = text; c < end && *c; c++) {
+        if (*c == '\n') {
+            line++;
+            col = 1;
+        } else {
+            col++;
+        }
+    }
+    char near[24] = {0};
+    size_t k = 0;
+    for (const char *c = end; *c && *c != '\n' && k < sizeof near - 1; c++) near[k++] = *c;
+    if (!*end)
+        return json_fail(e, PM_EFORMAT, "line %d, column %d: syntax error (unexpected end of file)",
+                         line, col);
+    return json_fail(e, PM_EFORMAT, "line %d, column %d: syntax error near '%s'", line, col, near);
+}
+
+int json_parse_file(const char *filename, cJSON **root, json_err *e) {
+    *root = NULL;
+    FILE *f = fopen(filename, "rb");
+    if (!f) return json_fail(e, PM_EIO, "cannot open: %s", strerror(errno));
+    size_t cap = 1 << 16, n = 0;
+    char *buf = malloc(cap);
+    while (buf) {
+        size_t got = fread(buf + n, 1, cap - n - 1, f);
+        n += got;
+        if (n < cap - 1) break;
+        char *nb = realloc(buf, cap * 2);
+        if (!nb) {
+            free(buf);
+            buf = NULL;
+            break;
+        }
+        buf = nb;
+        cap *= 2;
+    }
+    int rerr = ferror(f);
+    fclose(f);
+    if (!buf) return json_fail(e, PM_ENOMEM, "out of memory reading the file");
+    if (rerr) {
+        free(buf);
+        return json_fail(e, PM_EIO, "read error");
+    }
+    buf[n] = 0;
+    if (strlen(buf) != n) {
+        free(buf);
+        return json_fail(e, PM_EFORMAT, "the file contains a NUL byte; not a JSON text");
+    }
+    int rc = json_parse_text(buf, root, e);
+    free(buf);
+    return rc;
+}
+
+const cJSON *json_get(const cJSON *obj, const char *key) {
+    return obj ? cJSON_GetObjectItemCaseSensitive(obj, key) : NULL;
+}
+
+/* Fetch key; 1 = found, 0 = absent and optional, negative = error (absent and required). */
+static int fetch(const cJSON *obj, const char *path, const char *key, int required,
+                 const cJSON **it, json_err *e) {
+    *it = json_get(obj, key);
+    if (*it) return 1;
+    if (required) return json_fail(e, PM_EINVAL, "%s.%s: missing (required)", path, key);
+    return 0;
+}
+
+static int check_number(const cJSON *it, const char *p1, const char *p2, double *out, json_err *e) {
+    if (!cJSON_IsNumber(it))
+        return json_fail(e, PM_EINVAL, "%s%s: expected a number, got %s", p1, p2, json_type_name(it));
+    if (!isfinite(it->valuedouble))
+        return json_fail(e, PM_ENONFINITE, "%s%s: not a finite number", p1, p2);
+    *out = it->valuedouble;
+    return 0;
+}
+
+int json_number(const cJSON *obj, const char *path, const char *key, int required, double *out,
+                json_err *e) {
+    const cJSON *it;
+    int rc = fetch(obj, path, key, required, &it, e);
+    if (rc <= 0) return rc;
+    char p2[128];
+    snprintf(p2, sizeof p2, ".%s", key);
+    return check_number(it, path, p2, out, e);
+}
+
+int json_int(const cJSON *obj, const char *path, const char *key, int required, long lo, long hi,
+             long *out, json_err *e) {
+    double v;
+    const cJSON *it = json_get(obj, key);
+    int rc = json_number(obj, path, key, required, &v, e);
+    if (rc < 0 || !it) return rc;
+    if (v != floor(v))
+        return json_fail(e, PM_EINVAL, "%s.%s: expected an integer, got %g", path, key, v);
+    if (v < (double)lo || v > (double)hi)
+        return json_fail(e, PM_EINVAL, "%s.%s: %g is out of range [%ld, %ld]", path, key, v, lo, hi);
+    *out = (long)v;
+    return 0;
+}
+
+int json_bool(const cJSON *obj, const char *path, const char *key, int required, int *out,
+              json_err *e) {
+    const cJSON *it;
+    int rc = fetch(obj, path, key, required, &it, e);
+    if (rc <= 0) return rc;
+    if (!cJSON_IsBool(it))
+        return json_fail(e, PM_EINVAL, "%s.%s: expected true or false, got %s", path, key,
+                         json_type_name(it));
+    *out = cJSON_IsTrue(it) ? 1 : 0;
+    return 0;
+}
+
+int json_string(const cJSON *obj, const char *path, const char *key, int required,
+                const char **out, json_err *e) {
+    const cJSON *it;
+    int rc = fetch(obj, path, key, required, &it, e);
+    if (rc <= 0) return rc;
+    if (!cJSON_IsString(it))
+        return json_fail(e, PM_EINVAL, "%s.%s: expected a string, got %s", path, key,
+                         json_type_name(it));
+    *out = it->valuestring;
+    return 0;
+}
+
+int json_item_vec3(const cJSON *it, const char *path, vec3 *out, json_err *e) {
+    if (!cJSON_IsArray(it) || cJSON_GetArraySize(it) != 3)
+        return json_fail(e, PM_EINVAL, "%s: expected an array of 3 numbers, got %s", path,
+                         cJSON_IsArray(it) ? "an array of another length" : json_type_name(it));
+    double v[3];
+    for (int i = 0; i < 3; i++) {
+        char p2[16];
+        snprintf(p2, sizeof p2, "[%d]", i);
+        int rc = check_number(cJSON_GetArrayItem(it, i), path, p2, &v[i], e);
+        if (rc < 0) return rc;
+    }
+    *out = v3(v[0], v[1], v[2]);
+    return 0;
+}
+
+int json_vec3(const cJSON *obj, const char *path, const char *key, int required, vec3 *out,
+              json_err *e) {
+    const cJSON *it;
+    int rc = fetch(obj, path, key, required, &it, e);
+    if (rc <= 0) return rc;
+    char p[256];
+    json_path_key(p, sizeof p, path, key);
+    return json_item_vec3(it, p, out, e);
+}
+
+int json_rgb(const cJSON *obj, const char *path, const char *key, int required, rgb *out,
+             json_err *e) {
+    const cJSON *it;
+    int rc = fetch(obj, path, key, required, &it, e);
+    if (rc <= 0) return rc;
+    char p[256];
+    json_path_key(p, sizeof p, path, key);
+    if (cJSON_IsNumber(it)) {
+        double g;
+        rc = check_number(it, p, "", &g, e);
+        if (rc < 0) return rc;
+        *out = v3s(g);
+        return 0;
+    }
+    return json_item_vec3(it, p, out, e);
+}
+
+int json_object(const cJSON *obj, const char *path, const char *key, int required,
+                const cJSON **out, json_err *e) {
+    const cJSON *it;
+    *out = NULL;
+    int rc = fetch(obj, path, key, required, &it, e);
+    if (rc <= 0) return rc;
+    if (!cJSON_IsObject(it))
+        return json_fail(e, PM_EINVAL, "%s.%s: expected an object, got %s", path, key,
+                         json_type_name(it));
+    *out = it;
+    return 0;
+}
+
+int json_array(const cJSON *obj, const char *path, const char *key, int required,
+               const cJSON **out, json_err *e) {
+    const cJSON *it;
+    *out = NULL;
+    int rc = fetch(obj, path, key, required, &it, e);
+    if (rc <= 0) return rc;
+    if (!cJSON_IsArray(it))
+        return json_fail(e, PM_EINVAL, "%s.%s: expected an array, got %s", path, key,
+                         json_type_name(it));
+    *out = it;
+    return 0;
+}

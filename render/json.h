@@ -1,0 +1,76 @@
+/* json.h: reading cJSON documents with errors that name the place of the mistake.
+ *
+ * Every getter takes the parent object, the JSON path of that parent ("$", "$.camera",
+ * "$.objects[3]") and a key. On success it returns 0 and writes *out. On failure it returns a
+ * negative PM_E* code and writes a message that starts with the full path of the field into
+ * the caller's json_err, e.g. "$.objects[3].radius: expected a number, got a string".
+ * Optional fields (required = 0) that are absent leave *out untouched and return 0, so set the
+ * default before the call. Every number must be finite: cJSON reads 1e999 as infinity, and
+ * that is rejected here ("not a finite number").
+ *
+ * json_parse_file reads and parses a file; a syntax error is reported with its line and
+ * column ("line 12, column 5: syntax error near '}'").
+ *
+ * The photon-mapping code reads its "photon_mapping" object with the same getters.
+ * Nothing here keeps state; the caller owns and frees (cJSON_Delete) the parsed document.
+ */
+#ifndef RENDER_JSON_H
+#define RENDER_JSON_H
+
+#include <cjson/cJSON.h>
+#include <stddef.h>
+
+#include "vec.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct json_err {
+    char msg[512];
+} json_err;
+
+/* printf into e->msg; returns code (so `return json_fail(e, PM_EINVAL, ...)` works). */
+int json_fail(json_err *e, int code, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
+
+/* Child paths: "$.camera" + "eye" -> "$.camera.eye"; "$.objects" + 3 -> "$.objects[3]". */
+void json_path_key(char *buf, size_t cap, const char *path, const char *key);
+void json_path_index(char *buf, size_t cap, const char *path, int index);
+
+int json_parse_file(const char *filename, cJSON **root, json_err *e);
+/* Parse text (NUL-terminated); errors carry the line and column. */
+int json_parse_text(const char *text, cJSON **root, json_err *e);
+
+/* The item at key, or NULL if absent. */
+const cJSON *json_get(const cJSON *obj, const char *key);
+
+int json_number(const cJSON *obj, const char *path, const char *key, int required, double *out,
+                json_err *e);
+/* An integer in [lo, hi]. */
+int json_int(const cJSON *obj, const char *path, const char *key, int required, long lo, long hi,
+             long *out, json_err *e);
+int json_bool(const cJSON *obj, const char *path, const char *key, int required, int *out,
+              json_err *e);
+/* A string; *out points into the document (valid until cJSON_Delete). */
+int json_string(const cJSON *obj, const char *path, const char *key, int required,
+                const char **out, json_err *e);
+/* [x, y, z] */
+int json_vec3(const cJSON *obj, const char *path, const char *key, int required, vec3 *out,
+              json_err *e);
+/* [r, g, b] or one number for grey. */
+int json_rgb(const cJSON *obj, const char *path, const char *key, int required, rgb *out,
+             json_err *e);
+/* An object or array child; *out = NULL when absent and optional. */
+int json_object(const cJSON *obj, const char *path, const char *key, int required,
+                const cJSON **out, json_err *e);
+int json_array(const cJSON *obj, const char *path, const char *key, int required,
+               const cJSON **out, json_err *e);
+/* Convert an array item (already fetched) to a vec3; path names the item. */
+int json_item_vec3(const cJSON *item, const char *path, vec3 *out, json_err *e);
+/* A short name of an item's type for messages ("a string", "an array", ...). */
+const char *json_type_name(const cJSON *item);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_JSON_H */

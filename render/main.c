@@ -1,0 +1,303 @@
+/* main.c: the render program: parse the command line, load the scene, run an integrator,
+ * write the images, print the summary and statistics.
+ *
+ *   render SCENE.json [-o out.png] [--hdr out.pfm] [--spp N] [--threads N] [--seed S]
+ *          [--width W] [--height H] [--mode M] [--quiet] [--help]
+ *   render --compare A.pfm B.pfm [--rect X Y W H]
+ *
+ * Exit status: 0 success, 1 a failure while rendering or writing, 2 a usage error or a bad
+ * scene file (nothing is written then). Progress goes to stderr; the summary and statistics
+ * to stdout.
+ */
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common.h"
+#include "compare.h"
+#include "film.h"
+#include "integrator.h"
+#include "renderer.h"
+#include "scene.h"
+#include "stats.h"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+static void usage(FILE *f) {
+    fprintf(f,
+            "usage: render SCENE.json [options]\n"
+            "       render --compare A.pfm B.pfm [--rect X Y W H]\n"
+            "\n"
+            "Renders a JSON scene (format: data/scenes/README.md) to a PNG and/or a PFM.\n"
+            "\n"
+            "options:\n"
+            "  -o FILE.png       tone-mapped 8-bit image (default: out.png unless --hdr is given)\n"
+            "  --hdr FILE.pfm    linear float image, for exact comparison\n"
+            "  --spp N           samples per pixel (rounded up to a square number of strata)\n"
+            "  --threads N       worker threads (default: all cores)\n"
+            "  --seed S          random seed (same seed, same image, for any thread count)\n"
+            "  --width W         image width (the height follows the aspect unless given)\n"
+            "  --height H        image height\n"
+            "  --mode M          rendering algorithm (default: the scene's render.mode, else path):\n");
+    integrator_list(f);
+    fprintf(f,
+            "  --tone T          filmic or srgb (PNG tone curve)\n"
+            "  --exposure X      fixed exposure multiplier instead of auto exposure\n"
+            "  --quiet           no progress output\n"
+            "  --help            this text\n"
+            "\n"
+            "--compare prints the RMSE, mean relative error and means of A against the\n"
+            "reference B, over the whole image or the rectangle X Y W H (pixels, top-left origin).\n"
+            "\n"
+            "exit status: 0 ok, 1 render or write failure, 2 usage error or invalid scene\n");
+}
+
+static int parse_long(const char *s, long lo, long hi, long *out) {
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (errno || end == s || *end || v < lo || v > hi) return -1;
+    *out = v;
+    return 0;
+}
+
+static int run_compare(int argc, char **argv) {
+    const char *fa = NULL, *fb = NULL;
+    long rect[4] = {0, 0, 0, 0};
+    for (int i = 2; i < argc; i++) {
+        if (strcmp(argv[i], "--rect") == 0) {
+            if (i + 4 >= argc) {
+                fprintf(stderr, "render: --rect needs X Y W H\n");
+                return 2;
+            }
+            for (int k = 0; k < 4; k++)
+                if (parse_long(argv[i + 1 + k], -100000, 100000, &rect[k]) < 0) {
+                    fprintf(stderr, "render: --rect: bad number '%s'\n", argv[i + 1 + k]);
+                    return 2;
+                }
+            i += 4;
+        } else if (!fa) {
+            fa = argv[i];
+        } else if (!fb) {
+            fb = argv[i];
+        } else {
+            fprintf(stderr, "render: --compare takes two files\n");
+            return 2;
+        }
+    }
+    if (!fa || !fb) {
+        fprintf(stderr, "render: --compare needs two PFM files\n");
+        return 2;
+    }
+    film a, b;
+    int rc = film_read_pfm(&a, fa);
+    if (rc < 0) {
+        fprintf(stderr, "render: %s: %s\n", fa, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
+        return 2;
+    }
+    rc = film_read_pfm(&b, fb);
+    if (rc < 0) {
+        fprintf(stderr, "render: %s: %s\n", fb, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
+        film_free(&a);
+        return 2;
+    }
+    image_diff d;
+    rc = image_compare(&a, &b, (int)rect[0], (int)rect[1], (int)rect[2], (int)rect[3], &d);
+    if (rc < 0) {
+        fprintf(stderr, "render: --compare: %s\n",
+                a.width != b.width || a.height != b.height ? "the images differ in size"
+                                                           : "the rectangle is empty");
+    } else {
+        printf("pixels %ld\nrmse %.6g\nrel_rmse %.6g\nmre %.6g\nmean_a %.6g\nmean_b %.6g\nrel_mean %.6g\n",
+               d.npixels, d.rmse, d.rel_rmse, d.mre, d.mean_a, d.mean_b, d.rel_mean);
+    }
+    film_free(&a);
+    film_free(&b);
+    return rc < 0 ? 2 : 0;
+}
+
+static const char *basename_of(const char *p) {
+    const char *s = strrchr(p, '/');
+    return s ? s + 1 : p;
+}
+
+int main(int argc, char **argv) {
+    if (argc >= 2 && strcmp(argv[1], "--compare") == 0) return run_compare(argc, argv);
+    const char *scene_path = NULL, *png = NULL, *pfm = NULL, *mode = NULL, *tone = NULL;
+    long spp = 0, threads = 0, width = 0, height = 0, seed = -1;
+    double exposure = -1;
+    int quiet = 0;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
+        int bad = 0;
+#define NEED_VALUE()                                                          \
+    do {                                                                      \
+        if (!v) {                                                             \
+            fprintf(stderr, "render: %s needs a value (see --help)\n", a);    \
+            return 2;                                                         \
+        }                                                                     \
+        i++;                                                                  \
+    } while (0)
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            usage(stdout);
+            return 0;
+        } else if (strcmp(a, "-o") == 0) {
+            NEED_VALUE();
+            png = v;
+        } else if (strcmp(a, "--hdr") == 0) {
+            NEED_VALUE();
+            pfm = v;
+        } else if (strcmp(a, "--spp") == 0) {
+            NEED_VALUE();
+            bad = parse_long(v, 1, 1 << 20, &spp);
+        } else if (strcmp(a, "--threads") == 0) {
+            NEED_VALUE();
+            bad = parse_long(v, 1, 1024, &threads);
+        } else if (strcmp(a, "--seed") == 0) {
+            NEED_VALUE();
+            bad = parse_long(v, 0, 2147483647L, &seed);
+        } else if (strcmp(a, "--width") == 0) {
+            NEED_VALUE();
+            bad = parse_long(v, 1, 1 << 14, &width);
+        } else if (strcmp(a, "--height") == 0) {
+            NEED_VALUE();
+            bad = parse_long(v, 1, 1 << 14, &height);
+        } else if (strcmp(a, "--mode") == 0) {
+            NEED_VALUE();
+            mode = v;
+        } else if (strcmp(a, "--tone") == 0) {
+            NEED_VALUE();
+            tone = v;
+            bad = strcmp(v, "filmic") != 0 && strcmp(v, "srgb") != 0;
+        } else if (strcmp(a, "--exposure") == 0) {
+            NEED_VALUE();
+            char *end;
+            exposure = strtod(v, &end);
+            bad = *end || !(exposure > 0) || !isfinite(exposure);
+        } else if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) {
+            quiet = 1;
+        } else if (a[0] == '-' && a[1]) {
+            fprintf(stderr, "render: unknown option %s (see --help)\n", a);
+            return 2;
+        } else if (!scene_path) {
+            scene_path = a;
+        } else {
+            fprintf(stderr, "render: more than one scene file given (%s, %s)\n", scene_path, a);
+            return 2;
+        }
+        if (bad) {
+            fprintf(stderr, "render: %s: invalid value '%s' (see --help)\n", a, v);
+            return 2;
+        }
+#undef NEED_VALUE
+    }
+    if (!scene_path) {
+        usage(stderr);
+        return 2;
+    }
+    if (!png && !pfm) png = "out.png";
+
+    double t_start = stats_now();
+    scene s;
+    json_err e;
+    int rc = scene_load(&s, scene_path, &e);
+    if (rc < 0) {
+        fprintf(stderr, "render: %s: %s\n", scene_path, e.msg);
+        return 2;
+    }
+    double t_load = stats_now() - t_start;
+    stats_time_add("Time/Scene loading and BVH build", t_load);
+    if (spp) camera_set_spp(&s.cam, (int)spp);
+    if (width || height) {
+        int w = width ? (int)width : (int)((double)height * s.cam.width / s.cam.height + 0.5);
+        int h = height ? (int)height : (int)((double)width * s.cam.height / s.cam.width + 0.5);
+        camera_resize(&s.cam, w > 0 ? w : 1, h > 0 ? h : 1);
+    }
+    if (seed >= 0) s.settings.seed = (uint64_t)seed;
+    if (mode) snprintf(s.settings.mode, sizeof s.settings.mode, "%s", mode);
+    if (tone) s.settings.tone = strcmp(tone, "srgb") == 0 ? TONE_SRGB : TONE_FILMIC;
+    if (exposure > 0) s.settings.exposure = exposure;
+    if (spp && s.cam.spp != spp)
+        fprintf(stderr, "render: note: %ld spp rounded up to %d (%dx%d strata)\n", spp, s.cam.spp,
+                s.cam.strata, s.cam.strata);
+    if (s.nlights == 0) {
+        int any_emit = 0;
+        for (int i = 0; i < s.nmats; i++) any_emit |= material_is_emissive(&s.mats[i]);
+        if (!any_emit) fprintf(stderr, "render: warning: the scene has no light; the image will be black\n");
+    }
+
+    integrator it;
+    char err[512];
+    rc = integrator_create(s.settings.mode, &s, &it, err, sizeof err);
+    if (rc < 0) {
+        fprintf(stderr, "render: %s\n", err);
+        scene_free(&s);
+        return 2;
+    }
+    int nthreads = (int)threads;
+#ifdef _OPENMP
+    if (nthreads <= 0) nthreads = omp_get_max_threads();
+#else
+    nthreads = 1;
+#endif
+    int nsph = s.nspheres, ntri = s.ntris;
+    printf("Scene %s: %d triangles, %d spheres, %d materials, %d lights; BVH %d nodes, depth %d "
+           "(%.3f s)\n",
+           basename_of(scene_path), ntri, nsph, s.nmats, s.nlights, s.accel.nnodes, s.accel.depth, t_load);
+    printf("Rendering %dx%d, %d spp (%dx%d strata), mode %s, %d thread%s, seed %llu\n", s.cam.width,
+           s.cam.height, s.cam.spp, s.cam.strata, s.cam.strata, it.name, nthreads,
+           nthreads == 1 ? "" : "s", (unsigned long long)s.settings.seed);
+    fflush(stdout);
+    if (it.preprocess) {
+        double t0 = stats_now();
+        rc = it.preprocess(&it, &s, err, sizeof err);
+        stats_time_add("Time/Preprocessing", stats_now() - t0);
+        if (rc < 0) {
+            fprintf(stderr, "render: %s\n", err);
+            integrator_destroy(&it);
+            scene_free(&s);
+            return rc == PM_EINVAL ? 2 : 1;
+        }
+    }
+    film f;
+    render_job job = {nthreads, quiet, s.settings.seed};
+    double t_render0 = stats_now();
+    rc = render_image(&s, &it, &job, &f);
+    double t_render = stats_now() - t_render0;
+    integrator_destroy(&it);
+    if (rc < 0) {
+        fprintf(stderr, "render: rendering failed: %s\n", pm_strerror(rc));
+        scene_free(&s);
+        return 1;
+    }
+    int status = 0;
+    double used = 0;
+    if (pfm && film_write_pfm(&f, pfm) < 0) {
+        fprintf(stderr, "render: cannot write %s: %s\n", pfm, strerror(errno));
+        status = 1;
+    }
+    if (png && film_write_png(&f, png, s.settings.tone, s.settings.exposure, s.settings.clip_percent,
+                              &used) < 0) {
+        fprintf(stderr, "render: cannot write %s: %s\n", png, strerror(errno));
+        status = 1;
+    }
+    double wall = stats_now() - t_start;
+    uint64_t rays = stats_total(STAT_CAMERA_RAYS) + stats_total(STAT_INDIRECT_RAYS) +
+                    stats_total(STAT_SHADOW_RAYS);
+    printf("Summary: wall time %.2f s (rendering %.2f s), %.3g M rays, %.3g M rays/s\n", wall, t_render,
+           (double)rays * 1e-6, t_render > 0 ? (double)rays * 1e-6 / t_render : 0.0);
+    if (status == 0) {
+        if (png)
+            printf("Wrote %s (%s, exposure %.4g%s)\n", png, s.settings.tone == TONE_SRGB ? "sRGB" : "filmic",
+                   used, s.settings.exposure > 0 ? "" : ", auto");
+        if (pfm) printf("Wrote %s (linear)\n", pfm);
+    }
+    stats_print(stdout);
+    film_free(&f);
+    scene_free(&s);
+    return status;
+}

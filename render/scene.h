@@ -1,0 +1,107 @@
+/* scene.h: the scene: camera, materials, shapes, lights, settings, and its accelerator.
+ *
+ * Data flow: scene_load() parses a JSON scene file (format: data/scenes/README.md), checks
+ * every field, turns quads and meshes into triangles, makes one area light per emissive
+ * triangle, and builds the BVH. After that the scene is immutable, and scene_intersect() /
+ * scene_visible() may be called from any number of threads.
+ *
+ * Errors: scene_load returns a negative PM_E* code and a message in json_err: the line and
+ * column of a syntax error, or the JSON path of a missing, mistyped or invalid field
+ * ("$.objects[3].radius: must be positive, got -1"). main.c prints it and exits with 2.
+ *
+ * Extensions: the "photon_mapping" object of the file is not interpreted here; a copy is
+ * kept in scene.photon_mapping (NULL when absent) for the photon-mapping code to read with
+ * the json.h getters (its path is "$.photon_mapping"). Unknown top-level keys give a warning.
+ *
+ * Ownership: the scene owns all its arrays and the photon_mapping copy; scene_free()
+ * releases them. A zeroed scene may be freed.
+ */
+#ifndef RENDER_SCENE_H
+#define RENDER_SCENE_H
+
+#include <cjson/cJSON.h>
+#include <stdint.h>
+
+#include "bvh.h"
+#include "camera.h"
+#include "json.h"
+#include "light.h"
+#include "material.h"
+#include "sampling.h"
+#include "shapes.h"
+#include "vec.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+enum { TONE_FILMIC, TONE_SRGB };
+
+/* Settings from the file's "render" and "image" objects; the command line overrides them. */
+typedef struct render_settings {
+    int max_depth;       /* path length limit (bounces); default 64 */
+    int rr_depth;        /* Russian roulette starts after this many bounces; default 3 */
+    char mode[32];       /* integrator name, default "path" */
+    uint64_t seed;       /* default 1 */
+    int tone;            /* TONE_FILMIC (Hable) or TONE_SRGB; default filmic */
+    double clip_percent; /* auto exposure: this % of pixels at or above clipping; default 1 */
+    double exposure;     /* > 0: a fixed exposure multiplier instead of auto exposure */
+} render_settings;
+
+typedef struct scene {
+    camera cam;
+    material *mats;
+    int nmats;
+    triangle *tris;
+    int ntris;
+    sphere *spheres;
+    int nspheres;
+    light *lights;
+    int nlights;
+    distrib1d light_distrib; /* choose a light in proportion to its power (mean of RGB) */
+    double medium_ior;       /* index of refraction of the space between objects; default 1 */
+    vec3 bounds_lo, bounds_hi;
+    vec3 bsphere_c; /* bounding sphere of all geometry */
+    double bsphere_r;
+    bvh accel;
+    render_settings settings;
+    cJSON *photon_mapping; /* a copy of "$.photon_mapping", or NULL */
+} scene;
+
+/* A ray-surface hit. */
+typedef struct hit {
+    double t;
+    vec3 p;            /* hit point */
+    vec3 ng;           /* unit geometric normal (front side / outward); not flipped to the ray */
+    int prim;          /* primitive id: < ntris a triangle, else ntris + sphere index */
+    int mat;           /* material index */
+    double u, v;       /* triangle barycentrics */
+} hit;
+
+int scene_load(scene *s, const char *filename, json_err *e);
+/* The same from a JSON text (for tests). */
+int scene_load_text(scene *s, const char *text, json_err *e);
+/* The same from a parsed document (not consumed). */
+int scene_from_json(scene *s, const cJSON *root, json_err *e);
+void scene_free(scene *s);
+
+/* Nearest hit along r with 0 < t < tmax. */
+int scene_intersect(const scene *s, ray r, double tmax, hit *h);
+/* Is the segment between surface points p (normal np) and q (normal nq) unblocked? Both ends
+ * are offset off their surfaces; pass a zero normal for a point that is not on a surface. */
+int scene_visible(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq);
+/* Is the ray from surface point p (normal np) in direction d unblocked to infinity? */
+int scene_visible_dir(const scene *s, vec3 p, vec3 np, vec3 d);
+
+static inline const material *scene_material(const scene *s, const hit *h) {
+    return &s->mats[h->mat];
+}
+/* Is this primitive an area light in the light list (sampled by next-event estimation)? */
+static inline int scene_prim_is_light(const scene *s, int prim) {
+    return prim < s->ntris && s->tris[prim].light >= 0;
+}
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_SCENE_H */

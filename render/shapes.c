@@ -1,0 +1,91 @@
+/* shapes.c: Möller–Trumbore triangles and numerically stable spheres; see shapes.h. */
+#include "shapes.h"
+
+#include "sampling.h"
+
+int triangle_make(triangle *t, vec3 a, vec3 b, vec3 c, int mat) {
+    t->v0 = a;
+    t->e1 = v3_sub(b, a);
+    t->e2 = v3_sub(c, a);
+    t->mat = mat;
+    t->light = -1;
+    vec3 cr = v3_cross(t->e1, t->e2);
+    double len = v3_len(cr);
+    t->area = 0.5 * len;
+    t->n = len > 0 ? v3_scale(cr, 1.0 / len) : v3(0, 0, 0);
+    if (!v3_isfinite(a) || !v3_isfinite(b) || !v3_isfinite(c) || !isfinite(len)) return -1;
+    /* |e1 x e2| = |e1||e2| sin(angle): degenerate when the sine is at rounding level. */
+    double scale = v3_len(t->e1) * v3_len(t->e2);
+    if (!(len > 1e-12 * scale) || !(scale > 0)) return -1;
+    return 0;
+}
+
+int triangle_intersect(const triangle *tr, ray r, double tmin, double tmax, double *t,
+                       double *u, double *v) {
+    vec3 p = v3_cross(r.d, tr->e2);
+    double det = v3_dot(tr->e1, p);
+    if (det == 0.0) return 0; /* the ray lies in the triangle's plane or is parallel to it */
+    double inv = 1.0 / det;
+    vec3 s = v3_sub(r.o, tr->v0);
+    double uu = v3_dot(s, p) * inv;
+    if (uu < 0.0 || uu > 1.0) return 0;
+    vec3 q = v3_cross(s, tr->e1);
+    double vv = v3_dot(r.d, q) * inv;
+    if (vv < 0.0 || uu + vv > 1.0) return 0;
+    double tt = v3_dot(tr->e2, q) * inv;
+    if (!(tt > tmin && tt < tmax)) return 0;
+    *t = tt;
+    if (u) *u = uu;
+    if (v) *v = vv;
+    return 1;
+}
+
+int sphere_intersect(const sphere *s, ray r, double tmin, double tmax, double *t) {
+    vec3 f = v3_sub(r.o, s->c);
+    double a = v3_dot(r.d, r.d);
+    double b = v3_dot(f, r.d); /* half of the usual b */
+    double c = v3_dot(f, f) - s->r * s->r;
+    /* disc = b^2 - a c, computed as a (r^2 - |f - (b/a) d|^2) to avoid cancellation. */
+    vec3 l = v3_madd(f, r.d, -b / a);
+    double disc = a * (s->r * s->r - v3_dot(l, l));
+    if (disc < 0) return 0;
+    double q = -(b + copysign(sqrt(disc), b));
+    double t0, t1;
+    if (q == 0) {
+        t0 = t1 = 0; /* origin on the sphere and ray tangent: no hit beyond tmin >= 0 */
+    } else {
+        t0 = c / q;
+        t1 = q / a;
+    }
+    if (t0 > t1) {
+        double tmp = t0;
+        t0 = t1;
+        t1 = tmp;
+    }
+    if (t0 > tmin && t0 < tmax) {
+        *t = t0;
+        return 1;
+    }
+    if (t1 > tmin && t1 < tmax) {
+        *t = t1;
+        return 1;
+    }
+    return 0;
+}
+
+vec3 triangle_sample(const triangle *tr, double u1, double u2) {
+    double b1, b2;
+    sample_triangle(u1, u2, &b1, &b2);
+    return v3_add(tr->v0, v3_add(v3_scale(tr->e1, b1), v3_scale(tr->e2, b2)));
+}
+
+void triangle_bounds(const triangle *tr, vec3 *lo, vec3 *hi) {
+    vec3 b = v3_add(tr->v0, tr->e1), c = v3_add(tr->v0, tr->e2);
+    *lo = v3_min(tr->v0, v3_min(b, c));
+    *hi = v3_max(tr->v0, v3_max(b, c));
+}
+
+void sphere_bounds(const sphere *s, vec3 *lo, vec3 *hi) {
+    *lo = v3_sub(s->c, v3s(s->r));
+    *hi = v3_add(s->c, v3s(s->r));
+}
