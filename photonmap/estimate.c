@@ -6,8 +6,9 @@
  * The one place that needs care is the area. radius2() applies the radius rule (farthest
  * neighbour, or max_dist2 when the search ran dry inside it) and the floor, and turns an
  * overflowed radius into "far away: 0". The hull builds a 2D convex hull in double with a
- * relative tolerance in its orientation test, and any doubt (too few points, fewer than three
- * hull vertices, a sliver) sends it to the disc estimate, so it never divides by a zero area.
+ * relative tolerance in its orientation test, after an Akl-Toussaint prefilter has set aside
+ * the points that are surely interior; any doubt (too few points, fewer than three hull
+ * vertices, a sliver) sends it to the disc estimate, so it never divides by a zero area.
  * Sorting (hull, differential) is an in-place heapsort on the caller's scratch, because qsort
  * may allocate and the estimates promise not to.
  */
@@ -332,6 +333,47 @@ static double cross(const hull_pt *o, const hull_pt *a, const hull_pt *b) {
     return (a->u - o->u) * (b->v - o->v) - (a->v - o->v) * (b->u - o->u);
 }
 
+/* Akl-Toussaint prefilter: the points extreme in 8 directions span a polygon inside the
+ * hull, and a point strictly left of each of its edges (by more than margin) lies inside it,
+ * so it cannot be a hull vertex. Such points are moved behind the others and only the rest,
+ * about a tenth of a uniform disc, need sorting. The argument needs no convexity: a point
+ * strictly left of every edge of a closed polygon has a positive winding number. Returns the
+ * number of candidates, now at p[0..). */
+static unsigned prefilter(hull_pt *p, unsigned count, double margin) {
+    static const double dir[8][2] = {{1, 0}, {1, 1}, {0, 1}, {-1, 1},
+                                     {-1, 0}, {-1, -1}, {0, -1}, {1, -1}};
+    unsigned ext[8], np = 0;
+    double best[8], pu[8], pv[8];
+    for (unsigned i = 0; i < count; i++)
+        for (int d = 0; d < 8; d++) {
+            double sd = dir[d][0] * p[i].u + dir[d][1] * p[i].v;
+            if (i == 0 || sd > best[d]) best[d] = sd, ext[d] = i;
+        }
+    for (int d = 0; d < 8; d++)
+        if (np == 0 || (ext[d] != ext[d - 1] && !(d == 7 && ext[d] == ext[0]))) {
+            pu[np] = p[ext[d]].u, pv[np] = p[ext[d]].v;
+            np++;
+        }
+    if (np < 3) return count;
+    unsigned cand = count;
+    for (unsigned i = 0; i < cand;) {
+        int inside = 1;
+        for (unsigned e = 0; e < np && inside; e++) {
+            unsigned f = e + 1 == np ? 0 : e + 1;
+            double c = (pu[f] - pu[e]) * (p[i].v - pv[e]) - (pv[f] - pv[e]) * (p[i].u - pu[e]);
+            inside = c > margin;
+        }
+        if (inside) {
+            hull_pt tmp = p[i];
+            p[i] = p[--cand];
+            p[cand] = tmp;
+        } else {
+            i++;
+        }
+    }
+    return cand;
+}
+
 static void hull(const pm_photon *ph, const pm_neighbor *nb, unsigned count, const float x[3],
                  const float normal[3], const pm_estimate_options *opt, const brdf_ctx *b,
                  void *scratch, pm_estimate_result *out) {
@@ -361,18 +403,19 @@ static void hull(const pm_photon *ph, const pm_neighbor *nb, unsigned count, con
         rp2 = fmax(rp2, p[i].u * p[i].u + p[i].v * p[i].v);
     }
     if (!(scale > 0.0) || !isfinite(rp2)) goto fallback;
-    pt_sort(p, count);
     {
         /* Andrew's monotone chain. A turn counts as left only if its cross product exceeds
          * eps, well above the rounding error of the products (about 1e-16 scale^2), so
          * duplicates and (nearly) collinear points are dropped rather than kept by noise. */
         const double eps = 1e-12 * scale * scale;
-        for (unsigned i = 0; i < count; i++) {
+        unsigned cand = prefilter(p, count, 16.0 * eps);
+        pt_sort(p, cand);
+        for (unsigned i = 0; i < cand; i++) {
             while (m >= 2 && cross(&p[h[m - 2]], &p[h[m - 1]], &p[i]) <= eps) m--;
             h[m++] = i;
         }
         long lower = m + 1;
-        for (long i = (long)count - 2; i >= 0; i--) {
+        for (long i = (long)cand - 2; i >= 0; i--) {
             while (m >= lower && cross(&p[h[m - 2]], &p[h[m - 1]], &p[i]) <= eps) m--;
             h[m++] = (uint32_t)i;
         }
