@@ -7,8 +7,9 @@
  * photon's own quantized normal (pm_photon.normal) as the surface normal and rejecting photons
  * that arrived from behind that surface. The set is either every photon or about a quarter of
  * them: those with pm_kdtree_height(tree, i) >= 2, i.e. neither leaves nor parents of leaves
- * (for the classic tree, B = 1, exactly the records i with 4 (i + 1) <= n). The loop runs in
- * parallel with OpenMP when the build has it.
+ * (for the classic tree, B = 1, exactly the records i with 4 (i + 1) <= n). With leaf buckets
+ * of B > 2 records fewer qualify (measured on 100,000 uniform points: 25% for B = 1 and 2, 16%
+ * for B = 4, 8% for B = 8). The loop runs in parallel with OpenMP when the build has it.
  *
  * STORAGE AND COST. One RGBE value (4 bytes) per photon of the map, in tree order, plus one bit
  * per photon that says whether it was precomputed, plus (only if opt.store_radius) the float

@@ -756,3 +756,42 @@ TEST(estimate_leak_control) {
     pm_kdtree_free(tree);
     free(ph), free(scratch), free(scratch2);
 }
+
+/* Oracle: the same calls made serially. Estimates are reentrant: with one scratch buffer per
+ * thread, lookups run in parallel (OpenMP, when the build has it) give bit-identical results
+ * for every estimator. */
+TEST(estimate_parallel_matches_serial) {
+    square sq;
+    make_square(&sq, 8);
+    pm_kdtree *tree = NULL;
+    pm_kdtree_config cfg = pm_kdtree_photon_config(4);
+    ASSERT_EQ_INT(pm_kdtree_build(&tree, sq.ph, SIDE * SIDE, &cfg, NULL), PM_OK);
+    enum { Q = 2000 };
+    float (*qs)[3] = malloc(sizeof *qs * Q);
+    double *serial = malloc(sizeof *serial * Q * PM_EST_COUNT_), *par = malloc(sizeof *par * Q * PM_EST_COUNT_);
+    rng_t r = {80};
+    for (int i = 0; i < Q; i++) draw_interior(&r, qs[i]);
+    for (int pass = 0; pass < 2; pass++) {
+        double *res = pass ? par : serial;
+        int bad = 0;
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(2) schedule(dynamic, 16) reduction(+ : bad) if (pass)
+#endif
+        for (int i = 0; i < Q; i++) {
+            void *scratch = malloc(pm_estimate_scratch_bytes(60));
+            for (int kind = 0; kind < PM_EST_COUNT_; kind++) {
+                pm_estimate_options o;
+                pm_estimate_result e;
+                pm_estimate_options_init(&o, (pm_estimator)kind, 60);
+                o.reject_behind = 1;
+                bad += pm_estimate(tree, qs[i], UP, &o, scratch, &e, NULL) != PM_OK;
+                res[i * PM_EST_COUNT_ + kind] = e.rgb[0];
+            }
+            free(scratch);
+        }
+        EXPECT_EQ_INT(bad, 0);
+    }
+    EXPECT(memcmp(serial, par, sizeof *par * Q * PM_EST_COUNT_) == 0);
+    pm_kdtree_free(tree);
+    free(qs), free(serial), free(par), free(sq.ph);
+}
