@@ -57,13 +57,20 @@ int json_parse_text(const char *text, cJSON **root, json_err *e) {
             col++;
         }
     }
-    char near[24] = {0};
+    /* Show the text around the stop point: up to 16 characters before it on its line and
+     * up to 16 after, with ">" marking where the parser stopped. */
+    const char *b = end;
+    while (b > text && b[-1] != '\n' && end - b < 16) b--;
+    char ctx[40];
     size_t k = 0;
-    for (const char *c = end; *c && *c != '\n' && k < sizeof near - 1; c++) near[k++] = *c;
+    for (const char *c = b; c < end && k < 16; c++) ctx[k++] = (*c == '\t' || *c == '\r') ? ' ' : *c;
+    ctx[k++] = '>';
+    for (const char *c = end; *c && *c != '\n' && *c != '\r' && k < sizeof ctx - 1; c++) ctx[k++] = *c;
+    ctx[k] = 0;
     if (!*end)
         return json_fail(e, PM_EFORMAT, "line %d, column %d: syntax error (unexpected end of file)",
                          line, col);
-    return json_fail(e, PM_EFORMAT, "line %d, column %d: syntax error near '%s'", line, col, near);
+    return json_fail(e, PM_EFORMAT, "line %d, column %d: syntax error at '%s'", line, col, ctx);
 }
 
 int json_parse_file(const char *filename, cJSON **root, json_err *e) {

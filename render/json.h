@@ -9,7 +9,7 @@
  * that is rejected here ("not a finite number").
  *
  * json_parse_file reads and parses a file; a syntax error is reported with its line and
- * column ("line 12, column 5: syntax error near '}'").
+ * column ("line 12, column 5: syntax error at '"eye": [1,2,>}'", where > marks the spot).
  *
  * The photon-mapping code reads its "photon_mapping" object with the same getters.
  * Nothing here keeps state; the caller owns and frees (cJSON_Delete) the parsed document.

@@ -3,6 +3,8 @@
 
 #include "sampling.h"
 
+#define BARY_EPS 1e-12
+
 int triangle_make(triangle *t, vec3 a, vec3 b, vec3 c, int mat) {
     t->v0 = a;
     t->e1 = v3_sub(b, a);
@@ -28,10 +30,13 @@ int triangle_intersect(const triangle *tr, ray r, double tmin, double tmax, doub
     double inv = 1.0 / det;
     vec3 s = v3_sub(r.o, tr->v0);
     double uu = v3_dot(s, p) * inv;
-    if (uu < 0.0 || uu > 1.0) return 0;
+    /* BARY_EPS widens the inclusive edge tests by rounding level: plain Möller–Trumbore
+     * lets about 1% of rays through a shared edge between two triangles (both see u+v a few
+     * ulps above 1); the shared-edge test measures this. */
+    if (uu < -BARY_EPS || uu > 1.0 + BARY_EPS) return 0;
     vec3 q = v3_cross(s, tr->e1);
     double vv = v3_dot(r.d, q) * inv;
-    if (vv < 0.0 || uu + vv > 1.0) return 0;
+    if (vv < -BARY_EPS || uu + vv > 1.0 + BARY_EPS) return 0;
     double tt = v3_dot(tr->e2, q) * inv;
     if (!(tt > tmin && tt < tmax)) return 0;
     *t = tt;

@@ -9,7 +9,8 @@
  * Intersection functions return 1 and the distance *t when the ray o + t d hits the shape with
  * tmin < t < tmax, else 0. They are pure and thread-safe.
  *   - triangle: Möller–Trumbore; points exactly on an edge or a vertex count as hits (the
- *     barycentric tests are inclusive), so a ray through a shared edge never leaks.
+ *     barycentric tests are inclusive, widened by 1e-12), so a ray through a shared edge
+ *     never leaks between two triangles.
  *   - sphere: the numerically stable form (Haines et al., Ray Tracing Gems ch. 7): the
  *     discriminant is computed from the distance of the centre to the ray line, and the two
  *     roots from q = -(b + sign(b) sqrt(disc)) as c/q and q/a, so neither a large sphere nor

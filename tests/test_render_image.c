@@ -1,0 +1,182 @@
+/* test_render_image.c: whole renders against analytic radiance, and determinism.
+ *
+ * Oracles: the furnace (radiance Le/(1-rho) everywhere), direct lighting of a Lambertian
+ * plane by a point light, a square area light and a directional light (closed forms), and
+ * bit-identical films for 1 and 2 threads. Images are tiny so the suite stays fast.
+ */
+#include <stdlib.h>
+#include <string.h>
+
+#include "test.h"
+#include "../render/compare.h"
+#include "../render/film.h"
+#include "../render/integrator.h"
+#include "../render/renderer.h"
+#include "../render/scene.h"
+#include "../render/stats.h"
+
+static int render_text(const char *text, int w, int h, int spp, int threads, film *f) {
+    scene s;
+    json_err e;
+    if (scene_load_text(&s, text, &e) < 0) {
+        printf("    scene: %s\n", e.msg);
+        return -1;
+    }
+    if (w) camera_resize(&s.cam, w, h);
+    if (spp) camera_set_spp(&s.cam, spp);
+    integrator it;
+    char err[256];
+    int rc = integrator_create("path", &s, &it, err, sizeof err);
+    if (rc == 0) {
+        render_job job = {threads, 1, s.settings.seed};
+        rc = render_image(&s, &it, &job, f);
+        integrator_destroy(&it);
+    }
+    scene_free(&s);
+    return rc;
+}
+
+static int render_file(const char *name, int w, int h, int spp, int threads, film *f) {
+    char path[1024];
+    snprintf(path, sizeof path, "%s/data/scenes/%s", pm_test_source_dir(), name);
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return -1;
+    static char buf[1 << 16];
+    size_t n = fread(buf, 1, sizeof buf - 1, fp);
+    fclose(fp);
+    buf[n] = 0;
+    return render_text(buf, w, h, spp, threads, f);
+}
+
+/* Mean and standard error of the per-pixel means of channel 1 (green). */
+static void pixel_stats(const film *f, double *mean, double *se) {
+    long n = (long)f->width * f->height;
+    double s = 0, s2 = 0;
+    for (long i = 0; i < n; i++) {
+        double v = f->px[3 * i + 1];
+        s += v;
+        s2 += v * v;
+    }
+    *mean = s / n;
+    *se = sqrt(fmax(0, s2 / n - *mean * *mean) / n);
+}
+
+/* Oracle: in data/scenes/furnace.json (Le = 1, rho = 0.5) the radiance is Le/(1-rho) = 2 in
+ * every direction. Statistical bound: the image mean of N independent pixel means has
+ * standard error se (measured); we require |mean - 2| <= 1% of 2 and also check that 4 se is
+ * below 1%, so the 1% bound is a > 4-sigma statement and not luck. */
+TEST(render_furnace_le_over_one_minus_rho) {
+    film f;
+    int n = PM_TEST_SANITIZED ? 16 : 32;
+    ASSERT_EQ_INT(render_file("furnace.json", n, n, 256, 2, &f), 0);
+    double mean, se;
+    pixel_stats(&f, &mean, &se);
+    printf("    furnace: mean %.5f, se %.5f (expected 2)\n", mean, se);
+    ASSERT(4 * se < 0.01 * 2.0);
+    ASSERT_NEAR(mean, 2.0, 0.01 * 2.0);
+    film_free(&f);
+}
+
+#define PLANE_SCENE(LIGHTS, EXTRA_MAT, EXTRA_OBJ)                                                 \
+    "{\"camera\": {\"eye\": [0, 1, 0], \"forward\": [0, -1, 0], \"up\": [0, 0, 1], "              \
+    "\"fov_deg\": 0.01, \"width\": 1, \"height\": 1, \"spp\": 1},"                                \
+    "\"materials\": {\"p\": {\"type\": \"lambert\", \"reflectance\": 0.6}" EXTRA_MAT "},"         \
+    "\"objects\": [{\"type\": \"quad\", \"vertices\": [[-1e4,0,-1e4],[-1e4,0,1e4],[1e4,0,1e4],[1e4,0,-1e4]], " \
+    "\"material\": \"p\"}" EXTRA_OBJ "]," LIGHTS "\"render\": {\"max_depth\": 1}}"
+
+/* Oracle: a point light of intensity I at height h over a Lambertian plane (rho = 0.6): the
+ * radiance below it is rho/pi * I / h^2. One bounce (max_depth 1) and a 0.01-degree view, so
+ * the answer is exact to ~1e-9; tolerance 1e-6 relative. */
+TEST(render_direct_point_light) {
+    const char *txt = PLANE_SCENE("\"lights\": [{\"type\": \"point\", \"position\": [0, 2, 0], \"intensity\": 8}],", "", "");
+    film f;
+    ASSERT_EQ_INT(render_text(txt, 0, 0, 4, 1, &f), 0);
+    ASSERT_REL(f.px[1], 0.6 / M_PI * 8.0 / 4.0, 1e-6);
+    film_free(&f);
+}
+
+/* Oracle: a directional light with irradiance E arriving at 60 degrees from the normal gives
+ * rho/pi * E cos(60 deg); 1e-6 relative. */
+TEST(render_direct_directional_light) {
+    const char *txt = PLANE_SCENE("\"lights\": [{\"type\": \"directional\", \"direction\": [0.8660254037844386, -0.5, 0], \"irradiance\": 3}],", "", "");
+    film f;
+    ASSERT_EQ_INT(render_text(txt, 0, 0, 4, 1, &f), 0);
+    ASSERT_REL(f.px[1], 0.6 / M_PI * 3.0 * 0.5, 1e-6);
+    film_free(&f);
+}
+
+/* Oracle: a square area light (side 2a, radiance Le, facing down, black so nothing bounces
+ * back) at height h over the plane: the irradiance at the point below its centre is
+ * E = 4 Le pi F_corner, F_corner = 1/(2 pi) [A/sqrt(1+A^2) atan(B/sqrt(1+A^2)) + (A<->B)]
+ * with A = B = a/h (form factor of a rectangle to a point under its corner). Radiance:
+ * rho/pi * E. Many light samples; tolerance 1% against a measured standard error. */
+TEST(render_direct_area_light) {
+    const char *txt = PLANE_SCENE(
+        "", ", \"e\": {\"type\": \"lambert\", \"reflectance\": 0, \"emission\": 5}",
+        ", {\"type\": \"quad\", \"vertices\": [[-1,2,-1],[1,2,-1],[1,2,1],[-1,2,1]], \"material\": \"e\"}");
+    film f;
+    /* One pixel can only hold a mean; render several seeds' worth via a wider image of the
+     * same point: a 0.01 degree view is ~1e-3 units wide, where E is constant to 1e-6. */
+    int spp = PM_TEST_SANITIZED ? 1024 : 16384;
+    ASSERT_EQ_INT(render_text(txt, 4, 4, spp, 2, &f), 0);
+    double mean, se;
+    pixel_stats(&f, &mean, &se);
+    double A = 1.0 / 2.0, s = sqrt(1 + A * A);
+    double Fc = 1.0 / (2 * M_PI) * 2 * (A / s * atan(A / s));
+    double E = 4 * 5.0 * M_PI * Fc;
+    printf("    area light: %.6f vs %.6f (se %.2g)\n", mean, 0.6 / M_PI * E, se);
+    ASSERT(4 * se < 0.01 * 0.6 / M_PI * E);
+    ASSERT_REL(mean, 0.6 / M_PI * E, 0.01);
+    film_free(&f);
+}
+
+/* Oracle: the same seed gives a bit-identical film with 1 and 2 threads (per-sample random
+ * streams; each pixel is summed by one thread in sample order), on the scene with glass and
+ * a mirror; a different seed gives a different film (so the test can fail). */
+TEST(render_same_image_any_thread_count) {
+    film a, b, c;
+    int n = PM_TEST_SANITIZED ? 16 : 40;
+    ASSERT_EQ_INT(render_file("cornell_spheres.json", n, n, 4, 1, &a), 0);
+    ASSERT_EQ_INT(render_file("cornell_spheres.json", n, n, 4, 2, &b), 0);
+    ASSERT(memcmp(a.px, b.px, (size_t)n * n * 3 * sizeof(float)) == 0);
+    ASSERT_EQ_INT(render_file("cornell_spheres.json", n, n, 9, 2, &c), 0);
+    image_diff d;
+    ASSERT_EQ_INT(image_compare(&a, &c, 0, 0, 0, 0, &d), 0);
+    ASSERT(d.rmse > 0);
+    ASSERT(d.mean_a > 0);
+    film_free(&a);
+    film_free(&b);
+    film_free(&c);
+}
+
+/* Oracle: a PFM written and read back is bit-identical; --compare of a file with itself
+ * gives rmse 0, and against a copy scaled by 1.1 gives rel_mean 0.1 (analytic). */
+TEST(render_pfm_roundtrip_and_compare) {
+    film f, g, h;
+    ASSERT_EQ_INT(film_init(&f, 7, 5), 0);
+    for (int i = 0; i < 7 * 5 * 3; i++) f.px[i] = (float)(0.1 * i + 0.01);
+    char p1[1024], p2[1024], cmd[4096], out[4096];
+    snprintf(p1, sizeof p1, "%s/a.pfm", pm_test_tmpdir());
+    snprintf(p2, sizeof p2, "%s/b.pfm", pm_test_tmpdir());
+    ASSERT_EQ_INT(film_write_pfm(&f, p1), 0);
+    ASSERT_EQ_INT(film_read_pfm(&g, p1), 0);
+    ASSERT(g.width == 7 && g.height == 5);
+    ASSERT(memcmp(f.px, g.px, sizeof(float) * 105) == 0);
+    for (int i = 0; i < 105; i++) g.px[i] *= 1.1f;
+    ASSERT_EQ_INT(film_write_pfm(&g, p2), 0);
+    image_diff d;
+    ASSERT_EQ_INT(film_read_pfm(&h, p2), 0);
+    ASSERT_EQ_INT(image_compare(&h, &f, 0, 0, 0, 0, &d), 0);
+    ASSERT_NEAR(d.rel_mean, 0.1, 1e-6);
+    ASSERT_EQ_INT(image_compare(&h, &f, 2, 1, 3, 2, &d), 0);
+    ASSERT_EQ_INT(d.npixels, 6);
+    snprintf(cmd, sizeof cmd, "%s/render --compare '%s' '%s' --rect 0 0 7 5", pm_test_build_dir(), p2, p1);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    ASSERT_MSG(strstr(out, "rel_mean 0.1") != NULL, "%s", out);
+    snprintf(cmd, sizeof cmd, "%s/render --compare '%s' '%s'", pm_test_build_dir(), p1, p1);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    ASSERT_MSG(strstr(out, "rmse 0\n") != NULL, "%s", out);
+    film_free(&f);
+    film_free(&g);
+    film_free(&h);
+}
