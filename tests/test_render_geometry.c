@@ -131,7 +131,7 @@ static int brute(const triangle *tr, int nt, const sphere *sp, int ns, ray r, do
 /* Oracle: brute force over all primitives gives the same nearest hit and the same
  * occlusion answer as the BVH, for random triangles and spheres (including duplicates). */
 TEST(render_bvh_matches_brute_force) {
-    int nt = PM_TEST_SANITIZED ? 200 : 600, ns = 60, nrays = PM_TEST_SANITIZED ? 1000 : 4000;
+    int nt = 600, ns = 60, nrays = PM_TEST_SANITIZED ? 1000 : 4000;
     triangle *tr = malloc((size_t)nt * sizeof *tr);
     sphere *sp = malloc((size_t)ns * sizeof *sp);
     ASSERT(tr && sp);
