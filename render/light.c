@@ -1,6 +1,7 @@
 /* light.c: sampling a point on a light as seen from a shading point; see light.h. */
 #include "light.h"
 
+#include "sampling.h"
 #include "scene.h"
 
 int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2, light_sample *ls) {
@@ -44,4 +45,45 @@ int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2,
         return 1;
     }
     return 0;
+}
+
+void light_sample_le(const struct scene *s, int li, const double u[4], vec3 *p, vec3 *n, vec3 *d) {
+    const light *l = &s->lights[li];
+    switch (l->type) {
+    case LIGHT_AREA: {
+        const triangle *tr = &s->tris[l->tri];
+        double u0 = u[0];
+        vec3 nn = tr->n;
+        if (l->two_sided) {
+            /* Reuse u[0] after the side choice so it stays uniform. */
+            if (u0 < 0.5) {
+                u0 *= 2;
+            } else {
+                u0 = 2 * u0 - 1;
+                nn = v3_neg(nn);
+            }
+        }
+        *p = triangle_sample(tr, u0, u[1]);
+        *n = nn;
+        *d = sampling_to_world(sample_cosine_hemisphere(u[2], u[3]), nn);
+        return;
+    }
+    case LIGHT_POINT:
+        *p = l->pos;
+        *n = v3s(0);
+        *d = sample_uniform_sphere(u[0], u[1]);
+        return;
+    default: {
+        double x, y;
+        sample_concentric_disc(u[0], u[1], &x, &y);
+        vec3 a, b;
+        v3_basis(l->dir, &a, &b);
+        double R = s->bsphere_r > 0 ? s->bsphere_r : 1.0;
+        vec3 c = v3_madd(s->bsphere_c, l->dir, -R);
+        *p = v3_add(c, v3_add(v3_scale(a, x * R), v3_scale(b, y * R)));
+        *n = v3s(0);
+        *d = l->dir;
+        return;
+    }
+    }
 }

@@ -51,6 +51,17 @@ struct scene;
  * light (before the visibility test), 0 otherwise. */
 int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2, light_sample *ls);
 
+/* A ray of light leaving light number li, for photon emission; u[0..3] uniform in [0,1).
+ *   area:        a uniform point on the triangle and a cosine-weighted direction about its
+ *                front normal (two-sided: u[0] < 0.5 picks the front, the rest the back);
+ *   point:       the light's position and a uniform direction;
+ *   directional: a uniform point on the disc of radius R (the scene's bounding sphere)
+ *                perpendicular to the light, R in front of the scene, travelling along dir.
+ * With these densities every emitted photon of light li carries power light.power / n_emitted
+ * (for n_emitted photons from that light). *p is the origin, *n the surface normal at it
+ * (zero for point and directional lights: no offset needed), *d the unit direction. */
+void light_sample_le(const struct scene *s, int li, const double u[4], vec3 *p, vec3 *n, vec3 *d);
+
 #ifdef __cplusplus
 }
 #endif

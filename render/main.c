@@ -241,6 +241,7 @@ int main(int argc, char **argv) {
     int nthreads = (int)threads;
 #ifdef _OPENMP
     if (nthreads <= 0) nthreads = omp_get_max_threads();
+    omp_set_num_threads(nthreads); /* so that preprocessing (photon tracing) uses --threads too */
 #else
     nthreads = 1;
 #endif
