@@ -136,9 +136,21 @@ TEST(render_direct_area_light) {
 TEST(render_same_image_any_thread_count) {
     film a, b, c;
     int n = PM_TEST_SANITIZED ? 16 : 40;
+    uint64_t ids[] = {STAT_CAMERA_RAYS, STAT_SHADOW_RAYS, STAT_INDIRECT_RAYS, STAT_TRI_TESTS,
+                      STAT_SPHERE_TESTS, STAT_SPECULAR_BOUNCES};
+    uint64_t counts[2][6];
+    stats_reset();
     ASSERT_EQ_INT(render_file("cornell_spheres.json", n, n, 4, 1, &a), 0);
+    for (int i = 0; i < 6; i++) counts[0][i] = stats_total((int)ids[i]);
+    stats_reset();
     ASSERT_EQ_INT(render_file("cornell_spheres.json", n, n, 4, 2, &b), 0);
+    for (int i = 0; i < 6; i++) counts[1][i] = stats_total((int)ids[i]);
     ASSERT(memcmp(a.px, b.px, (size_t)n * n * 3 * sizeof(float)) == 0);
+    /* The statistics are the same too, and count what was done: one camera ray per sample,
+     * some shadow rays, sphere tests (the scene has two spheres) and specular bounces. */
+    for (int i = 0; i < 6; i++) ASSERT_EQ_INT(counts[0][i], counts[1][i]);
+    ASSERT_EQ_INT(counts[0][0], (uint64_t)n * n * 4);
+    for (int i = 1; i < 6; i++) ASSERT(counts[0][i] > 0);
     ASSERT_EQ_INT(render_file("cornell_spheres.json", n, n, 9, 2, &c), 0);
     image_diff d;
     ASSERT_EQ_INT(image_compare(&a, &c, 0, 0, 0, 0, &d), 0);

@@ -116,6 +116,12 @@ TEST(render_scene_cli_errors_and_success) {
              spath, pm_test_tmpdir());
     ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 2);
     ASSERT_MSG(strstr(out, "unknown mode \"nosuch\"") && strstr(out, "path"), "%s", out);
+    /* Not a terminal: plain progress lines, no carriage returns; and the summary. */
+    snprintf(cmd, sizeof cmd, "%s/render '%s' --hdr %s/p.pfm 2>&1 < /dev/null", pm_test_build_dir(),
+             spath, pm_test_tmpdir());
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    ASSERT_MSG(strstr(out, "Rendering: done in") && !strchr(out, '\r'), "%s", out);
+    ASSERT_MSG(strstr(out, "Summary: wall time") && strstr(out, "M rays/s"), "%s", out);
 }
 
 /* Oracle: every shipped scene loads (the files in data/scenes are the documentation's
