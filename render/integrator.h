@@ -22,6 +22,19 @@
  *   thread_end(it, scratch) optional
  *   destroy(it)             optional; frees it->data
  * Failures return a negative PM_E* code with a message in err (preprocess, create).
+ *
+ * What a photon-mapping integrator finds ready-made:
+ *   - scene.h: scene_intersect / scene_visible / scene_visible_dir; hit.ng is the unit
+ *     geometric normal (not flipped toward the ray); scene->photon_mapping is the file's
+ *     "photon_mapping" object, to read with json.h getters under the path "$.photon_mapping";
+ *   - light.h: light_sample_le() emits a photon ray (photon power = light.power / n emitted
+ *     from that light); scene->light_distrib picks a light in proportion to its power;
+ *   - material.h: material_weights() gives R, (1-R)T, (1-R)(1-T); material_sample() works
+ *     for photons too (pass wo = -photon direction; wi is the scattered direction);
+ *     material_is_specular / _diffuse / _emissive for planning;
+ *   - rng.h: rng_stream(seed, photon_index, salt) is a per-photon stream;
+ *   - stats.h: stats_register("Photons/...") at create time, so skipped work prints as 0;
+ *   - progress.h: a reporter for the photon loop; vec.h: v3_offset() for new ray origins.
  */
 #ifndef RENDER_INTEGRATOR_H
 #define RENDER_INTEGRATOR_H
