@@ -131,8 +131,9 @@ int material_is_specular(const material *m) {
 }
 
 int material_is_diffuse(const material *m) {
-    return m->specular < 1 && !(m->fresnel && m->transparency >= 1) && m->transparency < 1 &&
-           v3_maxc(m->diffuse) > 0;
+    /* The diffuse weight (1-R)(1-T) can be positive: T < 1, and R < 1 somewhere (Fresnel R
+     * is below 1 at normal incidence). */
+    return m->transparency < 1 && (m->fresnel || m->specular < 1) && v3_maxc(m->diffuse) > 0;
 }
 
 int material_is_emissive(const material *m) { return v3_maxc(m->emission) > 0; }

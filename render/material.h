@@ -26,6 +26,9 @@
  * (index ior); from the back side the indices swap. Opaque branches act on the side the ray
  * came from (two-sided shading).
  *
+ * Refraction does not scale radiance by (n2/n1)^2: camera paths enter and leave closed
+ * objects, so the factors cancel, and photon power is conserved through an interface anyway.
+ *
  * Directions: wo points from the surface toward where the light goes (the viewer), wi toward
  * where it comes from; both unit length. All functions are pure and thread-safe.
  */

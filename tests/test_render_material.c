@@ -151,3 +151,23 @@ TEST(render_material_branch_weights) {
         ASSERT_NEAR(cnt[k], N * p, 5 * sd + 1);
     }
 }
+
+/* Oracle: the planning predicates follow the branch weights: a branch counts when its weight
+ * can be positive and its colour is not black (hand-worked table for each preset). */
+TEST(render_material_predicates) {
+    material lam = diffuse_mat(0.5, 0), on = diffuse_mat(0.5, 0.3), black = diffuse_mat(0, 0);
+    material mir = diffuse_mat(0, 0), glass = diffuse_mat(0, 0), plastic = diffuse_mat(0.4, 0);
+    mir.specular = 1;
+    glass.fresnel = 1;
+    glass.transparency = 1;
+    plastic.fresnel = 1;
+    EXPECT(material_is_diffuse(&lam) && !material_is_specular(&lam));
+    EXPECT(material_is_diffuse(&on) && !material_is_specular(&on));
+    EXPECT(!material_is_diffuse(&black) && !material_is_specular(&black));
+    EXPECT(!material_is_diffuse(&mir) && material_is_specular(&mir));
+    EXPECT(!material_is_diffuse(&glass) && material_is_specular(&glass));
+    EXPECT(material_is_diffuse(&plastic) && material_is_specular(&plastic));
+    EXPECT(!material_is_emissive(&lam));
+    lam.emission = v3(0, 0, 0.1);
+    EXPECT(material_is_emissive(&lam));
+}
