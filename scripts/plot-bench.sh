@@ -1,0 +1,101 @@
+#!/bin/sh
+# plot-bench.sh: PNG plots of the benchmark CSVs with gnuplot.
+#
+#   sh scripts/plot-bench.sh RESULTS_DIR IMG_DIR
+#
+# Each plot is a set of series cut out of a CSV by awk (one data file per series, named by
+# its key, e.g. "kdtree iterative B=8"), then drawn by one gnuplot call. Plots:
+#   param_<dist>.png   queries/s against B, octree capacity and FLANN leaf size (1 thread)
+#   radius_<dist>.png  queries/s against the maximum radius (relative to the radius finding 50)
+#   k_<dist>.png       queries/s against k (unlimited radius)
+#   recall_<dist>.png  FLANN forest recall against queries/s, beside the exact searches
+#   n_photon.png       queries/s against N; build_photon.png: build time against N
+#   estimate_<region>.png  RMS relative error of each estimator against ns per estimate
+set -eu
+R=${1:?usage: plot-bench.sh RESULTS_DIR IMG_DIR}
+IMG=${2:?usage: plot-bench.sh RESULTS_DIR IMG_DIR}
+mkdir -p "$IMG"
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+
+# series CSV AWK_FILTER X_EXPR Y_EXPR KEY_EXPR: writes $T/s/<n>.dat and $T/s/<n>.key
+series() {
+  rm -rf "$T/s"; mkdir -p "$T/s"
+  awk -F, -v dir="$T/s" "
+    NR > 1 && ($2) {
+      key = $5; x = $3; y = $4
+      if (!(key in id)) { id[key] = ++n; print key > (dir \"/\" n \".key\"); close(dir \"/\" n \".key\") }
+      print x, y >> (dir \"/\" id[key] \".dat\")
+    }" "$1"
+}
+
+# plot OUT.png TITLE XLABEL YLABEL LOGX LOGY [extra gnuplot lines]
+plot() {
+  out=$1 title=$2 xl=$3 yl=$4 logx=$5 logy=$6 extra=${7:-}
+  [ -n "$(ls "$T/s" 2>/dev/null)" ] || return 0
+  {
+    echo "set terminal pngcairo size 900,560 font 'sans,10' noenhanced"
+    echo "set output '$out'"
+    echo "set title '$title'"
+    echo "set xlabel '$xl'; set ylabel '$yl'"
+    echo "set grid; set key outside right top"
+    [ "$logx" = 1 ] && echo "set logscale x"
+    [ "$logy" = 1 ] && echo "set logscale y"
+    echo "$extra"
+    printf 'plot '
+    first=1
+    for k in $(ls "$T/s"/*.key | sort -t/ -k1,1 -V); do
+      b=${k%.key}
+      [ -s "$b.dat" ] || continue
+      sort -g "$b.dat" > "$b.sorted"
+      [ $first = 1 ] || printf ', '
+      first=0
+      printf "'%s' using 1:2 with linespoints title '%s'" "$b.sorted" "$(cat "$k" | tr "'" ' ')"
+    done
+    echo
+  } > "$T/plot.gp"
+  gnuplot "$T/plot.gp" 2>"$T/gp.err" || { cat "$T/gp.err" >&2; return 1; }
+}
+
+Q="$R/queries.csv"
+B="$R/build.csv"
+# queries.csv columns: 1 sweep 2 dist 3 n 4 index 5 variant 6 param 7 k 8 r_rel 9 r2 10 threads
+#  11 queries 12 runs 13 qps 14 qps_min 15 qps_max 16 ns 17 nodes 18 evals 19 found 20 recall
+for d in photon uniform file; do
+  grep -q ",$d," "$Q" 2>/dev/null || continue
+  series "$Q" "\$1==\"param\" && \$2==\"$d\" && \$10==1 && \$4!=\"flann_forest4\" && \$4!=\"brute\"" \
+    '$6' '$13' '$4 " " $5'
+  n=$(awk -F, -v d="$d" '$1=="param" && $2==d {print $3; exit}' "$Q")
+  plot "$IMG/param_$d.png" "$d, n=$n, k=50, max radius finding ~50, 1 thread" \
+    'kd-tree bucket B / octree capacity / FLANN leaf_max_size' 'queries per second' 1 1
+
+  series "$Q" "\$1==\"radius\" && \$2==\"$d\"" \
+    '($8=="inf" ? 16 : $8)' '$13' '$4 " " $5 " " $6'
+  plot "$IMG/radius_$d.png" "$d, n=$n, k=50 (radius variants: all within r), 1 thread" \
+    'maximum radius / radius finding 50 (16 = unlimited)' 'queries per second' 1 1 'set xrange [0.08:20]'
+
+  series "$Q" "\$1==\"k\" && \$2==\"$d\"" '$7' '$13' '$4 " " $5 " " $6'
+  plot "$IMG/k_$d.png" "$d, n=$n, unlimited radius, 1 thread" 'k' 'queries per second' 1 1
+
+  series "$Q" "\$1==\"param\" && \$2==\"$d\" && \$10==1 && (\$4==\"flann_forest4\" || (\$4==\"kdtree\" && \$5==\"iterative\") || (\$4==\"flann_single\" && \$5==\"knn_batch\"))" \
+    '$13' '$20' '($4=="flann_forest4" ? "flann_forest4 (checks 16..256)" : $4 " " $5 " (all B / leaf sizes)")'
+  plot "$IMG/recall_$d.png" "$d, n=$n, k=50: recall against speed, 1 thread" \
+    'queries per second' 'recall' 1 0 'set yrange [0:1.05]'
+done
+
+series "$Q" '$1=="n" && $2=="photon"' '$3' '$13' '$4 " " $5 " " $6'
+plot "$IMG/n_photon.png" 'photon-like, k=50, max radius finding ~50, 1 thread' 'N (photons)' \
+  'queries per second' 1 1
+# build.csv columns: 1 sweep 2 dist 3 n 4 index 5 param 6 build_s
+series "$B" '$1=="n" && $2=="photon"' '$3' '$6' '$4 " " $5'
+plot "$IMG/build_photon.png" 'photon-like: build time (median)' 'N (photons)' 'seconds' 1 1
+
+# estimate.csv columns: 1 region 2 estimator 3 bias 4 k ... ns_per_estimate, rms_rel_error
+E="$R/estimate.csv"
+if [ -f "$E" ]; then
+  for region in interior edge; do
+    series "$E" "\$1==\"$region\"" '$6' '$7' '$2 ($3=="none" || $3=="" ? "" : " bias=" $3)'
+    plot "$IMG/estimate_$region.png" "uniform square, $region: k = 15, 50, 100, 500 along each line" \
+      'nanoseconds per estimate' 'RMS relative error' 1 1
+  done
+fi

@@ -1,0 +1,87 @@
+#!/bin/sh
+# run-bench.sh: run the benchmarks, then make the plots and the benchmarks document from the CSVs.
+#
+#   sh scripts/run-bench.sh BUILD full  [OUTDIR]   (make bench: bench/results, docs/BENCHMARKS.md)
+#   sh scripts/run-bench.sh BUILD quick [OUTDIR]   (make bench-quick: everything into OUTDIR)
+#
+# The full run writes bench/results/*.csv (committed), the PNG plots to docs/bench/ and
+# docs/BENCHMARKS.md; it also profiles the headline configurations with callgrind when
+# valgrind is installed (scripts/install-deps.sh --bench). The quick run writes all of that
+# into OUTDIR (default BUILD/bench-quick), so the scripts are exercised by the test suite too.
+# PM_BENCH_MAP=file.pmap adds a real photon map (pm_map_save format) to the search bench.
+# Progress goes to stderr; every number in the document comes from the CSVs.
+set -eu
+
+BUILD=${1:?usage: run-bench.sh BUILD full|quick [OUTDIR]}
+MODE=${2:-quick}
+case "$MODE" in
+  full)  OUT=${3:-bench/results}; DOCS=docs; IMG=docs/bench; IMGREL=bench; QFLAG= ;;
+  quick) OUT=${3:-$BUILD/bench-quick}; DOCS=$OUT; IMG=$OUT/img; IMGREL=img; QFLAG=--quick ;;
+  *) echo "run-bench.sh: mode must be full or quick" >&2; exit 2 ;;
+esac
+mkdir -p "$OUT" "$IMG" "$DOCS"
+start=$(date +%s)
+log() { echo "run-bench: [$(( $(date +%s) - start ))s] $*" >&2; }
+
+# The machine, for the document.
+{
+  echo "key,value"
+  echo "cpu,$(lscpu 2>/dev/null | sed -n 's/^Model name:[[:space:]]*//p' | head -n 1 | tr ',' ' ')"
+  echo "cores,$(nproc 2>/dev/null || echo '?')"
+  echo "compiler,$(${CC:-cc} --version 2>/dev/null | head -n 1 | tr ',' ' ')"
+  echo "flann,$(dpkg-query -W -f='${Version}' libflann-dev 2>/dev/null || echo unknown)"
+  echo "date,$(date -u '+%Y-%m-%d %H:%M UTC')"
+  echo "commit,$(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+  echo "mode,$MODE"
+  echo "load_before,$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo '?')"
+} > "$OUT/machine.csv"
+
+MAPARG=
+if [ -n "${PM_BENCH_MAP:-}" ]; then MAPARG="--map $PM_BENCH_MAP"; fi
+
+log "search benchmark ($MODE)"
+# shellcheck disable=SC2086
+"$BUILD/bench_search" $QFLAG --out "$OUT" $MAPARG
+
+if [ -x "$BUILD/bench_estimate" ]; then
+  log "estimate benchmark ($MODE)"
+  # shellcheck disable=SC2086
+  "$BUILD/bench_estimate" $QFLAG --out "$OUT"
+fi
+
+# Profiles of the headline configurations (what limits each one), full run only.
+rm -f "$OUT"/profile_*.txt
+if [ "$MODE" = full ] && command -v valgrind >/dev/null 2>&1 && command -v callgrind_annotate >/dev/null 2>&1; then
+  n=$(awk -F, '$1=="headline" && $2=="photon" {print $3; exit}' "$OUT/queries.csv")
+  awk -F, '$1=="headline" && $2=="photon" && $10==1 {print $4":"$5":"$6" "$9}' "$OUT/queries.csv" |
+  awk '!seen[$1]++' | head -n 5 | while read -r probe r2; do
+    case "$probe" in flann_single:radius_maxnn:*) continue ;; esac
+    name=$(echo "$probe" | tr ':' '_')
+    log "callgrind profile: $probe"
+    cg="$OUT/callgrind.$name.tmp"
+    valgrind --tool=callgrind --instr-atstart=no --callgrind-out-file="$cg" \
+      "$BUILD/bench_search" --probe "$probe" --n "$n" --probe-r2 "$r2" --probe-queries 4000 \
+      > "$OUT/probe.$name.tmp" 2>/dev/null
+    {
+      echo "# $(cat "$OUT/probe.$name.tmp")"
+      echo "# callgrind, instructions (Ir) of the 4000 queries only, by function (self cost)"
+      callgrind_annotate --inclusive=no "$cg" 2>/dev/null | sed -n '/^-*$/!p' |
+        grep -E 'PROGRAM TOTALS|^ *[0-9,]+ +\(' | head -n 12
+    } > "$OUT/profile_$name.txt"
+    rm -f "$cg" "$OUT/probe.$name.tmp"
+  done
+fi
+
+echo "load_after,$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo '?')" >> "$OUT/machine.csv"
+echo "bench_seconds,$(( $(date +%s) - start ))" >> "$OUT/machine.csv"
+
+if command -v gnuplot >/dev/null 2>&1; then
+  log "plots -> $IMG"
+  sh scripts/plot-bench.sh "$OUT" "$IMG"
+else
+  log "gnuplot not installed: no plots (scripts/install-deps.sh --bench)"
+fi
+log "document -> $DOCS/BENCHMARKS.md"
+sh scripts/gen-benchmarks-md.sh "$OUT" "$IMGREL" > "$DOCS/BENCHMARKS.md.tmp"
+mv "$DOCS/BENCHMARKS.md.tmp" "$DOCS/BENCHMARKS.md"
+log "done"

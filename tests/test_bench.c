@@ -1,0 +1,258 @@
+/* test_bench.c: runs the quick benchmark so that it never rots, and checks what it wrote.
+ *
+ * No timing is asserted (the machine is shared). What is checked: every CSV has its documented
+ * header and the rows of every sweep; every exact search (our kd-tree, the octree, brute
+ * force, FLANN's single kd-tree) had recall 1 and answered every verified query exactly like
+ * the brute-force truth computed inside the bench; the approximate forest reports a recall in
+ * [0, 1]; the kd-tree costs 20 bytes per photon plus a fixed header; and a photon-map file
+ * written with pm_map_save goes through the bench's file path. In the release build the whole
+ * quick run goes through scripts/run-bench.sh (plots and document included); under the
+ * sanitizers the search bench alone runs on smaller sizes.
+ */
+#include <stdlib.h>
+#include <string.h>
+#include "test.h"
+#include "photon.h"
+
+typedef struct csv {
+    int nrows, ncols;
+    char **cell; /* nrows x ncols, row 0 is the header */
+    char *buf;
+} csv;
+
+static int csv_load(csv *c, const char *path) {
+    FILE *f = fopen(path, "rb");
+    long len;
+    memset(c, 0, sizeof *c);
+    if (!f) return -1;
+    fseek(f, 0, SEEK_END);
+    len = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    c->buf = malloc((size_t)len + 1);
+    if (fread(c->buf, 1, (size_t)len, f) != (size_t)len) len = 0;
+    c->buf[len] = 0;
+    fclose(f);
+    int lines = 0;
+    for (long i = 0; i < len; i++) lines += c->buf[i] == '\n';
+    c->ncols = 1;
+    for (char *p = c->buf; *p && *p != '\n'; p++) c->ncols += *p == ',';
+    c->cell = calloc((size_t)(lines + 1) * (size_t)c->ncols, sizeof *c->cell);
+    char *line = c->buf;
+    while (*line) {
+        char *nl = strchr(line, '\n');
+        if (nl) *nl = 0;
+        int col = 0;
+        char *p = line;
+        c->cell[c->nrows * c->ncols + col++] = p;
+        for (; *p; p++)
+            if (*p == ',') {
+                *p = 0;
+                if (col < c->ncols) c->cell[c->nrows * c->ncols + col++] = p + 1;
+            }
+        if (col != c->ncols) return -2; /* ragged row */
+        c->nrows++;
+        if (!nl) break;
+        line = nl + 1;
+    }
+    return 0;
+}
+static void csv_free(csv *c) {
+    free(c->cell);
+    free(c->buf);
+}
+static const char *at(const csv *c, int row, const char *name) {
+    for (int j = 0; j < c->ncols; j++)
+        if (!strcmp(c->cell[j], name)) return c->cell[row * c->ncols + j];
+    return NULL;
+}
+/* Rows matching up to three name=value pairs (NULL name: unused). */
+static int count_rows(const csv *c, const char *n1, const char *v1, const char *n2,
+                      const char *v2, const char *n3, const char *v3) {
+    int k = 0;
+    for (int r = 1; r < c->nrows; r++) {
+        if (n1 && strcmp(at(c, r, n1), v1)) continue;
+        if (n2 && strcmp(at(c, r, n2), v2)) continue;
+        if (n3 && strcmp(at(c, r, n3), v3)) continue;
+        k++;
+    }
+    return k;
+}
+
+/* One-thread rows of a sweep, dist and index (the all-threads rows exist only on >1 core). */
+static int count_rows3(const csv *c, const char *sweep, const char *dist, const char *index) {
+    int k = 0;
+    for (int r = 1; r < c->nrows; r++)
+        k += !strcmp(at(c, r, "sweep"), sweep) && !strcmp(at(c, r, "dist"), dist) &&
+             !strcmp(at(c, r, "index"), index) && !strcmp(at(c, r, "threads"), "1");
+    return k;
+}
+
+static const char *QUERY_HDR =
+    "sweep,dist,n,index,variant,param,k,r_rel,r2,threads,queries,runs,qps,qps_min,qps_max,"
+    "ns_per_query,nodes_per_query,dist_evals_per_query,mean_found,recall,exact_frac,verified";
+static const char *BUILD_HDR =
+    "sweep,dist,n,index,param,build_s,build_s_min,build_s_max,runs,bytes_per_photon,"
+    "data_bytes_per_photon,index_bytes_per_photon,heap_delta_per_photon,flann_used_per_photon,"
+    "mem_method";
+static const char *HEAD_HDR = "dist,n,metric,ours,ours_value,peer,peer_value,ratio,target,met";
+
+static int first_line_is(const char *path, const char *want) {
+    char line[1024] = "";
+    FILE *f = fopen(path, "r");
+    if (!f) return 0;
+    if (!fgets(line, sizeof line, f)) line[0] = 0;
+    fclose(f);
+    line[strcspn(line, "\n")] = 0;
+    return strcmp(line, want) == 0;
+}
+
+/* Every exact search answered every verified query like brute force (exact_frac 1, recall 1);
+ * the forest's recall is a fraction. */
+static void check_exactness(const csv *q) {
+    int exact_rows = 0;
+    for (int r = 1; r < q->nrows; r++) {
+        const char *ix = at(q, r, "index");
+        double recall = atof(at(q, r, "recall")), ex = atof(at(q, r, "exact_frac"));
+        EXPECT(atoi(at(q, r, "verified")) > 0);
+        EXPECT(atof(at(q, r, "qps")) > 0);
+        if (!strcmp(ix, "flann_forest4")) {
+            EXPECT_MSG(recall >= 0 && recall <= 1, "forest recall %g", recall);
+        } else {
+            EXPECT_MSG(recall == 1.0 && ex == 1.0, "row %d: %s %s %s recall %s exact %s", r, ix,
+                       at(q, r, "variant"), at(q, r, "param"), at(q, r, "recall"),
+                       at(q, r, "exact_frac"));
+            exact_rows++;
+        }
+    }
+    EXPECT(exact_rows > 50);
+}
+
+/* Oracle: brute force inside the bench (exact_frac, recall), the documented CSV layout, the
+ * sweep definitions of bench_search.c, and the 20-byte record (bytes per photon). */
+TEST(bench_quick_run_writes_checked_csvs) {
+    char cmd[4096], out[16384], path[2048];
+    const char *dir = pm_test_tmpdir();
+    const char *build = pm_test_build_dir();
+    int rc;
+    if (PM_TEST_SANITIZED)
+        snprintf(cmd, sizeof cmd, "%s/bench_search --quick --n 4000 --out %s", build, dir);
+    else
+        snprintf(cmd, sizeof cmd, "cd %s && sh scripts/run-bench.sh %s quick %s", pm_test_source_dir(),
+                 build, dir);
+    rc = pm_test_run(cmd, out, sizeof out);
+    ASSERT_MSG(rc == 0, "quick bench failed (%d): %s", rc, out);
+
+    snprintf(path, sizeof path, "%s/queries.csv", dir);
+    ASSERT(first_line_is(path, QUERY_HDR));
+    csv q;
+    ASSERT_EQ_INT(csv_load(&q, path), 0);
+    snprintf(path, sizeof path, "%s/build.csv", dir);
+    ASSERT(first_line_is(path, BUILD_HDR));
+    csv b;
+    ASSERT_EQ_INT(csv_load(&b, path), 0);
+    snprintf(path, sizeof path, "%s/headline.csv", dir);
+    ASSERT(first_line_is(path, HEAD_HDR));
+    csv h;
+    ASSERT_EQ_INT(csv_load(&h, path), 0);
+
+    static const char *dists[] = {"photon", "uniform"};
+    for (int d = 0; d < 2; d++) {
+        const char *ds = dists[d];
+        /* param sweep, one thread: 6 B x 2 searches, 7 capacities, 6 leaves x 2, 5 checks, brute */
+        static const char *kb[] = {"1", "2", "4", "8", "16", "32"};
+        for (int i = 0; i < 6; i++) {
+            EXPECT_EQ_INT(count_rows(&q, "sweep", "param", "dist", ds, "param", kb[i]) > 0, 1);
+        }
+        EXPECT_EQ_INT(count_rows3(&q, "param", ds, "kdtree"), 12);
+        EXPECT_EQ_INT(count_rows3(&q, "param", ds, "octree"), 7);
+        EXPECT_EQ_INT(count_rows3(&q, "param", ds, "flann_single"), 12);
+        EXPECT_EQ_INT(count_rows3(&q, "param", ds, "flann_forest4"), 5);
+        EXPECT_EQ_INT(count_rows3(&q, "param", ds, "brute"), 1);
+        EXPECT_EQ_INT(count_rows(&q, "sweep", "headline", "dist", ds, NULL, NULL), 8);
+        static const char *ks[] = {"1", "10", "50", "100", "500"};
+        for (int i = 0; i < 5; i++)
+            EXPECT_MSG(count_rows(&q, "sweep", "k", "dist", ds, "k", ks[i]) >= 5, "k=%s", ks[i]);
+        EXPECT(count_rows(&q, "sweep", "radius", "dist", ds, "r_rel", "inf") >= 5);
+        EXPECT(count_rows(&q, "sweep", "radius", "dist", ds, "variant", "radius") >= 3 * 6);
+        EXPECT_EQ_INT(count_rows(&h, "dist", ds, NULL, NULL, NULL, NULL), 5);
+        EXPECT_EQ_INT(count_rows(&b, "sweep", "param", "dist", ds, NULL, NULL), 6 + 7 + 6 + 1);
+    }
+    EXPECT(count_rows(&q, "sweep", "n", "dist", "photon", NULL, NULL) >= 2 * 5);
+    EXPECT(count_rows(&b, "sweep", "n", NULL, NULL, NULL, NULL) >= 2 * 3);
+    check_exactness(&q);
+    /* 20-byte records; the tree owns a fixed header only (axis bits in the flag byte) */
+    for (int r = 1; r < b.nrows; r++)
+        if (!strcmp(at(&b, r, "index"), "kdtree")) {
+            double bpp = atof(at(&b, r, "bytes_per_photon"));
+            EXPECT_MSG(bpp >= 20.0 && bpp < 20.1, "kd-tree bytes/photon %g", bpp);
+        }
+    if (!PM_TEST_SANITIZED) {
+        snprintf(path, sizeof path, "%s/BENCHMARKS.md", dir);
+        FILE *f = fopen(path, "r");
+        EXPECT_MSG(f != NULL, "run-bench.sh wrote no document");
+        if (f) fclose(f);
+    }
+    csv_free(&q);
+    csv_free(&b);
+    csv_free(&h);
+}
+
+/* Oracle: brute force inside the bench, on a synthetic map file written with pm_map_save
+ * (a clustered point set, so the tree shape differs from the built-in distributions). */
+TEST(bench_reads_photon_map_files) {
+    char cmd[4096], out[16384], path[2048], map[2048];
+    const char *dir = pm_test_tmpdir();
+    const size_t n = 5000;
+    pm_photon *ph = calloc(n, sizeof *ph);
+    uint64_t s = 12345;
+    for (size_t i = 0; i < n; i++) {
+        float pos[3], pw[3] = {1, 0.5f, 0.25f}, dir3[3] = {0, -1, 0}, nrm[3] = {0, 1, 0};
+        for (int a = 0; a < 3; a++) {
+            s = s * 6364136223846793005ull + 1442695040888963407ull;
+            pos[a] = (float)((s >> 40) * (1.0 / 16777216.0));
+        }
+        if (i % 4 == 0) pos[0] *= 0.01f, pos[1] = 0.0f; /* a thin dense strip */
+        pm_photon_set(&ph[i], pos, pw, dir3, nrm, PM_KIND_INDIRECT);
+    }
+    pm_map_header hdr = {PM_FILE_VERSION, (uint32_t)sizeof(pm_photon), n, PM_MAP_GLOBAL, n, 0};
+    snprintf(map, sizeof map, "%s/synthetic.pmap", dir);
+    ASSERT_EQ_INT(pm_map_save(map, ph, &hdr), 0);
+    free(ph);
+    snprintf(cmd, sizeof cmd,
+             "%s/bench_search --quick --threads 1 --dists file --map %s --sweeps param --out %s",
+             pm_test_build_dir(), map, dir);
+    int rc = pm_test_run(cmd, out, sizeof out);
+    ASSERT_MSG(rc == 0, "bench on a map file failed (%d): %s", rc, out);
+    snprintf(path, sizeof path, "%s/queries.csv", dir);
+    csv q;
+    ASSERT_EQ_INT(csv_load(&q, path), 0);
+    ASSERT_EQ_INT(count_rows(&q, "dist", "file", "index", "kdtree", "threads", "1"), 12);
+    ASSERT(count_rows(&q, "dist", "file", "n", "5000", NULL, NULL) > 0);
+    ASSERT_EQ_INT(count_rows(&q, "dist", "photon", NULL, NULL, NULL, NULL), 0);
+    check_exactness(&q);
+    csv_free(&q);
+    /* and the bench refuses a missing file cleanly */
+    snprintf(cmd, sizeof cmd, "%s/bench_search --quick --dists file --map %s/none.pmap --out %s",
+             pm_test_build_dir(), dir, dir);
+    EXPECT_EQ_INT(pm_test_run(cmd, out, sizeof out), 1);
+}
+
+/* Oracle: the documented command line: --help succeeds and names its options. */
+TEST(bench_programs_have_help) {
+    static const char *progs[] = {"bench_search", "bench_estimate"};
+    for (int i = 0; i < 2; i++) {
+        char cmd[2048], out[8192], bin[1024];
+        snprintf(bin, sizeof bin, "%s/%s", pm_test_build_dir(), progs[i]);
+        FILE *f = fopen(bin, "rb");
+        if (!f) {
+            EXPECT_MSG(i == 1, "%s is missing", bin); /* bench_estimate may not exist yet */
+            continue;
+        }
+        fclose(f);
+        snprintf(cmd, sizeof cmd, "%s --help", bin);
+        EXPECT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+        EXPECT_MSG(strstr(out, "usage:") != NULL, "%s --help printed: %s", progs[i], out);
+        snprintf(cmd, sizeof cmd, "%s --no-such-option", bin);
+        EXPECT_EQ_INT(pm_test_run(cmd, out, sizeof out), 2);
+    }
+}
