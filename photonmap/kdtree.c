@@ -16,15 +16,17 @@
  * an introselect (random median-of-3 pivot, 3-way partition so runs of equal keys are linear,
  * a heapsort fallback when the pivots keep failing), which leaves every smaller-rank key <=
  * and every larger-rank key >= the median. Each level costs O(n), so the build is O(n log n)
- * with no recursion. The caller's records are then permuted in place by following cycles.
+ * with no recursion. The records are then gathered in tree order into the work array's
+ * memory (prefetching the random reads) and copied back over the caller's array. Temporary
+ * memory: n * (max(16, stride) + 4) bytes.
  *
  * DUPLICATES. A subtree whose records all share one position (zero extent) is marked with
  * axis code 3, "uniform", and is not split further: queries handle it as a single distance
- * (kdtree_query.c). When a median splits a run of records identical to it, both children keep
- * the parent's axis (when they still have extent there): the duplicates then sit at the
- * children's boundary along that axis and end up in few uniform subtrees instead of being
- * scattered over many mixed nodes by splits on other axes. This keeps the number of nodes a
- * query visits near a heavy duplicate bounded.
+ * (kdtree_query.c). When a node holds copies of its parent's split record (the median cut a
+ * run of identical records), it keeps the parent's axis if it still has extent there: the
+ * copies then sit at its boundary along that axis and gather into few uniform subtrees
+ * instead of being scattered over many mixed nodes by splits on other axes. This lowers the
+ * nodes a query visits next to a heavy duplicate (tests/test_kdtree_queries.c measures it).
  */
 #include <math.h>
 #include <stdlib.h>
@@ -147,23 +149,32 @@ static void select_rank(item *a, size_t n, size_t k, int ax, uint64_t *rng) {
         float y = key(&a[lo + xorshift(rng) % m], ax);
         float z = key(&a[lo + xorshift(rng) % m], ax);
         float piv = x < y ? (y < z ? y : (x < z ? z : x)) : (x < z ? x : (y < z ? z : y));
-        /* Dijkstra's 3-way partition: [lo,lt) < piv, [lt,i) == piv, (gt,hi) > piv. */
-        size_t lt = lo, i = lo, gt = hi;
-        while (i < gt) {
-            float v = key(&a[i], ax);
-            if (v < piv)
-                swap_item(&a[lt++], &a[i++]);
-            else if (v > piv)
-                swap_item(&a[i], &a[--gt]);
-            else
-                i++;
+        /* Hoare's partition, stopping on keys equal to the pivot: runs of equal keys are
+         * split down the middle, so duplicates cost no more than distinct keys. Afterwards
+         * [lo, j] <= piv, [i, hi) >= piv, and anything between equals piv. */
+        size_t i = lo, j = hi - 1;
+        for (;;) {
+            while (key(&a[i], ax) < piv) i++;
+            while (key(&a[j], ax) > piv) j--;
+            if (i >= j) break;
+            swap_item(&a[i], &a[j]);
+            i++, j--;
         }
-        if (k < lt)
-            hi = lt;
-        else if (k >= gt)
-            lo = gt;
-        else
-            return;
+        if (i == j) { /* both scans stopped on one key: it equals piv */
+            if (k < i)
+                hi = i;
+            else if (k > i)
+                lo = i + 1;
+            else
+                return;
+        } else { /* crossed: [lo, j] <= piv <= [i, hi), and j < x < i equals piv */
+            if (k <= j)
+                hi = j + 1;
+            else if (k >= i)
+                lo = i;
+            else
+                return;
+        }
     }
     insertion_items(a + lo, hi - lo, ax);
 }
@@ -211,12 +222,12 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
     if (n >= 0xFFFFFFFFu) return PM_ERANGE;
 
     pm_kdtree *t = calloc(1, sizeof *t);
-    item *w = malloc((n ? n : 1) * sizeof *w);
+    /* The work array is later reused to gather the records in tree order. */
+    size_t wsz = cfg->stride > sizeof(item) ? cfg->stride : sizeof(item);
+    item *w = malloc((n ? n : 1) * wsz);
     uint32_t *order = malloc((n ? n : 1) * sizeof *order);
     uint8_t *ax = NULL;
-    uint8_t *done = NULL;
-    unsigned char *tmp = malloc(cfg->stride);
-    if (!t || !w || !order || !tmp) goto nomem;
+    if (!t || !w || !order) goto nomem;
 
     t->rec = records;
     t->stride = cfg->stride;
@@ -257,38 +268,42 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
     t->leaf_extra = (uint32_t)((m - t->ninternal) % t->nleaves);
 
     ax = malloc(t->ninternal ? t->ninternal : 1);
-    done = calloc(n / 8 + 1, 1);
-    if (!ax || !done) goto nomem;
+    if (!ax) goto nomem;
 
-    /* Depth-first walk with an explicit stack: (node, range, level, sticky axis). */
+    /* Depth-first walk with an explicit stack: (node, range, level, parent's split). */
     struct {
         uint64_t p;
         size_t lo, hi;
-        int level, sticky;
+        int level, paxis; /* paxis: the parent's split axis, -1 at the root */
+        float pmed[3];    /* the parent's split record */
     } st[PM_KDTREE_MAX_DEPTH + 2];
     int sp = 0;
     uint64_t rng = 0x9E3779B97F4A7C15ull;
     if (m > 0) {
-        st[sp].p = 1, st[sp].lo = 0, st[sp].hi = m, st[sp].level = 0, st[sp].sticky = -1;
-        sp++;
+        memset(&st[0], 0, sizeof st[0]);
+        st[0].p = 1, st[0].hi = m, st[0].paxis = -1;
+        sp = 1;
     }
     while (sp > 0) {
         sp--;
         uint64_t p = st[sp].p;
         size_t lo = st[sp].lo, hi = st[sp].hi;
-        int level = st[sp].level, sticky = st[sp].sticky;
+        int level = st[sp].level, paxis = st[sp].paxis;
+        const float pm0 = st[sp].pmed[0], pm1 = st[sp].pmed[1], pm2 = st[sp].pmed[2];
         if (p >= t->nleaves) { /* a bucket: its records in work order */
             place_subtree(t, order, ax, p, level, w + lo);
             continue;
         }
+        /* Tight bounding box, and whether this node holds copies of its parent's split. */
         float mn[3], mx[3];
+        int dup = 0;
         for (int a = 0; a < 3; a++) mn[a] = mx[a] = w[lo].p[a];
-        for (size_t i = lo + 1; i < hi; i++) {
-            for (int a = 0; a < 3; a++) {
-                float v = w[i].p[a];
-                if (v < mn[a]) mn[a] = v;
-                if (v > mx[a]) mx[a] = v;
-            }
+        for (size_t i = lo; i < hi; i++) {
+            float x = w[i].p[0], y = w[i].p[1], z = w[i].p[2];
+            mn[0] = x < mn[0] ? x : mn[0], mx[0] = x > mx[0] ? x : mx[0];
+            mn[1] = y < mn[1] ? y : mn[1], mx[1] = y > mx[1] ? y : mx[1];
+            mn[2] = z < mn[2] ? z : mn[2], mx[2] = z > mx[2] ? z : mx[2];
+            dup |= (x == pm0) & (y == pm1) & (z == pm2);
         }
         float ext[3] = {mx[0] - mn[0], mx[1] - mn[1], mx[2] - mn[2]};
         /* Extents of huge coordinates may overflow to inf; that is still the largest. */
@@ -299,54 +314,39 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
         int a = 0;
         if (ext[1] > ext[a]) a = 1;
         if (ext[2] > ext[a]) a = 2;
-        if (sticky >= 0 && ext[sticky] > 0) a = sticky;
+        /* A node that holds copies of its parent's split record keeps the parent's axis (see
+         * DUPLICATES above). */
+        if (dup && paxis >= 0 && ext[paxis] > 0) a = paxis;
         size_t r = (size_t)subtree_size(t, 2 * p, level + 1);
         select_rank(w + lo, hi - lo, r, a, &rng);
         const item *med = &w[lo + r];
-        /* Does the median split a run of records identical to it? */
-        int left_dup = 0, right_dup = 0;
-        for (size_t i = lo; i < hi; i++) {
-            if (i == lo + r || w[i].p[a] != med->p[a]) continue;
-            if (w[i].p[0] == med->p[0] && w[i].p[1] == med->p[1] && w[i].p[2] == med->p[2]) {
-                if (i < lo + r)
-                    left_dup = 1;
-                else
-                    right_dup = 1;
-            }
-        }
-        int child_sticky = (left_dup && right_dup) ? a : -1;
         order[p - 1] = med->idx;
         ax[p - 1] = (uint8_t)a;
-        st[sp].p = 2 * p + 1, st[sp].lo = lo + r + 1, st[sp].hi = hi;
-        st[sp].level = level + 1, st[sp].sticky = child_sticky;
-        sp++;
-        st[sp].p = 2 * p, st[sp].lo = lo, st[sp].hi = lo + r;
-        st[sp].level = level + 1, st[sp].sticky = child_sticky;
-        sp++;
+        for (int c = 0; c < 2; c++) { /* right child first, so the left is built first */
+            st[sp].p = 2 * p + 1 - (uint64_t)c;
+            st[sp].lo = c ? lo : lo + r + 1;
+            st[sp].hi = c ? lo + r : hi;
+            st[sp].level = level + 1, st[sp].paxis = a;
+            memcpy(st[sp].pmed, med->p, sizeof st[sp].pmed);
+            sp++;
+        }
+    }
+    /* Gather the records in tree order into the work array's memory (sized for this), with
+     * the random reads prefetched well ahead, then copy them back in one sweep. */
+    {
+        char *dst = (char *)w;
+        const size_t S = cfg->stride, ahead = 16;
+        for (size_t i = 0; i < n; i++) {
+            if (i + ahead < n) __builtin_prefetch(base + (size_t)order[i + ahead] * S);
+            if (S == 20) /* pm_photon: a fixed-size copy the compiler inlines */
+                memcpy(dst + i * 20, base + (size_t)order[i] * 20, 20);
+            else
+                memcpy(dst + i * S, base + (size_t)order[i] * S, S);
+        }
+        memcpy(base, dst, n * S);
     }
     free(w);
     w = NULL;
-
-    /* Permute the records in place: slot i receives the record that was at order[i]. */
-    for (size_t i = 0; i < n; i++) {
-        if (done[i / 8] & (1u << (i % 8))) continue;
-        if (order[i] == i) {
-            done[i / 8] |= (uint8_t)(1u << (i % 8));
-            continue;
-        }
-        memcpy(tmp, base + i * cfg->stride, cfg->stride);
-        size_t j = i;
-        for (;;) {
-            size_t src = order[j];
-            done[j / 8] |= (uint8_t)(1u << (j % 8));
-            if (src == i) {
-                memcpy(base + j * cfg->stride, tmp, cfg->stride);
-                break;
-            }
-            memcpy(base + j * cfg->stride, base + src * cfg->stride, cfg->stride);
-            j = src;
-        }
-    }
     if (perm) memcpy(perm, order, n * sizeof *perm);
 
     if (cfg->axis_offset >= 0) {
@@ -363,8 +363,6 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
         t->axes = ax;
     }
     free(order);
-    free(done);
-    free(tmp);
     *out = t;
     return PM_OK;
 
@@ -373,7 +371,5 @@ nomem:
     free(w);
     free(order);
     free(ax);
-    free(done);
-    free(tmp);
     return PM_ENOMEM;
 }

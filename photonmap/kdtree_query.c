@@ -50,6 +50,18 @@ PM__INLINE unsigned AX(const view *v, uint64_t node) {
     return v->axb[(node - 1) * v->axs] & PM__AXIS_MASK;
 }
 
+/* The pm_photon layout (stride 20, position at 0, axis in the flag byte at 18) is compiled
+ * as its own instance of each search, so record addresses use a constant stride. */
+PM__INLINE const float *PX(const view *v, uint64_t i, int ph) {
+    return ph ? (const float *)(v->rec + i * 20) : P(v, i);
+}
+PM__INLINE unsigned AXX(const view *v, uint64_t node, int ph) {
+    return ph ? ((const uint8_t *)v->rec)[(node - 1) * 20 + 18] & PM__AXIS_MASK : AX(v, node);
+}
+static int is_photon_layout(const pm_kdtree *t) {
+    return t->stride == 20 && t->pos_offset == 0 && t->axis_offset == 18;
+}
+
 static view make_view(const pm_kdtree *t) {
     view v;
     v.rec = t->rec;
@@ -135,13 +147,13 @@ typedef struct {
     uint64_t nodes, evals;
 } knn_state;
 
-/* Max-heap on dist2 in out[0..k). */
-PM__INLINE void heap_down(pm_neighbor *h, unsigned n, pm_neighbor v) {
-    unsigned i = 0;
+/* Max-heap on dist2 in out[0..k). The larger child is chosen without a branch (its outcome
+ * is a coin toss, so a branch would mispredict half the time). */
+PM__INLINE void heap_down_from(pm_neighbor *h, unsigned n, unsigned i, pm_neighbor v) {
     for (;;) {
         unsigned c = 2 * i + 1;
         if (c >= n) break;
-        if (c + 1 < n && h[c + 1].dist2 > h[c].dist2) c++;
+        if (c + 1 < n) c += h[c + 1].dist2 > h[c].dist2;
         if (!(h[c].dist2 > v.dist2)) break;
         h[i] = h[c];
         i = c;
@@ -149,20 +161,10 @@ PM__INLINE void heap_down(pm_neighbor *h, unsigned n, pm_neighbor v) {
     h[i] = v;
 }
 
+PM__INLINE void heap_down(pm_neighbor *h, unsigned n, pm_neighbor v) { heap_down_from(h, n, 0, v); }
+
 static void heapify(pm_neighbor *h, unsigned n) {
-    for (unsigned i = n / 2; i-- > 0;) {
-        pm_neighbor v = h[i];
-        unsigned j = i;
-        for (;;) {
-            unsigned c = 2 * j + 1;
-            if (c >= n) break;
-            if (c + 1 < n && h[c + 1].dist2 > h[c].dist2) c++;
-            if (!(h[c].dist2 > v.dist2)) break;
-            h[j] = h[c];
-            j = c;
-        }
-        h[j] = v;
-    }
+    for (unsigned i = n / 2; i-- > 0;) heap_down_from(h, n, i, h[i]);
 }
 
 /* Precondition: !(d2 >= s->r2). */
@@ -192,9 +194,10 @@ PM__INLINE float knn_dist2(const knn_state *s, const float *p, int metric) {
     return d2;
 }
 
-PM__INLINE void knn_consider(knn_state *s, const view *v, uint64_t i, int metric, int filter) {
-    float d2 = knn_dist2(s, P(v, i), metric);
-    s->evals++;
+PM__INLINE void knn_consider(knn_state *s, const view *v, uint64_t i, int metric, int filter,
+                             int ph, int cnt) {
+    float d2 = knn_dist2(s, PX(v, i, ph), metric);
+    if (cnt) s->evals++;
     if (!(d2 >= s->r2)) {
         if (filter && !s->filter(s->user, v->rec + i * v->stride, (uint32_t)i)) return;
         knn_push(s, d2, (uint32_t)i);
@@ -217,13 +220,30 @@ static void knn_uniform(knn_state *s, const view *v, uint64_t node, int metric, 
     }
 }
 
-PM__INLINE void knn_bucket(knn_state *s, const view *v, uint64_t node, int metric, int filter) {
+PM__INLINE void knn_bucket(knn_state *s, const view *v, uint64_t node, int metric, int filter,
+                           int ph, int cnt) {
     uint64_t b, e;
     bucket_range(v->t, node, &b, &e);
-    for (uint64_t i = b; i < e; i++) knn_consider(s, v, i, metric, filter);
+    for (uint64_t i = b; i < e; i++) knn_consider(s, v, i, metric, filter, ph, cnt);
 }
 
-PM__INLINE void knn_iter(knn_state *s, const view *v, int metric, int filter) {
+/* When near's children are buckets (the two are adjacent in memory), start loading them:
+ * the bucket scan is where a query waits for memory most. At most 512 bytes. */
+PM__INLINE void prefetch_buckets(const view *v, uint64_t near) {
+    const uint64_t L = v->L;
+    if (2 * near >= L && near < L) {
+        uint64_t b = v->t->ninternal + pm__cum(v->t, 2 * near - L);
+        const char *r = v->rec + b * v->stride;
+        uint64_t bytes = (uint64_t)v->t->bucket * v->stride * 2;
+        if (bytes > 512) bytes = 512;
+        for (uint64_t o = 0; o < bytes; o += 64) __builtin_prefetch(r + o);
+    }
+}
+
+PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, int ph, int cnt) {
+    /* Work on a local copy whose address never escapes, so the compiler keeps r2, found and
+     * the query in registers; the rare uniform case goes through memory. */
+    knn_state ls = *io, *s = &ls;
     struct {
         float d2;
         uint32_t node;
@@ -233,65 +253,98 @@ PM__INLINE void knn_iter(knn_state *s, const view *v, int metric, int filter) {
     const uint64_t L = v->L;
     for (;;) {
         while (node < L) {
-            unsigned a = AX(v, node);
-            s->nodes++;
+            /* Start loading the grandchildren (records 4p-1 .. 4p+2, contiguous) while this
+             * node's record is compared: one cache miss per level overlaps the next. */
+            if (4 * node < L) __builtin_prefetch(v->rec + (4 * node - 1) * v->stride);
+            unsigned a = AXX(v, node, ph);
+            if (cnt) s->nodes++;
             if (a == PM__AXIS_UNIFORM) {
-                knn_uniform(s, v, node, metric, filter);
+                *io = ls;
+                knn_uniform(io, v, node, metric, filter);
+                ls = *io;
                 goto pop;
             }
-            float d = s->q[a] - P(v, node - 1)[a];
+            float d = s->q[a] - PX(v, node - 1, ph)[a];
             uint64_t near = 2 * node + (d >= 0);
-            stack[sp].d2 = d * d;
+            prefetch_buckets(v, near);
+            /* r2 only shrinks: a far side already out of reach is never pushed. The
+             * recursive search makes the same decision later, when it returns. */
+            float d2 = d * d;
+            stack[sp].d2 = d2;
             stack[sp].node = (uint32_t)(near ^ 1);
-            sp++;
+            sp += !(d2 >= s->r2);
             node = near;
         }
-        s->nodes++;
-        knn_bucket(s, v, node, metric, filter);
+        if (cnt) s->nodes++;
+        knn_bucket(s, v, node, metric, filter, ph, cnt);
     pop:
         for (;;) {
-            if (sp == 0) return;
+            if (sp == 0) {
+                *io = ls;
+                return;
+            }
             sp--;
             if (!(stack[sp].d2 >= s->r2)) {
                 node = stack[sp].node;
-                knn_consider(s, v, (node >> 1) - 1, metric, filter);
+                knn_consider(s, v, (node >> 1) - 1, metric, filter, ph, cnt);
                 break;
             }
         }
     }
 }
 
-static void knn_rec(knn_state *s, const view *v, uint64_t node, int metric, int filter) {
-    s->nodes++;
-    if (node >= v->L) {
-        knn_bucket(s, v, node, metric, filter);
-        return;
+#define PM__KNN_REC(name, metric, filter, ph, cnt)                                        \
+    static void name(knn_state *s, const view *v, uint64_t node) {                       \
+        if (cnt) s->nodes++;                                                             \
+        if (node >= v->L) {                                                              \
+            knn_bucket(s, v, node, metric, filter, ph, cnt);                             \
+            return;                                                                      \
+        }                                                                                \
+        if (4 * node < v->L) __builtin_prefetch(v->rec + (4 * node - 1) * v->stride);    \
+        unsigned a = AXX(v, node, ph);                                                   \
+        if (a == PM__AXIS_UNIFORM) {                                                     \
+            knn_uniform(s, v, node, metric, filter);                                     \
+            return;                                                                      \
+        }                                                                                \
+        float d = s->q[a] - PX(v, node - 1, ph)[a];                                      \
+        uint64_t near = 2 * node + (d >= 0);                                             \
+        prefetch_buckets(v, near);                                                       \
+        name(s, v, near);                                                                \
+        if (!(d * d >= s->r2)) {                                                         \
+            knn_consider(s, v, node - 1, metric, filter, ph, cnt);                       \
+            name(s, v, near ^ 1);                                                        \
+        }                                                                                \
     }
-    unsigned a = AX(v, node);
-    if (a == PM__AXIS_UNIFORM) {
-        knn_uniform(s, v, node, metric, filter);
-        return;
-    }
-    float d = s->q[a] - P(v, node - 1)[a];
-    uint64_t near = 2 * node + (d >= 0);
-    knn_rec(s, v, near, metric, filter);
-    if (!(d * d >= s->r2)) {
-        knn_consider(s, v, node - 1, metric, filter);
-        knn_rec(s, v, near ^ 1, metric, filter);
-    }
-}
+/* The recursive search, one instance per layout and counting choice like the iterative one,
+ * so that comparing the two compares recursion with iteration and nothing else. */
+PM__KNN_REC(knn_rec_gen, 0, 0, 0, 1)
+PM__KNN_REC(knn_rec_ph, 0, 0, 1, 0)
+PM__KNN_REC(knn_rec_ph_cnt, 0, 0, 1, 1)
 
-static void knn_iter_plain(knn_state *s, const view *v) { knn_iter(s, v, 0, 0); }
-static void knn_iter_general(knn_state *s, const view *v) {
+static void knn_iter_gen(knn_state *s, const view *v) { knn_iter(s, v, 0, 0, 0, 1); }
+static void knn_iter_ph(knn_state *s, const view *v) { knn_iter(s, v, 0, 0, 1, 0); }
+static void knn_iter_ph_cnt(knn_state *s, const view *v) { knn_iter(s, v, 0, 0, 1, 1); }
+static void knn_iter_general(knn_state *s, const view *v, int ph) {
     int metric = s->nrm != NULL, filter = s->filter != NULL;
-    if (metric && filter)
-        knn_iter(s, v, 1, 1);
-    else if (metric)
-        knn_iter(s, v, 1, 0);
-    else if (filter)
-        knn_iter(s, v, 0, 1);
-    else
-        knn_iter(s, v, 0, 0);
+    if (ph) {
+        if (metric && filter)
+            knn_iter(s, v, 1, 1, 1, 1);
+        else if (metric)
+            knn_iter(s, v, 1, 0, 1, 1);
+        else if (filter)
+            knn_iter(s, v, 0, 1, 1, 1);
+        else
+            knn_iter(s, v, 0, 0, 1, 1);
+    } else {
+        if (metric && filter)
+            knn_iter(s, v, 1, 1, 0, 1);
+        else if (metric)
+            knn_iter(s, v, 1, 0, 0, 1);
+        else if (filter)
+            knn_iter(s, v, 0, 1, 0, 1);
+        else
+            knn_iter(s, v, 0, 0, 0, 1);
+    }
 }
 
 /* Common front end. Returns > 0 to go on with the search, else the final return value. */
@@ -324,7 +377,12 @@ int pm_kdtree_knn(const pm_kdtree *tree, const float q[3], unsigned k, float max
     int rc = knn_setup(&s, tree, q, k, max_dist2, out);
     if (rc <= 0) return rc;
     view v = make_view(tree);
-    knn_iter_plain(&s, &v);
+    if (!is_photon_layout(tree))
+        knn_iter_gen(&s, &v);
+    else if (stats)
+        knn_iter_ph_cnt(&s, &v);
+    else
+        knn_iter_ph(&s, &v);
     return knn_finish(&s, flags, stats);
 }
 
@@ -335,7 +393,12 @@ int pm_kdtree_knn_recursive(const pm_kdtree *tree, const float q[3], unsigned k,
     int rc = knn_setup(&s, tree, q, k, max_dist2, out);
     if (rc <= 0) return rc;
     view v = make_view(tree);
-    knn_rec(&s, &v, 1, 0, 0);
+    if (!is_photon_layout(tree))
+        knn_rec_gen(&s, &v, 1);
+    else if (stats)
+        knn_rec_ph_cnt(&s, &v, 1);
+    else
+        knn_rec_ph(&s, &v, 1);
     return knn_finish(&s, flags, stats);
 }
 
@@ -362,7 +425,7 @@ int pm_kdtree_knn_ex(const pm_kdtree *tree, const float q[3], unsigned k, float 
         s.user = opt->filter_user;
     }
     view v = make_view(tree);
-    knn_iter_general(&s, &v);
+    knn_iter_general(&s, &v, is_photon_layout(tree));
     return knn_finish(&s, flags, stats);
 }
 
@@ -375,7 +438,7 @@ int pm_kdtree_nearest_if(const pm_kdtree *tree, const float q[3], float max_dist
     s.filter = pred;
     s.user = user;
     view v = make_view(tree);
-    knn_iter_general(&s, &v);
+    knn_iter_general(&s, &v, is_photon_layout(tree));
     return knn_finish(&s, 0, stats);
 }
 
