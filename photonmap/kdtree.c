@@ -343,7 +343,7 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
             else
                 memcpy(dst + i * S, base + (size_t)order[i] * S, S);
         }
-        memcpy(base, dst, n * S);
+        if (n > 0) memcpy(base, dst, n * S);
     }
     free(w);
     w = NULL;
