@@ -1,8 +1,8 @@
 /* bvh.c: binned-SAH build and stack-based traversal; see bvh.h.
  *
  * The build keeps per-primitive bounds and centroids in scratch arrays and partitions the id
- * array in place. Traversal visits the nearer child first (by the sign of the ray direction on
- * the node's split axis) and culls nodes whose entry distance is beyond the current hit.
+ * array in place. Traversal tests both children's boxes, descends into the nearer one that is
+ * hit and stacks the other with its entry distance, dropping it later if a closer hit was found.
  */
 #include "bvh.h"
 
@@ -214,52 +214,64 @@ static int traverse(const bvh *b, ray r, double tmin, double tmax, int any, doub
                     double *u, double *v) {
     double o[3] = {r.o.x, r.o.y, r.o.z};
     double inv[3] = {1.0 / r.d.x, 1.0 / r.d.y, 1.0 / r.d.z};
-    int neg[3] = {r.d.x < 0, r.d.y < 0, r.d.z < 0};
+    /* The stack holds nodes whose boxes were hit, with their entry distances, so a node that
+     * became farther than the current hit is dropped when popped without a second slab test. */
     uint32_t stack[STACK_SIZE];
+    double stack_t[STACK_SIZE];
     int sp = 0, found = 0;
     uint64_t nodes = 0, ntri = 0, nsph = 0;
-    uint32_t ni = 0;
     double best = tmax;
+    if (slab(&b->nodes[0], o, inv, tmin, best) == INFINITY) goto done;
+    uint32_t ni = 0;
     for (;;) {
         const bvh_node *n = &b->nodes[ni];
         nodes++;
-        if (slab(n, o, inv, tmin, best) < INFINITY) {
-            if (n->count) {
-                for (uint32_t i = n->first; i < n->first + n->count; i++) {
-                    uint32_t id = b->prim_ids[i];
-                    double tt, uu = 0, vv = 0;
-                    int h;
-                    if (id < (uint32_t)b->ntris) {
-                        ntri++;
-                        h = triangle_intersect(&b->tris[id], r, tmin, best, &tt, &uu, &vv);
-                    } else {
-                        nsph++;
-                        h = sphere_intersect(&b->spheres[id - b->ntris], r, tmin, best, &tt);
-                    }
-                    if (h) {
-                        found = 1;
-                        best = tt;
-                        if (prim) *prim = (int)id;
-                        if (u) *u = uu;
-                        if (v) *v = vv;
-                        if (any) goto done;
-                    }
-                }
-            } else {
-                /* Visit the near child first: the left one if the ray goes up the axis. */
-                uint32_t left = ni + 1, right = n->first;
-                if (neg[n->axis]) {
-                    stack[sp++] = left;
-                    ni = right;
+        if (n->count) {
+            for (uint32_t i = n->first; i < n->first + n->count; i++) {
+                uint32_t id = b->prim_ids[i];
+                double tt, uu = 0, vv = 0;
+                int h;
+                if (id < (uint32_t)b->ntris) {
+                    ntri++;
+                    h = triangle_intersect(&b->tris[id], r, tmin, best, &tt, &uu, &vv);
                 } else {
-                    stack[sp++] = right;
-                    ni = left;
+                    nsph++;
+                    h = sphere_intersect(&b->spheres[id - b->ntris], r, tmin, best, &tt);
                 }
+                if (h) {
+                    found = 1;
+                    best = tt;
+                    if (prim) *prim = (int)id;
+                    if (u) *u = uu;
+                    if (v) *v = vv;
+                    if (any) goto done;
+                }
+            }
+        } else {
+            /* Test both children; go to the nearer one that is hit, keep the other. */
+            uint32_t c0 = ni + 1, c1 = n->first;
+            double t0 = slab(&b->nodes[c0], o, inv, tmin, best);
+            double t1 = slab(&b->nodes[c1], o, inv, tmin, best);
+            if (t0 != INFINITY || t1 != INFINITY) {
+                if (t1 < t0) {
+                    uint32_t tc = c0;
+                    double tt = t0;
+                    c0 = c1, t0 = t1, c1 = tc, t1 = tt;
+                }
+                if (t1 != INFINITY) {
+                    stack[sp] = c1;
+                    stack_t[sp++] = t1;
+                }
+                ni = c0;
                 continue;
             }
         }
-        if (sp == 0) break;
-        ni = stack[--sp];
+        for (;;) {
+            if (sp == 0) goto done;
+            sp--;
+            if (stack_t[sp] <= best) break;
+        }
+        ni = stack[sp];
     }
 done:
     stat_add(STAT_BVH_NODES, nodes);
