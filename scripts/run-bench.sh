@@ -11,6 +11,8 @@
 # PM_BENCH_MAP=file.pmap adds a real photon map (pm_map_save format) to the search bench.
 # Progress goes to stderr; every number in the document comes from the CSVs.
 set -eu
+# Idle OpenMP threads must not spin on a core that a one-thread measurement needs.
+export OMP_WAIT_POLICY=${OMP_WAIT_POLICY:-PASSIVE}
 
 BUILD=${1:?usage: run-bench.sh BUILD full|quick [OUTDIR]}
 MODE=${2:-quick}
