@@ -11,17 +11,23 @@
  *   normal     uint8       the surface normal where the photon was stored, quantized to one
  *                          of 256 directions (used by precomputed irradiance)
  *
- * Precision of the packed fields (the implementation documents the measured bounds next to
- * the code and tests them):
- *   - RGBE: each channel is an 8-bit mantissa scaled by one shared 8-bit exponent. The
- *     absolute error of a channel is at most max(r,g,b) * 2^-8 (rounded to nearest: 2^-9);
- *     channels far below the largest lose relative precision. Values below about 1e-38 encode
- *     as zero; values above about 1.7e38 saturate. Negative and NaN channels encode as zero.
- *   - direction: theta and phi are quantized to 256 bins each; the decoded direction is the
- *     bin centre, so the angular error is at most about 0.5 degrees in theta and
- *     0.7*sin(theta) degrees in phi. At the poles the error is bounded by the theta bin alone.
- *   - normal: one of 256 fixed, nearly uniform directions on the sphere; the nearest is chosen.
- *     The angular error bound is stated in photon.c and tested.
+ * Precision of the packed fields (bounds derived in photon.c, measured over 2M random inputs
+ * and tested in tests/test_photon.c):
+ *   - RGBE: each channel is an 8-bit mantissa scaled by one shared 8-bit exponent, rounded to
+ *     nearest. The largest channel has a relative error <= 2^-8 (0.39%; measured 0.389%); every
+ *     other channel an absolute error <= max(r,g,b) * 2^-8 / (1 - 2^-9) (0.3914% of the
+ *     largest; measured 0.3912%), so channels far below the largest lose relative precision
+ *     and those below max/512 may become 0. A largest channel below 2^-128 (2.9e-39) encodes
+ *     as zero; above 255 * 2^119 (1.69e38), and +inf, saturate to that value. Negative and NaN
+ *     channels encode as zero. Decoding is exact arithmetic (byte * a power of two).
+ *   - direction: theta = acos(z) and phi = atan2(y, x) are quantized to 256 bins each and
+ *     decoded at the bin centre: at most 0.35 degrees in theta and 0.70*sin(theta) degrees in
+ *     phi, 0.79 degrees in all (measured 0.784), and 0.36 at the poles (measured 0.346). The
+ *     decoded vector has unit length within 1e-6.
+ *   - normal: the nearest (exactly, by dot product) of 256 points of a spherical Fibonacci
+ *     lattice; the angular error is at most the lattice's covering radius, about 9.72 degrees
+ *     (measured 9.717 over 2M random normals; the test asserts <= 10).
+ *     Encoding costs about 50 dot products; decoding is a table lookup.
  *
  * Thread safety: all functions here are pure or read constant tables; no initialization call.
  */
@@ -90,7 +96,12 @@ static inline int pm_photon_kind(const pm_photon *p) {
  *   uint8    reserved[24] zero
  *
  * pm_map_save writes to PATH.tmp and renames it over PATH, so a file is written whole or not
- * at all. pm_map_load allocates *photons with malloc; the caller frees it.
+ * at all (on any failure PATH.tmp is removed and PATH is untouched); hdr->version is ignored
+ * (PM_FILE_VERSION is written) and hdr->record_size must be 0 or 20. pm_map_load allocates
+ * *photons with malloc (NULL for an empty map); the caller frees it. Errors: PM_EIO (cannot
+ * open, read or write; errno has the detail), PM_EFORMAT (bad magic, record size, or a file
+ * shorter than its count says), PM_EVERSION, PM_EINVAL (NULL arguments).
+ * Records are stored little-endian whatever the host.
  */
 #define PM_FILE_VERSION 1u
 enum { PM_MAP_GLOBAL = 1, PM_MAP_CAUSTIC = 2, PM_MAP_SHADOW = 3, PM_MAP_OTHER = 4 };

@@ -126,19 +126,24 @@ static float ex_dist2(const ex_oracle *o, const float q[3], const float p[3]) {
  * k smallest metric distances among accepted records, exactly. */
 TEST(kdtree_nearest_if_and_knn_ex) {
     size_t n = PM_TEST_SANITIZED ? 4000 : 30000;
-    pm_photon *ph = kt_photons(KT_CLUSTERED, n, 33);
+    const int dists[3] = {KT_CLUSTERED, KT_IDENTICAL, KT_DUPS}; /* uniform subtrees too */
     float *orc = malloc(n * sizeof *orc), *mine = malloc(n * sizeof *mine);
     unsigned char *seen = malloc(n);
-    ASSERT(ph && orc && seen && mine);
+    ASSERT(orc && seen && mine);
     pm_neighbor out[100];
-    for (unsigned bi = 0; bi < 4; bi++) {
-        unsigned B = 1u << (2 * bi);
+    pm_photon *ph = NULL;
+    for (unsigned bi = 0; bi < 6; bi++) {
+        unsigned B = 1u << (2 * (bi % 3));
+        int dist = dists[bi / 2];
+        free(ph);
+        ph = kt_photons(dist, n, 33 + bi);
+        ASSERT(ph);
         pm_kdtree *t = kt_build(ph, n, B);
         ASSERT(t);
         kt_rng g = {40 + B};
         for (int qi = 0; qi < 60 && !pm_test_failed(); qi++) {
             float q[3];
-            kt_query(&g, ph, n, KT_CLUSTERED, q);
+            kt_query(&g, ph, n, dist, q);
             float r2 = qi % 2 ? INFINITY : 0.02f;
             uint8_t rare = (uint8_t)(qi * 37);
             pm_filter_fn pred = qi % 3 == 0 ? NULL : qi % 3 == 1 ? accept_kind2 : accept_rare;
