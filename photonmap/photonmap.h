@@ -32,5 +32,6 @@
 #include "kdtree.h"
 #include "estimate.h"
 #include "irradiance.h"
+#include "octree.h"
 
 #endif /* PM_PHOTONMAP_H */
