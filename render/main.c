@@ -18,6 +18,7 @@
 #include "compare.h"
 #include "film.h"
 #include "integrator.h"
+#include "plan.h"
 #include "renderer.h"
 #include "scene.h"
 #include "stats.h"
@@ -46,6 +47,10 @@ static void usage(FILE *f) {
     fprintf(f,
             "  --tone T          filmic or srgb (PNG tone curve)\n"
             "  --exposure X      fixed exposure multiplier instead of auto exposure\n"
+            "  --pm KEY=VALUE    a photon-mapping setting, as in the scene's \"photon_mapping\"\n"
+            "                    object (e.g. --pm global_photons=500000 --pm caustics=false)\n"
+            "  --save-photons DIR  save the photon maps (DIR/global.pmap, caustic.pmap, shadow.pmap)\n"
+            "  --load-photons DIR  use saved photon maps instead of tracing photons\n"
             "  --quiet           no progress output\n"
             "  --help            this text\n"
             "\n"
@@ -130,6 +135,9 @@ int main(int argc, char **argv) {
     long spp = 0, threads = 0, width = 0, height = 0, seed = -1;
     double exposure = -1;
     int quiet = 0;
+    /* Photon-mapping flags, applied to the scene's photon_mapping object (plan.h). */
+    const char *pm_flag[64], *pm_value[64];
+    int npm = 0;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -178,6 +186,15 @@ int main(int argc, char **argv) {
             char *end;
             exposure = strtod(v, &end);
             bad = *end || !(exposure > 0) || !isfinite(exposure);
+        } else if (strcmp(a, "--pm") == 0 || strcmp(a, "--save-photons") == 0 ||
+                   strcmp(a, "--load-photons") == 0) {
+            NEED_VALUE();
+            if (npm == 64) {
+                fprintf(stderr, "render: too many photon-mapping flags\n");
+                return 2;
+            }
+            pm_flag[npm] = a;
+            pm_value[npm++] = v;
         } else if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) {
             quiet = 1;
         } else if (a[0] == '-' && a[1]) {
@@ -216,6 +233,14 @@ int main(int argc, char **argv) {
         int w = width ? (int)width : (int)((double)height * s.cam.width / s.cam.height + 0.5);
         int h = height ? (int)height : (int)((double)width * s.cam.height / s.cam.width + 0.5);
         camera_resize(&s.cam, w > 0 ? w : 1, h > 0 ? h : 1);
+    }
+    for (int k = 0; k < npm; k++) {
+        char perr[256];
+        if (plan_cli_set(&s.photon_mapping, pm_flag[k], pm_value[k], perr, sizeof perr) < 0) {
+            fprintf(stderr, "render: %s\n", perr);
+            scene_free(&s);
+            return 2;
+        }
     }
     if (seed >= 0) s.settings.seed = (uint64_t)seed;
     if (mode) snprintf(s.settings.mode, sizeof s.settings.mode, "%s", mode);

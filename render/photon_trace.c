@@ -1,0 +1,587 @@
+/* photon_trace.c: emission, scattering and classification of photons; see photon_trace.h.
+ *
+ * Photons are traced in full precision (double position, RGB power) into per-thread buffers
+ * tagged with their photon index, merged in index order after each batch, and packed into
+ * 20-byte pm_photon records only at the end, once the number emitted (which divides every
+ * power) is known; so the RGBE rounding happens once per photon.
+ */
+#include "photon_trace.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "common.h"
+#include "material.h"
+#include "progress.h"
+#include "rng.h"
+#include "sampling.h"
+#include "stats.h"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+/* ---- full-precision photons and growable buffers ----------------------------------------- */
+
+typedef struct fphoton {
+    uint64_t index; /* emitted photon it came from: the merge key */
+    float pos[3], power[3], dir[3], normal[3];
+    int kind;
+} fphoton;
+
+typedef struct fbuf {
+    fphoton *v;
+    size_t n, cap;
+} fbuf;
+
+static int fbuf_push(fbuf *b, const fphoton *p) {
+    if (b->n == b->cap) {
+        size_t nc = b->cap ? 2 * b->cap : 1024;
+        fphoton *nv = realloc(b->v, nc * sizeof *nv);
+        if (!nv) return PM_ENOMEM;
+        b->v = nv;
+        b->cap = nc;
+    }
+    b->v[b->n++] = *p;
+    return 0;
+}
+
+/* Merge the per-thread buffers (each sorted by index, as every thread handles its photons in
+ * increasing order) onto the end of out, in index order; empties them. Ties cannot straddle
+ * buffers: one photon is traced by one thread. */
+static int fbuf_merge(fbuf *out, fbuf *bufs, int nb) {
+    size_t total = 0;
+    for (int t = 0; t < nb; t++) total += bufs[t].n;
+    if (out->n + total > out->cap) {
+        size_t nc = out->cap ? out->cap : 1024;
+        while (nc < out->n + total) nc *= 2;
+        fphoton *nv = realloc(out->v, nc * sizeof *nv);
+        if (!nv) return PM_ENOMEM;
+        out->v = nv;
+        out->cap = nc;
+    }
+    size_t head[256] = {0};
+    for (size_t k = 0; k < total; k++) {
+        int best = -1;
+        for (int t = 0; t < nb; t++)
+            if (head[t] < bufs[t].n &&
+                (best < 0 || bufs[t].v[head[t]].index < bufs[best].v[head[best]].index))
+                best = t;
+        out->v[out->n++] = bufs[best].v[head[best]++];
+    }
+    for (int t = 0; t < nb; t++) bufs[t].n = 0;
+    return 0;
+}
+
+/* ---- Halton points ------------------------------------------------------------------------- */
+
+static double radical_inverse(uint64_t i, unsigned base) {
+    double inv = 1.0 / base, f = inv, r = 0;
+    while (i) {
+        r += (double)(i % base) * f;
+        i /= base;
+        f *= inv;
+    }
+    return r;
+}
+
+static const unsigned k_primes[6] = {2, 3, 5, 7, 11, 13};
+
+/* Dimension d of Halton point i, rotated (Cranley-Patterson) by shift[d]. */
+static double halton(uint64_t i, int d, const double *shift) {
+    double v = radical_inverse(i + 1, k_primes[d]) + shift[d];
+    v -= floor(v);
+    return v < 1.0 ? v : 0x1.fffffffffffffp-1;
+}
+
+/* ---- projection maps ---------------------------------------------------------------------- */
+
+typedef struct projmap {
+    int G;
+    int nactive;
+    int *active; /* indices of active cells, nactive of them */
+    double fraction;
+} projmap;
+
+/* Bounding spheres of the specular primitives. */
+typedef struct bsph {
+    vec3 c;
+    double r;
+} bsph;
+
+static int specular_spheres(const scene *s, bsph **out) {
+    int n = 0;
+    bsph *v = malloc((size_t)(s->ntris + s->nspheres + 1) * sizeof *v);
+    if (!v) return PM_ENOMEM;
+    for (int i = 0; i < s->ntris; i++) {
+        const triangle *t = &s->tris[i];
+        if (!material_is_specular(&s->mats[t->mat])) continue;
+        vec3 a = t->v0, b = v3_add(t->v0, t->e1), c = v3_add(t->v0, t->e2);
+        vec3 m = v3_scale(v3_add(a, v3_add(b, c)), 1.0 / 3);
+        double r = sqrt(fmax(v3_len2(v3_sub(a, m)), fmax(v3_len2(v3_sub(b, m)), v3_len2(v3_sub(c, m)))));
+        v[n++] = (bsph){m, r * 1.001};
+    }
+    for (int i = 0; i < s->nspheres; i++) {
+        const sphere *sp = &s->spheres[i];
+        if (!material_is_specular(&s->mats[sp->mat])) continue;
+        v[n++] = (bsph){sp->c, sp->r * 1.001};
+    }
+    *out = v;
+    return n;
+}
+
+/* Which pair of light_sample_le's u[] the projection grid covers: the direction for area
+ * (u[2], u[3]) and point lights (u[0], u[1]), the disc position for directional lights. */
+static int proj_dim(const light *l) { return l->type == LIGHT_AREA ? 2 : 0; }
+
+/* Is cell (cx, cy) of light li's G x G grid able to send a photon into a sphere of sph? */
+static int cell_active(const scene *s, int li, int G, int cx, int cy, const bsph *sph, int nsph) {
+    const light *l = &s->lights[li];
+    /* Nine points of the cell: corners, edge midpoints, centre. */
+    double pu[9], pv[9];
+    int k = 0;
+    for (int a = 0; a <= 2; a++)
+        for (int b = 0; b <= 2; b++) {
+            pu[k] = (cx + 0.5 * a) / G;
+            pv[k] = (cy + 0.5 * b) / G;
+            if (pu[k] >= 1) pu[k] = 0x1.fffffffffffffp-1;
+            if (pv[k] >= 1) pv[k] = 0x1.fffffffffffffp-1;
+            k++;
+        }
+    if (l->type == LIGHT_DIRECTIONAL) {
+        vec3 pts[9], p, n, d;
+        for (int j = 0; j < 9; j++) {
+            double u[4] = {pu[j], pv[j], 0, 0};
+            light_sample_le(s, li, u, &p, &n, &d);
+            pts[j] = p;
+        }
+        vec3 pc = pts[4];
+        double pr = 0;
+        for (int j = 0; j < 9; j++) pr = fmax(pr, v3_len(v3_sub(pts[j], pc)));
+        pr = pr * 1.25 + 1e-9 * s->bsphere_r;
+        for (int i = 0; i < nsph; i++) {
+            vec3 oc = v3_sub(sph[i].c, pc);
+            double t = v3_dot(oc, l->dir);
+            double dist2 = v3_len2(oc) - t * t;
+            double rr = sph[i].r + pr;
+            if (dist2 <= rr * rr && t > -rr) return 1;
+        }
+        return 0;
+    }
+    /* Area or point: a cone of directions from the light's centre, widened by the light's
+     * own radius (a ray from a point within r_l of the centre hitting a sphere of radius R
+     * means the parallel ray from the centre passes within R + r_l of its centre). */
+    vec3 pc, normals[2];
+    double rl = 0;
+    int nsides = 1;
+    if (l->type == LIGHT_AREA) {
+        const triangle *t = &s->tris[l->tri];
+        vec3 a = t->v0, b = v3_add(t->v0, t->e1), c = v3_add(t->v0, t->e2);
+        pc = v3_scale(v3_add(a, v3_add(b, c)), 1.0 / 3);
+        rl = sqrt(fmax(v3_len2(v3_sub(a, pc)), fmax(v3_len2(v3_sub(b, pc)), v3_len2(v3_sub(c, pc)))));
+        normals[0] = t->n;
+        normals[1] = v3_neg(t->n);
+        nsides = l->two_sided ? 2 : 1;
+    } else {
+        pc = l->pos;
+    }
+    for (int side = 0; side < nsides; side++) {
+        vec3 dirs[9];
+        for (int j = 0; j < 9; j++)
+            dirs[j] = l->type == LIGHT_AREA
+                          ? sampling_to_world(sample_cosine_hemisphere(pu[j], pv[j]), normals[side])
+                          : sample_uniform_sphere(pu[j], pv[j]);
+        vec3 dc = dirs[4];
+        double ang = 0;
+        for (int j = 0; j < 9; j++) ang = fmax(ang, acos(fmin(1.0, fmax(-1.0, v3_dot(dirs[j], dc)))));
+        ang = ang * 1.25 + 1e-3;
+        for (int i = 0; i < nsph; i++) {
+            vec3 oc = v3_sub(sph[i].c, pc);
+            double dist = v3_len(oc), R = sph[i].r + rl;
+            if (dist <= R) return 1;
+            double half = asin(R / dist);
+            double a = acos(fmin(1.0, fmax(-1.0, v3_dot(oc, dc) / dist)));
+            if (a <= half + ang) return 1;
+        }
+    }
+    return 0;
+}
+
+static int projmap_build(projmap *pm, const scene *s, int li, int G, const bsph *sph, int nsph) {
+    pm->G = G;
+    pm->nactive = 0;
+    pm->active = malloc((size_t)G * G * sizeof *pm->active);
+    if (!pm->active) return PM_ENOMEM;
+    for (int cy = 0; cy < G; cy++)
+        for (int cx = 0; cx < G; cx++)
+            if (cell_active(s, li, G, cx, cy, sph, nsph)) pm->active[pm->nactive++] = cy * G + cx;
+    pm->fraction = (double)pm->nactive / ((double)G * G);
+    return 0;
+}
+
+double photon_projection_fraction(const scene *s, int li, int G) {
+    bsph *sph;
+    int nsph = specular_spheres(s, &sph);
+    if (nsph < 0) return -1;
+    projmap pm;
+    double f = -1;
+    if (projmap_build(&pm, s, li, G, sph, nsph) == 0) f = pm.fraction;
+    free(pm.active);
+    free(sph);
+    return f;
+}
+
+/* ---- tracing one photon ------------------------------------------------------------------- */
+
+typedef struct pass_ctx {
+    const scene *s;
+    const trace_opts *o;
+    int caustic_pass;
+    int want_global, want_shadow;
+    distrib1d choose; /* light choice for this pass */
+    rgb *light_scale; /* per light: power / p_light (times the projection fraction) */
+    projmap *proj;    /* caustic pass: one per light */
+    double shift[6];
+    int st_first_specular;
+} pass_ctx;
+
+static void emit_photon(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *p, vec3 *n, vec3 *d,
+                        rgb *power) {
+    double u0 = halton(i, 0, c->shift);
+    double pl;
+    *li = distrib1d_sample(&c->choose, u0, &pl);
+    const light *l = &c->s->lights[*li];
+    double u[4] = {halton(i, 1, c->shift), halton(i, 2, c->shift), halton(i, 3, c->shift),
+                   halton(i, 4, c->shift)};
+    if (c->caustic_pass && c->proj) {
+        const projmap *pm = &c->proj[*li];
+        int dim = proj_dim(l);
+        double uc = halton(i, 5, c->shift);
+        int cell = pm->active[(int)fmin(pm->nactive - 1, uc * pm->nactive)];
+        /* The cell's jitter comes from the photon's own stream: the Halton dimensions that
+         * are not used for the cell stay stratified. */
+        u[dim] = ((cell % pm->G) + rng_uniform(g)) / pm->G;
+        u[dim + 1] = ((cell / pm->G) + rng_uniform(g)) / pm->G;
+        if (u[dim] >= 1) u[dim] = 0x1.fffffffffffffp-1;
+        if (u[dim + 1] >= 1) u[dim + 1] = 0x1.fffffffffffffp-1;
+    }
+    light_sample_le(c->s, *li, u, p, n, d);
+    *power = c->light_scale[*li];
+}
+
+static void make_fp(fphoton *f, uint64_t idx, vec3 p, rgb power, vec3 d, vec3 n, int kind) {
+    f->index = idx;
+    f->pos[0] = (float)p.x, f->pos[1] = (float)p.y, f->pos[2] = (float)p.z;
+    f->power[0] = (float)power.x, f->power[1] = (float)power.y, f->power[2] = (float)power.z;
+    f->dir[0] = (float)d.x, f->dir[1] = (float)d.y, f->dir[2] = (float)d.z;
+    f->normal[0] = (float)n.x, f->normal[1] = (float)n.y, f->normal[2] = (float)n.z;
+    f->kind = kind;
+}
+
+static double maxc_prod(double w, rgb t, rgb P) {
+    return w * fmax(t.x * P.x, fmax(t.y * P.y, t.z * P.z));
+}
+
+/* Trace photon i; stores into gb (global or caustic) and sb (shadow). Returns 0 or ENOMEM. */
+static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb) {
+    const scene *s = c->s;
+    rng g = rng_stream(c->o->seed, i, c->caustic_pass ? 2 : 1);
+    int li;
+    vec3 p, n, d;
+    rgb P;
+    emit_photon(c, i, &g, &li, &p, &n, &d, &P);
+    if (v3_iszero(P)) return 0;
+    int from_area = s->lights[li].type == LIGHT_AREA;
+    ray r = {v3_offset(p, n, d), d};
+    int all_specular = 1; /* no diffuse bounce yet */
+    fphoton fp;
+    for (int depth = 0; depth <= c->o->max_depth; depth++) {
+        hit h;
+        if (!scene_intersect(s, r, INFINITY, &h)) break;
+        const material *m = scene_material(s, &h);
+        vec3 wo = v3_neg(d);
+        vec3 ns = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng); /* the side it arrived on */
+        double w[LOBE_COUNT];
+        material_weights(m, wo, h.ng, s->medium_ior, w);
+        int diffuse_here = w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0;
+        if (c->caustic_pass && depth == 0 && !diffuse_here) stat_inc(c->st_first_specular);
+        if (diffuse_here) {
+            if (c->caustic_pass) {
+                if (depth > 0 && all_specular) {
+                    make_fp(&fp, i, h.p, P, d, ns, PM_KIND_CAUSTIC);
+                    if (fbuf_push(gb, &fp) < 0) return PM_ENOMEM;
+                }
+            } else {
+                int kind = depth == 0 ? PM_KIND_DIRECT : PM_KIND_INDIRECT;
+                make_fp(&fp, i, h.p, P, d, ns, kind);
+                if (c->want_global && fbuf_push(gb, &fp) < 0) return PM_ENOMEM;
+                if (c->want_shadow && from_area && depth == 0 && fbuf_push(sb, &fp) < 0)
+                    return PM_ENOMEM;
+            }
+        }
+        if (c->want_shadow && from_area && depth == 0) {
+            /* Shadow photons: the light's ray continued straight on through every surface. */
+            hit h2 = h;
+            for (int k = 0; k < 16; k++) {
+                ray r2 = {v3_offset(h2.p, h2.ng, d), d};
+                if (!scene_intersect(s, r2, INFINITY, &h2)) break;
+                const material *m2 = scene_material(s, &h2);
+                if (!material_is_diffuse(m2)) continue;
+                vec3 ns2 = v3_dot(wo, h2.ng) >= 0 ? h2.ng : v3_neg(h2.ng);
+                make_fp(&fp, i, h2.p, v3s(0), d, ns2, PM_KIND_SHADOW);
+                if (fbuf_push(sb, &fp) < 0) return PM_ENOMEM;
+            }
+        }
+        /* Russian roulette over the branches (see the top of photon_trace.h). */
+        double pmax = v3_maxc(P);
+        if (!(pmax > 0)) break;
+        double pd = diffuse_here ? maxc_prod(w[LOBE_DIFFUSE], m->diffuse, P) / pmax : 0;
+        double pr = maxc_prod(w[LOBE_REFLECT], m->specular_tint, P) / pmax;
+        double pt = maxc_prod(w[LOBE_TRANSMIT], m->transmit_tint, P) / pmax;
+        double u = rng_uniform(&g), u1 = rng_uniform(&g), u2 = rng_uniform(&g);
+        vec3 nd;
+        if (u < pd) {
+            if (c->caustic_pass) break; /* L S* D D...: not a caustic any more */
+            nd = sampling_to_world(sample_cosine_hemisphere(u1, u2), ns);
+            /* f cos / pdf = pi f for cosine sampling; branch weight over its probability. */
+            rgb f = material_diffuse_f(m, ns, wo, nd);
+            P = v3_scale(v3_mul(P, f), M_PI * w[LOBE_DIFFUSE] / pd);
+            all_specular = 0;
+        } else if (u < pd + pr) {
+            nd = v3_reflect(d, ns);
+            P = v3_scale(v3_mul(P, m->specular_tint), w[LOBE_REFLECT] / pr);
+        } else if (u < pd + pr + pt) {
+            double n1, n2;
+            material_indices(m, wo, h.ng, s->medium_ior, &n1, &n2);
+            if (!refract_dir(d, ns, n1 / n2, &nd)) nd = v3_reflect(d, ns);
+            P = v3_scale(v3_mul(P, m->transmit_tint), w[LOBE_TRANSMIT] / pt);
+        } else {
+            break; /* absorbed */
+        }
+        if (v3_iszero(P) || !v3_isfinite(P)) break;
+        d = nd;
+        r.o = v3_offset(h.p, h.ng, d);
+        r.d = d;
+    }
+    return 0;
+}
+
+/* ---- passes ------------------------------------------------------------------------------- */
+
+static int pack(const fbuf *b, double scale, pm_photon **out, size_t *n) {
+    *n = b->n;
+    *out = malloc((b->n ? b->n : 1) * sizeof **out);
+    if (!*out) return PM_ENOMEM;
+    for (size_t k = 0; k < b->n; k++) {
+        const fphoton *f = &b->v[k];
+        float pw[3] = {(float)(f->power[0] * scale), (float)(f->power[1] * scale),
+                       (float)(f->power[2] * scale)};
+        pm_photon_set(&(*out)[k], f->pos, pw, f->dir, f->normal, f->kind);
+    }
+    return 0;
+}
+
+/* Run one pass until `target` photons are in main_buf (or the runaway limit). */
+static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, uint64_t *emitted,
+                    int *runaway, const char *title, char *err, size_t errcap) {
+    const trace_opts *o = c->o;
+    int nthreads = 1;
+#ifdef _OPENMP
+    nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
+#endif
+    if (nthreads > 256) nthreads = 256;
+    fbuf *tg = calloc((size_t)nthreads, sizeof *tg), *ts = calloc((size_t)nthreads, sizeof *ts);
+    if (!tg || !ts) {
+        free(tg);
+        free(ts);
+        snprintf(err, errcap, "out of memory");
+        return PM_ENOMEM;
+    }
+    double limit = o->max_emitted_factor * (double)target;
+    uint64_t n_e = 0;
+    int rc = 0;
+    progress prog;
+    progress_begin(&prog, title, target, o->quiet);
+    size_t reported = 0;
+    while ((long)main_buf->n < target && (double)n_e < limit && rc == 0) {
+        int fail = 0;
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(nthreads) schedule(dynamic, 64) reduction(| : fail)
+#endif
+        for (int k = 0; k < PT_BATCH; k++) {
+            int t = 0;
+#ifdef _OPENMP
+            t = omp_get_thread_num();
+#endif
+            /* Without a global map the shadow photons are the pass's main output. */
+            if (trace_photon(c, n_e + (uint64_t)k, &tg[t], c->want_global ? &ts[t] : &tg[t]) < 0)
+                fail = 1;
+        }
+        n_e += PT_BATCH;
+        if (fail || fbuf_merge(main_buf, tg, nthreads) < 0 ||
+            (shadow_buf && fbuf_merge(shadow_buf, ts, nthreads) < 0)) {
+            snprintf(err, errcap, "out of memory while tracing photons");
+            rc = PM_ENOMEM;
+        }
+        size_t now = main_buf->n < (size_t)target ? main_buf->n : (size_t)target;
+        progress_add(&prog, (int64_t)(now - reported));
+        reported = now;
+    }
+    progress_end(&prog);
+    *runaway = rc == 0 && (long)main_buf->n < target;
+    if (*runaway)
+        fprintf(stderr,
+                "photon tracing: %s: only %zu of %ld photons stored after %llu emitted; stopping "
+                "(do the lights face anything?)\n",
+                title, main_buf->n, target, (unsigned long long)n_e);
+    *emitted = n_e;
+    for (int t = 0; t < nthreads; t++) {
+        free(tg[t].v);
+        free(ts[t].v);
+    }
+    free(tg);
+    free(ts);
+    return rc;
+}
+
+void trace_opts_init(trace_opts *o, const scene *s) {
+    memset(o, 0, sizeof *o);
+    o->seed = s->settings.seed;
+    o->max_depth = s->settings.max_depth;
+    o->max_emitted_factor = 64;
+    o->projection = 1;
+    o->projection_cells = 64;
+}
+
+void pm_maps_free(pm_maps *m) {
+    free(m->global);
+    free(m->caustic);
+    free(m->shadow);
+    memset(m, 0, sizeof *m);
+}
+
+static void shifts(double *shift, uint64_t seed, uint64_t pass) {
+    rng g = rng_stream(seed, 0xffffffffffULL, pass);
+    for (int d = 0; d < 6; d++) shift[d] = rng_uniform(&g);
+}
+
+int photon_trace(const scene *s, const trace_opts *o, pm_maps *m, char *err, size_t errcap) {
+    memset(m, 0, sizeof *m);
+    if (errcap) err[0] = 0;
+    int st_emit_g = stats_register("Photons/Emitted, global pass");
+    int st_emit_c = stats_register("Photons/Emitted, caustic pass");
+    int st_glob = stats_register("Photons/Global photons stored");
+    int st_caus = stats_register("Photons/Caustic photons stored");
+    int st_shadow = stats_register("Photons/Shadow-map photons stored (direct + shadow)");
+    int st_saved = stats_register("Photons/Caustic emissions saved by the projection map");
+    int st_first = stats_register("Photons/Caustic-pass photons whose first hit is specular");
+    int nl = s->nlights;
+    if (nl == 0 || s->light_distrib.n == 0) return 0;
+    int rc = 0;
+    rgb *scale = calloc((size_t)nl, sizeof *scale);
+    double *w = calloc((size_t)nl, sizeof *w);
+    if (!scale || !w) {
+        free(scale);
+        free(w);
+        snprintf(err, errcap, "out of memory");
+        return PM_ENOMEM;
+    }
+    fbuf gbuf = {0}, sbuf = {0}, cbuf = {0};
+
+    /* Global pass (also carries the shadow photons). */
+    if ((o->global || o->shadow) && o->global_target > 0) {
+        pass_ctx c = {0};
+        c.s = s;
+        c.o = o;
+        c.want_global = o->global;
+        c.want_shadow = o->shadow;
+        c.choose = s->light_distrib;
+        for (int i = 0; i < nl; i++) {
+            double pl = distrib1d_prob(&s->light_distrib, i);
+            scale[i] = pl > 0 ? v3_scale(s->lights[i].power, 1.0 / pl) : v3s(0);
+        }
+        c.light_scale = scale;
+        shifts(c.shift, o->seed, 1);
+        /* With the global map off, the shadow map's count is the target. */
+        rc = run_pass(&c, o->global_target, o->global ? &gbuf : &sbuf, o->global ? &sbuf : NULL,
+                      &m->global_emitted, &m->global_runaway,
+                      o->global ? "Tracing global photons" : "Tracing shadow photons", err, errcap);
+        stat_add(st_emit_g, m->global_emitted);
+    }
+
+    /* Caustic pass. */
+    projmap *proj = NULL;
+    bsph *sph = NULL;
+    if (rc == 0 && o->caustic && o->caustic_target > 0) {
+        int nsph = specular_spheres(s, &sph);
+        proj = calloc((size_t)nl, sizeof *proj);
+        if (nsph < 0 || !proj) rc = PM_ENOMEM;
+        int G = o->projection ? (o->projection_cells > 0 ? o->projection_cells : 64) : 1;
+        double wsum = 0, psum = 0;
+        for (int i = 0; rc == 0 && i < nl; i++) {
+            if (o->projection) {
+                rc = projmap_build(&proj[i], s, i, G, sph, nsph);
+            } else {
+                proj[i].G = 1;
+                proj[i].nactive = 1;
+                proj[i].active = calloc(1, sizeof(int));
+                proj[i].fraction = 1;
+                if (!proj[i].active) rc = PM_ENOMEM;
+            }
+            const light *l = &s->lights[i];
+            double pw = (l->power.x + l->power.y + l->power.z) / 3;
+            w[i] = pw * (rc == 0 ? proj[i].fraction : 0);
+            wsum += w[i];
+            psum += pw;
+        }
+        if (rc == 0 && wsum > 0) {
+            pass_ctx c = {0};
+            c.s = s;
+            c.o = o;
+            c.caustic_pass = 1;
+            c.proj = proj;
+            c.st_first_specular = st_first;
+            rc = distrib1d_init(&c.choose, w, nl);
+            for (int i = 0; rc == 0 && i < nl; i++) {
+                double pl = distrib1d_prob(&c.choose, i);
+                /* Eq. 2.2: only the fraction f of the directions is sampled. */
+                scale[i] = pl > 0 ? v3_scale(s->lights[i].power, proj[i].fraction / pl) : v3s(0);
+            }
+            c.light_scale = scale;
+            shifts(c.shift, o->seed, 2);
+            if (rc == 0)
+                rc = run_pass(&c, o->caustic_target, &cbuf, NULL, &m->caustic_emitted,
+                              &m->caustic_runaway, "Tracing caustic photons", err, errcap);
+            distrib1d_free(&c.choose);
+            m->caustic_fraction = wsum / psum;
+            if (m->caustic_fraction > 0)
+                m->caustic_saved =
+                    (uint64_t)((double)m->caustic_emitted * (1.0 / m->caustic_fraction - 1.0) + 0.5);
+            stat_add(st_emit_c, m->caustic_emitted);
+            stat_add(st_saved, m->caustic_saved);
+        }
+        if (rc == PM_ENOMEM && !err[0]) snprintf(err, errcap, "out of memory");
+        for (int i = 0; proj && i < nl; i++) free(proj[i].active);
+    }
+    free(proj);
+    free(sph);
+
+    if (rc == 0 && m->global_emitted) {
+        double inv = 1.0 / (double)m->global_emitted;
+        if (o->global) rc = pack(&gbuf, inv, &m->global, &m->nglobal);
+        if (rc == 0 && o->shadow) rc = pack(&sbuf, inv, &m->shadow, &m->nshadow);
+    }
+    if (rc == 0 && m->caustic_emitted)
+        rc = pack(&cbuf, 1.0 / (double)m->caustic_emitted, &m->caustic, &m->ncaustic);
+    if (rc < 0 && !err[0]) snprintf(err, errcap, "%s", pm_strerror(rc));
+    stat_add(st_glob, m->nglobal);
+    stat_add(st_caus, m->ncaustic);
+    stat_add(st_shadow, m->nshadow);
+    free(gbuf.v);
+    free(sbuf.v);
+    free(cbuf.v);
+    free(scale);
+    free(w);
+    if (rc < 0) pm_maps_free(m);
+    return rc;
+}

@@ -1,0 +1,96 @@
+/* photon_trace.h: photon tracing: emit photons from the lights, scatter them through the
+ * scene, and classify what they leave on diffuse surfaces into the caustic, global and
+ * shadow maps (Jensen, "A practical guide to global illumination using photon maps").
+ *
+ * EMISSION. Photon i picks its light and its origin and direction from a Halton point (bases
+ * 2, 3, 5, 7, 11, 13; radical inverses of i + 1, shifted by a seed-dependent rotation), so
+ * emission is stratified; lights are chosen in proportion to their power (the scene's
+ * light_distrib), through light_sample_le (area: uniform point, cosine direction; point:
+ * uniform direction; directional: a disc covering the scene). The power of every photon is
+ * P_light / (p_light * n_e), n_e being the number emitted for the map.
+ *
+ * CAUSTIC PROJECTION MAP. For the caustic map each light gets a grid of cells over its two
+ * direction parameters (a position on the disc for a directional light); a cell is active
+ * when its bundle of rays, bounded conservatively by a cone (area, point) or a tube
+ * (directional), can meet the bounding sphere of a specular primitive. Caustic photons are
+ * emitted only into active cells, a light is chosen in proportion to P_light * f_light with
+ * f_light its fraction of active cells, and each photon's power is scaled by that fraction
+ * (Jensen's eq. 2.2). The emissions this saves, n_e (1/f - 1) with f the power-weighted
+ * active fraction, are reported.
+ *
+ * SCATTERING. At each hit, Russian roulette picks the diffuse, specular-reflection or
+ * transmission branch, or absorption, with probabilities P_x = max_c(w_x t_c Phi_c) /
+ * max_c(Phi_c) (w_x the branch weight, t the branch colour, Phi the photon power: the maximum
+ * over colour channels), and divides the power by the chosen probability, so photon powers
+ * stay even. Paths stop at the scene's max_depth.
+ *
+ * STORAGE AND CLASSES. Photons are stored only on surfaces with a diffuse branch, with the
+ * power arriving there, the direction of travel and the normal on the side they arrived at:
+ *   global map   every such hit of the global pass (L {S|D}* D), kind DIRECT for the first
+ *                hit from the light, INDIRECT after one or more bounces;
+ *   caustic map  hits of the caustic pass whose path so far was all specular (L S+ D);
+ *   shadow map   from area lights only: the first hit's photon (DIRECT) and, continuing
+ *                the light's ray straight on through every surface, SHADOW photons at the
+ *                later diffuse hits. A renderer asks whether the nearest photons are all
+ *                DIRECT (lit) or all SHADOW (dark) to skip shadow rays.
+ *
+ * DETERMINISM AND THREADS. Photon i uses only its own random stream rng_stream(seed, i, pass)
+ * and its Halton point, and photons are traced in batches of PT_BATCH on all threads (OpenMP)
+ * and merged in photon-index order; the number of batches depends only on the counts stored.
+ * So the maps are bit-identical for any thread count, and a small change to the scene changes
+ * only the photons whose paths it touches.
+ *
+ * RUNAWAY SCENES. A pass stops when its target count is stored, or when
+ * max_emitted_factor * target photons were emitted without reaching it (e.g. lights that face
+ * nothing): then it prints a message to stderr and keeps what it stored (maybe nothing).
+ *
+ * OWNERSHIP. photon_trace fills a pm_maps whose arrays it allocates; pm_maps_free frees them.
+ */
+#ifndef RENDER_PHOTON_TRACE_H
+#define RENDER_PHOTON_TRACE_H
+
+#include <stdint.h>
+
+#include "photon.h"
+#include "scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define PT_BATCH 4096
+
+typedef struct trace_opts {
+    int global, caustic, shadow;     /* which maps to build */
+    long global_target, caustic_target; /* photons to store */
+    double max_emitted_factor;       /* give up after this many times the target emitted */
+    int projection, projection_cells;
+    int max_depth;
+    uint64_t seed;
+    int threads; /* 0: OpenMP's default */
+    int quiet;   /* no progress or messages except errors and the runaway warning */
+} trace_opts;
+
+typedef struct pm_maps {
+    pm_photon *global, *caustic, *shadow;
+    size_t nglobal, ncaustic, nshadow;
+    uint64_t global_emitted, caustic_emitted; /* the shadow map shares the global pass */
+    double caustic_fraction;        /* power-weighted active fraction of the projection maps */
+    uint64_t caustic_saved;         /* emissions the projection map saved */
+    uint64_t caustic_first_specular; /* caustic-pass photons whose first hit was specular */
+    int global_runaway, caustic_runaway; /* 1 if the pass stopped short of its target */
+} pm_maps;
+
+/* Fill the options from the scene's settings: seed, max_depth; the rest zero. */
+void trace_opts_init(trace_opts *o, const scene *s);
+/* Trace the maps. Returns 0, or a negative PM_E* code with a message (PM_ENOMEM). */
+int photon_trace(const scene *s, const trace_opts *o, pm_maps *m, char *err, size_t errcap);
+void pm_maps_free(pm_maps *m);
+
+/* The active fraction of light li's projection map with G x G cells (for tests). */
+double photon_projection_fraction(const scene *s, int li, int G);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_PHOTON_TRACE_H */

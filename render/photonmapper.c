@@ -1,0 +1,596 @@
+/* photonmapper.c: the photon-mapping integrators, "--mode pm" (Jensen's two-pass method with
+ * final gathering) and "--mode preview" (the global map shown directly).
+ *
+ * PREPROCESS. Read the settings ("$.photon_mapping", plan.h), decide and print the plan,
+ * then either trace the maps (photon_trace.h) or load them from a directory (load_photons),
+ * build a kd-tree over each (pm_kdtree_build; the records are reordered into tree order),
+ * optionally save them in tree order (save_photons: DIR/global.pmap, caustic.pmap,
+ * shadow.pmap, the format of photonmap/photon.h), and precompute irradiance at a quarter of
+ * the global photons (Christensen). Maximum search radii are automatic unless given:
+ * Christensen's radius beyond which k photons of the largest power would give less than a
+ * threshold radiance, 0.5% of the mean radiance the lights' power would give on the diffuse
+ * area (phi / (pi A)).
+ *
+ * RENDERING: Jensen's split of the rendering equation. A camera ray follows specular
+ * reflection and refraction (one branch chosen at random in proportion to its weight, with
+ * Russian roulette after rr_depth bounces) and adds emission it sees. At every surface with a
+ * diffuse branch it adds
+ *   - direct light: one light sample and a shadow ray; for area lights the k_shadow nearest
+ *     photons of the shadow map decide first: all DIRECT means lit and all SHADOW means dark,
+ *     and the shadow ray is skipped (both counts are in the statistics);
+ *   - caustics: a radiance estimate from the caustic map with the scene's filter (none, cone,
+ *     Gaussian, convex hull), photons from behind the surface rejected;
+ *   - indirect diffuse: final gathering. gather_rays cosine-distributed rays (per camera
+ *     sample) follow specular surfaces to the first diffuse surface y and read the
+ *     precomputed irradiance of the photon nearest y with a similar normal, times y's
+ *     diffuse reflectance / pi. Emission met by a gather ray is skipped (direct light and
+ *     caustics count it). When the first gather hit is closer than secondary_distance (about
+ *     the radius of a global-map estimate), the global map is too coarse there (the corner
+ *     artefact of the Kilauea notes), so a secondary gather computes y's outgoing light from
+ *     its own direct light, caustics and secondary_rays gather rays instead.
+ * In preview mode, or with final gathering forced off, the diffuse surface shows the
+ * global map's radiance estimate (k_global photons) plus emission, and nothing else.
+ *
+ * Threads: li only reads the maps; each thread has its own scratch (estimate buffers).
+ */
+#include <errno.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "common.h"
+#include "estimate.h"
+#include "integrator.h"
+#include "irradiance.h"
+#include "kdtree.h"
+#include "photon.h"
+#include "photon_trace.h"
+#include "plan.h"
+#include "stats.h"
+
+typedef struct pm_state {
+    pm_config cfg;
+    render_plan plan;
+    int preview, direct_vis;
+    int max_depth, rr_depth;
+    pm_maps maps;
+    pm_kdtree *tg, *tc, *ts; /* global, caustic, shadow trees (NULL when absent/empty) */
+    pm_irradiance *irr;
+    pm_photon *irr_ph; /* the precomputed photons alone, power = irradiance, in ti's order */
+    pm_kdtree *ti;
+    float r2_global, r2_caustic, r2_shadow, r2_lookup;
+    double sec_dist;
+    pm_estimate_options caus_opt, glob_opt;
+    unsigned kmax;
+    int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
+        st_global_est;
+} pm_state;
+
+typedef struct pm_scratch {
+    void *est;
+    pm_neighbor *nb;
+} pm_scratch;
+
+/* ---- helpers ------------------------------------------------------------------------------ */
+
+static double diffuse_area(const scene *s) {
+    double a = 0;
+    for (int i = 0; i < s->ntris; i++)
+        if (material_is_diffuse(&s->mats[s->tris[i].mat])) a += s->tris[i].area;
+    for (int i = 0; i < s->nspheres; i++)
+        if (material_is_diffuse(&s->mats[s->spheres[i].mat]))
+            a += 4 * M_PI * s->spheres[i].r * s->spheres[i].r;
+    return a;
+}
+
+/* w_D times the diffuse reflectance: the Lambertian part of the BSDF times pi. */
+static rgb diffuse_albedo(const scene *s, const material *m, vec3 wo, vec3 ng) {
+    double w[LOBE_COUNT];
+    material_weights(m, wo, ng, s->medium_ior, w);
+    return v3_scale(m->diffuse, w[LOBE_DIFFUSE]);
+}
+
+static int has_diffuse(const scene *s, const material *m, vec3 wo, vec3 ng) {
+    double w[LOBE_COUNT];
+    material_weights(m, wo, ng, s->medium_ior, w);
+    return w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0;
+}
+
+static void to_f3(vec3 v, float f[3]) {
+    f[0] = (float)v.x;
+    f[1] = (float)v.y;
+    f[2] = (float)v.z;
+}
+
+/* Radiance estimate from a map at x (normal ns, the side the viewer is on). */
+static rgb map_estimate(const pm_kdtree *t, const pm_estimate_options *base, vec3 x, vec3 ns,
+                        rgb albedo, void *scratch) {
+    pm_estimate_options o = *base;
+    float xf[3], nf[3], df[3];
+    to_f3(x, xf);
+    to_f3(ns, nf);
+    to_f3(albedo, df);
+    o.diffuse = df;
+    pm_estimate_result res;
+    if (pm_estimate(t, xf, nf, &o, scratch, &res, NULL) < 0) return v3s(0);
+    return v3(res.rgb[0], res.rgb[1], res.rgb[2]);
+}
+
+/* -1: trace the shadow ray; 1: the shadow map says lit; 0: it says dark. */
+static int shadow_map_says(const pm_state *st, vec3 x, vec3 ns, pm_neighbor *nb) {
+    if (!st->ts) return -1;
+    float xf[3], nf[3];
+    to_f3(x, xf);
+    to_f3(ns, nf);
+    pm_knn_options ko = {0};
+    ko.filter = pm_filter_front;
+    ko.filter_user = nf;
+    int n = pm_kdtree_knn_ex(st->ts, xf, (unsigned)st->cfg.k_shadow, st->r2_shadow, &ko, nb, NULL);
+    if (n < st->cfg.k_shadow) return -1;
+    const pm_photon *ph = pm_kdtree_records(st->ts);
+    int direct = 0, shadow = 0;
+    for (int i = 0; i < n; i++) {
+        int k = pm_photon_kind(&ph[nb[i].index]);
+        direct += k == PM_KIND_DIRECT;
+        shadow += k == PM_KIND_SHADOW;
+    }
+    if (direct == n) return 1;
+    if (shadow == n) return 0;
+    return -1;
+}
+
+/* Direct light at a diffuse point: one light sample. */
+static rgb direct_light(const pm_state *st, const scene *s, const material *m, const hit *h,
+                        vec3 ns, vec3 wo, rng *g, pm_scratch *sc) {
+    double ul = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
+    if (s->nlights == 0 || s->light_distrib.n == 0) return v3s(0);
+    double pl;
+    int li = distrib1d_sample(&s->light_distrib, ul, &pl);
+    if (!(pl > 0)) return v3s(0);
+    light_sample ls;
+    if (!light_sample_li(s, li, h->p, u1, u2, &ls)) return v3s(0);
+    double cos_s = v3_dot(ls.wi, ns);
+    if (cos_s <= 0 || v3_iszero(ls.L)) return v3s(0);
+    rgb f = material_f(m, h->ng, s->medium_ior, wo, ls.wi);
+    if (v3_iszero(f)) return v3s(0);
+    const light *l = &s->lights[li];
+    int vis = l->type == LIGHT_AREA ? shadow_map_says(st, h->p, ns, sc->nb) : -1;
+    if (vis == 1)
+        stat_inc(st->st_saved_lit);
+    else if (vis == 0)
+        stat_inc(st->st_saved_dark);
+    else {
+        stat_inc(st->st_traced);
+        stat_inc(STAT_SHADOW_RAYS);
+        vis = l->type == LIGHT_DIRECTIONAL ? scene_visible_dir(s, h->p, h->ng, ls.wi)
+                                           : scene_visible(s, h->p, h->ng, ls.p, ls.n);
+    }
+    if (!vis) return v3s(0);
+    return v3_scale(v3_mul(f, ls.L), cos_s / pl);
+}
+
+static rgb caustics_at(const pm_state *st, const scene *s, const material *m, const hit *h,
+                       vec3 ns, vec3 wo, pm_scratch *sc) {
+    if (!st->tc) return v3s(0);
+    stat_inc(st->st_caustic);
+    return map_estimate(st->tc, &st->caus_opt, h->p, ns, diffuse_albedo(s, m, wo, h->ng), sc->est);
+}
+
+/* Follow a ray through specular surfaces to the first diffuse hit. Returns 1 with the hit
+ * and the throughput, 0 if it escapes, is absorbed or runs out of bounces. */
+static int to_diffuse(const pm_state *st, const scene *s, ray r, rng *g, hit *h, rgb *beta) {
+    *beta = v3s(1);
+    for (int b = 0; b < 8; b++) {
+        if (!scene_intersect(s, r, INFINITY, h)) return 0;
+        const material *m = scene_material(s, h);
+        vec3 wo = v3_neg(r.d);
+        if (has_diffuse(s, m, wo, h->ng)) return 1;
+        double w[LOBE_COUNT];
+        material_weights(m, wo, h->ng, s->medium_ior, w);
+        double ws = w[LOBE_REFLECT] + w[LOBE_TRANSMIT];
+        if (!(ws > 0)) return 0;
+        vec3 ns = v3_dot(wo, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
+        vec3 d;
+        if (rng_uniform(g) * ws < w[LOBE_REFLECT]) {
+            d = v3_reflect(r.d, ns);
+            *beta = v3_scale(v3_mul(*beta, m->specular_tint), ws);
+        } else {
+            double n1, n2;
+            material_indices(m, wo, h->ng, s->medium_ior, &n1, &n2);
+            if (!refract_dir(r.d, ns, n1 / n2, &d)) d = v3_reflect(r.d, ns);
+            *beta = v3_scale(v3_mul(*beta, m->transmit_tint), ws);
+        }
+        if (v3_iszero(*beta)) return 0;
+        r.o = v3_offset(h->p, h->ng, d);
+        r.d = d;
+        stat_inc(STAT_INDIRECT_RAYS);
+    }
+    (void)st;
+    return 0;
+}
+
+/* Accept a precomputed photon whose normal is within about 45 degrees of the user's. */
+static int normal_agrees(void *user, const void *record, uint32_t index) {
+    (void)index;
+    const float *n = user;
+    float pn[3];
+    pm_normal_decode(((const pm_photon *)record)->normal, pn);
+    return n[0] * pn[0] + n[1] * pn[1] + n[2] * pn[2] >= 0.7f;
+}
+
+/* Outgoing diffuse radiance at y toward wo from the precomputed irradiance of the nearest
+ * precomputed photon with a similar normal (pm_irradiance_lookup's rule, on a tree of the
+ * precomputed photons alone: the search then never wades through the other 3/4). */
+static rgb lookup_radiance(const pm_state *st, const scene *s, const hit *h, vec3 wo) {
+    if (!st->ti) return v3s(0);
+    const material *m = scene_material(s, h);
+    vec3 ns = v3_dot(wo, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
+    float xf[3], nf[3], e[3];
+    to_f3(h->p, xf);
+    to_f3(ns, nf);
+    stat_inc(st->st_lookup);
+    pm_neighbor nb;
+    if (pm_kdtree_nearest_if(st->ti, xf, st->r2_lookup, normal_agrees, nf, &nb, NULL) <= 0)
+        return v3s(0);
+    pm_rgbe_decode(st->irr_ph[nb.index].power, e);
+    rgb a = diffuse_albedo(s, m, wo, h->ng);
+    return v3(a.x * e[0] / M_PI, a.y * e[1] / M_PI, a.z * e[2] / M_PI);
+}
+
+/* Indirect diffuse at a diffuse point by gathering n rays; secondary = 1 inside a secondary
+ * gather (its rays always read the map). */
+static rgb gather(const pm_state *st, const scene *s, const material *m, const hit *h, vec3 ns,
+                  vec3 wo, int n, int secondary, rng *g, pm_scratch *sc);
+
+/* Outgoing light at a close gather hit y, computed instead of read from the map. */
+static rgb secondary_radiance(const pm_state *st, const scene *s, const hit *y, vec3 wo, rng *g,
+                              pm_scratch *sc) {
+    const material *m = scene_material(s, y);
+    vec3 ns = v3_dot(wo, y->ng) >= 0 ? y->ng : v3_neg(y->ng);
+    rgb L = direct_light(st, s, m, y, ns, wo, g, sc);
+    L = v3_add(L, caustics_at(st, s, m, y, ns, wo, sc));
+    return v3_add(L, gather(st, s, m, y, ns, wo, st->cfg.secondary_rays, 1, g, sc));
+}
+
+static rgb gather(const pm_state *st, const scene *s, const material *m, const hit *h, vec3 ns,
+                  vec3 wo, int n, int secondary, rng *g, pm_scratch *sc) {
+    if (n <= 0 || !st->ti) return v3s(0);
+    rgb sum = v3s(0);
+    for (int k = 0; k < n; k++) {
+        /* Stratified over the hemisphere: n strata in the first coordinate. */
+        double u1 = (k + rng_uniform(g)) / n, u2 = rng_uniform(g);
+        vec3 d = sampling_to_world(sample_cosine_hemisphere(u1, u2), ns);
+        if (v3_dot(d, ns) <= 0) continue;
+        rgb f = material_f(m, h->ng, s->medium_ior, wo, d);
+        if (v3_iszero(f)) continue;
+        stat_inc(secondary ? st->st_secondary : st->st_gather);
+        stat_inc(STAT_INDIRECT_RAYS);
+        ray r = {v3_offset(h->p, h->ng, d), d};
+        hit y;
+        rgb beta;
+        if (!to_diffuse(st, s, r, g, &y, &beta)) continue;
+        rgb Lo;
+        if (!secondary && v3_iszero(v3_sub(beta, v3s(1))) && y.t < st->sec_dist)
+            Lo = secondary_radiance(st, s, &y, v3_neg(d), g, sc);
+        else
+            Lo = lookup_radiance(st, s, &y, v3_neg(d));
+        /* cosine sampling: f cos / pdf = pi f */
+        sum = v3_add(sum, v3_mul(v3_mul(f, beta), Lo));
+    }
+    return v3_scale(sum, M_PI / n);
+}
+
+/* ---- the integrator ----------------------------------------------------------------------- */
+
+static rgb pm_li(const integrator *self, const scene *s, ray r, rng *g, void *scratch) {
+    const pm_state *st = self->data;
+    pm_scratch *sc = scratch;
+    rgb L = v3s(0), beta = v3s(1);
+    for (int depth = 0;; depth++) {
+        hit h;
+        if (!scene_intersect(s, r, INFINITY, &h)) break;
+        stat_inc(STAT_PATH_VERTICES);
+        const material *m = scene_material(s, &h);
+        vec3 wo = v3_neg(r.d);
+        if (material_is_emissive(m) && (v3_dot(wo, h.ng) > 0 || m->two_sided))
+            L = v3_add(L, v3_mul(beta, m->emission));
+        vec3 ns = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
+        double w[LOBE_COUNT];
+        material_weights(m, wo, h.ng, s->medium_ior, w);
+        if (w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0) {
+            rgb Ld;
+            if (st->direct_vis) {
+                stat_inc(st->st_global_est);
+                Ld = st->tg ? map_estimate(st->tg, &st->glob_opt, h.p, ns,
+                                           diffuse_albedo(s, m, wo, h.ng), sc->est)
+                            : v3s(0);
+            } else {
+                Ld = direct_light(st, s, m, &h, ns, wo, g, sc);
+                Ld = v3_add(Ld, caustics_at(st, s, m, &h, ns, wo, sc));
+                if (st->plan.final_gather.on)
+                    Ld = v3_add(Ld, gather(st, s, m, &h, ns, wo, st->cfg.gather_rays, 0, g, sc));
+            }
+            L = v3_add(L, v3_mul(beta, Ld));
+        }
+        double ws = w[LOBE_REFLECT] + w[LOBE_TRANSMIT];
+        if (!(ws > 0) || depth >= st->max_depth) break;
+        vec3 d;
+        if (rng_uniform(g) * ws < w[LOBE_REFLECT]) {
+            d = v3_reflect(r.d, ns);
+            beta = v3_scale(v3_mul(beta, m->specular_tint), ws);
+        } else {
+            double n1, n2;
+            material_indices(m, wo, h.ng, s->medium_ior, &n1, &n2);
+            if (!refract_dir(r.d, ns, n1 / n2, &d)) {
+                d = v3_reflect(r.d, ns);
+                stat_inc(STAT_TIR);
+            }
+            beta = v3_scale(v3_mul(beta, m->transmit_tint), ws);
+        }
+        stat_inc(STAT_SPECULAR_BOUNCES);
+        double urr = rng_uniform(g);
+        if (depth + 1 >= st->rr_depth) {
+            double q = fmin(0.95, v3_maxc(beta));
+            if (!(urr < q)) {
+                stat_inc(STAT_RR_TERMINATED);
+                break;
+            }
+            beta = v3_scale(beta, 1.0 / q);
+        }
+        if (v3_iszero(beta)) break;
+        r.o = v3_offset(h.p, h.ng, d);
+        r.d = d;
+        stat_inc(STAT_INDIRECT_RAYS);
+    }
+    return L;
+}
+
+static void *pm_thread_begin(const integrator *self) {
+    const pm_state *st = self->data;
+    pm_scratch *sc = malloc(sizeof *sc);
+    if (!sc) return NULL;
+    sc->est = malloc(pm_estimate_scratch_bytes(st->kmax));
+    sc->nb = malloc((size_t)st->cfg.k_shadow * sizeof *sc->nb);
+    return sc;
+}
+
+static void pm_thread_end(const integrator *self, void *scratch) {
+    (void)self;
+    pm_scratch *sc = scratch;
+    if (!sc) return;
+    free(sc->est);
+    free(sc->nb);
+    free(sc);
+}
+
+static void pm_destroy(integrator *self) {
+    pm_state *st = self->data;
+    if (!st) return;
+    pm_irradiance_free(st->irr);
+    pm_kdtree_free(st->ti);
+    free(st->irr_ph);
+    pm_kdtree_free(st->tg);
+    pm_kdtree_free(st->tc);
+    pm_kdtree_free(st->ts);
+    pm_maps_free(&st->maps);
+    free(st);
+}
+
+/* ---- preprocess --------------------------------------------------------------------------- */
+
+static int save_map(const char *dir, const char *name, const pm_photon *ph, size_t n, uint32_t kind,
+                    uint64_t emitted, unsigned bucket, char *err, size_t errcap) {
+    char path[1024];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    pm_map_header hdr = {PM_FILE_VERSION, sizeof(pm_photon), n, kind, emitted, bucket};
+    int rc = pm_map_save(path, ph, &hdr);
+    if (rc < 0)
+        snprintf(err, errcap, "cannot save %s: %s", path, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
+    return rc;
+}
+
+static int load_map(const char *dir, const char *name, pm_photon **ph, size_t *n, uint64_t *emitted,
+                    char *err, size_t errcap) {
+    char path[1024];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    struct stat sb;
+    if (stat(path, &sb) != 0) return 0; /* absent: that map is empty */
+    pm_map_header hdr;
+    int rc = pm_map_load(path, ph, &hdr);
+    if (rc < 0) {
+        snprintf(err, errcap, "cannot load %s: %s", path, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
+        return rc;
+    }
+    *n = (size_t)hdr.count;
+    if (emitted) *emitted = hdr.emitted;
+    return 0;
+}
+
+static int build_tree(pm_kdtree **t, pm_photon *ph, size_t n, unsigned bucket, char *err, size_t errcap) {
+    *t = NULL;
+    if (!ph || n == 0) return 0;
+    pm_kdtree_config kc = pm_kdtree_photon_config(bucket);
+    int rc = pm_kdtree_build(t, ph, n, &kc, NULL);
+    if (rc < 0) snprintf(err, errcap, "building a photon kd-tree: %s", pm_strerror(rc));
+    return rc;
+}
+
+enum { BUCKET_GLOBAL = 1, BUCKET_CAUSTIC = 8, BUCKET_SHADOW = 8 };
+
+static int pm_preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
+    pm_state *st = self->data;
+    plan_print(&st->plan, stdout);
+    fflush(stdout);
+    pm_maps *m = &st->maps;
+    int rc;
+    double t0 = stats_now();
+    if (st->cfg.load_dir[0]) {
+        if ((rc = load_map(st->cfg.load_dir, "global.pmap", &m->global, &m->nglobal,
+                           &m->global_emitted, err, errcap)) < 0 ||
+            (rc = load_map(st->cfg.load_dir, "caustic.pmap", &m->caustic, &m->ncaustic,
+                           &m->caustic_emitted, err, errcap)) < 0 ||
+            (rc = load_map(st->cfg.load_dir, "shadow.pmap", &m->shadow, &m->nshadow, NULL, err,
+                           errcap)) < 0)
+            return rc;
+        /* The plan decides which loaded maps are used. */
+        if (!st->plan.global.on) m->nglobal = 0;
+        if (!st->plan.caustics.on) m->ncaustic = 0;
+        if (!st->plan.shadow.on) m->nshadow = 0;
+        printf("Loaded photon maps from %s: %zu global, %zu caustic, %zu shadow-map photons\n",
+               st->cfg.load_dir, m->nglobal, m->ncaustic, m->nshadow);
+    } else {
+        trace_opts o;
+        trace_opts_init(&o, s);
+        o.global = st->plan.global.on;
+        o.caustic = st->plan.caustics.on;
+        o.shadow = st->plan.shadow.on;
+        o.global_target = st->cfg.global_photons;
+        o.caustic_target = st->cfg.caustic_photons;
+        o.max_emitted_factor = st->cfg.max_emitted_factor;
+        o.projection = st->cfg.projection;
+        o.projection_cells = st->cfg.projection_cells;
+        if ((rc = photon_trace(s, &o, m, err, errcap)) < 0) return rc;
+        printf("Photons: %zu global, %zu shadow-map (from %llu emitted); %zu caustic (from %llu "
+               "emitted; projection maps cover %.2f%% of the light's power, saving %llu "
+               "emissions)\n",
+               m->nglobal, m->nshadow, (unsigned long long)m->global_emitted, m->ncaustic,
+               (unsigned long long)m->caustic_emitted, 100 * m->caustic_fraction,
+               (unsigned long long)m->caustic_saved);
+    }
+    stats_time_add("Time/Photon tracing (or loading)", stats_now() - t0);
+    t0 = stats_now();
+    if ((rc = build_tree(&st->tg, m->global, m->nglobal, BUCKET_GLOBAL, err, errcap)) < 0 ||
+        (rc = build_tree(&st->tc, m->caustic, m->ncaustic, BUCKET_CAUSTIC, err, errcap)) < 0 ||
+        (rc = build_tree(&st->ts, m->shadow, m->nshadow, BUCKET_SHADOW, err, errcap)) < 0)
+        return rc;
+    stats_time_add("Time/Photon kd-trees", stats_now() - t0);
+    if (st->cfg.save_dir[0]) {
+        if (mkdir(st->cfg.save_dir, 0777) != 0 && errno != EEXIST) {
+            snprintf(err, errcap, "cannot create %s: %s", st->cfg.save_dir, strerror(errno));
+            return PM_EIO;
+        }
+        if ((rc = save_map(st->cfg.save_dir, "global.pmap", m->global, m->nglobal, PM_MAP_GLOBAL,
+                           m->global_emitted, BUCKET_GLOBAL, err, errcap)) < 0 ||
+            (rc = save_map(st->cfg.save_dir, "caustic.pmap", m->caustic, m->ncaustic,
+                           PM_MAP_CAUSTIC, m->caustic_emitted, BUCKET_CAUSTIC, err, errcap)) < 0 ||
+            (rc = save_map(st->cfg.save_dir, "shadow.pmap", m->shadow, m->nshadow, PM_MAP_SHADOW,
+                           m->global_emitted, BUCKET_SHADOW, err, errcap)) < 0)
+            return rc;
+        printf("Saved photon maps to %s\n", st->cfg.save_dir);
+    }
+
+    /* Radii. */
+    double area = diffuse_area(s);
+    double phi = 0;
+    for (int i = 0; i < s->nlights; i++) phi += v3_maxc(s->lights[i].power);
+    double Lt = area > 0 ? 0.005 * phi / (M_PI * area) : 0;
+    double rg = st->cfg.max_radius_global, rc_ = st->cfg.max_radius_caustic;
+    if (rg <= 0)
+        rg = m->nglobal ? pm_auto_radius_surface((unsigned)st->cfg.k_global,
+                                                 pm_photons_max_power(m->global, m->nglobal), Lt)
+                        : INFINITY;
+    if (rc_ <= 0)
+        rc_ = m->ncaustic ? pm_auto_radius_surface((unsigned)st->cfg.k_caustic,
+                                                   pm_photons_max_power(m->caustic, m->ncaustic), Lt)
+                          : INFINITY;
+    st->r2_global = (float)(rg * rg);
+    st->r2_caustic = (float)(rc_ * rc_);
+    /* The radius of a k-photon estimate at the mean density of the global map. */
+    double rtyp = m->nglobal ? sqrt(st->cfg.k_global * area / (M_PI * (double)m->nglobal)) : INFINITY;
+    st->r2_lookup = (float)fmin(16 * rtyp * rtyp, (double)st->r2_global);
+    st->sec_dist = st->cfg.secondary_distance > 0 ? st->cfg.secondary_distance : rtyp;
+    double rsh = m->nshadow ? sqrt(st->cfg.k_shadow * area / (M_PI * (double)m->nshadow)) : 0;
+    st->r2_shadow = (float)(4 * rsh * rsh);
+    printf("Radii: global estimate %.4g, caustic estimate %.4g, secondary gather below %.4g, "
+           "shadow-map query %.4g\n",
+           rg, rc_, st->sec_dist, 2 * rsh);
+
+    pm_estimator kinds[] = {PM_EST_DISC, PM_EST_CONE, PM_EST_GAUSS, PM_EST_HULL};
+    pm_estimate_options_init(&st->caus_opt, kinds[st->cfg.filter], (unsigned)st->cfg.k_caustic);
+    st->caus_opt.max_dist2 = st->r2_caustic;
+    st->caus_opt.reject_behind = 1;
+    pm_estimate_options_init(&st->glob_opt, PM_EST_DISC, (unsigned)st->cfg.k_global);
+    st->glob_opt.max_dist2 = st->r2_global;
+    st->glob_opt.reject_behind = 1;
+
+    if (st->tg && !st->direct_vis) {
+        t0 = stats_now();
+        pm_irradiance_options io;
+        pm_irradiance_options_init(&io, (unsigned)st->cfg.k_global);
+        io.max_dist2 = st->r2_global;
+        io.fraction = PM_PRECOMP_QUARTER;
+        rc = pm_irradiance_build(&st->irr, st->tg, &io);
+        if (rc < 0) {
+            snprintf(err, errcap, "precomputing irradiance: %s", pm_strerror(rc));
+            return rc;
+        }
+        size_t ni = pm_irradiance_count(st->irr), j = 0;
+        st->irr_ph = malloc((ni ? ni : 1) * sizeof *st->irr_ph);
+        if (!st->irr_ph) {
+            snprintf(err, errcap, "out of memory");
+            return PM_ENOMEM;
+        }
+        const pm_photon *gp = pm_kdtree_records(st->tg);
+        for (size_t i = 0; i < m->nglobal && j < ni; i++) {
+            float e[3];
+            if (pm_irradiance_value(st->irr, (uint32_t)i, e)) {
+                st->irr_ph[j] = gp[i];
+                pm_rgbe_encode(e, st->irr_ph[j].power);
+                j++;
+            }
+        }
+        if ((rc = build_tree(&st->ti, st->irr_ph, j, 8, err, errcap)) < 0) return rc;
+        stats_time_add("Time/Precomputed irradiance", stats_now() - t0);
+        printf("Precomputed irradiance at %zu of %zu global photons\n", pm_irradiance_count(st->irr),
+               m->nglobal);
+    }
+    fflush(stdout);
+    return 0;
+}
+
+static int create_common(integrator *it, const scene *s, int preview, char *err, size_t errcap) {
+    pm_state *st = calloc(1, sizeof *st);
+    if (!st) {
+        snprintf(err, errcap, "out of memory");
+        return PM_ENOMEM;
+    }
+    json_err e;
+    int rc = pm_config_parse(&st->cfg, s->photon_mapping, &e);
+    if (rc < 0) {
+        snprintf(err, errcap, "%s", e.msg);
+        free(st);
+        return rc;
+    }
+    st->preview = preview;
+    plan_make(s, &st->cfg, preview, &st->plan);
+    st->direct_vis = preview || !st->plan.final_gather.on;
+    st->max_depth = s->settings.max_depth;
+    st->rr_depth = s->settings.rr_depth;
+    st->kmax = (unsigned)(st->cfg.k_global > st->cfg.k_caustic ? st->cfg.k_global : st->cfg.k_caustic);
+    st->st_traced = stats_register("Photon mapping/Shadow rays traced");
+    st->st_saved_lit = stats_register("Photon mapping/Shadow rays saved: all direct photons");
+    st->st_saved_dark = stats_register("Photon mapping/Shadow rays saved: all shadow photons");
+    st->st_caustic = stats_register("Photon mapping/Caustic estimates");
+    st->st_gather = stats_register("Photon mapping/Final gather rays");
+    st->st_secondary = stats_register("Photon mapping/Secondary gather rays");
+    st->st_lookup = stats_register("Photon mapping/Irradiance lookups");
+    st->st_global_est = stats_register("Photon mapping/Global-map estimates (direct view)");
+    it->data = st;
+    it->preprocess = pm_preprocess;
+    it->thread_begin = pm_thread_begin;
+    it->thread_end = pm_thread_end;
+    it->li = pm_li;
+    it->destroy = pm_destroy;
+    return 0;
+}
+
+static int pm_create(integrator *it, const scene *s, char *err, size_t errcap) {
+    return create_common(it, s, 0, err, errcap);
+}
+static int preview_create(integrator *it, const scene *s, char *err, size_t errcap) {
+    return create_common(it, s, 1, err, errcap);
+}
+
+INTEGRATOR_REGISTER(pm, "pm", "photon mapping: direct + caustic map + final gathering (Jensen)", pm_create)
+INTEGRATOR_REGISTER(preview, "preview", "photon mapping, fast preview: the global map shown directly",
+                    preview_create)

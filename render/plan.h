@@ -1,0 +1,96 @@
+/* plan.h: which photon-mapping effects a scene needs, and the settings that control them.
+ *
+ * Before a photon is traced, plan_make() looks at the scene and decides, with a reason for
+ * each decision that is printed before rendering:
+ *   caustics      a caustic map is built only if a specular or refractive surface can be
+ *                 reached straight from a light (L S: the first step of an L S+ D path) and a
+ *                 diffuse surface exists to receive it;
+ *   global        a global map only if diffuse light can reflect onto other diffuse surfaces
+ *                 (found by shooting cosine-distributed probe rays from every diffuse
+ *                 primitive and seeing whether any lands on a diffuse surface);
+ *   shadow        shadow photons only for area lights with occluders (probe segments between
+ *                 points on area lights and on diffuse surfaces that face each other; an
+ *                 occluder exists if any is blocked);
+ *   final gather  indirect diffuse by final gathering whenever there is a global map (the
+ *                 preview mode shows the global map directly instead).
+ * Every probe uses fixed random streams, so the plan of a scene never changes between runs.
+ * The scene's "photon_mapping" object may force any of them: "caustics": true/false, and the
+ * same for "global", "shadow" and "final_gather"; the reason then says "forced".
+ *
+ * pm_config holds every parameter of photon mapping, read from "$.photon_mapping" with the
+ * json.h getters (errors name the JSON path and make `render` exit with status 2). The
+ * command line sets the same keys: plan_cli_set() applies `--pm KEY=VALUE`,
+ * `--save-photons DIR` and `--load-photons DIR` to the scene's photon_mapping object before
+ * the integrator reads it, so a flag and the file can never disagree about names.
+ *
+ * Keys (defaults in parentheses): global_photons (200000 stored), caustic_photons (100000
+ * stored), k_global (100; photons per precomputed irradiance estimate and per preview
+ * estimate), k_caustic (60), max_radius_global / max_radius_caustic (0: automatic,
+ * Christensen's radius for a threshold radiance), filter ("cone", also "none", "gauss",
+ * "hull"), gather_rays (32 per camera sample at the first diffuse hit), secondary_rays (8),
+ * secondary_distance (0: automatic, the radius of a k_global estimate at the mean photon
+ * density), k_shadow (16), max_emitted_factor (64: give up when this many times the target
+ * were emitted), projection_cells (64: cells per side of a light's caustic projection map),
+ * projection (true), caustics/global/shadow/final_gather (absent: automatic), save_photons,
+ * load_photons (directories).
+ *
+ * Everything here is plain data; nothing is shared between threads.
+ */
+#ifndef RENDER_PLAN_H
+#define RENDER_PLAN_H
+
+#include <cjson/cJSON.h>
+#include <stdio.h>
+
+#include "json.h"
+#include "scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+enum { PLAN_AUTO = -1, PLAN_OFF = 0, PLAN_ON = 1 };
+enum { PM_FILTER_NONE, PM_FILTER_CONE, PM_FILTER_GAUSS, PM_FILTER_HULL };
+
+typedef struct pm_config {
+    int force_caustics, force_global, force_shadow, force_final_gather; /* PLAN_* */
+    long global_photons, caustic_photons;
+    int k_global, k_caustic, k_shadow;
+    double max_radius_global, max_radius_caustic; /* 0: automatic */
+    int filter;                                   /* PM_FILTER_* for the caustic estimate */
+    int gather_rays, secondary_rays;
+    double secondary_distance; /* 0: automatic */
+    double max_emitted_factor;
+    int projection_cells;
+    int projection;
+    char save_dir[512], load_dir[512]; /* empty: none */
+} pm_config;
+
+typedef struct plan_item {
+    int on;
+    char reason[160];
+} plan_item;
+
+typedef struct render_plan {
+    plan_item caustics, global, shadow, final_gather;
+} render_plan;
+
+void pm_config_defaults(pm_config *c);
+/* Read "$.photon_mapping" (pm may be NULL: defaults). 0 or a negative code with e->msg. */
+int pm_config_parse(pm_config *c, const cJSON *pm, json_err *e);
+const char *pm_filter_name(int filter);
+
+/* Decide the plan for scene s under config c; preview = 1 turns final gathering off. */
+void plan_make(const scene *s, const pm_config *c, int preview, render_plan *p);
+/* "caustics: off (no specular surface reachable from a light)" and so on, one per line. */
+void plan_print(const render_plan *p, FILE *f);
+
+/* Apply a command-line option to the scene's photon_mapping object (created if NULL):
+ * flag "--pm" with value "KEY=VALUE" (VALUE a number, true/false or a string), or
+ * "--save-photons"/"--load-photons" with a directory. 0, or PM_EINVAL with a message. */
+int plan_cli_set(cJSON **pm, const char *flag, const char *value, char *err, size_t errcap);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_PLAN_H */
