@@ -227,11 +227,19 @@ PM__INLINE void knn_bucket(knn_state *s, const view *v, uint64_t node, int metri
     for (uint64_t i = b; i < e; i++) knn_consider(s, v, i, metric, filter, ph, cnt);
 }
 
+/* A uniform subtree that is a single record: an internal node just above two empty buckets
+ * (common with B = 1, where half the last internal level has no children). Handled inline. */
+PM__INLINE int single_record(const view *v, uint64_t node) {
+    if (2 * node < v->L) return 0;
+    const pm_kdtree *t = v->t;
+    return pm__cum(t, 2 * node + 2 - v->L) == pm__cum(t, 2 * node - v->L);
+}
+
 /* When near's children are buckets (the two are adjacent in memory), start loading them:
  * the bucket scan is where a query waits for memory most. At most 512 bytes. */
 PM__INLINE void prefetch_buckets(const view *v, uint64_t near) {
     const uint64_t L = v->L;
-    if (2 * near >= L && near < L) {
+    if (near >= (L >> 1) && near < L) {
         uint64_t b = v->t->ninternal + pm__cum(v->t, 2 * near - L);
         const char *r = v->rec + b * v->stride;
         uint64_t bytes = (uint64_t)v->t->bucket * v->stride * 2;
@@ -259,9 +267,13 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
             unsigned a = AXX(v, node, ph);
             if (cnt) s->nodes++;
             if (a == PM__AXIS_UNIFORM) {
-                *io = ls;
-                knn_uniform(io, v, node, metric, filter);
-                ls = *io;
+                if (single_record(v, node)) {
+                    knn_consider(s, v, node - 1, metric, filter, ph, cnt);
+                } else {
+                    *io = ls;
+                    knn_uniform(io, v, node, metric, filter);
+                    ls = *io;
+                }
                 goto pop;
             }
             float d = s->q[a] - PX(v, node - 1, ph)[a];
@@ -303,7 +315,10 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
         if (4 * node < v->L) __builtin_prefetch(v->rec + (4 * node - 1) * v->stride);    \
         unsigned a = AXX(v, node, ph);                                                   \
         if (a == PM__AXIS_UNIFORM) {                                                     \
-            knn_uniform(s, v, node, metric, filter);                                     \
+            if (single_record(v, node))                                                  \
+                knn_consider(s, v, node - 1, metric, filter, ph, cnt);                   \
+            else                                                                         \
+                knn_uniform(s, v, node, metric, filter);                                 \
             return;                                                                      \
         }                                                                                \
         float d = s->q[a] - PX(v, node - 1, ph)[a];                                      \
