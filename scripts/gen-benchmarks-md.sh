@@ -163,15 +163,18 @@ if [ -f "$E" ]; then
   echo "## Estimates: accuracy against time"
   echo
   echo "Irradiance of a uniformly lit unit square (analytic value known everywhere), estimated"
-  echo "from a photon map at points of the interior and within a few photon spacings of an edge."
-  echo "RMS relative error over the points, against nanoseconds per estimate (search + estimate,"
-  echo "one thread). Details of the setup: bench/README.md."
+  echo "from a photon map at points of the interior and within 3 mean photon spacings of an edge"
+  echo "(where the true irradiance steps from E to 0). RMS relative error over the points, against"
+  echo "nanoseconds per estimate (k-NN search + estimate, one thread, median of the runs; each"
+  echo "line runs through k = 15, 50, 100, 500). Precomputed irradiance is timed for the lookup"
+  echo "alone; its precomputation (all threads, a quarter of the photons) is the last column."
+  echo "Details: bench/bench_estimate.c and bench/README.md."
   echo
   img estimate_interior "error against time, interior"
   img estimate_edge "error against time, near an edge"
-  echo "| region | estimator | bias | k | estimates | ns/estimate | RMS rel. error | mean rel. error (bias) |"
-  echo "|---|---|---|---|---|---|---|---|"
-  awk -F, 'NR > 1 { printf "| %s | %s | %s | %s | %s | %.0f | %.4f | %+.4f |\n", $1, $2, $3, $4, $5, $6, $7, $8 }' "$E"
+  echo "| region | estimator | bias | k | estimates | ns/estimate | RMS rel. error | mean rel. error (bias) | precompute s |"
+  echo "|---|---|---|---|---|---|---|---|---|"
+  awk -F, 'NR > 1 { printf "| %s | %s | %s | %s | %s | %.0f | %.4f | %+.4f | %s |\n", $1, $2, $3, $4, $5, $6, $7, $8, ($2 == "precomputed" ? $9 : "–") }' "$E"
   echo
 fi
 
