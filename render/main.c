@@ -234,6 +234,7 @@ int main(int argc, char **argv) {
         int h = height ? (int)height : (int)((double)width * s.cam.height / s.cam.width + 0.5);
         camera_resize(&s.cam, w > 0 ? w : 1, h > 0 ? h : 1);
     }
+    char err_unused[64];
     for (int k = 0; k < npm; k++) {
         char perr[256];
         if (plan_cli_set(&s.photon_mapping, pm_flag[k], pm_value[k], perr, sizeof perr) < 0) {
@@ -242,6 +243,7 @@ int main(int argc, char **argv) {
             return 2;
         }
     }
+    if (quiet) plan_cli_set(&s.photon_mapping, "--pm", "progress=false", err_unused, sizeof err_unused);
     if (seed >= 0) s.settings.seed = (uint64_t)seed;
     if (mode) snprintf(s.settings.mode, sizeof s.settings.mode, "%s", mode);
     if (tone) s.settings.tone = strcmp(tone, "srgb") == 0 ? TONE_SRGB : TONE_FILMIC;

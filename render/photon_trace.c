@@ -219,16 +219,20 @@ static int projmap_build(projmap *pm, const scene *s, int li, int G, const bsph 
     return 0;
 }
 
-double photon_projection_fraction(const scene *s, int li, int G) {
+int photon_projection_cells(const scene *s, int li, int G, unsigned char *active) {
     bsph *sph;
     int nsph = specular_spheres(s, &sph);
-    if (nsph < 0) return -1;
+    if (nsph < 0) return nsph;
     projmap pm;
-    double f = -1;
-    if (projmap_build(&pm, s, li, G, sph, nsph) == 0) f = pm.fraction;
+    int rc = projmap_build(&pm, s, li, G, sph, nsph);
+    if (rc == 0) {
+        memset(active, 0, (size_t)G * G);
+        for (int k = 0; k < pm.nactive; k++) active[pm.active[k]] = 1;
+        rc = pm.nactive;
+    }
     free(pm.active);
     free(sph);
-    return f;
+    return rc;
 }
 
 /* ---- tracing one photon ------------------------------------------------------------------- */

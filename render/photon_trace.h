@@ -87,8 +87,10 @@ void trace_opts_init(trace_opts *o, const scene *s);
 int photon_trace(const scene *s, const trace_opts *o, pm_maps *m, char *err, size_t errcap);
 void pm_maps_free(pm_maps *m);
 
-/* The active fraction of light li's projection map with G x G cells (for tests). */
-double photon_projection_fraction(const scene *s, int li, int G);
+/* Light li's projection map with G x G cells (for tests): active[cy * G + cx] = 1 for the
+ * active cells, over the parameter pair the map covers (u[2], u[3] of light_sample_le for
+ * area lights, u[0], u[1] otherwise). Returns the number of active cells or a negative code. */
+int photon_projection_cells(const scene *s, int li, int G, unsigned char *active);
 
 #ifdef __cplusplus
 }

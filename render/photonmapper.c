@@ -449,6 +449,7 @@ static int pm_preprocess(integrator *self, const scene *s, char *err, size_t err
         o.max_emitted_factor = st->cfg.max_emitted_factor;
         o.projection = st->cfg.projection;
         o.projection_cells = st->cfg.projection_cells;
+        o.quiet = !st->cfg.progress;
         if ((rc = photon_trace(s, &o, m, err, errcap)) < 0) return rc;
         printf("Photons: %zu global, %zu shadow-map (from %llu emitted); %zu caustic (from %llu "
                "emitted; projection maps cover %.2f%% of the light's power, saving %llu "

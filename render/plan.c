@@ -32,6 +32,7 @@ void pm_config_defaults(pm_config *c) {
     c->max_emitted_factor = 64;
     c->projection_cells = 64;
     c->projection = 1;
+    c->progress = 1;
 }
 
 const char *pm_filter_name(int filter) {
@@ -97,7 +98,7 @@ int pm_config_parse(pm_config *c, const cJSON *pm, json_err *e) {
         "caustics", "global", "shadow", "final_gather", "global_photons", "caustic_photons",
         "k_global", "k_caustic", "k_shadow", "max_radius_global", "max_radius_caustic",
         "filter", "gather_rays", "secondary_rays", "secondary_distance", "max_emitted_factor",
-        "projection_cells", "projection", "save_photons", "load_photons", "comment"};
+        "projection_cells", "projection", "progress", "save_photons", "load_photons", "comment"};
     for (const cJSON *it = pm->child; it; it = it->next) {
         int ok = 0;
         for (size_t k = 0; k < sizeof known / sizeof *known; k++)
@@ -126,6 +127,7 @@ int pm_config_parse(pm_config *c, const cJSON *pm, json_err *e) {
                          c->max_emitted_factor);
     TRY(get_int(pm, "projection_cells", 1, 4096, &c->projection_cells, e));
     TRY(json_bool(pm, "$.photon_mapping", "projection", 0, &c->projection, e));
+    TRY(json_bool(pm, "$.photon_mapping", "progress", 0, &c->progress, e));
     const char *f = NULL;
     TRY(json_string(pm, "$.photon_mapping", "filter", 0, &f, e));
     if (f) {

@@ -31,7 +31,7 @@
  * secondary_distance (0: automatic, the radius of a k_global estimate at the mean photon
  * density), k_shadow (16), max_emitted_factor (64: give up when this many times the target
  * were emitted), projection_cells (64: cells per side of a light's caustic projection map),
- * projection (true), caustics/global/shadow/final_gather (absent: automatic), save_photons,
+ * projection (true), progress (true; --quiet sets it false), caustics/global/shadow/final_gather (absent: automatic), save_photons,
  * load_photons (directories).
  *
  * Everything here is plain data; nothing is shared between threads.
@@ -63,6 +63,7 @@ typedef struct pm_config {
     double max_emitted_factor;
     int projection_cells;
     int projection;
+    int progress; /* progress bars while tracing (render --quiet sets it false) */
     char save_dir[512], load_dir[512]; /* empty: none */
 } pm_config;
 
