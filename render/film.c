@@ -15,7 +15,7 @@
 
 #include "common.h"
 
-#define HABLE_W 11.2
+#define HABLE_W FILM_HABLE_WHITE
 
 int film_init(film *f, int width, int height) {
     f->width = width;

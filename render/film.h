@@ -48,6 +48,8 @@ int film_write_pfm(const film *f, const char *path);
 int film_read_pfm(film *f, const char *path);
 
 enum { FILM_TONE_FILMIC = 0, FILM_TONE_SRGB = 1 }; /* same values as TONE_* in scene.h */
+/* The filmic curve's white point: scene luminance (after exposure) that maps to display 1. */
+#define FILM_HABLE_WHITE 11.2
 
 /* The auto exposure multiplier (see above); 1 for an all-black image. */
 double film_auto_exposure(const film *f, int tone, double clip_percent);

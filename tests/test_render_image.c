@@ -1,7 +1,7 @@
 /* test_render_image.c: whole renders against analytic radiance, and determinism.
  *
  * Oracles: the furnace (radiance Le/(1-rho) everywhere), direct lighting of a Lambertian
- * plane by a point light, a square area light and a directional light (closed forms), and
+ * plane by a point light, a square area light and a directional light (closed forms), and Auto exposure against sorted luminances.
  * bit-identical films for 1 and 2 threads. Images are tiny so the suite stays fast.
  */
 #include <stdlib.h>
@@ -191,4 +191,58 @@ TEST(render_pfm_roundtrip_and_compare) {
     film_free(&f);
     film_free(&g);
     film_free(&h);
+}
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* Auto exposure puts clip_percent % of the pixels at or above the clipping level. Oracle: the
+ * luminances sorted; with the exposure the function picks, the count of pixels whose exposed
+ * luminance exceeds the clipping level (1 for sRGB, the filmic white point otherwise) must be
+ * the requested count within the histogram's resolution (4096 bins over a 2^20 range: a bin is
+ * 0.5% in luminance, so allow the pixels within 1% of the level, plus one). Zero, NaN and
+ * infinite pixels must not disturb it. */
+TEST(render_auto_exposure_clips_requested_fraction) {
+    const int w = 200, h = 100, n = w * h;
+    film f;
+    ASSERT(film_init(&f, w, h) == 0);
+    double *lum = malloc((size_t)n * sizeof *lum);
+    ASSERT(lum);
+    uint64_t st = 12345;
+    int m = 0;
+    for (int i = 0; i < n; i++) {
+        st = st * 6364136223846793005ULL + 1442695040888963407ULL;
+        double u = (double)(st >> 11) / 9007199254740992.0;
+        double l = exp2(20.0 * u - 10.0);
+        if (i % 97 == 0) l = 0;
+        float v = (float)l;
+        if (i == 5) v = NAN;
+        if (i == 6) v = INFINITY;
+        f.px[3 * i] = f.px[3 * i + 1] = f.px[3 * i + 2] = v;
+        if (v > 0 && isfinite(v)) lum[m++] = rgb_lum(v3(v, v, v));
+    }
+    qsort(lum, (size_t)m, sizeof *lum, cmp_double);
+    for (int tone = 0; tone < 2; tone++) {
+        int t = tone ? FILM_TONE_SRGB : FILM_TONE_FILMIC;
+        for (double pct = 0.5; pct <= 8; pct *= 2) {
+            double e = film_auto_exposure(&f, t, pct);
+            ASSERT(e > 0 && isfinite(e));
+            /* the clipping level in scene units is clip_level / e; count the pixels above it */
+            double clip_level = t == FILM_TONE_SRGB ? 1.0 : FILM_HABLE_WHITE;
+            double level = clip_level / e;
+            long above = 0, near = 0;
+            for (int i = 0; i < m; i++) {
+                if (lum[i] > level) above++;
+                if (fabs(lum[i] / level - 1) < 0.01) near++;
+            }
+            long want = (long)(pct / 100.0 * n);
+            EXPECT_MSG(labs(above - want) <= near + 1,
+                       "tone %d pct %.1f: %ld above the level, want %ld (+-%ld)", t, pct, above,
+                       want, near + 1);
+        }
+    }
+    free(lum);
+    film_free(&f);
 }
