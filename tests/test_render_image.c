@@ -1,8 +1,9 @@
 /* test_render_image.c: whole renders against analytic radiance, and determinism.
  *
  * Oracles: the furnace (radiance Le/(1-rho) everywhere), direct lighting of a Lambertian
- * plane by a point light, a square area light and a directional light (closed forms), and Auto exposure against sorted luminances.
- * bit-identical films for 1 and 2 threads. Images are tiny so the suite stays fast.
+ * plane by a point light, a square area light and a directional light (closed forms),
+ * bit-identical films for 1 and 2 threads, and auto exposure against sorted luminances.
+ * Images are tiny so the suite stays fast.
  */
 #include <stdlib.h>
 #include <string.h>
