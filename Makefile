@@ -135,9 +135,15 @@ run: $(RENDER_BIN)
 	    --hdr out/$(basename $(notdir $(SCENE))).pfm $(RUNFLAGS)
 
 # ---- bench ---------------------------------------------------------------------------------
-bench: $(BENCH_BINS)
+# The renderer dumps the real photon map the search bench reads; gnuplot draws the plots
+# and valgrind profiles the headline (installed here when missing).
+BENCH_DEPS := $(BENCH_BINS) $(if $(wildcard render/main.c),$(RENDER_BIN))
+bench: $(BENCH_DEPS)
+	@command -v gnuplot >/dev/null 2>&1 && command -v valgrind >/dev/null 2>&1 \
+	    || sh scripts/install-deps.sh --bench
 	sh scripts/run-bench.sh $(BUILD) full
-bench-quick: $(BENCH_BINS)
+bench-quick: $(BENCH_DEPS)
+	@command -v gnuplot >/dev/null 2>&1 || sh scripts/install-deps.sh --bench
 	sh scripts/run-bench.sh $(BUILD) quick $(BUILD)/bench-quick
 
 # ---- install -------------------------------------------------------------------------------

@@ -115,6 +115,17 @@ static void dataset_init(dataset *d, int dist, size_t n, const pm_photon *from_f
     if (from_file) {
         float mn[3] = {INFINITY, INFINITY, INFINITY}, mx[3] = {-INFINITY, -INFINITY, -INFINITY};
         memcpy(d->ph, from_file, n * sizeof *d->ph);
+        /* The renderer saves its maps in its own tree order, which would hand every index a
+         * presorted input (faster builds, cache-friendly FLANN copies); shuffle it so that a
+         * dumped map is built from unordered photons like the synthetic sets. */
+        bench_rng rng;
+        bench_rng_seed(&rng, opt.seed + 99);
+        for (size_t i = n - 1; i > 0; i--) {
+            size_t j = (size_t)(bench_rng_u64(&rng) % (i + 1));
+            pm_photon t = d->ph[i];
+            d->ph[i] = d->ph[j];
+            d->ph[j] = t;
+        }
         for (size_t i = 0; i < n; i++)
             for (int a = 0; a < 3; a++) {
                 if (d->ph[i].pos[a] < mn[a]) mn[a] = d->ph[i].pos[a];
@@ -540,6 +551,9 @@ static void measure(config *cs, int nc, unsigned k, float r2, double r_rel, int 
         verify(c, k, r2);
         /* calibrate: time a warm-up prefix, then size the run to the target time */
         size_t m0 = ds->nq < (opt.quick ? 64u : 256u) ? ds->nq : (opt.quick ? 64u : 256u);
+        /* warm-up first: the first parallel region starts the OpenMP threads, which would
+         * otherwise inflate the calibration and shrink the timed runs */
+        g_sink += run_queries(c, m0, k, r2, threads);
         double t0 = bench_now();
         g_sink += run_queries(c, m0, k, r2, threads);
         double per = (bench_now() - t0) / (double)m0;
@@ -706,7 +720,7 @@ static void headline(zoo *z, const dataset *ds) {
     /* ours best: the faster of iterative and recursive at the best B */
     int ours = cs[1].qps > cs[0].qps ? 1 : 0;
     int fb = cs[5].qps > cs[4].qps ? 5 : 4, f1 = cs[7].qps > cs[6].qps ? 7 : 6;
-#define HROW(metric, ci, cj, target)                                                            \
+#define HROW(metric, ci, cj, target, strict)                                                    \
     do {                                                                                        \
         snprintf(a, sizeof a, "%s_%s_%d", struct_name(cs[ci].s->type), op_name(cs[ci].op),      \
                  cfg_param(&cs[ci]));                                                           \
@@ -714,12 +728,13 @@ static void headline(zoo *z, const dataset *ds) {
                  cfg_param(&cs[cj]));                                                           \
         double ratio = cs[ci].qps / cs[cj].qps;                                                 \
         fprintf(g_head_csv, "%s,%zu,%s,%s,%.1f,%s,%.1f,%.3f,%.2f,%s\n", d, ds->n, metric, a,     \
-                cs[ci].qps, b, cs[cj].qps, ratio, (double)(target), ratio >= (target) ? "yes" : "no"); \
+                cs[ci].qps, b, cs[cj].qps, ratio, (double)(target),                             \
+                ((strict) ? ratio > (target) : ratio >= (target)) ? "yes" : "no");              \
     } while (0)
-    HROW("qps_ours_best_vs_flann_best_exact", ours, fb, 1.5);
-    HROW("qps_ours_B1_vs_flann_leaf1", 2, f1, 1.0);
-    HROW("qps_iterative_vs_recursive_bestB", 0, 1, 1.0);
-    HROW("qps_kdtree_best_vs_octree_best", ours, 3, 2.0);
+    HROW("qps_ours_best_vs_flann_best_exact", ours, fb, 1.5, 0);
+    HROW("qps_ours_B1_vs_flann_leaf1", 2, f1, 1.0, 0);
+    HROW("qps_iterative_vs_recursive_bestB", 0, 1, 1.0, 1); /* "faster" */
+    HROW("qps_kdtree_best_vs_octree_best", ours, 3, 2.0, 0);
 #undef HROW
     /* memory: ours (records + tree) vs FLANN best leaf (its copy + index); lower is better,
      * so the "ratio" column is FLANN's bytes over ours and the target is ours <= 20 B. */
@@ -805,7 +820,7 @@ static int probe(void) {
     structure s;
     opt.g = 0;
     opt.pool = opt.probe_queries;
-    opt.runs = 3;
+    opt.runs = 1; /* one build: its time is not reported, and under valgrind it is slow */
     dataset_init(&ds, BENCH_PHOTON, opt.nh, NULL);
     g_build_csv = fopen("/dev/null", "w");
     structure_build(&s, &ds, type, param, "probe");
@@ -916,7 +931,7 @@ int main(int argc, char **argv) {
         if (!(opt.probe_r2 > 0)) opt.probe_r2 = INFINITY;
         return probe();
     }
-    opt.target = opt.quick ? 0.01 : 0.15;
+    opt.target = opt.quick ? 0.004 : 0.15; /* quick: a smoke run, its timings mean little */
     opt.pool = opt.quick ? 4000 : 100000;
     opt.g = opt.quick ? 100 : 200;
     if (!dists) dists = opt.map ? "photon,uniform,file" : "photon,uniform";

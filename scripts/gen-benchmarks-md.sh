@@ -38,48 +38,116 @@ The machine is shared and noisy. Every ratio below compares medians measured **s
 one run**: the configurations of a table are timed round-robin, each over the same queries, so
 load changes hit them alike. The min–max columns show the spread of the runs.
 
-## Headline
+## Targets of issue 4
 
 EOF
 
 awk -F, 'NR > 1 && $1 == "photon" {n = $2} END {
   printf "At N = %s photon-like points (the six inner walls of a box, 30%% in a small floor disc), ", n
-  print "k = 50, a maximum radius that finds about 50 photons (the median 50th-nearest distance), one thread, all in the same run:" }' "$H"
+  print "k = 50, a maximum radius that finds about 50 photons (the median 50th-nearest distance), one thread, all in the same run (the headline table below):" }' "$H"
 echo
-echo "| dist | comparison | ours | queries/s | peer | queries/s | ratio | target | met |"
-echo "|---|---|---|---|---|---|---|---|---|"
-awk -F, 'NR > 1 {
-  tgt = ($3 ~ /bytes/) ? "ours <= " $9 " B" : ">= " $9 "x"
-  if ($3 ~ /iterative_vs/) tgt = "> 1x"
-  met = $10
-  if ($3 ~ /iterative_vs/ && $8 <= 1.0) met = "no"
-  if ($3 ~ /bytes/) printf "| %s | %s | %s | %s B/photon | %s | %s B/photon | %s (peer/ours) | %s | **%s** |\n", $1, $3, $4, $5, $6, $7, $8, tgt, met
-  else printf "| %s | %s | %s | %s | %s | %s | %.2fx | %s | **%s** |\n", $1, $3, $4, $5, $6, $7, $8, tgt, met
-}' "$H"
+echo "| target | ours | peer | measured | wanted | result |"
+echo "|---|---|---|---|---|---|"
+awk -F, '
+  function txt(m) {
+    if (m ~ /ours_best_vs_flann/) return "our best configuration against FLANN best exact configuration (queries/s)"
+    if (m ~ /B1_vs_flann_leaf1/) return "our classic B = 1 tree against FLANN at leaf size 1 (queries/s)"
+    if (m ~ /iterative_vs_recursive/) return "iterative against recursive search, same B (queries/s)"
+    if (m ~ /kdtree_best_vs_octree/) return "kd-tree against the best octree capacity (queries/s)"
+    if (m ~ /bytes/) return "photons plus tree, bytes per photon (FLANN: its point copy plus index)"
+    return m }
+  function ok(m, r, t) { if (m ~ /iterative_vs/) return r > 1.0; return r >= t }
+  NR > 1 && $1 == "photon" {
+    if ($3 ~ /bytes/) {
+      res = ($10 == "yes") ? "met" : "**MISSED**"
+      printf "| %s | %s: %.2f B | %s: %.2f B | %.2f B (FLANN uses %.2fx as much) | <= %s B | %s |\n", txt($3), $4, $5, $6, $7, $5, $8, $9, res
+    } else {
+      res = ok($3, $8, $9) ? "met" : "**MISSED**"
+      want = ($3 ~ /iterative_vs/) ? "> 1x" : ">= " $9 "x"
+      printf "| %s | %s: %.0f | %s: %.0f | %.2fx | %s | %s |\n", txt($3), $4, $5, $6, $7, $8, want, res
+    }
+  }' "$H"
 echo
 cat <<'EOF'
-"ours best" is the fastest kd-tree configuration of the parameter sweep (bucket size B and
-iterative or recursive); "FLANN best exact" the fastest of FLANN's single kd-tree over leaf sizes
-and over its two ways of answering (batched k-NN without a radius, or radius search with
-max_neighbors = k, one call per query). Bytes per photon count the 20-byte records plus the
-tree (the tree's axis bits live in the records' flag byte, so the tree owns only a fixed
-header); FLANN's count its reordered point copy and its index (heap growth across the build).
+"ours best" is the faster of the iterative and recursive search at the bucket size B that was
+fastest in the parameter sweep; "FLANN best exact" the fastest of FLANN's single kd-tree over
+its leaf sizes and over its two ways of answering (batched k-NN without a radius, or radius
+search with max_neighbors = k, one call per query). Configuration names are
+index_variant_param (param: B, octree capacity, FLANN leaf_max_size). Bytes per photon count
+the 20-byte records plus the tree (the tree's axis bits live in the records' flag byte, so
+the tree owns only a fixed header); FLANN's count its reordered point copy and its index (heap
+growth across the build).
+
+The same comparisons on the other workloads (not targets; `file` is the global photon map the
+renderer dumped for data/scenes/cornell_spheres.json):
 
 EOF
+echo "| dist | N | comparison | ours | peer | ratio |"
+echo "|---|---|---|---|---|---|"
+awk -F, 'NR > 1 && $1 != "photon" {
+  if ($3 ~ /bytes/) printf "| %s | %s | %s | %s: %.2f B | %s: %.2f B | FLANN %.2fx ours |\n", $1, $2, $3, $4, $5, $6, $7, $8
+  else printf "| %s | %s | %s | %s: %.0f q/s | %s: %.0f q/s | %.2fx |\n", $1, $2, $3, $4, $5, $6, $7, $8 }' "$H"
+echo
 
-# Missed targets: say so, with the figure and the profiles.
-missed=$(awk -F, 'NR > 1 && ($10 == "no" || ($3 ~ /iterative_vs/ && $8 <= 1.0)) {print $1 ": " $3 " = " $8 " (target " $9 ")"}' "$H")
+# Missed targets: say so, with the figures and the profiles.
+missed=$(awk -F, 'NR > 1 && $1 == "photon" && (($3 !~ /iterative_vs/ && $10 == "no") || ($3 ~ /iterative_vs/ && $8 <= 1.0)) {print $3}' "$H")
 if [ -n "$missed" ]; then
-  echo "### Targets missed"
+  echo "### What limits the missed targets"
   echo
-  echo "$missed" | sed 's/^/- /'
-  echo
-  cat <<'EOF'
-What limits them is visible in the work counters of the side-by-side headline run below
-(nodes visited and distance evaluations per query) and in the instruction profiles of the
-headline configurations (callgrind, queries only, self cost per function):
+  if [ -f "$R/profile.csv" ]; then
+    echo "Profiles of the headline configurations: the same build and the same k = 50 queries at the"
+    echo "headline radius, run under valgrind's callgrind with its cache simulator, counting the"
+    echo "queries only (\`bench_search --probe\`; bench/results/profile.csv). Per query:"
+    echo
+    echo "| configuration | instructions | data reads | L1 data read misses | last-level data read misses (simulated) | ns/query measured (headline) |"
+    echo "|---|---|---|---|---|---|"
+    awk -F, '
+      FNR == NR { if ($1 == "headline" && $2 == "photon") ns[$4 ":" $5 ":" $6] = $16; next }
+      FNR > 1 { printf "| %s | %.0f | %.0f | %.1f | %.1f | %s |\n", $1, $3, $4, $5, $6, ($1 in ns) ? sprintf("%.0f", ns[$1]) : "–"; ll = $7 }
+      END { if (ll != "") printf "\nSimulated caches (valgrind): %s.\n", ll }' "$Q" "$R/profile.csv"
+    echo
+  fi
+  for m in $missed; do
+    case "$m" in
+    *iterative_vs_recursive*)
+      awk -F, '$1 == "headline" && $2 == "photon" && $4 == "kdtree" && !($5 in v) { v[$5] = $0 }
+        END { split(v["iterative"], a, ","); split(v["recursive"], b, ",")
+          printf "**Iterative against recursive.** At B = %s the two searches visit the same nodes (%s and %s per query) and evaluate the same distances (%s and %s): they make identical decisions in the same order, by construction. The iterative median is %.0f queries/s (runs %.0f–%.0f), the recursive %.0f (runs %.0f–%.0f). ", a[6], a[17], b[17], a[18], b[18], a[13], a[14], a[15], b[13], b[14], b[15] }' "$Q"
+      cat <<'EOF'
+The profiles above show why iteration buys nothing here: both execute about the same
+instructions per query, and the time goes to waiting on memory (the last-level misses), not
+to calls. The recursive search keeps its state in registers, and a call/return pair costs a
+few cycles that the return-stack predictor hides; the explicit stack of the iterative search
+costs about the same loads and stores. Christensen's 25% was measured with the compilers and
+CPUs of his time, where a call spilled registers. The iterative search stays the default
+(it is the one pm_kdtree_knn_ex generalises).
 
 EOF
+      ;;
+    *kdtree_best_vs_octree*)
+      awk -F, '$1 == "headline" && $2 == "photon" { if ($4 == "octree") o = $0; else if ($4 == "kdtree" && k == "") k = $0 }
+        END { split(k, a, ","); split(o, b, ",")
+          printf "**kd-tree against the octree.** The kd-tree (%s, B = %s) takes %.0f ns per query: %s nodes and %s distance evaluations. The best octree (capacity %s) takes %.0f ns: %s cells and %s distance evaluations. ", a[5], a[6], a[16], a[17], a[18], b[6], b[16], b[17], b[18] }' "$Q"
+      cat <<'EOF'
+Both visit a handful of leaves of a few dozen records each, and both keep the records of a
+leaf contiguous in the caller's array, so both pay the cache misses of the records they scan.
+The kd-tree saves much of the octree's traversal work (the instructions in the profile: 8-way
+cells, box distances) but not those misses, which dominate at 1M photons (20 MB of records,
+more than the caches). The octree is built as carefully as the kd-tree (records partitioned in
+place into its leaves, the same heap of the k best, exact pruning by box distance) and its
+leaves adapt to the density like buckets do, so it needs little more memory traffic than the
+kd-tree. We report the gap we measure rather than a slower octree.
+
+EOF
+      ;;
+    *)
+      echo "**$m** missed: see the headline table and the profiles above."
+      echo
+      ;;
+    esac
+  done
+  echo "Self cost by function (callgrind instructions, the queries only):"
+  echo
   for f in "$R"/profile_*.txt; do
     [ -f "$f" ] || continue
     echo '```'

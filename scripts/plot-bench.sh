@@ -34,7 +34,7 @@ plot() {
   out=$1 title=$2 xl=$3 yl=$4 logx=$5 logy=$6 extra=${7:-}
   [ -n "$(ls "$T/s" 2>/dev/null)" ] || return 0
   {
-    echo "set terminal pngcairo size 900,560 font 'sans,10' noenhanced"
+    echo "set terminal png size 900,560 font 'DejaVuSans,9' noenhanced"
     echo "set output '$out'"
     echo "set title '$title'"
     echo "set xlabel '$xl'; set ylabel '$yl'"

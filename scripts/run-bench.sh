@@ -8,7 +8,8 @@
 # docs/BENCHMARKS.md; it also profiles the headline configurations with callgrind when
 # valgrind is installed (scripts/install-deps.sh --bench). The quick run writes all of that
 # into OUTDIR (default BUILD/bench-quick), so the scripts are exercised by the test suite too.
-# PM_BENCH_MAP=file.pmap adds a real photon map (pm_map_save format) to the search bench.
+# A real photon map dumped by the renderer (data/scenes/cornell_spheres.json) is the third
+# workload of the search bench; PM_BENCH_MAP=file.pmap (pm_map_save format) replaces it.
 # Progress goes to stderr; every number in the document comes from the CSVs.
 set -eu
 # Idle OpenMP threads must not spin on a core that a one-thread measurement needs.
@@ -38,12 +39,38 @@ log() { echo "run-bench: [$(( $(date +%s) - start ))s] $*" >&2; }
   echo "load_before,$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo '?')"
 } > "$OUT/machine.csv"
 
+# The real photon map: the global map of data/scenes/cornell_spheres.json, traced by the
+# renderer in its fast preview mode (a tiny image, so almost all the time is photon tracing:
+# about 2 s for 1M photons here) and saved with --save-photons (pm_map_save format, in the
+# renderer's tree order; bench_search shuffles it before building). The quick run uses a small
+# map. PM_BENCH_MAP=file.pmap uses that file instead; PM_BENCH_MAP=none skips the workload.
 MAPARG=
-if [ -n "${PM_BENCH_MAP:-}" ]; then MAPARG="--map $PM_BENCH_MAP"; fi
+MAP=${PM_BENCH_MAP:-}
+if [ -z "$MAP" ]; then
+  if [ -x "$BUILD/render" ]; then
+    if [ "$MODE" = full ]; then np=1000000; else np=20000; fi
+    mapdir="$OUT/map.tmp"
+    rm -rf "$mapdir"
+    mkdir -p "$mapdir"
+    log "photon map: render --mode preview data/scenes/cornell_spheres.json, $np global photons"
+    "$BUILD/render" data/scenes/cornell_spheres.json --mode preview --quiet \
+      --width 16 --height 16 --spp 1 --seed 1 --pm global_photons=$np --pm caustics=false \
+      --pm shadow=false --save-photons "$mapdir" -o "$mapdir/preview.png" > "$mapdir.log" 2>&1 ||
+      { cat "$mapdir.log" >&2; exit 1; }
+    MAP="$mapdir/global.pmap"
+  else
+    log "no $BUILD/render: no real photon map workload"
+  fi
+fi
+if [ -n "$MAP" ] && [ "$MAP" != none ]; then
+  MAPARG="--map $MAP"
+  echo "map,${PM_BENCH_MAP:-render --mode preview data/scenes/cornell_spheres.json --pm global_photons=$np --seed 1}" >> "$OUT/machine.csv"
+fi
 
 log "search benchmark ($MODE)"
 # shellcheck disable=SC2086
 "$BUILD/bench_search" $QFLAG --out "$OUT" $MAPARG
+rm -rf "$OUT/map.tmp" "$OUT/map.tmp.log"
 
 if [ -x "$BUILD/bench_estimate" ]; then
   log "estimate benchmark ($MODE)"

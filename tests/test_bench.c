@@ -6,8 +6,9 @@
  * the brute-force truth computed inside the bench; the approximate forest reports a recall in
  * [0, 1]; the kd-tree costs 20 bytes per photon plus a fixed header; and a photon-map file
  * written with pm_map_save goes through the bench's file path. In the release build the whole
- * quick run goes through scripts/run-bench.sh (plots and document included); under the
- * sanitizers the search bench alone runs on smaller sizes.
+ * quick run goes through scripts/run-bench.sh (plots and document included, and a small
+ * photon map dumped by the renderer as the third workload); under the sanitizers the search
+ * bench alone runs on smaller sizes.
  */
 #include <stdlib.h>
 #include <string.h>
@@ -187,6 +188,13 @@ TEST(bench_quick_run_writes_checked_csvs) {
             EXPECT_MSG(bpp >= 20.0 && bpp < 20.1, "kd-tree bytes/photon %g", bpp);
         }
     if (!PM_TEST_SANITIZED) {
+        /* run-bench.sh had the renderer dump a real photon map (cornell_spheres, 20000
+         * global photons): the third workload, verified like the others */
+        EXPECT_EQ_INT(count_rows3(&q, "param", "file", "kdtree"), 12);
+        EXPECT_EQ_INT(count_rows(&h, "dist", "file", NULL, NULL, NULL, NULL), 5);
+        for (int r = 1; r < q.nrows; r++)
+            if (!strcmp(at(&q, r, "dist"), "file"))
+                EXPECT_MSG(atoi(at(&q, r, "n")) >= 20000, "map of %s photons", at(&q, r, "n"));
         snprintf(path, sizeof path, "%s/BENCHMARKS.md", dir);
         FILE *f = fopen(path, "r");
         EXPECT_MSG(f != NULL, "run-bench.sh wrote no document");
