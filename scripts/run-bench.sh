@@ -5,9 +5,10 @@
 #   sh scripts/run-bench.sh BUILD quick [OUTDIR]   (make bench-quick: everything into OUTDIR)
 #
 # The full run writes bench/results/*.csv (committed), the PNG plots to docs/bench/ and
-# docs/BENCHMARKS.md; it also profiles the headline configurations with callgrind when
-# valgrind is installed (scripts/install-deps.sh --bench). The quick run writes all of that
-# into OUTDIR (default BUILD/bench-quick), so the scripts are exercised by the test suite too.
+# docs/BENCHMARKS.md; it also profiles the headline configurations with callgrind (and its
+# cache simulator) when valgrind is installed (scripts/install-deps.sh --bench). The quick
+# run writes all of that into OUTDIR (default BUILD/bench-quick), so the scripts are
+# exercised by the test suite too.
 # A real photon map dumped by the renderer (data/scenes/cornell_spheres.json) is the third
 # workload of the search bench; PM_BENCH_MAP=file.pmap (pm_map_save format) replaces it.
 # Progress goes to stderr; every number in the document comes from the CSVs.
@@ -78,9 +79,15 @@ if [ -x "$BUILD/bench_estimate" ]; then
   "$BUILD/bench_estimate" $QFLAG --out "$OUT"
 fi
 
-# Profiles of the headline configurations (what limits each one), full run only.
-rm -f "$OUT"/profile_*.txt
+# Profiles of the headline configurations (what limits each one), full run only: callgrind
+# with its cache simulator, instrumentation switched on around the queries alone. Per-query
+# totals go to profile.csv, the self cost by function to profile_*.txt. The simulated last
+# level is 1 MB, 16-way, the size of a per-core second-level cache (a virtual machine may
+# report no or absurd cache sizes): a miss there costs a trip to L3 or DRAM.
+rm -f "$OUT"/profile_*.txt "$OUT/profile.csv"
 if [ "$MODE" = full ] && command -v valgrind >/dev/null 2>&1 && command -v callgrind_annotate >/dev/null 2>&1; then
+  PQ=4000
+  echo "probe,queries,instr_per_query,data_reads_per_query,d1_read_misses_per_query,ll_read_misses_per_query,caches" > "$OUT/profile.csv"
   n=$(awk -F, '$1=="headline" && $2=="photon" {print $3; exit}' "$OUT/queries.csv")
   awk -F, '$1=="headline" && $2=="photon" && $10==1 {print $4":"$5":"$6" "$9}' "$OUT/queries.csv" |
   awk '!seen[$1]++' | head -n 5 | while read -r probe r2; do
@@ -88,16 +95,22 @@ if [ "$MODE" = full ] && command -v valgrind >/dev/null 2>&1 && command -v callg
     name=$(echo "$probe" | tr ':' '_')
     log "callgrind profile: $probe"
     cg="$OUT/callgrind.$name.tmp"
-    valgrind --tool=callgrind --instr-atstart=no --callgrind-out-file="$cg" \
-      "$BUILD/bench_search" --probe "$probe" --n "$n" --probe-r2 "$r2" --probe-queries 4000 \
-      > "$OUT/probe.$name.tmp" 2>/dev/null
+    valgrind --tool=callgrind --cache-sim=yes --LL=1048576,16,64 --instr-atstart=no --callgrind-out-file="$cg" \
+      "$BUILD/bench_search" --probe "$probe" --n "$n" --probe-r2 "$r2" --probe-queries $PQ \
+      > "$OUT/probe.$name.tmp" 2>"$OUT/probe.$name.err" || { cat "$OUT/probe.$name.err" >&2; exit 1; }
+    caches=$(sed -n 's/^desc: \(.*cache\): *\(.*\)$/\1 \2/p' "$cg" | tr ',' ' ' | tr '\n' ';' | sed 's/;$//; s/;/; /g')
+    awk -v probe="$probe" -v q=$PQ -v caches="$caches" '
+      /^events:/ { for (i = 2; i <= NF; i++) ev[i - 1] = $i }
+      /^totals:/ { for (i = 2; i <= NF; i++) tot[ev[i - 1]] = $i }
+      END { printf "%s,%d,%.1f,%.1f,%.2f,%.2f,%s\n", probe, q, tot["Ir"] / q, tot["Dr"] / q,
+            tot["D1mr"] / q, tot["DLmr"] / q, caches }' "$cg" >> "$OUT/profile.csv"
     {
       echo "# $(cat "$OUT/probe.$name.tmp")"
-      echo "# callgrind, instructions (Ir) of the 4000 queries only, by function (self cost)"
-      callgrind_annotate --inclusive=no "$cg" 2>/dev/null | sed -n '/^-*$/!p' |
+      echo "# callgrind, instructions (Ir) of the $PQ queries only, by function (self cost)"
+      callgrind_annotate --inclusive=no --auto=no --show=Ir --sort=Ir "$cg" 2>/dev/null | sed -n '/^-*$/!p' |
         grep -E 'PROGRAM TOTALS|^ *[0-9,]+ +\(' | head -n 12
     } > "$OUT/profile_$name.txt"
-    rm -f "$cg" "$OUT/probe.$name.tmp"
+    rm -f "$cg" "$OUT/probe.$name.tmp" "$OUT/probe.$name.err"
   done
 fi
 
