@@ -29,9 +29,10 @@ series() {
     }" "$1"
 }
 
-# plot OUT.png TITLE XLABEL YLABEL LOGX LOGY [extra gnuplot lines]
+# plot OUT.png TITLE XLABEL YLABEL LOGX LOGY [extra gnuplot lines] [nosort]
+# Points are joined in x order, or with "nosort" in the CSV's row order (e.g. along k).
 plot() {
-  out=$1 title=$2 xl=$3 yl=$4 logx=$5 logy=$6 extra=${7:-}
+  out=$1 title=$2 xl=$3 yl=$4 logx=$5 logy=$6 extra=${7:-} order=${8:-sort}
   [ -n "$(ls "$T/s" 2>/dev/null)" ] || return 0
   {
     echo "set terminal png size 900,560 font 'DejaVuSans,9' noenhanced"
@@ -47,7 +48,7 @@ plot() {
     for k in $(ls "$T/s"/*.key | sort -t/ -k1,1 -V); do
       b=${k%.key}
       [ -s "$b.dat" ] || continue
-      sort -g "$b.dat" > "$b.sorted"
+      if [ "$order" = nosort ]; then cp "$b.dat" "$b.sorted"; else sort -g "$b.dat" > "$b.sorted"; fi
       [ $first = 1 ] || printf ', '
       first=0
       printf "'%s' using 1:2 with linespoints title '%s'" "$b.sorted" "$(cat "$k" | tr "'" ' ')"
@@ -95,7 +96,8 @@ E="$R/estimate.csv"
 if [ -f "$E" ]; then
   for region in interior edge; do
     series "$E" "\$1==\"$region\"" '$6' '$7' '$2 ($3=="none" || $3=="" ? "" : " bias=" $3)'
-    plot "$IMG/estimate_$region.png" "uniform square, $region: k = 15, 50, 100, 500 along each line" \
-      'nanoseconds per estimate' 'RMS relative error' 1 1
+    plot "$IMG/estimate_$region.png" "uniform square, $region: k = 15, 50, 100, 500 along each line (k=15 labelled)" \
+      'nanoseconds per estimate' 'RMS relative error' 1 1 "$(awk -F, -v r="$region" 'NR > 1 && $1 == r && $4 == 15 {
+        printf "set label \"k=15\" at %s,%s offset 0.5,0.5 font \",7\"\n", $6, $7 }' "$E")" nosort
   done
 fi
