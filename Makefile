@@ -141,10 +141,10 @@ BENCH_DEPS := $(BENCH_BINS) $(if $(wildcard render/main.c),$(RENDER_BIN))
 bench: $(BENCH_DEPS)
 	@command -v gnuplot >/dev/null 2>&1 && command -v valgrind >/dev/null 2>&1 \
 	    || sh scripts/install-deps.sh --bench
-	sh scripts/run-bench.sh $(BUILD) full
+	PM_BENCH_CFLAGS="$(ALL_CFLAGS)" sh scripts/run-bench.sh $(BUILD) full
 bench-quick: $(BENCH_DEPS)
 	@command -v gnuplot >/dev/null 2>&1 || sh scripts/install-deps.sh --bench
-	sh scripts/run-bench.sh $(BUILD) quick $(BUILD)/bench-quick
+	PM_BENCH_CFLAGS="$(ALL_CFLAGS)" sh scripts/run-bench.sh $(BUILD) quick $(BUILD)/bench-quick
 
 # ---- install -------------------------------------------------------------------------------
 install: $(LIB)

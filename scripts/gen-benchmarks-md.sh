@@ -26,9 +26,10 @@ CSV files in \`bench/results/\`, whose columns are documented in
 
 | | |
 |---|---|
-| CPU | $(mval cpu) |
+| CPU | $(mval cpu) ($(mval cpu_id)) |
 | cores | $(mval cores) |
 | compiler | $(mval compiler) |
+| flags | \`$(mval flags)\` (plus \`-Iphotonmap\`; FLANN is Debian's build, linked with \`-lflann\`) |
 | FLANN (libflann-dev) | $(mval flann) |
 | date | $(mval date) |
 | commit | $(mval commit) |

@@ -31,8 +31,12 @@ log() { echo "run-bench: [$(( $(date +%s) - start ))s] $*" >&2; }
 {
   echo "key,value"
   echo "cpu,$(lscpu 2>/dev/null | sed -n 's/^Model name:[[:space:]]*//p' | head -n 1 | tr ',' ' ')"
+  echo "cpu_id,$(awk -F': *' '/^cpu family/ {f = $2} /^model[ \t]*:/ {m = $2} /^stepping/ {s = $2}
+    /^cache size/ {c = $2} /^flags/ {h = ($2 ~ /hypervisor/) ? "virtual machine" : "bare metal"}
+    END {printf "family %s model %s stepping %s; cache size %s per /proc/cpuinfo; %s", f, m, s, c, h}' /proc/cpuinfo 2>/dev/null | tr ',' ' ')"
   echo "cores,$(nproc 2>/dev/null || echo '?')"
   echo "compiler,$(${CC:-cc} --version 2>/dev/null | head -n 1 | tr ',' ' ')"
+  echo "flags,$(echo "${PM_BENCH_CFLAGS:-see Makefile (run-bench.sh run directly)}" | tr ',' ' ' | sed 's/  */ /g; s/ *$//')"
   echo "flann,$(dpkg-query -W -f='${Version}' libflann-dev 2>/dev/null || echo unknown)"
   echo "date,$(date -u '+%Y-%m-%d %H:%M UTC')"
   echo "commit,$(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
