@@ -141,18 +141,21 @@ for m in $missed; do
         printf "**kd-tree against the octree: MISSED.** The kd-tree (%s, B = %s) takes %.0f ns per query: %s nodes and %s distance evaluations. The best octree (capacity %s) takes %.0f ns: %s cells and %s distance evaluations. ", a[5], a[6], a[16], a[17], a[18], b[6], b[16], b[17], b[18] }' "$Q"
     if [ -f "$R/profile.csv" ]; then
       awk -F, 'NR > 1 && $1 ~ /^kdtree:iterative/ && !ki { ki = 1; ik = $3; mk = $6 } NR > 1 && $1 ~ /^octree/ { io = $3; mo = $6 }
-        END { if (ik && io) printf "In the profiles the kd-tree executes %.0f instructions per query against the octree'"'"'s %.0f (%.2fx fewer), but both miss the simulated second-level cache about as often (%.1f and %.1f reads per query). ", ik, io, io / ik, mk, mo }' "$R/profile.csv"
+        END { if (ik && io) printf "In the profiles the kd-tree executes %.0f instructions per query against the octree'"'"'s %.0f (%.2fx fewer), and both miss the simulated second-level cache about as often (%.1f and %.1f reads per query). ", ik, io, io / ik, mk, mo }' "$R/profile.csv"
     fi
     cat <<'EOF'
-Both visit a handful of leaves of a few dozen records each, and both keep the records of a leaf
-contiguous in the caller's array, so both pay a cache miss for nearly every line of records
-they scan (at 1M photons the records are 20 MB, more than the private caches). The kd-tree
-saves much of the octree's traversal work (8-way cells, box distances) but not those misses,
-which set the pace: at a few tens of nanoseconds each they account for most of the time per
-query. A 2x gap would need the octree to fetch about twice the records, and it does not: its
-leaves adapt to the density as buckets do. The octree is built as carefully as the kd-tree
-(records partitioned in place into its leaves, the same heap of the k best, exact pruning by
-box distance), so we report the gap we measure rather than a slower octree.
+So the kd-tree wins on traversal and not on memory. Both structures scan about the same
+records (the distance evaluations above), kept contiguous in their leaves, so they pay about
+the same cache misses for them; and both collect the k best the same way (a plain array,
+then a max-heap whose top is the shrinking radius), a cost that does not depend on the
+structure: in the kd-tree's line-level profile the heap (`heapify` plus the sift-down inlined
+into `pm_kdtree_knn`) is about a third of its instructions. The kd-tree's advantage is the
+rest: one plane test per node against the octree's ordering of up to 8 children per cell
+(`push_children` in its self costs below). With those shared floors, a 2x ratio would need
+the octree's traversal to cost several times the kd-tree's whole query, and it does not. The
+octree is built as carefully as the kd-tree (records partitioned in place into its leaves,
+the same heap of the k best, exact pruning by box distance), so we report the gap we measure
+rather than a slower octree.
 
 What we tried on the kd-tree, measured with `bench_search --probe` side by side against the
 committed search (200,000 queries, 3–5 alternating runs, this machine): (1) pruning by the
@@ -161,8 +164,11 @@ distance: 25% fewer nodes and distance evaluations and 7% fewer simulated misses
 gain in time beyond the ±5% noise (the records it skips mostly sit in lines already
 fetched), so it was not kept; (2) prefetching the whole bucket once the walk knows it,
 besides the first 512 bytes of both candidate buckets: +1–2%, inside the noise, not kept.
-Bucket size is chosen by the sweep (the fastest B is used), and the k best are kept in a
-plain array until k are found, then in a heap, so neither is left on the table.
+Bucket size is chosen by the sweep (the fastest B is used). The heap of the k best stays:
+kdtree.h promises its tie rule (the tied record that leaves is the heap's top) and its
+output order (out[0] is the farthest), and a cheaper collection (batched selection, a d-ary
+heap) would change which of several equidistant records is returned; the octree uses the
+same heap, so the ratio would move little anyway.
 
 EOF
     ;;
