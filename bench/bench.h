@@ -71,4 +71,16 @@ void bench_log(const char *fmt, ...) __attribute__((format(printf, 1, 2)));
 /* Number of threads OpenMP would use (1 without OpenMP). */
 int bench_max_threads(void);
 
+/* ---- command line ----
+ * Strict number parsing for the bench programs' options: the whole string must be a number
+ * in [lo, hi] (counts may be written 1e6; they must then be whole). On anything else they
+ * print "PROG: OPTION: expected ..., got 'TEXT'" to stderr and return -1 (the caller exits
+ * with status 2), so a typo never runs a benchmark with a silently different setting. */
+int bench_parse_count(const char *prog, const char *opt, const char *s, double lo, double hi,
+                      size_t *out);
+int bench_parse_int(const char *prog, const char *opt, const char *s, long lo, long hi, int *out);
+int bench_parse_u64(const char *prog, const char *opt, const char *s, uint64_t *out);
+int bench_parse_double(const char *prog, const char *opt, const char *s, double lo, double hi,
+                       double *out);
+
 #endif /* PM_BENCH_H */

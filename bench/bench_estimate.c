@@ -73,6 +73,7 @@ static void usage(FILE *f) {
 }
 
 int main(int argc, char **argv) {
+    static const char *const P = "bench_estimate";
     const char *out = "bench/results";
     size_t n = 0, npts = 0;
     int runs = 5, quick = 0;
@@ -90,15 +91,22 @@ int main(int argc, char **argv) {
         } else if (v && !strcmp(a, "--out")) {
             out = v, i++;
         } else if (v && !strcmp(a, "--n")) {
-            n = (size_t)atof(v), i++;
+            if (bench_parse_count(P, a, v, 1000, 1e8, &n) < 0) return 2;
+            i++;
         } else if (v && !strcmp(a, "--points")) {
-            npts = (size_t)atof(v), i++;
+            if (bench_parse_count(P, a, v, 1, 1e7, &npts) < 0) return 2;
+            i++;
         } else if (v && !strcmp(a, "--runs")) {
-            runs = atoi(v), i++;
+            if (bench_parse_int(P, a, v, 3, 1000, &runs) < 0) return 2;
+            i++;
         } else if (v && !strcmp(a, "--bucket")) {
-            bucket = (unsigned)atoi(v), i++;
+            int b;
+            if (bench_parse_int(P, a, v, 1, 1 << 20, &b) < 0) return 2;
+            bucket = (unsigned)b;
+            i++;
         } else if (v && !strcmp(a, "--seed")) {
-            seed = (uint64_t)atoll(v), i++;
+            if (bench_parse_u64(P, a, v, &seed) < 0) return 2;
+            i++;
         } else {
             fprintf(stderr, "bench_estimate: unknown or incomplete option '%s'\n", a);
             usage(stderr);
@@ -107,13 +115,13 @@ int main(int argc, char **argv) {
     }
     if (!n) n = quick ? 20000 : 200000;
     if (!npts) npts = quick ? 300 : 3000;
-    if (runs < 3 || bucket < 1 || n < 1000) {
-        fprintf(stderr, "bench_estimate: need --runs >= 3, --bucket >= 1, --n >= 1000\n");
-        return 2;
-    }
 
     /* The lit square: equal powers summing to 1, arriving straight down. */
     pm_photon *ph = malloc(n * sizeof *ph);
+    if (!ph) {
+        fprintf(stderr, "bench_estimate: out of memory for %zu photons\n", n);
+        return 1;
+    }
     bench_rng rng;
     bench_rng_seed(&rng, seed);
     const float up[3] = {0, 1, 0}, down[3] = {0, -1, 0};
@@ -140,6 +148,10 @@ int main(int argc, char **argv) {
     const char *regions[2] = {"interior", "edge"};
     for (int r = 0; r < 2; r++) {
         pts[r] = malloc(npts * 3 * sizeof(float));
+        if (!pts[r]) {
+            fprintf(stderr, "bench_estimate: out of memory for %zu points\n", npts);
+            return 1;
+        }
         for (size_t i = 0; i < npts; i++) {
             double u = bench_rng_unit(&rng), w = 0.25 + 0.5 * bench_rng_unit(&rng);
             pts[r][3 * i + 0] = (float)(r == 0 ? 0.25 + 0.5 * u : 3.0 * spacing * u);
@@ -154,9 +166,17 @@ int main(int argc, char **argv) {
     bench_log("bench_estimate: n=%zu photons, %zu points per region, B=%u, E=%g", n, npts,
               bucket, e_true);
     double *t = malloc((size_t)runs * sizeof *t);
+    if (!t) {
+        fprintf(stderr, "bench_estimate: out of memory\n");
+        return 1;
+    }
     for (size_t ki = 0; ki < NELEM(KS); ki++) {
         const unsigned k = KS[ki];
         void *scratch = malloc(pm_estimate_scratch_bytes(k));
+        if (!scratch) {
+            fprintf(stderr, "bench_estimate: out of memory\n");
+            return 1;
+        }
         for (size_t mi = 0; mi < NELEM(METHODS); mi++) {
             const method *m = &METHODS[mi];
             pm_estimate_options o;

@@ -873,7 +873,29 @@ static int has_word(const char *list, const char *w) {
     return 0;
 }
 
+/* Every comma-separated word of list is one of the allowed words (a NULL-terminated array). */
+static int words_ok(const char *opt_name, const char *list, const char *const *allowed) {
+    const char *p = list;
+    for (;;) {
+        size_t n = strcspn(p, ",");
+        int ok = 0;
+        for (int j = 0; allowed[j]; j++) ok |= strlen(allowed[j]) == n && !strncmp(p, allowed[j], n);
+        if (!ok) {
+            fprintf(stderr, "bench_search: %s: unknown word '%.*s' in '%s' (allowed:", opt_name,
+                    (int)n, p, list);
+            for (int j = 0; allowed[j]; j++) fprintf(stderr, " %s", allowed[j]);
+            fprintf(stderr, ")\n");
+            return 0;
+        }
+        if (!p[n]) return 1;
+        p += n + 1;
+    }
+}
+
 int main(int argc, char **argv) {
+    static const char *const P = "bench_search";
+    static const char *const DIST_WORDS[] = {"photon", "uniform", "file", NULL};
+    static const char *const SWEEP_WORDS[] = {"param", "headline", "k", "radius", "n", NULL};
     const char *dists = NULL, *sweeps = NULL;
     opt.out = "bench/results";
     opt.threads = bench_max_threads();
@@ -894,11 +916,14 @@ int main(int argc, char **argv) {
         } else if (v && !strcmp(a, "--map")) {
             opt.map = v, i++;
         } else if (v && !strcmp(a, "--threads")) {
-            opt.threads = atoi(v), i++;
+            if (bench_parse_int(P, a, v, 1, 1024, &opt.threads) < 0) return 2;
+            i++;
         } else if (v && !strcmp(a, "--runs")) {
-            opt.runs = atoi(v), i++;
+            if (bench_parse_int(P, a, v, 3, 1000, &opt.runs) < 0) return 2;
+            i++;
         } else if (v && !strcmp(a, "--n")) {
-            opt.nh = (size_t)atof(v), i++;
+            if (bench_parse_count(P, a, v, 1000, 1e8, &opt.nh) < 0) return 2;
+            i++;
         } else if (v && !strcmp(a, "--dists")) {
             dists = v, i++;
         } else if (v && !strcmp(a, "--sweeps")) {
@@ -906,21 +931,23 @@ int main(int argc, char **argv) {
         } else if (v && !strcmp(a, "--probe")) {
             opt.probe = v, i++;
         } else if (v && !strcmp(a, "--probe-r2")) {
-            opt.probe_r2 = atof(v), i++;
+            if (bench_parse_double(P, a, v, 0, INFINITY, &opt.probe_r2) < 0) return 2;
+            i++;
         } else if (v && !strcmp(a, "--probe-queries")) {
-            opt.probe_queries = (size_t)atof(v), i++;
+            if (bench_parse_count(P, a, v, 1, 1e8, &opt.probe_queries) < 0) return 2;
+            i++;
         } else if (v && !strcmp(a, "--seed")) {
-            opt.seed = (uint64_t)atoll(v), i++;
+            if (bench_parse_u64(P, a, v, &opt.seed) < 0) return 2;
+            i++;
         } else {
             fprintf(stderr, "bench_search: unknown or incomplete option '%s'\n", a);
             usage(stderr);
             return 2;
         }
     }
-    if (opt.runs < 3 || opt.threads < 1) {
-        fprintf(stderr, "bench_search: --runs must be >= 3 and --threads >= 1\n");
+    if ((dists && !words_ok("--dists", dists, DIST_WORDS)) ||
+        (sweeps && !words_ok("--sweeps", sweeps, SWEEP_WORDS)))
         return 2;
-    }
     if (!opt.nh) opt.nh = opt.quick ? 20000 : 1000000;
     if (opt.nh < 1000) {
         fprintf(stderr, "bench_search: --n must be >= 1000\n");

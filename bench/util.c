@@ -8,6 +8,7 @@
 #define _GNU_SOURCE
 #include "bench.h"
 
+#include <errno.h>
 #include <malloc.h>
 #include <math.h>
 #include <stdarg.h>
@@ -220,4 +221,59 @@ int bench_max_threads(void) {
 #else
     return 1;
 #endif
+}
+
+/* ---- command line ---- */
+
+int bench_parse_double(const char *prog, const char *opt, const char *s, double lo, double hi,
+                       double *out) {
+    char *end = NULL;
+    errno = 0;
+    double v = s ? strtod(s, &end) : NAN;
+    if (!s || end == s || *end || errno == ERANGE || !(v >= lo && v <= hi)) {
+        fprintf(stderr, "%s: %s: expected a number in [%g, %g], got '%s'\n", prog, opt, lo, hi,
+                s ? s : "");
+        return -1;
+    }
+    *out = v;
+    return 0;
+}
+
+int bench_parse_count(const char *prog, const char *opt, const char *s, double lo, double hi,
+                      size_t *out) {
+    char *end = NULL;
+    errno = 0;
+    double v = s ? strtod(s, &end) : NAN;
+    if (!s || end == s || *end || errno == ERANGE || !(v >= lo && v <= hi) || v != floor(v)) {
+        fprintf(stderr, "%s: %s: expected a whole number in [%.0f, %.0f], got '%s'\n", prog, opt,
+                lo, hi, s ? s : "");
+        return -1;
+    }
+    *out = (size_t)v;
+    return 0;
+}
+
+int bench_parse_int(const char *prog, const char *opt, const char *s, long lo, long hi, int *out) {
+    char *end = NULL;
+    errno = 0;
+    long v = s ? strtol(s, &end, 10) : 0;
+    if (!s || end == s || *end || errno == ERANGE || v < lo || v > hi) {
+        fprintf(stderr, "%s: %s: expected a whole number in [%ld, %ld], got '%s'\n", prog, opt, lo,
+                hi, s ? s : "");
+        return -1;
+    }
+    *out = (int)v;
+    return 0;
+}
+
+int bench_parse_u64(const char *prog, const char *opt, const char *s, uint64_t *out) {
+    char *end = NULL;
+    errno = 0;
+    unsigned long long v = s && *s != '-' ? strtoull(s, &end, 10) : 0;
+    if (!s || *s == '-' || end == s || *end || errno == ERANGE) {
+        fprintf(stderr, "%s: %s: expected a whole number >= 0, got '%s'\n", prog, opt, s ? s : "");
+        return -1;
+    }
+    *out = (uint64_t)v;
+    return 0;
 }

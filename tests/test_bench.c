@@ -282,7 +282,10 @@ TEST(bench_estimate_writes_errors) {
     csv_free(&e);
 }
 
-/* Oracle: the documented command line: --help succeeds and names its options. */
+/* Oracle: the documented command line: --help succeeds and names its options; an unknown
+ * option, and impossible or malformed values (negative, zero, too large, trailing garbage),
+ * exit with status 2 and a message naming the option, before any output is written (the
+ * --out directory does not exist, so a program that ran would fail differently). */
 TEST(bench_programs_have_help) {
     static const char *progs[] = {"bench_search", "bench_estimate"};
     for (int i = 0; i < 2; i++) {
@@ -299,5 +302,20 @@ TEST(bench_programs_have_help) {
         EXPECT_MSG(strstr(out, "usage:") != NULL, "%s --help printed: %s", progs[i], out);
         snprintf(cmd, sizeof cmd, "%s --no-such-option", bin);
         EXPECT_EQ_INT(pm_test_run(cmd, out, sizeof out), 2);
+        static const char *const bad[][2] = {
+            {"--n", "-5"}, {"--n", "1e30"}, {"--n", "12x"}, {"--n", "1000.5"}, {"--runs", "0"},
+            {"--runs", "abc"}, {"--seed", "-1"}, {"--threads", "0"}, {"--bucket", "0"},
+            {"--points", "-3"}, {"--dists", "photon,nope"}, {"--sweeps", "k,"}};
+        for (size_t j = 0; j < sizeof bad / sizeof bad[0]; j++) {
+            /* each program rejects the options it knows and calls the others unknown */
+            snprintf(cmd, sizeof cmd, "%s --quick --out %s/missing %s '%s' 2>&1", bin,
+                     pm_test_tmpdir(), bad[j][0], bad[j][1]);
+            int rc = pm_test_run(cmd, out, sizeof out);
+            EXPECT_MSG(rc == 2, "%s %s %s: exit %d: %s", progs[i], bad[j][0], bad[j][1], rc, out);
+            EXPECT_MSG(strstr(out, bad[j][0]) != NULL, "%s %s %s: message does not name it: %s",
+                       progs[i], bad[j][0], bad[j][1], out);
+            EXPECT_MSG(strstr(out, "missing/") == NULL, "%s %s %s: it tried to write: %s",
+                       progs[i], bad[j][0], bad[j][1], out);
+        }
     }
 }
