@@ -11,6 +11,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "common.h"
@@ -38,12 +39,41 @@ static FILE *open_tmp(const char *path, char *tmp, size_t cap) {
     }
     int fd = mkstemp(tmp);
     if (fd < 0) return NULL;
+    /* mkstemp creates the file 0600; an image gets the mode fopen would give it (0666 less
+     * the umask). Reading the umask means setting it back: the writers run on one thread. */
+    mode_t mask = umask(022);
+    umask(mask);
+    if (fchmod(fd, 0666 & ~mask) != 0) {
+        int saved = errno;
+        close(fd);
+        unlink(tmp);
+        errno = saved;
+        return NULL;
+    }
     FILE *fp = fdopen(fd, "wb");
     if (!fp) {
         close(fd);
         unlink(tmp);
     }
     return fp;
+}
+
+int film_check_writable(const char *path) {
+    struct stat st;
+    if (!path || !*path) {
+        errno = ENOENT;
+        return PM_EIO;
+    }
+    if (stat(path, &st) == 0 && S_ISDIR(st.st_mode)) {
+        errno = EISDIR;
+        return PM_EIO;
+    }
+    char tmp[4096];
+    FILE *fp = open_tmp(path, tmp, sizeof tmp);
+    if (!fp) return PM_EIO;
+    fclose(fp);
+    unlink(tmp);
+    return 0;
 }
 
 /* Close and rename on success, or remove the temporary file. */

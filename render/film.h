@@ -12,7 +12,7 @@
  *
  * Writers never leave a partial file: they write a temporary file next to the target and
  * rename it into place only when everything succeeded. They return 0 or a negative PM_E*
- * code (PM_EIO with errno kept).
+ * code (PM_EIO with errno kept). Files get mode 0666 less the umask, as with fopen.
  *
  * Ownership: the film owns its pixel array (film_free).
  */
@@ -44,6 +44,10 @@ static inline rgb film_get(const film *f, int x, int y) {
 }
 
 int film_write_pfm(const film *f, const char *path);
+/* Whether path could be written: not a directory, and a temporary file can be created beside
+ * it (and is removed again). Lets a program refuse an unwritable output before a long render.
+ * 0 or PM_EIO with errno set (ENOENT, EACCES, EISDIR, ...). Nothing is left behind. */
+int film_check_writable(const char *path);
 /* Read a colour PFM ("PF"); handles either byte order. 0, PM_EIO or PM_EFORMAT. */
 int film_read_pfm(film *f, const char *path);
 

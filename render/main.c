@@ -124,13 +124,27 @@ static int run_compare(int argc, char **argv) {
     return rc < 0 ? 2 : 0;
 }
 
+/* An integer option's value in [lo, hi]: 0, or -1 after saying what was expected. */
+static int parse_opt(const char *opt, const char *v, long lo, long hi, long *out) {
+    if (parse_long(v, lo, hi, out) == 0) return 0;
+    fprintf(stderr, "render: %s: expected a whole number in [%ld, %ld], got '%s'\n", opt, lo, hi, v);
+    return -1;
+}
+
 static const char *basename_of(const char *p) {
     const char *s = strrchr(p, '/');
     return s ? s + 1 : p;
 }
 
 int main(int argc, char **argv) {
-    if (argc >= 2 && strcmp(argv[1], "--compare") == 0) return run_compare(argc, argv);
+    if (argc >= 2 && strcmp(argv[1], "--compare") == 0) {
+        for (int i = 2; i < argc; i++)
+            if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
+                usage(stdout);
+                return 0;
+            }
+        return run_compare(argc, argv);
+    }
     const char *scene_path = NULL, *png = NULL, *pfm = NULL, *mode = NULL, *tone = NULL;
     long spp = 0, threads = 0, width = 0, height = 0, seed = -1;
     double exposure = -1;
@@ -161,19 +175,19 @@ int main(int argc, char **argv) {
             pfm = v;
         } else if (strcmp(a, "--spp") == 0) {
             NEED_VALUE();
-            bad = parse_long(v, 1, 1 << 20, &spp);
+            bad = parse_opt(a, v, 1, 1 << 20, &spp);
         } else if (strcmp(a, "--threads") == 0) {
             NEED_VALUE();
-            bad = parse_long(v, 1, 1024, &threads);
+            bad = parse_opt(a, v, 1, 1024, &threads);
         } else if (strcmp(a, "--seed") == 0) {
             NEED_VALUE();
-            bad = parse_long(v, 0, 2147483647L, &seed);
+            bad = parse_opt(a, v, 0, 2147483647L, &seed);
         } else if (strcmp(a, "--width") == 0) {
             NEED_VALUE();
-            bad = parse_long(v, 1, 1 << 14, &width);
+            bad = parse_opt(a, v, 1, 1 << 14, &width);
         } else if (strcmp(a, "--height") == 0) {
             NEED_VALUE();
-            bad = parse_long(v, 1, 1 << 14, &height);
+            bad = parse_opt(a, v, 1, 1 << 14, &height);
         } else if (strcmp(a, "--mode") == 0) {
             NEED_VALUE();
             mode = v;
@@ -206,10 +220,11 @@ int main(int argc, char **argv) {
             fprintf(stderr, "render: more than one scene file given (%s, %s)\n", scene_path, a);
             return 2;
         }
-        if (bad) {
+        if (bad > 0) {
             fprintf(stderr, "render: %s: invalid value '%s' (see --help)\n", a, v);
             return 2;
         }
+        if (bad < 0) return 2; /* parse_opt said why */
 #undef NEED_VALUE
     }
     if (!scene_path) {
@@ -217,6 +232,14 @@ int main(int argc, char **argv) {
         return 2;
     }
     if (!png && !pfm) png = "out.png";
+    /* An output that cannot be written is refused now, not after the render. */
+    const char *outs[2] = {pfm, png}, *out_opt[2] = {"--hdr", "-o"};
+    for (int k = 0; k < 2; k++)
+        if (outs[k] && film_check_writable(outs[k]) < 0) {
+            fprintf(stderr, "render: %s %s: cannot write there: %s\n", out_opt[k], outs[k],
+                    strerror(errno));
+            return 2;
+        }
 
     double t_start = stats_now();
     scene s;
@@ -308,10 +331,13 @@ int main(int argc, char **argv) {
         fprintf(stderr, "render: cannot write %s: %s\n", pfm, strerror(errno));
         status = 1;
     }
-    if (png && film_write_png(&f, png, s.settings.tone, s.settings.exposure, s.settings.clip_percent,
-                              &used) < 0) {
+    if (status == 0 && png &&
+        film_write_png(&f, png, s.settings.tone, s.settings.exposure, s.settings.clip_percent,
+                       &used) < 0) {
         fprintf(stderr, "render: cannot write %s: %s\n", png, strerror(errno));
         status = 1;
+        /* All outputs or none: take back the PFM this run wrote. */
+        if (pfm && remove(pfm) == 0) fprintf(stderr, "render: removed %s\n", pfm);
     }
     double wall = stats_now() - t_start;
     uint64_t rays = stats_total(STAT_CAMERA_RAYS) + stats_total(STAT_INDIRECT_RAYS) +
