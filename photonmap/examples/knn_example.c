@@ -12,9 +12,20 @@
 
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
-int main(void) {
+int main(int argc, char **argv) {
     enum { N = 100000, K = 50 };
+    if (argc > 1) {
+        int help = strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0;
+        fprintf(help ? stdout : stderr,
+                "usage: knn_example\n"
+                "Stores %d photons on the unit floor square (total power 1, 1, 0.8), finds the\n"
+                "%d nearest to its centre and prints their flux density (about 1, 1, 0.8).\n"
+                "Exit status 0 when %d photons were found.\n",
+                N, K, K);
+        return help ? 0 : 2;
+    }
     pm_photon *photons = malloc(N * sizeof *photons);
     if (!photons) return 1;
     unsigned seed = 1;
