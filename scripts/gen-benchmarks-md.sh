@@ -8,6 +8,9 @@
 # profile_*.txt. The one exception is the paragraph on kd-tree speed experiments that were
 # not kept (they are not part of the run), which says where its figures come from. Plots are linked as IMG_LINK_PREFIX/<name>.png (made by plot-bench.sh).
 set -eu
+case "${1:-}" in
+  -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
+esac
 R=${1:?usage: gen-benchmarks-md.sh RESULTS_DIR IMG_LINK_PREFIX}
 P=${2:-bench}
 Q="$R/queries.csv"; B="$R/build.csv"; H="$R/headline.csv"; M="$R/machine.csv"; E="$R/estimate.csv"

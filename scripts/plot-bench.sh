@@ -12,6 +12,9 @@
 #   n_photon.png       queries/s against N; build_photon.png: build time against N
 #   estimate_<region>.png  RMS relative error of each estimator against ns per estimate
 set -eu
+case "${1:-}" in
+  -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
+esac
 R=${1:?usage: plot-bench.sh RESULTS_DIR IMG_DIR}
 IMG=${2:?usage: plot-bench.sh RESULTS_DIR IMG_DIR}
 mkdir -p "$IMG"

@@ -16,6 +16,9 @@ set -eu
 # Idle OpenMP threads must not spin on a core that a one-thread measurement needs.
 export OMP_WAIT_POLICY=${OMP_WAIT_POLICY:-PASSIVE}
 
+case "${1:-}" in
+  -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
+esac
 BUILD=${1:?usage: run-bench.sh BUILD full|quick [OUTDIR]}
 MODE=${2:-quick}
 case "$MODE" in

@@ -319,3 +319,24 @@ TEST(bench_programs_have_help) {
         }
     }
 }
+
+/* Oracle: the documented usage of every script in scripts/: --help prints it with status 0
+ * and does nothing else (run-bench.sh used to take "--help" for its build directory). */
+TEST(scripts_have_help) {
+    static const char *scripts[] = {"run-bench.sh", "plot-bench.sh", "gen-benchmarks-md.sh",
+                                    "install-deps.sh", "imgcmp"};
+    for (size_t i = 0; i < sizeof scripts / sizeof scripts[0]; i++) {
+        char cmd[4096], out[8192];
+        snprintf(cmd, sizeof cmd, "cd %s && sh %s/scripts/%s --help 2>&1", pm_test_tmpdir(),
+                 pm_test_source_dir(), scripts[i]);
+        EXPECT_MSG(pm_test_run(cmd, out, sizeof out) == 0, "%s --help: %s", scripts[i], out);
+        EXPECT_MSG(strstr(out, "usage") || strstr(out, scripts[i]), "%s --help printed: %s",
+                   scripts[i], out);
+        EXPECT_MSG(!strstr(out, "# Benchmarks") && !strstr(out, "cannot open"),
+                   "%s --help did work instead: %s", scripts[i], out);
+    }
+    char cmd[2048], out[256];
+    snprintf(cmd, sizeof cmd, "ls -A %s | wc -l", pm_test_tmpdir());
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strtol(out, NULL, 10) == 0, "--help left files: %s", out);
+}
