@@ -217,8 +217,8 @@ TEST(estimate_square_uncorrected_disc_too_bright) {
 TEST(estimate_square_edges) {
     square sq;
     make_square(&sq, 3);
-    const unsigned ks[] = {25, 50, 100};
-    for (int i = 0; i < 3; i++) {
+    const unsigned ks[] = {25, 50, 100, 500};
+    for (int i = 0; i < 4; i++) {
         pm_estimate_options o;
         pm_estimate_options_init(&o, PM_EST_HULL, ks[i]);
         run_out h = run_square(&sq, &o, lookups_for(ks[i]), draw_edge, 300 + i);
