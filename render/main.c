@@ -253,9 +253,18 @@ int main(int argc, char **argv) {
     stats_time_add("Time/Scene loading and BVH build", t_load);
     if (spp) camera_set_spp(&s.cam, (int)spp);
     if (width || height) {
-        int w = width ? (int)width : (int)((double)height * s.cam.width / s.cam.height + 0.5);
-        int h = height ? (int)height : (int)((double)width * s.cam.height / s.cam.width + 0.5);
-        camera_resize(&s.cam, w > 0 ? w : 1, h > 0 ? h : 1);
+        /* The side not given follows the scene's aspect, and must stay in range too. */
+        double w = width ? (double)width : floor((double)height * s.cam.width / s.cam.height + 0.5);
+        double h = height ? (double)height : floor((double)width * s.cam.height / s.cam.width + 0.5);
+        if (w > 1 << 14 || h > 1 << 14) {
+            fprintf(stderr, "render: %s %ld gives a %s of %.0f at the scene's aspect %dx%d; the "
+                    "limit is 16384 (give both --width and --height)\n", width ? "--width" : "--height",
+                    width ? width : height, width ? "height" : "width", width ? h : w, s.cam.width,
+                    s.cam.height);
+            scene_free(&s);
+            return 2;
+        }
+        camera_resize(&s.cam, w > 0 ? (int)w : 1, h > 0 ? (int)h : 1);
     }
     char err_unused[64];
     for (int k = 0; k < npm; k++) {

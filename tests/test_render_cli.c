@@ -90,6 +90,26 @@ TEST(render_cli_rejects_impossible_values) {
         EXPECT_MSG(!exists(dir, "v.png") && !exists(dir, "v.pfm"), "%s: an image was written", cases[i].args);
         EXPECT_MSG(!strstr(out, "Rendering"), "%s: it rendered: %s", cases[i].args, out);
     }
+    /* One side given: the other follows the scene's aspect (here 10:1) and is range-checked
+     * as well, instead of asking for a 20000-pixel-wide image. */
+    char wide[1024];
+    snprintf(wide, sizeof wide, "%s/wide.json", dir);
+    FILE *f = fopen(wide, "w");
+    ASSERT(f);
+    fputs("{\"camera\": {\"eye\": [0,0,-5], \"look_at\": [0,0,0], \"fov_deg\": 40, \"width\": 100, "
+          "\"height\": 10}, \"materials\": {\"w\": {\"type\": \"lambert\", \"reflectance\": 0.5}}, "
+          "\"objects\": [{\"type\": \"sphere\", \"center\": [0,0,0], \"radius\": 1, \"material\": \"w\"}]}",
+          f);
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "cd '%s' && %s/render '%s' --quiet --hdr v.pfm --height 2000 2>&1", dir,
+             pm_test_build_dir(), wide);
+    EXPECT_EQ_INT(pm_test_run(cmd, out, sizeof out), 2);
+    EXPECT_MSG(strstr(out, "--height 2000 gives a width of 20000") && strstr(out, "16384"), "%s", out);
+    EXPECT(!exists(dir, "v.pfm"));
+    snprintf(cmd, sizeof cmd, "cd '%s' && %s/render '%s' --hdr v.pfm --width 50 2>&1", dir,
+             pm_test_build_dir(), wide);
+    EXPECT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "Rendering 50x5,") != NULL, "%s", out);
 }
 
 /* Oracle: a scene that does not exist or is a directory, and outputs that cannot be written
