@@ -54,6 +54,8 @@ ALL_LDFLAGS = $(SAN_FLAGS) $(OMP_LIBS) $(LDFLAGS)
 # ---- sources -------------------------------------------------------------------------------
 PM_SRC     := $(sort $(wildcard photonmap/*.c))
 PM_HDR     := $(sort $(wildcard photonmap/*.h))
+# Installed headers: *_internal.h are the library's own, not API.
+PM_PUB_HDR := $(filter-out %_internal.h,$(PM_HDR))
 RENDER_SRC := $(sort $(filter-out render/main.c,$(wildcard render/*.c)))
 BENCH_MAIN := $(sort $(wildcard bench/bench_*.c))
 BENCH_SRC  := $(sort $(filter-out $(BENCH_MAIN),$(wildcard bench/*.c)))
@@ -149,7 +151,7 @@ bench-quick: $(BENCH_DEPS)
 # ---- install -------------------------------------------------------------------------------
 install: $(LIB)
 	install -d $(DESTDIR)$(PREFIX)/include/photonmap $(DESTDIR)$(PREFIX)/lib/pkgconfig
-	install -m 644 $(PM_HDR) $(DESTDIR)$(PREFIX)/include/photonmap/
+	install -m 644 $(PM_PUB_HDR) $(DESTDIR)$(PREFIX)/include/photonmap/
 	install -m 644 $(LIB) $(DESTDIR)$(PREFIX)/lib/
 	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|$(shell sed -n 's/.*PM_VERSION_STRING "\(.*\)"/\1/p' photonmap/common.h)|' \
 	    -e 's|@LIBS@|-lm $(OMP_LIBS)|' photonmap/photonmap.pc.in > $(DESTDIR)$(PREFIX)/lib/pkgconfig/photonmap.pc
