@@ -408,9 +408,21 @@ static int finish(scene *s, caps *cp, json_err *e) {
         else
             l->power = v3_scale(l->irradiance, M_PI * s->bsphere_r * s->bsphere_r);
         w[i] = (l->power.x + l->power.y + l->power.z) / 3.0;
+        if (!isfinite(w[i])) { /* finite inputs whose product overflows */
+            free(w);
+            if (l->type == LIGHT_AREA)
+                return json_fail(e, PM_EINVAL, "an emissive triangle: its power (pi Le area) is too "
+                                 "large to represent");
+            return json_fail(e, PM_EINVAL, "$.lights[%d]: its power is too large to represent%s", i,
+                             l->type == LIGHT_DIRECTIONAL ? " (irradiance times the scene's cross-section)" : "");
+        }
     }
     double total = 0;
     for (int i = 0; i < s->nlights; i++) total += w[i];
+    if (!isfinite(total)) {
+        free(w);
+        return json_fail(e, PM_EINVAL, "$.lights: the total light power is too large to represent");
+    }
     if (total > 0) {
         int rc = distrib1d_init(&s->light_distrib, w, s->nlights);
         if (rc < 0) {

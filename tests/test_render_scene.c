@@ -129,6 +129,12 @@ TEST(render_scene_errors_exit_2) {
         {"tone", "{" CAM ", " MATS ", " OK_OBJS ", \"image\": {\"tone\": \"sepia\"}}",
          "$.image.tone: expected \"filmic\" or \"srgb\", got \"sepia\""},
         {"medium_ior", "{" CAM ", " MATS ", " OK_OBJS ", \"medium_ior\": 0}", "$.medium_ior: must be positive, got 0"},
+        {"light_power_overflow", "{" CAM ", " MATS ", " OK_OBJS ", \"lights\": [{\"type\": \"point\", \"position\": [0,0,0], \"power\": 1e308}]}",
+         "$.lights[0]: its power is too large to represent"},
+        {"sun_power_overflow", "{" CAM ", " MATS ", \"objects\": [{\"type\": \"sphere\", \"center\": [0,0,0], \"radius\": 1e200, \"material\": \"w\"}], \"lights\": [{\"type\": \"directional\", \"direction\": [0,-1,0], \"irradiance\": 1}]}",
+         "$.lights[0]: its power is too large to represent (irradiance times the scene's cross-section)"},
+        {"area_power_overflow", "{" CAM ", \"materials\": {\"e\": {\"type\": \"lambert\", \"reflectance\": 0, \"emission\": 1e307}}, \"objects\": [{\"type\": \"quad\", \"vertices\": [[-1,3,-1],[1,3,-1],[1,3,1],[-1,3,1]], \"material\": \"e\"}]}",
+         "an emissive triangle: its power (pi Le area) is too large to represent"},
         {"render_mode", "{" CAM ", " MATS ", " OK_OBJS ", \"render\": {\"mode\": \"bogus\"}}", "unknown mode \"bogus\""},
     };
     char out[8192];
