@@ -107,6 +107,10 @@ $(RENDER_BIN): $(BUILD)/obj/render/main.o $(RENDER_OBJ) $(LIB)
 	$(CC) -o $@ $^ $(ALL_LDFLAGS) $(RENDER_LIBS)
 
 # Each bench/bench_*.c is a program; the other bench/*.c are linked into all of them.
+# Their objects are reached only through the pattern rule below, which makes them
+# "intermediate" to make: without this it deletes them after a fresh build and recompiles
+# the benchmarks on every later `make`.
+.SECONDARY: $(BENCH_MAIN:bench/%.c=$(BUILD)/obj/bench/%.o) $(BENCH_OBJ)
 # FLANN is a C++ library: link with the C++ driver.
 $(BUILD)/bench_%: $(BUILD)/obj/bench/bench_%.o $(BENCH_OBJ) $(LIB)
 	$(CXX) -o $@ $^ $(ALL_LDFLAGS) $(FLANN_LIBS)
