@@ -29,6 +29,9 @@ void pm_config_defaults(pm_config *c) {
     c->filter = PM_FILTER_CONE;
     c->gather_rays = 32;
     c->secondary_rays = 8;
+    c->split_depth = 2;
+    c->caustic_stride = 2;
+    c->emission_strata = 2;
     c->max_emitted_factor = 64;
     c->projection_cells = 64;
     c->projection = 1;
@@ -97,7 +100,7 @@ int pm_config_parse(pm_config *c, const cJSON *pm, json_err *e) {
     static const char *known[] = {
         "caustics", "global", "shadow", "final_gather", "global_photons", "caustic_photons",
         "k_global", "k_caustic", "k_shadow", "max_radius_global", "max_radius_caustic",
-        "filter", "gather_rays", "secondary_rays", "secondary_distance", "max_emitted_factor",
+        "filter", "gather_rays", "secondary_rays", "split_depth", "caustic_stride", "emission_strata", "secondary_distance", "max_emitted_factor",
         "projection_cells", "projection", "progress", "save_photons", "load_photons", "comment"};
     for (const cJSON *it = pm->child; it; it = it->next) {
         int ok = 0;
@@ -120,6 +123,9 @@ int pm_config_parse(pm_config *c, const cJSON *pm, json_err *e) {
     TRY(get_nonneg(pm, "max_radius_caustic", &c->max_radius_caustic, e));
     TRY(get_int(pm, "gather_rays", 0, 100000, &c->gather_rays, e));
     TRY(get_int(pm, "secondary_rays", 0, 100000, &c->secondary_rays, e));
+    TRY(get_int(pm, "split_depth", 0, 16, &c->split_depth, e));
+    TRY(get_int(pm, "caustic_stride", 1, 64, &c->caustic_stride, e));
+    TRY(get_int(pm, "emission_strata", 0, 16, &c->emission_strata, e));
     TRY(get_nonneg(pm, "secondary_distance", &c->secondary_distance, e));
     TRY(get_nonneg(pm, "max_emitted_factor", &c->max_emitted_factor, e));
     if (c->max_emitted_factor < 1)
@@ -228,26 +234,64 @@ static void plan_caustics(const scene *s, render_plan *p) {
     set(&p->caustics, 0, "no specular surface reachable from a light%s", "");
 }
 
+/* Follow a probe ray through specular surfaces (one branch chosen by weight, as a photon
+ * would) to the first surface with a diffuse branch. Returns 1 with the hit in *h and the
+ * ray's last direction in r->d; 0 if it escapes, is absorbed or runs out of steps. */
+static int probe_to_diffuse(const scene *s, ray *r, rng *g, hit *h) {
+    for (int step = 0; step < 16; step++) {
+        if (!scene_intersect(s, *r, INFINITY, h)) return 0;
+        const material *m = scene_material(s, h);
+        vec3 wo = v3_neg(r->d);
+        double w[LOBE_COUNT];
+        material_weights(m, wo, h->ng, s->medium_ior, w);
+        if (w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0) return 1;
+        double wr = v3_iszero(m->specular_tint) ? 0 : w[LOBE_REFLECT];
+        double wt = v3_iszero(m->transmit_tint) ? 0 : w[LOBE_TRANSMIT];
+        if (!(wr + wt > 0)) return 0;
+        vec3 ns = v3_dot(wo, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
+        vec3 d;
+        if (rng_uniform(g) * (wr + wt) < wr) {
+            d = v3_reflect(r->d, ns);
+        } else {
+            double n1, n2;
+            material_indices(m, wo, h->ng, s->medium_ior, &n1, &n2);
+            if (!refract_dir(r->d, ns, n1 / n2, &d)) d = v3_reflect(r->d, ns);
+        }
+        r->o = v3_offset(h->p, h->ng, d);
+        r->d = d;
+    }
+    return 0;
+}
+
+/* The probe follows light as photons do: a ray leaves a light (light_sample_le), passes
+ * specular surfaces to a diffuse surface y, and leaves y on the side it arrived at with a
+ * cosine-distributed direction; if that ray reaches another diffuse surface (again through
+ * any specular ones), diffuse light reflects onto diffuse surfaces. Starting from the lights
+ * matters: probing both sides of every diffuse primitive would count the unlit inside of a
+ * closed sphere or mesh, which always "sees" itself. */
 static void plan_global(const scene *s, render_plan *p) {
     if (!emitting_lights(s))
         return set(&p->global, 0,
                    "no light emits photons (emissive spheres are not photon sources)%s", "");
     rng g = rng_stream(PLAN_SEED, 2, 0);
-    for (int i = 0; i < prim_count(s); i++) {
-        if (!material_is_diffuse(prim_mat(s, i))) continue;
-        for (int k = 0; k < 64; k++) {
-            vec3 q, n;
-            prim_point(s, i, &g, &q, &n);
-            if (rng_uniform(&g) < 0.5) n = v3_neg(n);
-            vec3 d = sampling_to_world(sample_cosine_hemisphere(rng_uniform(&g), rng_uniform(&g)), n);
-            hit h;
-            ray r = {v3_offset(q, n, d), d};
-            if (scene_intersect(s, r, INFINITY, &h) && material_is_diffuse(scene_material(s, &h)))
-                return set(&p->global, 1,
-                           "diffuse surfaces reflect onto each other (\"%s\" sees another): "
-                           "indirect diffuse light",
-                           prim_mat(s, i)->name);
-        }
+    for (int k = 0; k < 4096; k++) {
+        double pl, u[4];
+        int li = distrib1d_sample(&s->light_distrib, rng_uniform(&g), &pl);
+        if (!(pl > 0)) continue;
+        for (int j = 0; j < 4; j++) u[j] = rng_uniform(&g);
+        vec3 o, n, d;
+        light_sample_le(s, li, u, &o, &n, &d);
+        ray r = {v3_offset(o, n, d), d};
+        hit y, x;
+        if (!probe_to_diffuse(s, &r, &g, &y)) continue;
+        vec3 ny = v3_dot(r.d, y.ng) <= 0 ? y.ng : v3_neg(y.ng); /* the side it arrived at */
+        vec3 d2 = sampling_to_world(sample_cosine_hemisphere(rng_uniform(&g), rng_uniform(&g)), ny);
+        ray r2 = {v3_offset(y.p, y.ng, d2), d2};
+        if (probe_to_diffuse(s, &r2, &g, &x))
+            return set(&p->global, 1,
+                       "diffuse surfaces reflect onto each other (\"%s\" sees another): "
+                       "indirect diffuse light",
+                       scene_material(s, &y)->name);
     }
     set(&p->global, 0, "no diffuse surface reflects onto another%s", "");
 }
