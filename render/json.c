@@ -43,10 +43,69 @@ const char *json_type_name(const cJSON *it) {
     return "an invalid value";
 }
 
+static int cmp_key(const void *a, const void *b) {
+    return strcmp(*(const char *const *)a, *(const char *const *)b);
+}
+
+/* The first key of obj that appears twice, or NULL (PM_ENOMEM aside: *rc). */
+static const char *repeated_key(const cJSON *obj, int *rc) {
+    size_t n = 0;
+    for (const cJSON *c = obj->child; c; c = c->next) n++;
+    if (n <= 32) { /* the usual case: a few keys, compared pairwise */
+        for (const cJSON *c = obj->child; c; c = c->next)
+            for (const cJSON *d = obj->child; d != c; d = d->next)
+                if (c->string && d->string && strcmp(c->string, d->string) == 0) return c->string;
+        return NULL;
+    }
+    const char **keys = malloc(n * sizeof *keys), *dup = NULL;
+    if (!keys) {
+        *rc = PM_ENOMEM;
+        return NULL;
+    }
+    size_t m = 0;
+    for (const cJSON *c = obj->child; c; c = c->next)
+        if (c->string) keys[m++] = c->string;
+    qsort(keys, m, sizeof *keys, cmp_key);
+    for (size_t i = 1; i < m && !dup; i++)
+        if (strcmp(keys[i - 1], keys[i]) == 0) dup = keys[i];
+    free(keys);
+    return dup;
+}
+
+/* cJSON keeps every copy of a repeated key and the getters see the first, so a file saying
+ * "width": 8 and later "width": 0 would quietly render at 8. Refuse repeated keys at any
+ * depth. path holds the JSON path of it (len characters; cap bytes), extended in place. */
+static int check_repeated_keys(const cJSON *it, char *path, size_t len, size_t cap, json_err *e) {
+    int rc = 0, i = 0;
+    if (cJSON_IsObject(it)) {
+        const char *dup = repeated_key(it, &rc);
+        if (rc) return json_fail(e, rc, "out of memory");
+        if (dup) return json_fail(e, PM_EINVAL, "%s: the key \"%s\" is given more than once", path, dup);
+    }
+    for (const cJSON *c = it->child; c; c = c->next, i++) {
+        if (!c->child) continue; /* a number, string, ... or an empty array/object */
+        int k = cJSON_IsObject(it) ? snprintf(path + len, cap - len, ".%s", c->string ? c->string : "?")
+                                   : snprintf(path + len, cap - len, "[%d]", i);
+        size_t nl = k < 0 ? len : len + (size_t)k < cap ? len + (size_t)k : cap - 1;
+        rc = check_repeated_keys(c, path, nl, cap, e);
+        path[len] = 0;
+        if (rc) return rc;
+    }
+    return 0;
+}
+
 int json_parse_text(const char *text, cJSON **root, json_err *e) {
     const char *end = NULL;
     *root = cJSON_ParseWithOpts(text, &end, 1);
-    if (*root) return 0;
+    if (*root) {
+        char path[1024] = "$";
+        int rc = check_repeated_keys(*root, path, 1, sizeof path, e);
+        if (rc < 0) {
+            cJSON_Delete(*root);
+            *root = NULL;
+        }
+        return rc;
+    }
     if (!end) end = text;
     int line = 1, col = 1;
     for (const char *c = text; c < end && *c; c++) {
@@ -92,12 +151,12 @@ int json_parse_file(const char *filename, cJSON **root, json_err *e) {
         buf = nb;
         cap *= 2;
     }
-    int rerr = ferror(f);
+    int rerr = ferror(f) ? errno : 0;
     fclose(f);
     if (!buf) return json_fail(e, PM_ENOMEM, "out of memory reading the file");
     if (rerr) {
         free(buf);
-        return json_fail(e, PM_EIO, "read error");
+        return json_fail(e, PM_EIO, "cannot read: %s", strerror(rerr)); /* e.g. a directory */
     }
     buf[n] = 0;
     if (strlen(buf) != n) {

@@ -10,6 +10,8 @@
  *
  * json_parse_file reads and parses a file; a syntax error is reported with its line and
  * column ("line 12, column 5: syntax error at '"eye": [1,2,>}'", where > marks the spot).
+ * A key repeated within one object, at any depth, is an error too ("$.camera: the key
+ * "width" is given more than once"): cJSON would keep both and the getters see the first.
  *
  * The photon-mapping code reads its "photon_mapping" object with the same getters.
  * Nothing here keeps state; the caller owns and frees (cJSON_Delete) the parsed document.

@@ -126,7 +126,7 @@ TEST(render_cli_bad_paths_fail_before_rendering) {
         int need_nonroot;
     } cases[] = {
         {"'%s/none.json' --hdr ok.pfm", "none.json: cannot open", 0},
-        {"'%s/readonly' --hdr ok.pfm", "readonly", 0},
+        {"'%s/readonly' --hdr ok.pfm", "readonly: cannot read: Is a directory", 0},
         {"SCENE --hdr ok.pfm -o nodir/x.png", "-o nodir/x.png: cannot write there", 0},
         {"SCENE -o ok.png --hdr nodir/x.pfm", "--hdr nodir/x.pfm: cannot write there", 0},
         {"SCENE -o ok.png --hdr readonly", "--hdr readonly: cannot write there: Is a directory", 0},

@@ -135,6 +135,11 @@ TEST(render_scene_errors_exit_2) {
          "$.lights[0]: its power is too large to represent (irradiance times the scene's cross-section)"},
         {"area_power_overflow", "{" CAM ", \"materials\": {\"e\": {\"type\": \"lambert\", \"reflectance\": 0, \"emission\": 1e307}}, \"objects\": [{\"type\": \"quad\", \"vertices\": [[-1,3,-1],[1,3,-1],[1,3,1],[-1,3,1]], \"material\": \"e\"}]}",
          "an emissive triangle: its power (pi Le area) is too large to represent"},
+        {"repeated_key", "{\"camera\": {\"eye\": [0,0,-5], \"look_at\": [0,0,0], \"fov_deg\": 40, \"width\": 8, \"height\": 8, \"width\": 0}, " MATS ", " OK_OBJS "}",
+         "$.camera: the key \"width\" is given more than once"},
+        {"repeated_top_key", "{" CAM ", " MATS ", " OK_OBJS ", \"objects\": []}", "$: the key \"objects\" is given more than once"},
+        {"repeated_nested_key", "{" CAM ", " MATS ", \"objects\": [{\"type\": \"sphere\", \"center\": [0,0,0], \"radius\": 1, \"radius\": -1, \"material\": \"w\"}]}",
+         "$.objects[0]: the key \"radius\" is given more than once"},
         {"render_mode", "{" CAM ", " MATS ", " OK_OBJS ", \"render\": {\"mode\": \"bogus\"}}", "unknown mode \"bogus\""},
     };
     char out[8192];
