@@ -176,3 +176,25 @@ TEST(render_cli_outputs_follow_umask) {
         }
     }
 }
+
+/* Oracle: the documented progress output. On a terminal (a pseudo-terminal made by
+ * util-linux `script`, part of every Debian install) stderr gets a redrawn bar with an ETA:
+ * carriage returns, "[", "ETA"; off a terminal, plain lines and no carriage return (checked
+ * in test_render_scene.c); --quiet prints none on either. */
+TEST(render_cli_progress_bar_on_a_terminal) {
+    char cmd[4096], out[65536];
+    if (pm_test_run("command -v script >/dev/null", NULL, 0) != 0) {
+        printf("    script(1) not installed: terminal progress not checked\n");
+        return;
+    }
+    const char *dir = pm_test_tmpdir(), *scene = scene_path();
+    snprintf(cmd, sizeof cmd, "cd '%s' && script -qec \"%s/render '%s' --spp 4 --hdr t.pfm\" /dev/null",
+             dir, pm_test_build_dir(), scene);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    const char *bar = strstr(out, "\rRendering [");
+    EXPECT_MSG(bar && strstr(bar, "ETA "), "no progress bar with an ETA: %s", out);
+    snprintf(cmd, sizeof cmd, "cd '%s' && script -qec \"%s/render '%s' --spp 4 --hdr t.pfm --quiet\" /dev/null",
+             dir, pm_test_build_dir(), scene);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(!strstr(out, "ETA"), "--quiet still shows progress: %s", out);
+}
