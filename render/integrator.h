@@ -17,8 +17,9 @@
  *   preprocess(it, scene)   optional; once, on the main thread, before any li (it may use
  *                           OpenMP itself): e.g. trace and balance photon maps
  *   thread_begin(it)        optional; per worker thread, returns that thread's scratch
- *   li(it, scene, ray, rng, scratch)   radiance along the camera ray; called concurrently,
- *                           so it must only read shared state; g is this sample's own stream
+ *   li(it, scene, ray, rng, id, scratch)   radiance along the camera ray; called
+ *                           concurrently, so it must only read shared state; g is this
+ *                           sample's own stream and id says which sample it is
  *   thread_end(it, scratch) optional
  *   destroy(it)             optional; frees it->data
  * Failures return a negative PM_E* code with a message in err (preprocess, create).
@@ -49,13 +50,23 @@
 extern "C" {
 #endif
 
+/* Which camera sample li is computing: pixel y * width + x, sample k of count in that pixel,
+ * in stratum (k % strata, k / strata) of a strata x strata grid, and the render's seed. An
+ * integrator may use it to spread work over a pixel's samples in a fixed pattern (the photon
+ * mapper estimates caustics at a stratified subset of them). */
+typedef struct sample_id {
+    uint64_t pixel, seed;
+    int k, count, strata;
+} sample_id;
+
 typedef struct integrator integrator;
 struct integrator {
     const char *name;
     void *data;
     int (*preprocess)(integrator *self, const scene *s, char *err, size_t errcap);
     void *(*thread_begin)(const integrator *self);
-    rgb (*li)(const integrator *self, const scene *s, ray r, rng *g, void *scratch);
+    rgb (*li)(const integrator *self, const scene *s, ray r, rng *g, const sample_id *id,
+              void *scratch);
     void (*thread_end)(const integrator *self, void *scratch);
     void (*destroy)(integrator *self);
 };

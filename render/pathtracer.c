@@ -53,7 +53,9 @@ static rgb direct_light(const scene *s, const material *m, const hit *h, vec3 n,
     return v3_scale(v3_mul(f, ls.L), cos_s / pl);
 }
 
-static rgb pt_li(const integrator *self, const scene *s, ray r, rng *g, void *scratch) {
+static rgb pt_li(const integrator *self, const scene *s, ray r, rng *g, const sample_id *id,
+                 void *scratch) {
+    (void)id;
     (void)scratch;
     const pt_state *st = self->data;
     rgb L = v3s(0), beta = v3s(1);

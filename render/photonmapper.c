@@ -12,22 +12,27 @@
  * area (phi / (pi A)).
  *
  * RENDERING: Jensen's split of the rendering equation. A camera ray follows specular
- * reflection and refraction (one branch chosen at random in proportion to its weight, with
- * Russian roulette after rr_depth bounces) and adds emission it sees. At every surface with a
+ * reflection and refraction (both branches, weighted, for the first split_depth bounces;
+ * after that one branch chosen at random in proportion to its weight, with Russian roulette
+ * after rr_depth bounces) and adds emission it sees. At every surface with a
  * diffuse branch it adds
  *   - direct light: one light sample and a shadow ray; for area lights the k_shadow nearest
  *     photons of the shadow map decide first: all DIRECT means lit and all SHADOW means dark,
  *     and the shadow ray is skipped (both counts are in the statistics);
  *   - caustics: a radiance estimate from the caustic map with the scene's filter (none, cone,
- *     Gaussian, convex hull), photons from behind the surface rejected;
+ *     Gaussian, convex hull), photons from behind the surface rejected; with caustic_stride
+ *     c > 1 only at one camera sample in c x c, a stratified subset, weighted c^2 (unbiased);
  *   - indirect diffuse: final gathering. gather_rays cosine-distributed rays (per camera
- *     sample) follow specular surfaces to the first diffuse surface y and read the
+ *     sample, scaled down by the path's throughput after a weighted split, at least one) follow specular surfaces to the first diffuse surface y and read the
  *     precomputed irradiance of the photon nearest y with a similar normal, times y's
  *     diffuse reflectance / pi. Emission met by a gather ray is skipped (direct light and
  *     caustics count it). When the first gather hit is closer than secondary_distance (about
  *     the radius of a global-map estimate), the global map is too coarse there (the corner
  *     artefact of the Kilauea notes), so a secondary gather computes y's outgoing light from
  *     its own direct light, caustics and secondary_rays gather rays instead.
+ * Emission seen by the camera (directly or through mirrors and glass) comes from
+ * emission_strata^2 extra camera rays per sample that look for nothing else (pm_li), so the
+ * edges of lights are antialiased at a fraction of the cost of full samples.
  * In preview mode, or with final gathering forced off, the diffuse surface shows the
  * global map's radiance estimate (k_global photons) plus emission, and nothing else.
  *
@@ -62,6 +67,7 @@ typedef struct pm_state {
     double sec_dist;
     pm_estimate_options caus_opt, glob_opt;
     unsigned kmax;
+    int st_emission_rays;
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
         st_global_est;
 } pm_state;
@@ -282,17 +288,51 @@ static rgb gather(const pm_state *st, const scene *s, const material *m, const h
 
 /* ---- the integrator ----------------------------------------------------------------------- */
 
-static rgb pm_li(const integrator *self, const scene *s, ray r, rng *g, void *scratch) {
-    const pm_state *st = self->data;
-    pm_scratch *sc = scratch;
-    rgb L = v3s(0), beta = v3s(1);
-    for (int depth = 0;; depth++) {
+/* The weight of this camera sample's caustic estimates. With caustic_stride c > 1 the
+ * caustic map is read at one stratum in c x c of the pixel, those whose (sx mod c, sy mod c)
+ * equal a random offset drawn per pixel, and weighted c^2; the other samples get weight 0.
+ * Each sample is chosen with probability 1/c^2, so the pixel's expected value is unchanged,
+ * and the chosen ones are spread evenly over the pixel. The caustic radiance barely changes
+ * within a pixel, so this costs little noise and saves most of the estimates' time. */
+static double caustic_weight(const pm_state *st, const sample_id *id) {
+    int c = st->cfg.caustic_stride;
+    if (c <= 1 || !id || id->strata < c) return 1.0;
+    rng g = rng_stream(id->seed, id->pixel, 0x6361757374696373ULL); /* "caustics" */
+    int ox = (int)(rng_uniform(&g) * c), oy = (int)(rng_uniform(&g) * c);
+    int sx = id->k % id->strata, sy = id->k / id->strata;
+    return sx % c == ox && sy % c == oy ? (double)c * c : 0.0;
+}
+
+/* Russian roulette for an eye path after rr_depth bounces: 0 ends the path. */
+static int eye_roulette(const pm_state *st, int depth, rgb *beta, rng *g) {
+    double urr = rng_uniform(g);
+    if (depth + 1 < st->rr_depth) return 1;
+    double q = fmin(0.95, v3_maxc(*beta));
+    if (!(urr < q)) {
+        stat_inc(STAT_RR_TERMINATED);
+        return 0;
+    }
+    *beta = v3_scale(*beta, 1.0 / q);
+    return 1;
+}
+
+/* Radiance along an eye ray r whose throughput so far is beta (the light found is returned
+ * already multiplied by beta). Specular surfaces are followed; at the first split_depth
+ * bounces a surface with both a reflection and a transmission branch (glass) sends a ray
+ * down each, weighted, instead of choosing one at random: a camera ray on the glass sphere
+ * then sees the reflected light and the refracted room together, and that choice adds no
+ * noise. Gathering spends rays in proportion to the throughput (at least one), so the faint
+ * reflection branch of glass costs little. */
+static rgb eye_radiance(const pm_state *st, const scene *s, ray r, int depth, rgb beta,
+                        double cw, int emit, rng *g, pm_scratch *sc) {
+    rgb L = v3s(0);
+    for (;; depth++) {
         hit h;
         if (!scene_intersect(s, r, INFINITY, &h)) break;
         stat_inc(STAT_PATH_VERTICES);
         const material *m = scene_material(s, &h);
         vec3 wo = v3_neg(r.d);
-        if (material_is_emissive(m) && (v3_dot(wo, h.ng) > 0 || m->two_sided))
+        if (emit && material_is_emissive(m) && (v3_dot(wo, h.ng) > 0 || m->two_sided))
             L = v3_add(L, v3_mul(beta, m->emission));
         vec3 ns = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
         double w[LOBE_COUNT];
@@ -306,43 +346,136 @@ static rgb pm_li(const integrator *self, const scene *s, ray r, rng *g, void *sc
                             : v3s(0);
             } else {
                 Ld = direct_light(st, s, m, &h, ns, wo, g, sc);
-                Ld = v3_add(Ld, caustics_at(st, s, m, &h, ns, wo, sc));
-                if (st->plan.final_gather.on)
-                    Ld = v3_add(Ld, gather(st, s, m, &h, ns, wo, st->cfg.gather_rays, 0, g, sc));
+                if (cw > 0) Ld = v3_add(Ld, v3_scale(caustics_at(st, s, m, &h, ns, wo, sc), cw));
+                if (st->plan.final_gather.on) {
+                    double share = fmin(1.0, v3_maxc(beta));
+                    int n = (int)ceil(st->cfg.gather_rays * share);
+                    if (st->cfg.gather_rays > 0 && n < 1) n = 1;
+                    Ld = v3_add(Ld, gather(st, s, m, &h, ns, wo, n, 0, g, sc));
+                }
             }
             L = v3_add(L, v3_mul(beta, Ld));
         }
         double ws = w[LOBE_REFLECT] + w[LOBE_TRANSMIT];
         if (!(ws > 0) || depth >= st->max_depth) break;
-        vec3 d;
-        if (rng_uniform(g) * ws < w[LOBE_REFLECT]) {
-            d = v3_reflect(r.d, ns);
-            beta = v3_scale(v3_mul(beta, m->specular_tint), ws);
-        } else {
-            double n1, n2;
-            material_indices(m, wo, h.ng, s->medium_ior, &n1, &n2);
-            if (!refract_dir(r.d, ns, n1 / n2, &d)) {
-                d = v3_reflect(r.d, ns);
-                stat_inc(STAT_TIR);
-            }
-            beta = v3_scale(v3_mul(beta, m->transmit_tint), ws);
+        vec3 dr = v3_reflect(r.d, ns), dt;
+        double n1, n2;
+        material_indices(m, wo, h.ng, s->medium_ior, &n1, &n2);
+        int tir = w[LOBE_TRANSMIT] > 0 && !refract_dir(r.d, ns, n1 / n2, &dt);
+        if (tir) stat_inc(STAT_TIR);
+        rgb br = v3_scale(v3_mul(beta, m->specular_tint), w[LOBE_REFLECT]);
+        rgb bt = v3_scale(v3_mul(beta, m->transmit_tint), w[LOBE_TRANSMIT]);
+        if (tir) { /* the transmitted share is reflected instead */
+            br = v3_add(br, bt);
+            bt = v3s(0);
         }
+        if (v3_iszero(br) && v3_iszero(bt)) break;
         stat_inc(STAT_SPECULAR_BOUNCES);
-        double urr = rng_uniform(g);
-        if (depth + 1 >= st->rr_depth) {
-            double q = fmin(0.95, v3_maxc(beta));
-            if (!(urr < q)) {
-                stat_inc(STAT_RR_TERMINATED);
-                break;
+        vec3 d;
+        if (depth < st->cfg.split_depth && !v3_iszero(br) && !v3_iszero(bt)) {
+            /* Split: the reflection branch recursively, the transmission branch here. */
+            if (eye_roulette(st, depth, &br, g)) {
+                ray rr = {v3_offset(h.p, h.ng, dr), dr};
+                stat_inc(STAT_INDIRECT_RAYS);
+                L = v3_add(L, eye_radiance(st, s, rr, depth + 1, br, cw, emit, g, sc));
             }
-            beta = v3_scale(beta, 1.0 / q);
+            beta = bt;
+            d = dt;
+        } else {
+            /* One branch, chosen in proportion to its weight (w / p = the weights' sum). */
+            double pr = v3_maxc(br) / (v3_maxc(br) + v3_maxc(bt));
+            if (rng_uniform(g) < pr) {
+                d = dr;
+                beta = v3_scale(br, 1.0 / pr);
+            } else {
+                d = dt;
+                beta = v3_scale(bt, 1.0 / (1.0 - pr));
+            }
         }
-        if (v3_iszero(beta)) break;
+        if (!eye_roulette(st, depth, &beta, g) || v3_iszero(beta)) break;
         r.o = v3_offset(h.p, h.ng, d);
         r.d = d;
         stat_inc(STAT_INDIRECT_RAYS);
     }
     return L;
+}
+
+/* Emission seen along an eye ray directly or through specular surfaces, and nothing else
+ * (the specular branches as in eye_radiance: both for the first split_depth bounces, then
+ * one chosen at random in proportion to its weight). */
+static rgb eye_emission(const pm_state *st, const scene *s, ray r, int depth, rgb beta, rng *g) {
+    rgb L = v3s(0);
+    for (;; depth++) {
+        hit h;
+        if (!scene_intersect(s, r, INFINITY, &h)) break;
+        const material *m = scene_material(s, &h);
+        vec3 wo = v3_neg(r.d);
+        if (material_is_emissive(m) && (v3_dot(wo, h.ng) > 0 || m->two_sided))
+            L = v3_add(L, v3_mul(beta, m->emission));
+        double w[LOBE_COUNT];
+        material_weights(m, wo, h.ng, s->medium_ior, w);
+        double ws = w[LOBE_REFLECT] + w[LOBE_TRANSMIT];
+        if (!(ws > 0) || depth >= st->max_depth) break;
+        vec3 ns = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng), d, dt;
+        vec3 dr = v3_reflect(r.d, ns);
+        double n1, n2;
+        material_indices(m, wo, h.ng, s->medium_ior, &n1, &n2);
+        rgb br = v3_scale(v3_mul(beta, m->specular_tint), w[LOBE_REFLECT]);
+        rgb bt = v3_scale(v3_mul(beta, m->transmit_tint), w[LOBE_TRANSMIT]);
+        if (w[LOBE_TRANSMIT] > 0 && !refract_dir(r.d, ns, n1 / n2, &dt)) {
+            br = v3_add(br, bt);
+            bt = v3s(0);
+        }
+        if (v3_iszero(br) && v3_iszero(bt)) break;
+        if (depth < st->cfg.split_depth && !v3_iszero(br) && !v3_iszero(bt)) {
+            if (eye_roulette(st, depth, &br, g)) {
+                ray rr = {v3_offset(h.p, h.ng, dr), dr};
+                L = v3_add(L, eye_emission(st, s, rr, depth + 1, br, g));
+            }
+            beta = bt;
+            d = dt;
+        } else {
+            double pr = v3_maxc(br) / (v3_maxc(br) + v3_maxc(bt));
+            if (rng_uniform(g) < pr) {
+                d = dr;
+                beta = v3_scale(br, 1.0 / pr);
+            } else {
+                d = dt;
+                beta = v3_scale(bt, 1.0 / (1.0 - pr));
+            }
+        }
+        if (!eye_roulette(st, depth, &beta, g) || v3_iszero(beta)) break;
+        r.o = v3_offset(h.p, h.ng, d);
+        r.d = d;
+        stat_inc(STAT_INDIRECT_RAYS);
+    }
+    return L;
+}
+
+/* A camera sample. With emission_strata m > 0, the emission the camera sees (directly or in
+ * mirrors and glass) is not taken from the sample's own path but from m x m extra camera
+ * rays, one in each sub-stratum of the sample's stratum, that look for emission alone. The
+ * pixel integral is the same sum of two parts, each estimated without bias, but the bright
+ * edges of a light, where the coverage of a pixel is what varies, get m^2 times the camera
+ * rays for the price of a few ray casts instead of m^2 full shading samples. */
+static rgb pm_li(const integrator *self, const scene *s, ray r, rng *g, const sample_id *id,
+                 void *scratch) {
+    const pm_state *st = self->data;
+    int m = st->cfg.emission_strata;
+    if (m <= 0 || !id || id->strata <= 0)
+        return eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), 1, g, scratch);
+    rgb L = eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), 0, g, scratch), E = v3s(0);
+    int n = id->strata, W = s->cam.width;
+    double x = (double)(id->pixel % (uint64_t)W), y = (double)(id->pixel / (uint64_t)W);
+    double sx = id->k % n, sy = id->k / n;
+    for (int b = 0; b < m; b++)
+        for (int a = 0; a < m; a++) {
+            double u = rng_uniform(g), v = rng_uniform(g);
+            ray re = camera_ray(&s->cam, x + (sx + (a + u) / m) / n, y + (sy + (b + v) / m) / n);
+            stat_inc(st->st_emission_rays);
+            E = v3_add(E, eye_emission(st, s, re, 0, v3s(1), g));
+        }
+    return v3_add(L, v3_scale(E, 1.0 / (m * m)));
 }
 
 static void *pm_thread_begin(const integrator *self) {
@@ -576,6 +709,7 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
     st->st_secondary = stats_register("Photon mapping/Secondary gather rays");
     st->st_lookup = stats_register("Photon mapping/Irradiance lookups");
     st->st_global_est = stats_register("Photon mapping/Global-map estimates (direct view)");
+    st->st_emission_rays = stats_register("Photon mapping/Emission-only camera rays");
     it->data = st;
     it->preprocess = pm_preprocess;
     it->thread_begin = pm_thread_begin;

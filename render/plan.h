@@ -6,8 +6,9 @@
  *                 reached straight from a light (L S: the first step of an L S+ D path) and a
  *                 diffuse surface exists to receive it;
  *   global        a global map only if diffuse light can reflect onto other diffuse surfaces
- *                 (found by shooting cosine-distributed probe rays from every diffuse
- *                 primitive and seeing whether any lands on a diffuse surface);
+ *                 (found by probe rays that leave the lights like photons, pass specular
+ *                 surfaces to a diffuse one, and leave it with a cosine-distributed direction
+ *                 on the side they arrived at: does any reach another diffuse surface?);
  *   shadow        shadow photons only for area lights with occluders (probe segments between
  *                 points on area lights and on diffuse surfaces that face each other; an
  *                 occluder exists if any is blocked);
@@ -28,6 +29,9 @@
  * estimate), k_caustic (60), max_radius_global / max_radius_caustic (0: automatic,
  * Christensen's radius for a threshold radiance), filter ("cone", also "none", "gauss",
  * "hull"), gather_rays (32 per camera sample at the first diffuse hit), secondary_rays (8),
+ * split_depth (2: eye-path bounces at which glass traces both its branches), caustic_stride
+ * (2: the caustic map is read at one camera sample in 2 x 2 strata, weighted 4),
+ * emission_strata (2: emission seen by the camera comes from 2 x 2 extra rays per sample),
  * secondary_distance (0: automatic, the radius of a k_global estimate at the mean photon
  * density), k_shadow (16), max_emitted_factor (64: give up when this many times the target
  * were emitted), projection_cells (64: cells per side of a light's caustic projection map),
@@ -59,6 +63,9 @@ typedef struct pm_config {
     double max_radius_global, max_radius_caustic; /* 0: automatic */
     int filter;                                   /* PM_FILTER_* for the caustic estimate */
     int gather_rays, secondary_rays;
+    int split_depth; /* eye-path bounces at which glass sends both a reflected and a refracted ray */
+    int caustic_stride; /* caustic estimates at one camera sample in stride x stride */
+    int emission_strata; /* m: m x m emission-only camera rays per sample (0: none) */
     double secondary_distance; /* 0: automatic */
     double max_emitted_factor;
     int projection_cells;

@@ -26,7 +26,8 @@ static void render_tile(const scene *s, const integrator *it, const render_job *
                 double jx = rng_uniform(&g), jy = rng_uniform(&g);
                 double px = x + ((k % n) + jx) / n, py = y + ((k / n) + jy) / n;
                 ray r = camera_ray(c, px, py);
-                rgb L = it->li(it, s, r, &g, scratch);
+                sample_id id = {pixel, job->seed, k, c->spp, n};
+                rgb L = it->li(it, s, r, &g, &id, scratch);
                 if (v3_isfinite(L))
                     sum = v3_add(sum, L);
                 else

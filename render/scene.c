@@ -30,6 +30,8 @@ static int push(void **arr, int *n, int *cap, size_t sz, const void *elem) {
 
 typedef struct {
     int tcap, scap, mcap, lcap;
+    int tocap, socap; /* capacities of tri_obj, sphere_obj */
+    int obj;          /* index in $.objects of the object being loaded */
 } caps;
 
 static int check_unit_rgb(rgb c, const char *path, const char *key, json_err *e) {
@@ -184,7 +186,9 @@ static int add_tri(scene *s, caps *cp, vec3 a, vec3 b, vec3 c, int mat, const ch
     triangle t;
     if (triangle_make(&t, a, b, c, mat) < 0)
         return json_fail(e, PM_EINVAL, "%s: degenerate triangle (zero area: repeated or collinear vertices)", P);
-    if (push((void **)&s->tris, &s->ntris, &cp->tcap, sizeof t, &t) < 0)
+    int n = s->ntris;
+    if (push((void **)&s->tris, &s->ntris, &cp->tcap, sizeof t, &t) < 0 ||
+        push((void **)&s->tri_obj, &n, &cp->tocap, sizeof cp->obj, &cp->obj) < 0)
         return json_fail(e, PM_ENOMEM, "out of memory");
     return 0;
 }
@@ -220,7 +224,9 @@ static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_e
             return json_fail(e, PM_EINVAL, "%s.radius: must be positive, got %g", P, sp.r);
         TRY(find_material(s, o, P, &mat, e));
         sp.mat = mat;
-        if (push((void **)&s->spheres, &s->nspheres, &cp->scap, sizeof sp, &sp) < 0)
+        int n = s->nspheres;
+        if (push((void **)&s->spheres, &s->nspheres, &cp->scap, sizeof sp, &sp) < 0 ||
+            push((void **)&s->sphere_obj, &n, &cp->socap, sizeof cp->obj, &cp->obj) < 0)
             return json_fail(e, PM_ENOMEM, "out of memory");
     } else if (strcmp(type, "triangle") == 0) {
         vec3 v[3];
@@ -437,7 +443,7 @@ static int finish(scene *s, caps *cp, json_err *e) {
 }
 
 static int from_json(scene *s, const cJSON *root, json_err *e) {
-    caps cp = {0, 0, 0, 0};
+    caps cp = {0};
     if (!cJSON_IsObject(root))
         return json_fail(e, PM_EINVAL, "$: expected an object, got %s", json_type_name(root));
     static const char *known[] = {"camera", "materials", "objects", "lights", "medium_ior",
@@ -471,6 +477,7 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
     int i = 0;
     for (const cJSON *it = objs->child; it; it = it->next, i++) {
         json_path_index(p, sizeof p, "$.objects", i);
+        cp.obj = i;
         TRY(load_object(s, &cp, it, p, e));
     }
     TRY(json_array(root, "$", "lights", 0, &lights, e));
@@ -518,6 +525,8 @@ void scene_free(scene *s) {
     free(s->mats);
     free(s->tris);
     free(s->spheres);
+    free(s->tri_obj);
+    free(s->sphere_obj);
     free(s->lights);
     distrib1d_free(&s->light_distrib);
     bvh_free(&s->accel);

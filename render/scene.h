@@ -56,6 +56,7 @@ typedef struct scene {
     int ntris;
     sphere *spheres;
     int nspheres;
+    int *tri_obj, *sphere_obj; /* index in $.objects of each triangle's / sphere's object */
     light *lights;
     int nlights;
     distrib1d light_distrib; /* choose a light in proportion to its power (mean of RGB) */
@@ -95,6 +96,10 @@ int scene_visible_dir(const scene *s, vec3 p, vec3 np, vec3 d);
 
 static inline const material *scene_material(const scene *s, const hit *h) {
     return &s->mats[h->mat];
+}
+/* The index in $.objects of the object that primitive prim (hit.prim) came from. */
+static inline int scene_prim_object(const scene *s, int prim) {
+    return prim < s->ntris ? s->tri_obj[prim] : s->sphere_obj[prim - s->ntris];
 }
 /* Is this primitive an area light in the light list (sampled by next-event estimation)? */
 static inline int scene_prim_is_light(const scene *s, int prim) {
