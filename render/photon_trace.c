@@ -246,7 +246,6 @@ typedef struct pass_ctx {
     rgb *light_scale; /* per light: power / p_light (times the projection fraction) */
     projmap *proj;    /* caustic pass: one per light */
     double shift[6];
-    int st_first_specular;
 } pass_ctx;
 
 static void emit_photon(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *p, vec3 *n, vec3 *d,
@@ -286,8 +285,9 @@ static double maxc_prod(double w, rgb t, rgb P) {
     return w * fmax(t.x * P.x, fmax(t.y * P.y, t.z * P.z));
 }
 
-/* Trace photon i; stores into gb (global or caustic) and sb (shadow). Returns 0 or ENOMEM. */
-static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb) {
+/* Trace photon i; stores into gb (global or caustic) and sb (shadow), and sets *first_specular
+ * to 1 if it is a caustic-pass photon whose first hit is specular. Returns 0 or ENOMEM. */
+static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *first_specular) {
     const scene *s = c->s;
     rng g = rng_stream(c->o->seed, i, c->caustic_pass ? 2 : 1);
     int li;
@@ -308,7 +308,7 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb) {
         double w[LOBE_COUNT];
         material_weights(m, wo, h.ng, s->medium_ior, w);
         int diffuse_here = w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0;
-        if (c->caustic_pass && depth == 0 && !diffuse_here) stat_inc(c->st_first_specular);
+        if (c->caustic_pass && depth == 0 && !diffuse_here) *first_specular = 1;
         if (diffuse_here) {
             if (c->caustic_pass) {
                 if (depth > 0 && all_specular) {
@@ -387,7 +387,8 @@ static int pack(const fbuf *b, double scale, pm_photon **out, size_t *n) {
 
 /* Run one pass until `target` photons are in main_buf (or the runaway limit). */
 static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, uint64_t *emitted,
-                    int *runaway, const char *title, char *err, size_t errcap) {
+                    uint64_t *first_specular, int *runaway, const char *title, char *err,
+                    size_t errcap) {
     const trace_opts *o = c->o;
     int nthreads = 1;
 #ifdef _OPENMP
@@ -402,7 +403,7 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
         return PM_ENOMEM;
     }
     double limit = o->max_emitted_factor * (double)target;
-    uint64_t n_e = 0;
+    uint64_t n_e = 0, nfirst = 0;
     int rc = 0;
     progress prog;
     progress_begin(&prog, title, target, o->quiet);
@@ -410,16 +411,19 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
     while ((long)main_buf->n < target && (double)n_e < limit && rc == 0) {
         int fail = 0;
 #ifdef _OPENMP
-#pragma omp parallel for num_threads(nthreads) schedule(dynamic, 64) reduction(| : fail)
+#pragma omp parallel for num_threads(nthreads) schedule(dynamic, 64) reduction(| : fail) \
+    reduction(+ : nfirst)
 #endif
         for (int k = 0; k < PT_BATCH; k++) {
-            int t = 0;
+            int t = 0, fs = 0;
 #ifdef _OPENMP
             t = omp_get_thread_num();
 #endif
             /* Without a global map the shadow photons are the pass's main output. */
-            if (trace_photon(c, n_e + (uint64_t)k, &tg[t], c->want_global ? &ts[t] : &tg[t]) < 0)
+            if (trace_photon(c, n_e + (uint64_t)k, &tg[t], c->want_global ? &ts[t] : &tg[t],
+                             &fs) < 0)
                 fail = 1;
+            nfirst += (uint64_t)fs;
         }
         n_e += PT_BATCH;
         if (fail || fbuf_merge(main_buf, tg, nthreads) < 0 ||
@@ -439,6 +443,7 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
                 "(do the lights face anything?)\n",
                 title, main_buf->n, target, (unsigned long long)n_e);
     *emitted = n_e;
+    if (first_specular) *first_specular = nfirst;
     for (int t = 0; t < nthreads; t++) {
         free(tg[t].v);
         free(ts[t].v);
@@ -508,7 +513,7 @@ int photon_trace(const scene *s, const trace_opts *o, pm_maps *m, char *err, siz
         shifts(c.shift, o->seed, 1);
         /* With the global map off, the shadow map's count is the target. */
         rc = run_pass(&c, o->global_target, o->global ? &gbuf : &sbuf, o->global ? &sbuf : NULL,
-                      &m->global_emitted, &m->global_runaway,
+                      &m->global_emitted, NULL, &m->global_runaway,
                       o->global ? "Tracing global photons" : "Tracing shadow photons", err, errcap);
         stat_add(st_emit_g, m->global_emitted);
     }
@@ -544,7 +549,6 @@ int photon_trace(const scene *s, const trace_opts *o, pm_maps *m, char *err, siz
             c.o = o;
             c.caustic_pass = 1;
             c.proj = proj;
-            c.st_first_specular = st_first;
             rc = distrib1d_init(&c.choose, w, nl);
             for (int i = 0; rc == 0 && i < nl; i++) {
                 double pl = distrib1d_prob(&c.choose, i);
@@ -555,7 +559,8 @@ int photon_trace(const scene *s, const trace_opts *o, pm_maps *m, char *err, siz
             shifts(c.shift, o->seed, 2);
             if (rc == 0)
                 rc = run_pass(&c, o->caustic_target, &cbuf, NULL, &m->caustic_emitted,
-                              &m->caustic_runaway, "Tracing caustic photons", err, errcap);
+                              &m->caustic_first_specular, &m->caustic_runaway,
+                              "Tracing caustic photons", err, errcap);
             distrib1d_free(&c.choose);
             m->caustic_fraction = wsum / psum;
             if (m->caustic_fraction > 0)
@@ -563,6 +568,7 @@ int photon_trace(const scene *s, const trace_opts *o, pm_maps *m, char *err, siz
                     (uint64_t)((double)m->caustic_emitted * (1.0 / m->caustic_fraction - 1.0) + 0.5);
             stat_add(st_emit_c, m->caustic_emitted);
             stat_add(st_saved, m->caustic_saved);
+            stat_add(st_first, m->caustic_first_specular);
         }
         if (rc == PM_ENOMEM && !err[0]) snprintf(err, errcap, "out of memory");
         for (int i = 0; proj && i < nl; i++) free(proj[i].active);
