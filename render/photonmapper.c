@@ -3,9 +3,9 @@
  *
  * PREPROCESS. Read the settings ("$.photon_mapping", plan.h), decide and print the plan,
  * then either trace the maps (photon_trace.h) or load them from a directory (load_photons),
- * build a kd-tree over each (pm_kdtree_build; the records are reordered into tree order),
- * optionally save them in tree order (save_photons: DIR/global.pmap, caustic.pmap,
- * shadow.pmap, the format of photonmap/photon.h), and precompute irradiance at a quarter of
+ * optionally save them as traced (save_photons: DIR/global.pmap, caustic.pmap, shadow.pmap,
+ * the format of photonmap/photon.h, tree_bucket 0), build a kd-tree over each
+ * (pm_kdtree_build; the records are reordered into tree order), and precompute irradiance at a quarter of
  * the global photons (Christensen). Maximum search radii are automatic unless given:
  * Christensen's radius beyond which k photons of the largest power would give less than a
  * threshold radiance, 0.5% of the mean radiance the lights' power would give on the diffuse
@@ -592,27 +592,29 @@ static int pm_preprocess(integrator *self, const scene *s, char *err, size_t err
                (unsigned long long)m->caustic_saved);
     }
     stats_time_add("Time/Photon tracing (or loading)", stats_now() - t0);
-    t0 = stats_now();
-    if ((rc = build_tree(&st->tg, m->global, m->nglobal, BUCKET_GLOBAL, err, errcap)) < 0 ||
-        (rc = build_tree(&st->tc, m->caustic, m->ncaustic, BUCKET_CAUSTIC, err, errcap)) < 0 ||
-        (rc = build_tree(&st->ts, m->shadow, m->nshadow, BUCKET_SHADOW, err, errcap)) < 0)
-        return rc;
-    stats_time_add("Time/Photon kd-trees", stats_now() - t0);
+    /* Saved before the trees reorder them: loading these files then gives the trees, the
+     * precomputed irradiance and the image of this run exactly. */
     if (st->cfg.save_dir[0]) {
         if (mkdir(st->cfg.save_dir, 0777) != 0 && errno != EEXIST) {
             snprintf(err, errcap, "cannot create %s: %s", st->cfg.save_dir, strerror(errno));
             return PM_EIO;
         }
         if ((rc = save_map(st->cfg.save_dir, "global.pmap", m->global, m->nglobal, PM_MAP_GLOBAL,
-                           m->global_emitted, BUCKET_GLOBAL, err, errcap)) < 0 ||
+                           m->global_emitted, 0, err, errcap)) < 0 ||
             (rc = save_map(st->cfg.save_dir, "caustic.pmap", m->caustic, m->ncaustic,
-                           PM_MAP_CAUSTIC, m->caustic_emitted, BUCKET_CAUSTIC, err, errcap)) < 0 ||
+                           PM_MAP_CAUSTIC, m->caustic_emitted, 0, err, errcap)) < 0 ||
             (rc = save_map(st->cfg.save_dir, "shadow.pmap", m->shadow, m->nshadow, PM_MAP_SHADOW,
-                           m->global_emitted, BUCKET_SHADOW, err, errcap)) < 0)
+                           m->global_emitted, 0, err, errcap)) < 0)
             return rc;
         printf("Saved photon maps to %s\n", st->cfg.save_dir);
     }
 
+    t0 = stats_now();
+    if ((rc = build_tree(&st->tg, m->global, m->nglobal, BUCKET_GLOBAL, err, errcap)) < 0 ||
+        (rc = build_tree(&st->tc, m->caustic, m->ncaustic, BUCKET_CAUSTIC, err, errcap)) < 0 ||
+        (rc = build_tree(&st->ts, m->shadow, m->nshadow, BUCKET_SHADOW, err, errcap)) < 0)
+        return rc;
+    stats_time_add("Time/Photon kd-trees", stats_now() - t0);
     /* Radii. */
     double area = diffuse_area(s);
     double phi = 0;

@@ -6,9 +6,8 @@
  * the one-thread maps for the two-thread maps (bit-identical); Phi (1 - rho^D) / (1 - rho),
  * D = max_depth + 1, for the power stored in a closed box, within 1% with 4 standard errors and the RGBE
  * rounding bound inside it; exact emitted counts for a light that faces nothing; zeros in
- * the statistics for skipped caustics; the traced maps for the saved files, and one render
- * from the saved maps for another (bit-identical). The image rendered from saved maps does
- * not yet equal the one that traced them: see PM_TEST_ROUND_TRIP_EXACT.
+ * the statistics for skipped caustics; the traced maps for the saved files, and the render
+ * that traced the maps for the one that loads them (bit-identical).
  */
 #include <dirent.h>
 #include <fcntl.h>
@@ -699,32 +698,9 @@ TEST(render_pm_render_skipped_caustics_zero) {
 
 /* ---- 6. saved photon maps ------------------------------------------------------------------ */
 
-/* KNOWN BUG (not fixed here: the fix belongs in render/photonmapper.c or photonmap/kdtree.c,
- * outside this change). `--load-photons` rebuilds each kd-tree with pm_kdtree_build over the
- * saved records, which are already in tree order; the build's introselect moves tied records
- * and bucket contents, so the loaded trees differ from the saved ones, precomputed irradiance
- * lands on other photons, and the image differs from the run that saved the maps (measured:
- * up to a third of a pixel's value at 16x16, 1 spp on cornell_box). photon.h's tree_bucket
- * field promises the loader can rebuild the tree without reordering; once the load path
- * keeps the saved order, set this to 1 and the test below demands the bit-identical image. */
-#ifndef PM_TEST_ROUND_TRIP_EXACT
-#define PM_TEST_ROUND_TRIP_EXACT 0
-#endif
-
-static int cmp_photon(const void *a, const void *b) { return memcmp(a, b, sizeof(pm_photon)); }
-
-/* The records sorted by their bytes, with the kd-tree's axis bits cleared. */
-static pm_photon *canonical(const pm_photon *ph, size_t n) {
-    pm_photon *c = malloc((n ? n : 1) * sizeof *c);
-    if (!c) return NULL;
-    if (n) memcpy(c, ph, n * sizeof *c);
-    for (size_t i = 0; i < n; i++) c[i].flag &= (uint8_t)~PM_FLAG_AXIS_MASK;
-    qsort(c, n, sizeof *c, cmp_photon);
-    return c;
-}
-
 /* DIR/NAME must load with pm_map_load and hold exactly the photons of `want` (n of them, in
- * any order), with the map kind, emitted count and bucket size of the header right. */
+ * the same order: maps are saved as traced, before a kd-tree reorders them), with the map
+ * kind, emitted count and bucket size (0: no tree order) of the header right. */
 static void check_saved(const char *dir, const char *name, const pm_photon *want, size_t n,
                         uint32_t kind, uint64_t emitted, uint32_t bucket) {
     char path[1024];
@@ -740,24 +716,19 @@ static void check_saved(const char *dir, const char *name, const pm_photon *want
     EXPECT_EQ_INT(h.emitted, emitted);
     EXPECT_EQ_INT(h.record_size, sizeof(pm_photon));
     EXPECT_EQ_INT(h.tree_bucket, bucket);
-    if (h.count == n) {
-        pm_photon *a = canonical(ph, n), *b = canonical(want, n);
-        EXPECT_MSG(a && b && (n == 0 || memcmp(a, b, n * sizeof *a) == 0),
-                   "%s: the saved photons are not the traced ones", name);
-        free(a);
-        free(b);
-    }
+    if (h.count == n)
+        EXPECT_MSG(n == 0 || memcmp(ph, want, n * sizeof *ph) == 0,
+                   "%s: the saved photons are not the traced ones, in trace order", name);
     free(ph);
 }
 
 /* Oracle: photon_trace run in this process with the options `render` derives from the same
  * scene, seed and flags (the maps do not depend on the thread count, see above): the saved
- * files load with pm_map_load and hold exactly those photons (as multisets: the files are in
- * kd-tree order), with the right counts, kinds, emitted numbers and bucket sizes (1, 8, 8).
+ * files load with pm_map_load and hold exactly those photons in the same order, with the
+ * right counts, kinds, emitted numbers and bucket sizes (0: saved before the trees).
  * Rendering from the saved maps is reproducible: two renders with the same seed give
  * bit-identical PFMs, and a different seed a different one. The image from the saved maps
- * must equal the image of the run that traced them bit for bit: see PM_TEST_ROUND_TRIP_EXACT
- * above for why that is not yet asserted. */
+ * equals the image of the run that traced them bit for bit. */
 TEST(render_pm_save_load_round_trip) {
     static char out[65536];
     char dir[1024], extra[4096], a[1024], b[1024], c[1024], d[1024];
@@ -792,9 +763,9 @@ TEST(render_pm_save_load_round_trip) {
              m.nglobal, m.nshadow, (unsigned long long)m.global_emitted, m.ncaustic,
              (unsigned long long)m.caustic_emitted);
     EXPECT_MSG(strstr(out, want), "expected \"%s\" in %s", want, out);
-    check_saved(dir, "global.pmap", m.global, m.nglobal, PM_MAP_GLOBAL, m.global_emitted, 1);
-    check_saved(dir, "caustic.pmap", m.caustic, m.ncaustic, PM_MAP_CAUSTIC, m.caustic_emitted, 8);
-    check_saved(dir, "shadow.pmap", m.shadow, m.nshadow, PM_MAP_SHADOW, m.global_emitted, 8);
+    check_saved(dir, "global.pmap", m.global, m.nglobal, PM_MAP_GLOBAL, m.global_emitted, 0);
+    check_saved(dir, "caustic.pmap", m.caustic, m.ncaustic, PM_MAP_CAUSTIC, m.caustic_emitted, 0);
+    check_saved(dir, "shadow.pmap", m.shadow, m.nshadow, PM_MAP_SHADOW, m.global_emitted, 0);
 
     snprintf(extra, sizeof extra, "--seed 7 --hdr '%s' --load-photons '%s'", b, dir);
     rc = render_tiny("cornell_spheres", extra, out, sizeof out);
@@ -818,12 +789,8 @@ TEST(render_pm_save_load_round_trip) {
     ASSERT(ia && ib && ic && id);
     EXPECT_MSG(nb == nc && memcmp(ib, ic, nb) == 0, "two renders from the same maps and seed differ");
     EXPECT_MSG(nb != nd || memcmp(ib, id, nb) != 0, "seed 8 gave the same image as seed 7");
-    int exact = na == nb && memcmp(ia, ib, na) == 0;
-    if (PM_TEST_ROUND_TRIP_EXACT)
-        EXPECT_MSG(exact, "the PFM rendered from the loaded maps differs from the traced one");
-    else if (!exact)
-        printf("    known bug: the image from the loaded maps differs from the traced one "
-               "(PM_TEST_ROUND_TRIP_EXACT)\n");
+    EXPECT_MSG(na == nb && memcmp(ia, ib, na) == 0,
+               "the PFM rendered from the loaded maps differs from the traced one");
     free(ia);
     free(ib);
     free(ic);
