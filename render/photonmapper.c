@@ -323,8 +323,11 @@ static int eye_roulette(const pm_state *st, int depth, rgb *beta, rng *g) {
  * then sees the reflected light and the refracted room together, and that choice adds no
  * noise. Gathering spends rays in proportion to the throughput (at least one), so the faint
  * reflection branch of glass costs little. */
+/* What an eye path collects: emission it meets, the shading of diffuse surfaces, or both. */
+enum { EYE_ALL, EYE_SHADE, EYE_EMIT };
+
 static rgb eye_radiance(const pm_state *st, const scene *s, ray r, int depth, rgb beta,
-                        double cw, int emit, rng *g, pm_scratch *sc) {
+                        double cw, int what, rng *g, pm_scratch *sc) {
     rgb L = v3s(0);
     for (;; depth++) {
         hit h;
@@ -332,12 +335,12 @@ static rgb eye_radiance(const pm_state *st, const scene *s, ray r, int depth, rg
         stat_inc(STAT_PATH_VERTICES);
         const material *m = scene_material(s, &h);
         vec3 wo = v3_neg(r.d);
-        if (emit && material_is_emissive(m) && (v3_dot(wo, h.ng) > 0 || m->two_sided))
+        if (what != EYE_SHADE && material_is_emissive(m) && (v3_dot(wo, h.ng) > 0 || m->two_sided))
             L = v3_add(L, v3_mul(beta, m->emission));
         vec3 ns = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
         double w[LOBE_COUNT];
         material_weights(m, wo, h.ng, s->medium_ior, w);
-        if (w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0) {
+        if (what != EYE_EMIT && w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0) {
             rgb Ld;
             if (st->direct_vis) {
                 stat_inc(st->st_global_est);
@@ -377,64 +380,12 @@ static rgb eye_radiance(const pm_state *st, const scene *s, ray r, int depth, rg
             if (eye_roulette(st, depth, &br, g)) {
                 ray rr = {v3_offset(h.p, h.ng, dr), dr};
                 stat_inc(STAT_INDIRECT_RAYS);
-                L = v3_add(L, eye_radiance(st, s, rr, depth + 1, br, cw, emit, g, sc));
+                L = v3_add(L, eye_radiance(st, s, rr, depth + 1, br, cw, what, g, sc));
             }
             beta = bt;
             d = dt;
         } else {
             /* One branch, chosen in proportion to its weight (w / p = the weights' sum). */
-            double pr = v3_maxc(br) / (v3_maxc(br) + v3_maxc(bt));
-            if (rng_uniform(g) < pr) {
-                d = dr;
-                beta = v3_scale(br, 1.0 / pr);
-            } else {
-                d = dt;
-                beta = v3_scale(bt, 1.0 / (1.0 - pr));
-            }
-        }
-        if (!eye_roulette(st, depth, &beta, g) || v3_iszero(beta)) break;
-        r.o = v3_offset(h.p, h.ng, d);
-        r.d = d;
-        stat_inc(STAT_INDIRECT_RAYS);
-    }
-    return L;
-}
-
-/* Emission seen along an eye ray directly or through specular surfaces, and nothing else
- * (the specular branches as in eye_radiance: both for the first split_depth bounces, then
- * one chosen at random in proportion to its weight). */
-static rgb eye_emission(const pm_state *st, const scene *s, ray r, int depth, rgb beta, rng *g) {
-    rgb L = v3s(0);
-    for (;; depth++) {
-        hit h;
-        if (!scene_intersect(s, r, INFINITY, &h)) break;
-        const material *m = scene_material(s, &h);
-        vec3 wo = v3_neg(r.d);
-        if (material_is_emissive(m) && (v3_dot(wo, h.ng) > 0 || m->two_sided))
-            L = v3_add(L, v3_mul(beta, m->emission));
-        double w[LOBE_COUNT];
-        material_weights(m, wo, h.ng, s->medium_ior, w);
-        double ws = w[LOBE_REFLECT] + w[LOBE_TRANSMIT];
-        if (!(ws > 0) || depth >= st->max_depth) break;
-        vec3 ns = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng), d, dt;
-        vec3 dr = v3_reflect(r.d, ns);
-        double n1, n2;
-        material_indices(m, wo, h.ng, s->medium_ior, &n1, &n2);
-        rgb br = v3_scale(v3_mul(beta, m->specular_tint), w[LOBE_REFLECT]);
-        rgb bt = v3_scale(v3_mul(beta, m->transmit_tint), w[LOBE_TRANSMIT]);
-        if (w[LOBE_TRANSMIT] > 0 && !refract_dir(r.d, ns, n1 / n2, &dt)) {
-            br = v3_add(br, bt);
-            bt = v3s(0);
-        }
-        if (v3_iszero(br) && v3_iszero(bt)) break;
-        if (depth < st->cfg.split_depth && !v3_iszero(br) && !v3_iszero(bt)) {
-            if (eye_roulette(st, depth, &br, g)) {
-                ray rr = {v3_offset(h.p, h.ng, dr), dr};
-                L = v3_add(L, eye_emission(st, s, rr, depth + 1, br, g));
-            }
-            beta = bt;
-            d = dt;
-        } else {
             double pr = v3_maxc(br) / (v3_maxc(br) + v3_maxc(bt));
             if (rng_uniform(g) < pr) {
                 d = dr;
@@ -463,8 +414,9 @@ static rgb pm_li(const integrator *self, const scene *s, ray r, rng *g, const sa
     const pm_state *st = self->data;
     int m = st->cfg.emission_strata;
     if (m <= 0 || !id || id->strata <= 0)
-        return eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), 1, g, scratch);
-    rgb L = eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), 0, g, scratch), E = v3s(0);
+        return eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_ALL, g, scratch);
+    rgb L = eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_SHADE, g, scratch);
+    rgb E = v3s(0);
     int n = id->strata, W = s->cam.width;
     double x = (double)(id->pixel % (uint64_t)W), y = (double)(id->pixel / (uint64_t)W);
     double sx = id->k % n, sy = id->k / n;
@@ -473,7 +425,7 @@ static rgb pm_li(const integrator *self, const scene *s, ray r, rng *g, const sa
             double u = rng_uniform(g), v = rng_uniform(g);
             ray re = camera_ray(&s->cam, x + (sx + (a + u) / m) / n, y + (sy + (b + v) / m) / n);
             stat_inc(st->st_emission_rays);
-            E = v3_add(E, eye_emission(st, s, re, 0, v3s(1), g));
+            E = v3_add(E, eye_radiance(st, s, re, 0, v3s(1), 0, EYE_EMIT, g, scratch));
         }
     return v3_add(L, v3_scale(E, 1.0 / (m * m)));
 }
