@@ -34,7 +34,8 @@
  * emission_strata^2 extra camera rays per sample that look for nothing else (pm_li), so the
  * edges of lights are antialiased at a fraction of the cost of full samples.
  * In preview mode, or with final gathering forced off, the diffuse surface shows the
- * global map's radiance estimate (k_global photons) plus emission, and nothing else.
+ * global map's radiance estimate (k_global photons) plus emission, and nothing else; without
+ * a global map it gets direct light and caustics only.
  *
  * Threads: li only reads the maps; each thread has its own scratch (estimate buffers).
  */
@@ -182,15 +183,18 @@ static rgb caustics_at(const pm_state *st, const scene *s, const material *m, co
     return map_estimate(st->tc, &st->caus_opt, h->p, ns, diffuse_albedo(s, m, wo, h->ng), sc->est);
 }
 
-/* Follow a ray through specular surfaces to the first diffuse hit. Returns 1 with the hit
- * and the throughput, 0 if it escapes, is absorbed or runs out of bounces. */
-static int to_diffuse(const pm_state *st, const scene *s, ray r, rng *g, hit *h, rgb *beta) {
+/* Follow a ray through specular surfaces to the first diffuse hit. Returns the number of
+ * specular bounces + 1 with the hit, the throughput and the direction of the last segment
+ * (*din, pointing into the hit), or 0 if it escapes, is absorbed or runs out of bounces. */
+static int to_diffuse(const pm_state *st, const scene *s, ray r, rng *g, hit *h, rgb *beta,
+                      vec3 *din) {
     *beta = v3s(1);
     for (int b = 0; b < 8; b++) {
         if (!scene_intersect(s, r, INFINITY, h)) return 0;
         const material *m = scene_material(s, h);
         vec3 wo = v3_neg(r.d);
-        if (has_diffuse(s, m, wo, h->ng)) return 1;
+        *din = r.d;
+        if (has_diffuse(s, m, wo, h->ng)) return b + 1;
         double w[LOBE_COUNT];
         material_weights(m, wo, h->ng, s->medium_ior, w);
         double ws = w[LOBE_REFLECT] + w[LOBE_TRANSMIT];
@@ -274,12 +278,15 @@ static rgb gather(const pm_state *st, const scene *s, const material *m, const h
         ray r = {v3_offset(h->p, h->ng, d), d};
         hit y;
         rgb beta;
-        if (!to_diffuse(st, s, r, g, &y, &beta)) continue;
+        vec3 din;
+        int steps = to_diffuse(st, s, r, g, &y, &beta, &din);
+        if (!steps) continue;
+        /* y is seen from -din, the last segment's direction (not d after a mirror). */
         rgb Lo;
-        if (!secondary && v3_iszero(v3_sub(beta, v3s(1))) && y.t < st->sec_dist)
-            Lo = secondary_radiance(st, s, &y, v3_neg(d), g, sc);
+        if (!secondary && steps == 1 && y.t < st->sec_dist)
+            Lo = secondary_radiance(st, s, &y, v3_neg(din), g, sc);
         else
-            Lo = lookup_radiance(st, s, &y, v3_neg(d));
+            Lo = lookup_radiance(st, s, &y, v3_neg(din));
         /* cosine sampling: f cos / pdf = pi f */
         sum = v3_add(sum, v3_mul(v3_mul(f, beta), Lo));
     }
@@ -651,7 +658,10 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
     }
     st->preview = preview;
     plan_make(s, &st->cfg, preview, &st->plan);
-    st->direct_vis = preview || !st->plan.final_gather.on;
+    /* The global map is shown directly in preview mode or with gathering forced off; with no
+     * global map at all (the plan found no indirect diffuse light) the surfaces get direct
+     * light and caustics, and no indirect term, rather than the estimate of an absent map. */
+    st->direct_vis = (preview || !st->plan.final_gather.on) && st->plan.global.on;
     st->max_depth = s->settings.max_depth;
     st->rr_depth = s->settings.rr_depth;
     st->kmax = (unsigned)(st->cfg.k_global > st->cfg.k_caustic ? st->cfg.k_global : st->cfg.k_caustic);
