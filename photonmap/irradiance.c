@@ -1,10 +1,8 @@
 /* irradiance.c: precomputed irradiance at photons, its lookup, and combined photon maps.
  *
- * The precomputation is a plain loop over the chosen photons. Each runs the search of the
- * disc-estimate wrapper of estimate.c at the photon's position with its decoded normal, but
- * through a filter that also rejects the photon's own record (by index, so duplicates at the
- * same position still count), and then the disc-estimate core on what it found; OpenMP splits
- * the loop, and each thread gets its own estimate scratch, allocated before the parallel region
+ * The precomputation is a plain loop over the chosen photons, each running the disc-estimate
+ * wrapper of estimate.c at the photon's position with its decoded normal; OpenMP splits the
+ * loop, and each thread gets its own estimate scratch, allocated before the parallel region
  * so that a failed allocation is reported without racing. Results are packed as RGBE next to
  * a bitmask of which photons were done. The 256 possible normals are decoded once into a
  * table, so the lookup predicate is a bit test and a dot product.
@@ -47,41 +45,6 @@ void pm_irradiance_free(pm_irradiance *irr) {
     free(irr->mask);
     free(irr->r2);
     free(irr);
-}
-
-/* The search filter of one precomputed estimate: not the photon itself, and (with
- * reject_behind) not from behind its surface. */
-typedef struct self_filter_ctx {
-    const float *normal;
-    uint32_t self;
-    int reject_behind;
-} self_filter_ctx;
-
-static int self_filter(void *user, const void *record, uint32_t index) {
-    const self_filter_ctx *c = (const self_filter_ctx *)user;
-    if (index == c->self) return 0;
-    return !c->reject_behind || pm_filter_front((void *)c->normal, record, index);
-}
-
-/* The estimate at photon i over the k nearest photons other than i. */
-static int estimate_at_photon(const pm_irradiance *irr, uint32_t i, const pm_estimate_options *eo,
-                              void *scratch, pm_estimate_result *r) {
-    const pm_photon *p = &irr->photons[i];
-    const float *nrm = irr->normals[p->normal];
-    self_filter_ctx fc = {nrm, i, eo->reject_behind};
-    pm_knn_options ko;
-    memset(&ko, 0, sizeof ko);
-    if (eo->squash > 1.0f) {
-        ko.normal = nrm;
-        ko.squash = eo->squash;
-    }
-    ko.filter = self_filter;
-    ko.filter_user = &fc;
-    pm_neighbor *nb = (pm_neighbor *)scratch;
-    int found = pm_kdtree_knn_ex(irr->tree, p->pos, eo->k, eo->max_dist2, &ko, nb, NULL);
-    if (found < 0) return found;
-    /* The disc core needs no scratch of its own. */
-    return pm_estimate_core(irr->photons, nb, (unsigned)found, p->pos, nrm, eo, NULL, r);
 }
 
 int pm_irradiance_build(pm_irradiance **out, const pm_kdtree *tree,
@@ -143,9 +106,11 @@ int pm_irradiance_build(pm_irradiance **out, const pm_kdtree *tree,
             for (long i = byte * 8; i < n && i < byte * 8 + 8; i++) {
                 if (opt->fraction == PM_PRECOMP_QUARTER && pm_kdtree_height(tree, (uint32_t)i) < 2)
                     continue;
+                const pm_photon *p = &irr->photons[i];
+                const float *nrm = irr->normals[p->normal];
                 pm_estimate_result r;
                 float rgb[3];
-                if (estimate_at_photon(irr, (uint32_t)i, &eo, scratch[t], &r) != PM_OK) continue;
+                if (pm_estimate(tree, p->pos, nrm, &eo, scratch[t], &r, NULL) != PM_OK) continue;
                 for (int c = 0; c < 3; c++) rgb[c] = (float)fmin(r.rgb[c], 1e38);
                 pm_rgbe_encode(rgb, irr->rgbe[i]);
                 if (irr->r2) irr->r2[i] = (float)fmin(r.r2, 3e38);

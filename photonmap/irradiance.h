@@ -5,19 +5,11 @@
  * and computes, at a chosen set of photons, the irradiance E (or, given a diffuse reflectance
  * rho, the radiance rho E / pi) with the bias-corrected disc estimate of k photons, using the
  * photon's own quantized normal (pm_photon.normal) as the surface normal and rejecting photons
- * that arrived from behind that surface. The k photons are the nearest OTHER than the photon
- * itself (only its own record is left out; duplicates at its position count, and a lone
- * photon gets 0), so that the value behaves like pm_estimate at a point that is not a photon:
- * a density estimate at one of its own samples is biased high (for Poisson photons its mean
- * is (k - 0.5)/(k - 2) times the truth instead of (k - 0.5)/(k - 1): +1.5% against +0.5% at
- * k = 100). A LOOKUP at x therefore reads about 1/k below pm_estimate at x, whose k nearest
- * include the photon found: measured -1.7% to -2.1% at k = 50 and -0.9% to -1.3% at k = 100,
- * for random, jittered and Halton photons alike (self-including values matched pm_estimate at
- * x within 0.25%). The set is either every photon or about a quarter of them: those with
- * pm_kdtree_height(tree, i) >= 2, i.e. neither leaves nor parents of leaves (for the classic
- * tree, B = 1, exactly the records i with 4 (i + 1) <= n). With leaf buckets of B > 2 records
- * fewer qualify (measured on 100,000 uniform points: 25% for B = 1 and 2, 16% for B = 4, 8%
- * for B = 8). The loop runs in parallel with OpenMP when the build has it.
+ * that arrived from behind that surface. The set is either every photon or about a quarter of
+ * them: those with pm_kdtree_height(tree, i) >= 2, i.e. neither leaves nor parents of leaves
+ * (for the classic tree, B = 1, exactly the records i with 4 (i + 1) <= n). With leaf buckets
+ * of B > 2 records fewer qualify (measured on 100,000 uniform points: 25% for B = 1 and 2, 16%
+ * for B = 4, 8% for B = 8). The loop runs in parallel with OpenMP when the build has it.
  *
  * STORAGE AND COST. One RGBE value (4 bytes) per photon of the map, in tree order, plus one bit
  * per photon that says whether it was precomputed, plus (only if opt.store_radius) the float
