@@ -11,6 +11,13 @@
  * of B > 2 records fewer qualify (measured on 100,000 uniform points: 25% for B = 1 and 2, 16%
  * for B = 4, 8% for B = 8). The loop runs in parallel with OpenMP when the build has it.
  *
+ * The k photons of the estimate at photon i include i itself. At its own sample point a density
+ * estimate reads high (about 1/k for Poisson photons), but a value is only ever used through a
+ * lookup at some point x, which takes the photon nearest x, and "nearest to x" means the disc
+ * between x and it holds no other photon: the two effects cancel, and a lookup then matches
+ * pm_estimate at x (measured within 0.3% at k = 50 and 100, for random, jittered and Halton
+ * photons; leaving i out made lookups read 1/k low: -1% at k = 100).
+ *
  * STORAGE AND COST. One RGBE value (4 bytes) per photon of the map, in tree order, plus one bit
  * per photon that says whether it was precomputed, plus (only if opt.store_radius) the float
  * radius^2 of the photon's own estimate (4 bytes): 4.125 bytes per photon, or 8.125 with
