@@ -11,6 +11,8 @@ for f in regions.csv time_error.csv time_error_summary.txt; do
   [ -f "$res/$f" ] || { echo "gen-results-md: $res/$f missing: run scripts/make-results.sh" >&2; exit 2; }
 done
 sum() { awk -v k="$1" '$1 == k { print $2 }' "$res/time_error_summary.txt"; }
+# The same figure rounded: fmt KEY PRINTF-FORMAT.
+fmt() { printf "$2" "$(sum "$1")"; }
 info() { awk -v k="$2" '$1 == k { print $2 }' "$refdir/$1.info" 2>/dev/null; }
 flags=$(sed -n 's/^PM_FLAGS="\(.*\)"$/\1/p' "$here/scripts/make-results.sh")
 dflags=$(sed -n 's/^DEFAULT_FLAGS="\(.*\)"$/\1/p' "$here/scripts/make-results.sh")
@@ -70,6 +72,13 @@ for name in cornell_spheres cornell_diffuse; do
   echo
 done
 cat <<EOF
+$(awk -F, 'NR > 1 { n++; if ($9 == "yes") ok++; d = $7 < 0 ? -$7 : $7; if (d > m) { m = d; w = $1 " " $3 " (" $2 ")" } }
+  END { printf "%d of %d region means are within their tolerance; the largest difference is %.2f%%, %s.", ok, n, 100 * m, w }' "$res/regions.csv")
+Shadow photons (the default plan) leave the means as they are and cost
+$(awk '{ print $1 }' "$res/cornell_spheres_default.time" "$res/cornell_spheres_pm.time" | awk 'NR == 1 { a = $1 } NR == 2 { printf "%.0f%%", 100 * (a / $1 - 1) }')
+more time on cornell_spheres: with 14 primitives, a shadow ray is cheaper than the 16-photon
+lookup that would skip it.
+
 Both images of a scene share the reference's auto exposure. The difference image shows the
 luminance of photon mapping minus the reference, relative to the reference's mean luminance:
 orange where photon mapping is brighter, blue where it is darker, saturating at 25%.
@@ -80,7 +89,10 @@ Path tracing and photon mapping at several sample counts, each run timed on $(np
 and compared with the reference. The reference is a path tracer too, so each measured
 RMSE² holds its noise c/N_ref besides the run's own error. The constant c is fitted from
 the path-traced runs (RMSE² = c (1/N + 1/N_ref)), and c/N_ref is subtracted from every run
-("corrected"). The reference's own RMSE is then $(sum reference_rmse).
+("corrected"). The reference's own RMSE is then $(fmt reference_rmse %.5f). Each path-traced run on its own gives
+$(awk -F, -v nr="$(sum reference_spp)" 'NR > 1 && $1 == "path" { c = $6 * $6 / (1 / $2 + 1 / nr); lo = lo == "" || c < lo ? c : lo; hi = c > hi ? c : hi }
+  END { printf "c between %.4f and %.4f (the fit: %.4f)", lo, hi, '"$(sum c)"' }' "$res/time_error.csv"), so the path tracer's
+error does fall as 1/sqrt(N).
 
 | method | spp | wall s | CPU s | RMSE vs reference | corrected RMSE |
 |---|---:|---:|---:|---:|---:|
@@ -90,11 +102,17 @@ cat <<EOF
 
 ![error against time](results/time_error.png)
 
-Photon mapping reaches a corrected RMSE of $(sum pm_rmse) in $(sum pm_seconds) s (interpolated
-between the runs around 60 s). Path tracing needs about $(sum pt_spp_for_equal_error) samples
-per pixel for the same error, $(sum pt_seconds_for_equal_error) s at its measured
-$(sum pt_seconds_per_spp) s per sample per pixel: **$(printf '%.1f' "$ratio")x longer** (target: at
+Photon mapping reaches a corrected RMSE of $(fmt pm_rmse %.5f) in $(fmt pm_seconds %.0f) s (interpolated
+in log-log between the runs around 60 s). Path tracing needs about $(fmt pt_spp_for_equal_error %.0f)
+samples per pixel for the same error, $(fmt pt_seconds_for_equal_error %.0f) s at its measured
+$(fmt pt_seconds_per_spp %.4f) s per sample per pixel: **$(printf '%.1f' "$ratio")x longer** (target: at
 least 5x; $verdict).
+$(awk -F, 'NR > 1 && $1 == "path" && $2 > n { n = $2; t = $4; e = $7 }
+           NR > 1 && $1 == "pm" { k++; pt[k] = $4; pe[k] = $7 }
+           END { for (i = 1; i < k; i++) if (pe[i] >= e && pe[i + 1] <= e) {
+                   f = (log(e) - log(pe[i])) / (log(pe[i + 1]) - log(pe[i]))
+                   tp = exp(log(pt[i]) + f * (log(pt[i + 1]) - log(pt[i])))
+                   printf "Without the fit: the longest path-traced run (%d spp, %.0f s) reached %.5f, which photon\nmapping reaches in %.0f s (interpolated between its runs): %.1fx.\n", n, t, e, tp, t / tp } }' "$res/time_error.csv")
 
 What the photon mapper does to get there (all in \`render/photonmapper.c\`): glass sends both
 its reflected and refracted rays for the first two bounces of a camera path; the caustic map
