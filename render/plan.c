@@ -22,13 +22,13 @@ void pm_config_defaults(pm_config *c) {
     memset(c, 0, sizeof *c);
     c->force_caustics = c->force_global = c->force_shadow = c->force_final_gather = PLAN_AUTO;
     c->global_photons = 200000;
-    c->caustic_photons = 100000;
+    c->caustic_photons = 500000;
     c->k_global = 100;
     c->k_caustic = 60;
     c->k_shadow = 16;
     c->filter = PM_FILTER_CONE;
-    c->gather_rays = 32;
-    c->secondary_rays = 8;
+    c->gather_rays = 4;
+    c->secondary_rays = 2;
     c->split_depth = 2;
     c->caustic_stride = 2;
     c->emission_strata = 2;

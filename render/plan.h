@@ -24,11 +24,12 @@
  * `--save-photons DIR` and `--load-photons DIR` to the scene's photon_mapping object before
  * the integrator reads it, so a flag and the file can never disagree about names.
  *
- * Keys (defaults in parentheses): global_photons (200000 stored), caustic_photons (100000
+ * Keys (defaults in parentheses): global_photons (200000 stored), caustic_photons (500000
  * stored), k_global (100; photons per precomputed irradiance estimate and per preview
  * estimate), k_caustic (60), max_radius_global / max_radius_caustic (0: automatic,
  * Christensen's radius for a threshold radiance), filter ("cone", also "none", "gauss",
- * "hull"), gather_rays (32 per camera sample at the first diffuse hit), secondary_rays (8),
+ * "hull"), gather_rays (4 per camera sample at the first diffuse hit: a few rays per sample and many
+ * samples beat many rays per sample, docs/RESULTS.md), secondary_rays (2),
  * split_depth (2: eye-path bounces at which glass traces both its branches), caustic_stride
  * (2: the caustic map is read at one camera sample in 2 x 2 strata, weighted 4),
  * emission_strata (2: emission seen by the camera comes from 2 x 2 extra rays per sample),
