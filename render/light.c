@@ -7,9 +7,21 @@
 int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2, light_sample *ls) {
     const light *l = &s->lights[li];
     switch (l->type) {
-    case LIGHT_AREA: {
-        const triangle *tr = &s->tris[l->tri];
-        vec3 q = triangle_sample(tr, u1, u2);
+    case LIGHT_AREA:
+    case LIGHT_SPHERE: {
+        vec3 q, nq;
+        double area;
+        if (l->type == LIGHT_AREA) {
+            const triangle *tr = &s->tris[l->tri];
+            q = triangle_sample(tr, u1, u2);
+            nq = tr->n;
+            area = tr->area;
+        } else {
+            const sphere *sp = &s->spheres[l->sphere];
+            nq = sample_uniform_sphere(u1, u2);
+            q = v3_madd(sp->c, nq, sp->r);
+            area = 4 * M_PI * sp->r * sp->r;
+        }
         vec3 d = v3_sub(q, p);
         double dist2 = v3_len2(d);
         if (!(dist2 > 0)) return 0;
@@ -17,12 +29,12 @@ int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2,
         ls->wi = v3_scale(d, 1.0 / dist);
         ls->dist = dist;
         ls->p = q;
-        ls->n = tr->n;
-        double cos_l = -v3_dot(ls->wi, tr->n); /* > 0 when p is in front of the light */
+        ls->n = nq;
+        double cos_l = -v3_dot(ls->wi, nq); /* > 0 when p is in front of the light */
         if (l->two_sided) cos_l = fabs(cos_l);
         if (cos_l <= 0) return 0;
         /* Le / pdf_omega with pdf_omega = dist^2 / (cos_l A). */
-        ls->L = v3_scale(l->Le, cos_l * tr->area / dist2);
+        ls->L = v3_scale(l->Le, cos_l * area / dist2);
         return 1;
     }
     case LIGHT_POINT: {
@@ -50,20 +62,30 @@ int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2,
 void light_sample_le(const struct scene *s, int li, const double u[4], vec3 *p, vec3 *n, vec3 *d) {
     const light *l = &s->lights[li];
     switch (l->type) {
-    case LIGHT_AREA: {
-        const triangle *tr = &s->tris[l->tri];
+    case LIGHT_AREA:
+    case LIGHT_SPHERE: {
         double u0 = u[0];
-        vec3 nn = tr->n;
+        int back = 0;
         if (l->two_sided) {
             /* Reuse u[0] after the side choice so it stays uniform. */
             if (u0 < 0.5) {
                 u0 *= 2;
             } else {
                 u0 = 2 * u0 - 1;
-                nn = v3_neg(nn);
+                back = 1;
             }
         }
-        *p = triangle_sample(tr, u0, u[1]);
+        vec3 nn;
+        if (l->type == LIGHT_AREA) {
+            const triangle *tr = &s->tris[l->tri];
+            *p = triangle_sample(tr, u0, u[1]);
+            nn = tr->n;
+        } else {
+            const sphere *sp = &s->spheres[l->sphere];
+            nn = sample_uniform_sphere(u0, u[1]);
+            *p = v3_madd(sp->c, nn, sp->r);
+        }
+        if (back) nn = v3_neg(nn);
         *n = nn;
         *d = sampling_to_world(sample_cosine_hemisphere(u[2], u[3]), nn);
         return;

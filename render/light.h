@@ -3,14 +3,16 @@
  * Area lights are the scene's triangles (and quads, as two triangles) whose material emits:
  * the loader makes one light per emissive triangle. They emit Le from the front side (or
  * both, two_sided) and are sampled by a uniform point on the triangle, whose area pdf 1/A is
- * turned into a solid-angle pdf with dist^2 / (cos_light A). Emissive spheres are not in the
- * light list: they contribute only when a path hits them (this is what the furnace needs).
+ * turned into a solid-angle pdf with dist^2 / (cos_light A). Emissive spheres are sphere
+ * lights, sampled the same way by a uniform point on the whole sphere (half of the samples
+ * land on the far side and carry nothing when it emits outward only; from inside a two-sided
+ * sphere, the furnace, every sample counts).
  * Point lights have an intensity I (W/sr); directional lights an irradiance E (W/m^2 on a
  * surface facing them) and a direction of travel.
  *
  * Each light also carries its total power (W), which the path tracer uses to choose a light
  * in proportion to it and photon emission uses to share photons out:
- *   area: pi Le A (x2 if two-sided); point: 4 pi I; directional: E pi R^2, where R is the
+ *   area and sphere: pi Le A (x2 if two-sided); point: 4 pi I; directional: E pi R^2, where R is the
  *   radius of the scene's bounding sphere (the disc photons are shot from).
  */
 #ifndef RENDER_LIGHT_H
@@ -22,11 +24,12 @@
 extern "C" {
 #endif
 
-enum { LIGHT_AREA, LIGHT_POINT, LIGHT_DIRECTIONAL };
+enum { LIGHT_AREA, LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPHERE };
 
 typedef struct light {
     int type;
     int tri;        /* area: index into scene.tris */
+    int sphere;     /* sphere: index into scene.spheres */
     vec3 pos;       /* point: position */
     vec3 dir;       /* directional: unit direction in which the light travels */
     rgb Le;         /* area: emitted radiance */
@@ -54,6 +57,7 @@ int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2,
 /* A ray of light leaving light number li, for photon emission; u[0..3] uniform in [0,1).
  *   area:        a uniform point on the triangle and a cosine-weighted direction about its
  *                front normal (two-sided: u[0] < 0.5 picks the front, the rest the back);
+ *   sphere:      the same with a uniform point on the sphere (front: the outside);
  *   point:       the light's position and a uniform direction;
  *   directional: a uniform point on the disc of radius R (the scene's bounding sphere)
  *                perpendicular to the light, R in front of the scene, travelling along dir.

@@ -8,8 +8,8 @@
  *     power, one point on it, a shadow ray; the area pdf becomes a solid-angle pdf through
  *     dist^2 / (cos_light A) (light.c). The continuation is cosine-weighted;
  *   - emission seen directly, or after a specular bounce, is added; after a diffuse bounce
- *     the emission of sampled area lights is skipped because next-event estimation already
- *     counted it (emissive spheres, which are not sampled, always count);
+ *     the emission of lights (emissive triangles and spheres) is skipped because next-event
+ *     estimation already counted it;
  *   - Russian roulette after rr_depth bounces with survival probability min(0.95, max
  *     channel of the throughput), dividing the throughput by it; a hard limit max_depth.
  * Caustics from small lights are therefore found only by paths that happen to hit the light

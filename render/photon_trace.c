@@ -137,6 +137,9 @@ static int proj_dim(const light *l) { return l->type == LIGHT_AREA ? 2 : 0; }
 /* Is cell (cx, cy) of light li's G x G grid able to send a photon into a sphere of sph? */
 static int cell_active(const scene *s, int li, int G, int cx, int cy, const bsph *sph, int nsph) {
     const light *l = &s->lights[li];
+    /* A sphere light's normal changes over its surface, so a cell of directions bounds no
+     * cone: every cell stays active (no saving, no loss). */
+    if (l->type == LIGHT_SPHERE) return 1;
     /* Nine points of the cell: corners, edge midpoints, centre. */
     double pu[9], pv[9];
     int k = 0;

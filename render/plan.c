@@ -272,7 +272,7 @@ static int probe_to_diffuse(const scene *s, ray *r, rng *g, hit *h) {
 static void plan_global(const scene *s, render_plan *p) {
     if (!emitting_lights(s))
         return set(&p->global, 0,
-                   "no light emits photons (emissive spheres are not photon sources)%s", "");
+                   "no light emits photons%s", "");
     rng g = rng_stream(PLAN_SEED, 2, 0);
     for (int k = 0; k < 4096; k++) {
         double pl, u[4];
@@ -300,7 +300,7 @@ static void plan_shadow(const scene *s, render_plan *p) {
     int area = 0;
     for (int i = 0; i < s->nlights; i++) area += s->lights[i].type == LIGHT_AREA && v3_maxc(s->lights[i].power) > 0;
     if (!area)
-        return set(&p->shadow, 0, "no area light (point and directional lights need one shadow ray each)%s", "");
+        return set(&p->shadow, 0, "no area light of triangles (point, directional and sphere lights take one shadow ray each)%s", "");
     int ndiff = 0;
     for (int i = 0; i < prim_count(s); i++) ndiff += material_is_diffuse(prim_mat(s, i));
     if (!ndiff) return set(&p->shadow, 0, "no diffuse surface%s", "");

@@ -224,6 +224,7 @@ static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_e
             return json_fail(e, PM_EINVAL, "%s.radius: must be positive, got %g", P, sp.r);
         TRY(find_material(s, o, P, &mat, e));
         sp.mat = mat;
+        sp.light = -1;
         int n = s->nspheres;
         if (push((void **)&s->spheres, &s->nspheres, &cp->scap, sizeof sp, &sp) < 0 ||
             push((void **)&s->sphere_obj, &n, &cp->socap, sizeof cp->obj, &cp->obj) < 0)
@@ -403,12 +404,29 @@ static int finish(scene *s, caps *cp, json_err *e) {
         if (push((void **)&s->lights, &s->nlights, &cp->lcap, sizeof l, &l) < 0)
             return json_fail(e, PM_ENOMEM, "out of memory");
     }
+    for (int i = 0; i < s->nspheres; i++) {
+        const material *m = &s->mats[s->spheres[i].mat];
+        if (!material_is_emissive(m)) continue;
+        light l;
+        memset(&l, 0, sizeof l);
+        l.type = LIGHT_SPHERE;
+        l.tri = -1;
+        l.sphere = i;
+        l.Le = m->emission;
+        l.two_sided = m->two_sided;
+        s->spheres[i].light = s->nlights;
+        if (push((void **)&s->lights, &s->nlights, &cp->lcap, sizeof l, &l) < 0)
+            return json_fail(e, PM_ENOMEM, "out of memory");
+    }
     double *w = malloc((size_t)(s->nlights ? s->nlights : 1) * sizeof *w);
     if (!w) return json_fail(e, PM_ENOMEM, "out of memory");
     for (int i = 0; i < s->nlights; i++) {
         light *l = &s->lights[i];
         if (l->type == LIGHT_AREA)
             l->power = v3_scale(l->Le, M_PI * s->tris[l->tri].area * (l->two_sided ? 2 : 1));
+        else if (l->type == LIGHT_SPHERE)
+            l->power = v3_scale(l->Le, M_PI * 4 * M_PI * s->spheres[l->sphere].r *
+                                           s->spheres[l->sphere].r * (l->two_sided ? 2 : 1));
         else if (l->type == LIGHT_POINT)
             l->power = v3_scale(l->intensity, 4 * M_PI);
         else
@@ -416,9 +434,9 @@ static int finish(scene *s, caps *cp, json_err *e) {
         w[i] = (l->power.x + l->power.y + l->power.z) / 3.0;
         if (!isfinite(w[i])) { /* finite inputs whose product overflows */
             free(w);
-            if (l->type == LIGHT_AREA)
-                return json_fail(e, PM_EINVAL, "an emissive triangle: its power (pi Le area) is too "
-                                 "large to represent");
+            if (l->type == LIGHT_AREA || l->type == LIGHT_SPHERE)
+                return json_fail(e, PM_EINVAL, "an emissive %s: its power (pi Le area) is too "
+                                 "large to represent", l->type == LIGHT_AREA ? "triangle" : "sphere");
             return json_fail(e, PM_EINVAL, "$.lights[%d]: its power is too large to represent%s", i,
                              l->type == LIGHT_DIRECTIONAL ? " (irradiance times the scene's cross-section)" : "");
         }

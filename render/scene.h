@@ -103,7 +103,7 @@ static inline int scene_prim_object(const scene *s, int prim) {
 }
 /* Is this primitive an area light in the light list (sampled by next-event estimation)? */
 static inline int scene_prim_is_light(const scene *s, int prim) {
-    return prim < s->ntris && s->tris[prim].light >= 0;
+    return prim < s->ntris ? s->tris[prim].light >= 0 : s->spheres[prim - s->ntris].light >= 0;
 }
 
 #ifdef __cplusplus

@@ -37,6 +37,7 @@ typedef struct sphere {
     vec3 c;
     double r;
     int mat;
+    int light; /* index into scene.lights if the sphere emits (a sphere light), else -1 */
 } sphere;
 
 /* Build a triangle from three points; returns 0, or -1 if it is degenerate (zero area or

@@ -79,7 +79,7 @@ TEST(render_triangle_grazing) {
 
 /* Oracle: from inside a sphere every ray hits the far side: |p - c| = r to 1e-12 relative. */
 TEST(render_sphere_from_inside) {
-    sphere s = {v3(1, 2, 3), 5, 0};
+    sphere s = {v3(1, 2, 3), 5, 0, -1};
     rng g = rng_stream(3, 0, 0);
     for (int i = 0; i < 1000; i++) {
         vec3 o = v3_add(s.c, v3_scale(sample_uniform_sphere(rng_uniform(&g), rng_uniform(&g)),
@@ -97,14 +97,14 @@ TEST(render_sphere_from_inside) {
  * 1 + 1e-6 misses and one at 1 - 1e-6 hits. Also a huge sphere (r = 1e6) seen from near its
  * surface gives |p - c| = r to 1e-12. */
 TEST(render_sphere_far_away) {
-    sphere s = {v3(0, 0, 0), 1, 0};
+    sphere s = {v3(0, 0, 0), 1, 0, -1};
     double t;
     ray r = {v3(1e8, 0.5, 0), v3(-1, 0, 0)};
     ASSERT(sphere_intersect(&s, r, 0, INFINITY, &t));
     ASSERT_NEAR(t, 1e8 - sqrt(0.75), 3e-8);
     ASSERT(!sphere_intersect(&s, (ray){v3(1e8, 1 + 1e-6, 0), v3(-1, 0, 0)}, 0, INFINITY, &t));
     ASSERT(sphere_intersect(&s, (ray){v3(1e8, 1 - 1e-6, 0), v3(-1, 0, 0)}, 0, INFINITY, &t));
-    sphere big = {v3(0, -1e6, 0), 1e6, 0};
+    sphere big = {v3(0, -1e6, 0), 1e6, 0, -1};
     rng g = rng_stream(4, 0, 0);
     for (int i = 0; i < 1000; i++) {
         vec3 o = v3(rng_uniform(&g) * 100, 1 + rng_uniform(&g), rng_uniform(&g) * 100);
@@ -148,7 +148,7 @@ TEST(render_bvh_matches_brute_force) {
     }
     for (int i = 0; i < ns; i++)
         sp[i] = (sphere){v3(rng_uniform(&g) * 100, rng_uniform(&g) * 100, rng_uniform(&g) * 100),
-                         0.5 + 4 * rng_uniform(&g), 0};
+                         0.5 + 4 * rng_uniform(&g), 0, -1};
     sp[1] = sp[0]; /* an exact duplicate */
     bvh b;
     ASSERT_EQ_INT(bvh_build(&b, tr, nt, sp, ns), 0);
@@ -178,7 +178,7 @@ TEST(render_bvh_matches_brute_force) {
 /* Oracle: rays reflected off a convex sphere cannot hit it again. Far from the origin
  * (centre at 1e5) a fixed tiny epsilon would re-hit; the magnitude-scaled offset never does. */
 TEST(render_offset_avoids_self_hits) {
-    sphere s = {v3(1e5, -2e5, 3e5), 1e3, 0};
+    sphere s = {v3(1e5, -2e5, 3e5), 1e3, 0, -1};
     rng g = rng_stream(5, 0, 0);
     int self = 0, n = 0;
     for (int i = 0; i < 5000; i++) {

@@ -73,3 +73,52 @@ TEST(render_light_directional_flux) {
     ASSERT_NEAR(flux, 2.0 * M_PI, 5 * sd);
     scene_free(&s);
 }
+
+/* A sphere light (radius r, Le) seen from a point at distance D from its centre, facing it:
+ * the irradiance there is E = pi Le r^2 / D^2 (the sphere subtends a cap of sin^2 = r^2/D^2).
+ * Next-event samples must average to it (the far half of the sphere gives 0), within 5
+ * standard errors; emission must start on the sphere, go out of it cosine-distributed about
+ * the outward normal (mean cos 2/3), and the light's power is pi Le 4 pi r^2. */
+TEST(render_light_sphere_irradiance_and_emission) {
+    const char *txt =
+        "{\"camera\": {\"eye\": [0,0,-5], \"look_at\": [0,0,0], \"fov_deg\": 40, \"width\": 4, \"height\": 4},"
+        "\"materials\": {\"e\": {\"type\": \"lambert\", \"reflectance\": 0, \"emission\": 3}},"
+        "\"objects\": [{\"type\": \"sphere\", \"center\": [1,2,3], \"radius\": 0.5, \"material\": \"e\"}]}";
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
+    ASSERT_EQ_INT(s.nlights, 1);
+    ASSERT_EQ_INT(s.lights[0].type, LIGHT_SPHERE);
+    ASSERT(scene_prim_is_light(&s, s.ntris + 0));
+    ASSERT_NEAR(s.lights[0].power.x, M_PI * 3 * 4 * M_PI * 0.25, 1e-9);
+    double D = 2.0;
+    vec3 c = v3(1, 2, 3), p = v3(1, 2, 3 - D), np = v3(0, 0, 1);
+    int N = 200000;
+    rng g = rng_stream(3, 0, 0);
+    double se1 = 0, se2 = 0;
+    for (int i = 0; i < N; i++) {
+        light_sample ls;
+        double v = 0;
+        if (light_sample_li(&s, 0, p, rng_uniform(&g), rng_uniform(&g), &ls)) {
+            ASSERT_NEAR(v3_len(v3_sub(ls.p, c)), 0.5, 1e-9);
+            double cp = v3_dot(ls.wi, np);
+            ASSERT(cp > 0);
+            v = ls.L.x * cp;
+        }
+        se1 += v;
+        se2 += v * v;
+    }
+    double mean = se1 / N, sd = sqrt((se2 / N - mean * mean) / N);
+    ASSERT_NEAR(mean, M_PI * 3 * 0.25 / (D * D), 5 * sd);
+    double mc = 0;
+    for (int i = 0; i < N; i++) {
+        double u[4] = {rng_uniform(&g), rng_uniform(&g), rng_uniform(&g), rng_uniform(&g)};
+        vec3 o, n, d;
+        light_sample_le(&s, 0, u, &o, &n, &d);
+        ASSERT_NEAR(v3_len(v3_sub(o, c)), 0.5, 1e-9);
+        ASSERT_NEAR(v3_dot(n, v3_scale(v3_sub(o, c), 2)), 1.0, 1e-9); /* outward */
+        mc += v3_dot(d, n);
+    }
+    ASSERT_NEAR(mc / N, 2.0 / 3.0, 0.005); /* sd of cos is 0.24: 5 se = 0.0027 */
+    scene_free(&s);
+}
