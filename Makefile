@@ -5,6 +5,7 @@
 #   make run             render the default Cornell box to out/
 #   make bench           run the full benchmarks, write bench/results/*.csv, plots and docs
 #   make bench-quick     a small benchmark subset (also run by the test suite)
+#   make results         path-traced references (if missing, ~45 min) and docs/RESULTS.md (~20 min)
 #   make install PREFIX=/usr/local DESTDIR=
 #   make clean
 #
@@ -74,7 +75,7 @@ TEST_BIN   := $(BUILD)/run_tests
 RENDER_LIBS := -lcjson -lpng -lz -lm
 FLANN_LIBS  := -lflann -lm
 
-.PHONY: all lib render bench-bin tests test run bench bench-quick install uninstall clean deps example
+.PHONY: all lib render bench-bin tests test run bench bench-quick results install uninstall clean deps example
 .DEFAULT_GOAL := all
 
 all: $(LIB) $(if $(wildcard render/main.c),$(RENDER_BIN)) $(BENCH_BINS) $(TEST_BIN)
@@ -151,6 +152,14 @@ bench: $(BENCH_DEPS)
 bench-quick: $(BENCH_DEPS)
 	@command -v gnuplot >/dev/null 2>&1 || sh scripts/install-deps.sh --bench
 	PM_BENCH_CFLAGS="$(ALL_CFLAGS)" sh scripts/run-bench.sh $(BUILD) quick $(BUILD)/bench-quick
+
+# ---- results -------------------------------------------------------------------------------
+# Photon mapping against long path-traced references (data/reference/, not in git).
+results: $(RENDER_BIN)
+	@command -v gnuplot >/dev/null 2>&1 || sh scripts/install-deps.sh --bench
+	@for s in cornell_spheres cornell_diffuse; do [ -f data/reference/$$s.pfm ] || \
+	    PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-reference.sh $$s || exit 1; done
+	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-results.sh
 
 # ---- install -------------------------------------------------------------------------------
 install: $(LIB)

@@ -16,7 +16,8 @@
 # The reference uses seed 1000; the path-tracing runs of the time-to-equal-error experiment
 # use other seeds, so their noise is independent of the reference's. The reference's own
 # noise (it is a path tracer too) is estimated there from the same runs, not assumed zero.
-# It runs under nice: it takes 10 to 30 minutes per scene on 2 shared cores.
+# It runs under nice: on 2 cores, cornell_spheres (65,536 spp) took 35 minutes and
+# cornell_diffuse (16,384 spp) 10 minutes.
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 bin="${PM_BUILD_DIR:-$here/build/release}/render"
@@ -30,8 +31,8 @@ for name in "$@"; do
   scene="$here/data/scenes/$name.json"
   [ -f "$scene" ] || { echo "make-reference: no scene $scene" >&2; exit 2; }
   case "$name" in
-    cornell_spheres) def_spp=16384 ;;
-    *) def_spp=8192 ;;
+    cornell_spheres) def_spp=65536 ;;
+    *) def_spp=16384 ;;
   esac
   eval "spp=\${REF_SPP_$name:-$def_spp}"
   echo "make-reference: $name at ${res}x${res}, $spp spp (started $(date -u +%H:%M:%S) UTC)"
