@@ -391,30 +391,19 @@ static int finish(scene *s, caps *cp, json_err *e) {
     s->bounds_hi = hi;
     s->bsphere_c = v3_scale(v3_add(lo, hi), 0.5);
     s->bsphere_r = 0.5 * v3_len(v3_sub(hi, lo));
-    for (int i = 0; i < s->ntris; i++) {
-        const material *m = &s->mats[s->tris[i].mat];
+    /* One light per emissive primitive p (numbered as hit.prim): triangles, then spheres. */
+    for (int p = 0; p < s->ntris + s->nspheres; p++) {
+        int is_tri = p < s->ntris, k = is_tri ? p : p - s->ntris;
+        const material *m = &s->mats[is_tri ? s->tris[k].mat : s->spheres[k].mat];
         if (!material_is_emissive(m)) continue;
         light l;
         memset(&l, 0, sizeof l);
-        l.type = LIGHT_AREA;
-        l.tri = i;
+        l.type = is_tri ? LIGHT_AREA : LIGHT_SPHERE;
+        l.tri = is_tri ? k : -1;
+        l.sphere = is_tri ? -1 : k;
         l.Le = m->emission;
         l.two_sided = m->two_sided;
-        s->tris[i].light = s->nlights;
-        if (push((void **)&s->lights, &s->nlights, &cp->lcap, sizeof l, &l) < 0)
-            return json_fail(e, PM_ENOMEM, "out of memory");
-    }
-    for (int i = 0; i < s->nspheres; i++) {
-        const material *m = &s->mats[s->spheres[i].mat];
-        if (!material_is_emissive(m)) continue;
-        light l;
-        memset(&l, 0, sizeof l);
-        l.type = LIGHT_SPHERE;
-        l.tri = -1;
-        l.sphere = i;
-        l.Le = m->emission;
-        l.two_sided = m->two_sided;
-        s->spheres[i].light = s->nlights;
+        *(is_tri ? &s->tris[k].light : &s->spheres[k].light) = s->nlights;
         if (push((void **)&s->lights, &s->nlights, &cp->lcap, sizeof l, &l) < 0)
             return json_fail(e, PM_ENOMEM, "out of memory");
     }
