@@ -76,6 +76,16 @@ static int parse_long(const char *s, long lo, long hi, long *out) {
     return 0;
 }
 
+/* A positive, finite number: 0, or -1 (a missing value, trailing text, <= 0, inf, nan). */
+static int parse_positive(const char *s, double *out) {
+    if (!s) return -1;
+    char *end;
+    double v = strtod(s, &end);
+    if (end == s || *end || !(v > 0) || !isfinite(v)) return -1;
+    *out = v;
+    return 0;
+}
+
 static int read_pfm_or_say(film *f, const char *path) {
     int rc = film_read_pfm(f, path);
     if (rc < 0)
@@ -120,9 +130,7 @@ static int run_compare(int argc, char **argv) {
             ids[nids++] = (int)v;
             i++;
         } else if (strcmp(argv[i], "--diff-scale") == 0) {
-            char *end = NULL;
-            dscale = i + 1 < argc ? strtod(argv[i + 1], &end) : 0;
-            if (!end || *end || !(dscale > 0) || !isfinite(dscale)) {
+            if (parse_positive(i + 1 < argc ? argv[i + 1] : NULL, &dscale) < 0) {
                 fprintf(stderr, "render: --diff-scale needs a positive number\n");
                 return 2;
             }
@@ -191,9 +199,7 @@ static int run_tonemap(int argc, char **argv) {
     int tone = FILM_TONE_FILMIC;
     for (int i = 2; i < argc; i++) {
         if (strcmp(argv[i], "--exposure") == 0) {
-            char *end = NULL;
-            exposure = i + 1 < argc ? strtod(argv[i + 1], &end) : 0;
-            if (!end || *end || !(exposure > 0) || !isfinite(exposure)) {
+            if (parse_positive(i + 1 < argc ? argv[i + 1] : NULL, &exposure) < 0) {
                 fprintf(stderr, "render: --exposure needs a positive number\n");
                 return 2;
             }
@@ -298,9 +304,7 @@ int main(int argc, char **argv) {
             bad = strcmp(v, "filmic") != 0 && strcmp(v, "srgb") != 0;
         } else if (strcmp(a, "--exposure") == 0) {
             NEED_VALUE();
-            char *end;
-            exposure = strtod(v, &end);
-            bad = *end || !(exposure > 0) || !isfinite(exposure);
+            bad = parse_positive(v, &exposure) < 0;
         } else if (strcmp(a, "--pm") == 0 || strcmp(a, "--save-photons") == 0 ||
                    strcmp(a, "--load-photons") == 0) {
             NEED_VALUE();
