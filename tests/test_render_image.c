@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "test.h"
+#include "../photonmap/common.h"
 #include "../render/compare.h"
 #include "../render/film.h"
 #include "../render/integrator.h"
@@ -246,4 +247,69 @@ TEST(render_auto_exposure_clips_requested_fraction) {
     }
     free(lum);
     film_free(&f);
+}
+
+/* Oracles: geometry for `render --mode objects` on cornell_spheres (the ray through the image
+ * centre meets the back wall, object 2, since both spheres top out at y = 200 below the eye's
+ * 273; two rows from the top the centre sees the ceiling, object 1, and four rows down the
+ * light, object 5, which hangs at y = 548.7 over x 213..343; every object is seen), and hand sums
+ * for image_compare_region over a mask with a silhouette pixel (G != R^2) that must be left
+ * out even though its R is a whole number. */
+TEST(render_object_masks_and_region_compare) {
+    char ids[1024], cmd[4096], out[8192];
+    snprintf(ids, sizeof ids, "%s/ids.pfm", pm_test_tmpdir());
+    snprintf(cmd, sizeof cmd, "%s/render '%s/data/scenes/cornell_spheres.json' --mode objects "
+             "--width 32 --height 32 --spp 64 --quiet --hdr '%s'", pm_test_build_dir(),
+             pm_test_source_dir(), ids);
+    ASSERT_MSG(pm_test_run(cmd, out, sizeof out) == 0, "%s", out);
+    film m;
+    ASSERT_EQ_INT(film_read_pfm(&m, ids), 0);
+    int count[10] = {0}, silhouette = 0;
+    for (int y = 0; y < 32; y++)
+        for (int x = 0; x < 32; x++) {
+            rgb p = film_get(&m, x, y);
+            if (p.x == p.z && p.y == p.x * p.x && p.x == floor(p.x) && p.x >= 0 && p.x <= 8)
+                count[(int)p.x]++;
+            else
+                silhouette++;
+        }
+    rgb c = film_get(&m, 16, 16), t = film_get(&m, 16, 2), l = film_get(&m, 16, 4);
+    EXPECT_MSG(c.x == 3 && c.y == 9, "centre pixel sees (%g, %g), not the back wall", c.x, c.y);
+    EXPECT_MSG(t.x == 2 && t.y == 4, "pixel (16, 2) sees (%g, %g), not the ceiling", t.x, t.y);
+    EXPECT_MSG(l.x == 6 && l.y == 36, "pixel (16, 4) sees (%g, %g), not the light", l.x, l.y);
+    for (int j = 1; j <= 8; j++) EXPECT_MSG(count[j] > 0, "object %d seen by no pixel alone", j - 1);
+    EXPECT_MSG(silhouette > 0 && silhouette < 32 * 32 / 2, "%d silhouette pixels", silhouette);
+    film_free(&m);
+
+    /* 3 x 1 images: pixel 0 sees object id 1, pixel 1 a silhouette with R = 1 (mean of 0 and
+     * 2: G = 2 != 1), pixel 2 id 2. */
+    film a, b, k;
+    ASSERT_EQ_INT(film_init(&a, 3, 1), 0);
+    ASSERT_EQ_INT(film_init(&b, 3, 1), 0);
+    ASSERT_EQ_INT(film_init(&k, 3, 1), 0);
+    film_set(&a, 0, 0, v3s(2));
+    film_set(&a, 1, 0, v3s(100));
+    film_set(&a, 2, 0, v3s(5));
+    film_set(&b, 0, 0, v3s(1));
+    film_set(&b, 1, 0, v3s(1));
+    film_set(&b, 2, 0, v3s(4));
+    film_set(&k, 0, 0, v3(1, 1, 1));
+    film_set(&k, 1, 0, v3(1, 2, 1));
+    film_set(&k, 2, 0, v3(2, 4, 2));
+    int one = 1, both[2] = {1, 2};
+    image_diff d;
+    image_region r1 = {0, 0, 0, 0, &k, &one, 1};
+    ASSERT_EQ_INT(image_compare_region(&a, &b, &r1, &d), 0);
+    EXPECT_EQ_INT(d.npixels, 1);
+    EXPECT_NEAR(d.rel_mean, 1.0, 1e-12); /* 2 against 1 */
+    image_region r2 = {0, 0, 0, 0, &k, both, 2};
+    ASSERT_EQ_INT(image_compare_region(&a, &b, &r2, &d), 0);
+    EXPECT_EQ_INT(d.npixels, 2);
+    EXPECT_NEAR(d.mean_a, 3.5, 1e-12);
+    EXPECT_NEAR(d.rmse, 1.0, 1e-12);
+    image_region r3 = {2, 0, 1, 1, &k, &one, 1}; /* the rectangle holds no pixel of id 1 */
+    EXPECT_EQ_INT(image_compare_region(&a, &b, &r3, &d), PM_EINVAL);
+    film_free(&a);
+    film_free(&b);
+    film_free(&k);
 }
