@@ -5,8 +5,8 @@
  * then either trace the maps (photon_trace.h) or load them from a directory (load_photons),
  * optionally save them as traced (save_photons: DIR/global.pmap, caustic.pmap, shadow.pmap,
  * the format of photonmap/photon.h, tree_bucket 0), build a kd-tree over each
- * (pm_kdtree_build; the records are reordered into tree order), and precompute irradiance at a quarter of
- * the global photons (Christensen). Maximum search radii are automatic unless given:
+ * (pm_kdtree_build; the records are reordered into tree order), and precompute irradiance
+ * at a quarter of the global photons (Christensen). Maximum search radii are automatic unless given:
  * Christensen's radius beyond which k photons of the largest power would give less than a
  * threshold radiance, 0.5% of the mean radiance the lights' power would give on the diffuse
  * area (phi / (pi A)).
@@ -23,9 +23,10 @@
  *     Gaussian, convex hull), photons from behind the surface rejected; with caustic_stride
  *     c > 1 only at one camera sample in c x c, a stratified subset, weighted c^2 (unbiased);
  *   - indirect diffuse: final gathering. gather_rays cosine-distributed rays (per camera
- *     sample, scaled down by the path's throughput after a weighted split, at least one) follow specular surfaces to the first diffuse surface y and read the
- *     precomputed irradiance of the photon nearest y with a similar normal, times y's
- *     diffuse reflectance / pi. Emission met by a gather ray is skipped (direct light and
+ *     sample, scaled down by the path's throughput after a weighted split, at least one)
+ *     follow specular surfaces to the first diffuse surface y and read the precomputed
+ *     irradiance of the photon nearest y with a similar normal, times y's diffuse
+ *     reflectance / pi. Emission met by a gather ray is skipped (direct light and
  *     caustics count it). When the first gather hit is closer than secondary_distance (about
  *     the radius of a global-map estimate), the global map is too coarse there (the corner
  *     artefact of the Kilauea notes), so a secondary gather computes y's outgoing light from
@@ -310,6 +311,8 @@ static double caustic_weight(const pm_state *st, const sample_id *id) {
     return sx % c == ox && sy % c == oy ? (double)c * c : 0.0;
 }
 
+enum { EYE_ALL, EYE_SHADE, EYE_EMIT };
+
 /* Russian roulette for an eye path after rr_depth bounces: 0 ends the path. */
 static int eye_roulette(const pm_state *st, int depth, rgb *beta, rng *g) {
     double urr = rng_uniform(g);
@@ -329,9 +332,8 @@ static int eye_roulette(const pm_state *st, int depth, rgb *beta, rng *g) {
  * down each, weighted, instead of choosing one at random: a camera ray on the glass sphere
  * then sees the reflected light and the refracted room together, and that choice adds no
  * noise. Gathering spends rays in proportion to the throughput (at least one), so the faint
- * reflection branch of glass costs little. */
-/* What an eye path collects: emission it meets, the shading of diffuse surfaces, or both. */
-enum { EYE_ALL, EYE_SHADE, EYE_EMIT };
+ * reflection branch of glass costs little. `what` says what the path collects: emission it
+ * meets, the shading of diffuse surfaces, or both. */
 
 static rgb eye_radiance(const pm_state *st, const scene *s, ray r, int depth, rgb beta,
                         double cw, int what, rng *g, pm_scratch *sc) {
