@@ -28,6 +28,7 @@
 #include <emmintrin.h>
 #endif
 
+#include "internal.h"
 #include "kdtree_internal.h"
 
 #if defined(__GNUC__)
@@ -95,47 +96,6 @@ static int check_query(const pm_kdtree *t, const float q[3], float r2) {
     return PM_OK;
 }
 
-/* ---- sorting results (no allocation) ----------------------------------------------------- */
-
-PM__INLINE int nb_less(const pm_neighbor *a, const pm_neighbor *b) {
-    return a->dist2 < b->dist2 || (a->dist2 == b->dist2 && a->index < b->index);
-}
-
-static void nb_sift(pm_neighbor *a, size_t n, size_t i) {
-    for (;;) {
-        size_t c = 2 * i + 1;
-        if (c >= n) return;
-        if (c + 1 < n && nb_less(&a[c], &a[c + 1])) c++;
-        if (!nb_less(&a[i], &a[c])) return;
-        pm_neighbor s = a[i];
-        a[i] = a[c];
-        a[c] = s;
-        i = c;
-    }
-}
-
-static void sort_neighbors(pm_neighbor *a, size_t n) {
-    if (n <= 24) {
-        for (size_t i = 1; i < n; i++) {
-            pm_neighbor v = a[i];
-            size_t j = i;
-            while (j > 0 && nb_less(&v, &a[j - 1])) {
-                a[j] = a[j - 1];
-                j--;
-            }
-            a[j] = v;
-        }
-        return;
-    }
-    for (size_t i = n / 2; i-- > 0;) nb_sift(a, n, i);
-    for (size_t e = n - 1; e > 0; e--) {
-        pm_neighbor s = a[0];
-        a[0] = a[e];
-        a[e] = s;
-        nb_sift(a, e, 0);
-    }
-}
-
 /* ---- k nearest --------------------------------------------------------------------------- */
 
 typedef struct {
@@ -150,26 +110,6 @@ typedef struct {
     uint64_t nodes, evals;
 } knn_state;
 
-/* Max-heap on dist2 in out[0..k). The larger child is chosen without a branch (its outcome
- * is a coin toss, so a branch would mispredict half the time). */
-PM__INLINE void heap_down_from(pm_neighbor *h, unsigned n, unsigned i, pm_neighbor v) {
-    for (;;) {
-        unsigned c = 2 * i + 1;
-        if (c >= n) break;
-        if (c + 1 < n) c += h[c + 1].dist2 > h[c].dist2;
-        if (!(h[c].dist2 > v.dist2)) break;
-        h[i] = h[c];
-        i = c;
-    }
-    h[i] = v;
-}
-
-PM__INLINE void heap_down(pm_neighbor *h, unsigned n, pm_neighbor v) { heap_down_from(h, n, 0, v); }
-
-static void heapify(pm_neighbor *h, unsigned n) {
-    for (unsigned i = n / 2; i-- > 0;) heap_down_from(h, n, i, h[i]);
-}
-
 /* Precondition: !(d2 >= s->r2). */
 PM__INLINE void knn_push(knn_state *s, float d2, uint32_t idx) {
     pm_neighbor nb;
@@ -178,11 +118,11 @@ PM__INLINE void knn_push(knn_state *s, float d2, uint32_t idx) {
     if (s->found < s->k) {
         s->out[s->found++] = nb;
         if (s->found == s->k) {
-            heapify(s->out, s->k);
+            pm__heapify(s->out, s->k);
             s->r2 = s->out[0].dist2;
         }
     } else {
-        heap_down(s->out, s->k, nb);
+        pm__heap_replace_top(s->out, s->k, nb);
         s->r2 = s->out[0].dist2;
     }
 }
@@ -420,7 +360,7 @@ static int knn_finish(knn_state *s, unsigned flags, pm_query_stats *stats) {
         stats->nodes_visited += s->nodes;
         stats->dist_evals += s->evals;
     }
-    if (flags & PM_SORT) sort_neighbors(s->out, s->found);
+    if (flags & PM_SORT) pm__nb_sort(s->out, s->found);
     return (int)s->found;
 }
 
@@ -616,7 +556,7 @@ long pm_kdtree_radius(const pm_kdtree *tree, const float q[3], float r2, pm_neig
         stats->nodes_visited += s.nodes;
         stats->dist_evals += s.evals;
     }
-    if ((flags & PM_SORT) && s.total <= cap) sort_neighbors(out, (size_t)s.total);
+    if ((flags & PM_SORT) && s.total <= cap) pm__nb_sort(out, (size_t)s.total);
     return (long)s.total;
 }
 

@@ -19,6 +19,8 @@
  */
 #include "octree.h"
 
+#include "internal.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -309,48 +311,6 @@ static inline float rec_dist2(const pm_octree *t, const float q[3], uint32_t i) 
     return dx * dx + dy * dy + dz * dz;
 }
 
-static inline int nb_less(const pm_neighbor *a, const pm_neighbor *b) {
-    return a->dist2 < b->dist2 || (a->dist2 == b->dist2 && a->index < b->index);
-}
-
-/* Heapsort by (dist2, index): no allocation (glibc's qsort may allocate). */
-static void sift_sorted(pm_neighbor *h, size_t i, size_t n) {
-    for (;;) {
-        size_t l = 2 * i + 1, m = i;
-        if (l < n && nb_less(&h[m], &h[l])) m = l;
-        if (l + 1 < n && nb_less(&h[m], &h[l + 1])) m = l + 1;
-        if (m == i) return;
-        pm_neighbor tmp = h[i];
-        h[i] = h[m];
-        h[m] = tmp;
-        i = m;
-    }
-}
-static void sort_neighbors(pm_neighbor *a, size_t n) {
-    if (n < 2) return;
-    for (size_t i = n / 2; i-- > 0;) sift_sorted(a, i, n);
-    for (size_t e = n - 1; e > 0; e--) {
-        pm_neighbor tmp = a[0];
-        a[0] = a[e];
-        a[e] = tmp;
-        sift_sorted(a, 0, e);
-    }
-}
-
-/* Max-heap on dist2 alone: the top is the current k-th distance. */
-static void sift_down(pm_neighbor *h, unsigned i, unsigned n) {
-    pm_neighbor x = h[i];
-    for (;;) {
-        unsigned l = 2 * i + 1, m;
-        if (l >= n) break;
-        m = (l + 1 < n && h[l + 1].dist2 > h[l].dist2) ? l + 1 : l;
-        if (h[m].dist2 <= x.dist2) break;
-        h[i] = h[m];
-        i = m;
-    }
-    h[i] = x;
-}
-
 static int check_query(const float q[3], float r2) {
     if (isnan(r2) || !isfinite(q[0]) || !isfinite(q[1]) || !isfinite(q[2])) return PM_ENONFINITE;
     return 0;
@@ -418,13 +378,11 @@ int pm_octree_knn(const pm_octree *tree, const float q[3], unsigned k, float max
                 if (d2 < max_dist2) {
                     out[found].dist2 = d2;
                     out[found].index = i;
-                    if (++found == k)
-                        for (unsigned h = k / 2; h-- > 0;) sift_down(out, h, k);
+                    if (++found == k) pm__heapify(out, k);
                 }
             } else if (d2 < out[0].dist2) {
-                out[0].dist2 = d2;
-                out[0].index = i;
-                sift_down(out, 0, k);
+                pm_neighbor nb = {d2, i};
+                pm__heap_replace_top(out, k, nb);
             }
         }
     }
@@ -432,7 +390,7 @@ int pm_octree_knn(const pm_octree *tree, const float q[3], unsigned k, float max
         stats->nodes_visited += nodes;
         stats->dist_evals += evals;
     }
-    if (flags & PM_SORT) sort_neighbors(out, found);
+    if (flags & PM_SORT) pm__nb_sort(out, found);
     return (int)found;
 }
 
@@ -478,6 +436,6 @@ long pm_octree_radius(const pm_octree *tree, const float q[3], float r2, pm_neig
         stats->nodes_visited += nodes;
         stats->dist_evals += evals;
     }
-    if ((flags & PM_SORT) && (size_t)total <= cap) sort_neighbors(out, (size_t)total);
+    if ((flags & PM_SORT) && (size_t)total <= cap) pm__nb_sort(out, (size_t)total);
     return total;
 }

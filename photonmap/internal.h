@@ -1,0 +1,89 @@
+/* internal.h: the one sort and the one max-heap of neighbours that the module's searches and
+ * estimates share. Private: never installed, every name is pm__ and static inline, so each
+ * file that includes it gets its own copy and nothing is exported.
+ *
+ * ORDER. pm__nb_less is the deterministic result order of the whole module: by dist2, then by
+ * index. pm__nb_sort sorts by it in place without allocating (glibc's qsort may allocate, and
+ * queries promise not to): insertion sort for short arrays, where it is fastest, heapsort
+ * otherwise, so the worst case stays O(n log n). Indices are distinct, so every correct sort
+ * gives the same array.
+ *
+ * HEAP. A max-heap on dist2 alone, in h[0..n): h[0] is the farthest, the current k-th
+ * distance of a k-nearest search. pm__heap_sift_down places v at slot i and moves it down;
+ * the larger child is picked without a branch (the comparison is a coin toss, so a branch
+ * would mispredict half the time). Ties between children go to the left one and a child that
+ * equals v stays below it: the searches' tie rules (kdtree.h, TIES) depend on exactly these
+ * choices, so they are fixed here once.
+ */
+#ifndef PM_INTERNAL_H
+#define PM_INTERNAL_H
+
+#include <stddef.h>
+
+#include "common.h"
+
+static inline int pm__nb_less(const pm_neighbor *a, const pm_neighbor *b) {
+    return a->dist2 < b->dist2 || (a->dist2 == b->dist2 && a->index < b->index);
+}
+
+/* Moves a[i] down the (dist2, index) max-heap a[0..n). */
+static inline void pm__nb_sift(pm_neighbor *a, size_t n, size_t i) {
+    for (;;) {
+        size_t c = 2 * i + 1;
+        if (c >= n) return;
+        if (c + 1 < n && pm__nb_less(&a[c], &a[c + 1])) c++;
+        if (!pm__nb_less(&a[i], &a[c])) return;
+        pm_neighbor s = a[i];
+        a[i] = a[c];
+        a[c] = s;
+        i = c;
+    }
+}
+
+/* Sorts a[0..n) by (dist2, index) ascending, in place, without allocating. */
+static inline void pm__nb_sort(pm_neighbor *a, size_t n) {
+    if (n <= 24) {
+        for (size_t i = 1; i < n; i++) {
+            pm_neighbor v = a[i];
+            size_t j = i;
+            while (j > 0 && pm__nb_less(&v, &a[j - 1])) {
+                a[j] = a[j - 1];
+                j--;
+            }
+            a[j] = v;
+        }
+        return;
+    }
+    for (size_t i = n / 2; i-- > 0;) pm__nb_sift(a, n, i);
+    for (size_t e = n - 1; e > 0; e--) {
+        pm_neighbor s = a[0];
+        a[0] = a[e];
+        a[e] = s;
+        pm__nb_sift(a, e, 0);
+    }
+}
+
+/* Max-heap on dist2 in h[0..n): puts v at slot i and sifts it down. */
+static inline void pm__heap_sift_down(pm_neighbor *h, unsigned n, unsigned i, pm_neighbor v) {
+    for (;;) {
+        unsigned c = 2 * i + 1;
+        if (c >= n) break;
+        if (c + 1 < n) c += h[c + 1].dist2 > h[c].dist2;
+        if (!(h[c].dist2 > v.dist2)) break;
+        h[i] = h[c];
+        i = c;
+    }
+    h[i] = v;
+}
+
+/* Turns h[0..n), in any order, into a max-heap on dist2. */
+static inline void pm__heapify(pm_neighbor *h, unsigned n) {
+    for (unsigned i = n / 2; i-- > 0;) pm__heap_sift_down(h, n, i, h[i]);
+}
+
+/* Replaces the farthest entry h[0] by v and restores the heap. */
+static inline void pm__heap_replace_top(pm_neighbor *h, unsigned n, pm_neighbor v) {
+    pm__heap_sift_down(h, n, 0, v);
+}
+
+#endif /* PM_INTERNAL_H */
