@@ -3,8 +3,8 @@
  *
  *   render SCENE.json [-o out.png] [--hdr out.pfm] [--spp N] [--threads N] [--seed S]
  *          [--width W] [--height H] [--mode M] [--quiet] [--help]
- *   render --compare A.pfm B.pfm [--rect X Y W H] [--mask IDS.pfm --id N...] [--diff D.png]
  *
+ * The image tools (render --compare, render --tonemap) are tools.c's; main() dispatches them.
  * Exit status: 0 success, 1 a failure while rendering or writing, 2 a usage error or a bad
  * scene file (nothing is written then). Progress goes to stderr; the summary and statistics
  * to stdout.
@@ -16,13 +16,13 @@
 #include <string.h>
 
 #include "common.h"
-#include "compare.h"
 #include "film.h"
 #include "integrator.h"
 #include "plan.h"
 #include "renderer.h"
 #include "scene.h"
 #include "stats.h"
+#include "tools.h"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -67,174 +67,11 @@ static void usage(FILE *f) {
             "exit status: 0 ok, 1 render or write failure, 2 usage error or invalid scene\n");
 }
 
-static int parse_long(const char *s, long lo, long hi, long *out) {
-    char *end;
-    errno = 0;
-    long v = strtol(s, &end, 10);
-    if (errno || end == s || *end || v < lo || v > hi) return -1;
-    *out = v;
-    return 0;
-}
-
-/* A positive, finite number: 0, or -1 (a missing value, trailing text, <= 0, inf, nan). */
-static int parse_positive(const char *s, double *out) {
-    if (!s) return -1;
-    char *end;
-    double v = strtod(s, &end);
-    if (end == s || *end || !(v > 0) || !isfinite(v)) return -1;
-    *out = v;
-    return 0;
-}
-
-static int read_pfm_or_say(film *f, const char *path) {
-    int rc = film_read_pfm(f, path);
-    if (rc < 0)
-        fprintf(stderr, "render: %s: %s\n", path, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
-    return rc;
-}
-
-static int run_compare(int argc, char **argv) {
-    const char *fa = NULL, *fb = NULL, *fmask = NULL, *fdiff = NULL;
-    long rect[4] = {0, 0, 0, 0};
-    int ids[64], nids = 0;
-    double dscale = 0.25;
-    for (int i = 2; i < argc; i++) {
-        if (strcmp(argv[i], "--rect") == 0) {
-            if (i + 4 >= argc) {
-                fprintf(stderr, "render: --rect needs X Y W H\n");
-                return 2;
-            }
-            for (int k = 0; k < 4; k++)
-                if (parse_long(argv[i + 1 + k], -100000, 100000, &rect[k]) < 0) {
-                    fprintf(stderr, "render: --rect: bad number '%s'\n", argv[i + 1 + k]);
-                    return 2;
-                }
-            i += 4;
-        } else if (strcmp(argv[i], "--mask") == 0 || strcmp(argv[i], "--diff") == 0) {
-            if (i + 1 >= argc) {
-                fprintf(stderr, "render: %s needs a file name\n", argv[i]);
-                return 2;
-            }
-            *(argv[i][2] == 'm' ? &fmask : &fdiff) = argv[i + 1];
-            i++;
-        } else if (strcmp(argv[i], "--id") == 0) {
-            long v;
-            if (i + 1 >= argc || parse_long(argv[i + 1], 0, 1000000, &v) < 0) {
-                fprintf(stderr, "render: --id needs an object id (a whole number >= 0)\n");
-                return 2;
-            }
-            if (nids == (int)(sizeof ids / sizeof ids[0])) {
-                fprintf(stderr, "render: at most %d --id options\n", nids);
-                return 2;
-            }
-            ids[nids++] = (int)v;
-            i++;
-        } else if (strcmp(argv[i], "--diff-scale") == 0) {
-            if (parse_positive(i + 1 < argc ? argv[i + 1] : NULL, &dscale) < 0) {
-                fprintf(stderr, "render: --diff-scale needs a positive number\n");
-                return 2;
-            }
-            i++;
-        } else if (!fa) {
-            fa = argv[i];
-        } else if (!fb) {
-            fb = argv[i];
-        } else {
-            fprintf(stderr, "render: --compare takes two files\n");
-            return 2;
-        }
-    }
-    if (!fa || !fb) {
-        fprintf(stderr, "render: --compare needs two PFM files\n");
-        return 2;
-    }
-    if (!fmask != !nids) {
-        fprintf(stderr, "render: --mask and --id go together\n");
-        return 2;
-    }
-    film a = {0}, b = {0}, mask = {0};
-    int rc = read_pfm_or_say(&a, fa);
-    if (rc == 0) rc = read_pfm_or_say(&b, fb);
-    if (rc == 0 && fmask) rc = read_pfm_or_say(&mask, fmask);
-    if (rc < 0) {
-        film_free(&a);
-        film_free(&b);
-        film_free(&mask);
-        return 2;
-    }
-    image_diff d;
-    image_region reg = {(int)rect[0], (int)rect[1], (int)rect[2], (int)rect[3], fmask ? &mask : NULL,
-                        ids, nids};
-    rc = image_compare_region(&a, &b, &reg, &d);
-    if (rc < 0) {
-        fprintf(stderr, "render: --compare: %s\n",
-                a.width != b.width || a.height != b.height ? "the images differ in size"
-                : fmask && (mask.width != a.width || mask.height != a.height)
-                    ? "the mask differs in size from the images"
-                    : "the region holds no pixel");
-    } else {
-        printf("pixels %ld\nrmse %.6g\nrel_rmse %.6g\nmre %.6g\nmean_a %.6g\nmean_b %.6g\nrel_mean %.6g\n",
-               d.npixels, d.rmse, d.rel_rmse, d.mre, d.mean_a, d.mean_b, d.rel_mean);
-        if (fdiff && (rc = image_diff_png(&a, &b, dscale, fdiff)) < 0)
-            fprintf(stderr, "render: %s: %s\n", fdiff, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
-    }
-    film_free(&a);
-    film_free(&b);
-    film_free(&mask);
-    return rc < 0 ? 2 : 0;
-}
-
 /* An integer option's value in [lo, hi]: 0, or -1 after saying what was expected. */
 static int parse_opt(const char *opt, const char *v, long lo, long hi, long *out) {
-    if (parse_long(v, lo, hi, out) == 0) return 0;
+    if (cli_parse_long(v, lo, hi, out) == 0) return 0;
     fprintf(stderr, "render: %s: expected a whole number in [%ld, %ld], got '%s'\n", opt, lo, hi, v);
     return -1;
-}
-
-/* render --tonemap IN.pfm OUT.png [--exposure X] [--tone filmic|srgb]: a PFM to a PNG, with
- * the same tone curves and auto exposure as a render (so images can share one exposure). */
-static int run_tonemap(int argc, char **argv) {
-    const char *in = NULL, *out = NULL;
-    double exposure = -1;
-    int tone = FILM_TONE_FILMIC;
-    for (int i = 2; i < argc; i++) {
-        if (strcmp(argv[i], "--exposure") == 0) {
-            if (parse_positive(i + 1 < argc ? argv[i + 1] : NULL, &exposure) < 0) {
-                fprintf(stderr, "render: --exposure needs a positive number\n");
-                return 2;
-            }
-            i++;
-        } else if (strcmp(argv[i], "--tone") == 0) {
-            if (i + 1 >= argc || (strcmp(argv[i + 1], "filmic") && strcmp(argv[i + 1], "srgb"))) {
-                fprintf(stderr, "render: --tone must be filmic or srgb\n");
-                return 2;
-            }
-            tone = strcmp(argv[++i], "srgb") == 0 ? FILM_TONE_SRGB : FILM_TONE_FILMIC;
-        } else if (!in) {
-            in = argv[i];
-        } else if (!out) {
-            out = argv[i];
-        } else {
-            fprintf(stderr, "render: --tonemap takes one PFM and one PNG\n");
-            return 2;
-        }
-    }
-    if (!in || !out) {
-        fprintf(stderr, "render: --tonemap needs IN.pfm OUT.png\n");
-        return 2;
-    }
-    film f;
-    if (read_pfm_or_say(&f, in) < 0) return 2;
-    double used = 0;
-    int rc = film_write_png(&f, out, tone, exposure, 1.0, &used);
-    film_free(&f);
-    if (rc < 0) {
-        fprintf(stderr, "render: %s: %s\n", out, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
-        return 1;
-    }
-    printf("Wrote %s (%s, exposure %.4g%s)\n", out, tone == FILM_TONE_SRGB ? "sRGB" : "filmic", used,
-           exposure > 0 ? "" : ", auto");
-    return 0;
 }
 
 static const char *basename_of(const char *p) {
@@ -243,14 +80,14 @@ static const char *basename_of(const char *p) {
 }
 
 int main(int argc, char **argv) {
-    if (argc >= 2 && strcmp(argv[1], "--tonemap") == 0) return run_tonemap(argc, argv);
+    if (argc >= 2 && strcmp(argv[1], "--tonemap") == 0) return tools_tonemap(argc, argv);
     if (argc >= 2 && strcmp(argv[1], "--compare") == 0) {
         for (int i = 2; i < argc; i++)
             if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
                 usage(stdout);
                 return 0;
             }
-        return run_compare(argc, argv);
+        return tools_compare(argc, argv);
     }
     const char *scene_path = NULL, *png = NULL, *pfm = NULL, *mode = NULL, *tone = NULL;
     long spp = 0, threads = 0, width = 0, height = 0, seed = -1;
@@ -304,7 +141,7 @@ int main(int argc, char **argv) {
             bad = strcmp(v, "filmic") != 0 && strcmp(v, "srgb") != 0;
         } else if (strcmp(a, "--exposure") == 0) {
             NEED_VALUE();
-            bad = parse_positive(v, &exposure) < 0;
+            bad = cli_parse_positive(v, &exposure) < 0;
         } else if (strcmp(a, "--pm") == 0 || strcmp(a, "--save-photons") == 0 ||
                    strcmp(a, "--load-photons") == 0) {
             NEED_VALUE();

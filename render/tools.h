@@ -1,0 +1,25 @@
+/* tools.h: `render --compare` and `render --tonemap` (tools.c), and the strict number
+ * parsers that main.c's options share with them.
+ */
+#ifndef RENDER_TOOLS_H
+#define RENDER_TOOLS_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* A whole number in [lo, hi] with nothing after it: 0 and *out set, or -1. */
+int cli_parse_long(const char *s, long lo, long hi, long *out);
+/* A positive, finite number: 0 and *out set, or -1 (NULL, trailing text, <= 0, inf, nan). */
+int cli_parse_positive(const char *s, double *out);
+
+/* The tools' programs: argv[1] is "--compare" or "--tonemap"; they return the exit status
+ * (0 ok, 1 write failure, 2 usage error or unreadable input). */
+int tools_compare(int argc, char **argv);
+int tools_tonemap(int argc, char **argv);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif
