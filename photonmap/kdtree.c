@@ -18,7 +18,8 @@
  * and every larger-rank key >= the median. Each level costs O(n), so the build is O(n log n)
  * with no recursion. The records are then gathered in tree order into the work array's
  * memory (prefetching the random reads) and copied back over the caller's array. Temporary
- * memory: n * (max(16, stride) + 4) bytes.
+ * memory: n * (max(16, stride) + 4) bytes. The tight bounding box of the indexed positions is
+ * kept in the tree (24 bytes): it is the root cell of the queries' cell-distance pruning.
  *
  * DUPLICATES. A subtree whose records all share one position (zero extent) is marked with
  * axis code 3, "uniform", and is not split further: queries handle it as a single distance
@@ -241,6 +242,10 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
     for (size_t i = 0; i < n; i++) {
         const float *p = (const float *)(base + i * cfg->stride + cfg->pos_offset);
         if (isfinite(p[0]) && isfinite(p[1]) && isfinite(p[2])) {
+            for (int a = 0; a < 3; a++) {
+                if (m == 0 || p[a] < t->lo[a]) t->lo[a] = p[a];
+                if (m == 0 || p[a] > t->hi[a]) t->hi[a] = p[a];
+            }
             w[m].p[0] = p[0];
             w[m].p[1] = p[1];
             w[m].p[2] = p[2];

@@ -29,6 +29,7 @@ struct pm_kdtree {
     uint32_t leaf_q;    /* every bucket holds leaf_q records ... */
     uint32_t leaf_extra; /* ... and the first leaf_extra buckets one more */
     uint8_t *axes;      /* axis per internal node when axis_offset < 0, else NULL */
+    float lo[3], hi[3]; /* bounding box of the indexed positions: the root's cell */
 };
 
 static inline int pm__ilog2(uint64_t x) { return 63 - __builtin_clzll(x | 1); }

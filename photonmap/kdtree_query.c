@@ -1,13 +1,22 @@
 /* kdtree_query.c: k-nearest, radius and predicate queries on the heap kd-tree.
  *
  * TRAVERSAL. Christensen's "iteration instead of recursion": walk down to the bucket on the
- * query's side of every split, pushing (squared plane distance, far child) on a fixed stack of
- * at most D entries; scan the bucket; then pop entries until one has plane dist2 < r2, where r2
- * is the current search radius. Only then is that node's own record tested (it lies on the
- * plane, so its dist2 is at least the plane dist2: when the far side is pruned, so is the
- * record) and the walk continues down its far child. The recursive version makes the same
- * decisions in the same order, so both return identical arrays.
+ * query's side of every split, pushing (cell distance, far child) on a fixed stack of at most
+ * D entries; scan the bucket; then pop entries until one has cell dist2 < r2, where r2 is the
+ * current search radius. Only then is that node's own record tested (it lies on the far
+ * cell's boundary plane, so its dist2 is at least the cell's: when the far side is pruned, so
+ * is the record) and the walk continues down its far child. The recursive version makes the
+ * same decisions in the same order, so both return identical arrays.
  *
+ * CELL DISTANCE (Arya and Mount's incremental distance). A subtree is pruned by the squared
+ * distance from q to its cell, not to one split plane: the query carries the per-axis offsets
+ * from q to the current cell (the root cell is the tight bounding box of the records, kept in
+ * the tree), the near child inherits them, and the far child replaces the one on the split
+ * axis by |q[axis] - split|. Nothing is stored per node; the stack entry holds the three
+ * offsets. The squared length is recomputed from the offsets, never updated by difference,
+ * so it is a float lower bound of every record's dist2 in the cell (see cell_dist2) and the
+ * pruning stays exact. It is what makes a query beside a plane of photons, or in the empty
+ * space between clusters, cost about what a query among them costs.
  * RADIUS. r2 = +INFINITY is stored internally as NaN, and every test is written as
  * !(x >= r2): against NaN that is always true, so an unlimited search also accepts records
  * whose float dist2 overflowed to +inf; against a finite r2 it is the strict x < r2. dist2 and
@@ -96,6 +105,24 @@ static int check_query(const pm_kdtree *t, const float q[3], float r2) {
     return PM_OK;
 }
 
+/* ---- cell distance ----------------------------------------------------------------------- */
+
+/* The squared distance from q to a cell, from its per-axis offsets. Always this expression,
+ * in this order: the offset on each axis is at most |q - p| there for every record p of the
+ * cell (the float subtraction is monotonic), so, float rounding being monotonic, the sum is
+ * never above the record's dist2 computed by knn_dist2, and pruning on it is exact. */
+PM__INLINE float cell_dist2(const float o[3]) { return o[0] * o[0] + o[1] * o[1] + o[2] * o[2]; }
+
+/* The root cell is the tight bounding box: per-axis offsets from q to it (0 inside). */
+static void root_offsets(const pm_kdtree *t, const float q[3], float off[3]) {
+    for (int a = 0; a < 3; a++) {
+        float o = 0;
+        if (q[a] < t->lo[a]) o = t->lo[a] - q[a];
+        else if (q[a] > t->hi[a]) o = q[a] - t->hi[a];
+        off[a] = o;
+    }
+}
+
 /* ---- k nearest --------------------------------------------------------------------------- */
 
 typedef struct {
@@ -108,6 +135,8 @@ typedef struct {
     pm_filter_fn filter;
     void *user;
     uint64_t nodes, evals;
+    float off[3];         /* offsets from q to the root cell (the bounding box) per axis */
+    float rd;             /* their squared length: dist2 from q to the root cell */
 } knn_state;
 
 /* Precondition: !(d2 >= s->r2). */
@@ -230,13 +259,17 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
     /* Work on a local copy whose address never escapes, so the compiler keeps r2, found and
      * the query in registers; the rare uniform case goes through memory. */
     knn_state ls = *io, *s = &ls;
+    /* Far children still to search, with their cell's offsets and squared distance. */
     struct {
-        float d2;
+        float rd;
         uint32_t node;
+        float off[3];
     } stack[PM_KDTREE_MAX_DEPTH];
     int sp = 0;
     uint64_t node = 1;
     const uint64_t L = v->L;
+    float off[3] = {s->off[0], s->off[1], s->off[2]};
+    if (s->rd >= s->r2) return; /* the whole tree is out of reach */
     for (;;) {
         while (node < L) {
             /* Start loading the grandchildren (records 4p-1 .. 4p+2, contiguous) while this
@@ -257,12 +290,16 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
             float d = s->q[a] - PX(v, node - 1, ph)[a];
             uint64_t near = 2 * node + (d >= 0);
             prefetch_buckets(v, near);
-            /* r2 only shrinks: a far side already out of reach is never pushed. The
-             * recursive search makes the same decision later, when it returns. */
-            float d2 = d * d;
-            stack[sp].d2 = d2;
+            /* The near child's cell has the same offsets as this one; the far child's is
+             * |d| away along the axis. r2 only shrinks: a far side already out of reach is
+             * never pushed. The recursive search makes the same decision later, when it
+             * returns. */
+            stack[sp].off[0] = off[0], stack[sp].off[1] = off[1], stack[sp].off[2] = off[2];
+            stack[sp].off[a] = d >= 0 ? d : -d;
+            float rd = cell_dist2(stack[sp].off);
+            stack[sp].rd = rd;
             stack[sp].node = (uint32_t)(near ^ 1);
-            sp += !(d2 >= s->r2);
+            sp += !(rd >= s->r2);
             node = near;
         }
         if (cnt) s->nodes++;
@@ -274,8 +311,10 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
                 return;
             }
             sp--;
-            if (!(stack[sp].d2 >= s->r2)) {
+            if (!(stack[sp].rd >= s->r2)) {
                 node = stack[sp].node;
+                off[0] = stack[sp].off[0], off[1] = stack[sp].off[1], off[2] = stack[sp].off[2];
+                /* the node's record lies in the far cell's boundary plane: no closer */
                 knn_consider(s, v, (node >> 1) - 1, metric, filter, ph, cnt);
                 break;
             }
@@ -284,7 +323,7 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
 }
 
 #define PM__KNN_REC(name, metric, filter, ph, cnt)                                        \
-    static void name(knn_state *s, const view *v, uint64_t node) {                       \
+    static void name(knn_state *s, const view *v, uint64_t node, const float off[3]) {   \
         if (cnt) s->nodes++;                                                             \
         if (node >= v->L) {                                                              \
             knn_bucket(s, v, node, metric, filter, ph, cnt);                             \
@@ -302,10 +341,13 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
         float d = s->q[a] - PX(v, node - 1, ph)[a];                                      \
         uint64_t near = 2 * node + (d >= 0);                                             \
         prefetch_buckets(v, near);                                                       \
-        name(s, v, near);                                                                \
-        if (!(d * d >= s->r2)) {                                                         \
+        float fo[3] = {off[0], off[1], off[2]};                                          \
+        fo[a] = d >= 0 ? d : -d;                                                         \
+        float rd = cell_dist2(fo);                                                       \
+        name(s, v, near, off);                                                           \
+        if (!(rd >= s->r2)) {                                                            \
             knn_consider(s, v, node - 1, metric, filter, ph, cnt);                       \
-            name(s, v, near ^ 1);                                                        \
+            name(s, v, near ^ 1, fo);                                                    \
         }                                                                                \
     }
 /* The recursive search, one instance per layout and counting choice like the iterative one,
@@ -352,6 +394,8 @@ static int knn_setup(knn_state *s, const pm_kdtree *t, const float q[3], unsigne
     s->r2 = max_dist2 == INFINITY ? NAN : max_dist2;
     s->out = out;
     s->k = k;
+    root_offsets(t, s->q, s->off);
+    s->rd = cell_dist2(s->off);
     return 1;
 }
 
@@ -385,13 +429,14 @@ int pm_kdtree_knn_recursive(const pm_kdtree *tree, const float q[3], unsigned k,
     knn_state s;
     int rc = knn_setup(&s, tree, q, k, max_dist2, out);
     if (rc <= 0) return rc;
+    if (s.rd >= s.r2) return 0; /* the whole tree is out of reach */
     view v = make_view(tree);
     if (!is_photon_layout(tree))
-        knn_rec_gen(&s, &v, 1);
+        knn_rec_gen(&s, &v, 1, s.off);
     else if (stats)
-        knn_rec_ph_cnt(&s, &v, 1);
+        knn_rec_ph_cnt(&s, &v, 1, s.off);
     else
-        knn_rec_ph(&s, &v, 1);
+        knn_rec_ph(&s, &v, 1, s.off);
     return knn_finish(&s, flags, stats);
 }
 
@@ -447,6 +492,7 @@ typedef struct {
     void *user;
     int stop;
     uint64_t nodes, evals;
+    float off[3]; /* offsets from q to the root cell */
 } rad_state;
 
 PM__INLINE void rad_take(rad_state *s, uint64_t i, float d2) {
@@ -491,12 +537,14 @@ static void rad_uniform(rad_state *s, const view *v, uint64_t node) {
 
 static void rad_iter(rad_state *s, const view *v) {
     struct {
-        float d2;
         uint32_t node;
+        float off[3];
     } stack[PM_KDTREE_MAX_DEPTH];
     int sp = 0;
     uint64_t node = 1;
     const uint64_t L = v->L;
+    float off[3] = {s->off[0], s->off[1], s->off[2]};
+    if (cell_dist2(off) >= s->r2) return; /* the whole tree is out of reach */
     for (;;) {
         while (node < L) {
             unsigned a = AX(v, node);
@@ -507,9 +555,12 @@ static void rad_iter(rad_state *s, const view *v) {
             }
             float d = s->q[a] - P(v, node - 1)[a];
             uint64_t near = 2 * node + (d >= 0);
-            stack[sp].d2 = d * d;
+            /* r2 is fixed: a far cell out of reach is dropped now, and so is the node's
+             * record, which lies in that cell's boundary plane. */
+            stack[sp].off[0] = off[0], stack[sp].off[1] = off[1], stack[sp].off[2] = off[2];
+            stack[sp].off[a] = d >= 0 ? d : -d;
             stack[sp].node = (uint32_t)(near ^ 1);
-            sp++;
+            sp += !(cell_dist2(stack[sp].off) >= s->r2);
             node = near;
         }
         s->nodes++;
@@ -522,12 +573,11 @@ static void rad_iter(rad_state *s, const view *v) {
         for (;;) {
             if (sp == 0 || s->stop) return;
             sp--;
-            if (!(stack[sp].d2 >= s->r2)) {
-                node = stack[sp].node;
-                rad_consider(s, v, (node >> 1) - 1);
-                if (s->stop) return;
-                break;
-            }
+            node = stack[sp].node;
+            off[0] = stack[sp].off[0], off[1] = stack[sp].off[1], off[2] = stack[sp].off[2];
+            rad_consider(s, v, (node >> 1) - 1);
+            if (s->stop) return;
+            break;
         }
     }
 }
@@ -539,6 +589,7 @@ static int rad_setup(rad_state *s, const pm_kdtree *t, const float q[3], float r
     memset(s, 0, sizeof *s);
     s->q[0] = q[0], s->q[1] = q[1], s->q[2] = q[2];
     s->r2 = r2 == INFINITY ? NAN : r2;
+    root_offsets(t, s->q, s->off);
     return 1;
 }
 
