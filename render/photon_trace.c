@@ -13,6 +13,7 @@
 #include "common.h"
 #include "material.h"
 #include "progress.h"
+#include "projmap.h"
 #include "rng.h"
 #include "sampling.h"
 #include "stats.h"
@@ -73,171 +74,6 @@ static int fbuf_merge(fbuf *out, fbuf *bufs, int nb) {
     return 0;
 }
 
-/* ---- Halton points ------------------------------------------------------------------------- */
-
-static double radical_inverse(uint64_t i, unsigned base) {
-    double inv = 1.0 / base, f = inv, r = 0;
-    while (i) {
-        r += (double)(i % base) * f;
-        i /= base;
-        f *= inv;
-    }
-    return r;
-}
-
-static const unsigned k_primes[6] = {2, 3, 5, 7, 11, 13};
-
-/* Dimension d of Halton point i, rotated (Cranley-Patterson) by shift[d]. */
-static double halton(uint64_t i, int d, const double *shift) {
-    double v = radical_inverse(i + 1, k_primes[d]) + shift[d];
-    v -= floor(v);
-    return v < 1.0 ? v : 0x1.fffffffffffffp-1;
-}
-
-/* ---- projection maps ---------------------------------------------------------------------- */
-
-typedef struct projmap {
-    int G;
-    int nactive;
-    int *active; /* indices of active cells, nactive of them */
-    double fraction;
-} projmap;
-
-/* Bounding spheres of the specular primitives. */
-typedef struct bsph {
-    vec3 c;
-    double r;
-} bsph;
-
-static int specular_spheres(const scene *s, bsph **out) {
-    int n = 0;
-    bsph *v = malloc((size_t)(s->ntris + s->nspheres + 1) * sizeof *v);
-    if (!v) return PM_ENOMEM;
-    for (int i = 0; i < s->ntris; i++) {
-        const triangle *t = &s->tris[i];
-        if (!material_is_specular(&s->mats[t->mat])) continue;
-        vec3 a = t->v0, b = v3_add(t->v0, t->e1), c = v3_add(t->v0, t->e2);
-        vec3 m = v3_scale(v3_add(a, v3_add(b, c)), 1.0 / 3);
-        double r = sqrt(fmax(v3_len2(v3_sub(a, m)), fmax(v3_len2(v3_sub(b, m)), v3_len2(v3_sub(c, m)))));
-        v[n++] = (bsph){m, r * 1.001};
-    }
-    for (int i = 0; i < s->nspheres; i++) {
-        const sphere *sp = &s->spheres[i];
-        if (!material_is_specular(&s->mats[sp->mat])) continue;
-        v[n++] = (bsph){sp->c, sp->r * 1.001};
-    }
-    *out = v;
-    return n;
-}
-
-/* Which pair of light_sample_le's u[] the projection grid covers: the direction for area
- * (u[2], u[3]) and point lights (u[0], u[1]), the disc position for directional lights. */
-static int proj_dim(const light *l) { return l->type == LIGHT_AREA ? 2 : 0; }
-
-/* Is cell (cx, cy) of light li's G x G grid able to send a photon into a sphere of sph? */
-static int cell_active(const scene *s, int li, int G, int cx, int cy, const bsph *sph, int nsph) {
-    const light *l = &s->lights[li];
-    /* A sphere light's normal changes over its surface, so a cell of directions bounds no
-     * cone: every cell stays active (no saving, no loss). */
-    if (l->type == LIGHT_SPHERE) return 1;
-    /* Nine points of the cell: corners, edge midpoints, centre. */
-    double pu[9], pv[9];
-    int k = 0;
-    for (int a = 0; a <= 2; a++)
-        for (int b = 0; b <= 2; b++) {
-            pu[k] = (cx + 0.5 * a) / G;
-            pv[k] = (cy + 0.5 * b) / G;
-            if (pu[k] >= 1) pu[k] = 0x1.fffffffffffffp-1;
-            if (pv[k] >= 1) pv[k] = 0x1.fffffffffffffp-1;
-            k++;
-        }
-    if (l->type == LIGHT_DIRECTIONAL) {
-        vec3 pts[9], p, n, d;
-        for (int j = 0; j < 9; j++) {
-            double u[4] = {pu[j], pv[j], 0, 0};
-            light_sample_le(s, li, u, &p, &n, &d);
-            pts[j] = p;
-        }
-        vec3 pc = pts[4];
-        double pr = 0;
-        for (int j = 0; j < 9; j++) pr = fmax(pr, v3_len(v3_sub(pts[j], pc)));
-        pr = pr * 1.25 + 1e-9 * s->bsphere_r;
-        for (int i = 0; i < nsph; i++) {
-            vec3 oc = v3_sub(sph[i].c, pc);
-            double t = v3_dot(oc, l->dir);
-            double dist2 = v3_len2(oc) - t * t;
-            double rr = sph[i].r + pr;
-            if (dist2 <= rr * rr && t > -rr) return 1;
-        }
-        return 0;
-    }
-    /* Area or point: a cone of directions from the light's centre, widened by the light's
-     * own radius (a ray from a point within r_l of the centre hitting a sphere of radius R
-     * means the parallel ray from the centre passes within R + r_l of its centre). */
-    vec3 pc, normals[2];
-    double rl = 0;
-    int nsides = 1;
-    if (l->type == LIGHT_AREA) {
-        const triangle *t = &s->tris[l->tri];
-        vec3 a = t->v0, b = v3_add(t->v0, t->e1), c = v3_add(t->v0, t->e2);
-        pc = v3_scale(v3_add(a, v3_add(b, c)), 1.0 / 3);
-        rl = sqrt(fmax(v3_len2(v3_sub(a, pc)), fmax(v3_len2(v3_sub(b, pc)), v3_len2(v3_sub(c, pc)))));
-        normals[0] = t->n;
-        normals[1] = v3_neg(t->n);
-        nsides = l->two_sided ? 2 : 1;
-    } else {
-        pc = l->pos;
-    }
-    for (int side = 0; side < nsides; side++) {
-        vec3 dirs[9];
-        for (int j = 0; j < 9; j++)
-            dirs[j] = l->type == LIGHT_AREA
-                          ? sampling_to_world(sample_cosine_hemisphere(pu[j], pv[j]), normals[side])
-                          : sample_uniform_sphere(pu[j], pv[j]);
-        vec3 dc = dirs[4];
-        double ang = 0;
-        for (int j = 0; j < 9; j++) ang = fmax(ang, acos(fmin(1.0, fmax(-1.0, v3_dot(dirs[j], dc)))));
-        ang = ang * 1.25 + 1e-3;
-        for (int i = 0; i < nsph; i++) {
-            vec3 oc = v3_sub(sph[i].c, pc);
-            double dist = v3_len(oc), R = sph[i].r + rl;
-            if (dist <= R) return 1;
-            double half = asin(R / dist);
-            double a = acos(fmin(1.0, fmax(-1.0, v3_dot(oc, dc) / dist)));
-            if (a <= half + ang) return 1;
-        }
-    }
-    return 0;
-}
-
-static int projmap_build(projmap *pm, const scene *s, int li, int G, const bsph *sph, int nsph) {
-    pm->G = G;
-    pm->nactive = 0;
-    pm->active = malloc((size_t)G * G * sizeof *pm->active);
-    if (!pm->active) return PM_ENOMEM;
-    for (int cy = 0; cy < G; cy++)
-        for (int cx = 0; cx < G; cx++)
-            if (cell_active(s, li, G, cx, cy, sph, nsph)) pm->active[pm->nactive++] = cy * G + cx;
-    pm->fraction = (double)pm->nactive / ((double)G * G);
-    return 0;
-}
-
-int photon_projection_cells(const scene *s, int li, int G, unsigned char *active) {
-    bsph *sph;
-    int nsph = specular_spheres(s, &sph);
-    if (nsph < 0) return nsph;
-    projmap pm;
-    int rc = projmap_build(&pm, s, li, G, sph, nsph);
-    if (rc == 0) {
-        memset(active, 0, (size_t)G * G);
-        for (int k = 0; k < pm.nactive; k++) active[pm.active[k]] = 1;
-        rc = pm.nactive;
-    }
-    free(pm.active);
-    free(sph);
-    return rc;
-}
-
 /* ---- tracing one photon ------------------------------------------------------------------- */
 
 typedef struct pass_ctx {
@@ -253,23 +89,14 @@ typedef struct pass_ctx {
 
 static void emit_photon(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *p, vec3 *n, vec3 *d,
                         rgb *power) {
-    double u0 = halton(i, 0, c->shift);
+    double u0 = sample_halton(i, 0, c->shift);
     double pl;
     *li = distrib1d_sample(&c->choose, u0, &pl);
     const light *l = &c->s->lights[*li];
-    double u[4] = {halton(i, 1, c->shift), halton(i, 2, c->shift), halton(i, 3, c->shift),
-                   halton(i, 4, c->shift)};
+    double u[4] = {sample_halton(i, 1, c->shift), sample_halton(i, 2, c->shift), sample_halton(i, 3, c->shift),
+                   sample_halton(i, 4, c->shift)};
     if (c->caustic_pass && c->proj) {
-        const projmap *pm = &c->proj[*li];
-        int dim = proj_dim(l);
-        double uc = halton(i, 5, c->shift);
-        int cell = pm->active[(int)fmin(pm->nactive - 1, uc * pm->nactive)];
-        /* The cell's jitter comes from the photon's own stream: the Halton dimensions that
-         * are not used for the cell stay stratified. */
-        u[dim] = ((cell % pm->G) + rng_uniform(g)) / pm->G;
-        u[dim + 1] = ((cell / pm->G) + rng_uniform(g)) / pm->G;
-        if (u[dim] >= 1) u[dim] = 0x1.fffffffffffffp-1;
-        if (u[dim + 1] >= 1) u[dim + 1] = 0x1.fffffffffffffp-1;
+        projmap_sample(&c->proj[*li], l, sample_halton(i, 5, c->shift), g, u);
     }
     light_sample_le(c->s, *li, u, p, n, d);
     *power = c->light_scale[*li];
@@ -465,13 +292,6 @@ void trace_opts_init(trace_opts *o, const scene *s) {
     o->projection_cells = 64;
 }
 
-void pm_maps_free(pm_maps *m) {
-    free(m->global);
-    free(m->caustic);
-    free(m->shadow);
-    memset(m, 0, sizeof *m);
-}
-
 static void shifts(double *shift, uint64_t seed, uint64_t pass) {
     rng g = rng_stream(seed, 0xffffffffffULL, pass);
     for (int d = 0; d < 6; d++) shift[d] = rng_uniform(&g);
@@ -523,26 +343,14 @@ int photon_trace(const scene *s, const trace_opts *o, pm_maps *m, char *err, siz
 
     /* Caustic pass. */
     projmap *proj = NULL;
-    bsph *sph = NULL;
     if (rc == 0 && o->caustic && o->caustic_target > 0) {
-        int nsph = specular_spheres(s, &sph);
-        proj = calloc((size_t)nl, sizeof *proj);
-        if (nsph < 0 || !proj) rc = PM_ENOMEM;
-        int G = o->projection ? (o->projection_cells > 0 ? o->projection_cells : 64) : 1;
+        int G = o->projection ? (o->projection_cells > 0 ? o->projection_cells : 64) : 0;
+        rc = projmap_build_all(s, G, &proj);
         double wsum = 0, psum = 0;
         for (int i = 0; rc == 0 && i < nl; i++) {
-            if (o->projection) {
-                rc = projmap_build(&proj[i], s, i, G, sph, nsph);
-            } else {
-                proj[i].G = 1;
-                proj[i].nactive = 1;
-                proj[i].active = calloc(1, sizeof(int));
-                proj[i].fraction = 1;
-                if (!proj[i].active) rc = PM_ENOMEM;
-            }
             const light *l = &s->lights[i];
             double pw = (l->power.x + l->power.y + l->power.z) / 3;
-            w[i] = pw * (rc == 0 ? proj[i].fraction : 0);
+            w[i] = pw * proj[i].fraction;
             wsum += w[i];
             psum += pw;
         }
@@ -574,10 +382,8 @@ int photon_trace(const scene *s, const trace_opts *o, pm_maps *m, char *err, siz
             stat_add(st_first, m->caustic_first_specular);
         }
         if (rc == PM_ENOMEM && !err[0]) snprintf(err, errcap, "out of memory");
-        for (int i = 0; proj && i < nl; i++) free(proj[i].active);
+        projmap_free_all(proj, nl);
     }
-    free(proj);
-    free(sph);
 
     if (rc == 0 && m->global_emitted) {
         double inv = 1.0 / (double)m->global_emitted;

@@ -4,19 +4,16 @@
  *
  * EMISSION. Photon i picks its light and its origin and direction from a Halton point (bases
  * 2, 3, 5, 7, 11, 13; radical inverses of i + 1, shifted by a seed-dependent rotation), so
- * emission is stratified; lights are chosen in proportion to their power (the scene's
- * light_distrib), through light_sample_le (area: uniform point, cosine direction; point:
+ * emission is stratified (sample_halton, sampling.h); lights are chosen in proportion to
+ * their power (the scene's light_distrib), through light_sample_le (area: uniform point, cosine direction; point:
  * uniform direction; directional: a disc covering the scene). The power of every photon is
  * P_light / (p_light * n_e), n_e being the number emitted for the map.
  *
- * CAUSTIC PROJECTION MAP. For the caustic map each light gets a grid of cells over its two
- * direction parameters (a position on the disc for a directional light); a cell is active
- * when its bundle of rays, bounded conservatively by a cone (area, point) or a tube
- * (directional), can meet the bounding sphere of a specular primitive. Caustic photons are
- * emitted only into active cells, a light is chosen in proportion to P_light * f_light with
- * f_light its fraction of active cells, and each photon's power is scaled by that fraction
- * (Jensen's eq. 2.2). The emissions this saves, n_e (1/f - 1) with f the power-weighted
- * active fraction, are reported.
+ * CAUSTIC PROJECTION MAP. The caustic pass emits only into the active cells of each light's
+ * projection map (projmap.h), chooses a light in proportion to P_light * f_light with f_light
+ * its fraction of active cells, and scales each photon's power by that fraction (Jensen's
+ * eq. 2.2). The emissions this saves, n_e (1/f - 1) with f the power-weighted active
+ * fraction, are reported.
  *
  * SCATTERING. At each hit, Russian roulette picks the diffuse, specular-reflection or
  * transmission branch, or absorption, with probabilities P_x = max_c(w_x t_c Phi_c) /
@@ -44,14 +41,15 @@
  * max_emitted_factor * target photons were emitted without reaching it (e.g. lights that face
  * nothing): then it prints a message to stderr and keeps what it stored (maybe nothing).
  *
- * OWNERSHIP. photon_trace fills a pm_maps whose arrays it allocates; pm_maps_free frees them.
+ * OWNERSHIP. photon_trace fills a pm_maps (photon_maps.h) whose arrays it allocates;
+ * pm_maps_free frees them.
  */
 #ifndef RENDER_PHOTON_TRACE_H
 #define RENDER_PHOTON_TRACE_H
 
 #include <stdint.h>
 
-#include "photon.h"
+#include "photon_maps.h"
 #include "scene.h"
 
 #ifdef __cplusplus
@@ -71,26 +69,10 @@ typedef struct trace_opts {
     int quiet;   /* no progress or messages except errors and the runaway warning */
 } trace_opts;
 
-typedef struct pm_maps {
-    pm_photon *global, *caustic, *shadow;
-    size_t nglobal, ncaustic, nshadow;
-    uint64_t global_emitted, caustic_emitted; /* the shadow map shares the global pass */
-    double caustic_fraction;        /* power-weighted active fraction of the projection maps */
-    uint64_t caustic_saved;         /* emissions the projection map saved */
-    uint64_t caustic_first_specular; /* caustic-pass photons whose first hit was specular */
-    int global_runaway, caustic_runaway; /* 1 if the pass stopped short of its target */
-} pm_maps;
-
 /* Fill the options from the scene's settings: seed, max_depth; the rest zero. */
 void trace_opts_init(trace_opts *o, const scene *s);
 /* Trace the maps. Returns 0, or a negative PM_E* code with a message (PM_ENOMEM). */
 int photon_trace(const scene *s, const trace_opts *o, pm_maps *m, char *err, size_t errcap);
-void pm_maps_free(pm_maps *m);
-
-/* Light li's projection map with G x G cells (for tests): active[cy * G + cx] = 1 for the
- * active cells, over the parameter pair the map covers (u[2], u[3] of light_sample_le for
- * area lights, u[0], u[1] otherwise). Returns the number of active cells or a negative code. */
-int photon_projection_cells(const scene *s, int li, int G, unsigned char *active);
 
 #ifdef __cplusplus
 }

@@ -3,13 +3,9 @@
  *
  * PREPROCESS. Read the settings ("$.photon_mapping", plan.h), decide and print the plan,
  * then either trace the maps (photon_trace.h) or load them from a directory (load_photons),
- * optionally save them as traced (save_photons: DIR/global.pmap, caustic.pmap, shadow.pmap,
- * the format of photonmap/photon.h, tree_bucket 0), build a kd-tree over each
- * (pm_kdtree_build; the records are reordered into tree order), and precompute irradiance
- * at a quarter of the global photons (Christensen). Maximum search radii are automatic unless given:
- * Christensen's radius beyond which k photons of the largest power would give less than a
- * threshold radiance, 0.5% of the mean radiance the lights' power would give on the diffuse
- * area (phi / (pi A)).
+ * optionally save them as traced (save_photons), build a kd-tree over each (the records are
+ * reordered into tree order), choose the search radii (map files, trees and radii:
+ * photon_maps.h), and precompute irradiance at a quarter of the global photons (Christensen).
  *
  * RENDERING: Jensen's split of the rendering equation. A camera ray follows specular
  * reflection and refraction (both branches, weighted, for the first split_depth bounces;
@@ -40,10 +36,8 @@
  *
  * Threads: li only reads the maps; each thread has its own scratch (estimate buffers).
  */
-#include <errno.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 
 #include "common.h"
 #include "estimate.h"
@@ -51,6 +45,7 @@
 #include "irradiance.h"
 #include "kdtree.h"
 #include "photon.h"
+#include "photon_maps.h"
 #include "photon_trace.h"
 #include "plan.h"
 #include "stats.h"
@@ -80,16 +75,6 @@ typedef struct pm_scratch {
 } pm_scratch;
 
 /* ---- helpers ------------------------------------------------------------------------------ */
-
-static double diffuse_area(const scene *s) {
-    double a = 0;
-    for (int i = 0; i < s->ntris; i++)
-        if (material_is_diffuse(&s->mats[s->tris[i].mat])) a += s->tris[i].area;
-    for (int i = 0; i < s->nspheres; i++)
-        if (material_is_diffuse(&s->mats[s->spheres[i].mat]))
-            a += 4 * M_PI * s->spheres[i].r * s->spheres[i].r;
-    return a;
-}
 
 /* w_D times the diffuse reflectance: the Lambertian part of the BSDF times pi. */
 static rgb diffuse_albedo(const scene *s, const material *m, vec3 wo, vec3 ng) {
@@ -472,43 +457,6 @@ static void pm_destroy(integrator *self) {
 
 /* ---- preprocess --------------------------------------------------------------------------- */
 
-static int save_map(const char *dir, const char *name, const pm_photon *ph, size_t n, uint32_t kind,
-                    uint64_t emitted, unsigned bucket, char *err, size_t errcap) {
-    char path[1024];
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    pm_map_header hdr = {PM_FILE_VERSION, sizeof(pm_photon), n, kind, emitted, bucket};
-    int rc = pm_map_save(path, ph, &hdr);
-    if (rc < 0)
-        snprintf(err, errcap, "cannot save %s: %s", path, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
-    return rc;
-}
-
-static int load_map(const char *dir, const char *name, pm_photon **ph, size_t *n, uint64_t *emitted,
-                    char *err, size_t errcap) {
-    char path[1024];
-    snprintf(path, sizeof path, "%s/%s", dir, name);
-    struct stat sb;
-    if (stat(path, &sb) != 0) return 0; /* absent: that map is empty */
-    pm_map_header hdr;
-    int rc = pm_map_load(path, ph, &hdr);
-    if (rc < 0) {
-        snprintf(err, errcap, "cannot load %s: %s", path, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
-        return rc;
-    }
-    *n = (size_t)hdr.count;
-    if (emitted) *emitted = hdr.emitted;
-    return 0;
-}
-
-static int build_tree(pm_kdtree **t, pm_photon *ph, size_t n, unsigned bucket, char *err, size_t errcap) {
-    *t = NULL;
-    if (!ph || n == 0) return 0;
-    pm_kdtree_config kc = pm_kdtree_photon_config(bucket);
-    int rc = pm_kdtree_build(t, ph, n, &kc, NULL);
-    if (rc < 0) snprintf(err, errcap, "building a photon kd-tree: %s", pm_strerror(rc));
-    return rc;
-}
-
 enum { BUCKET_GLOBAL = 1, BUCKET_CAUSTIC = 8, BUCKET_SHADOW = 8 };
 
 static int pm_preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
@@ -519,13 +467,7 @@ static int pm_preprocess(integrator *self, const scene *s, char *err, size_t err
     int rc;
     double t0 = stats_now();
     if (st->cfg.load_dir[0]) {
-        if ((rc = load_map(st->cfg.load_dir, "global.pmap", &m->global, &m->nglobal,
-                           &m->global_emitted, err, errcap)) < 0 ||
-            (rc = load_map(st->cfg.load_dir, "caustic.pmap", &m->caustic, &m->ncaustic,
-                           &m->caustic_emitted, err, errcap)) < 0 ||
-            (rc = load_map(st->cfg.load_dir, "shadow.pmap", &m->shadow, &m->nshadow, NULL, err,
-                           errcap)) < 0)
-            return rc;
+        if ((rc = photon_maps_load(m, st->cfg.load_dir, err, errcap)) < 0) return rc;
         /* The plan decides which loaded maps are used. */
         if (!st->plan.global.on) m->nglobal = 0;
         if (!st->plan.caustics.on) m->ncaustic = 0;
@@ -556,51 +498,26 @@ static int pm_preprocess(integrator *self, const scene *s, char *err, size_t err
     /* Saved before the trees reorder them: loading these files then gives the trees, the
      * precomputed irradiance and the image of this run exactly. */
     if (st->cfg.save_dir[0]) {
-        if (mkdir(st->cfg.save_dir, 0777) != 0 && errno != EEXIST) {
-            snprintf(err, errcap, "cannot create %s: %s", st->cfg.save_dir, strerror(errno));
-            return PM_EIO;
-        }
-        if ((rc = save_map(st->cfg.save_dir, "global.pmap", m->global, m->nglobal, PM_MAP_GLOBAL,
-                           m->global_emitted, 0, err, errcap)) < 0 ||
-            (rc = save_map(st->cfg.save_dir, "caustic.pmap", m->caustic, m->ncaustic,
-                           PM_MAP_CAUSTIC, m->caustic_emitted, 0, err, errcap)) < 0 ||
-            (rc = save_map(st->cfg.save_dir, "shadow.pmap", m->shadow, m->nshadow, PM_MAP_SHADOW,
-                           m->global_emitted, 0, err, errcap)) < 0)
-            return rc;
+        if ((rc = photon_maps_save(m, st->cfg.save_dir, err, errcap)) < 0) return rc;
         printf("Saved photon maps to %s\n", st->cfg.save_dir);
     }
 
     t0 = stats_now();
-    if ((rc = build_tree(&st->tg, m->global, m->nglobal, BUCKET_GLOBAL, err, errcap)) < 0 ||
-        (rc = build_tree(&st->tc, m->caustic, m->ncaustic, BUCKET_CAUSTIC, err, errcap)) < 0 ||
-        (rc = build_tree(&st->ts, m->shadow, m->nshadow, BUCKET_SHADOW, err, errcap)) < 0)
+    if ((rc = photon_tree_build(&st->tg, m->global, m->nglobal, BUCKET_GLOBAL, err, errcap)) < 0 ||
+        (rc = photon_tree_build(&st->tc, m->caustic, m->ncaustic, BUCKET_CAUSTIC, err, errcap)) < 0 ||
+        (rc = photon_tree_build(&st->ts, m->shadow, m->nshadow, BUCKET_SHADOW, err, errcap)) < 0)
         return rc;
     stats_time_add("Time/Photon kd-trees", stats_now() - t0);
-    /* Radii. */
-    double area = diffuse_area(s);
-    double phi = 0;
-    for (int i = 0; i < s->nlights; i++) phi += v3_maxc(s->lights[i].power);
-    double Lt = area > 0 ? 0.005 * phi / (M_PI * area) : 0;
-    double rg = st->cfg.max_radius_global, rc_ = st->cfg.max_radius_caustic;
-    if (rg <= 0)
-        rg = m->nglobal ? pm_auto_radius_surface((unsigned)st->cfg.k_global,
-                                                 pm_photons_max_power(m->global, m->nglobal), Lt)
-                        : INFINITY;
-    if (rc_ <= 0)
-        rc_ = m->ncaustic ? pm_auto_radius_surface((unsigned)st->cfg.k_caustic,
-                                                   pm_photons_max_power(m->caustic, m->ncaustic), Lt)
-                          : INFINITY;
-    st->r2_global = (float)(rg * rg);
-    st->r2_caustic = (float)(rc_ * rc_);
-    /* The radius of a k-photon estimate at the mean density of the global map. */
-    double rtyp = m->nglobal ? sqrt(st->cfg.k_global * area / (M_PI * (double)m->nglobal)) : INFINITY;
-    st->r2_lookup = (float)fmin(16 * rtyp * rtyp, (double)st->r2_global);
-    st->sec_dist = st->cfg.secondary_distance > 0 ? st->cfg.secondary_distance : rtyp;
-    double rsh = m->nshadow ? sqrt(st->cfg.k_shadow * area / (M_PI * (double)m->nshadow)) : 0;
-    st->r2_shadow = (float)(4 * rsh * rsh);
+    map_radii rad;
+    photon_maps_radii(s, m, &st->cfg, &rad);
+    st->r2_global = rad.r2_global;
+    st->r2_caustic = rad.r2_caustic;
+    st->r2_lookup = rad.r2_lookup;
+    st->r2_shadow = rad.r2_shadow;
+    st->sec_dist = st->cfg.secondary_distance > 0 ? st->cfg.secondary_distance : rad.typical;
     printf("Radii: global estimate %.4g, caustic estimate %.4g, secondary gather below %.4g, "
            "shadow-map query %.4g\n",
-           rg, rc_, st->sec_dist, 2 * rsh);
+           rad.global, rad.caustic, st->sec_dist, rad.shadow);
 
     pm_estimator kinds[] = {PM_EST_DISC, PM_EST_CONE, PM_EST_GAUSS, PM_EST_HULL};
     pm_estimate_options_init(&st->caus_opt, kinds[st->cfg.filter], (unsigned)st->cfg.k_caustic);
@@ -636,7 +553,7 @@ static int pm_preprocess(integrator *self, const scene *s, char *err, size_t err
                 j++;
             }
         }
-        if ((rc = build_tree(&st->ti, st->irr_ph, j, 8, err, errcap)) < 0) return rc;
+        if ((rc = photon_tree_build(&st->ti, st->irr_ph, j, 8, err, errcap)) < 0) return rc;
         stats_time_add("Time/Precomputed irradiance", stats_now() - t0);
         printf("Precomputed irradiance at %zu of %zu global photons\n", pm_irradiance_count(st->irr),
                m->nglobal);

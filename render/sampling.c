@@ -3,6 +3,7 @@
  * The cosine hemisphere uses Malley's method (a concentric disc point lifted to the
  * hemisphere), which keeps stratified inputs stratified. The triangle warp is the square-root
  * parametrization. distrib1d keeps a normalized cumulative table and binary-searches it.
+ * Halton points are radical inverses in the first six prime bases.
  */
 #include "sampling.h"
 
@@ -102,4 +103,23 @@ void distrib1d_free(distrib1d *d) {
     free(d->cdf);
     d->cdf = NULL;
     d->n = 0;
+}
+
+static double radical_inverse(uint64_t i, unsigned base) {
+    double inv = 1.0 / base, f = inv, r = 0;
+    while (i) {
+        r += (double)(i % base) * f;
+        i /= base;
+        f *= inv;
+    }
+    return r;
+}
+
+static const unsigned k_primes[6] = {2, 3, 5, 7, 11, 13};
+
+/* Dimension d of Halton point i, rotated (Cranley-Patterson) by shift[d]. */
+double sample_halton(uint64_t i, int d, const double *shift) {
+    double v = radical_inverse(i + 1, k_primes[d]) + shift[d];
+    v -= floor(v);
+    return v < 1.0 ? v : 0x1.fffffffffffffp-1;
 }

@@ -5,11 +5,14 @@
  * unit area. Directions from the hemisphere functions are in a local frame whose z axis is
  * the normal; sampling_to_world() takes them to world space. A discrete distribution
  * (distrib1d) picks an index in proportion to its weights, e.g. a light by its power.
+ * sample_halton gives the stratified low-discrepancy points photon emission uses.
  *
  * Stateless, except distrib1d, which owns its arrays (distrib1d_free).
  */
 #ifndef RENDER_SAMPLING_H
 #define RENDER_SAMPLING_H
+
+#include <stdint.h>
 
 #include "vec.h"
 
@@ -33,6 +36,10 @@ void sample_concentric_disc(double u1, double u2, double *x, double *y);
 void sample_triangle(double u1, double u2, double *b1, double *b2);
 /* Take a local direction (z = normal) to world space around the unit normal n. */
 vec3 sampling_to_world(vec3 local, vec3 n);
+
+/* Dimension d (0 to 5: bases 2, 3, 5, 7, 11, 13) of the Halton point with index i + 1,
+ * rotated (Cranley-Patterson) by shift[d] and wrapped into [0, 1). */
+double sample_halton(uint64_t i, int d, const double *shift);
 
 /* A discrete distribution over n weights (>= 0, finite, sum > 0). */
 typedef struct distrib1d {

@@ -27,6 +27,7 @@
 #include "../render/film.h"
 #include "../render/photon_trace.h"
 #include "../render/plan.h"
+#include "../render/projmap.h"
 #include "../render/scene.h"
 #include "../render/stats.h"
 
@@ -602,7 +603,7 @@ TEST(render_pm_runaway_trace) {
     EXPECT_EQ_INT(m.nglobal, 0);
     pm_maps_free(&m);
     unsigned char cells[16 * 16];
-    EXPECT_EQ_INT(photon_projection_cells(&s, 0, 16, cells), 0);
+    EXPECT_EQ_INT(projmap_cells(&s, 0, 16, cells), 0);
     scene_free(&s);
 }
 
