@@ -63,6 +63,7 @@ static void usage(FILE *f) {
             "Writes DIR/estimate.csv (columns: bench/README.md); progress on stderr.\n"
             "\n"
             "  --quick      N = 20000 photons, 300 points per region\n"
+            "  --lookup-only  only the precomputed-irradiance lookup race (irradiance_lookup.csv)\n"
             "  --out DIR    output directory (default bench/results; must exist)\n"
             "  --n N        photons (default 200000)\n"
             "  --points P   estimate points per region (default 3000)\n"
@@ -72,11 +73,134 @@ static void usage(FILE *f) {
             "  --seed S     random seed (default 1)\n");
 }
 
+/* ---- precomputed irradiance lookup: the module's structure against a private pm_photon tree ----
+ *
+ * A photon map of random (Poisson) photons on three planes (floor, wall, a plane tilted 37
+ * degrees), the quarter precomputed with k = 50. "private_tree" is what a renderer would build
+ * by hand: a pm_kdtree (bucket 8) over copies of the precomputed pm_photon records with the
+ * power replaced by the irradiance, queried with pm_kdtree_nearest_if and a predicate that
+ * decodes each photon's normal; "pm_irradiance_lookup" is the module's own. Both answer "the
+ * nearest precomputed photon with dot(normal, n) >= 0.7 within max_dist2"; every answer is
+ * compared before timing. The runs alternate between the two, and the ratio of medians is
+ * written (private / module: > 1 means the module is faster). */
+static int private_agrees(void *user, const void *record, uint32_t index) {
+    (void)index;
+    const float *n = user;
+    float pn[3];
+    pm_normal_decode(((const pm_photon *)record)->normal, pn);
+    return n[0] * pn[0] + n[1] * pn[1] + n[2] * pn[2] >= 0.7f;
+}
+
+static int lookup_race(const char *out, size_t n, size_t nq, int runs, uint64_t seed) {
+    pm_photon *ph = malloc(n * sizeof *ph);
+    float *q = malloc(nq * 6 * sizeof *q), *md2 = NULL;
+    double *t[2] = {malloc((size_t)runs * sizeof(double)), malloc((size_t)runs * sizeof(double))};
+    if (!ph || !q || !t[0] || !t[1]) return -1;
+    bench_rng rng;
+    bench_rng_seed(&rng, seed);
+    const double c37 = cos(37 * 3.14159265358979 / 180), s37 = sin(37 * 3.14159265358979 / 180);
+    const float nrm3[3][3] = {{0, 0, 1}, {1, 0, 0}, {(float)-s37, 0, (float)c37}};
+    for (size_t i = 0; i < n; i++) {
+        int pl = (int)(i % 3);
+        double u = bench_rng_unit(&rng), v = bench_rng_unit(&rng);
+        float pos[3] = {(float)u, (float)v, 0};
+        if (pl == 1) pos[0] = 0, pos[1] = (float)u, pos[2] = (float)v;
+        if (pl == 2) pos[0] = (float)(0.2 + 0.6 * u * c37), pos[1] = (float)v, pos[2] = (float)(0.3 + 0.6 * u * s37);
+        const float *nm = nrm3[pl];
+        float d[3] = {-nm[0], -nm[1], -nm[2]}, pw = (float)((0.5 + bench_rng_unit(&rng)) / (double)n);
+        pm_photon_set(&ph[i], pos, (float[3]){pw, pw, pw}, d, nm, PM_KIND_INDIRECT);
+    }
+    /* queries on the planes, each with its plane's normal */
+    for (size_t i = 0; i < nq; i++) {
+        size_t j = (size_t)(bench_rng_unit(&rng) * (double)n);
+        const float *nm = nrm3[j % 3];
+        for (int a = 0; a < 3; a++) {
+            q[6 * i + a] = ph[j].pos[a] + (float)(0.002 * (bench_rng_unit(&rng) - 0.5)) * (1 - fabsf(nm[a]));
+            q[6 * i + 3 + a] = nm[a];
+        }
+    }
+    pm_kdtree *tree = NULL, *priv = NULL;
+    pm_kdtree_config cfg = pm_kdtree_photon_config(1), cfg8 = pm_kdtree_photon_config(8);
+    if (pm_kdtree_build(&tree, ph, n, &cfg, NULL) != 0) return -1;
+    pm_irradiance_options io;
+    pm_irradiance *irr = NULL;
+    pm_irradiance_options_init(&io, 50);
+    io.fraction = PM_PRECOMP_QUARTER;
+    if (pm_irradiance_build(&irr, tree, &io) != 0) return -1;
+    size_t ni = pm_irradiance_count(irr), j = 0;
+    pm_photon *iph = malloc((ni ? ni : 1) * sizeof *iph);
+    if (!iph) return -1;
+    for (size_t i = 0; i < n; i++) {
+        float e[3];
+        if (pm_irradiance_value(irr, (uint32_t)i, e)) {
+            iph[j] = ph[i];
+            pm_rgbe_encode(e, iph[j].power);
+            j++;
+        }
+    }
+    if (pm_kdtree_build(&priv, iph, j, &cfg8, NULL) != 0) return -1;
+    FILE *csv = bench_csv_open(out, "irradiance_lookup.csv",
+                               "photons,precomputed,queries,max_dist2,method,ns_per_lookup,"
+                               "ratio_private_over_module,bytes_per_precomputed,mismatches");
+    const float radii[2] = {INFINITY, (float)(4.0 / (double)n)};
+    const double bytes_mod = (double)pm_irradiance_bytes(irr) / (double)ni;
+    const double bytes_priv = (double)(j * sizeof *iph + pm_kdtree_index_bytes(priv)) / (double)ni;
+    (void)md2;
+    for (int ri = 0; ri < 2; ri++) {
+        float r2 = radii[ri];
+        size_t mism = 0;
+        for (size_t i = 0; i < nq; i++) {
+            float a[3], b[3] = {0, 0, 0};
+            pm_neighbor nb;
+            pm_irradiance_lookup(irr, &q[6 * i], &q[6 * i + 3], r2, 0.7f, a, NULL);
+            if (pm_kdtree_nearest_if(priv, &q[6 * i], r2, private_agrees, &q[6 * i + 3], &nb, NULL) > 0)
+                pm_rgbe_decode(iph[nb.index].power, b);
+            mism += memcmp(a, b, sizeof a) != 0;
+        }
+        for (int run = 0; run < runs; run++)
+            for (int m = 0; m < 2; m++) {
+                double acc = 0, t0 = bench_now();
+                for (size_t i = 0; i < nq; i++) {
+                    float a[3] = {0, 0, 0};
+                    pm_neighbor nb;
+                    if (m == 1)
+                        pm_irradiance_lookup(irr, &q[6 * i], &q[6 * i + 3], r2, 0.7f, a, NULL);
+                    else if (pm_kdtree_nearest_if(priv, &q[6 * i], r2, private_agrees, &q[6 * i + 3], &nb, NULL) > 0)
+                        pm_rgbe_decode(iph[nb.index].power, a);
+                    acc += a[0];
+                }
+                t[m][run] = (bench_now() - t0) / (double)nq;
+                g_sink += acc;
+            }
+        double med[2] = {bench_median(t[0], runs), bench_median(t[1], runs)};
+        for (int m = 0; m < 2; m++)
+            fprintf(csv, "%zu,%zu,%zu,%g,%s,%.1f,%.3f,%.2f,%zu\n", n, ni, nq, (double)r2,
+                    m ? "pm_irradiance_lookup" : "private_tree", 1e9 * med[m], med[0] / med[1],
+                    m ? bytes_mod : bytes_priv, mism);
+        bench_log("irradiance lookup, max_dist2 %g: private %.1f ns, module %.1f ns (ratio %.3f), %zu mismatches",
+                  (double)r2, 1e9 * med[0], 1e9 * med[1], med[0] / med[1], mism);
+        if (mism) {
+            fprintf(stderr, "bench_estimate: %zu lookups disagree with the private tree\n", mism);
+            return -1;
+        }
+    }
+    fclose(csv);
+    pm_kdtree_free(priv);
+    pm_kdtree_free(tree);
+    pm_irradiance_free(irr);
+    free(iph);
+    free(ph);
+    free(q);
+    free(t[0]);
+    free(t[1]);
+    return 0;
+}
+
 int main(int argc, char **argv) {
     static const char *const P = "bench_estimate";
     const char *out = "bench/results";
     size_t n = 0, npts = 0;
-    int runs = 5, quick = 0;
+    int runs = 5, quick = 0, lookup_only = 0;
     unsigned bucket = 1;
     uint64_t seed = 1;
     for (int i = 1; i < argc; i++) {
@@ -84,6 +208,8 @@ int main(int argc, char **argv) {
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             usage(stdout);
             return 0;
+        } else if (!strcmp(a, "--lookup-only")) {
+            lookup_only = 1;
         } else if (!strcmp(a, "--quick")) {
             quick = 1;
         } else if (!strcmp(a, "--full")) {
@@ -115,6 +241,11 @@ int main(int argc, char **argv) {
     }
     if (!n) n = quick ? 20000 : 200000;
     if (!npts) npts = quick ? 300 : 3000;
+    if (lookup_race(out, n, quick ? 20000 : 100000, runs, seed) < 0) {
+        fprintf(stderr, "bench_estimate: irradiance lookup race failed\n");
+        return 1;
+    }
+    if (lookup_only) return 0;
 
     /* The lit square: equal powers summing to 1, arriving straight down. */
     pm_photon *ph = malloc(n * sizeof *ph);

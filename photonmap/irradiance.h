@@ -18,16 +18,28 @@
  * pm_estimate at x in the mean (irradiance_lookup_matches_full_estimate in
  * tests/test_irradiance.c); leaving i out makes lookups read about 1/k low.
  *
- * STORAGE AND COST. One RGBE value (4 bytes) per photon of the map, in tree order, plus one bit
- * per photon that says whether it was precomputed, plus (only if opt.store_radius) the float
- * radius^2 of the photon's own estimate (4 bytes): 4.125 bytes per photon, or 8.125 with
- * radii; pm_irradiance_bytes_per_photon() reports it. The photons themselves are not copied.
- * RGBE keeps a relative error below 2^-8 in the largest channel.
+ * STORAGE AND COST. The build copies what lookups need, so the map's tree and photons may be
+ * freed or reused afterwards. Per precomputed photon: a 20-byte record (float position, RGBE
+ * value, normal code, the lookup tree's axis byte, 2 bytes of padding), its slot for
+ * pm_irradiance_value (4 bytes) and, only if opt.store_radius, the float radius^2 of its own
+ * estimate (4 bytes): 24 bytes, or 28 with radii. Per photon of the map: one bit (was it precomputed) and a 4-byte rank per 64 photons
+ * (3/16 byte in all). pm_irradiance_bytes() adds up what was actually allocated and the tests
+ * check it against this formula; bench_estimate prints it per photon. RGBE keeps a relative
+ * error below 2^-8 in the largest channel.
  *
- * LOOKUP. pm_irradiance_lookup finds, with pm_kdtree_nearest_if, the single nearest
- * precomputed photon whose decoded normal has dot(normal, n) >= cos_min, within
- * radius^2 max_dist2 and (with stored radii) within that photon's own estimate radius, and
- * returns its value; if there is none, black (rgb = 0) and 0.
+ * LOOKUP. pm_irradiance_lookup returns the value of the single nearest precomputed photon whose
+ * decoded normal has dot(normal, n) >= cos_min, within radius^2 max_dist2 and (with stored
+ * radii) within that photon's own estimate radius (dist2 < its r2); if there is none, black
+ * (rgb = 0) and 0. The search runs on the kd-tree of the precomputed photons only, so it never
+ * steps over the photons that were not precomputed; tests/test_irradiance.c checks it against
+ * a brute-force scan of the precomputed photons. When several photons tie at the nearest
+ * dist2, which one answers is a fixed function of the build.
+ *
+ * LEAK CONTROL AT BUILD. opt.squash > 1 searches an ellipsoid compressed along the surface
+ * normal; a tilted normal makes the flat ellipsoid cut the surface and miss photons (a bias
+ * low). The stored 1-byte normal is up to about 10 degrees off (photon.h), so give the exact
+ * normals in opt.normals (3 floats per photon, in the map's tree order: reorder with the perm
+ * of pm_kdtree_build) whenever squash > 1; without them the quantized normal is used.
  *
  * COMBINED MAPS. M independent maps of one scene (say, built by M threads or machines, each
  * emitting 1/M of the photons, with photon powers scaled for the total emission, so that the
@@ -42,7 +54,7 @@
  *
  * THREADS. A built pm_irradiance is read-only: lookups never allocate or lock and may run on
  * any number of threads. pm_irradiance_build allocates (the caller frees with
- * pm_irradiance_free); the tree and photons must outlive it.
+ * pm_irradiance_free); it keeps no pointer to the tree or its photons.
  */
 #ifndef PM_IRRADIANCE_H
 #define PM_IRRADIANCE_H
@@ -68,6 +80,8 @@ typedef struct pm_irradiance_options {
     const float *diffuse; /* RGB reflectance: store radiance rho E / pi; NULL: irradiance */
     int store_radius;     /* keep each estimate's radius^2 as a per-photon cut-off */
     int threads;          /* OpenMP threads, 0 = the runtime's default */
+    const float *normals; /* exact unit normals, 3 floats per photon in tree order, or NULL:
+                             the photons' quantized normals (see LEAK CONTROL AT BUILD) */
 } pm_irradiance_options;
 
 typedef struct pm_irradiance pm_irradiance;
@@ -80,8 +94,8 @@ int pm_irradiance_build(pm_irradiance **out, const pm_kdtree *tree,
 void pm_irradiance_free(pm_irradiance *irr);
 
 size_t pm_irradiance_count(const pm_irradiance *irr);    /* photons precomputed */
-size_t pm_irradiance_bytes(const pm_irradiance *irr);    /* bytes it owns */
-double pm_irradiance_bytes_per_photon(const pm_irradiance *irr); /* per photon of the map */
+size_t pm_irradiance_bytes(const pm_irradiance *irr);    /* bytes it owns (allocated) */
+double pm_irradiance_bytes_per_photon(const pm_irradiance *irr); /* bytes / photons of the map */
 /* 1 and the stored value if photon i was precomputed, else 0. */
 int pm_irradiance_value(const pm_irradiance *irr, uint32_t i, float rgb[3]);
 
