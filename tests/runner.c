@@ -1,11 +1,15 @@
 /* runner.c: runs every registered test, each in its own forked child.
  *
- * Usage: run_tests [--list] [-j N] [PATTERN...]
- *   PATTERN selects tests whose name or file contains it (any pattern matches).
+ * Usage: run_tests [--list] [-j N] [-x PATTERN]... [PATTERN...]
+ *   PATTERN selects tests whose name or file contains it (any pattern matches); -x PATTERN
+ *   leaves out those whose name or file contains it (`make check` uses it for slow tests).
  *   -j N runs N tests at once (default: PM_TEST_JOBS, else 2). Each child's output is
  *   captured and printed whole when it ends, so parallel output does not interleave.
  *   PM_TEST_TIMEOUT (seconds, default 300) kills a test that runs too long.
- * The last line printed is "N passed, N failed"; the exit status is 1 if any test failed.
+ * A test that cannot run here (a missing tool) calls SKIP("reason"): its child exits with
+ * PM_TEST_SKIP_STATUS, and it is neither passed nor failed. The skipped tests are listed with
+ * their reasons before the last line, "N passed, N failed, N skipped"; the exit status is 1
+ * if any test failed.
  */
 #define _GNU_SOURCE
 #include "test.h"
@@ -29,6 +33,7 @@ typedef struct {
 static test_entry *g_tests;
 static int g_ntests, g_cap;
 static int g_failures;       /* in the child: failures of the running test */
+static int g_skipped;        /* in the child: the running test called SKIP */
 static char g_tmpdir[512];
 
 void pm_test_register(const char *name, const char *file, pm_test_fn fn) {
@@ -53,6 +58,15 @@ void pm_test_fail(const char *file, int line, const char *fmt, ...) {
 }
 
 int pm_test_failed(void) { return g_failures; }
+
+/* The reason goes to the test's log behind a fixed marker, where the parent finds it for the
+ * list of skipped tests. */
+#define SKIP_MARKER "    skipped: "
+void pm_test_skip(const char *reason) {
+    g_skipped = 1;
+    printf(SKIP_MARKER "%s\n", reason);
+    fflush(stdout);
+}
 
 const char *pm_test_build_dir(void) {
     const char *d = getenv("PM_BUILD_DIR");
@@ -123,7 +137,7 @@ static void run_child(const test_entry *t, int out, unsigned timeout) {
     } else if (g_tmpdir[0]) {
         printf("    (scratch kept in %s)\n", g_tmpdir);
     }
-    _exit(g_failures ? 1 : 0);
+    _exit(g_failures ? 1 : g_skipped ? PM_TEST_SKIP_STATUS : 0);
 }
 
 typedef struct {
@@ -133,16 +147,37 @@ typedef struct {
     double t0;
 } running;
 
-static int selected(const test_entry *t, int npat, char **pat) {
-    if (npat == 0) return 1;
+static int matches(const test_entry *t, int npat, char **pat) {
     for (int i = 0; i < npat; i++)
         if (strstr(t->name, pat[i]) || strstr(t->file, pat[i])) return 1;
     return 0;
 }
 
+static int selected(const test_entry *t, int npat, char **pat, int nexcl, char **excl) {
+    return (npat == 0 || matches(t, npat, pat)) && !matches(t, nexcl, excl);
+}
+
+/* The reason a skipped test printed after SKIP_MARKER, or "" (into buf of cap bytes). */
+static void skip_reason(FILE *log, char *buf, size_t cap) {
+    char line[1024];
+    buf[0] = 0;
+    rewind(log);
+    while (fgets(line, sizeof line, log))
+        if (!strncmp(line, SKIP_MARKER, strlen(SKIP_MARKER))) {
+            const char *r = line + strlen(SKIP_MARKER);
+            size_t n = strcspn(r, "\n");
+            if (n >= cap) n = cap - 1;
+            memcpy(buf, r, n);
+            buf[n] = 0;
+            return;
+        }
+}
+
 int main(int argc, char **argv) {
-    int jobs = 2, npat = 0, list = 0, passed = 0, failed = 0;
-    char **pat = calloc((size_t)argc, sizeof *pat);
+    int jobs = 2, npat = 0, nexcl = 0, list = 0, passed = 0, failed = 0, skipped = 0;
+    char **pat = calloc((size_t)argc, sizeof *pat), **excl = calloc((size_t)argc, sizeof *excl);
+    char *skips = NULL; /* "name (reason)\n" of each skipped test */
+    size_t skips_len = 0;
     const char *env;
     unsigned timeout = 300;
     running *run;
@@ -153,15 +188,16 @@ int main(int argc, char **argv) {
     for (int i = 1; i < argc; i++) {
         if (!strcmp(argv[i], "--list")) list = 1;
         else if (!strcmp(argv[i], "-j") && i + 1 < argc) jobs = atoi(argv[++i]);
+        else if (!strcmp(argv[i], "-x") && i + 1 < argc) excl[nexcl++] = argv[++i];
         else if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) {
-            printf("usage: %s [--list] [-j N] [PATTERN...]\n", argv[0]);
+            printf("usage: %s [--list] [-j N] [-x PATTERN]... [PATTERN...]\n", argv[0]);
             return 0;
         } else pat[npat++] = argv[i];
     }
     if (jobs < 1) jobs = 1;
     if (list) {
         for (int i = 0; i < g_ntests; i++)
-            if (selected(&g_tests[i], npat, pat)) printf("%s  (%s)\n", g_tests[i].name, g_tests[i].file);
+            if (selected(&g_tests[i], npat, pat, nexcl, excl)) printf("%s  (%s)\n", g_tests[i].name, g_tests[i].file);
         return 0;
     }
     run = calloc((size_t)jobs, sizeof *run);
@@ -171,7 +207,7 @@ int main(int argc, char **argv) {
             int i = next++;
             FILE *log;
             pid_t pid;
-            if (!selected(&g_tests[i], npat, pat)) continue;
+            if (!selected(&g_tests[i], npat, pat, nexcl, excl)) continue;
             log = tmpfile();
             if (!log) { perror("tmpfile"); return 2; }
             fflush(NULL);
@@ -187,7 +223,7 @@ int main(int argc, char **argv) {
             char buf[4096];
             size_t got;
             const test_entry *t;
-            int ok;
+            int ok, skip;
             if (pid < 0) {
                 if (errno == EINTR) continue;
                 perror("wait");
@@ -197,21 +233,35 @@ int main(int argc, char **argv) {
             if (k == nrun) continue;
             t = &g_tests[run[k].idx];
             ok = WIFEXITED(status) && WEXITSTATUS(status) == 0;
-            printf("%s %s (%.2fs)\n", ok ? "PASS" : "FAIL", t->name, now_s() - run[k].t0);
+            skip = WIFEXITED(status) && WEXITSTATUS(status) == PM_TEST_SKIP_STATUS;
+            printf("%s %s (%.2fs)\n", ok ? "PASS" : skip ? "SKIP" : "FAIL", t->name,
+                   now_s() - run[k].t0);
             rewind(run[k].log);
             while ((got = fread(buf, 1, sizeof buf, run[k].log)) > 0) fwrite(buf, 1, got, stdout);
             if (WIFSIGNALED(status))
                 printf("    killed by signal %d%s\n", WTERMSIG(status),
                        WTERMSIG(status) == SIGALRM ? " (time limit; PM_TEST_TIMEOUT)" : "");
             fflush(stdout);
+            if (skip) {
+                char reason[512], *grown;
+                skip_reason(run[k].log, reason, sizeof reason);
+                size_t add = strlen(t->name) + strlen(reason) + 8;
+                if (!(grown = realloc(skips, skips_len + add + 1))) abort();
+                skips = grown;
+                skips_len += (size_t)sprintf(skips + skips_len, "  %s (%s)\n", t->name, reason);
+            }
             fclose(run[k].log);
             if (ok) passed++;
+            else if (skip) skipped++;
             else failed++;
             run[k] = run[--nrun];
         }
     }
-    printf("%d passed, %d failed\n", passed, failed);
+    if (skipped) printf("skipped:\n%s", skips);
+    printf("%d passed, %d failed, %d skipped\n", passed, failed, skipped);
+    free(skips);
     free(run);
     free(pat);
+    free(excl);
     return failed ? 1 : 0;
 }

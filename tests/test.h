@@ -3,7 +3,8 @@
  * A test is a function declared with TEST(name) { ... }. It registers itself at program start
  * (a constructor), so adding a test means adding a function, nothing else. The runner
  * (tests/runner.c) runs each test in a forked child with a time limit, so a crash or a hang
- * fails that test alone, and prints one line per test and, last, "N passed, N failed".
+ * fails that test alone, and prints one line per test and, last,
+ * "N passed, N failed, N skipped".
  *
  * Assertions:
  *   ASSERT(cond)                 fail and return from the test if cond is false
@@ -12,6 +13,8 @@
  *   ASSERT_REL(a, b, rtol)       |a - b| <= rtol * |b| (relative to the expected b)
  *   EXPECT*(...)                 the same, but record the failure and go on
  *   ASSERT_MSG(cond, fmt, ...)   with a printf-style explanation
+ *   SKIP("reason")               this test cannot run here (a tool is missing): return, and
+ *                                count it as skipped, not passed (unless it already failed)
  * In a helper function that is not the test body, use EXPECT* (they do not return) and
  * check pm_test_failed() afterwards if needed.
  *
@@ -40,6 +43,9 @@ void pm_test_register(const char *name, const char *file, pm_test_fn fn);
 void pm_test_fail(const char *file, int line, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 int pm_test_failed(void);
+/* What SKIP calls; the child then exits with PM_TEST_SKIP_STATUS (the automake convention). */
+void pm_test_skip(const char *reason);
+#define PM_TEST_SKIP_STATUS 77
 const char *pm_test_build_dir(void);
 const char *pm_test_source_dir(void);
 const char *pm_test_tmpdir(void);
@@ -60,6 +66,12 @@ int pm_test_run(const char *cmd, char *buf, size_t cap);
             pm_test_fail(__FILE__, __LINE__, __VA_ARGS__);                           \
             onfail;                                                                  \
         }                                                                            \
+    } while (0)
+
+#define SKIP(reason)                                                                 \
+    do {                                                                             \
+        pm_test_skip(reason);                                                        \
+        return;                                                                      \
     } while (0)
 
 #define ASSERT(cond) PM__CHECK(cond, return, "%s", #cond)

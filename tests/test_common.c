@@ -24,10 +24,47 @@ TEST(runner_reports_failures) {
     snprintf(cmd, sizeof cmd, "PM_TEST_INNER=1 %s/run_tests harness_always_fails_inner", pm_test_build_dir());
     int rc = pm_test_run(cmd, out, sizeof out);
     ASSERT_EQ_INT(rc, 1);
-    ASSERT_MSG(strstr(out, "0 passed, 1 failed") != NULL, "runner printed: %s", out);
+    ASSERT_MSG(strstr(out, "\n0 passed, 1 failed, 0 skipped\n") != NULL, "runner printed: %s", out);
 }
 
 TEST(harness_always_fails_inner) {
     /* Only meaningful when run by runner_reports_failures; passes when run normally. */
     if (getenv("PM_TEST_INNER")) ASSERT_MSG(0, "deliberate failure (inner run)");
+}
+
+/* Oracle: the runner's documented output. A test that calls SKIP is counted as skipped (not
+ * passed, not failed) and listed with its reason; SKIP after a failure still fails; the exit
+ * status is 0 when nothing failed; -x leaves matching tests out. */
+TEST(runner_reports_skips) {
+    char out[4096], cmd[1024];
+    if (getenv("PM_TEST_INNER")) return;
+    snprintf(cmd, sizeof cmd, "PM_TEST_INNER=1 %s/run_tests harness_skips_inner strerror_names",
+             pm_test_build_dir());
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "SKIP harness_skips_inner") != NULL, "runner printed: %s", out);
+    EXPECT_MSG(strstr(out, "skipped:\n  harness_skips_inner (no such tool here)\n"), "runner printed: %s", out);
+    EXPECT_MSG(strstr(out, "\n1 passed, 0 failed, 1 skipped\n") != NULL, "runner printed: %s", out);
+
+    snprintf(cmd, sizeof cmd, "PM_TEST_INNER=1 %s/run_tests harness_fails_then_skips_inner",
+             pm_test_build_dir());
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 1);
+    EXPECT_MSG(strstr(out, "\n0 passed, 1 failed, 0 skipped\n") != NULL, "runner printed: %s", out);
+
+    snprintf(cmd, sizeof cmd, "PM_TEST_INNER=1 %s/run_tests -x skips harness_ strerror_names",
+             pm_test_build_dir());
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 1);
+    EXPECT_MSG(strstr(out, "\n1 passed, 1 failed, 0 skipped\n") != NULL, "runner printed: %s", out);
+    EXPECT_MSG(strstr(out, "harness_skips_inner") == NULL, "-x did not exclude: %s", out);
+}
+
+TEST(harness_skips_inner) {
+    /* Only meaningful when run by runner_reports_skips; passes when run normally. */
+    if (getenv("PM_TEST_INNER")) SKIP("no such tool here");
+}
+
+TEST(harness_fails_then_skips_inner) {
+    if (getenv("PM_TEST_INNER")) {
+        EXPECT_MSG(0, "deliberate failure (inner run)");
+        SKIP("too late: it failed already");
+    }
 }

@@ -183,10 +183,8 @@ TEST(render_cli_outputs_follow_umask) {
  * in test_render_scene.c); --quiet prints none on either. */
 TEST(render_cli_progress_bar_on_a_terminal) {
     char cmd[4096], out[65536];
-    if (pm_test_run("command -v script >/dev/null", NULL, 0) != 0) {
-        printf("    script(1) not installed: terminal progress not checked\n");
-        return;
-    }
+    if (pm_test_run("command -v script >/dev/null", NULL, 0) != 0)
+        SKIP("script(1) not installed: terminal progress not checked");
     const char *dir = pm_test_tmpdir(), *scene = scene_path();
     snprintf(cmd, sizeof cmd, "cd '%s' && script -qec \"%s/render '%s' --spp 4 --hdr t.pfm\" /dev/null",
              dir, pm_test_build_dir(), scene);
