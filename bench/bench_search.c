@@ -168,7 +168,7 @@ typedef struct structure {
     int param; /* B, capacity, leaf_max_size, trees */
     pm_photon *rec;
     pm_kdtree *kd;
-    pm_octree *oct;
+    bench_octree *oct;
     flann_index_t fl;
     struct FLANNParameters fp;
     const dataset *ds;
@@ -203,7 +203,7 @@ static struct FLANNParameters flann_params(int type, int leaf) {
 
 static void structure_release(structure *s) {
     if (s->kd) pm_kdtree_free(s->kd);
-    if (s->oct) pm_octree_free(s->oct);
+    if (s->oct) bench_octree_free(s->oct);
     if (s->fl) flann_free_index(s->fl, &s->fp);
     free(s->rec);
     s->kd = NULL;
@@ -236,8 +236,8 @@ static void structure_build(structure *s, const dataset *ds, int type, int param
             pm_kdtree_config cfg = pm_kdtree_photon_config((unsigned)param);
             rc = pm_kdtree_build(&s->kd, s->rec, n, &cfg, NULL);
         } else if (type == S_OCT) {
-            pm_octree_config cfg = pm_octree_photon_config((unsigned)param);
-            rc = pm_octree_build(&s->oct, s->rec, n, &cfg, NULL);
+            bench_octree_config cfg = bench_octree_photon_config((unsigned)param);
+            rc = bench_octree_build(&s->oct, s->rec, n, &cfg, NULL);
         } else if (type == S_FLANN || type == S_FOREST) {
             float speedup;
             s->fp = flann_params(type, param);
@@ -259,7 +259,7 @@ static void structure_build(structure *s, const dataset *ds, int type, int param
         break;
     case S_OCT:
         data_pp = sizeof(pm_photon);
-        index_pp = (double)pm_octree_index_bytes(s->oct) / (double)n;
+        index_pp = (double)bench_octree_index_bytes(s->oct) / (double)n;
         break;
     case S_FLANN:
         /* the single tree reorders a private copy of the points: all of it is in the delta */
@@ -397,11 +397,11 @@ static long query_one(const config *c, const float *q, unsigned k, float r2, scr
     switch (c->op) {
     case OP_ITER:
         if (s->type == S_KD) return pm_kdtree_knn(s->kd, q, k, r2, sc->nb, 0, st);
-        return pm_octree_knn(s->oct, q, k, r2, sc->nb, 0, st);
+        return bench_octree_knn(s->oct, q, k, r2, sc->nb, 0, st);
     case OP_REC: return pm_kdtree_knn_recursive(s->kd, q, k, r2, sc->nb, 0, st);
     case OP_RADIUS:
         if (s->type == S_KD) return pm_kdtree_radius(s->kd, q, r2, sc->nb, RADIUS_CAP, 0, st);
-        return pm_octree_radius(s->oct, q, r2, sc->nb, RADIUS_CAP, 0, st);
+        return bench_octree_radius(s->oct, q, r2, sc->nb, RADIUS_CAP, 0, st);
     case OP_FL_RMAXNN:
         fp->max_neighbors = (int)k;
         return flann_radius_search(s->fl, (float *)q, sc->idx, sc->d, (int)k,
@@ -464,7 +464,7 @@ static size_t brute_count(const dataset *ds, const float *q, float r2) {
 static const float *result_pos(const config *c, const scratch *sc, unsigned j) {
     const structure *s = c->s;
     if (s->type == S_KD) return pm_kdtree_pos(s->kd, sc->nb[j].index);
-    if (s->type == S_OCT) return pm_octree_pos(s->oct, sc->nb[j].index);
+    if (s->type == S_OCT) return bench_octree_pos(s->oct, sc->nb[j].index);
     if (s->type == S_BRUTE) return &s->ds->xyz[3 * (size_t)sc->nb[j].index];
     return &s->ds->xyz[3 * (size_t)sc->idx[j]];
 }

@@ -10,7 +10,6 @@
  *               carry a float[3] position; k-nearest, radius and predicate queries
  *   estimate.h  radiance estimates (disc, cone, Gaussian, differential, convex hull, volume)
  *   irradiance.h precomputed irradiance and the combination of several maps
- *   octree.h    an octree with the same queries, for comparison
  *
  * Conventions used everywhere:
  *   - public names start with pm_ (macros PM_); names with pm__ are internal.
@@ -32,6 +31,5 @@
 #include "kdtree.h"
 #include "estimate.h"
 #include "irradiance.h"
-#include "octree.h"
 
 #endif /* PM_PHOTONMAP_H */

@@ -1,4 +1,4 @@
-/* test_octree.c: the octree of photonmap/octree.h against a brute-force scan.
+/* test_octree.c: the benchmark octree of bench/octree.h against a brute-force scan.
  *
  * Every query result is compared with a linear scan over the same (reordered) records: the
  * k-nearest search must return the same number of records and the same multiset of dist2
@@ -11,7 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include "test.h"
-#include "octree.h"
+#include "bench/octree.h"
 #include "photon.h"
 
 static uint64_t rng_state = 88172645463325252ull;
@@ -53,13 +53,13 @@ static int cmp_float(const void *a, const void *b) {
 }
 
 /* Compare one k-NN answer with brute force; returns nonzero on mismatch (EXPECTs inside). */
-static int check_knn(const pm_octree *t, const pm_photon *rec, size_t n, const float q[3],
+static int check_knn(const bench_octree *t, const pm_photon *rec, size_t n, const float q[3],
                      unsigned k, float r2, unsigned flags) {
     pm_neighbor *out = malloc((k ? k : 1) * sizeof *out);
     float *all = malloc((n ? n : 1) * sizeof *all);
     size_t m = 0;
     int bad = 0;
-    int got = pm_octree_knn(t, q, k, r2, out, flags, NULL);
+    int got = bench_octree_knn(t, q, k, r2, out, flags, NULL);
     for (size_t i = 0; i < n; i++) {
         float d2 = dist2_to(q, rec[i].pos);
         if (d2 < r2) all[m++] = d2;
@@ -92,14 +92,14 @@ static int check_knn(const pm_octree *t, const pm_photon *rec, size_t n, const f
     return bad;
 }
 
-static int check_radius(const pm_octree *t, const pm_photon *rec, size_t n, const float q[3],
+static int check_radius(const bench_octree *t, const pm_photon *rec, size_t n, const float q[3],
                         float r2) {
     size_t m = 0;
     for (size_t i = 0; i < n; i++)
         if (dist2_to(q, rec[i].pos) < r2) m++;
     pm_neighbor *out = malloc((m + 1) * sizeof *out);
     char *seen = calloc(n ? n : 1, 1);
-    long got = pm_octree_radius(t, q, r2, out, m + 1, PM_SORT, NULL);
+    long got = bench_octree_radius(t, q, r2, out, m + 1, PM_SORT, NULL);
     int bad = got != (long)m;
     for (long i = 0; !bad && i < got; i++) {
         uint32_t ix = out[i].index;
@@ -108,9 +108,9 @@ static int check_radius(const pm_octree *t, const pm_photon *rec, size_t n, cons
         if (i > 0 && out[i].dist2 < out[i - 1].dist2) bad = 1;
     }
     /* a pure count (cap 0, out NULL) gives the same total */
-    if (pm_octree_radius(t, q, r2, NULL, 0, 0, NULL) != (long)m) bad = 1;
+    if (bench_octree_radius(t, q, r2, NULL, 0, 0, NULL) != (long)m) bad = 1;
     /* a short buffer: the total is still reported, only cap entries written */
-    if (m > 2 && pm_octree_radius(t, q, r2, out, 2, 0, NULL) != (long)m) bad = 1;
+    if (m > 2 && bench_octree_radius(t, q, r2, out, 2, 0, NULL) != (long)m) bad = 1;
     EXPECT_MSG(!bad, "radius search: got %ld, brute force %zu (r2=%g)", got, m, (double)r2);
     free(out);
     free(seen);
@@ -126,11 +126,11 @@ TEST(octree_matches_brute_force) {
     pm_photon *p = malloc(n * sizeof *p);
     for (int kind = 0; kind < 3; kind++) {
         for (size_t ci = 0; ci < sizeof caps / sizeof caps[0]; ci++) {
-            pm_octree *t = NULL;
-            pm_octree_config cfg = pm_octree_photon_config(caps[ci]);
+            bench_octree *t = NULL;
+            bench_octree_config cfg = bench_octree_photon_config(caps[ci]);
             make_points(p, n, kind);
-            ASSERT_EQ_INT(pm_octree_build(&t, p, n, &cfg, NULL), 0);
-            ASSERT_EQ_INT(pm_octree_size(t), n);
+            ASSERT_EQ_INT(bench_octree_build(&t, p, n, &cfg, NULL), 0);
+            ASSERT_EQ_INT(bench_octree_size(t), n);
             int bad = 0;
             for (int qi = 0; qi < 25 && !bad; qi++) {
                 float q[3];
@@ -147,7 +147,7 @@ TEST(octree_matches_brute_force) {
                 }
             }
             EXPECT_MSG(!bad, "distribution %d capacity %u", kind, caps[ci]);
-            pm_octree_free(t);
+            bench_octree_free(t);
         }
     }
     free(p);
@@ -160,15 +160,15 @@ TEST(octree_perm_and_nonfinite) {
     const size_t n = 3000;
     pm_photon *p = malloc(n * sizeof *p), *orig = malloc(n * sizeof *orig);
     uint32_t *perm = malloc(n * sizeof *perm);
-    pm_octree *t = NULL;
-    pm_octree_config cfg = pm_octree_photon_config(4);
+    bench_octree *t = NULL;
+    bench_octree_config cfg = bench_octree_photon_config(4);
     make_points(p, n, 0);
     for (size_t i = 0; i < n; i += 100) p[i].pos[i % 3] = (i % 200) ? NAN : INFINITY;
     for (size_t i = 0; i < n; i++) p[i].normal = (uint8_t)i, p[i].theta = (uint8_t)(i >> 8);
     memcpy(orig, p, n * sizeof *p);
-    ASSERT_EQ_INT(pm_octree_build(&t, p, n, &cfg, perm), 0);
-    ASSERT_EQ_INT(pm_octree_dropped(t), 30);
-    ASSERT_EQ_INT(pm_octree_size(t), n - 30);
+    ASSERT_EQ_INT(bench_octree_build(&t, p, n, &cfg, perm), 0);
+    ASSERT_EQ_INT(bench_octree_dropped(t), 30);
+    ASSERT_EQ_INT(bench_octree_size(t), n - 30);
     for (size_t i = 0; i < n; i++) {
         ASSERT(perm[i] < n);
         ASSERT(memcmp(&p[i], &orig[perm[i]], sizeof *p) == 0);
@@ -178,8 +178,8 @@ TEST(octree_perm_and_nonfinite) {
     /* queries never return a dropped record */
     float q[3] = {0.5f, 0.5f, 0.5f};
     ASSERT(!check_knn(t, p, n - 30, q, 100, INFINITY, 0));
-    ASSERT(pm_octree_index_bytes(t) >= pm_octree_cells(t) * 12);
-    pm_octree_free(t);
+    ASSERT(bench_octree_index_bytes(t) >= bench_octree_cells(t) * 12);
+    bench_octree_free(t);
     free(p);
     free(orig);
     free(perm);
@@ -190,45 +190,80 @@ TEST(octree_perm_and_nonfinite) {
 TEST(octree_duplicates_and_edge_cases) {
     const size_t n = 2000;
     pm_photon *p = calloc(n, sizeof *p);
-    pm_octree *t = NULL;
-    pm_octree_config cfg = pm_octree_photon_config(1);
+    bench_octree *t = NULL;
+    bench_octree_config cfg = bench_octree_photon_config(1);
     pm_neighbor out[8];
     for (size_t i = 0; i < n; i++) p[i].pos[0] = p[i].pos[1] = p[i].pos[2] = 0.3f;
     p[7].pos[0] = 0.9f;
-    ASSERT_EQ_INT(pm_octree_build(&t, p, n, &cfg, NULL), 0);
-    ASSERT(pm_octree_depth(t) <= PM_OCTREE_MAX_DEPTH);
+    ASSERT_EQ_INT(bench_octree_build(&t, p, n, &cfg, NULL), 0);
+    ASSERT(bench_octree_depth(t) <= BENCH_OCTREE_MAX_DEPTH);
     float q[3] = {0.3f, 0.3f, 0.3f}, nanq[3] = {NAN, 0, 0};
     ASSERT(!check_knn(t, p, n, q, 8, INFINITY, PM_SORT));
     ASSERT(!check_radius(t, p, n, q, 1e-3f));
-    ASSERT_EQ_INT(pm_octree_knn(t, q, 0, INFINITY, out, 0, NULL), 0);
-    ASSERT_EQ_INT(pm_octree_knn(t, q, 8, 0.0f, out, 0, NULL), 0);
-    ASSERT_EQ_INT(pm_octree_knn(t, q, 8, -1.0f, out, 0, NULL), 0);
-    ASSERT_EQ_INT(pm_octree_knn(t, q, 8, NAN, out, 0, NULL), PM_ENONFINITE);
-    ASSERT_EQ_INT(pm_octree_knn(t, nanq, 8, 1.0f, out, 0, NULL), PM_ENONFINITE);
-    ASSERT_EQ_INT(pm_octree_radius(t, nanq, 1.0f, out, 8, 0, NULL), PM_ENONFINITE);
-    pm_octree_free(t);
+    ASSERT_EQ_INT(bench_octree_knn(t, q, 0, INFINITY, out, 0, NULL), 0);
+    ASSERT_EQ_INT(bench_octree_knn(t, q, 8, 0.0f, out, 0, NULL), 0);
+    ASSERT_EQ_INT(bench_octree_knn(t, q, 8, -1.0f, out, 0, NULL), 0);
+    ASSERT_EQ_INT(bench_octree_knn(t, q, 8, NAN, out, 0, NULL), PM_ENONFINITE);
+    ASSERT_EQ_INT(bench_octree_knn(t, nanq, 8, 1.0f, out, 0, NULL), PM_ENONFINITE);
+    ASSERT_EQ_INT(bench_octree_radius(t, nanq, 1.0f, out, 8, 0, NULL), PM_ENONFINITE);
+    bench_octree_free(t);
 
     /* empty tree, k > n, bad configs */
-    ASSERT_EQ_INT(pm_octree_build(&t, p, 0, &cfg, NULL), 0);
-    ASSERT_EQ_INT(pm_octree_knn(t, q, 8, INFINITY, out, 0, NULL), 0);
-    ASSERT_EQ_INT(pm_octree_radius(t, q, INFINITY, out, 8, 0, NULL), 0);
-    pm_octree_free(t);
-    ASSERT_EQ_INT(pm_octree_build(&t, p, 3, &cfg, NULL), 0);
-    ASSERT_EQ_INT(pm_octree_knn(t, q, 8, INFINITY, out, 0, NULL), 3);
-    pm_octree_free(t);
-    pm_octree_config bad = cfg;
+    ASSERT_EQ_INT(bench_octree_build(&t, p, 0, &cfg, NULL), 0);
+    ASSERT_EQ_INT(bench_octree_knn(t, q, 8, INFINITY, out, 0, NULL), 0);
+    ASSERT_EQ_INT(bench_octree_radius(t, q, INFINITY, out, 8, 0, NULL), 0);
+    bench_octree_free(t);
+    ASSERT_EQ_INT(bench_octree_build(&t, p, 3, &cfg, NULL), 0);
+    ASSERT_EQ_INT(bench_octree_knn(t, q, 8, INFINITY, out, 0, NULL), 3);
+    bench_octree_free(t);
+    bench_octree_config bad = cfg;
     bad.capacity = 0;
-    ASSERT_EQ_INT(pm_octree_build(&t, p, n, &bad, NULL), PM_EINVAL);
+    ASSERT_EQ_INT(bench_octree_build(&t, p, n, &bad, NULL), PM_EINVAL);
     ASSERT(t == NULL);
     bad = cfg;
     bad.pos_offset = 10;
-    ASSERT_EQ_INT(pm_octree_build(&t, p, n, &bad, NULL), PM_EINVAL);
+    ASSERT_EQ_INT(bench_octree_build(&t, p, n, &bad, NULL), PM_EINVAL);
 
     /* stats count work: at least one cell and one distance per non-empty query */
     pm_query_stats st = {0, 0};
-    ASSERT_EQ_INT(pm_octree_build(&t, p, n, &cfg, NULL), 0);
-    ASSERT_EQ_INT(pm_octree_knn(t, q, 1, INFINITY, out, 0, &st), 1);
+    ASSERT_EQ_INT(bench_octree_build(&t, p, n, &cfg, NULL), 0);
+    ASSERT_EQ_INT(bench_octree_knn(t, q, 1, INFINITY, out, 0, &st), 1);
     ASSERT(st.nodes_visited >= 1 && st.dist_evals >= 1);
-    pm_octree_free(t);
+    bench_octree_free(t);
     free(p);
+}
+
+/* Oracle: the kd-tree's definition of "unlimited" (kdtree.h, QUERIES), which the octree shares:
+ * r2 = INFINITY accepts every record, even one whose float dist2 overflows to +inf. Records
+ * about 1e20 from the query have dist2 = +inf in float, so k-NN must still return
+ * min(k, n) of them and the radius search all n, exactly as the kd-tree does on the same data. */
+TEST(octree_unlimited_accepts_overflowed_dist2) {
+    const size_t n = 6;
+    pm_photon p[6], pk[6];
+    memset(p, 0, sizeof p);
+    for (size_t i = 0; i < n; i++) {
+        p[i].pos[0] = (i & 1) ? 1e20f : -1e20f;
+        p[i].pos[1] = (float)i * 1e19f;
+        p[i].pos[2] = 3e20f;
+    }
+    memcpy(pk, p, sizeof p);
+    bench_octree *t = NULL;
+    bench_octree_config cfg = bench_octree_photon_config(2);
+    ASSERT_EQ_INT(bench_octree_build(&t, p, n, &cfg, NULL), 0);
+    pm_kdtree *kd = NULL;
+    pm_kdtree_config kc = pm_kdtree_photon_config(2);
+    ASSERT_EQ_INT(pm_kdtree_build(&kd, pk, n, &kc, NULL), 0);
+    float q[3] = {0, 0, 0};
+    pm_neighbor out[8], ko[8];
+    ASSERT_EQ_INT(bench_octree_knn(t, q, 4, INFINITY, out, 0, NULL), 4);
+    ASSERT_EQ_INT(pm_kdtree_knn(kd, q, 4, INFINITY, ko, 0, NULL), 4);
+    ASSERT_EQ_INT(bench_octree_knn(t, q, 8, INFINITY, out, 0, NULL), 6);
+    ASSERT_EQ_INT(pm_kdtree_knn(kd, q, 8, INFINITY, ko, 0, NULL), 6);
+    ASSERT_EQ_INT(bench_octree_radius(t, q, INFINITY, out, 8, 0, NULL), 6);
+    ASSERT_EQ_INT(pm_kdtree_radius(kd, q, INFINITY, ko, 8, 0, NULL), 6);
+    /* a finite radius, however large, rejects them (dist2 = +inf is not < FLT_MAX) */
+    ASSERT_EQ_INT(bench_octree_knn(t, q, 4, 3e38f, out, 0, NULL), 0);
+    ASSERT_EQ_INT(pm_kdtree_knn(kd, q, 4, 3e38f, ko, 0, NULL), 0);
+    bench_octree_free(t);
+    pm_kdtree_free(kd);
 }

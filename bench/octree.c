@@ -1,4 +1,4 @@
-/* octree.c: the octree of octree.h, built top-down by in-place partitioning.
+/* octree.c: the benchmark octree of octree.h, built top-down by in-place partitioning.
  *
  * BUILD. Non-finite records are first swapped to the tail. The root cell is the bounding cube
  * of the rest. A cell with more than `capacity` records is partitioned in place into its 8
@@ -30,7 +30,7 @@ typedef struct oct_cell {
     uint32_t begin, end;
 } oct_cell;
 
-struct pm_octree {
+struct bench_octree {
     const unsigned char *rec;
     size_t stride, pos_offset;
     size_t n, dropped;
@@ -43,15 +43,15 @@ struct pm_octree {
 
 /* Build state: the records as writable bytes, a swap buffer and the permutation. */
 typedef struct oct_build {
-    pm_octree *t;
+    bench_octree *t;
     unsigned char *rec;
     unsigned char *tmp;
     uint32_t *perm;
     int failed;
 } oct_build;
 
-pm_octree_config pm_octree_photon_config(unsigned capacity) {
-    pm_octree_config c;
+bench_octree_config bench_octree_photon_config(unsigned capacity) {
+    bench_octree_config c;
     c.stride = 20;
     c.pos_offset = 0;
     c.capacity = capacity;
@@ -78,7 +78,7 @@ static void swap_rec(oct_build *b, size_t i, size_t j) {
 /* Two-way partition of [begin, end) by coordinate `axis` >= mid; returns the split point. */
 static size_t partition(oct_build *b, size_t begin, size_t end, int axis, float mid) {
     size_t i = begin, j = end;
-    const pm_octree *t = b->t;
+    const bench_octree *t = b->t;
     while (i < j) {
         float p[3];
         load_pos(b->rec, t->stride, t->pos_offset, i, p);
@@ -108,7 +108,7 @@ static inline void child_box(const float lo[3], const float hi[3], const float m
     }
 }
 
-static int add_cells(pm_octree *t, size_t count, uint32_t *first) {
+static int add_cells(bench_octree *t, size_t count, uint32_t *first) {
     if (t->ncells + count > t->cap_cells) {
         size_t nc = t->cap_cells ? t->cap_cells * 2 : 64;
         while (nc < t->ncells + count) nc *= 2;
@@ -124,7 +124,7 @@ static int add_cells(pm_octree *t, size_t count, uint32_t *first) {
 }
 
 static int build_cell(oct_build *b, uint32_t ci, const float lo[3], const float hi[3], int depth) {
-    pm_octree *t = b->t;
+    bench_octree *t = b->t;
     size_t begin = t->cells[ci].begin, end = t->cells[ci].end;
     float mid[3];
     size_t bound[9];
@@ -133,7 +133,7 @@ static int build_cell(oct_build *b, uint32_t ci, const float lo[3], const float 
 
     t->cells[ci].child = 0;
     if (depth > t->depth) t->depth = depth;
-    if (end - begin <= t->capacity || depth >= PM_OCTREE_MAX_DEPTH) return 0;
+    if (end - begin <= t->capacity || depth >= BENCH_OCTREE_MAX_DEPTH) return 0;
     for (int a = 0; a < 3; a++) {
         mid[a] = cell_mid(lo[a], hi[a]);
         /* A cell splits only if some axis still has room between lo and hi. */
@@ -171,9 +171,9 @@ static void restore_order(oct_build *b, size_t n) {
     }
 }
 
-int pm_octree_build(pm_octree **out, void *records, size_t n, const pm_octree_config *cfg,
+int bench_octree_build(bench_octree **out, void *records, size_t n, const bench_octree_config *cfg,
                     uint32_t *perm) {
-    pm_octree *t;
+    bench_octree *t;
     oct_build b;
     size_t nf;
     int rc = 0;
@@ -264,21 +264,21 @@ fail_early:
     return rc;
 }
 
-void pm_octree_free(pm_octree *tree) {
+void bench_octree_free(bench_octree *tree) {
     if (!tree) return;
     free(tree->cells);
     free(tree);
 }
 
-size_t pm_octree_size(const pm_octree *tree) { return tree ? tree->n : 0; }
-size_t pm_octree_dropped(const pm_octree *tree) { return tree ? tree->dropped : 0; }
-size_t pm_octree_index_bytes(const pm_octree *tree) {
+size_t bench_octree_size(const bench_octree *tree) { return tree ? tree->n : 0; }
+size_t bench_octree_dropped(const bench_octree *tree) { return tree ? tree->dropped : 0; }
+size_t bench_octree_index_bytes(const bench_octree *tree) {
     return tree ? sizeof *tree + tree->cap_cells * sizeof(oct_cell) : 0;
 }
-size_t pm_octree_cells(const pm_octree *tree) { return tree ? tree->ncells : 0; }
-int pm_octree_depth(const pm_octree *tree) { return tree ? tree->depth : 0; }
-unsigned pm_octree_capacity(const pm_octree *tree) { return tree ? tree->capacity : 0; }
-const float *pm_octree_pos(const pm_octree *tree, uint32_t i) {
+size_t bench_octree_cells(const bench_octree *tree) { return tree ? tree->ncells : 0; }
+int bench_octree_depth(const bench_octree *tree) { return tree ? tree->depth : 0; }
+unsigned bench_octree_capacity(const bench_octree *tree) { return tree ? tree->capacity : 0; }
+const float *bench_octree_pos(const bench_octree *tree, uint32_t i) {
     return (const float *)(const void *)(tree->rec + (size_t)i * tree->stride + tree->pos_offset);
 }
 
@@ -291,7 +291,7 @@ typedef struct oct_item {
 } oct_item;
 
 /* Each level pushes at most 8 children and pops one, so this bounds the stack. */
-#define OCT_STACK (8 * (PM_OCTREE_MAX_DEPTH + 2))
+#define OCT_STACK (8 * (BENCH_OCTREE_MAX_DEPTH + 2))
 
 static inline float box_dist2(const float q[3], const float lo[3], const float hi[3]) {
     float d2 = 0;
@@ -304,7 +304,7 @@ static inline float box_dist2(const float q[3], const float lo[3], const float h
     return d2;
 }
 
-static inline float rec_dist2(const pm_octree *t, const float q[3], uint32_t i) {
+static inline float rec_dist2(const bench_octree *t, const float q[3], uint32_t i) {
     float p[3];
     load_pos(t->rec, t->stride, t->pos_offset, i, p);
     float dx = q[0] - p[0], dy = q[1] - p[1], dz = q[2] - p[2];
@@ -317,7 +317,7 @@ static int check_query(const float q[3], float r2) {
 }
 
 /* Push the non-empty children of `it` whose box distance is below bound, nearest on top. */
-static int push_children(const pm_octree *t, const oct_item *it, const float q[3], float bound,
+static int push_children(const bench_octree *t, const oct_item *it, const float q[3], float bound,
                          oct_item *stack, int sp) {
     const oct_cell *cell = &t->cells[it->cell];
     oct_item kids[8];
@@ -330,7 +330,7 @@ static int push_children(const pm_octree *t, const oct_item *it, const float q[3
         oct_item k;
         child_box(it->lo, it->hi, mid, c, k.lo, k.hi);
         k.d2 = box_dist2(q, k.lo, k.hi);
-        if (!(k.d2 < bound)) continue;
+        if (k.d2 >= bound) continue; /* NaN bound: unlimited */
         k.cell = ci;
         /* insertion sort, descending d2, so the nearest ends last (popped first) */
         int j = nk++;
@@ -344,7 +344,7 @@ static int push_children(const pm_octree *t, const oct_item *it, const float q[3
     return sp;
 }
 
-int pm_octree_knn(const pm_octree *tree, const float q[3], unsigned k, float max_dist2,
+int bench_octree_knn(const bench_octree *tree, const float q[3], unsigned k, float max_dist2,
                   pm_neighbor *out, unsigned flags, pm_query_stats *stats) {
     oct_item stack[OCT_STACK];
     int sp = 0, rc;
@@ -356,6 +356,9 @@ int pm_octree_knn(const pm_octree *tree, const float q[3], unsigned k, float max
     if (k == 0 || tree->n == 0 || !(max_dist2 > 0)) return 0;
     if (!out) return PM_EINVAL;
 
+    /* Unlimited is NaN inside, and every test is !(x >= bound), as in the kd-tree: then a
+     * record whose float dist2 overflowed to +inf is still accepted. */
+    const float r2 = max_dist2 == INFINITY ? NAN : max_dist2;
     stack[0].cell = 0;
     memcpy(stack[0].lo, tree->lo, sizeof tree->lo);
     memcpy(stack[0].hi, tree->hi, sizeof tree->hi);
@@ -363,8 +366,8 @@ int pm_octree_knn(const pm_octree *tree, const float q[3], unsigned k, float max
     sp = 1;
     while (sp > 0) {
         const oct_item it = stack[--sp];
-        float bound = found == k ? out[0].dist2 : max_dist2;
-        if (!(it.d2 < bound)) continue;
+        float bound = found == k ? out[0].dist2 : r2;
+        if (it.d2 >= bound) continue;
         const oct_cell *cell = &tree->cells[it.cell];
         nodes++;
         if (cell->child) {
@@ -375,7 +378,7 @@ int pm_octree_knn(const pm_octree *tree, const float q[3], unsigned k, float max
         for (uint32_t i = cell->begin; i < cell->end; i++) {
             float d2 = rec_dist2(tree, q, i);
             if (found < k) {
-                if (d2 < max_dist2) {
+                if (!(d2 >= r2)) {
                     out[found].dist2 = d2;
                     out[found].index = i;
                     if (++found == k) pm__heapify(out, k);
@@ -394,7 +397,7 @@ int pm_octree_knn(const pm_octree *tree, const float q[3], unsigned k, float max
     return (int)found;
 }
 
-long pm_octree_radius(const pm_octree *tree, const float q[3], float r2, pm_neighbor *out,
+long bench_octree_radius(const bench_octree *tree, const float q[3], float r2, pm_neighbor *out,
                       size_t cap, unsigned flags, pm_query_stats *stats) {
     oct_item stack[OCT_STACK];
     int sp, rc;
@@ -406,6 +409,7 @@ long pm_octree_radius(const pm_octree *tree, const float q[3], float r2, pm_neig
     if (tree->n == 0 || !(r2 > 0)) return 0;
     if (cap > 0 && !out) return PM_EINVAL;
 
+    if (r2 == INFINITY) r2 = NAN; /* unlimited: see bench_octree_knn */
     stack[0].cell = 0;
     memcpy(stack[0].lo, tree->lo, sizeof tree->lo);
     memcpy(stack[0].hi, tree->hi, sizeof tree->hi);
@@ -413,7 +417,7 @@ long pm_octree_radius(const pm_octree *tree, const float q[3], float r2, pm_neig
     sp = 1;
     while (sp > 0) {
         const oct_item it = stack[--sp];
-        if (!(it.d2 < r2)) continue;
+        if (it.d2 >= r2) continue;
         const oct_cell *cell = &tree->cells[it.cell];
         nodes++;
         if (cell->child) {
@@ -423,7 +427,7 @@ long pm_octree_radius(const pm_octree *tree, const float q[3], float r2, pm_neig
         evals += cell->end - cell->begin;
         for (uint32_t i = cell->begin; i < cell->end; i++) {
             float d2 = rec_dist2(tree, q, i);
-            if (d2 < r2) {
+            if (!(d2 >= r2)) {
                 if ((size_t)total < cap) {
                     out[total].dist2 = d2;
                     out[total].index = i;
