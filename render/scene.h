@@ -1,9 +1,10 @@
 /* scene.h: the scene: camera, materials, shapes, lights, settings, and its accelerator.
  *
- * Data flow: scene_load() parses a JSON scene file (format: data/scenes/README.md), checks
- * every field, turns quads and meshes into triangles, makes one area light per emissive
- * triangle, and builds the BVH. After that the scene is immutable, and scene_intersect() /
- * scene_visible() may be called from any number of threads.
+ * Data flow: scene_load() (scene_load.c) parses a JSON scene file (format:
+ * data/scenes/README.md), checks every field and turns quads and meshes into triangles;
+ * scene_prepare() (scene.c) then makes one area light per emissive triangle and builds the
+ * BVH. After that the scene is immutable, and scene_intersect() / scene_visible() may be
+ * called from any number of threads.
  *
  * Errors: scene_load returns a negative PM_E* code and a message in json_err: the line and
  * column of a syntax error, or the JSON path of a missing, mistyped or invalid field
@@ -85,6 +86,11 @@ int scene_load_text(scene *s, const char *text, json_err *e);
 /* The same from a parsed document (not consumed). */
 int scene_from_json(scene *s, const cJSON *root, json_err *e);
 void scene_free(scene *s);
+/* After the loader has filled the camera, materials, shapes and the point and directional
+ * lights: the bounds and bounding sphere, one light per emissive triangle or sphere, every
+ * light's power and the light distribution, and the BVH. 0, or a negative code with a
+ * message in e (no geometry, a power too large to represent, out of memory). */
+int scene_prepare(scene *s, json_err *e);
 
 /* Nearest hit along r with 0 < t < tmax. */
 int scene_intersect(const scene *s, ray r, double tmax, hit *h);

@@ -1,0 +1,452 @@
+/* scene_load.c: the JSON scene loader (format: data/scenes/README.md); see scene.h.
+ *
+ * Loading is one pass over the document with the json.h getters. Each check reports the
+ * JSON path of the offending field. Arrays grow with a small push helper; on any error the
+ * partly built scene is freed, so the caller never sees half a scene. What follows from the
+ * loaded shapes (bounds, the lights of emissive surfaces, the BVH) is scene_prepare's, in
+ * scene.c.
+ */
+#include "scene.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common.h"
+
+#define P_MAX 256
+
+/* Append one element of size sz to *arr (count *n, capacity *cap). */
+static int push(void **arr, int *n, int *cap, size_t sz, const void *elem) {
+    if (*n == *cap) {
+        int nc = *cap ? 2 * *cap : 16;
+        void *na = realloc(*arr, (size_t)nc * sz);
+        if (!na) return PM_ENOMEM;
+        *arr = na;
+        *cap = nc;
+    }
+    memcpy((char *)*arr + (size_t)*n * sz, elem, sz);
+    (*n)++;
+    return 0;
+}
+
+typedef struct {
+    int tcap, scap, mcap, lcap; /* capacities of tris, spheres, mats, lights */
+    int tocap, socap; /* capacities of tri_obj, sphere_obj */
+    int obj;          /* index in $.objects of the object being loaded */
+} caps;
+
+static int check_unit_rgb(rgb c, const char *path, const char *key, json_err *e) {
+    if (c.x < 0 || c.y < 0 || c.z < 0 || c.x > 1 || c.y > 1 || c.z > 1)
+        return json_fail(e, PM_EINVAL, "%s.%s: each component must be in [0, 1] (got [%g, %g, %g])",
+                         path, key, c.x, c.y, c.z);
+    return 0;
+}
+
+static int check_nonneg_rgb(rgb c, const char *path, const char *key, json_err *e) {
+    if (c.x < 0 || c.y < 0 || c.z < 0)
+        return json_fail(e, PM_EINVAL, "%s.%s: must not be negative (got [%g, %g, %g])", path, key,
+                         c.x, c.y, c.z);
+    return 0;
+}
+
+#define TRY(x)                \
+    do {                      \
+        int rc__ = (x);       \
+        if (rc__ < 0) return rc__; \
+    } while (0)
+
+static int load_camera(scene *s, const cJSON *root, json_err *e) {
+    const cJSON *c;
+    TRY(json_object(root, "$", "camera", 1, &c, e));
+    const char *P = "$.camera";
+    vec3 eye, look, fwd, up = v3(0, 1, 0);
+    TRY(json_vec3(c, P, "eye", 1, &eye, e));
+    int has_look = json_get(c, "look_at") != NULL, has_fwd = json_get(c, "forward") != NULL;
+    if (has_look && has_fwd)
+        return json_fail(e, PM_EINVAL, "%s: give either look_at or forward, not both", P);
+    if (!has_look && !has_fwd)
+        return json_fail(e, PM_EINVAL, "%s.look_at: missing (required, or give forward)", P);
+    if (has_look) {
+        TRY(json_vec3(c, P, "look_at", 1, &look, e));
+        fwd = v3_sub(look, eye);
+    } else {
+        TRY(json_vec3(c, P, "forward", 1, &fwd, e));
+    }
+    TRY(json_vec3(c, P, "up", 0, &up, e));
+    double fov = -1, focal = -1, sensor = 36.0;
+    int has_fov = json_get(c, "fov_deg") != NULL, has_focal = json_get(c, "focal_length_mm") != NULL;
+    if (has_fov && has_focal)
+        return json_fail(e, PM_EINVAL, "%s: give either fov_deg or focal_length_mm, not both", P);
+    if (has_fov) {
+        TRY(json_number(c, P, "fov_deg", 1, &fov, e));
+        if (!(fov > 0 && fov < 180))
+            return json_fail(e, PM_EINVAL, "%s.fov_deg: must be in (0, 180), got %g", P, fov);
+    } else {
+        TRY(json_number(c, P, "focal_length_mm", 1, &focal, e));
+        TRY(json_number(c, P, "sensor_width_mm", 0, &sensor, e));
+        if (!(focal > 0))
+            return json_fail(e, PM_EINVAL, "%s.focal_length_mm: must be positive, got %g", P, focal);
+        if (!(sensor > 0))
+            return json_fail(e, PM_EINVAL, "%s.sensor_width_mm: must be positive, got %g", P, sensor);
+        fov = 2.0 * atan(0.5 * sensor / focal) * 180.0 / M_PI;
+    }
+    long w, h, spp = 16;
+    TRY(json_int(c, P, "width", 1, 1, 1 << 14, &w, e));
+    TRY(json_int(c, P, "height", 1, 1, 1 << 14, &h, e));
+    TRY(json_int(c, P, "spp", 0, 1, 1 << 20, &spp, e));
+    const char *why = "";
+    camera_set_spp(&s->cam, (int)spp);
+    if (camera_setup(&s->cam, eye, fwd, up, fov, (int)w, (int)h, &why) < 0)
+        return json_fail(e, PM_EINVAL, "%s: %s", P, why);
+    return 0;
+}
+
+static int load_material(material *m, const cJSON *it, const char *P, json_err *e) {
+    memset(m, 0, sizeof *m);
+    snprintf(m->name, sizeof m->name, "%s", it->string ? it->string : "?");
+    if (!cJSON_IsObject(it))
+        return json_fail(e, PM_EINVAL, "%s: expected an object, got %s", P, json_type_name(it));
+    const char *type;
+    TRY(json_string(it, P, "type", 1, &type, e));
+    m->specular_tint = v3s(1);
+    m->transmit_tint = v3s(1);
+    m->ior = 1.5;
+    if (strcmp(type, "lambert") == 0) {
+        m->kind = MAT_LAMBERT;
+        TRY(json_rgb(it, P, "reflectance", 1, &m->diffuse, e));
+        TRY(check_unit_rgb(m->diffuse, P, "reflectance", e));
+    } else if (strcmp(type, "oren_nayar") == 0) {
+        m->kind = MAT_OREN_NAYAR;
+        TRY(json_rgb(it, P, "reflectance", 1, &m->diffuse, e));
+        TRY(check_unit_rgb(m->diffuse, P, "reflectance", e));
+        TRY(json_number(it, P, "sigma", 1, &m->sigma, e));
+        if (m->sigma < 0) return json_fail(e, PM_EINVAL, "%s.sigma: must be >= 0, got %g", P, m->sigma);
+    } else if (strcmp(type, "mirror") == 0) {
+        m->kind = MAT_MIRROR;
+        m->specular = 1;
+        TRY(json_rgb(it, P, "reflectance", 0, &m->specular_tint, e));
+        TRY(check_unit_rgb(m->specular_tint, P, "reflectance", e));
+    } else if (strcmp(type, "dielectric") == 0) {
+        m->kind = MAT_DIELECTRIC;
+        m->fresnel = 1;
+        m->transparency = 1;
+        TRY(json_number(it, P, "ior", 1, &m->ior, e));
+        TRY(json_rgb(it, P, "tint", 0, &m->transmit_tint, e));
+        TRY(check_unit_rgb(m->transmit_tint, P, "tint", e));
+    } else if (strcmp(type, "mix") == 0) {
+        m->kind = MAT_MIX;
+        const cJSON *sp = json_get(it, "specular");
+        if (cJSON_IsString(sp) && strcmp(sp->valuestring, "fresnel") == 0) {
+            m->fresnel = 1;
+        } else if (sp && !cJSON_IsNumber(sp)) {
+            return json_fail(e, PM_EINVAL, "%s.specular: expected a number in [0, 1] or \"fresnel\", got %s",
+                             P, json_type_name(sp));
+        } else {
+            TRY(json_number(it, P, "specular", 0, &m->specular, e));
+            if (m->specular < 0 || m->specular > 1)
+                return json_fail(e, PM_EINVAL, "%s.specular: must be in [0, 1], got %g", P, m->specular);
+        }
+        TRY(json_number(it, P, "transparency", 0, &m->transparency, e));
+        if (m->transparency < 0 || m->transparency > 1)
+            return json_fail(e, PM_EINVAL, "%s.transparency: must be in [0, 1], got %g", P,
+                             m->transparency);
+        TRY(json_number(it, P, "ior", 0, &m->ior, e));
+        TRY(json_rgb(it, P, "diffuse", 0, &m->diffuse, e));
+        TRY(check_unit_rgb(m->diffuse, P, "diffuse", e));
+        TRY(json_number(it, P, "sigma", 0, &m->sigma, e));
+        if (m->sigma < 0) return json_fail(e, PM_EINVAL, "%s.sigma: must be >= 0, got %g", P, m->sigma);
+        TRY(json_rgb(it, P, "specular_tint", 0, &m->specular_tint, e));
+        TRY(check_unit_rgb(m->specular_tint, P, "specular_tint", e));
+        TRY(json_rgb(it, P, "transmit_tint", 0, &m->transmit_tint, e));
+        TRY(check_unit_rgb(m->transmit_tint, P, "transmit_tint", e));
+    } else {
+        return json_fail(e, PM_EINVAL,
+                         "%s.type: unknown material type \"%s\" (lambert, oren_nayar, mirror, "
+                         "dielectric, mix)", P, type);
+    }
+    if (!(m->ior > 0)) return json_fail(e, PM_EINVAL, "%s.ior: must be positive, got %g", P, m->ior);
+    TRY(json_rgb(it, P, "emission", 0, &m->emission, e));
+    TRY(check_nonneg_rgb(m->emission, P, "emission", e));
+    TRY(json_bool(it, P, "two_sided", 0, &m->two_sided, e));
+    return 0;
+}
+
+static int find_material(const scene *s, const cJSON *obj, const char *P, int *out, json_err *e) {
+    const char *name;
+    TRY(json_string(obj, P, "material", 1, &name, e));
+    for (int i = 0; i < s->nmats; i++)
+        if (strcmp(s->mats[i].name, name) == 0) {
+            *out = i;
+            return 0;
+        }
+    return json_fail(e, PM_EINVAL, "%s.material: unknown material \"%s\"", P, name);
+}
+
+static int add_tri(scene *s, caps *cp, vec3 a, vec3 b, vec3 c, int mat, const char *P,
+                   json_err *e) {
+    triangle t;
+    if (triangle_make(&t, a, b, c, mat) < 0)
+        return json_fail(e, PM_EINVAL, "%s: degenerate triangle (zero area: repeated or collinear vertices)", P);
+    int n = s->ntris;
+    if (push((void **)&s->tris, &s->ntris, &cp->tcap, sizeof t, &t) < 0 ||
+        push((void **)&s->tri_obj, &n, &cp->tocap, sizeof cp->obj, &cp->obj) < 0)
+        return json_fail(e, PM_ENOMEM, "out of memory");
+    return 0;
+}
+
+/* Read exactly n points from key into v. */
+static int read_points(const cJSON *obj, const char *P, const char *key, int n, vec3 *v,
+                       json_err *e) {
+    const cJSON *arr;
+    TRY(json_array(obj, P, key, 1, &arr, e));
+    if (cJSON_GetArraySize(arr) != n)
+        return json_fail(e, PM_EINVAL, "%s.%s: expected %d points, got %d", P, key, n,
+                         cJSON_GetArraySize(arr));
+    char p[P_MAX], pk[P_MAX];
+    json_path_key(pk, sizeof pk, P, key);
+    for (int i = 0; i < n; i++) {
+        json_path_index(p, sizeof p, pk, i);
+        TRY(json_item_vec3(cJSON_GetArrayItem(arr, i), p, &v[i], e));
+    }
+    return 0;
+}
+
+static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_err *e) {
+    if (!cJSON_IsObject(o))
+        return json_fail(e, PM_EINVAL, "%s: expected an object, got %s", P, json_type_name(o));
+    const char *type;
+    int mat;
+    TRY(json_string(o, P, "type", 1, &type, e));
+    if (strcmp(type, "sphere") == 0) {
+        sphere sp;
+        TRY(json_vec3(o, P, "center", 1, &sp.c, e));
+        TRY(json_number(o, P, "radius", 1, &sp.r, e));
+        if (!(sp.r > 0))
+            return json_fail(e, PM_EINVAL, "%s.radius: must be positive, got %g", P, sp.r);
+        TRY(find_material(s, o, P, &mat, e));
+        sp.mat = mat;
+        sp.light = -1;
+        int n = s->nspheres;
+        if (push((void **)&s->spheres, &s->nspheres, &cp->scap, sizeof sp, &sp) < 0 ||
+            push((void **)&s->sphere_obj, &n, &cp->socap, sizeof cp->obj, &cp->obj) < 0)
+            return json_fail(e, PM_ENOMEM, "out of memory");
+    } else if (strcmp(type, "triangle") == 0) {
+        vec3 v[3];
+        TRY(read_points(o, P, "vertices", 3, v, e));
+        TRY(find_material(s, o, P, &mat, e));
+        TRY(add_tri(s, cp, v[0], v[1], v[2], mat, P, e));
+    } else if (strcmp(type, "quad") == 0) {
+        vec3 v[4];
+        TRY(read_points(o, P, "vertices", 4, v, e));
+        TRY(find_material(s, o, P, &mat, e));
+        TRY(add_tri(s, cp, v[0], v[1], v[2], mat, P, e));
+        TRY(add_tri(s, cp, v[0], v[2], v[3], mat, P, e));
+    } else if (strcmp(type, "mesh") == 0) {
+        const cJSON *va, *ta;
+        TRY(json_array(o, P, "vertices", 1, &va, e));
+        TRY(json_array(o, P, "triangles", 1, &ta, e));
+        TRY(find_material(s, o, P, &mat, e));
+        int nv = cJSON_GetArraySize(va), nt = cJSON_GetArraySize(ta);
+        if (nt == 0) return json_fail(e, PM_EINVAL, "%s.triangles: empty mesh", P);
+        vec3 *v = malloc((size_t)(nv > 0 ? nv : 1) * sizeof *v);
+        if (!v) return json_fail(e, PM_ENOMEM, "out of memory");
+        char pk[P_MAX], p[P_MAX];
+        int rc = 0, i = 0;
+        json_path_key(pk, sizeof pk, P, "vertices");
+        for (const cJSON *it = va->child; it && rc == 0; it = it->next, i++) {
+            json_path_index(p, sizeof p, pk, i);
+            rc = json_item_vec3(it, p, &v[i], e);
+        }
+        json_path_key(pk, sizeof pk, P, "triangles");
+        i = 0;
+        for (const cJSON *it = ta->child; it && rc == 0; it = it->next, i++) {
+            json_path_index(p, sizeof p, pk, i);
+            vec3 idx;
+            rc = json_item_vec3(it, p, &idx, e);
+            if (rc < 0) break;
+            double ix[3] = {idx.x, idx.y, idx.z};
+            for (int k = 0; k < 3 && rc == 0; k++)
+                if (ix[k] != floor(ix[k]) || ix[k] < 0 || ix[k] >= nv)
+                    rc = json_fail(e, PM_EINVAL, "%s[%d]: vertex index %g is not an integer in [0, %d)",
+                                   p, k, ix[k], nv);
+            if (rc == 0) rc = add_tri(s, cp, v[(int)ix[0]], v[(int)ix[1]], v[(int)ix[2]], mat, p, e);
+        }
+        free(v);
+        return rc;
+    } else {
+        return json_fail(e, PM_EINVAL,
+                         "%s.type: unknown object type \"%s\" (sphere, triangle, quad, mesh)", P, type);
+    }
+    return 0;
+}
+
+static int load_light(scene *s, caps *cp, const cJSON *o, const char *P, json_err *e) {
+    if (!cJSON_IsObject(o))
+        return json_fail(e, PM_EINVAL, "%s: expected an object, got %s", P, json_type_name(o));
+    const char *type;
+    light l;
+    memset(&l, 0, sizeof l);
+    l.tri = -1;
+    TRY(json_string(o, P, "type", 1, &type, e));
+    if (strcmp(type, "point") == 0) {
+        l.type = LIGHT_POINT;
+        TRY(json_vec3(o, P, "position", 1, &l.pos, e));
+        int has_i = json_get(o, "intensity") != NULL, has_p = json_get(o, "power") != NULL;
+        if (has_i == has_p)
+            return json_fail(e, PM_EINVAL, "%s: give exactly one of intensity (W/sr) or power (W)", P);
+        if (has_i) {
+            TRY(json_rgb(o, P, "intensity", 1, &l.intensity, e));
+            TRY(check_nonneg_rgb(l.intensity, P, "intensity", e));
+        } else {
+            rgb pw;
+            TRY(json_rgb(o, P, "power", 1, &pw, e));
+            TRY(check_nonneg_rgb(pw, P, "power", e));
+            l.intensity = v3_scale(pw, 1.0 / (4 * M_PI));
+        }
+    } else if (strcmp(type, "directional") == 0) {
+        l.type = LIGHT_DIRECTIONAL;
+        TRY(json_vec3(o, P, "direction", 1, &l.dir, e));
+        if (!(v3_len(l.dir) > 0))
+            return json_fail(e, PM_EINVAL, "%s.direction: must not be the zero vector", P);
+        l.dir = v3_norm(l.dir);
+        TRY(json_rgb(o, P, "irradiance", 1, &l.irradiance, e));
+        TRY(check_nonneg_rgb(l.irradiance, P, "irradiance", e));
+    } else {
+        return json_fail(e, PM_EINVAL,
+                         "%s.type: unknown light type \"%s\" (point, directional; area lights are "
+                         "objects with an emissive material)", P, type);
+    }
+    if (push((void **)&s->lights, &s->nlights, &cp->lcap, sizeof l, &l) < 0)
+        return json_fail(e, PM_ENOMEM, "out of memory");
+    return 0;
+}
+
+static int load_settings(scene *s, const cJSON *root, json_err *e) {
+    render_settings *st = &s->settings;
+    st->max_depth = 64;
+    st->rr_depth = 3;
+    snprintf(st->mode, sizeof st->mode, "path");
+    st->seed = 1;
+    st->tone = TONE_FILMIC;
+    st->clip_percent = 1.0;
+    st->exposure = 0;
+    const cJSON *r, *im;
+    TRY(json_object(root, "$", "render", 0, &r, e));
+    if (r) {
+        long v;
+        v = st->max_depth;
+        TRY(json_int(r, "$.render", "max_depth", 0, 1, 100000, &v, e));
+        st->max_depth = (int)v;
+        v = st->rr_depth;
+        TRY(json_int(r, "$.render", "rr_depth", 0, 0, 100000, &v, e));
+        st->rr_depth = (int)v;
+        v = (long)st->seed;
+        TRY(json_int(r, "$.render", "seed", 0, 0, 2147483647L, &v, e));
+        st->seed = (uint64_t)v;
+        const char *mode = NULL;
+        TRY(json_string(r, "$.render", "mode", 0, &mode, e));
+        if (mode) snprintf(st->mode, sizeof st->mode, "%s", mode);
+    }
+    TRY(json_object(root, "$", "image", 0, &im, e));
+    if (im) {
+        const char *tone = NULL;
+        TRY(json_string(im, "$.image", "tone", 0, &tone, e));
+        if (tone) {
+            if (strcmp(tone, "filmic") == 0)
+                st->tone = TONE_FILMIC;
+            else if (strcmp(tone, "srgb") == 0)
+                st->tone = TONE_SRGB;
+            else
+                return json_fail(e, PM_EINVAL, "$.image.tone: expected \"filmic\" or \"srgb\", got \"%s\"", tone);
+        }
+        TRY(json_number(im, "$.image", "clip_percent", 0, &st->clip_percent, e));
+        if (!(st->clip_percent >= 0 && st->clip_percent < 100))
+            return json_fail(e, PM_EINVAL, "$.image.clip_percent: must be in [0, 100), got %g",
+                             st->clip_percent);
+        TRY(json_number(im, "$.image", "exposure", 0, &st->exposure, e));
+        if (st->exposure < 0)
+            return json_fail(e, PM_EINVAL, "$.image.exposure: must be positive (or 0 for auto), got %g",
+                             st->exposure);
+    }
+    return 0;
+}
+
+static int from_json(scene *s, const cJSON *root, json_err *e) {
+    caps cp = {0};
+    if (!cJSON_IsObject(root))
+        return json_fail(e, PM_EINVAL, "$: expected an object, got %s", json_type_name(root));
+    static const char *known[] = {"camera", "materials", "objects", "lights", "medium_ior",
+                                  "render", "image", "photon_mapping", "comment", "description"};
+    for (const cJSON *it = root->child; it; it = it->next) {
+        int ok = 0;
+        for (size_t k = 0; k < sizeof known / sizeof *known; k++)
+            if (it->string && strcmp(it->string, known[k]) == 0) ok = 1;
+        if (!ok) fprintf(stderr, "warning: $.%s: unknown key, ignored\n", it->string ? it->string : "?");
+    }
+    TRY(load_camera(s, root, e));
+    TRY(load_settings(s, root, e));
+    s->medium_ior = 1.0;
+    TRY(json_number(root, "$", "medium_ior", 0, &s->medium_ior, e));
+    if (!(s->medium_ior > 0))
+        return json_fail(e, PM_EINVAL, "$.medium_ior: must be positive, got %g", s->medium_ior);
+    const cJSON *mats, *objs, *lights, *pm;
+    TRY(json_object(root, "$", "materials", 1, &mats, e));
+    char p[P_MAX];
+    for (const cJSON *it = mats->child; it; it = it->next) {
+        material m;
+        json_path_key(p, sizeof p, "$.materials", it->string ? it->string : "?");
+        if (it->string && strlen(it->string) >= sizeof m.name)
+            return json_fail(e, PM_EINVAL, "%s: material name too long (max %d characters)", p,
+                             (int)sizeof m.name - 1);
+        TRY(load_material(&m, it, p, e));
+        if (push((void **)&s->mats, &s->nmats, &cp.mcap, sizeof m, &m) < 0)
+            return json_fail(e, PM_ENOMEM, "out of memory");
+    }
+    TRY(json_array(root, "$", "objects", 1, &objs, e));
+    int i = 0;
+    for (const cJSON *it = objs->child; it; it = it->next, i++) {
+        json_path_index(p, sizeof p, "$.objects", i);
+        cp.obj = i;
+        TRY(load_object(s, &cp, it, p, e));
+    }
+    TRY(json_array(root, "$", "lights", 0, &lights, e));
+    i = 0;
+    for (const cJSON *it = lights ? lights->child : NULL; it; it = it->next, i++) {
+        json_path_index(p, sizeof p, "$.lights", i);
+        TRY(load_light(s, &cp, it, p, e));
+    }
+    TRY(json_object(root, "$", "photon_mapping", 0, &pm, e));
+    if (pm) {
+        s->photon_mapping = cJSON_Duplicate(pm, 1);
+        if (!s->photon_mapping) return json_fail(e, PM_ENOMEM, "out of memory");
+    }
+    return scene_prepare(s, e);
+}
+
+int scene_from_json(scene *s, const cJSON *root, json_err *e) {
+    memset(s, 0, sizeof *s);
+    int rc = from_json(s, root, e);
+    if (rc < 0) scene_free(s);
+    return rc;
+}
+
+int scene_load_text(scene *s, const char *text, json_err *e) {
+    cJSON *root;
+    memset(s, 0, sizeof *s);
+    int rc = json_parse_text(text, &root, e);
+    if (rc < 0) return rc;
+    rc = scene_from_json(s, root, e);
+    cJSON_Delete(root);
+    return rc;
+}
+
+int scene_load(scene *s, const char *filename, json_err *e) {
+    cJSON *root;
+    memset(s, 0, sizeof *s);
+    int rc = json_parse_file(filename, &root, e);
+    if (rc < 0) return rc;
+    rc = scene_from_json(s, root, e);
+    cJSON_Delete(root);
+    return rc;
+}
