@@ -1,0 +1,111 @@
+/* import.c: preparing foreign scene files and mesh objects for the scene loader; see import.h.
+ *
+ * A relative mesh path is joined to the scene file's directory and then made absolute with
+ * realpath, so a dumped scene loads from wherever it is saved. (A path that does not resolve
+ * stays joined; loading it then reports the missing file by that name.)
+ */
+#define _XOPEN_SOURCE 700
+#include "import.h"
+
+#include <limits.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "common.h"
+#include "stats.h"
+#include "tungsten.h"
+
+#define TRY(x)                     \
+    do {                           \
+        int rc__ = (x);            \
+        if (rc__ < 0) return rc__; \
+    } while (0)
+
+/* The directory part of path ("" for a bare name). */
+static void dir_of(const char *path, char *dir, size_t cap) {
+    const char *s = path ? strrchr(path, '/') : NULL;
+    if (!s) {
+        dir[0] = 0;
+        return;
+    }
+    size_t n = (size_t)(s - path);
+    if (n == 0) n = 1; /* "/x.json": the root */
+    if (n >= cap) n = cap - 1;
+    memcpy(dir, path, n);
+    dir[n] = 0;
+}
+
+int scene_import(cJSON **root, const char *scene_path, json_err *e) {
+    char dir[4096];
+    dir_of(scene_path, dir, sizeof dir);
+    double t0 = stats_now();
+    if (tungsten_is_scene(*root)) {
+        cJSON *out;
+        TRY(tungsten_convert(*root, dir, &out, e));
+        cJSON_Delete(*root);
+        *root = out;
+        stats_time_add("Time/Mesh loading", stats_now() - t0);
+    }
+    const cJSON *objs = cJSON_IsObject(*root) ? json_get(*root, "objects") : NULL;
+    if (!cJSON_IsArray(objs)) return 0;
+    for (cJSON *o = objs->child; o; o = o->next) {
+        cJSON *f = cJSON_IsObject(o) ? cJSON_GetObjectItemCaseSensitive(o, "file") : NULL;
+        if (!cJSON_IsString(f) || f->valuestring[0] == '/') continue;
+        char path[8192], real[PATH_MAX];
+        if (dir[0])
+            snprintf(path, sizeof path, "%s/%s", dir, f->valuestring);
+        else
+            snprintf(path, sizeof path, "%s", f->valuestring);
+        cJSON *nf = cJSON_CreateString(realpath(path, real) ? real : path);
+        if (!nf) return json_fail(e, PM_ENOMEM, "out of memory");
+        cJSON_ReplaceItemInObjectCaseSensitive(o, "file", nf);
+    }
+    return 0;
+}
+
+int mesh_object_read(const cJSON *o, const char *P, mesh_data *m, int *smooth, int *usemtl, json_err *e) {
+    memset(m, 0, sizeof *m);
+    const char *file;
+    int recompute = 0;
+    *smooth = 0;
+    *usemtl = 1;
+    TRY(json_string(o, P, "file", 1, &file, e));
+    TRY(json_bool(o, P, "smooth", 0, smooth, e));
+    TRY(json_bool(o, P, "recompute_normals", 0, &recompute, e));
+    TRY(json_bool(o, P, "usemtl", 0, usemtl, e));
+    if (json_get(o, "vertices") || json_get(o, "triangles"))
+        return json_fail(e, PM_EINVAL, "%s: give a file or vertices and triangles, not both", P);
+    double M[3][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}};
+    const cJSON *t = json_get(o, "transform");
+    if (t) {
+        if (!cJSON_IsArray(t) || cJSON_GetArraySize(t) != 16)
+            return json_fail(e, PM_EINVAL, "%s.transform: expected 16 numbers (a 4x4 matrix, row by row)", P);
+        double a[16];
+        int i = 0;
+        for (const cJSON *it = t->child; it; it = it->next, i++) {
+            if (!cJSON_IsNumber(it) || !isfinite(it->valuedouble))
+                return json_fail(e, PM_EINVAL, "%s.transform[%d]: expected a finite number, got %s", P, i,
+                                 json_type_name(it));
+            a[i] = it->valuedouble;
+        }
+        if (a[12] != 0 || a[13] != 0 || a[14] != 0 || a[15] != 1)
+            return json_fail(e, PM_EINVAL, "%s.transform: the last row must be 0 0 0 1", P);
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 4; c++) M[r][c] = a[4 * r + c];
+    }
+    double t0 = stats_now();
+    char err[400];
+    int rc = mesh_load(file, m, err, sizeof err);
+    if (rc == 0) rc = mesh_transform(m, (const double(*)[4])M, file, err, sizeof err);
+    if (rc == 0 && *smooth && mesh_smooth_normals(m, recompute) < 0) {
+        rc = PM_ENOMEM;
+        snprintf(err, sizeof err, "%s: out of memory", file);
+    }
+    stats_time_add("Time/Mesh loading", stats_now() - t0);
+    if (rc < 0) {
+        mesh_free(m);
+        return json_fail(e, rc, "%s.file: %s", P, err);
+    }
+    return 0;
+}
