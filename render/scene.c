@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "common.h"
+#include "stats.h"
 
 /* Bounds, area lights, light powers and the BVH. */
 int scene_prepare(scene *s, json_err *e) {
@@ -93,7 +94,9 @@ int scene_prepare(scene *s, json_err *e) {
         }
     }
     free(w);
+    double t_bvh = stats_now();
     int rc = bvh_build(&s->accel, s->tris, s->ntris, s->spheres, s->nspheres);
+    stats_time_add("Time/BVH build", stats_now() - t_bvh);
     if (rc < 0) return json_fail(e, rc, "building the BVH: %s", pm_strerror(rc));
     return 0;
 }
@@ -104,6 +107,7 @@ void scene_free(scene *s) {
     free(s->spheres);
     free(s->tri_obj);
     free(s->sphere_obj);
+    free(s->tri_ns);
     free(s->lights);
     distrib1d_free(&s->light_distrib);
     bvh_free(&s->accel);
@@ -123,10 +127,17 @@ int scene_intersect(const scene *s, ray r, double tmax, hit *h) {
     if (prim < s->ntris) {
         h->ng = s->tris[prim].n;
         h->mat = s->tris[prim].mat;
+        h->ns = h->ng;
+        if (prim < s->ntri_ns) { /* smooth mesh: barycentric blend of the corner normals */
+            const vec3 *n = s->tri_ns[prim];
+            vec3 ns = v3_norm(v3_add(v3_scale(n[0], 1 - u - v), v3_add(v3_scale(n[1], u), v3_scale(n[2], v))));
+            if (v3_dot(ns, h->ng) > 0) h->ns = ns;
+        }
     } else {
         const sphere *sp = &s->spheres[prim - s->ntris];
         h->ng = v3_scale(v3_sub(h->p, sp->c), 1.0 / sp->r);
         h->ng = v3_norm(h->ng);
+        h->ns = h->ng;
         h->mat = sp->mat;
     }
     return 1;

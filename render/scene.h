@@ -58,6 +58,8 @@ typedef struct scene {
     sphere *spheres;
     int nspheres;
     int *tri_obj, *sphere_obj; /* index in $.objects of each triangle's / sphere's object */
+    vec3 (*tri_ns)[3]; /* corner shading normals of triangles 0..ntri_ns-1 (smooth meshes), or NULL */
+    int ntri_ns;
     light *lights;
     int nlights;
     distrib1d light_distrib; /* choose a light in proportion to its power (mean of RGB) */
@@ -75,6 +77,8 @@ typedef struct hit {
     double t;
     vec3 p;            /* hit point */
     vec3 ng;           /* unit geometric normal (front side / outward); not flipped to the ray */
+    vec3 ns;           /* unit shading normal: a smooth mesh's interpolated corner normals, else
+                        * ng; on ng's side. It only shades: every side decision uses ng */
     int prim;          /* primitive id: < ntris a triangle, else ntris + sphere index */
     int mat;           /* material index */
     double u, v;       /* triangle barycentrics */

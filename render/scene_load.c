@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "common.h"
+#include "import.h"
 
 #define P_MAX 256
 
@@ -212,6 +213,47 @@ static int read_points(const cJSON *obj, const char *P, const char *key, int n, 
     return 0;
 }
 
+/* A mesh from a file (import.h): its triangles, their materials (usemtl names or "material")
+ * and, when smooth, their corner normals in s->tri_ns. */
+static int load_mesh_file(scene *s, caps *cp, const cJSON *o, const char *P, json_err *e) {
+    mesh_data m;
+    int smooth, usemtl, def = -1, rc = 0;
+    TRY(mesh_object_read(o, P, &m, &smooth, &usemtl, e));
+    if (json_get(o, "material")) rc = find_material(s, o, P, &def, e);
+    int *gmat = calloc((size_t)m.ngroups + 1, sizeof *gmat);
+    if (!gmat) rc = json_fail(e, PM_ENOMEM, "out of memory");
+    for (int g = 0; g < m.ngroups && rc == 0 && usemtl; g++) {
+        gmat[g] = -1;
+        for (int i = 0; i < s->nmats; i++)
+            if (strcmp(s->mats[i].name, m.groups[g]) == 0) gmat[g] = i;
+        if (gmat[g] < 0)
+            rc = json_fail(e, PM_EINVAL, "%s.file: usemtl \"%s\" names no material in $.materials", P, m.groups[g]);
+    }
+    int first = s->ntris;
+    for (int t = 0; t < m.ntris && rc == 0; t++) {
+        int g = m.tri_group[t], mat = usemtl && g >= 0 ? gmat[g] : def;
+        if (mat < 0) {
+            rc = json_fail(e, PM_EINVAL, "%s.material: missing (required for the faces before any usemtl)", P);
+            break;
+        }
+        rc = add_tri(s, cp, m.pos[m.tri[t][0]], m.pos[m.tri[t][1]], m.pos[m.tri[t][2]], mat, P, e);
+    }
+    if (rc == 0 && smooth) { /* corner normals for every triangle so far; flat ones get n */
+        vec3(*ns)[3] = realloc(s->tri_ns, (size_t)s->ntris * sizeof *ns);
+        if (!ns) {
+            rc = json_fail(e, PM_ENOMEM, "out of memory");
+        } else {
+            s->tri_ns = ns;
+            for (int t = s->ntri_ns; t < first; t++) ns[t][0] = ns[t][1] = ns[t][2] = s->tris[t].n;
+            memcpy(ns + first, m.corner_n, (size_t)m.ntris * sizeof *ns);
+            s->ntri_ns = s->ntris;
+        }
+    }
+    free(gmat);
+    mesh_free(&m);
+    return rc;
+}
+
 static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_err *e) {
     if (!cJSON_IsObject(o))
         return json_fail(e, PM_EINVAL, "%s: expected an object, got %s", P, json_type_name(o));
@@ -242,6 +284,8 @@ static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_e
         TRY(find_material(s, o, P, &mat, e));
         TRY(add_tri(s, cp, v[0], v[1], v[2], mat, P, e));
         TRY(add_tri(s, cp, v[0], v[2], v[3], mat, P, e));
+    } else if (strcmp(type, "mesh") == 0 && json_get(o, "file")) {
+        return load_mesh_file(s, cp, o, P, e);
     } else if (strcmp(type, "mesh") == 0) {
         const cJSON *va, *ta;
         TRY(json_array(o, P, "vertices", 1, &va, e));
@@ -436,7 +480,8 @@ int scene_load_text(scene *s, const char *text, json_err *e) {
     memset(s, 0, sizeof *s);
     int rc = json_parse_text(text, &root, e);
     if (rc < 0) return rc;
-    rc = scene_from_json(s, root, e);
+    rc = scene_import(&root, NULL, e);
+    if (rc == 0) rc = scene_from_json(s, root, e);
     cJSON_Delete(root);
     return rc;
 }
@@ -446,7 +491,8 @@ int scene_load(scene *s, const char *filename, json_err *e) {
     memset(s, 0, sizeof *s);
     int rc = json_parse_file(filename, &root, e);
     if (rc < 0) return rc;
-    rc = scene_from_json(s, root, e);
+    rc = scene_import(&root, filename, e); /* Tungsten scenes, mesh paths (import.h) */
+    if (rc == 0) rc = scene_from_json(s, root, e);
     cJSON_Delete(root);
     return rc;
 }
