@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "common.h"
+#include "scene.h"
 #include "stats.h"
 #include "tungsten.h"
 
@@ -108,4 +109,37 @@ int mesh_object_read(const cJSON *o, const char *P, mesh_data *m, int *smooth, i
         return json_fail(e, rc, "%s.file: %s", P, err);
     }
     return 0;
+}
+
+int scene_dump_main(int argc, char **argv) {
+    if (argc != 3) {
+        fprintf(stderr, "usage: render --dump-scene SCENE.json\n");
+        return 2;
+    }
+    cJSON *root;
+    json_err e;
+    int rc = json_parse_file(argv[2], &root, &e);
+    if (rc == 0) {
+        rc = scene_import(&root, argv[2], &e);
+        if (rc < 0) cJSON_Delete(root);
+    }
+    if (rc == 0) { /* load it all, meshes too, so what is printed is what renders */
+        scene s;
+        rc = scene_from_json(&s, root, &e);
+        if (rc == 0) scene_free(&s);
+        if (rc < 0) cJSON_Delete(root);
+    }
+    if (rc < 0) {
+        fprintf(stderr, "render: %s: %s\n", argv[2], e.msg);
+        return 2;
+    }
+    char *text = cJSON_Print(root);
+    cJSON_Delete(root);
+    if (!text) {
+        fprintf(stderr, "render: out of memory\n");
+        return 1;
+    }
+    int bad = puts(text) < 0 || fflush(stdout) != 0;
+    free(text);
+    return bad ? 1 : 0;
 }

@@ -17,8 +17,9 @@
 
 #include "common.h"
 #include "film.h"
+#include "import.h"
 #include "integrator.h"
-#include "plan.h"
+#include "photon_settings.h"
 #include "renderer.h"
 #include "scene.h"
 #include "stats.h"
@@ -34,8 +35,10 @@ static void usage(FILE *f) {
             "       render --compare A.pfm B.pfm [--rect X Y W H] [--mask IDS.pfm --id N...]\n"
             "                    [--diff OUT.png [--diff-scale S]]\n"
             "       render --tonemap IN.pfm OUT.png [--exposure X] [--tone filmic|srgb]\n"
+            "       render --dump-scene SCENE.json   (the scene as loaded, in our JSON format)\n"
             "\n"
-            "Renders a JSON scene (format: data/scenes/README.md) to a PNG and/or a PFM.\n"
+            "Renders a JSON scene (format: data/scenes/README.md; a Tungsten scene is converted)\n"
+            "to a PNG and/or a PFM.\n"
             "\n"
             "options:\n"
             "  -o FILE.png       tone-mapped 8-bit image (default: out.png unless --hdr is given)\n"
@@ -81,6 +84,7 @@ static const char *basename_of(const char *p) {
 
 int main(int argc, char **argv) {
     if (argc >= 2 && strcmp(argv[1], "--tonemap") == 0) return tools_tonemap(argc, argv);
+    if (argc >= 2 && strcmp(argv[1], "--dump-scene") == 0) return scene_dump_main(argc, argv);
     if (argc >= 2 && strcmp(argv[1], "--compare") == 0) {
         for (int i = 2; i < argc; i++)
             if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
@@ -93,7 +97,8 @@ int main(int argc, char **argv) {
     long spp = 0, threads = 0, width = 0, height = 0, seed = -1;
     double exposure = -1;
     int quiet = 0;
-    /* Photon-mapping flags, applied to the scene's photon_mapping object (plan.h). */
+    /* Photon-mapping flags, applied to the scene's photon_mapping object
+     * (photon_settings.h). */
     const char *pm_flag[64], *pm_value[64];
     int npm = 0;
     for (int i = 1; i < argc; i++) {
