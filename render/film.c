@@ -1,7 +1,8 @@
 /* film.c: framebuffer, PFM read/write, auto exposure and PNG via libpng; see film.h.
  *
- * Temporary files are made with mkstemp in the target's directory (so rename() stays on one
- * filesystem and is atomic), named "<target>.tmpXXXXXX".
+ * The writers fill a stream; the path versions get it from output.h, which decides how the
+ * path is written (a temporary renamed over a regular file, or written through a FIFO or
+ * device) and removes the temporary on failure or SIGINT/SIGTERM.
  */
 #include "film.h"
 
@@ -15,6 +16,7 @@
 #include <unistd.h>
 
 #include "common.h"
+#include "output.h"
 
 #define HABLE_W FILM_HABLE_WHITE
 
@@ -31,65 +33,38 @@ void film_free(film *f) {
     f->width = f->height = 0;
 }
 
-/* Open a temporary file beside path; fills tmp (cap bytes). */
-static FILE *open_tmp(const char *path, char *tmp, size_t cap) {
-    if ((size_t)snprintf(tmp, cap, "%s.tmpXXXXXX", path) >= cap) {
-        errno = ENAMETOOLONG;
-        return NULL;
-    }
-    int fd = mkstemp(tmp);
-    if (fd < 0) return NULL;
-    /* mkstemp creates the file 0600; an image gets the mode fopen would give it (0666 less
-     * the umask). Reading the umask means setting it back: the writers run on one thread. */
-    mode_t mask = umask(022);
-    umask(mask);
-    if (fchmod(fd, 0666 & ~mask) != 0) {
-        int saved = errno;
-        close(fd);
-        unlink(tmp);
-        errno = saved;
-        return NULL;
-    }
-    FILE *fp = fdopen(fd, "wb");
-    if (!fp) {
-        close(fd);
-        unlink(tmp);
-    }
-    return fp;
-}
-
 int film_check_writable(const char *path) {
-    struct stat st;
+    char err[512];
     if (!path || !*path) {
         errno = ENOENT;
         return PM_EIO;
     }
+    struct stat st;
     if (stat(path, &st) == 0 && S_ISDIR(st.st_mode)) {
         errno = EISDIR;
         return PM_EIO;
     }
-    char tmp[4096];
-    FILE *fp = open_tmp(path, tmp, sizeof tmp);
-    if (!fp) return PM_EIO;
-    fclose(fp);
-    unlink(tmp);
-    return 0;
+    return out_check(path, err, sizeof err) < 0 ? (errno = errno ? errno : EACCES, PM_EIO) : 0;
 }
 
-/* Close and rename on success, or remove the temporary file. */
-static int finish_tmp(FILE *fp, const char *tmp, const char *path, int ok) {
-    if (fclose(fp) != 0) ok = 0;
-    if (ok && rename(tmp, path) == 0) return 0;
-    int saved = errno;
-    unlink(tmp);
-    errno = saved;
-    return PM_EIO;
+/* One output through output.h: open, write with fn, commit. */
+static int write_one(const char *path, int (*fn)(const void *, FILE *), const void *arg) {
+    char err[512];
+    out_file o;
+    int rc = out_open(&o, path, err, sizeof err);
+    if (rc < 0) return rc;
+    rc = fn(arg, o.fp);
+    if (rc < 0) {
+        int saved = errno;
+        out_abort(&o);
+        errno = saved;
+        return rc;
+    }
+    out_file *list[1] = {&o};
+    return out_commit(list, 1, err, sizeof err);
 }
 
-int film_write_pfm(const film *f, const char *path) {
-    char tmp[4096];
-    FILE *fp = open_tmp(path, tmp, sizeof tmp);
-    if (!fp) return PM_EIO;
+int film_write_pfm_fp(const film *f, FILE *fp) {
     int ok = fprintf(fp, "PF\n%d %d\n-1.0\n", f->width, f->height) > 0;
     for (int y = f->height - 1; y >= 0 && ok; y--) {
         const float *row = f->px + (size_t)y * f->width * 3;
@@ -103,8 +78,11 @@ int film_write_pfm(const film *f, const char *path) {
             ok = fwrite(b, 1, 4, fp) == 4;
         }
     }
-    return finish_tmp(fp, tmp, path, ok);
+    return ok ? 0 : PM_EIO;
 }
+
+static int pfm_fn(const void *f, FILE *fp) { return film_write_pfm_fp(f, fp); }
+int film_write_pfm(const film *f, const char *path) { return write_one(path, pfm_fn, f); }
 
 int film_read_pfm(film *f, const char *path) {
     memset(f, 0, sizeof *f);
@@ -113,33 +91,59 @@ int film_read_pfm(film *f, const char *path) {
     char magic[3] = {0};
     int w, h;
     double scale;
-    int rc = PM_EFORMAT;
-    if (fscanf(fp, "%2s %d %d %lf", magic, &w, &h, &scale) == 4 && strcmp(magic, "PF") == 0 &&
-        w > 0 && h > 0 && w <= (1 << 16) && h <= (1 << 16) && scale != 0 && fgetc(fp) != EOF) {
-        if (film_init(f, w, h) < 0) {
-            fclose(fp);
-            return PM_ENOMEM;
+    struct stat st;
+    if (fscanf(fp, "%2s %d %d %lf", magic, &w, &h, &scale) != 4 || strcmp(magic, "PF") != 0 ||
+        w <= 0 || h <= 0 || w > (1 << 16) || h > (1 << 16) || scale == 0 || fgetc(fp) == EOF ||
+        fstat(fileno(fp), &st) != 0) {
+        fclose(fp);
+        return PM_EFORMAT;
+    }
+    /* The header's size is checked against the file before anything is allocated, so a
+     * forged "65536 65536" header costs nothing. A pipe has no size: its pixels are read into
+     * a buffer that grows with what actually arrives. */
+    size_t bytes = (size_t)w * (size_t)h * 12;
+    long pos = ftell(fp);
+    if (S_ISREG(st.st_mode) && (pos < 0 || (uint64_t)st.st_size - (uint64_t)pos < bytes)) {
+        fclose(fp);
+        return PM_EFORMAT;
+    }
+    size_t cap = S_ISREG(st.st_mode) ? bytes : (bytes < (1u << 20) ? bytes : (1u << 20)), got = 0;
+    unsigned char *buf = malloc(cap);
+    while (buf && got < bytes) {
+        if (got == cap) {
+            size_t nc = cap * 2 < bytes ? cap * 2 : bytes;
+            unsigned char *nb = realloc(buf, nc);
+            if (!nb) break;
+            buf = nb;
+            cap = nc;
         }
-        int little = scale < 0;
-        rc = 0;
-        for (int y = h - 1; y >= 0 && rc == 0; y--) {
-            for (int i = 0; i < w * 3; i++) {
-                unsigned char b[4];
-                if (fread(b, 1, 4, fp) != 4) {
-                    rc = PM_EFORMAT;
-                    break;
-                }
-                uint32_t u = little ? (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 |
-                                          (uint32_t)b[3] << 24
-                                    : (uint32_t)b[3] | (uint32_t)b[2] << 8 | (uint32_t)b[1] << 16 |
-                                          (uint32_t)b[0] << 24;
-                memcpy(&f->px[(size_t)y * w * 3 + i], &u, 4);
-            }
-        }
-        if (rc < 0) film_free(f);
+        size_t r = fread(buf + got, 1, cap - got, fp);
+        if (r == 0) break;
+        got += r;
     }
     fclose(fp);
-    return rc;
+    if (!buf || got < bytes) {
+        int rc = !buf || got == cap ? PM_ENOMEM : PM_EFORMAT;
+        free(buf);
+        return rc;
+    }
+    if (film_init(f, w, h) < 0) {
+        free(buf);
+        return PM_ENOMEM;
+    }
+    int little = scale < 0;
+    const unsigned char *b = buf;
+    for (int y = h - 1; y >= 0; y--) {
+        for (int i = 0; i < w * 3; i++, b += 4) {
+            uint32_t u = little ? (uint32_t)b[0] | (uint32_t)b[1] << 8 | (uint32_t)b[2] << 16 |
+                                      (uint32_t)b[3] << 24
+                                : (uint32_t)b[3] | (uint32_t)b[2] << 8 | (uint32_t)b[1] << 16 |
+                                      (uint32_t)b[0] << 24;
+            memcpy(&f->px[(size_t)y * w * 3 + i], &u, 4);
+        }
+    }
+    free(buf);
+    return 0;
 }
 
 static double hable_raw(double x) {
@@ -198,8 +202,8 @@ static void png_warn(png_structp p, png_const_charp msg) {
     (void)msg;
 }
 
-int film_write_png(const film *f, const char *path, int tone, double exposure, double clip_percent,
-                   double *used) {
+int film_write_png_fp(const film *f, FILE *fp, int tone, double exposure, double clip_percent,
+                      double *used) {
     if (!(exposure > 0)) exposure = film_auto_exposure(f, tone, clip_percent);
     if (used) *used = exposure;
     size_t rowbytes = (size_t)f->width * 3;
@@ -217,13 +221,6 @@ int film_write_png(const film *f, const char *path, int tone, double exposure, d
         img[i] = (unsigned char)lrint(255.0 * film_srgb_encode(v));
     }
     for (int y = 0; y < f->height; y++) rows[y] = img + (size_t)y * rowbytes;
-    char tmp[4096];
-    FILE *fp = open_tmp(path, tmp, sizeof tmp);
-    if (!fp) {
-        free(img);
-        free(rows);
-        return PM_EIO;
-    }
     volatile int ok = 0;
     png_structp p = png_create_write_struct(PNG_LIBPNG_VER_STRING, NULL, png_err, png_warn);
     png_infop info = p ? png_create_info_struct(p) : NULL;
@@ -242,5 +239,23 @@ int film_write_png(const film *f, const char *path, int tone, double exposure, d
     png_destroy_write_struct(p ? &p : NULL, info ? &info : NULL);
     free(img);
     free(rows);
-    return finish_tmp(fp, tmp, path, ok);
+    if (ok && fflush(fp) != 0) ok = 0;
+    return ok ? 0 : PM_EIO;
+}
+
+typedef struct png_args {
+    const film *f;
+    int tone;
+    double exposure, clip_percent, *used;
+} png_args;
+
+static int png_fn(const void *arg, FILE *fp) {
+    const png_args *a = arg;
+    return film_write_png_fp(a->f, fp, a->tone, a->exposure, a->clip_percent, a->used);
+}
+
+int film_write_png(const film *f, const char *path, int tone, double exposure, double clip_percent,
+                   double *used) {
+    png_args a = {f, tone, exposure, clip_percent, used};
+    return write_one(path, png_fn, &a);
 }

@@ -10,14 +10,22 @@
  * exposure that puts the brightest clip_percent % of pixels at or above clipping (white for
  * sRGB, W for filmic).
  *
- * Writers never leave a partial file: they write a temporary file next to the target and
- * rename it into place only when everything succeeded. They return 0 or a negative PM_E*
- * code (PM_EIO with errno kept). Files get mode 0666 less the umask, as with fopen.
+ * The path writers go through output.h: a regular file (or a new path) is written to a
+ * temporary beside it and renamed into place only when everything succeeded; a FIFO or
+ * character device is written through and never replaced; a symbolic link is followed to
+ * its target; anything else is refused. They return 0 or a negative PM_E* code (PM_EIO with
+ * errno kept). Files get mode 0666 less the umask, as with fopen. The _fp writers fill a
+ * caller's stream, for writing several outputs together (out_commit).
+ *
+ * film_read_pfm checks the header's width x height against the file's size before it
+ * allocates anything (PM_EFORMAT for a file shorter than its header says).
  *
  * Ownership: the film owns its pixel array (film_free).
  */
 #ifndef RENDER_FILM_H
 #define RENDER_FILM_H
+
+#include <stdio.h>
 
 #include "vec.h"
 
@@ -44,6 +52,7 @@ static inline rgb film_get(const film *f, int x, int y) {
 }
 
 int film_write_pfm(const film *f, const char *path);
+int film_write_pfm_fp(const film *f, FILE *fp);
 /* Whether path could be written: not a directory, and a temporary file can be created beside
  * it (and is removed again). Lets a program refuse an unwritable output before a long render.
  * 0 or PM_EIO with errno set (ENOENT, EACCES, EISDIR, ...). Nothing is left behind. */
@@ -60,6 +69,8 @@ double film_auto_exposure(const film *f, int tone, double clip_percent);
 /* exposure <= 0 means auto. *used (may be NULL) receives the exposure applied. */
 int film_write_png(const film *f, const char *path, int tone, double exposure, double clip_percent,
                    double *used);
+int film_write_png_fp(const film *f, FILE *fp, int tone, double exposure, double clip_percent,
+                      double *used);
 
 /* Hable's filmic curve, normalized so that W maps to 1 (x >= 0). */
 double film_hable(double x);

@@ -1,0 +1,260 @@
+/* test_render_output.c: output files that are safe as root, and bounded input.
+ *
+ * Oracles: the documented rules of render/output.h: a regular file is replaced whole (its
+ * new bytes are exactly what was written, its inode changes), a FIFO and a character device
+ * are written through and stay what they were (same type, same device number), a symbolic
+ * link stays a link and its target gets the bytes, a dangling link, a directory are refused
+ * and nothing appears; SIGINT/SIGTERM leave the old outputs and no temporaries. The render
+ * program is run as a user would (signals at each phase through the documented test-only
+ * PM_RENDER_TEST_PAUSE hook), and bad input (/dev/zero as a scene, a PFM header bigger than
+ * its file) must give exit status 2 with a message, quickly. Every output path is inside
+ * pm_test_tmpdir(); device nodes are made there with mknod, never under /dev.
+ */
+#define _XOPEN_SOURCE 700 /* mknod, S_IFCHR */
+#include <dirent.h>
+#include <errno.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/sysmacros.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "test.h"
+#include "../photonmap/common.h"
+#include "../render/film.h"
+#include "../render/output.h"
+
+static char *path_in(const char *name) {
+    static char buf[8][1024];
+    static int k;
+    char *p = buf[k++ % 8];
+    snprintf(p, 1024, "%s/%s", pm_test_tmpdir(), name);
+    return p;
+}
+
+static int write_text(const char *path, const char *text) {
+    FILE *f = fopen(path, "wb");
+    if (!f) return -1;
+    fputs(text, f);
+    return fclose(f);
+}
+
+/* The whole file, NUL-terminated; *n its length. NULL if unreadable. */
+static char *slurp(const char *path, size_t *n) {
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    size_t cap = 1 << 16, len = 0;
+    char *b = malloc(cap + 1);
+    size_t got;
+    while (b && (got = fread(b + len, 1, cap - len, f)) > 0) {
+        len += got;
+        if (len == cap) {
+            char *nb = realloc(b, 2 * cap + 1);
+            if (!nb) {
+                free(b);
+                b = NULL;
+                break;
+            }
+            b = nb;
+            cap *= 2;
+        }
+    }
+    fclose(f);
+    if (b) b[len] = 0;
+    if (n) *n = len;
+    return b;
+}
+
+/* Names in dir containing ".tmp" (leftover temporaries). */
+static int count_temps(const char *dir) {
+    DIR *d = opendir(dir);
+    if (!d) return -1;
+    int n = 0;
+    struct dirent *e;
+    while ((e = readdir(d)))
+        if (strstr(e->d_name, ".tmp")) n++;
+    closedir(d);
+    return n;
+}
+
+/* Write text to path through output.h as one output. */
+static int out_write_text(const char *path, const char *text, char *err, size_t cap) {
+    out_file o;
+    int rc = out_open(&o, path, err, cap);
+    if (rc < 0) return rc;
+    fputs(text, o.fp);
+    out_file *l[1] = {&o};
+    return out_commit(l, 1, err, cap);
+}
+
+/* Oracle: a regular file is replaced by exactly the new bytes (a new inode: it was renamed
+ * into place, not rewritten), a new path is created, and no temporary remains. */
+TEST(render_output_regular_and_new) {
+    const char *p = path_in("reg.txt"), *q = path_in("new.txt");
+    ASSERT(write_text(p, "old contents") == 0);
+    struct stat a, b;
+    ASSERT(stat(p, &a) == 0);
+    char err[512];
+    ASSERT_MSG(out_write_text(p, "new", err, sizeof err) == 0, "%s", err);
+    ASSERT_MSG(out_write_text(q, "fresh", err, sizeof err) == 0, "%s", err);
+    ASSERT(stat(p, &b) == 0);
+    EXPECT(S_ISREG(b.st_mode));
+    EXPECT(a.st_ino != b.st_ino);
+    char *s = slurp(p, NULL), *t = slurp(q, NULL);
+    EXPECT(s && strcmp(s, "new") == 0);
+    EXPECT(t && strcmp(t, "fresh") == 0);
+    free(s);
+    free(t);
+    EXPECT_EQ_INT(count_temps(pm_test_tmpdir()), 0);
+}
+
+/* Oracle: the FIFO is still a FIFO afterwards and a reader got exactly the bytes written. */
+TEST(render_output_fifo_written_through) {
+    const char *fifo = path_in("fifo"), *got = path_in("fifo.got");
+    ASSERT(mkfifo(fifo, 0600) == 0);
+    pid_t pid = fork();
+    ASSERT(pid >= 0);
+    if (pid == 0) { /* the reader */
+        FILE *in = fopen(fifo, "rb"), *out = fopen(got, "wb");
+        int c;
+        while (in && out && (c = fgetc(in)) != EOF) fputc(c, out);
+        _exit(in && out && fclose(out) == 0 ? 0 : 1);
+    }
+    char err[512];
+    int rc = out_write_text(fifo, "through the pipe", err, sizeof err);
+    int status;
+    waitpid(pid, &status, 0);
+    ASSERT_MSG(rc == 0, "%s", err);
+    EXPECT(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+    struct stat st;
+    ASSERT(lstat(fifo, &st) == 0);
+    EXPECT(S_ISFIFO(st.st_mode));
+    char *s = slurp(got, NULL);
+    EXPECT(s && strcmp(s, "through the pipe") == 0);
+    free(s);
+    EXPECT_EQ_INT(count_temps(pm_test_tmpdir()), 0);
+}
+
+/* Oracle: a character device (a null device made here with mknod c 1 3) keeps its type and
+ * device number after being used as an output; the write succeeds (the device discards). */
+TEST(render_output_chardev_survives) {
+    const char *dev = path_in("null");
+    if (mknod(dev, S_IFCHR | 0666, makedev(1, 3)) != 0) {
+        printf("    mknod not permitted here (%s): skipped\n", strerror(errno));
+        return;
+    }
+    char err[512];
+    EXPECT_MSG(out_check(dev, err, sizeof err) == 0, "%s", err);
+    EXPECT_MSG(out_write_text(dev, "discarded", err, sizeof err) == 0, "%s", err);
+    struct stat st;
+    ASSERT(lstat(dev, &st) == 0);
+    EXPECT(S_ISCHR(st.st_mode));
+    EXPECT(major(st.st_rdev) == 1 && minor(st.st_rdev) == 3);
+    EXPECT_EQ_INT(count_temps(pm_test_tmpdir()), 0);
+}
+
+/* Oracle: the link stays a link to the same name; the target gets the new bytes; a link to a
+ * missing file, and a directory, are refused with a message and nothing is created. */
+TEST(render_output_symlink_and_refusals) {
+    const char *target = path_in("target.txt"), *link = path_in("link.txt");
+    ASSERT(write_text(target, "old") == 0);
+    ASSERT(symlink("target.txt", link) == 0);
+    char err[512];
+    ASSERT_MSG(out_write_text(link, "via link", err, sizeof err) == 0, "%s", err);
+    struct stat st;
+    ASSERT(lstat(link, &st) == 0);
+    EXPECT(S_ISLNK(st.st_mode));
+    char lt[256];
+    ssize_t n = readlink(link, lt, sizeof lt - 1);
+    EXPECT(n == 10 && memcmp(lt, "target.txt", 10) == 0);
+    char *s = slurp(target, NULL);
+    EXPECT(s && strcmp(s, "via link") == 0);
+    free(s);
+
+    const char *dangling = path_in("dangling");
+    ASSERT(symlink("nowhere/missing.png", dangling) == 0);
+    err[0] = 0;
+    EXPECT(out_write_text(dangling, "x", err, sizeof err) == PM_EIO);
+    EXPECT_MSG(strstr(err, "symbolic link"), "message: %s", err);
+    EXPECT(out_check(dangling, err, sizeof err) == PM_EIO);
+    EXPECT(access(path_in("nowhere"), F_OK) != 0);
+    err[0] = 0;
+    EXPECT(out_write_text(pm_test_tmpdir(), "x", err, sizeof err) == PM_EIO);
+    EXPECT_MSG(strstr(err, "a directory"), "message: %s", err);
+    EXPECT(out_check_dir(path_in("target.txt"), err, sizeof err) == PM_EIO);
+    EXPECT(out_check_dir(path_in("no/such/dir"), err, sizeof err) == PM_EIO);
+    EXPECT(out_check_dir(path_in("newdir"), err, sizeof err) == 0);
+    EXPECT(access(path_in("newdir"), F_OK) != 0);
+    EXPECT_EQ_INT(count_temps(pm_test_tmpdir()), 0);
+}
+
+/* Oracle: a process that has two complete temporaries but is stopped by SIGINT or SIGTERM
+ * before its commit ends by that signal, leaves both old files byte for byte and no
+ * temporary; the same process without the signal replaces both. */
+TEST(render_output_signal_removes_temporaries) {
+    int sigs[2] = {SIGINT, SIGTERM};
+    for (int k = 0; k < 3; k++) {
+        const char *a = path_in("sig_a"), *b = path_in("sig_b");
+        ASSERT(write_text(a, "old a") == 0 && write_text(b, "old b") == 0);
+        pid_t pid = fork();
+        ASSERT(pid >= 0);
+        if (pid == 0) {
+            out_signals_install();
+            char err[512];
+            out_file oa, ob;
+            if (out_open(&oa, a, err, sizeof err) < 0 || out_open(&ob, b, err, sizeof err) < 0) _exit(3);
+            fputs("new a", oa.fp);
+            fputs("new b", ob.fp);
+            fflush(NULL);
+            if (k < 2) raise(sigs[k]);
+            out_file *l[2] = {&oa, &ob};
+            _exit(out_commit(l, 2, err, sizeof err) == 0 ? 0 : 4);
+        }
+        int status;
+        waitpid(pid, &status, 0);
+        char *sa = slurp(a, NULL), *sb = slurp(b, NULL);
+        if (k < 2) {
+            EXPECT_MSG(WIFSIGNALED(status) && WTERMSIG(status) == sigs[k], "status %d", status);
+            EXPECT(sa && strcmp(sa, "old a") == 0 && sb && strcmp(sb, "old b") == 0);
+        } else {
+            EXPECT(WIFEXITED(status) && WEXITSTATUS(status) == 0);
+            EXPECT(sa && strcmp(sa, "new a") == 0 && sb && strcmp(sb, "new b") == 0);
+        }
+        free(sa);
+        free(sb);
+        EXPECT_EQ_INT(count_temps(pm_test_tmpdir()), 0);
+    }
+}
+
+/* Oracle: a PFM whose header promises more pixels than the file holds is refused
+ * (PM_EFORMAT) before any allocation: a 65536 x 65536 header would need 48 GiB, and the
+ * read returns at once; a 1-pixel-short file is refused too, and the exact file reads. */
+TEST(render_output_pfm_header_bounded) {
+    const char *p = path_in("huge.pfm");
+    ASSERT(write_text(p, "PF\n65536 65536\n-1.0\nabcdabcdabcd") == 0);
+    film f;
+    EXPECT_EQ_INT(film_read_pfm(&f, p), PM_EFORMAT);
+    film g;
+    ASSERT(film_init(&g, 3, 2) == 0);
+    for (int i = 0; i < 18; i++) g.px[i] = (float)i * 0.25f;
+    const char *q = path_in("small.pfm");
+    ASSERT(film_write_pfm(&g, q) == 0);
+    size_t n;
+    char *bytes = slurp(q, &n);
+    ASSERT(bytes);
+    FILE *t = fopen(path_in("short.pfm"), "wb");
+    ASSERT(t);
+    fwrite(bytes, 1, n - 1, t);
+    fclose(t);
+    free(bytes);
+    EXPECT_EQ_INT(film_read_pfm(&f, path_in("short.pfm")), PM_EFORMAT);
+    ASSERT(film_read_pfm(&f, q) == 0);
+    EXPECT(f.width == 3 && f.height == 2 && memcmp(f.px, g.px, 18 * sizeof(float)) == 0);
+    film_free(&f);
+    film_free(&g);
+}
