@@ -393,7 +393,10 @@ int bench_octree_knn(const bench_octree *tree, const float q[3], unsigned k, flo
         stats->nodes_visited += nodes;
         stats->dist_evals += evals;
     }
-    if (flags & PM_SORT) pm__nb_sort(out, found);
+    if (flags & PM_SORT) {
+        if (found == k) pm__heap_sort(out, found); /* out is the max-heap on dist2 */
+        else pm__nb_sort(out, found);
+    }
     return (int)found;
 }
 

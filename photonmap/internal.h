@@ -86,4 +86,43 @@ static inline void pm__heap_replace_top(pm_neighbor *h, unsigned n, pm_neighbor 
     pm__heap_sift_down(h, n, 0, v);
 }
 
+/* Sorts a max-heap on dist2, h[0..n) (as the k-nearest searches leave it), by (dist2, index)
+ * ascending, in place. Cheaper than pm__nb_sort from scratch: the heap is already built, and
+ * each extraction walks the hole left by the top down to a leaf along the larger children
+ * without comparing against the moved element, then sifts that element up (Floyd's variant:
+ * about half the comparisons, and the child choice is branch-free). The result is ordered by
+ * dist2; a final insertion pass orders runs of equal dist2 by index, which costs one
+ * comparison per entry when there are no ties. */
+static inline void pm__heap_sort(pm_neighbor *h, unsigned n) {
+    for (unsigned e = n; e-- > 1;) {
+        pm_neighbor top = h[0], v = h[e];
+        unsigned i = 0;
+        for (;;) {
+            unsigned c = 2 * i + 1;
+            if (c >= e) break;
+            if (c + 1 < e) c += h[c + 1].dist2 > h[c].dist2;
+            h[i] = h[c];
+            i = c;
+        }
+        while (i > 0) {
+            unsigned p = (i - 1) / 2;
+            if (!(h[p].dist2 < v.dist2)) break;
+            h[i] = h[p];
+            i = p;
+        }
+        h[i] = v;
+        h[e] = top;
+    }
+    for (unsigned i = 1; i < n; i++) {
+        if (!(h[i].dist2 == h[i - 1].dist2 && h[i].index < h[i - 1].index)) continue;
+        pm_neighbor v = h[i];
+        unsigned j = i;
+        while (j > 0 && pm__nb_less(&v, &h[j - 1])) {
+            h[j] = h[j - 1];
+            j--;
+        }
+        h[j] = v;
+    }
+}
+
 #endif /* PM_INTERNAL_H */

@@ -404,7 +404,11 @@ static int knn_finish(knn_state *s, unsigned flags, pm_query_stats *stats) {
         stats->nodes_visited += s->nodes;
         stats->dist_evals += s->evals;
     }
-    if (flags & PM_SORT) pm__nb_sort(s->out, s->found);
+    if (flags & PM_SORT) {
+        /* k found: out is the max-heap on dist2; fewer: arrival order */
+        if (s->found == s->k) pm__heap_sort(s->out, s->found);
+        else pm__nb_sort(s->out, s->found);
+    }
     return (int)s->found;
 }
 
