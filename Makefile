@@ -1,22 +1,37 @@
 # photonmap: build, test, bench, run and install.
 #
-#   make                 build the library, the renderer, the benchmarks and the tests
-#   make test            build everything and run the test suite (last line: N passed, N failed)
+#   make                 build the libraries (static and shared), the renderer, the benchmarks
+#                        and the tests
+#   make test            build everything, build the example against a staged install (static
+#                        and shared library), run the whole test suite
+#                        (last line: N passed, N failed, N skipped)
+#   make check           the quick tests only, for the edit-test loop (under 20 s on an idle
+#                        machine): the suite without the slow renders, the quick benchmark run
+#                        and the staged install (CHECK_SKIP lists what it leaves out)
 #   make run             render the default Cornell box to out/
 #   make bench           run the full benchmarks, write bench/results/*.csv, plots and docs
 #   make bench-quick     a small benchmark subset (also run by the test suite)
 #   make results         path-traced references (if missing, ~45 min) and docs/RESULTS.md (~20 min)
+#   make deps            install the missing Debian packages (scripts/install-deps.sh)
 #   make install PREFIX=/usr/local DESTDIR=
+#                        headers, libphotonmap.a, libphotonmap.so.1, photonmap.pc, bin/render
 #   make clean
 #
 # Options:
-#   SANITIZE=address,undefined   build with sanitizers (into build/san-*)
+#   SANITIZE=address,undefined   build with sanitizers (into build/san-*); also thread
 #   SIMD=avx2                    allow AVX2/FMA code (the default build runs on any x86-64)
 #   OPENMP=0                     build without OpenMP
 #   BUILD=dir                    where objects and binaries go (default build/release)
+#   TESTS="pattern ..."          run only the tests whose name or file contains a pattern
+#   CC, CXX, CFLAGS, LDFLAGS     as usual; CFLAGS and LDFLAGS are added after the project's
 #
-# Missing Debian packages are installed by scripts/install-deps.sh when pkg-config cannot
-# find a dependency.
+# Every object and program depends on $(BUILD)/flags.stamp, which holds the compilers and
+# flags and is rewritten only when they change: `make OPENMP=0` after `make` rebuilds what it
+# must, and a second identical `make` does nothing.
+#
+# Only `make deps`, `run`, `test`, `check`, `bench`, `bench-quick` and `results` install missing
+# Debian packages (scripts/install-deps.sh, when pkg-config cannot find a dependency); the
+# library, `lib`, `all` and `install` never call apt.
 
 CC ?= cc
 CXX ?= c++
@@ -52,22 +67,50 @@ LDFLAGS ?=
 ALL_CFLAGS = $(CFLAGS_BASE) $(SAN_FLAGS) $(SAN_DEFS) $(CFLAGS)
 ALL_LDFLAGS = $(SAN_FLAGS) $(OMP_LIBS) $(LDFLAGS)
 
+# ---- flags stamp ---------------------------------------------------------------------------
+# Written while the Makefile is read, and only when its text differs from the file's, so its
+# time changes exactly when the flags do. A dry run (-n, -q) writes nothing: it treats a
+# stale stamp as out of date instead, so it shows what a real run would rebuild.
+FLAGS_STAMP := $(BUILD)/flags.stamp
+FLAGS_TEXT := $(strip CC=$(CC) CXX=$(CXX) SIMD=$(SIMD) OPENMP=$(OPENMP) SANITIZE=$(SANITIZE) \
+                CFLAGS=$(ALL_CFLAGS) LDFLAGS=$(ALL_LDFLAGS))
+ifneq ($(file <$(FLAGS_STAMP)),$(FLAGS_TEXT))
+  ifneq ($(findstring n,$(firstword -$(MAKEFLAGS)))$(findstring q,$(firstword -$(MAKEFLAGS))),)
+    .PHONY: $(FLAGS_STAMP)
+  else
+    $(shell mkdir -p $(BUILD))
+    $(file >$(FLAGS_STAMP),$(FLAGS_TEXT))
+  endif
+endif
+
+# ---- version -------------------------------------------------------------------------------
+# From the PM_VERSION_* macros of photonmap/common.h: the shared library's soname carries
+# the major version.
+PM_VERSION_MAJOR := $(shell sed -n 's/^\#define PM_VERSION_MAJOR \([0-9]*\).*/\1/p' photonmap/common.h)
+PM_VERSION := $(PM_VERSION_MAJOR).$(shell sed -n 's/^\#define PM_VERSION_MINOR \([0-9]*\).*/\1/p' photonmap/common.h).$(shell sed -n 's/^\#define PM_VERSION_PATCH \([0-9]*\).*/\1/p' photonmap/common.h)
+
 # ---- sources -------------------------------------------------------------------------------
 PM_SRC     := $(sort $(wildcard photonmap/*.c))
 PM_HDR     := $(sort $(wildcard photonmap/*.h))
-# Installed headers: *_internal.h are the library's own, not API.
-PM_PUB_HDR := $(filter-out %_internal.h,$(PM_HDR))
+# Installed headers: internal.h and *_internal.h are the library's own, not API.
+PM_PUB_HDR := $(filter-out %_internal.h photonmap/internal.h,$(PM_HDR))
 RENDER_SRC := $(sort $(filter-out render/main.c,$(wildcard render/*.c)))
 BENCH_MAIN := $(sort $(wildcard bench/bench_*.c))
 BENCH_SRC  := $(sort $(filter-out $(BENCH_MAIN),$(wildcard bench/*.c)))
 TEST_SRC   := $(sort $(wildcard tests/*.c))
 
 PM_OBJ     := $(PM_SRC:%.c=$(BUILD)/obj/%.o)
+PM_PIC_OBJ := $(PM_SRC:%.c=$(BUILD)/pic/%.o)
 RENDER_OBJ := $(RENDER_SRC:%.c=$(BUILD)/obj/%.o)
 BENCH_OBJ  := $(BENCH_SRC:%.c=$(BUILD)/obj/%.o)
 TEST_OBJ   := $(TEST_SRC:%.c=$(BUILD)/obj/%.o)
+# The octree is raced in bench/ only; its test links it from there when it lives there.
+TEST_EXTRA_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard bench/octree.c))
 
 LIB        := $(BUILD)/libphotonmap.a
+SONAME     := libphotonmap.so.$(PM_VERSION_MAJOR)
+SHLIB      := $(BUILD)/libphotonmap.so.$(PM_VERSION)
+SHLIB_MAP  := $(BUILD)/libphotonmap.map
 RENDER_BIN := $(BUILD)/render
 BENCH_BINS := $(BENCH_MAIN:bench/%.c=$(BUILD)/%)
 TEST_BIN   := $(BUILD)/run_tests
@@ -75,37 +118,58 @@ TEST_BIN   := $(BUILD)/run_tests
 RENDER_LIBS := -lcjson -lpng -lz -lm
 FLANN_LIBS  := -lflann -lm
 
-.PHONY: all lib render bench-bin tests test run bench bench-quick results install uninstall clean deps example
+.PHONY: all lib render bench-bin tests test check run bench bench-quick results install \
+        uninstall clean deps example
 .DEFAULT_GOAL := all
 
-all: $(LIB) $(if $(wildcard render/main.c),$(RENDER_BIN)) $(BENCH_BINS) $(TEST_BIN)
-lib: $(LIB)
+all: $(LIB) $(SHLIB) $(if $(wildcard render/main.c),$(RENDER_BIN)) $(BENCH_BINS) $(TEST_BIN)
+lib: $(LIB) $(SHLIB)
 render: $(RENDER_BIN)
 bench-bin: $(BENCH_BINS)
 tests: $(TEST_BIN)
 
 # ---- dependencies --------------------------------------------------------------------------
-# Order-only: runs before compiling, never forces a rebuild.
+# Only the goals below may install packages: for them every compile waits (order-only, never
+# forcing a rebuild) for `deps`; for any other goal nothing calls apt.
+DEPS_GOALS := deps run test check bench bench-quick results
+DEPS_FIRST := $(if $(filter $(DEPS_GOALS),$(MAKECMDGOALS)),deps)
 deps:
 	@if ! command -v pkg-config >/dev/null 2>&1 || ! command -v $(CC) >/dev/null 2>&1 \
-	    || ! pkg-config --exists libcjson libpng flann 2>/dev/null; then \
+	    || ! pkg-config --exists libcjson libpng flann 2>/dev/null \
+	    || ! [ -x /usr/bin/time ]; then \
 	    sh scripts/install-deps.sh; fi
 
 # ---- compile -------------------------------------------------------------------------------
-$(BUILD)/obj/%.o: %.c | deps
+$(BUILD)/obj/%.o: %.c $(FLAGS_STAMP) | $(DEPS_FIRST)
 	@mkdir -p $(@D)
-	$(CC) $(ALL_CFLAGS) -MMD -MP -Iphotonmap -c $< -o $@
+	$(CC) $(ALL_CFLAGS) -MMD -MP -I. -Iphotonmap -c $< -o $@
 
--include $(PM_OBJ:.o=.d) $(RENDER_OBJ:.o=.d) $(BENCH_OBJ:.o=.d) $(TEST_OBJ:.o=.d) \
-         $(BENCH_MAIN:bench/%.c=$(BUILD)/obj/bench/%.d) $(BUILD)/obj/render/main.d
+# The shared library's objects: position-independent.
+$(BUILD)/pic/%.o: %.c $(FLAGS_STAMP) | $(DEPS_FIRST)
+	@mkdir -p $(@D)
+	$(CC) $(ALL_CFLAGS) -fPIC -MMD -MP -I. -Iphotonmap -c $< -o $@
+
+-include $(PM_OBJ:.o=.d) $(PM_PIC_OBJ:.o=.d) $(RENDER_OBJ:.o=.d) $(BENCH_OBJ:.o=.d) \
+         $(TEST_OBJ:.o=.d) $(BENCH_MAIN:bench/%.c=$(BUILD)/obj/bench/%.d) \
+         $(BUILD)/obj/render/main.d
 
 $(LIB): $(PM_OBJ)
 	@mkdir -p $(@D)
 	rm -f $@
 	ar rcs $@ $^
 
-$(RENDER_BIN): $(BUILD)/obj/render/main.o $(RENDER_OBJ) $(LIB)
-	$(CC) -o $@ $^ $(ALL_LDFLAGS) $(RENDER_LIBS)
+# The shared library exports the public API only: names pm_ but not the internals' pm__.
+$(SHLIB_MAP): $(FLAGS_STAMP)
+	printf '{\n  global: pm_[!_]*;\n  local: *;\n};\n' > $@
+
+$(SHLIB): $(PM_PIC_OBJ) $(SHLIB_MAP) $(FLAGS_STAMP)
+	$(CC) -shared -Wl,-soname,$(SONAME) -Wl,--version-script=$(SHLIB_MAP) -o $@ \
+	    $(PM_PIC_OBJ) $(ALL_LDFLAGS) -lm
+	ln -sf $(notdir $@) $(BUILD)/$(SONAME)
+	ln -sf $(SONAME) $(BUILD)/libphotonmap.so
+
+$(RENDER_BIN): $(BUILD)/obj/render/main.o $(RENDER_OBJ) $(LIB) $(FLAGS_STAMP)
+	$(CC) -o $@ $(filter %.o %.a,$^) $(ALL_LDFLAGS) $(RENDER_LIBS)
 
 # Each bench/bench_*.c is a program; the other bench/*.c are linked into all of them.
 # Their objects are reached only through the pattern rule below, which makes them
@@ -113,26 +177,38 @@ $(RENDER_BIN): $(BUILD)/obj/render/main.o $(RENDER_OBJ) $(LIB)
 # the benchmarks on every later `make`.
 .SECONDARY: $(BENCH_MAIN:bench/%.c=$(BUILD)/obj/bench/%.o) $(BENCH_OBJ)
 # FLANN is a C++ library: link with the C++ driver.
-$(BUILD)/bench_%: $(BUILD)/obj/bench/bench_%.o $(BENCH_OBJ) $(LIB)
-	$(CXX) -o $@ $^ $(ALL_LDFLAGS) $(FLANN_LIBS)
+$(BUILD)/bench_%: $(BUILD)/obj/bench/bench_%.o $(BENCH_OBJ) $(LIB) $(FLAGS_STAMP)
+	$(CXX) -o $@ $(filter %.o %.a,$^) $(ALL_LDFLAGS) $(FLANN_LIBS)
 
 # One test runner holds every tests/*.c; it links the library and the renderer's objects.
-$(TEST_BIN): $(TEST_OBJ) $(RENDER_OBJ) $(LIB)
-	$(CC) -o $@ $^ $(ALL_LDFLAGS) $(RENDER_LIBS)
+$(TEST_BIN): $(TEST_OBJ) $(TEST_EXTRA_OBJ) $(RENDER_OBJ) $(LIB) $(FLAGS_STAMP)
+	$(CC) -o $@ $(filter %.o %.a,$^) $(ALL_LDFLAGS) $(RENDER_LIBS)
 
 # ---- test ----------------------------------------------------------------------------------
-# The runner is the last thing run, so its "N passed, N failed" is the last line printed.
+# The runner is the last thing run, so its "N passed, N failed, N skipped" is the last line.
 # It finds the other programs (render, bench, the example) through PM_BUILD_DIR.
+# The example is built the way a user would, with pkg-config on a staged `make install`:
+# once against the shared library (found through an rpath) and once against the static one.
 STAGE := $(abspath $(BUILD)/stage)
-example: $(LIB)
+EXAMPLE_CC = $(CC) $(SAN_FLAGS) -std=c11 -Wall -Wextra -Werror photonmap/examples/knn_example.c
+example: export PKG_CONFIG_PATH := $(STAGE)/lib/pkgconfig
+example: $(LIB) $(SHLIB) $(RENDER_BIN)
 	@$(MAKE) --no-print-directory install PREFIX=$(STAGE) DESTDIR= BUILD=$(BUILD) >/dev/null
 	@mkdir -p $(BUILD)/example
-	PKG_CONFIG_PATH=$(STAGE)/lib/pkgconfig sh -c '$(CC) $(SAN_FLAGS) -std=c11 -Wall -Wextra \
-	    -o $(BUILD)/example/knn_example photonmap/examples/knn_example.c \
-	    $$(pkg-config --cflags --libs photonmap)'
+	$(EXAMPLE_CC) -o $(BUILD)/example/knn_example $$(pkg-config --cflags --libs photonmap) \
+	    -Wl,-rpath,$(STAGE)/lib
+	$(EXAMPLE_CC) -o $(BUILD)/example/knn_example_static $$(pkg-config --cflags photonmap) \
+	    $$(pkg-config --static --libs photonmap | sed 's/-lphotonmap /-l:libphotonmap.a /')
 
 test: all example
 	PM_BUILD_DIR=$(abspath $(BUILD)) PM_SOURCE_DIR=$(CURDIR) $(TEST_BIN) $(TESTS)
+
+# `make check`: what takes more than a second or two stays out (a pattern skips every test
+# whose name or file contains it).
+CHECK_SKIP := bench_quick_run agrees_with_path_tracing example_ packaging_ docs_
+check: all
+	PM_BUILD_DIR=$(abspath $(BUILD)) PM_SOURCE_DIR=$(CURDIR) $(TEST_BIN) \
+	    $(addprefix -x ,$(CHECK_SKIP)) $(TESTS)
 
 # ---- run -----------------------------------------------------------------------------------
 SCENE ?= data/scenes/cornell_box.json
@@ -162,16 +238,27 @@ results: $(RENDER_BIN)
 	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-results.sh
 
 # ---- install -------------------------------------------------------------------------------
-install: $(LIB)
-	install -d $(DESTDIR)$(PREFIX)/include/photonmap $(DESTDIR)$(PREFIX)/lib/pkgconfig
+# photonmap.pc: -lphotonmap in Libs; what a static link also needs (libm, the OpenMP runtime
+# of the compiler that built the library) in Libs.private.
+LIBDIR := $(PREFIX)/lib
+OMP_RUNTIME = $(if $(filter 1,$(OPENMP)),$(if $(findstring clang,$(shell $(CC) --version 2>/dev/null | head -1)),-lomp,-lgomp))
+install: $(LIB) $(SHLIB) $(RENDER_BIN)
+	install -d $(DESTDIR)$(PREFIX)/include/photonmap $(DESTDIR)$(LIBDIR)/pkgconfig \
+	    $(DESTDIR)$(PREFIX)/bin
 	install -m 644 $(PM_PUB_HDR) $(DESTDIR)$(PREFIX)/include/photonmap/
-	install -m 644 $(LIB) $(DESTDIR)$(PREFIX)/lib/
-	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|$(shell sed -n 's/.*PM_VERSION_STRING "\(.*\)"/\1/p' photonmap/common.h)|' \
-	    -e 's|@LIBS@|-lm $(OMP_LIBS)|' photonmap/photonmap.pc.in > $(DESTDIR)$(PREFIX)/lib/pkgconfig/photonmap.pc
+	install -m 644 $(LIB) $(DESTDIR)$(LIBDIR)/
+	install -m 755 $(SHLIB) $(DESTDIR)$(LIBDIR)/
+	ln -sf $(notdir $(SHLIB)) $(DESTDIR)$(LIBDIR)/$(SONAME)
+	ln -sf $(SONAME) $(DESTDIR)$(LIBDIR)/libphotonmap.so
+	install -m 755 $(RENDER_BIN) $(DESTDIR)$(PREFIX)/bin/
+	sed -e 's|@PREFIX@|$(PREFIX)|' -e 's|@VERSION@|$(PM_VERSION)|' \
+	    -e 's|@LIBS_PRIVATE@|-lm $(OMP_RUNTIME)|' photonmap/photonmap.pc.in \
+	    > $(DESTDIR)$(LIBDIR)/pkgconfig/photonmap.pc
 
 uninstall:
-	rm -rf $(DESTDIR)$(PREFIX)/include/photonmap $(DESTDIR)$(PREFIX)/lib/libphotonmap.a \
-	       $(DESTDIR)$(PREFIX)/lib/pkgconfig/photonmap.pc
+	rm -rf $(DESTDIR)$(PREFIX)/include/photonmap $(DESTDIR)$(LIBDIR)/libphotonmap.a \
+	       $(DESTDIR)$(LIBDIR)/libphotonmap.so* $(DESTDIR)$(LIBDIR)/pkgconfig/photonmap.pc \
+	       $(DESTDIR)$(PREFIX)/bin/render
 
 clean:
 	rm -rf build

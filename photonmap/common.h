@@ -12,9 +12,17 @@
 extern "C" {
 #endif
 
-#define PM_VERSION_MAJOR 0
-#define PM_VERSION_MINOR 1
-#define PM_VERSION_STRING "0.1.0"
+/* The library's version. The shared library's soname carries the major version
+ * (libphotonmap.so.1), which changes only when the API or ABI does; the Makefile and
+ * photonmap.pc read these three lines. */
+#define PM_VERSION_MAJOR 1
+#define PM_VERSION_MINOR 0
+#define PM_VERSION_PATCH 0
+#define PM__VERSION_STR(x) #x
+#define PM__VERSION_XSTR(x) PM__VERSION_STR(x)
+#define PM_VERSION_STRING                                                    \
+    PM__VERSION_XSTR(PM_VERSION_MAJOR) "." PM__VERSION_XSTR(PM_VERSION_MINOR) "." \
+    PM__VERSION_XSTR(PM_VERSION_PATCH)
 
 /* Error codes. All are negative; 0 means success. */
 enum {
@@ -26,7 +34,8 @@ enum {
     PM_EFORMAT = -5,    /* a file is not a photon-map file, or is truncated or corrupt */
     PM_EVERSION = -6,   /* a file was written by an incompatible version */
     PM_ERANGE = -7,     /* a count or size is too large for this build (e.g. > 2^32-2 records) */
-    PM_EEMPTY = -8      /* an operation needs at least one record and got none */
+    PM_EEMPTY = -8,     /* an operation needs at least one record and got none */
+    PM_ENOTFILE = -9    /* an output path exists and is not a regular file: never replaced */
 };
 
 /* A static English description of an error code; never NULL. */

@@ -1,20 +1,36 @@
 #!/bin/sh
-# install-deps.sh: install the Debian packages photonmap needs to build, test and bench.
+# install-deps.sh: install the Debian packages photonmap needs to build, test, bench and run CI.
 #
-# The Makefile calls this when pkg-config cannot find a dependency, so that on a fresh
-# Debian 12 machine (as root) `make test` alone is enough. Run it by hand with --all to
-# also get the benchmark and profiling tools (gnuplot, hyperfine, valgrind, perf).
+#   scripts/install-deps.sh [--bench | --ci | --all]
+#
+# With no option: what `make test` and `make run` need (compiler, pkg-config, the three
+# libraries, GNU time for the scripts' timings). --bench adds gnuplot (plots) and valgrind
+# (the cache profile of `make bench`); --ci adds clang with its OpenMP runtime and its
+# sanitizer runtimes (the clang and ThreadSanitizer builds of .ci/run); --all is everything.
+#
+# Only `make deps`, `run`, `test`, `check`, `bench`, `bench-quick` and `results` call this (when
+# pkg-config cannot find a dependency), so that on a fresh Debian 12 machine, as root,
+# `make run` and `make test` alone are enough. It installs with --no-install-recommends, so
+# every package a step needs is named here, never left to a recommendation.
 set -eu
 
-# Needed to build and test: compiler, pkg-config, and the three libraries.
-BASE="build-essential pkg-config libflann-dev libcjson-dev libpng-dev"
+# Needed to build and test: compiler, pkg-config, the three libraries, GNU time (/usr/bin/time).
+BASE="build-essential pkg-config libflann-dev libcjson-dev libpng-dev time"
 # Needed by `make bench` and the plot scripts.
-BENCH="gnuplot-nox hyperfine valgrind"
+BENCH="gnuplot-nox valgrind"
+# Needed by .ci/run: clang, its OpenMP runtime (libomp, with the Archer tool TSan uses) and
+# its sanitizer runtimes (only recommended by clang, so named here).
+CI="clang libomp-dev libclang-rt-14-dev"
 
 want="$BASE"
 case "${1:-}" in
-  --all|--bench) want="$BASE $BENCH" ;;
-  -h|--help) echo "usage: scripts/install-deps.sh [--all]"; exit 0 ;;
+  "") ;;
+  --bench) want="$BASE $BENCH" ;;
+  --ci) want="$BASE $CI" ;;
+  --all) want="$BASE $BENCH $CI" ;;
+  -h|--help) sed -n '2,14p' "$0" | sed 's/^# \{0,1\}//'; exit 0 ;;
+  *) echo "install-deps: unknown option '$1' (usage: scripts/install-deps.sh [--bench | --ci | --all])" >&2
+     exit 2 ;;
 esac
 
 missing=""

@@ -13,8 +13,8 @@
 #  1. Correctness. Each scene is rendered with photon mapping (PM_FLAGS, PM_SPP samples per
 #     pixel). The means of the whole image, of each wall, the floor and the ceiling (pixels
 #     that see that object alone: a `render --mode objects` mask) and of the caustic under the
-#     glass sphere (floor pixels in a rectangle) are compared with the reference's; the issue's
-#     tolerances are 3%, 5% and 10%.
+#     glass sphere (floor pixels in a rectangle) are compared with the reference's, with
+#     tolerances of 3% (image), 5% (walls, floor, ceiling) and 10% (caustic).
 #  2. Time to equal error on cornell_spheres. Path tracing at PT_SPPS and photon mapping at
 #     PM_SPPS samples per pixel, each timed (wall clock, 2 threads) and compared with the
 #     reference (RMSE). The reference is itself a path tracer with N_ref samples: with
@@ -23,6 +23,11 @@
 #     c is fitted by least squares from the path-traced runs, the reference's share c / N_ref
 #     is subtracted from every run, and the path tracer's time for the error photon mapping
 #     reaches in 60 s follows from c and its measured time per sample.
+#
+#  3. measurement.txt: the commit (with -dirty for uncommitted changes), the date at the end of
+#     the run, the machine, the settings and each reference's .info, so that
+#     scripts/gen-results-md.sh stamps the document with the measurement, not with the checkout
+#     or the time it is regenerated at.
 #
 # Environment: PM_BUILD_DIR (default build/release), RES_THREADS (default 2).
 set -eu
@@ -33,7 +38,7 @@ refdir="$here/data/reference"
 out="$here/docs/results"
 quick=0
 [ "${1:-}" = "--quick" ] && quick=1
-case "${1:-}" in -h|--help) sed -n '2,26p' "$0"; exit 0 ;; esac
+case "${1:-}" in -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;; esac
 [ -x "$bin" ] || { echo "make-results: $bin not found; run make first" >&2; exit 2; }
 command -v gnuplot >/dev/null 2>&1 || { echo "make-results: gnuplot missing (scripts/install-deps.sh --bench)" >&2; exit 2; }
 
@@ -192,6 +197,19 @@ plot "$te" using (strcol(1) eq "path" ? \$4 : 1/0):7 with linespoints pt 7 title
      "$te" using (strcol(1) eq "pm" ? \$4 : 1/0):7 with linespoints pt 5 title "photon mapping", \
      pt(x) with lines dt 2 title "path tracing, fitted c / N"
 EOF
+# ---- 3. what was measured, on what -------------------------------------------------------------
+{
+  echo "commit $(git -C "$here" describe --always --dirty --abbrev=7 2>/dev/null || echo unknown)"
+  echo "date $(date -u '+%Y-%m-%d %H:%M UTC')"
+  echo "machine $(nproc) cores, $(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1)"
+  echo "threads $threads"
+  echo "pm_spp $PM_SPP"
+  echo "pm_flags $PM_FLAGS"
+  echo "default_flags $DEFAULT_FLAGS"
+  for name in cornell_spheres cornell_diffuse; do
+    for k in width height spp seed cpu_seconds; do echo "ref_${name}_$k $(info $name $k)"; done
+  done
+} > "$out/measurement.txt"
 echo "make-results: wrote $out" >&2
 [ $quick = 1 ] && exit 0
 sh "$here/scripts/gen-results-md.sh"
