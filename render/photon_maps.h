@@ -24,7 +24,7 @@
 
 #include "kdtree.h"
 #include "photon.h"
-#include "plan.h"
+#include "photon_settings.h"
 #include "scene.h"
 
 #ifdef __cplusplus

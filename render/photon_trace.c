@@ -204,13 +204,14 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
 
 static int pack(const fbuf *b, double scale, pm_photon **out, size_t *n) {
     *n = b->n;
-    *out = malloc((b->n ? b->n : 1) * sizeof **out);
+    /* Zeroed: pm_photon_set keeps a record's kd-tree bits, which must start at 0. */
+    *out = calloc(b->n ? b->n : 1, sizeof **out);
     if (!*out) return PM_ENOMEM;
     for (size_t k = 0; k < b->n; k++) {
         const fphoton *f = &b->v[k];
         float pw[3] = {(float)(f->power[0] * scale), (float)(f->power[1] * scale),
                        (float)(f->power[2] * scale)};
-        pm_photon_set(&(*out)[k], f->pos, pw, f->dir, f->normal, f->kind);
+        pm_photon_init(&(*out)[k], f->pos, pw, f->dir, f->normal, f->kind);
     }
     return 0;
 }

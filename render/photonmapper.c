@@ -1,8 +1,8 @@
 /* photonmapper.c: the photon-mapping integrators, "--mode pm" (Jensen's two-pass method with
  * final gathering) and "--mode preview" (the global map shown directly).
  *
- * PREPROCESS. Read the settings ("$.photon_mapping", plan.h), decide and print the plan,
- * then either trace the maps (photon_trace.h) or load them from a directory (load_photons),
+ * PREPROCESS. Read the settings ("$.photon_mapping", photon_settings.h), decide and print
+ * the plan (plan.h), then either trace the maps (photon_trace.h) or load them from a directory (load_photons),
  * optionally save them as traced (save_photons), build a kd-tree over each (the records are
  * reordered into tree order), choose the search radii (map files, trees and radii:
  * photon_maps.h), and precompute irradiance at a quarter of the global photons (Christensen).

@@ -1,4 +1,4 @@
-/* plan.h: which photon-mapping effects a scene needs, and the settings that control them.
+/* plan.h: which photon-mapping effects a scene needs (the settings are photon_settings.h).
  *
  * Before a photon is traced, plan_make() looks at the scene and decides, with a reason for
  * each decision that is printed before rendering:
@@ -18,27 +18,6 @@
  * The scene's "photon_mapping" object may force any of them: "caustics": true/false, and the
  * same for "global", "shadow" and "final_gather"; the reason then says "forced".
  *
- * pm_config holds every parameter of photon mapping, read from "$.photon_mapping" with the
- * json.h getters (errors name the JSON path and make `render` exit with status 2). The
- * command line sets the same keys: plan_cli_set() applies `--pm KEY=VALUE`,
- * `--save-photons DIR` and `--load-photons DIR` to the scene's photon_mapping object before
- * the integrator reads it, so a flag and the file can never disagree about names.
- *
- * Keys (defaults in parentheses): global_photons (200000 stored), caustic_photons (500000
- * stored), k_global (100; photons per precomputed irradiance estimate and per preview
- * estimate), k_caustic (60), max_radius_global / max_radius_caustic (0: automatic,
- * Christensen's radius for a threshold radiance), filter ("cone", also "none", "gauss",
- * "hull"), gather_rays (4 per camera sample at the first diffuse hit: a few rays per sample and many
- * samples beat many rays per sample, docs/RESULTS.md), secondary_rays (2),
- * split_depth (2: eye-path bounces at which glass traces both its branches), caustic_stride
- * (2: the caustic map is read at one camera sample in 2 x 2 strata, weighted 4),
- * emission_strata (2: emission seen by the camera comes from 2 x 2 extra rays per sample),
- * secondary_distance (0: automatic, the radius of a k_global estimate at the mean photon
- * density), k_shadow (16), max_emitted_factor (64: give up when this many times the target
- * were emitted), projection_cells (64: cells per side of a light's caustic projection map),
- * projection (true), progress (true; --quiet sets it false), caustics/global/shadow/final_gather (absent: automatic), save_photons,
- * load_photons (directories).
- *
  * Everything here is plain data; nothing is shared between threads.
  */
 #ifndef RENDER_PLAN_H
@@ -48,32 +27,12 @@
 #include <stdio.h>
 
 #include "json.h"
+#include "photon_settings.h"
 #include "scene.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
-
-enum { PLAN_AUTO = -1, PLAN_OFF = 0, PLAN_ON = 1 };
-enum { PM_FILTER_NONE, PM_FILTER_CONE, PM_FILTER_GAUSS, PM_FILTER_HULL };
-
-typedef struct pm_config {
-    int force_caustics, force_global, force_shadow, force_final_gather; /* PLAN_* */
-    long global_photons, caustic_photons;
-    int k_global, k_caustic, k_shadow;
-    double max_radius_global, max_radius_caustic; /* 0: automatic */
-    int filter;                                   /* PM_FILTER_* for the caustic estimate */
-    int gather_rays, secondary_rays;
-    int split_depth; /* eye-path bounces at which glass sends both a reflected and a refracted ray */
-    int caustic_stride; /* caustic estimates at one camera sample in stride x stride */
-    int emission_strata; /* m: m x m emission-only camera rays per sample (0: none) */
-    double secondary_distance; /* 0: automatic */
-    double max_emitted_factor;
-    int projection_cells;
-    int projection;
-    int progress; /* progress bars while tracing (render --quiet sets it false) */
-    char save_dir[512], load_dir[512]; /* empty: none */
-} pm_config;
 
 typedef struct plan_item {
     int on;
@@ -84,20 +43,10 @@ typedef struct render_plan {
     plan_item caustics, global, shadow, final_gather;
 } render_plan;
 
-void pm_config_defaults(pm_config *c);
-/* Read "$.photon_mapping" (pm may be NULL: defaults). 0 or a negative code with e->msg. */
-int pm_config_parse(pm_config *c, const cJSON *pm, json_err *e);
-const char *pm_filter_name(int filter);
-
 /* Decide the plan for scene s under config c; preview = 1 turns final gathering off. */
 void plan_make(const scene *s, const pm_config *c, int preview, render_plan *p);
 /* "caustics: off (no specular surface reachable from a light)" and so on, one per line. */
 void plan_print(const render_plan *p, FILE *f);
-
-/* Apply a command-line option to the scene's photon_mapping object (created if NULL):
- * flag "--pm" with value "KEY=VALUE" (VALUE a number, true/false or a string), or
- * "--save-photons"/"--load-photons" with a directory. 0, or PM_EINVAL with a message. */
-int plan_cli_set(cJSON **pm, const char *flag, const char *value, char *err, size_t errcap);
 
 #ifdef __cplusplus
 }

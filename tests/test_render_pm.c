@@ -26,6 +26,7 @@
 #include "../render/compare.h"
 #include "../render/film.h"
 #include "../render/photon_trace.h"
+#include "../render/photon_settings.h"
 #include "../render/plan.h"
 #include "../render/projmap.h"
 #include "../render/scene.h"
