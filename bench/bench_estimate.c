@@ -108,7 +108,7 @@ static int lookup_race(const char *out, size_t n, size_t nq, int runs, uint64_t 
         if (pl == 2) pos[0] = (float)(0.2 + 0.6 * u * c37), pos[1] = (float)v, pos[2] = (float)(0.3 + 0.6 * u * s37);
         const float *nm = nrm3[pl];
         float d[3] = {-nm[0], -nm[1], -nm[2]}, pw = (float)((0.5 + bench_rng_unit(&rng)) / (double)n);
-        pm_photon_set(&ph[i], pos, (float[3]){pw, pw, pw}, d, nm, PM_KIND_INDIRECT);
+        pm_photon_init(&ph[i], pos, (float[3]){pw, pw, pw}, d, nm, PM_KIND_INDIRECT);
     }
     /* queries on the planes, each with its plane's normal */
     for (size_t i = 0; i < nq; i++) {
@@ -259,7 +259,7 @@ int main(int argc, char **argv) {
     for (size_t i = 0; i < n; i++) {
         float pos[3] = {(float)bench_rng_unit(&rng), 0.0f, (float)bench_rng_unit(&rng)};
         float pw[3] = {(float)(1.0 / (double)n), (float)(1.0 / (double)n), (float)(1.0 / (double)n)};
-        pm_photon_set(&ph[i], pos, pw, down, up, PM_KIND_INDIRECT);
+        pm_photon_init(&ph[i], pos, pw, down, up, PM_KIND_INDIRECT);
     }
     float dec[3];
     pm_rgbe_decode(ph[0].power, dec);

@@ -12,6 +12,7 @@ const char *pm_strerror(int code) {
     case PM_EVERSION: return "photon-map file version not supported";
     case PM_ERANGE: return "count or size too large";
     case PM_EEMPTY: return "no records";
+    case PM_ENOTFILE: return "output path exists and is not a regular file (link, FIFO, device, directory)";
     default: return code > 0 ? "not an error code (positive)" : "unknown error code";
     }
 }

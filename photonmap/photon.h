@@ -1,4 +1,5 @@
-/* photon.h: the compact photon record of Jensen's notes, and the photon-map file format.
+/* photon.h: the compact photon record of Jensen's notes (the photon-map file format that
+ * stores it is in mapfile.h).
  *
  * A pm_photon is 20 bytes (checked by a static assertion in photon.c):
  *
@@ -6,8 +7,9 @@
  *   power[4]   RGBE        Ward's shared-exponent colour (see precision below)
  *   theta,phi  2 x uint8   incident direction (the direction the photon travelled), decoded
  *                          through constant tables: no trigonometry per lookup
- *   flag       uint8       bits 0-1: kd-tree split axis (owned by the tree, see kdtree.h);
- *                          bits 2-3: photon kind (PM_KIND_*); bits 4-7: reserved, zero
+ *   flag       uint8       bits 0-1 (PM_FLAG_TREE_MASK): the kd-tree's, see below;
+ *                          bits 2-3 (PM_FLAG_KIND_MASK): photon kind (PM_KIND_*);
+ *                          bits 4-7: reserved, written zero by the setters
  *   normal     uint8       the surface normal where the photon was stored, quantized to one
  *                          of 256 directions (used by precomputed irradiance)
  *
@@ -29,6 +31,17 @@
  *     (measured 9.717 over 2M random normals; the test asserts <= 10).
  *     Encoding costs about 50 dot products; decoding is a table lookup.
  *
+ * THE TREE'S BITS. A pm_kdtree built with pm_kdtree_photon_config() keeps the split axis of
+ * each internal node in bits 0-1 of that record's flag byte (PM_FLAG_TREE_MASK), writes 0
+ * there for bucket records, and reads them in every query. Exactly those two bits are the
+ * tree's; while the tree exists nothing else may change them (or the position). Everything
+ * else may change: pm_photon_set, pm_photon_set_power and pm_photon_set_kind rewrite their
+ * fields and keep the tree's bits, so updating powers after a build (e.g. rescaling for the
+ * number of photons emitted) is safe with any of them. pm_photon_init is for fresh memory:
+ * it also zeroes the tree's bits (pm_photon_set would keep whatever bytes were there, which a
+ * later build overwrites anyway). Writing p->flag or a whole record by hand, or memcpy from
+ * another record, does clobber the tree's bits.
+ *
  * Thread safety: all functions here are pure or read constant tables; no initialization call.
  */
 #ifndef PM_PHOTON_H
@@ -47,7 +60,8 @@ enum {
     PM_KIND_SHADOW = 2,   /* later hit along the light's ray: marks a shadowed point */
     PM_KIND_CAUSTIC = 3   /* L S+ D path (kept in a caustic map) */
 };
-#define PM_FLAG_AXIS_MASK 0x03u
+#define PM_FLAG_TREE_MASK 0x03u /* the kd-tree's bits (see THE TREE'S BITS above) */
+#define PM_FLAG_AXIS_MASK PM_FLAG_TREE_MASK
 #define PM_FLAG_KIND_SHIFT 2
 #define PM_FLAG_KIND_MASK 0x0Cu
 
@@ -72,54 +86,26 @@ void pm_dir_decode(uint8_t theta, uint8_t phi, float dir[3]);
 uint8_t pm_normal_encode(const float n[3]);
 void pm_normal_decode(uint8_t code, float n[3]);
 
-/* Fill a photon from unpacked values (kind is a PM_KIND_*; the axis bits are left zero). */
+/* Fill a photon from unpacked values (kind is a PM_KIND_*; normal may be NULL: code 0).
+ * pm_photon_set keeps the tree's bits of p->flag as they are (safe on a record of a built
+ * tree); pm_photon_init zeroes them (for fresh memory). Both zero the reserved bits. */
 void pm_photon_set(pm_photon *p, const float pos[3], const float power[3], const float dir[3],
                    const float normal[3], int kind);
+void pm_photon_init(pm_photon *p, const float pos[3], const float power[3], const float dir[3],
+                    const float normal[3], int kind);
+/* Change one field, keeping the tree's bits (and, for power, everything else). */
+void pm_photon_set_power(pm_photon *p, const float power[3]);
+void pm_photon_set_kind(pm_photon *p, int kind);
 static inline int pm_photon_kind(const pm_photon *p) {
     return (p->flag & PM_FLAG_KIND_MASK) >> PM_FLAG_KIND_SHIFT;
 }
 
-/* Photon-map files.
- *
- * A little-endian binary file: a 64-byte header, then `count` records of `record_size`
- * bytes, each a pm_photon as laid out above. Header fields, in order:
- *   char     magic[8]     "PMAPHOTN"
- *   uint32   version      PM_FILE_VERSION
- *   uint32   record_size  sizeof(pm_photon) = 20
- *   uint64   count        number of photons
- *   uint32   kind         what the map is (PM_MAP_* below)
- *   uint32   emitted      photons emitted to build the map (for the power scale), low 32 bits
- *   uint32   emitted_hi   high 32 bits
- *   uint32   tree_bucket  0 if the records are in no particular order; B if they are in the
- *                         tree order of a pm_kdtree built with bucket size B (the loader can
- *                         then rebuild the tree without reordering)
- *   uint8    reserved[24] zero
- *
- * pm_map_save writes to PATH.tmp and renames it over PATH, so a file is written whole or not
- * at all (on any failure PATH.tmp is removed and PATH is untouched); hdr->version is ignored
- * (PM_FILE_VERSION is written) and hdr->record_size must be 0 or 20. pm_map_load allocates
- * *photons with malloc (NULL for an empty map); the caller frees it. Errors: PM_EIO (cannot
- * open, read or write; errno has the detail), PM_EFORMAT (bad magic, record size, or a file
- * shorter than its count says), PM_EVERSION, PM_EINVAL (NULL arguments).
- * Records are stored little-endian whatever the host.
- */
-#define PM_FILE_VERSION 1u
-enum { PM_MAP_GLOBAL = 1, PM_MAP_CAUSTIC = 2, PM_MAP_SHADOW = 3, PM_MAP_OTHER = 4 };
-
-typedef struct pm_map_header {
-    uint32_t version;
-    uint32_t record_size;
-    uint64_t count;
-    uint32_t kind;
-    uint64_t emitted;
-    uint32_t tree_bucket;
-} pm_map_header;
-
-int pm_map_save(const char *path, const pm_photon *photons, const pm_map_header *hdr);
-int pm_map_load(const char *path, pm_photon **photons, pm_map_header *hdr);
-
 #ifdef __cplusplus
 }
 #endif
+
+/* The photon-map file format used to be declared here; code that included photon.h for it
+ * keeps compiling. */
+#include "mapfile.h"
 
 #endif /* PM_PHOTON_H */

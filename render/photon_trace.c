@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common.h"
+#include "photonmap/common.h"
 #include "material.h"
 #include "progress.h"
 #include "projmap.h"
@@ -298,7 +298,7 @@ static void shifts(double *shift, uint64_t seed, uint64_t pass) {
     for (int d = 0; d < 6; d++) shift[d] = rng_uniform(&g);
 }
 
-int photon_trace(const scene *s, const trace_opts *o, pm_maps *m, char *err, size_t errcap) {
+int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err, size_t errcap) {
     memset(m, 0, sizeof *m);
     if (errcap) err[0] = 0;
     int st_emit_g = stats_register("Photons/Emitted, global pass");
@@ -402,6 +402,6 @@ int photon_trace(const scene *s, const trace_opts *o, pm_maps *m, char *err, siz
     free(cbuf.v);
     free(scale);
     free(w);
-    if (rc < 0) pm_maps_free(m);
+    if (rc < 0) photon_maps_free(m);
     return rc;
 }

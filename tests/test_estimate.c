@@ -46,7 +46,7 @@ static void make_square(square *sq, uint64_t seed) {
     for (int i = 0; i < SIDE; i++)
         for (int j = 0; j < SIDE; j++) {
             float pos[3] = {(float)((i + rng_unit(&r)) / SIDE), (float)((j + rng_unit(&r)) / SIDE), 0};
-            pm_photon_set(&sq->ph[i * SIDE + j], pos, power, DOWN, UP, PM_KIND_DIRECT);
+            pm_photon_init(&sq->ph[i * SIDE + j], pos, power, DOWN, UP, PM_KIND_DIRECT);
         }
     float dec[3];
     pm_rgbe_decode(sq->ph[0].power, dec);
@@ -307,29 +307,29 @@ static unsigned degenerate_scene(int kase, pm_photon *ph, float q[3]) {
     switch (kase) {
     case DG_NONE: return 0;
     case DG_ONE:
-        pm_photon_set(&ph[0], (float[3]){0.6f, 0.5f, 0}, one, DOWN, UP, 0);
+        pm_photon_init(&ph[0], (float[3]){0.6f, 0.5f, 0}, one, DOWN, UP, 0);
         return 1;
     case DG_TWO:
-        pm_photon_set(&ph[0], (float[3]){0.6f, 0.5f, 0}, one, DOWN, UP, 0);
-        pm_photon_set(&ph[1], (float[3]){0.5f, 0.4f, 0}, one, DOWN, UP, 0);
+        pm_photon_init(&ph[0], (float[3]){0.6f, 0.5f, 0}, one, DOWN, UP, 0);
+        pm_photon_init(&ph[1], (float[3]){0.5f, 0.4f, 0}, one, DOWN, UP, 0);
         return 2;
     case DG_AT_X:
-        for (int i = 0; i < DG_N; i++) pm_photon_set(&ph[i], q, one, DOWN, UP, 0);
+        for (int i = 0; i < DG_N; i++) pm_photon_init(&ph[i], q, one, DOWN, UP, 0);
         return DG_N;
     case DG_COLLINEAR:
         for (int i = 0; i < DG_N; i++)
-            pm_photon_set(&ph[i], (float[3]){0.5f + 0.01f * (i - DG_N / 2), 0.5f + 0.02f * (i - DG_N / 2), 0}, one, DOWN, UP, 0);
+            pm_photon_init(&ph[i], (float[3]){0.5f + 0.01f * (i - DG_N / 2), 0.5f + 0.02f * (i - DG_N / 2), 0}, one, DOWN, UP, 0);
         return DG_N;
     case DG_NEAR_COLLINEAR: /* 0.4 long, 2e-7 wide */
         for (int i = 0; i < DG_N; i++)
-            pm_photon_set(&ph[i], (float[3]){0.5f + 0.01f * (i - DG_N / 2), 0.5f + 1e-7f * (float)(i % 3), 0}, one, DOWN, UP, 0);
+            pm_photon_init(&ph[i], (float[3]){0.5f + 0.01f * (i - DG_N / 2), 0.5f + 1e-7f * (float)(i % 3), 0}, one, DOWN, UP, 0);
         return DG_N;
     default: break;
     }
     for (int i = 0; i < DG_N; i++) {
         float pos[3] = {0.5f + 0.01f * (i % 7), 0.5f + 0.013f * (i / 7), 0};
         float p = kase == DG_ZERO_POWER ? 0.0f : kase == DG_POWER_RANGE ? (float)pow(10.0, -30.0 + 60.0 * i / (DG_N - 1)) : 1.0f;
-        pm_photon_set(&ph[i], pos, kase == DG_ZERO_POWER ? zero : (float[3]){p, p, p}, DOWN, UP, 0);
+        pm_photon_init(&ph[i], pos, kase == DG_ZERO_POWER ? zero : (float[3]){p, p, p}, DOWN, UP, 0);
     }
     if (kase == DG_FAR) q[0] = 3e37f, q[1] = -3e37f;
     return DG_N;
@@ -424,7 +424,7 @@ TEST(estimate_disc_radius_rule_exact) {
     pm_photon ph[4];
     pm_neighbor nb[4];
     const float x[3] = {0, 0, 0}, one[3] = {1, 1, 1};
-    for (int i = 0; i < 4; i++) pm_photon_set(&ph[i], (float[3]){0.1f * (i + 1), 0, 0}, one, DOWN, UP, 0);
+    for (int i = 0; i < 4; i++) pm_photon_init(&ph[i], (float[3]){0.1f * (i + 1), 0, 0}, one, DOWN, UP, 0);
     hand_list(ph, 4, x, nb);
     pm_estimate_options o;
     pm_estimate_result r;
@@ -440,7 +440,7 @@ TEST(estimate_disc_radius_rule_exact) {
     EXPECT_REL(r.rgb[0], 4.0 / (pi * 0.25), 1e-6);
     EXPECT(r.flags & PM_EST_F_RADIUS_LIMIT);
     /* All at x: the floor (2^-20 * max(1, |x|))^2 = 2^-40. */
-    for (int i = 0; i < 4; i++) pm_photon_set(&ph[i], x, one, DOWN, UP, 0);
+    for (int i = 0; i < 4; i++) pm_photon_init(&ph[i], x, one, DOWN, UP, 0);
     hand_list(ph, 4, x, nb);
     o.k = 4, o.max_dist2 = INFINITY, o.bias = PM_BIAS_NONE;
     ASSERT_EQ_INT(pm_estimate_core(ph, nb, 4, x, UP, &o, NULL, &r), PM_OK);
@@ -493,7 +493,7 @@ TEST(estimate_hull_matches_brute_force) {
             if ((trial & 1) && u * u + v * v > 1) { i--; continue; } /* rejection: uniform in the disc */
             float pos[3], pw = (float)(0.5 + rng_unit(&r));
             for (int c = 0; c < 3; c++) pos[c] = (float)(x[c] + u * t[c] + v * b[c] + h * nn[c]);
-            pm_photon_set(&ph[i], pos, (float[3]){pw, pw, pw}, DOWN, n, 0);
+            pm_photon_init(&ph[i], pos, (float[3]){pw, pw, pw}, DOWN, n, 0);
             for (int c = 0; c < 2; c++) {
                 const double *ax = c ? b : t;
                 uv[i][c] = ((double)pos[0] - x[0]) * ax[0] + ((double)pos[1] - x[1]) * ax[1] + ((double)pos[2] - x[2]) * ax[2];
@@ -531,7 +531,7 @@ TEST(estimate_hull_duplicates_and_edge_points) {
     const float pts[12][2] = {{-1, -1}, {1, -1}, {1, 1}, {-1, 1}, {-1, -1}, {-1, -1},
                               {0, -1}, {1, 0}, {0, 0}, {0, 0}, {0.5f, 0.5f}, {-1, 0.25f}};
     void *scratch = malloc(pm_estimate_scratch_bytes(12));
-    for (int i = 0; i < 12; i++) pm_photon_set(&ph[i], (float[3]){pts[i][0], pts[i][1], 0}, one, DOWN, UP, 0);
+    for (int i = 0; i < 12; i++) pm_photon_init(&ph[i], (float[3]){pts[i][0], pts[i][1], 0}, one, DOWN, UP, 0);
     hand_list(ph, 12, x, nb);
     pm_estimate_options o;
     pm_estimate_result r;
@@ -556,7 +556,7 @@ TEST(estimate_volume_poisson) {
     const float pw[3] = {0x1p-10f, 0x1p-10f, 0x1p-10f};
     for (int i = 0; i < N; i++) {
         float pos[3] = {(float)rng_unit(&r), (float)rng_unit(&r), (float)rng_unit(&r)};
-        pm_photon_set(&ph[i], pos, pw, DOWN, UP, 0);
+        pm_photon_init(&ph[i], pos, pw, DOWN, UP, 0);
     }
     const double sigma = 0.7, truth = N * 0x1p-10 / (4 * 3.14159265358979323846 * sigma);
     stats s = {0, 0, 0};
@@ -600,7 +600,7 @@ TEST(estimate_auto_radius) {
     EXPECT(pm_auto_radius_surface(50, 0, 1) == 0.0);
     pm_photon ph[3];
     const float pw[3][3] = {{1, 2, 3}, {0.5f, 8, 0.25f}, {0, 0, 0}};
-    for (int i = 0; i < 3; i++) pm_photon_set(&ph[i], (float[3]){0, 0, 0}, pw[i], DOWN, UP, 0);
+    for (int i = 0; i < 3; i++) pm_photon_init(&ph[i], (float[3]){0, 0, 0}, pw[i], DOWN, UP, 0);
     EXPECT_REL(pm_photons_max_power(ph, 3), 8.0, 1e-2); /* RGBE keeps 8 within 2^-8 */
     EXPECT(pm_photons_max_power(ph, 0) == 0.0);
 }
@@ -624,7 +624,7 @@ TEST(estimate_brdf_callback_and_diffuse) {
     float dir[3] = {0.3f, -0.4f, -0.866f}, want[3];
     float len = sqrtf(dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]);
     for (int c = 0; c < 3; c++) want[c] = -dir[c] / len;
-    for (int i = 0; i < N; i++) pm_photon_set(&ph[i], (float[3]){0.1f * (i % 4), 0.1f * (i / 4), 0}, one, dir, UP, 0);
+    for (int i = 0; i < N; i++) pm_photon_init(&ph[i], (float[3]){0.1f * (i % 4), 0.1f * (i / 4), 0}, one, dir, UP, 0);
     hand_list(ph, N, x, nb);
     pm_estimate_options o;
     pm_estimate_result e, l;
@@ -647,7 +647,7 @@ TEST(estimate_bad_arguments) {
     pm_estimate_options o;
     pm_estimate_result r;
     float x[3] = {0, 0, 0};
-    pm_photon_set(&ph[0], x, (float[3]){1, 1, 1}, DOWN, UP, 0);
+    pm_photon_init(&ph[0], x, (float[3]){1, 1, 1}, DOWN, UP, 0);
     pm_estimate_options_init(&o, PM_EST_DISC, 0);
     EXPECT_EQ_INT(pm_estimate_core(ph, nb, 1, x, UP, &o, NULL, &r), PM_EINVAL);
     pm_estimate_options_init(&o, PM_EST_CONE, 4);
@@ -718,7 +718,7 @@ TEST(estimate_leak_control) {
         for (int i = 0; i < S * S; i++) {
             float pos[3] = {(float)((i / S + rng_unit(&r)) / S), (float)((i % S + rng_unit(&r)) / S),
                             layer ? -0.001f : 0.001f};
-            pm_photon_set(&ph[layer * S * S + i], pos, pw, layer ? UP : DOWN, layer ? DOWN : UP, 0);
+            pm_photon_init(&ph[layer * S * S + i], pos, pw, layer ? UP : DOWN, layer ? DOWN : UP, 0);
         }
     const double truth = S * S * 0x1p-12;
     pm_kdtree *tree = NULL;
@@ -742,7 +742,7 @@ TEST(estimate_leak_control) {
         for (int i = 0; i < S * S; i++) {
             float pos[3] = {(float)((i / S + rng_unit(&r)) / S), (float)((i % S + rng_unit(&r)) / S),
                             layer ? 0.05f : 0.001f};
-            pm_photon_set(&ph[layer * S * S + i], pos, pw, DOWN, UP, 0);
+            pm_photon_init(&ph[layer * S * S + i], pos, pw, DOWN, UP, 0);
         }
     ASSERT_EQ_INT(pm_kdtree_build(&tree, ph, 2 * S * S, &cfg, NULL), PM_OK);
     const float q2[3] = {0.5f, 0.5f, 0.001f}; /* on the front layer, so the squash adds nothing */

@@ -43,7 +43,7 @@ static void add_grid(pm_photon *ph, size_t *n, int side, double x0, double w, fl
             double x = x0 + w * (i + rng_unit(&r)) / side, y = (j + rng_unit(&r)) / side;
             float pos[3] = {(float)x, (float)y, 0};
             float q = smooth ? (float)(p * field(x, y)) : p;
-            pm_photon_set(&ph[(*n)++], pos, (float[3]){q, q, q}, DOWN, UP, PM_KIND_DIRECT);
+            pm_photon_init(&ph[(*n)++], pos, (float[3]){q, q, q}, DOWN, UP, PM_KIND_DIRECT);
         }
 }
 
@@ -200,7 +200,7 @@ TEST(irradiance_lookup_normal_and_cutoff) {
     const float west[3] = {-1, 0, 0}, east[3] = {1, 0, 0};
     for (int i = 0; i < S * S; i++) {
         float pos[3] = {0, (float)((i / S + rng_unit(&r)) / S), (float)((i % S + rng_unit(&r)) / S)};
-        pm_photon_set(&ph[n++], pos, (float[3]){100 * P, 100 * P, 100 * P}, west, east, PM_KIND_DIRECT);
+        pm_photon_init(&ph[n++], pos, (float[3]){100 * P, 100 * P, 100 * P}, west, east, PM_KIND_DIRECT);
     }
     const double e_floor = S * S * (double)P / 0.9;
     pm_kdtree *tree = NULL;
@@ -319,7 +319,7 @@ TEST(irradiance_combine_degenerate) {
     EXPECT(c[0] == 0 && nv[0] == 0);
     for (int i = 0; i < 4; i++) {
         float p = i == 0 ? 1e-30f : i == 1 ? 1e30f : 1.0f;
-        pm_photon_set(&ph[i], x, (float[3]){p, p, p}, DOWN, UP, 0);
+        pm_photon_init(&ph[i], x, (float[3]){p, p, p}, DOWN, UP, 0);
         nb[i].index = (uint32_t)i, nb[i].dist2 = 0;
     }
     pm_combine_init(&acc);
@@ -330,7 +330,7 @@ TEST(irradiance_combine_degenerate) {
     /* exact: one map of 2 unit photons that ran dry within r^2 = 0.5, one empty dry map:
      * E = (2/pi) * 2 / (0.5 + 0.5); naive = 2/(pi 0.5) + 0. */
     for (int i = 0; i < 2; i++) {
-        pm_photon_set(&ph[i], (float[3]){0.1f * (i + 1), 0, 0}, (float[3]){1, 1, 1}, DOWN, UP, 0);
+        pm_photon_init(&ph[i], (float[3]){0.1f * (i + 1), 0, 0}, (float[3]){1, 1, 1}, DOWN, UP, 0);
         nb[i].index = (uint32_t)i, nb[i].dist2 = 0.01f * (i + 1) * (i + 1);
     }
     pm_combine_init(&acc);
@@ -359,7 +359,7 @@ static size_t three_planes(pm_photon *ph, size_t per, uint64_t seed) {
             }
             float d[3] = {-nrm[0], -nrm[1], -nrm[2]};
             float p = (float)(0x1p-12 * (0.5 + rng_unit(&r)));
-            pm_photon_set(&ph[n++], pos, (float[3]){p, 0.5f * p, 0.25f * p}, d, nrm, PM_KIND_DIRECT);
+            pm_photon_init(&ph[n++], pos, (float[3]){p, 0.5f * p, 0.25f * p}, d, nrm, PM_KIND_DIRECT);
         }
     return n;
 }

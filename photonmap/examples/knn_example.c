@@ -36,7 +36,7 @@ int main(int argc, char **argv) {
         float z = (float)(seed >> 8) / 16777216.0f;
         float pos[3] = {x, 0.0f, z}, power[3] = {1e-5f, 1e-5f, 0.8e-5f};
         float dir[3] = {0.0f, -1.0f, 0.0f}, normal[3] = {0.0f, 1.0f, 0.0f};
-        pm_photon_set(&photons[i], pos, power, dir, normal, PM_KIND_INDIRECT);
+        pm_photon_init(&photons[i], pos, power, dir, normal, PM_KIND_INDIRECT);
     }
 
     pm_kdtree *tree;
