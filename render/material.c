@@ -137,3 +137,53 @@ int material_is_diffuse(const material *m) {
 }
 
 int material_is_emissive(const material *m) { return v3_maxc(m->emission) > 0; }
+
+vec3 material_shading_side(vec3 wo, vec3 ng, vec3 ns) {
+    double g = v3_dot(wo, ng), h = v3_dot(wo, ns);
+    vec3 n = (g >= 0) == (h >= 0) ? ns : ng;
+    return g >= 0 ? n : v3_neg(n);
+}
+
+vec3 material_reflect_shaded(vec3 d, vec3 n_g, vec3 n_s) {
+    vec3 r = v3_reflect(d, n_s);
+    return v3_dot(r, n_g) > 0 ? r : v3_reflect(d, n_g);
+}
+
+int material_refract_shaded(vec3 d, vec3 n_g, vec3 n_s, double eta, vec3 *out) {
+    if (refract_dir(d, n_s, eta, out) && v3_dot(*out, n_g) < 0) return 1;
+    return refract_dir(d, n_g, eta, out);
+}
+
+int material_sample_ns(const material *m, vec3 wo, vec3 ng, vec3 ns, double n_medium, double u_lobe,
+                       double u1, double u2, bsdf_sample *s) {
+    if (ns.x == ng.x && ns.y == ng.y && ns.z == ng.z)
+        return material_sample(m, wo, ng, n_medium, u_lobe, u1, u2, s);
+    double w[LOBE_COUNT];
+    material_weights(m, wo, ng, n_medium, w);
+    vec3 n = v3_dot(wo, ng) >= 0 ? ng : v3_neg(ng); /* the geometric side of wo */
+    vec3 nsh = material_shading_side(wo, ng, ns);
+    s->tir = 0;
+    if (u_lobe < w[LOBE_REFLECT]) {
+        s->lobe = LOBE_REFLECT;
+        s->wi = material_reflect_shaded(v3_neg(wo), n, nsh);
+        s->weight = m->specular_tint;
+        return !v3_iszero(s->weight);
+    }
+    if (u_lobe < w[LOBE_REFLECT] + w[LOBE_TRANSMIT]) {
+        double n1, n2;
+        material_indices(m, wo, ng, n_medium, &n1, &n2);
+        s->lobe = LOBE_TRANSMIT;
+        s->weight = m->transmit_tint;
+        if (!material_refract_shaded(v3_neg(wo), n, nsh, n1 / n2, &s->wi)) {
+            s->wi = material_reflect_shaded(v3_neg(wo), n, nsh);
+            s->tir = 1;
+        }
+        return !v3_iszero(s->weight);
+    }
+    s->lobe = LOBE_DIFFUSE;
+    vec3 l = sample_cosine_hemisphere(u1, u2);
+    s->wi = sampling_to_world(l, nsh);
+    if (l.z <= 0 || v3_dot(s->wi, n) <= 0) return 0;
+    s->weight = v3_scale(material_diffuse_f(m, nsh, wo, s->wi), M_PI);
+    return !v3_iszero(s->weight);
+}

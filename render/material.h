@@ -98,6 +98,21 @@ typedef struct bsdf_sample {
 int material_sample(const material *m, vec3 wo, vec3 ng, double n_medium, double u_lobe, double u1,
                     double u2, bsdf_sample *s);
 
+/* Shading normals (smooth meshes, hit.ns in scene.h). ns only bends directions and cosines;
+ * every side decision stays with the geometric normal ng. material_shading_side() is the
+ * normal to shade with, turned to wo's side: ns, or ng where wo is on different sides of the
+ * two (grazing views of a smooth mesh). The _shaded reflection and refraction use the shading
+ * normal n_s but fall back to the geometric normal n_g (both on the side the ray comes from)
+ * when the shaded direction would leave on the wrong side of the real surface.
+ * material_sample_ns() is material_sample() with a shading normal: the same branch choice
+ * (weights from ng), the directions and the cosine sampling from ns, and a direction below the
+ * geometric surface is absorbed (returns 0). With ns == ng all of these equal the plain ones. */
+vec3 material_shading_side(vec3 wo, vec3 ng, vec3 ns);
+vec3 material_reflect_shaded(vec3 d, vec3 n_g, vec3 n_s);
+int material_refract_shaded(vec3 d, vec3 n_g, vec3 n_s, double eta, vec3 *out);
+int material_sample_ns(const material *m, vec3 wo, vec3 ng, vec3 ns, double n_medium, double u_lobe,
+                       double u1, double u2, bsdf_sample *s);
+
 /* Predicates for planning: can this material reflect or transmit specularly? Reflect
  * diffusely? Emit? */
 int material_is_specular(const material *m);

@@ -135,6 +135,7 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
         const material *m = scene_material(s, &h);
         vec3 wo = v3_neg(d);
         vec3 ns = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng); /* the side it arrived on */
+        vec3 nsh = material_shading_side(wo, h.ng, h.ns);    /* bends directions only */
         double w[LOBE_COUNT];
         material_weights(m, wo, h.ng, s->medium_ior, w);
         int diffuse_here = w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0;
@@ -176,18 +177,19 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
         vec3 nd;
         if (u < pd) {
             if (c->caustic_pass) break; /* L S* D D...: not a caustic any more */
-            nd = sampling_to_world(sample_cosine_hemisphere(u1, u2), ns);
+            nd = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
+            if (v3_dot(nd, ns) <= 0) break; /* below the real surface: absorbed */
             /* f cos / pdf = pi f for cosine sampling; branch weight over its probability. */
-            rgb f = material_diffuse_f(m, ns, wo, nd);
+            rgb f = material_diffuse_f(m, nsh, wo, nd);
             P = v3_scale(v3_mul(P, f), M_PI * w[LOBE_DIFFUSE] / pd);
             all_specular = 0;
         } else if (u < pd + pr) {
-            nd = v3_reflect(d, ns);
+            nd = material_reflect_shaded(d, ns, nsh);
             P = v3_scale(v3_mul(P, m->specular_tint), w[LOBE_REFLECT] / pr);
         } else if (u < pd + pr + pt) {
             double n1, n2;
             material_indices(m, wo, h.ng, s->medium_ior, &n1, &n2);
-            if (!refract_dir(d, ns, n1 / n2, &nd)) nd = v3_reflect(d, ns);
+            if (!material_refract_shaded(d, ns, nsh, n1 / n2, &nd)) nd = material_reflect_shaded(d, ns, nsh);
             P = v3_scale(v3_mul(P, m->transmit_tint), w[LOBE_TRANSMIT] / pt);
         } else {
             break; /* absorbed */
