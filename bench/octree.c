@@ -394,7 +394,8 @@ int bench_octree_knn(const bench_octree *tree, const float q[3], unsigned k, flo
         stats->dist_evals += evals;
     }
     if (flags & PM_SORT) {
-        if (found == k) pm__heap_sort(out, found); /* out is the max-heap on dist2 */
+        if (found <= PM__SORT_KEYS_MAX) pm__nb_sort_keys(out, found);
+        else if (found == k) pm__heap_sort(out, found); /* out is the max-heap on dist2 */
         else pm__nb_sort(out, found);
     }
     return (int)found;
@@ -443,6 +444,9 @@ long bench_octree_radius(const bench_octree *tree, const float q[3], float r2, p
         stats->nodes_visited += nodes;
         stats->dist_evals += evals;
     }
-    if ((flags & PM_SORT) && (size_t)total <= cap) pm__nb_sort(out, (size_t)total);
+    if ((flags & PM_SORT) && (size_t)total <= cap) {
+        if ((size_t)total <= PM__SORT_KEYS_MAX) pm__nb_sort_keys(out, (unsigned)total);
+        else pm__nb_sort(out, (size_t)total);
+    }
     return total;
 }

@@ -28,10 +28,13 @@
  * has coordinate >= it.
  *
  * COST. The build is O(n log n) with no recursion (an explicit stack, linear-time selection)
- * and uses n * (max(16, stride) + 4) bytes of temporary memory; 4M uniform photons take about
- * 1.5 s. The tree itself owns sizeof(struct) bytes plus, with axis_offset = -1, one byte per
- * internal node: photons + tree are 20 bytes per photon. Measured on this project's machine
- * (1M photon-like points, k = 50, one thread): see docs/BENCHMARKS.md for the race with FLANN.
+ * and uses n * (max(16, stride) + 4) bytes of temporary memory. The tree itself owns
+ * sizeof(struct) bytes (including the records' bounding box) plus, with axis_offset = -1, one
+ * byte per internal node: photons + tree are 20 bytes per photon. A query prunes a subtree by
+ * the distance from q to the subtree's cell (not just to one split plane), so queries off a
+ * plane of photons or in the empty space between clusters stay cheap. Build times and
+ * queries/s against FLANN and an octree, on several workloads, worst case first: the
+ * generated docs/BENCHMARKS.md.
  *
  * NON-FINITE INPUT. Records whose position has a NaN or infinite coordinate are DROPPED AND
  * COUNTED, not indexed: the build moves them to the tail of the array, after the n indexed

@@ -250,7 +250,10 @@ PM__INLINE void prefetch_buckets(const view *v, uint64_t near) {
         uint64_t b = v->t->ninternal + pm__cum(v->t, 2 * near - L);
         const char *r = v->rec + b * v->stride;
         uint64_t bytes = (uint64_t)v->t->bucket * v->stride * 2;
-        if (bytes > 512) bytes = 512;
+#ifndef PM__PREFETCH_MAX
+#define PM__PREFETCH_MAX 512
+#endif
+        if (bytes > PM__PREFETCH_MAX) bytes = PM__PREFETCH_MAX;
         for (uint64_t o = 0; o < bytes; o += 64) __builtin_prefetch(r + o);
     }
 }
@@ -406,7 +409,8 @@ static int knn_finish(knn_state *s, unsigned flags, pm_query_stats *stats) {
     }
     if (flags & PM_SORT) {
         /* k found: out is the max-heap on dist2; fewer: arrival order */
-        if (s->found == s->k) pm__heap_sort(s->out, s->found);
+        if (s->found <= PM__SORT_KEYS_MAX) pm__nb_sort_keys(s->out, s->found);
+        else if (s->found == s->k) pm__heap_sort(s->out, s->found);
         else pm__nb_sort(s->out, s->found);
     }
     return (int)s->found;
@@ -611,7 +615,10 @@ long pm_kdtree_radius(const pm_kdtree *tree, const float q[3], float r2, pm_neig
         stats->nodes_visited += s.nodes;
         stats->dist_evals += s.evals;
     }
-    if ((flags & PM_SORT) && s.total <= cap) pm__nb_sort(out, (size_t)s.total);
+    if ((flags & PM_SORT) && s.total <= cap) {
+        if (s.total <= PM__SORT_KEYS_MAX) pm__nb_sort_keys(out, (unsigned)s.total);
+        else pm__nb_sort(out, (size_t)s.total);
+    }
     return (long)s.total;
 }
 
