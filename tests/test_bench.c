@@ -324,7 +324,7 @@ TEST(bench_programs_have_help) {
  * and does nothing else (run-bench.sh used to take "--help" for its build directory). */
 TEST(scripts_have_help) {
     static const char *scripts[] = {"run-bench.sh", "plot-bench.sh", "gen-benchmarks-md.sh",
-                                    "install-deps.sh", "imgcmp"};
+                                    "install-deps.sh", "imgcmp", "gen-results-md.sh"};
     for (size_t i = 0; i < sizeof scripts / sizeof scripts[0]; i++) {
         char cmd[4096], out[8192];
         snprintf(cmd, sizeof cmd, "cd %s && sh %s/scripts/%s --help 2>&1", pm_test_tmpdir(),

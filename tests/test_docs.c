@@ -1,0 +1,93 @@
+/* test_docs.c: the generated documents regenerate exactly from the committed files.
+ *
+ * Every measured figure in docs/ is written by a script in scripts/ from committed CSV and
+ * results files, never typed. These tests run each generator on the committed files into a
+ * temporary directory and fail on any difference from the committed document, so a document
+ * edited by hand, a generator changed without regenerating, or a generator that reads
+ * something other than its files (the clock, the checkout's commit, the machine) shows up.
+ * Oracle: the committed document itself, byte for byte.
+ */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "test.h"
+
+/* Run CMD (which writes GOT) and compare GOT with the committed document DOC (relative to the
+ * repository root); on a difference print the first lines of the diff. */
+static void expect_regenerates(const char *cmd, const char *got, const char *doc) {
+    char full[8192], out[16384];
+    int rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 0, "generator failed (%d): %s\n%s", rc, cmd, out);
+    if (rc != 0) return;
+    snprintf(full, sizeof full, "diff -u '%s/%s' '%s' | head -60", pm_test_source_dir(), doc, got);
+    pm_test_run(full, out, sizeof out);
+    EXPECT_MSG(out[0] == 0, "%s does not regenerate exactly from its files:\n%s", doc, out);
+}
+
+/* docs/RESULTS.md from docs/results/ (scripts/gen-results-md.sh). */
+TEST(docs_results_md_regenerates_exactly) {
+    char cmd[4096], got[2048];
+    snprintf(got, sizeof got, "%s/RESULTS.md", pm_test_tmpdir());
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-results-md.sh' --out '%s'", pm_test_source_dir(), got);
+    expect_regenerates(cmd, got, "docs/RESULTS.md");
+}
+
+/* docs/BENCHMARKS.md from bench/results/ (scripts/gen-benchmarks-md.sh, plots linked under
+ * bench/ as `make bench` does). */
+TEST(docs_benchmarks_md_regenerates_exactly) {
+    char cmd[4096], got[2048];
+    snprintf(got, sizeof got, "%s/BENCHMARKS.md", pm_test_tmpdir());
+    snprintf(cmd, sizeof cmd, "cd '%s' && sh scripts/gen-benchmarks-md.sh bench/results bench > '%s'",
+             pm_test_source_dir(), got);
+    expect_regenerates(cmd, got, "docs/BENCHMARKS.md");
+}
+
+/* Oracle: measurement.txt is the only source of the stamp. With its commit and date replaced
+ * by values no checkout or clock can have, the document carries exactly those, and neither
+ * the checkout's commit nor today's date. */
+TEST(docs_results_md_stamps_the_measurement) {
+    const char *dir = pm_test_tmpdir();
+    char cmd[8192], out[65536], head[64] = "", today[64] = "";
+    snprintf(cmd, sizeof cmd,
+             "cp -R '%s/docs/results' '%s/res' && cd '%s/res' && "
+             "sed -i -e 's/^commit .*/commit c0ffee0-test/' -e 's/^date .*/date 1999-12-31 23:59 UTC/' "
+             "measurement.txt && sh '%s/scripts/gen-results-md.sh' --out '%s/R.md' '%s/res'",
+             pm_test_source_dir(), dir, dir, pm_test_source_dir(), dir, dir);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    snprintf(cmd, sizeof cmd, "cat '%s/R.md'", dir);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "| commit | c0ffee0-test |"), "no measured commit in:\n%.2000s", out);
+    EXPECT_MSG(strstr(out, "| date | 1999-12-31 23:59 UTC |"), "no measured date in:\n%.2000s", out);
+    snprintf(cmd, sizeof cmd, "git -C '%s' rev-parse --short HEAD 2>/dev/null", pm_test_source_dir());
+    if (pm_test_run(cmd, head, sizeof head) == 0 && head[0]) {
+        head[strcspn(head, "\n")] = 0;
+        snprintf(cmd, sizeof cmd, "| commit | %s", head);
+        EXPECT_MSG(!strstr(out, cmd), "the checkout's commit %s leaked into the document", head);
+    }
+    ASSERT_EQ_INT(pm_test_run("date -u +%Y-%m-%d", today, sizeof today), 0);
+    today[strcspn(today, "\n")] = 0;
+    EXPECT_MSG(!strstr(out, today), "today's date %s leaked into the document", today);
+}
+
+/* Oracle: the documented usage. --help prints it, exits 0 and writes no document (the
+ * committed one keeps its bytes and time); an unknown option is an input error (2). */
+TEST(docs_results_generator_help_writes_nothing) {
+    char cmd[4096], out[8192], path[2048];
+    struct stat before, after;
+    snprintf(path, sizeof path, "%s/docs/RESULTS.md", pm_test_source_dir());
+    ASSERT(stat(path, &before) == 0);
+    snprintf(cmd, sizeof cmd, "cd '%s' && sh '%s/scripts/gen-results-md.sh' --help", pm_test_tmpdir(),
+             pm_test_source_dir());
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "gen-results-md.sh [--out FILE] [RESULTS_DIR]"), "--help printed: %s", out);
+    EXPECT_MSG(!strstr(out, "wrote"), "--help wrote a document: %s", out);
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-results-md.sh' --bogus", pm_test_source_dir());
+    EXPECT_EQ_INT(pm_test_run(cmd, out, sizeof out), 2);
+    ASSERT(stat(path, &after) == 0);
+    EXPECT(after.st_mtim.tv_sec == before.st_mtim.tv_sec && after.st_mtim.tv_nsec == before.st_mtim.tv_nsec);
+    snprintf(cmd, sizeof cmd, "ls -A '%s' | wc -l", pm_test_tmpdir());
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strtol(out, NULL, 10) == 0, "--help left files: %s", out);
+}
