@@ -7,13 +7,17 @@
 #include "checkpoint.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "common.h"
 #include "output.h"
+#include "photon_settings.h"
+#include "stats.h"
 
 #define MAGIC "PMRCKPT\n"
 enum { HEADER_BYTES = 56, PIXEL_BYTES = 28, MAX_SIDE = 1 << 14, MAX_SPP = 1 << 20 };
@@ -228,4 +232,231 @@ int ckpt_read(const char *path, ckpt_info *ci, render_state *st, char *err, size
 out:
     fclose(f);
     return rc;
+}
+
+/* ---- around a checkpointed render ----------------------------------------------------------- */
+
+void ckpt_settings_text(const scene *s, const char *mode, char *buf, size_t cap) {
+    char *pm = NULL;
+    if (s->photon_mapping) {
+        cJSON *copy = cJSON_Duplicate(s->photon_mapping, 1);
+        if (copy) {
+            cJSON_DeleteItemFromObjectCaseSensitive(copy, "save_photons");
+            cJSON_DeleteItemFromObjectCaseSensitive(copy, "load_photons");
+            cJSON_DeleteItemFromObjectCaseSensitive(copy, "progress");
+            pm = cJSON_PrintUnformatted(copy);
+            cJSON_Delete(copy);
+        }
+    }
+    snprintf(buf, cap, "renderer %s; mode %s; %dx%d; spp %d; seed %llu; photon_mapping %s",
+             PM_VERSION_STRING, mode, s->cam.width, s->cam.height, s->cam.spp,
+             (unsigned long long)s->settings.seed, pm ? pm : "{}");
+    free(pm);
+}
+
+int ckpt_store_args(ckpt_info *ci, int argc, char **argv, const char *scene_path) {
+    size_t n = 0;
+    for (int i = 1; i < argc; i++) {
+        const char *a = argv[i];
+        if (a == scene_path) continue;
+        if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) continue;
+        if ((strcmp(a, "--resume") == 0 || strcmp(a, "--threads") == 0) && i + 1 < argc) {
+            i++;
+            continue;
+        }
+        size_t len = strlen(a) + 1;
+        if (n + len > sizeof ci->args) return PM_EINVAL;
+        memcpy(ci->args + n, a, len);
+        n += len;
+    }
+    ci->args_len = n;
+    return 0;
+}
+
+int ckpt_replay_args(int argc, char **argv, int *nargc, char ***nargv, char **store, char *err,
+                     size_t errcap) {
+    *nargv = NULL;
+    *store = NULL;
+    const char *file = NULL;
+    for (int i = 1; i + 1 < argc; i++)
+        if (strcmp(argv[i], "--resume") == 0) file = argv[i + 1];
+    if (!file) return 0;
+    ckpt_info *ci = malloc(sizeof *ci);
+    if (!ci) return PM_ENOMEM;
+    int rc = ckpt_read(file, ci, NULL, err, errcap);
+    if (rc < 0) {
+        free(ci);
+        return rc;
+    }
+    int nstored = 0;
+    for (size_t k = 0; k < ci->args_len; k++) nstored += ci->args[k] == 0;
+    char **v = malloc((size_t)(argc + nstored + 1) * sizeof *v);
+    char *copy = malloc(ci->args_len + 1);
+    if (!v || !copy) {
+        free(v);
+        free(copy);
+        free(ci);
+        return PM_ENOMEM;
+    }
+    memcpy(copy, ci->args, ci->args_len);
+    int m = 0;
+    v[m++] = argv[0];
+    for (size_t k = 0; k < ci->args_len; k += strlen(copy + k) + 1) v[m++] = copy + k;
+    for (int i = 1; i < argc; i++) v[m++] = argv[i];
+    v[m] = NULL;
+    free(ci);
+    *nargc = m;
+    *nargv = v;
+    *store = copy;
+    return 0;
+}
+
+int ckpt_photon_hash(const char *dir, uint64_t *h, char *err, size_t errcap) {
+    static const char *names[3] = {"global.pmap", "caustic.pmap", "shadow.pmap"};
+    *h = CKPT_HASH_INIT;
+    for (int k = 0; k < 3; k++) {
+        char path[OUT_PATH_MAX];
+        snprintf(path, sizeof path, "%s/%s", dir, names[k]);
+        *h = ckpt_hash(*h, names[k], strlen(names[k]) + 1);
+        if (access(path, F_OK) != 0) continue;
+        int rc = ckpt_hash_file(path, UINT64_MAX, h, err, errcap);
+        if (rc < 0) return rc;
+    }
+    return 0;
+}
+
+void ckpt_session_start(ckpt_session *cs) {
+    double now = stats_now();
+    cs->next_ckpt = cs->ckpt_path && cs->ckpt_every > 0 ? now + cs->ckpt_every : INFINITY;
+    cs->next_snap = cs->snap_path && cs->snap_every > 0 ? now + cs->snap_every : INFINITY;
+}
+
+double ckpt_session_period(const ckpt_session *cs) {
+    double p = 0;
+    if (cs->ckpt_path && cs->ckpt_every > 0) p = cs->ckpt_every;
+    if (cs->snap_path && cs->snap_every > 0 && (p == 0 || cs->snap_every < p)) p = cs->snap_every;
+    return p;
+}
+
+int ckpt_session_pause(void *user, const render_state *st, int why) {
+    ckpt_session *cs = user;
+    double now = stats_now();
+    if (cs->ckpt_path && (why == RENDER_PAUSE_SIGNAL || now >= cs->next_ckpt)) {
+        int rc = ckpt_write(cs->ckpt_path, &cs->info, st, cs->err, sizeof cs->err);
+        if (rc < 0) return rc;
+        if (!cs->quiet)
+            fprintf(stderr, "render: checkpoint %s (%.1f%% of the samples)\n", cs->ckpt_path,
+                    100.0 * (double)render_state_done(st) / ((double)st->width * st->height * st->spp));
+        cs->next_ckpt = stats_now() + cs->ckpt_every;
+    }
+    if (cs->snap_path && why == RENDER_PAUSE_PERIODIC && now >= cs->next_snap) {
+        film f;
+        if (film_init(&f, st->width, st->height) < 0) return PM_ENOMEM;
+        render_state_to_film(st, &f);
+        int rc = film_write_png(&f, cs->snap_path, cs->tone, cs->exposure, cs->clip_percent, NULL);
+        int saved = errno;
+        film_free(&f);
+        if (rc < 0) {
+            snprintf(cs->err, sizeof cs->err, "%s: cannot write the snapshot: %s", cs->snap_path,
+                     strerror(saved));
+            return rc;
+        }
+        cs->next_snap = stats_now() + cs->snap_every;
+    }
+    return 0;
+}
+
+static const char *pm_dir_key(const scene *s, const char *key) {
+    const cJSON *v = s->photon_mapping ? cJSON_GetObjectItemCaseSensitive(s->photon_mapping, key) : NULL;
+    return cJSON_IsString(v) && v->valuestring[0] ? v->valuestring : NULL;
+}
+
+int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, const char *ckpt_path,
+                     const char *resume, int uses_photons, ckpt_session *cs, render_state *st) {
+    char err[1024], msg[600];
+    ckpt_info *ci = &cs->info;
+    memset(ci, 0, sizeof *ci);
+    const char *load = uses_photons ? pm_dir_key(s, "load_photons") : NULL;
+    const char *save = uses_photons ? pm_dir_key(s, "save_photons") : NULL;
+    if (ckpt_path && uses_photons && !resume) {
+        if (load) {
+            snprintf(ci->photons, sizeof ci->photons, "%s", load);
+        } else {
+            if (!save) {
+                snprintf(ci->photons, sizeof ci->photons, "%s.photons", ckpt_path);
+                if (plan_cli_set(&s->photon_mapping, "--save-photons", ci->photons, msg,
+                                         sizeof msg) < 0) {
+                    fprintf(stderr, "render: %s\n", msg);
+                    return 2;
+                }
+                save = pm_dir_key(s, "save_photons");
+            } else {
+                snprintf(ci->photons, sizeof ci->photons, "%s", save);
+            }
+        }
+    }
+    if (save && !resume && out_check_dir(save, msg, sizeof msg) < 0) {
+        fprintf(stderr, "render: photon maps: %s\n", msg);
+        return 2;
+    }
+    ckpt_settings_text(s, s->settings.mode, ci->settings, sizeof ci->settings);
+    err[0] = 0;
+    ci->scene_hash = CKPT_HASH_INIT;
+    if (ckpt_hash_file(scene_path, UINT64_MAX, &ci->scene_hash, err, sizeof err) < 0 ||
+        ckpt_store_args(ci, argc, argv, scene_path) < 0) {
+        fprintf(stderr, "render: %s\n", err[0] ? err : "too many arguments to keep in a checkpoint");
+        return 2;
+    }
+    if (!resume) return 0;
+    ckpt_info *old = malloc(sizeof *old);
+    if (!old) return 1;
+    int rc = ckpt_read(resume, old, st, err, sizeof err);
+    if (rc < 0) {
+        fprintf(stderr, "render: --resume %s\n", err);
+        free(old);
+        return 2;
+    }
+    int status = 0;
+    if (old->scene_hash != ci->scene_hash) {
+        fprintf(stderr, "render: --resume %s: the checkpoint is of another scene (or %s changed since)\n",
+                resume, scene_path);
+        status = 2;
+    } else if (strcmp(old->settings, ci->settings) != 0) {
+        fprintf(stderr, "render: --resume %s: the checkpoint has other settings\n  checkpoint: %s\n"
+                "  this run:   %s\n", resume, old->settings, ci->settings);
+        status = 2;
+    } else if (uses_photons) {
+        uint64_t h;
+        if (!old->photons[0] || ckpt_photon_hash(old->photons, &h, err, sizeof err) < 0 ||
+            h != old->photon_hash) {
+            fprintf(stderr, "render: --resume %s: the photon maps in %s are missing or changed since "
+                    "the checkpoint\n", resume, old->photons[0] ? old->photons : "(none)");
+            status = 2;
+        } else if (plan_cli_set(&s->photon_mapping, "--load-photons", old->photons, msg,
+                                        sizeof msg) < 0) {
+            fprintf(stderr, "render: %s\n", msg);
+            status = 2;
+        }
+        snprintf(ci->photons, sizeof ci->photons, "%s", old->photons);
+        ci->photon_hash = old->photon_hash;
+    }
+    free(old);
+    if (status) render_state_free(st);
+    return status;
+}
+
+int checkpoint_begin(ckpt_session *cs, int uses_photons, render_state *st) {
+    char err[1024];
+    int fresh = render_state_done(st) == 0;
+    if (cs->ckpt_path && uses_photons && fresh && cs->info.photons[0] &&
+        ckpt_photon_hash(cs->info.photons, &cs->info.photon_hash, err, sizeof err) < 0) {
+        fprintf(stderr, "render: photon maps: %s\n", err);
+        return 1;
+    }
+    if (cs->ckpt_path && fresh && ckpt_write(cs->ckpt_path, &cs->info, st, err, sizeof err) < 0) {
+        fprintf(stderr, "render: --checkpoint %s\n", err);
+        return 1;
+    }
+    ckpt_session_start(cs);
+    return 0;
 }

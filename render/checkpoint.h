@@ -37,6 +37,7 @@
 #include <stdint.h>
 
 #include "renderer.h"
+#include "scene.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -63,6 +64,63 @@ int ckpt_read(const char *path, ckpt_info *ci, render_state *st, char *err, size
 uint64_t ckpt_hash(uint64_t h, const void *p, size_t n);
 /* Continue h over a file's bytes (at most max_bytes; more is an error). 0 or PM_EIO. */
 int ckpt_hash_file(const char *path, uint64_t max_bytes, uint64_t *h, char *err, size_t errcap);
+
+/* ---- what main.c needs around a checkpointed render ---------------------------------------
+ *
+ * Settings text: "renderer VERSION; mode M; WxH; spp N; seed S; photon_mapping {json}" with
+ * the photon_mapping object as the run applies it, less the keys that do not change the image
+ * (save_photons, load_photons, progress). Tone and exposure only change the PNG, so a resumed
+ * run may change them. */
+void ckpt_settings_text(const scene *s, const char *mode, char *buf, size_t cap);
+
+/* The arguments a resumed run replays: argv[1..] less the scene path, --resume FILE,
+ * --threads N and --quiet (which may differ between runs). PM_EINVAL if they do not fit. */
+int ckpt_store_args(ckpt_info *ci, int argc, char **argv, const char *scene_path);
+/* If argv holds "--resume FILE": *nargv = argv[0], the checkpoint's stored arguments, then
+ * argv[1..] (so options given now win), *nargc its length; the caller frees *nargv (the
+ * strings point into *store, which the caller keeps and frees too). Else *nargv = NULL.
+ * 0, or a negative code with a message (the checkpoint cannot be read). */
+int ckpt_replay_args(int argc, char **argv, int *nargc, char ***nargv, char **store, char *err,
+                     size_t errcap);
+
+/* The hash of the photon-map files in dir (global, caustic, shadow; absent ones count as
+ * absent). 0 or PM_EIO with a message. */
+int ckpt_photon_hash(const char *dir, uint64_t *h, char *err, size_t errcap);
+
+/* Periodic checkpoints and snapshots during a render: a render_pause_fn (renderer.h) with
+ * this session as its user pointer. On a signal pause it writes the checkpoint only. */
+typedef struct ckpt_session {
+    const char *ckpt_path; /* NULL: no checkpoints */
+    double ckpt_every;     /* seconds */
+    const char *snap_path; /* NULL: no snapshots (the -o PNG) */
+    double snap_every;
+    int tone;
+    double exposure, clip_percent;
+    int quiet;
+    ckpt_info info;
+    double next_ckpt, next_snap; /* stats_now() times; set by ckpt_session_start */
+    char err[512];               /* why the last write failed */
+} ckpt_session;
+
+void ckpt_session_start(ckpt_session *cs);
+
+/* main.c's steps, so that the program stays a list of steps:
+ * checkpoint_setup, before the integrator is created: checks the photon-map directory that
+ * will be written (exists or can be created, writable) before any photon is traced; with
+ * --checkpoint in a photon mode, makes the maps be saved (to FILE.photons unless
+ * --save-photons or --load-photons names a directory); fills cs->info (scene hash,
+ * settings, arguments); with --resume, reads the checkpoint into *st and refuses another
+ * scene, other settings, changed photon maps, or a damaged file, then points the photon
+ * settings at the checkpoint's maps. 0, or the exit status (2) after printing why.
+ * checkpoint_begin, after preprocessing: hashes the photon maps and, for a fresh render,
+ * writes the first checkpoint (so a kill before the first period still resumes without
+ * tracing again); starts the session's clocks. 0, or the exit status (1) after printing why. */
+int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, const char *ckpt_path,
+                     const char *resume, int uses_photons, ckpt_session *cs, render_state *st);
+int checkpoint_begin(ckpt_session *cs, int uses_photons, render_state *st);
+/* The shorter of the two periods, 0 if neither is set: the render's pause_every. */
+double ckpt_session_period(const ckpt_session *cs);
+int ckpt_session_pause(void *user, const render_state *st, int why);
 
 #ifdef __cplusplus
 }

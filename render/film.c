@@ -259,3 +259,36 @@ int film_write_png(const film *f, const char *path, int tone, double exposure, d
     png_args a = {f, tone, exposure, clip_percent, used};
     return write_one(path, png_fn, &a);
 }
+
+int film_write_outputs(const film *f, const char *pfm, const char *png, int tone, double exposure,
+                       double clip_percent, double *used, char *err, size_t errcap) {
+    out_file o[2];
+    out_file *list[2];
+    int n = 0, rc = 0;
+    memset(o, 0, sizeof o);
+    o[0].slot = o[1].slot = -1;
+    if (pfm) {
+        if ((rc = out_open(&o[n], pfm, err, errcap)) < 0) goto fail;
+        list[n] = &o[n];
+        n++;
+        if ((rc = film_write_pfm_fp(f, o[n - 1].fp)) < 0 || (rc = fflush(o[n - 1].fp) ? PM_EIO : 0) < 0) {
+            snprintf(err, errcap, "%s: cannot write: %s", pfm, strerror(errno));
+            goto fail;
+        }
+        out_test_pause("pfm");
+    }
+    if (png) {
+        if ((rc = out_open(&o[n], png, err, errcap)) < 0) goto fail;
+        list[n] = &o[n];
+        n++;
+        if ((rc = film_write_png_fp(f, o[n - 1].fp, tone, exposure, clip_percent, used)) < 0) {
+            snprintf(err, errcap, "%s: cannot write: %s", png, rc == PM_ENOMEM ? "out of memory" : strerror(errno));
+            goto fail;
+        }
+        out_test_pause("png");
+    }
+    return out_commit(list, n, err, errcap);
+fail:
+    for (int i = 0; i < 2; i++) out_abort(&o[i]);
+    return rc;
+}

@@ -72,6 +72,12 @@ int film_write_png(const film *f, const char *path, int tone, double exposure, d
 int film_write_png_fp(const film *f, FILE *fp, int tone, double exposure, double clip_percent,
                       double *used);
 
+/* The PFM and the PNG (either may be NULL) as one set of outputs: both are written in full
+ * (temporaries) before either is put in place (out_commit), so a failure or SIGINT/SIGTERM
+ * leaves both old files. 0 or a negative code with a message in err. */
+int film_write_outputs(const film *f, const char *pfm, const char *png, int tone, double exposure,
+                       double clip_percent, double *used, char *err, size_t errcap);
+
 /* Hable's filmic curve, normalized so that W maps to 1 (x >= 0). */
 double film_hable(double x);
 /* Linear [0,1] to the sRGB-encoded value. */

@@ -12,7 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common.h"
+#include "photonmap/common.h"
 
 int json_fail(json_err *e, int code, const char *fmt, ...) {
     if (e) {
@@ -132,6 +132,10 @@ int json_parse_text(const char *text, cJSON **root, json_err *e) {
     return json_fail(e, PM_EFORMAT, "line %d, column %d: syntax error at '%s'", line, col, ctx);
 }
 
+/* The largest file json_parse_file reads (render --max-scene-mb changes it). */
+static size_t g_max_file_bytes = (size_t)256 << 20;
+void json_set_max_file_bytes(size_t n) { g_max_file_bytes = n; }
+
 int json_parse_file(const char *filename, cJSON **root, json_err *e) {
     *root = NULL;
     FILE *f = fopen(filename, "rb");
@@ -140,7 +144,19 @@ int json_parse_file(const char *filename, cJSON **root, json_err *e) {
     char *buf = malloc(cap);
     while (buf) {
         size_t got = fread(buf + n, 1, cap - n - 1, f);
+        /* Checked while reading, so /dev/zero or an endless pipe fails at its first block. */
+        if (memchr(buf + n, 0, got)) {
+            free(buf);
+            fclose(f);
+            return json_fail(e, PM_EFORMAT, "the file contains a NUL byte; not a JSON text");
+        }
         n += got;
+        if (n > g_max_file_bytes) {
+            free(buf);
+            fclose(f);
+            return json_fail(e, PM_EFORMAT, "larger than the limit of %zu MiB (render --max-scene-mb)",
+                             g_max_file_bytes >> 20);
+        }
         if (n < cap - 1) break;
         char *nb = realloc(buf, cap * 2);
         if (!nb) {

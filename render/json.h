@@ -40,6 +40,9 @@ void json_path_key(char *buf, size_t cap, const char *path, const char *key);
 void json_path_index(char *buf, size_t cap, const char *path, int index);
 
 int json_parse_file(const char *filename, cJSON **root, json_err *e);
+/* json_parse_file refuses a file larger than this (default 256 MiB), checked while reading.
+ * Process-wide: set it once at start-up, before any thread parses. */
+void json_set_max_file_bytes(size_t n);
 /* Parse text (NUL-terminated); errors carry the line and column. */
 int json_parse_text(const char *text, cJSON **root, json_err *e);
 

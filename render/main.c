@@ -15,10 +15,13 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "checkpoint.h"
 #include "common.h"
 #include "film.h"
 #include "import.h"
 #include "integrator.h"
+#include "json.h"
+#include "output.h"
 #include "photon_settings.h"
 #include "renderer.h"
 #include "scene.h"
@@ -57,8 +60,21 @@ static void usage(FILE *f) {
             "                    object (e.g. --pm global_photons=500000 --pm caustics=false)\n"
             "  --save-photons DIR  save the photon maps (DIR/global.pmap, caustic.pmap, shadow.pmap)\n"
             "  --load-photons DIR  use saved photon maps instead of tracing photons\n"
+            "  --checkpoint FILE   save the render state to FILE (atomically) every\n"
+            "                    --checkpoint-every seconds (default 600) and on SIGINT/SIGTERM;\n"
+            "                    photon maps go to FILE.photons/ unless --save/--load-photons\n"
+            "  --checkpoint-every S  seconds between checkpoints\n"
+            "  --resume FILE     continue the render saved in FILE (its options are replayed;\n"
+            "                    another scene, other settings or version are refused)\n"
+            "  --snapshot-every S  rewrite the PNG (atomically) every S seconds while rendering\n"
+            "  --max-scene-mb N  refuse scene files larger than N MiB (default 256)\n"
             "  --quiet           no progress output\n"
             "  --help            this text\n"
+            "\n"
+            "Outputs (-o, --hdr, --checkpoint, photon maps): a regular file is replaced whole\n"
+            "(temporary + rename; all outputs together), a FIFO or character device is written\n"
+            "through, a symlink is followed to its target; other kinds are refused. SIGINT or\n"
+            "SIGTERM leaves the previous outputs and no temporary files.\n"
             "\n"
             "--compare prints the RMSE, mean relative error and means of A against the\n"
             "reference B, over the whole image or the rectangle X Y W H (pixels, top-left origin);\n"
@@ -93,7 +109,26 @@ int main(int argc, char **argv) {
             }
         return tools_compare(argc, argv);
     }
+    /* --resume FILE: the checkpoint's stored arguments come first, then these (so options
+     * given now win; settings that change the image must still match, see below). Static:
+     * the replayed argv lives as long as the program. */
+    static char **replay_argv, *replay_store;
+    {
+        char rerr[600];
+        int rargc = 0;
+        if (ckpt_replay_args(argc, argv, &rargc, &replay_argv, &replay_store, rerr, sizeof rerr) < 0) {
+            fprintf(stderr, "render: --resume %s\n", rerr);
+            return 2;
+        }
+        if (replay_argv) {
+            argc = rargc;
+            argv = replay_argv;
+        }
+    }
     const char *scene_path = NULL, *png = NULL, *pfm = NULL, *mode = NULL, *tone = NULL;
+    const char *ckpt_path = NULL, *resume = NULL;
+    double ckpt_every = 600, snap_every = 0;
+    long max_scene_mb = 256;
     long spp = 0, threads = 0, width = 0, height = 0, seed = -1;
     double exposure = -1;
     int quiet = 0;
@@ -156,6 +191,21 @@ int main(int argc, char **argv) {
             }
             pm_flag[npm] = a;
             pm_value[npm++] = v;
+        } else if (strcmp(a, "--checkpoint") == 0) {
+            NEED_VALUE();
+            ckpt_path = v;
+        } else if (strcmp(a, "--checkpoint-every") == 0) {
+            NEED_VALUE();
+            bad = cli_parse_positive(v, &ckpt_every) < 0;
+        } else if (strcmp(a, "--snapshot-every") == 0) {
+            NEED_VALUE();
+            bad = cli_parse_positive(v, &snap_every) < 0;
+        } else if (strcmp(a, "--resume") == 0) {
+            NEED_VALUE();
+            resume = v;
+        } else if (strcmp(a, "--max-scene-mb") == 0) {
+            NEED_VALUE();
+            bad = parse_opt(a, v, 1, 1L << 20, &max_scene_mb);
         } else if (strcmp(a, "--quiet") == 0 || strcmp(a, "-q") == 0) {
             quiet = 1;
         } else if (a[0] == '-' && a[1]) {
@@ -179,14 +229,22 @@ int main(int argc, char **argv) {
         return 2;
     }
     if (!png && !pfm) png = "out.png";
+    json_set_max_file_bytes((size_t)max_scene_mb << 20);
+    out_signals_install();
     /* An output that cannot be written is refused now, not after the render. */
-    const char *outs[2] = {pfm, png}, *out_opt[2] = {"--hdr", "-o"};
-    for (int k = 0; k < 2; k++)
-        if (outs[k] && film_check_writable(outs[k]) < 0) {
-            fprintf(stderr, "render: %s %s: cannot write there: %s\n", out_opt[k], outs[k],
-                    strerror(errno));
+    const char *outs[3] = {pfm, png, ckpt_path}, *out_opt[3] = {"--hdr", "-o", "--checkpoint"};
+    for (int k = 0; k < 3; k++) {
+        char oerr[600];
+        if (outs[k] && out_check(outs[k], oerr, sizeof oerr) < 0) {
+            fprintf(stderr, "render: %s %s\n", out_opt[k], oerr);
             return 2;
         }
+        for (int j = 0; j < k; j++)
+            if (outs[j] && outs[k] && strcmp(outs[j], outs[k]) == 0) {
+                fprintf(stderr, "render: %s and %s name the same file %s\n", out_opt[j], out_opt[k], outs[k]);
+                return 2;
+            }
+    }
 
     double t_start = stats_now();
     scene s;
@@ -216,6 +274,8 @@ int main(int argc, char **argv) {
     char err_unused[64];
     for (int k = 0; k < npm; k++) {
         char perr[256];
+        /* A resumed render loads the maps its checkpoint names; they were saved already. */
+        if (resume && strcmp(pm_flag[k], "--save-photons") == 0) continue;
         if (plan_cli_set(&s.photon_mapping, pm_flag[k], pm_value[k], perr, sizeof perr) < 0) {
             fprintf(stderr, "render: %s\n", perr);
             scene_free(&s);
@@ -234,6 +294,16 @@ int main(int argc, char **argv) {
         int any_emit = 0;
         for (int i = 0; i < s.nmats; i++) any_emit |= material_is_emissive(&s.mats[i]);
         if (!any_emit) fprintf(stderr, "render: warning: the scene has no light; the image will be black\n");
+    }
+
+    /* Checkpoints and resume (checkpoint.h): what must match, and where the photon maps are. */
+    static ckpt_session cs;
+    render_state rstate = {0, 0, 0, NULL, NULL};
+    int uses_photons = strcmp(s.settings.mode, "pm") == 0 || strcmp(s.settings.mode, "preview") == 0;
+    if ((rc = checkpoint_setup(&s, scene_path, argc, argv, ckpt_path, resume, uses_photons, &cs,
+                               &rstate)) != 0) {
+        scene_free(&s);
+        return rc;
     }
 
     integrator it;
@@ -259,6 +329,7 @@ int main(int argc, char **argv) {
            s.cam.height, s.cam.spp, s.cam.strata, s.cam.strata, it.name, nthreads,
            nthreads == 1 ? "" : "s", (unsigned long long)s.settings.seed);
     fflush(stdout);
+    out_test_pause("photons");
     if (it.preprocess) {
         double t0 = stats_now();
         rc = it.preprocess(&it, &s, err, sizeof err);
@@ -272,28 +343,52 @@ int main(int argc, char **argv) {
     }
     film f;
     render_job job = {nthreads, quiet, s.settings.seed};
+    render_control ctl = {NULL, 0, NULL, NULL, 0};
+    if (ckpt_path || snap_every > 0 || resume) {
+        if (!rstate.sum && render_state_init(&rstate, s.cam.width, s.cam.height, s.cam.spp) < 0) {
+            fprintf(stderr, "render: out of memory for the render state\n");
+            return 1;
+        }
+        cs.ckpt_path = ckpt_path;
+        cs.ckpt_every = ckpt_every;
+        cs.snap_path = snap_every > 0 ? png : NULL;
+        cs.snap_every = snap_every;
+        cs.tone = s.settings.tone;
+        cs.exposure = s.settings.exposure;
+        cs.clip_percent = s.settings.clip_percent;
+        cs.quiet = quiet;
+        if ((rc = checkpoint_begin(&cs, uses_photons, &rstate)) != 0) return rc;
+        ctl = (render_control){&rstate, ckpt_session_period(&cs), ckpt_session_pause, &cs, ckpt_path != NULL};
+    }
+    /* With a checkpoint, SIGINT/SIGTERM stop the render at the next sample boundary, write
+     * the checkpoint, and then end the program by that signal. */
+    if (ckpt_path) out_defer_begin();
     double t_render0 = stats_now();
-    rc = render_image(&s, &it, &job, &f);
+    rc = render_image_ctl(&s, &it, &job, &ctl, &f);
     double t_render = stats_now() - t_render0;
     integrator_destroy(&it);
+    if (ckpt_path) {
+        if (rc == 0 && out_pending_signal()) rc = ckpt_session_pause(&cs, &rstate, RENDER_PAUSE_SIGNAL);
+        if (rc == 0 && out_pending_signal()) rc = RENDER_INTERRUPTED;
+        if (rc == RENDER_INTERRUPTED)
+            fprintf(stderr, "render: interrupted; the render state is in %s (continue with: render "
+                    "%s --resume %s)\n", ckpt_path, scene_path, ckpt_path);
+        out_defer_end();
+        out_die_if_pending();
+    }
     if (rc < 0) {
-        fprintf(stderr, "render: rendering failed: %s\n", pm_strerror(rc));
+        fprintf(stderr, "render: rendering failed: %s%s%s\n", pm_strerror(rc), cs.err[0] ? ": " : "", cs.err);
         scene_free(&s);
         return 1;
     }
+    render_state_free(&rstate);
     int status = 0;
     double used = 0;
-    if (pfm && film_write_pfm(&f, pfm) < 0) {
-        fprintf(stderr, "render: cannot write %s: %s\n", pfm, strerror(errno));
+    char werr[600];
+    if (film_write_outputs(&f, pfm, png, s.settings.tone, s.settings.exposure, s.settings.clip_percent,
+                           &used, werr, sizeof werr) < 0) {
+        fprintf(stderr, "render: %s (no output written)\n", werr);
         status = 1;
-    }
-    if (status == 0 && png &&
-        film_write_png(&f, png, s.settings.tone, s.settings.exposure, s.settings.clip_percent,
-                       &used) < 0) {
-        fprintf(stderr, "render: cannot write %s: %s\n", png, strerror(errno));
-        status = 1;
-        /* All outputs or none: take back the PFM this run wrote. */
-        if (pfm && remove(pfm) == 0) fprintf(stderr, "render: removed %s\n", pfm);
     }
     double wall = stats_now() - t_start;
     uint64_t rays = stats_total(STAT_CAMERA_RAYS) + stats_total(STAT_INDIRECT_RAYS) +

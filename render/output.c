@@ -118,9 +118,9 @@ static int classify(const char *path, char *target, char *why, size_t whycap) {
     }
     if (S_ISREG(st.st_mode)) return K_REGULAR;
     if (S_ISFIFO(st.st_mode) || S_ISCHR(st.st_mode)) return K_THROUGH;
-    snprintf(why, whycap, "%s; only a regular file (replaced), a FIFO or a character device "
-             "(written through) can be an output",
-             S_ISDIR(st.st_mode) ? "a directory" : S_ISBLK(st.st_mode) ? "a block device" : "a socket");
+    snprintf(why, whycap, "cannot write there: %s; only a regular file (replaced), a FIFO or a "
+             "character device (written through) can be an output",
+             S_ISDIR(st.st_mode) ? "Is a directory" : S_ISBLK(st.st_mode) ? "a block device" : "a socket");
     return K_REFUSE;
 }
 

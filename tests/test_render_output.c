@@ -185,7 +185,7 @@ TEST(render_output_symlink_and_refusals) {
     EXPECT(access(path_in("nowhere"), F_OK) != 0);
     err[0] = 0;
     EXPECT(out_write_text(pm_test_tmpdir(), "x", err, sizeof err) == PM_EIO);
-    EXPECT_MSG(strstr(err, "a directory"), "message: %s", err);
+    EXPECT_MSG(strstr(err, "Is a directory"), "message: %s", err);
     EXPECT(out_check_dir(path_in("target.txt"), err, sizeof err) == PM_EIO);
     EXPECT(out_check_dir(path_in("no/such/dir"), err, sizeof err) == PM_EIO);
     EXPECT(out_check_dir(path_in("newdir"), err, sizeof err) == 0);
