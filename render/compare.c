@@ -2,7 +2,7 @@
  * compare.h. Sums are in double, in two passes (the relative error needs the mean first). */
 #include "compare.h"
 
-#include "common.h"
+#include "photonmap/common.h"
 
 /* Is pixel (x, y) in the region? The rectangle is already clipped by the caller. */
 static int in_mask(const image_region *r, int x, int y) {

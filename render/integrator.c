@@ -6,7 +6,7 @@
 
 #include <string.h>
 
-#include "common.h"
+#include "photonmap/common.h"
 
 #define MAX_MODES 16
 static struct {

@@ -23,7 +23,7 @@
 
 #include "integrator.h"
 #include "stats.h"
-#include "common.h"
+#include "photonmap/common.h"
 
 typedef struct {
     int max_depth, rr_depth;

@@ -10,11 +10,11 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "common.h"
-#include "estimate.h"
+#include "photonmap/common.h"
+#include "photonmap/estimate.h"
 #include "material.h"
 
-void pm_maps_free(pm_maps *m) {
+void photon_maps_free(photon_maps *m) {
     free(m->global);
     free(m->caustic);
     free(m->shadow);
@@ -58,7 +58,7 @@ int photon_tree_build(pm_kdtree **t, pm_photon *ph, size_t n, unsigned bucket, c
     return rc;
 }
 
-int photon_maps_load(pm_maps *m, const char *dir, char *err, size_t errcap) {
+int photon_maps_load(photon_maps *m, const char *dir, char *err, size_t errcap) {
     int rc;
     if ((rc = load_map(dir, "global.pmap", &m->global, &m->nglobal, &m->global_emitted, err,
                        errcap)) < 0 ||
@@ -69,7 +69,7 @@ int photon_maps_load(pm_maps *m, const char *dir, char *err, size_t errcap) {
     return 0;
 }
 
-int photon_maps_save(const pm_maps *m, const char *dir, char *err, size_t errcap) {
+int photon_maps_save(const photon_maps *m, const char *dir, char *err, size_t errcap) {
     if (mkdir(dir, 0777) != 0 && errno != EEXIST) {
         snprintf(err, errcap, "cannot create %s: %s", dir, strerror(errno));
         return PM_EIO;
@@ -95,7 +95,7 @@ static double diffuse_area(const scene *s) {
     return a;
 }
 
-void photon_maps_radii(const scene *s, const pm_maps *m, const pm_config *cfg, map_radii *r) {
+void photon_maps_radii(const scene *s, const photon_maps *m, const photon_settings *cfg, map_radii *r) {
     double area = diffuse_area(s);
     double phi = 0;
     for (int i = 0; i < s->nlights; i++) phi += v3_maxc(s->lights[i].power);

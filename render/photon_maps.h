@@ -14,7 +14,7 @@
  * mean density; the precomputed-irradiance lookup searches within 4 of them (at most the
  * global radius), and the shadow-map query within 2 of its own typical radius.
  *
- * Ownership: a pm_maps owns its three arrays (pm_maps_free; a zeroed one may be freed).
+ * Ownership: a photon_maps owns its three arrays (photon_maps_free; a zeroed one may be freed).
  */
 #ifndef RENDER_PHOTON_MAPS_H
 #define RENDER_PHOTON_MAPS_H
@@ -22,8 +22,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "kdtree.h"
-#include "photon.h"
+#include "photonmap/kdtree.h"
+#include "photonmap/photon.h"
 #include "photon_settings.h"
 #include "scene.h"
 
@@ -31,7 +31,7 @@
 extern "C" {
 #endif
 
-typedef struct pm_maps {
+typedef struct photon_maps {
     pm_photon *global, *caustic, *shadow;
     size_t nglobal, ncaustic, nshadow;
     uint64_t global_emitted, caustic_emitted; /* the shadow map shares the global pass */
@@ -39,16 +39,16 @@ typedef struct pm_maps {
     uint64_t caustic_saved;         /* emissions the projection map saved */
     uint64_t caustic_first_specular; /* caustic-pass photons whose first hit was specular */
     int global_runaway, caustic_runaway; /* 1 if the pass stopped short of its target */
-} pm_maps;
+} photon_maps;
 
-void pm_maps_free(pm_maps *m);
+void photon_maps_free(photon_maps *m);
 
 /* Save the three maps into dir (created if missing). 0, or a negative code with a message
  * naming the file. */
-int photon_maps_save(const pm_maps *m, const char *dir, char *err, size_t errcap);
+int photon_maps_save(const photon_maps *m, const char *dir, char *err, size_t errcap);
 /* Load the maps found in dir into a zeroed m (absent files: empty maps). 0, or a negative
- * code with a message naming the file; what was loaded stays in m for pm_maps_free. */
-int photon_maps_load(pm_maps *m, const char *dir, char *err, size_t errcap);
+ * code with a message naming the file; what was loaded stays in m for photon_maps_free. */
+int photon_maps_load(photon_maps *m, const char *dir, char *err, size_t errcap);
 
 /* A kd-tree over n photons (reordered in place), buckets of `bucket`; *t = NULL when n == 0.
  * 0, or a negative code with a message. */
@@ -61,7 +61,7 @@ typedef struct map_radii {
     double shadow;          /* the shadow-map query radius (0 without a shadow map) */
     float r2_global, r2_caustic, r2_lookup, r2_shadow; /* squared, as the searches take them */
 } map_radii;
-void photon_maps_radii(const scene *s, const pm_maps *m, const pm_config *cfg, map_radii *r);
+void photon_maps_radii(const scene *s, const photon_maps *m, const photon_settings *cfg, map_radii *r);
 
 #ifdef __cplusplus
 }

@@ -8,9 +8,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common.h"
+#include "photonmap/common.h"
 
-void pm_config_defaults(pm_config *c) {
+void photon_settings_defaults(photon_settings *c) {
     memset(c, 0, sizeof *c);
     c->force_caustics = c->force_global = c->force_shadow = c->force_final_gather = PLAN_AUTO;
     c->global_photons = 200000;
@@ -18,7 +18,7 @@ void pm_config_defaults(pm_config *c) {
     c->k_global = 100;
     c->k_caustic = 60;
     c->k_shadow = 16;
-    c->filter = PM_FILTER_CONE;
+    c->filter = CAUSTIC_FILTER_CONE;
     c->gather_rays = 4;
     c->secondary_rays = 2;
     c->split_depth = 2;
@@ -30,12 +30,12 @@ void pm_config_defaults(pm_config *c) {
     c->progress = 1;
 }
 
-const char *pm_filter_name(int filter) {
+const char *caustic_filter_name(int filter) {
     switch (filter) {
-    case PM_FILTER_NONE: return "none";
-    case PM_FILTER_CONE: return "cone";
-    case PM_FILTER_GAUSS: return "gauss";
-    case PM_FILTER_HULL: return "hull";
+    case CAUSTIC_FILTER_NONE: return "none";
+    case CAUSTIC_FILTER_CONE: return "cone";
+    case CAUSTIC_FILTER_GAUSS: return "gauss";
+    case CAUSTIC_FILTER_HULL: return "hull";
     }
     return "?";
 }
@@ -86,8 +86,8 @@ static int get_dir(const cJSON *pm, const char *key, char *dst, size_t cap, json
         if (rc_ < 0) return rc_; \
     } while (0)
 
-int pm_config_parse(pm_config *c, const cJSON *pm, json_err *e) {
-    pm_config_defaults(c);
+int photon_settings_parse(photon_settings *c, const cJSON *pm, json_err *e) {
+    photon_settings_defaults(c);
     if (!pm) return 0;
     static const char *known[] = {
         "caustics", "global", "shadow", "final_gather", "global_photons", "caustic_photons",
@@ -130,13 +130,13 @@ int pm_config_parse(pm_config *c, const cJSON *pm, json_err *e) {
     TRY(json_string(pm, "$.photon_mapping", "filter", 0, &f, e));
     if (f) {
         if (strcmp(f, "none") == 0 || strcmp(f, "disc") == 0)
-            c->filter = PM_FILTER_NONE;
+            c->filter = CAUSTIC_FILTER_NONE;
         else if (strcmp(f, "cone") == 0)
-            c->filter = PM_FILTER_CONE;
+            c->filter = CAUSTIC_FILTER_CONE;
         else if (strcmp(f, "gauss") == 0 || strcmp(f, "gaussian") == 0)
-            c->filter = PM_FILTER_GAUSS;
+            c->filter = CAUSTIC_FILTER_GAUSS;
         else if (strcmp(f, "hull") == 0 || strcmp(f, "convex_hull") == 0)
-            c->filter = PM_FILTER_HULL;
+            c->filter = CAUSTIC_FILTER_HULL;
         else
             return json_fail(e, PM_EINVAL,
                              "$.photon_mapping.filter: expected \"none\", \"cone\", \"gauss\" or "

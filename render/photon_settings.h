@@ -1,6 +1,6 @@
 /* photon_settings.h: the settings of photon mapping.
  *
- * pm_config holds every parameter of photon mapping, read from "$.photon_mapping" with the
+ * photon_settings holds every parameter of photon mapping, read from "$.photon_mapping" with the
  * json.h getters (errors name the JSON path and make `render` exit with status 2). The
  * command line sets the same keys: plan_cli_set() applies `--pm KEY=VALUE`,
  * `--save-photons DIR` and `--load-photons DIR` to the scene's photon_mapping object before
@@ -36,14 +36,14 @@ extern "C" {
 #endif
 
 enum { PLAN_AUTO = -1, PLAN_OFF = 0, PLAN_ON = 1 };
-enum { PM_FILTER_NONE, PM_FILTER_CONE, PM_FILTER_GAUSS, PM_FILTER_HULL };
+enum { CAUSTIC_FILTER_NONE, CAUSTIC_FILTER_CONE, CAUSTIC_FILTER_GAUSS, CAUSTIC_FILTER_HULL };
 
-typedef struct pm_config {
+typedef struct photon_settings {
     int force_caustics, force_global, force_shadow, force_final_gather; /* PLAN_* */
     long global_photons, caustic_photons;
     int k_global, k_caustic, k_shadow;
     double max_radius_global, max_radius_caustic; /* 0: automatic */
-    int filter;                                   /* PM_FILTER_* for the caustic estimate */
+    int filter;                                   /* CAUSTIC_FILTER_* for the caustic estimate */
     int gather_rays, secondary_rays;
     int split_depth; /* eye-path bounces at which glass sends both a reflected and a refracted ray */
     int caustic_stride; /* caustic estimates at one camera sample in stride x stride */
@@ -54,12 +54,12 @@ typedef struct pm_config {
     int projection;
     int progress; /* progress bars while tracing (render --quiet sets it false) */
     char save_dir[512], load_dir[512]; /* empty: none */
-} pm_config;
+} photon_settings;
 
-void pm_config_defaults(pm_config *c);
+void photon_settings_defaults(photon_settings *c);
 /* Read "$.photon_mapping" (pm may be NULL: defaults). 0 or a negative code with e->msg. */
-int pm_config_parse(pm_config *c, const cJSON *pm, json_err *e);
-const char *pm_filter_name(int filter);
+int photon_settings_parse(photon_settings *c, const cJSON *pm, json_err *e);
+const char *caustic_filter_name(int filter);
 
 /* Apply a command-line option to the scene's photon_mapping object (created if NULL):
  * flag "--pm" with value "KEY=VALUE" (VALUE a number, true/false or a string), or

@@ -41,8 +41,8 @@
  * max_emitted_factor * target photons were emitted without reaching it (e.g. lights that face
  * nothing): then it prints a message to stderr and keeps what it stored (maybe nothing).
  *
- * OWNERSHIP. photon_trace fills a pm_maps (photon_maps.h) whose arrays it allocates;
- * pm_maps_free frees them.
+ * OWNERSHIP. photon_trace fills a photon_maps (photon_maps.h) whose arrays it allocates;
+ * photon_maps_free frees them.
  */
 #ifndef RENDER_PHOTON_TRACE_H
 #define RENDER_PHOTON_TRACE_H
@@ -72,7 +72,7 @@ typedef struct trace_opts {
 /* Fill the options from the scene's settings: seed, max_depth; the rest zero. */
 void trace_opts_init(trace_opts *o, const scene *s);
 /* Trace the maps. Returns 0, or a negative PM_E* code with a message (PM_ENOMEM). */
-int photon_trace(const scene *s, const trace_opts *o, pm_maps *m, char *err, size_t errcap);
+int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err, size_t errcap);
 
 #ifdef __cplusplus
 }

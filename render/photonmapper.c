@@ -28,7 +28,7 @@
  *     artefact of the Kilauea notes), so a secondary gather computes y's outgoing light from
  *     its own direct light, caustics and secondary_rays gather rays instead.
  * Emission seen by the camera (directly or through mirrors and glass) comes from
- * emission_strata^2 extra camera rays per sample that look for nothing else (pm_li), so the
+ * emission_strata^2 extra camera rays per sample that look for nothing else (mapper_li), so the
  * edges of lights are antialiased at a fraction of the cost of full samples.
  * In preview mode, or with final gathering forced off, the diffuse surface shows the
  * global map's radiance estimate (k_global photons) plus emission, and nothing else; without
@@ -39,23 +39,23 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common.h"
-#include "estimate.h"
+#include "photonmap/common.h"
+#include "photonmap/estimate.h"
 #include "integrator.h"
-#include "irradiance.h"
-#include "kdtree.h"
-#include "photon.h"
+#include "photonmap/irradiance.h"
+#include "photonmap/kdtree.h"
+#include "photonmap/photon.h"
 #include "photon_maps.h"
 #include "photon_trace.h"
 #include "plan.h"
 #include "stats.h"
 
-typedef struct pm_state {
-    pm_config cfg;
+typedef struct mapper_state {
+    photon_settings cfg;
     render_plan plan;
     int preview, direct_vis;
     int max_depth, rr_depth;
-    pm_maps maps;
+    photon_maps maps;
     pm_kdtree *tg, *tc, *ts; /* global, caustic, shadow trees (NULL when absent/empty) */
     pm_irradiance *irr;
     pm_photon *irr_ph; /* the precomputed photons alone, power = irradiance, in ti's order */
@@ -67,12 +67,12 @@ typedef struct pm_state {
     int st_emission_rays;
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
         st_global_est;
-} pm_state;
+} mapper_state;
 
-typedef struct pm_scratch {
+typedef struct mapper_scratch {
     void *est;
     pm_neighbor *nb;
-} pm_scratch;
+} mapper_scratch;
 
 /* ---- helpers ------------------------------------------------------------------------------ */
 
@@ -110,7 +110,7 @@ static rgb map_estimate(const pm_kdtree *t, const pm_estimate_options *base, vec
 }
 
 /* -1: trace the shadow ray; 1: the shadow map says lit; 0: it says dark. */
-static int shadow_map_says(const pm_state *st, vec3 x, vec3 ns, pm_neighbor *nb) {
+static int shadow_map_says(const mapper_state *st, vec3 x, vec3 ns, pm_neighbor *nb) {
     if (!st->ts) return -1;
     float xf[3], nf[3];
     to_f3(x, xf);
@@ -133,8 +133,8 @@ static int shadow_map_says(const pm_state *st, vec3 x, vec3 ns, pm_neighbor *nb)
 }
 
 /* Direct light at a diffuse point: one light sample. */
-static rgb direct_light(const pm_state *st, const scene *s, const material *m, const hit *h,
-                        vec3 ns, vec3 wo, rng *g, pm_scratch *sc) {
+static rgb direct_light(const mapper_state *st, const scene *s, const material *m, const hit *h,
+                        vec3 ns, vec3 wo, rng *g, mapper_scratch *sc) {
     double ul = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
     if (s->nlights == 0 || s->light_distrib.n == 0) return v3s(0);
     double pl;
@@ -162,8 +162,8 @@ static rgb direct_light(const pm_state *st, const scene *s, const material *m, c
     return v3_scale(v3_mul(f, ls.L), cos_s / pl);
 }
 
-static rgb caustics_at(const pm_state *st, const scene *s, const material *m, const hit *h,
-                       vec3 ns, vec3 wo, pm_scratch *sc) {
+static rgb caustics_at(const mapper_state *st, const scene *s, const material *m, const hit *h,
+                       vec3 ns, vec3 wo, mapper_scratch *sc) {
     if (!st->tc) return v3s(0);
     stat_inc(st->st_caustic);
     return map_estimate(st->tc, &st->caus_opt, h->p, ns, diffuse_albedo(s, m, wo, h->ng), sc->est);
@@ -172,7 +172,7 @@ static rgb caustics_at(const pm_state *st, const scene *s, const material *m, co
 /* Follow a ray through specular surfaces to the first diffuse hit. Returns the number of
  * specular bounces + 1 with the hit, the throughput and the direction of the last segment
  * (*din, pointing into the hit), or 0 if it escapes, is absorbed or runs out of bounces. */
-static int to_diffuse(const pm_state *st, const scene *s, ray r, rng *g, hit *h, rgb *beta,
+static int to_diffuse(const mapper_state *st, const scene *s, ray r, rng *g, hit *h, rgb *beta,
                       vec3 *din) {
     *beta = v3s(1);
     for (int b = 0; b < 8; b++) {
@@ -217,7 +217,7 @@ static int normal_agrees(void *user, const void *record, uint32_t index) {
 /* Outgoing diffuse radiance at y toward wo from the precomputed irradiance of the nearest
  * precomputed photon with a similar normal (pm_irradiance_lookup's rule, on a tree of the
  * precomputed photons alone: the search then never wades through the other 3/4). */
-static rgb lookup_radiance(const pm_state *st, const scene *s, const hit *h, vec3 wo) {
+static rgb lookup_radiance(const mapper_state *st, const scene *s, const hit *h, vec3 wo) {
     if (!st->ti) return v3s(0);
     const material *m = scene_material(s, h);
     vec3 ns = v3_dot(wo, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
@@ -235,12 +235,12 @@ static rgb lookup_radiance(const pm_state *st, const scene *s, const hit *h, vec
 
 /* Indirect diffuse at a diffuse point by gathering n rays; secondary = 1 inside a secondary
  * gather (its rays always read the map). */
-static rgb gather(const pm_state *st, const scene *s, const material *m, const hit *h, vec3 ns,
-                  vec3 wo, int n, int secondary, rng *g, pm_scratch *sc);
+static rgb gather(const mapper_state *st, const scene *s, const material *m, const hit *h, vec3 ns,
+                  vec3 wo, int n, int secondary, rng *g, mapper_scratch *sc);
 
 /* Outgoing light at a close gather hit y, computed instead of read from the map. */
-static rgb secondary_radiance(const pm_state *st, const scene *s, const hit *y, vec3 wo, rng *g,
-                              pm_scratch *sc) {
+static rgb secondary_radiance(const mapper_state *st, const scene *s, const hit *y, vec3 wo, rng *g,
+                              mapper_scratch *sc) {
     const material *m = scene_material(s, y);
     vec3 ns = v3_dot(wo, y->ng) >= 0 ? y->ng : v3_neg(y->ng);
     rgb L = direct_light(st, s, m, y, ns, wo, g, sc);
@@ -248,8 +248,8 @@ static rgb secondary_radiance(const pm_state *st, const scene *s, const hit *y, 
     return v3_add(L, gather(st, s, m, y, ns, wo, st->cfg.secondary_rays, 1, g, sc));
 }
 
-static rgb gather(const pm_state *st, const scene *s, const material *m, const hit *h, vec3 ns,
-                  vec3 wo, int n, int secondary, rng *g, pm_scratch *sc) {
+static rgb gather(const mapper_state *st, const scene *s, const material *m, const hit *h, vec3 ns,
+                  vec3 wo, int n, int secondary, rng *g, mapper_scratch *sc) {
     if (n <= 0 || !st->ti) return v3s(0);
     rgb sum = v3s(0);
     for (int k = 0; k < n; k++) {
@@ -287,7 +287,7 @@ static rgb gather(const pm_state *st, const scene *s, const material *m, const h
  * Each sample is chosen with probability 1/c^2, so the pixel's expected value is unchanged,
  * and the chosen ones are spread evenly over the pixel. The caustic radiance barely changes
  * within a pixel, so this costs little noise and saves most of the estimates' time. */
-static double caustic_weight(const pm_state *st, const sample_id *id) {
+static double caustic_weight(const mapper_state *st, const sample_id *id) {
     int c = st->cfg.caustic_stride;
     if (c <= 1 || !id || id->strata < c) return 1.0;
     rng g = rng_stream(id->seed, id->pixel, 0x6361757374696373ULL); /* "caustics" */
@@ -299,7 +299,7 @@ static double caustic_weight(const pm_state *st, const sample_id *id) {
 enum { EYE_ALL, EYE_SHADE, EYE_EMIT };
 
 /* Russian roulette for an eye path after rr_depth bounces: 0 ends the path. */
-static int eye_roulette(const pm_state *st, int depth, rgb *beta, rng *g) {
+static int eye_roulette(const mapper_state *st, int depth, rgb *beta, rng *g) {
     double urr = rng_uniform(g);
     if (depth + 1 < st->rr_depth) return 1;
     double q = fmin(0.95, v3_maxc(*beta));
@@ -320,8 +320,8 @@ static int eye_roulette(const pm_state *st, int depth, rgb *beta, rng *g) {
  * reflection branch of glass costs little. `what` says what the path collects: emission it
  * meets, the shading of diffuse surfaces, or both. */
 
-static rgb eye_radiance(const pm_state *st, const scene *s, ray r, int depth, rgb beta,
-                        double cw, int what, rng *g, pm_scratch *sc) {
+static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth, rgb beta,
+                        double cw, int what, rng *g, mapper_scratch *sc) {
     rgb L = v3s(0);
     for (;; depth++) {
         hit h;
@@ -403,9 +403,9 @@ static rgb eye_radiance(const pm_state *st, const scene *s, ray r, int depth, rg
  * pixel integral is the same sum of two parts, each estimated without bias, but the bright
  * edges of a light, where the coverage of a pixel is what varies, get m^2 times the camera
  * rays for the price of a few ray casts instead of m^2 full shading samples. */
-static rgb pm_li(const integrator *self, const scene *s, ray r, rng *g, const sample_id *id,
+static rgb mapper_li(const integrator *self, const scene *s, ray r, rng *g, const sample_id *id,
                  void *scratch) {
-    const pm_state *st = self->data;
+    const mapper_state *st = self->data;
     int m = st->cfg.emission_strata;
     if (m <= 0 || !id || id->strata <= 0)
         return eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_ALL, g, scratch);
@@ -424,26 +424,26 @@ static rgb pm_li(const integrator *self, const scene *s, ray r, rng *g, const sa
     return v3_add(L, v3_scale(E, 1.0 / (m * m)));
 }
 
-static void *pm_thread_begin(const integrator *self) {
-    const pm_state *st = self->data;
-    pm_scratch *sc = malloc(sizeof *sc);
+static void *mapper_thread_begin(const integrator *self) {
+    const mapper_state *st = self->data;
+    mapper_scratch *sc = malloc(sizeof *sc);
     if (!sc) return NULL;
     sc->est = malloc(pm_estimate_scratch_bytes(st->kmax));
     sc->nb = malloc((size_t)st->cfg.k_shadow * sizeof *sc->nb);
     return sc;
 }
 
-static void pm_thread_end(const integrator *self, void *scratch) {
+static void mapper_thread_end(const integrator *self, void *scratch) {
     (void)self;
-    pm_scratch *sc = scratch;
+    mapper_scratch *sc = scratch;
     if (!sc) return;
     free(sc->est);
     free(sc->nb);
     free(sc);
 }
 
-static void pm_destroy(integrator *self) {
-    pm_state *st = self->data;
+static void mapper_destroy(integrator *self) {
+    mapper_state *st = self->data;
     if (!st) return;
     pm_irradiance_free(st->irr);
     pm_kdtree_free(st->ti);
@@ -451,7 +451,7 @@ static void pm_destroy(integrator *self) {
     pm_kdtree_free(st->tg);
     pm_kdtree_free(st->tc);
     pm_kdtree_free(st->ts);
-    pm_maps_free(&st->maps);
+    photon_maps_free(&st->maps);
     free(st);
 }
 
@@ -459,11 +459,11 @@ static void pm_destroy(integrator *self) {
 
 enum { BUCKET_GLOBAL = 1, BUCKET_CAUSTIC = 8, BUCKET_SHADOW = 8 };
 
-static int pm_preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
-    pm_state *st = self->data;
+static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
+    mapper_state *st = self->data;
     plan_print(&st->plan, stdout);
     fflush(stdout);
-    pm_maps *m = &st->maps;
+    photon_maps *m = &st->maps;
     int rc;
     double t0 = stats_now();
     if (st->cfg.load_dir[0]) {
@@ -563,13 +563,13 @@ static int pm_preprocess(integrator *self, const scene *s, char *err, size_t err
 }
 
 static int create_common(integrator *it, const scene *s, int preview, char *err, size_t errcap) {
-    pm_state *st = calloc(1, sizeof *st);
+    mapper_state *st = calloc(1, sizeof *st);
     if (!st) {
         snprintf(err, errcap, "out of memory");
         return PM_ENOMEM;
     }
     json_err e;
-    int rc = pm_config_parse(&st->cfg, s->photon_mapping, &e);
+    int rc = photon_settings_parse(&st->cfg, s->photon_mapping, &e);
     if (rc < 0) {
         snprintf(err, errcap, "%s", e.msg);
         free(st);
@@ -594,21 +594,21 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
     st->st_global_est = stats_register("Photon mapping/Global-map estimates (direct view)");
     st->st_emission_rays = stats_register("Photon mapping/Emission-only camera rays");
     it->data = st;
-    it->preprocess = pm_preprocess;
-    it->thread_begin = pm_thread_begin;
-    it->thread_end = pm_thread_end;
-    it->li = pm_li;
-    it->destroy = pm_destroy;
+    it->preprocess = mapper_preprocess;
+    it->thread_begin = mapper_thread_begin;
+    it->thread_end = mapper_thread_end;
+    it->li = mapper_li;
+    it->destroy = mapper_destroy;
     return 0;
 }
 
-static int pm_create(integrator *it, const scene *s, char *err, size_t errcap) {
+static int mapper_create(integrator *it, const scene *s, char *err, size_t errcap) {
     return create_common(it, s, 0, err, errcap);
 }
 static int preview_create(integrator *it, const scene *s, char *err, size_t errcap) {
     return create_common(it, s, 1, err, errcap);
 }
 
-INTEGRATOR_REGISTER(pm, "pm", "photon mapping: direct + caustic map + final gathering (Jensen)", pm_create)
+INTEGRATOR_REGISTER(pm, "pm", "photon mapping: direct + caustic map + final gathering (Jensen)", mapper_create)
 INTEGRATOR_REGISTER(preview, "preview", "photon mapping, fast preview: the global map shown directly",
                     preview_create)

@@ -11,7 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common.h"
+#include "photonmap/common.h"
 #include "rng.h"
 #include "sampling.h"
 
@@ -199,7 +199,7 @@ static void force(plan_item *it, int f, const char *key) {
     snprintf(it->reason, sizeof it->reason, "forced by photon_mapping.%s", key);
 }
 
-void plan_make(const scene *s, const pm_config *c, int preview, render_plan *p) {
+void plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p) {
     memset(p, 0, sizeof *p);
     plan_caustics(s, p);
     plan_global(s, p);

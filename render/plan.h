@@ -44,7 +44,7 @@ typedef struct render_plan {
 } render_plan;
 
 /* Decide the plan for scene s under config c; preview = 1 turns final gathering off. */
-void plan_make(const scene *s, const pm_config *c, int preview, render_plan *p);
+void plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p);
 /* "caustics: off (no specular surface reachable from a light)" and so on, one per line. */
 void plan_print(const render_plan *p, FILE *f);
 

@@ -11,7 +11,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common.h"
+#include "photonmap/common.h"
 #include "material.h"
 #include "sampling.h"
 

@@ -9,7 +9,7 @@
 
 #include <stdlib.h>
 
-#include "common.h"
+#include "photonmap/common.h"
 
 void sample_concentric_disc(double u1, double u2, double *x, double *y) {
     double a = 2.0 * u1 - 1.0, b = 2.0 * u2 - 1.0, r, phi;

@@ -9,7 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common.h"
+#include "photonmap/common.h"
 #include "stats.h"
 
 /* Bounds, area lights, light powers and the BVH. */

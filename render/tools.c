@@ -15,7 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "common.h"
+#include "photonmap/common.h"
 #include "compare.h"
 #include "film.h"
 

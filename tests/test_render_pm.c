@@ -184,8 +184,8 @@ TEST(render_pm_plan_shipped_scenes) {
         int rc = load_shipped(&s, name, &e);
         EXPECT_MSG(rc == 0, "%s: %s", name, e.msg);
         if (rc != 0) continue;
-        pm_config c;
-        rc = pm_config_parse(&c, s.photon_mapping, &e);
+        photon_settings c;
+        rc = photon_settings_parse(&c, s.photon_mapping, &e);
         EXPECT_MSG(rc == 0, "%s: %s", name, e.msg);
         render_plan p, p2, pv;
         plan_make(&s, &c, 0, &p);
@@ -283,8 +283,8 @@ TEST(render_pm_plan_physics_cases) {
         int rc = scene_load_text(&s, pc->json, &e);
         EXPECT_MSG(rc == 0, "%s: %s", pc->name, e.msg);
         if (rc != 0) continue;
-        pm_config c;
-        pm_config_defaults(&c);
+        photon_settings c;
+        photon_settings_defaults(&c);
         render_plan p;
         plan_make(&s, &c, 0, &p);
         check_item(pc->name, "caustics", &p.caustics, pc->caustics, "");
@@ -316,8 +316,8 @@ TEST(render_pm_plan_forced) {
     int rc = scene_from_json(&s, root, &e);
     cJSON_Delete(root);
     ASSERT_MSG(rc == 0, "%s", e.msg);
-    pm_config c;
-    ASSERT_MSG(pm_config_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
+    photon_settings c;
+    ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
     render_plan p;
     plan_make(&s, &c, 0, &p);
     EXPECT(p.caustics.on);
@@ -335,7 +335,7 @@ TEST(render_pm_plan_forced) {
     char err[256];
     ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "caustics=false", err, sizeof err), 0);
     ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "global_photons=5000", err, sizeof err), 0);
-    ASSERT_MSG(pm_config_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
+    ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
     EXPECT_EQ_INT(c.global_photons, 5000);
     EXPECT_EQ_INT(c.force_caustics, PLAN_OFF);
     EXPECT_EQ_INT(c.force_global, PLAN_AUTO);
@@ -346,7 +346,7 @@ TEST(render_pm_plan_forced) {
     /* A later flag replaces the earlier one; global off takes final gathering with it. */
     ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "caustics=true", err, sizeof err), 0);
     ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "global=false", err, sizeof err), 0);
-    ASSERT_MSG(pm_config_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
+    ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
     plan_make(&s, &c, 0, &p);
     EXPECT(p.caustics.on && strstr(p.caustics.reason, "forced"));
     EXPECT(!p.global.on && strcmp(p.global.reason, "forced by photon_mapping.global") == 0);
@@ -356,14 +356,14 @@ TEST(render_pm_plan_forced) {
     EXPECT(plan_cli_set(&s.photon_mapping, "--pm", "caustics", err, sizeof err) == PM_EINVAL);
     EXPECT_MSG(strstr(err, "expected KEY=VALUE"), "%s", err);
     ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "shadow=maybe", err, sizeof err), 0);
-    EXPECT(pm_config_parse(&c, s.photon_mapping, &e) < 0);
+    EXPECT(photon_settings_parse(&c, s.photon_mapping, &e) < 0);
     EXPECT_MSG(strstr(e.msg, "$.photon_mapping.shadow: expected true or false"), "%s", e.msg);
     scene_free(&s);
 }
 
 /* ---- 2. thread independence ------------------------------------------------------------ */
 
-static int trace_spheres(const scene *s, int threads, uint64_t seed, long target, pm_maps *m) {
+static int trace_spheres(const scene *s, int threads, uint64_t seed, long target, photon_maps *m) {
     trace_opts o;
     trace_opts_init(&o, s);
     o.global = o.caustic = o.shadow = 1;
@@ -403,7 +403,7 @@ TEST(render_pm_maps_thread_independent) {
     scene s;
     json_err e;
     ASSERT_MSG(load_shipped(&s, "cornell_spheres", &e) == 0, "%s", e.msg);
-    pm_maps m1, m2, m3;
+    photon_maps m1, m2, m3;
     int st_first = stats_register("Photons/Caustic-pass photons whose first hit is specular");
     uint64_t first0 = stats_total(st_first);
     ASSERT_EQ_INT(trace_spheres(&s, 1, 3, target, &m1), 0);
@@ -428,9 +428,9 @@ TEST(render_pm_maps_thread_independent) {
     size_t n = m1.nglobal < m3.nglobal ? m1.nglobal : m3.nglobal;
     EXPECT_MSG(memcmp(m1.global, m3.global, n * sizeof(pm_photon)) != 0,
                "seeds 3 and 4 gave the same global map");
-    pm_maps_free(&m1);
-    pm_maps_free(&m2);
-    pm_maps_free(&m3);
+    photon_maps_free(&m1);
+    photon_maps_free(&m2);
+    photon_maps_free(&m3);
     scene_free(&s);
 }
 
@@ -475,7 +475,7 @@ TEST(render_pm_energy_closed_box) {
     o.global = 1;
     o.global_target = target;
     o.quiet = 1;
-    pm_maps m;
+    photon_maps m;
     char err[256];
     ASSERT_MSG(photon_trace(&s, &o, &m, err, sizeof err) == 0, "%s", err);
     ASSERT(!m.global_runaway && (long)m.nglobal >= target);
@@ -527,7 +527,7 @@ TEST(render_pm_energy_closed_box) {
                    4 * se, quant, 0.01 * expect);
         EXPECT_REL(total[c], expect, 0.01);
     }
-    pm_maps_free(&m);
+    photon_maps_free(&m);
     scene_free(&s);
 }
 
@@ -565,7 +565,7 @@ TEST(render_pm_runaway_trace) {
     o.quiet = 1;
     const uint64_t limit = (uint64_t)(o.max_emitted_factor * 1000);
     const uint64_t want = (limit + PT_BATCH - 1) / PT_BATCH * PT_BATCH;
-    pm_maps m;
+    photon_maps m;
     char err[256], msgs[1024];
     snprintf(msgs, sizeof msgs, "%s/stderr.txt", pm_test_tmpdir());
     int saved = stderr_to(msgs);
@@ -588,7 +588,7 @@ TEST(render_pm_runaway_trace) {
     EXPECT_EQ_INT(m.ncaustic, 0);
     EXPECT_EQ_INT(m.nshadow, 0);
     EXPECT_EQ_INT(m.caustic_first_specular, 0);
-    pm_maps_free(&m);
+    photon_maps_free(&m);
 
     o.projection = 1;
     saved = stderr_to(msgs);
@@ -602,7 +602,7 @@ TEST(render_pm_runaway_trace) {
     EXPECT(m.caustic_fraction == 0);
     EXPECT_EQ_INT(m.global_runaway, 1);
     EXPECT_EQ_INT(m.nglobal, 0);
-    pm_maps_free(&m);
+    photon_maps_free(&m);
     unsigned char cells[16 * 16];
     EXPECT_EQ_INT(projmap_cells(&s, 0, 16, cells), 0);
     scene_free(&s);
@@ -753,7 +753,7 @@ TEST(render_pm_save_load_round_trip) {
     o.caustic_target = 2000;
     o.seed = 7;
     o.quiet = 1;
-    pm_maps m;
+    photon_maps m;
     char err[256];
     ASSERT_MSG(photon_trace(&s, &o, &m, err, sizeof err) == 0, "%s", err);
     scene_free(&s);
@@ -775,7 +775,7 @@ TEST(render_pm_save_load_round_trip) {
     EXPECT_MSG(strstr(out, "Loaded photon maps from") && strstr(out, want), "expected \"%s\" in %s",
                want, out);
     EXPECT_MSG(!strstr(out, "\nPhotons: "), "photons were traced, not loaded: %s", out);
-    pm_maps_free(&m);
+    photon_maps_free(&m);
     snprintf(extra, sizeof extra, "--seed 7 --hdr '%s' --load-photons '%s'", c, dir);
     rc = render_tiny("cornell_spheres", extra, out, sizeof out);
     ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
