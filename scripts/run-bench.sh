@@ -42,7 +42,7 @@ log() { echo "run-bench: [$(( $(date +%s) - start ))s] $*" >&2; }
   echo "flags,$(echo "${PM_BENCH_CFLAGS:-see Makefile (run-bench.sh run directly)}" | tr ',' ' ' | sed 's/  */ /g; s/ *$//')"
   echo "flann,$(dpkg-query -W -f='${Version}' libflann-dev 2>/dev/null || echo unknown)"
   echo "date,$(date -u '+%Y-%m-%d %H:%M UTC')"
-  echo "commit,$(git rev-parse --short HEAD 2>/dev/null || echo unknown)"
+  echo "commit,$(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet HEAD -- photonmap bench 2>/dev/null || echo ' plus uncommitted changes in photonmap/ or bench/')"
   echo "mode,$MODE"
   echo "load_before,$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo '?')"
 } > "$OUT/machine.csv"
@@ -78,6 +78,32 @@ fi
 log "search benchmark ($MODE)"
 # shellcheck disable=SC2086
 "$BUILD/bench_search" $QFLAG --out "$OUT" $MAPARG
+
+# The workload race (bench_knn): clustered, slab and planar-caustic points it generates, plus
+# the global photon maps of two shipped scenes at each N, dumped by the renderer as above.
+# The quick run reuses the small map above.
+KNNMAPS=
+if [ -x "$BUILD/render" ] && [ -z "${PM_BENCH_MAP:-}" ]; then
+  if [ "$MODE" = full ]; then
+    for scene in cornell_spheres sun_spheres; do
+      for np in 1000000 4000000; do
+        d="$OUT/map.tmp/$scene.$np"
+        mkdir -p "$d"
+        log "photon map: render --mode preview data/scenes/$scene.json, $np global photons"
+        "$BUILD/render" "data/scenes/$scene.json" --mode preview --quiet --width 16 --height 16 \
+          --spp 1 --seed 1 --pm global_photons=$np --pm caustics=false --pm shadow=false \
+          --save-photons "$d" -o "$d/preview.png" > "$d.log" 2>&1 || { cat "$d.log" >&2; exit 1; }
+        KNNMAPS="$KNNMAPS --map $scene=$d/global.pmap"
+      done
+    done
+    echo "knn_maps,render --mode preview data/scenes/{cornell_spheres;sun_spheres}.json --pm global_photons={1000000;4000000} --seed 1" >> "$OUT/machine.csv"
+  elif [ -n "$MAP" ] && [ "$MAP" != none ]; then
+    KNNMAPS="--map cornell_spheres=$MAP"
+  fi
+fi
+log "k-NN workload race ($MODE)"
+# shellcheck disable=SC2086
+"$BUILD/bench_knn" $QFLAG --out "$OUT" $KNNMAPS
 rm -rf "$OUT/map.tmp" "$OUT/map.tmp.log"
 
 if [ -x "$BUILD/bench_estimate" ]; then
@@ -133,4 +159,17 @@ fi
 log "document -> $DOCS/BENCHMARKS.md"
 sh scripts/gen-benchmarks-md.sh "$OUT" "$IMGREL" > "$DOCS/BENCHMARKS.md.tmp"
 mv "$DOCS/BENCHMARKS.md.tmp" "$DOCS/BENCHMARKS.md"
+# The README's `bench/` bullet carries the headline of this run (full run only): the lines
+# from "- `bench/`" to the next bullet are replaced by the generated ones.
+if [ "$MODE" = full ] && [ -f "$OUT/knn_best.csv" ] && [ -f README.md ]; then
+  log "README.md headline"
+  sh scripts/gen-benchmarks-md.sh --readme-headline "$OUT" > README.md.headline.tmp
+  awk -v H=README.md.headline.tmp '
+    /^- `bench\/`/ { while ((getline l < H) > 0) print l; skip = 1; next }
+    skip && /^- / { skip = 0 }
+    skip && /^[^ ]/ { skip = 0 }
+    !skip { print }' README.md > README.md.tmp
+  rm -f README.md.headline.tmp
+  mv README.md.tmp README.md
+fi
 log "done"
