@@ -203,6 +203,42 @@ TEST(bench_quick_run_writes_checked_csvs) {
     csv_free(&q);
     csv_free(&b);
     csv_free(&h);
+
+    /* The workload race: every configuration exact on its verified queries; one summary row
+     * per workload, query set and mode at k = 50; the kd-tree within 20 bytes per photon. */
+    if (PM_TEST_SANITIZED) {
+        snprintf(cmd, sizeof cmd, "%s/bench_knn --quick --n 3000 --out %s", build, dir);
+        rc = pm_test_run(cmd, out, sizeof out);
+        ASSERT_MSG(rc == 0, "bench_knn failed (%d): %s", rc, out);
+    }
+    csv kq, kb, kd;
+    snprintf(path, sizeof path, "%s/knn.csv", dir);
+    ASSERT_EQ_INT(csv_load(&kq, path), 0);
+    snprintf(path, sizeof path, "%s/knn_best.csv", dir);
+    ASSERT_EQ_INT(csv_load(&kb, path), 0);
+    snprintf(path, sizeof path, "%s/knn_build.csv", dir);
+    ASSERT_EQ_INT(csv_load(&kd, path), 0);
+    static const char *wl[] = {"cluster", "slab", "caustic", "map:cornell_spheres"};
+    for (int w = 0; w < (PM_TEST_SANITIZED ? 3 : 4); w++)
+        for (int qs = 0; qs < 2; qs++)
+            EXPECT_MSG(count_rows(&kb, "workload", wl[w], "queries", qs ? "empty" : "near", "k",
+                                  "50") == 2,
+                       "knn_best.csv: %s %s", wl[w], qs ? "empty" : "near");
+    for (int r = 1; r < kq.nrows; r++) {
+        EXPECT_MSG(atof(at(&kq, r, "exact_frac")) == 1.0, "knn.csv row %d: %s %s %s exact %s", r,
+                   at(&kq, r, "workload"), at(&kq, r, "index"), at(&kq, r, "variant"),
+                   at(&kq, r, "exact_frac"));
+        EXPECT(atoi(at(&kq, r, "verified")) > 0 && atof(at(&kq, r, "qps")) > 0);
+    }
+    EXPECT(kq.nrows > 1 && kb.nrows > 1);
+    for (int r = 1; r < kd.nrows; r++)
+        if (!strcmp(at(&kd, r, "index"), "kdtree")) {
+            double bpp = atof(at(&kd, r, "bytes_per_photon"));
+            EXPECT_MSG(bpp >= 20.0 && bpp < 20.1, "kd-tree bytes/photon %g", bpp);
+        }
+    csv_free(&kq);
+    csv_free(&kb);
+    csv_free(&kd);
 }
 
 /* Oracle: brute force inside the bench, on a synthetic map file written with pm_map_save
@@ -287,8 +323,8 @@ TEST(bench_estimate_writes_errors) {
  * exit with status 2 and a message naming the option, before any output is written (the
  * --out directory does not exist, so a program that ran would fail differently). */
 TEST(bench_programs_have_help) {
-    static const char *progs[] = {"bench_search", "bench_estimate"};
-    for (int i = 0; i < 2; i++) {
+    static const char *progs[] = {"bench_search", "bench_estimate", "bench_knn"};
+    for (int i = 0; i < 3; i++) {
         char cmd[2048], out[8192], bin[1024];
         snprintf(bin, sizeof bin, "%s/%s", pm_test_build_dir(), progs[i]);
         FILE *f = fopen(bin, "rb");
