@@ -1,5 +1,6 @@
-/* irradiance.h: precomputed irradiance (Christensen, "Faster photon map global illumination")
- * and the combination of several independent photon maps.
+/* irradiance.h: precomputed irradiance (Christensen, "Faster photon map global illumination").
+ * (The combination of several photon maps, declared here before, is in combined.h, which this
+ * header still includes so that code written against it keeps compiling.)
  *
  * PRECOMPUTED IRRADIANCE. pm_irradiance_build takes a built pm_kdtree over pm_photon records
  * and computes, at a chosen set of photons, the irradiance E (or, given a diffuse reflectance
@@ -40,17 +41,6 @@
  * low). The stored 1-byte normal is up to about 10 degrees off (photon.h), so give the exact
  * normals in opt.normals (3 floats per photon, in the map's tree order: reorder with the perm
  * of pm_kdtree_build) whenever squash > 1; without them the quantized normal is used.
- *
- * COMBINED MAPS. M independent maps of one scene (say, built by M threads or machines, each
- * emitting 1/M of the photons, with photon powers scaled for the total emission, so that the
- * union of the maps is an ordinary map). A lookup gathers k/M photons in each map m, with
- * power sum P_m and radius^2 r_m^2, and combines them as
- *     E = (M / pi) * sum_m P_m / sum_m r_m^2,
- * the density of all the photons over the mean disc, which behaves like one map's estimate
- * with k photons. The naive alternative, the sum of the M per-map estimates P_m/(pi r_m^2), is
- * returned beside it for comparison: it averages M noisier ratios and has a higher variance.
- * The per-map bias rule is that of the disc estimate (estimate.h). pm_combine_* are the core
- * (on neighbour lists), pm_estimate_combined the wrapper over M trees.
  *
  * THREADS. A built pm_irradiance is read-only: lookups never allocate or lock and may run on
  * any number of threads. pm_irradiance_build allocates (the caller frees with
@@ -105,33 +95,10 @@ int pm_irradiance_value(const pm_irradiance *irr, uint32_t i, float rgb[3]);
 int pm_irradiance_lookup(const pm_irradiance *irr, const float x[3], const float n[3],
                          float max_dist2, float cos_min, float rgb[3], pm_query_stats *stats);
 
-/* Combined maps, core: zero the accumulator, add each map's neighbour list, finish. */
-typedef struct pm_combine_acc {
-    double power[3];     /* sum over maps of P_m (per channel) */
-    double r2_sum;       /* sum over maps of r_m^2 */
-    double naive[3];     /* sum over maps of P_m / (pi r_m^2) */
-    unsigned maps;       /* maps added */
-    unsigned flags;      /* PM_EST_F_* seen in any map */
-} pm_combine_acc;
-void pm_combine_init(pm_combine_acc *acc);
-/* Add one map: nb[0..count) found with k_per_map requested and max_dist2 (for the radius
- * rule), at point x; bias is a PM_BIAS_*. Irradiance only (multiply by a BRDF afterwards). */
-int pm_combine_add(pm_combine_acc *acc, const pm_photon *photons, const pm_neighbor *nb,
-                   unsigned count, unsigned k_per_map, float max_dist2, int bias,
-                   const float x[3]);
-/* combined = (M/pi) sum P_m / sum r_m^2, naive = sum P_m/(pi r_m^2), M = maps added; either
- * output may be NULL. Always finite and non-negative. */
-void pm_combine_finish(const pm_combine_acc *acc, double combined[3], double naive[3]);
-
-/* Wrapper: k total photons, k/M (at least 1) from each of trees[0..M) (pm_photon records),
- * with the search options of opt (max_dist2, bias, squash, reject_behind; kind, BRDF and the
- * rest are ignored). scratch: ceil(k/M) * 8 bytes. */
-int pm_estimate_combined(const pm_kdtree *const *trees, unsigned M, const float x[3],
-                         const float n[3], const pm_estimate_options *opt, void *scratch,
-                         double combined[3], double naive[3], pm_query_stats *stats);
-
 #ifdef __cplusplus
 }
 #endif
+
+#include "combined.h"
 
 #endif /* PM_IRRADIANCE_H */

@@ -4,12 +4,13 @@
  * ("A Practical Guide to Global Illumination using Photon Maps") and Christensen's notes
  * ("Faster photon map global illumination", "iteration instead of recursion"):
  *
- *   photon.h    the 20-byte photon record (RGBE power, 2-byte direction, 1-byte normal),
- *               and the photon-map file format
+ *   photon.h    the 20-byte photon record (RGBE power, 2-byte direction, 1-byte normal)
+ *   mapfile.h   the photon-map file (save and load)
  *   kdtree.h    a left-balanced kd-tree stored as an implicit heap over any records that
  *               carry a float[3] position; k-nearest, radius and predicate queries
  *   estimate.h  radiance estimates (disc, cone, Gaussian, differential, convex hull, volume)
- *   irradiance.h precomputed irradiance and the combination of several maps
+ *   irradiance.h precomputed irradiance and its normal-checked lookup
+ *   combined.h  one estimate from several maps of the same scene
  *
  * Conventions used everywhere:
  *   - public names start with pm_ (macros PM_); names with pm__ are internal.
@@ -28,8 +29,10 @@
 
 #include "common.h"
 #include "photon.h"
+#include "mapfile.h"
 #include "kdtree.h"
 #include "estimate.h"
 #include "irradiance.h"
+#include "combined.h"
 
 #endif /* PM_PHOTONMAP_H */

@@ -239,68 +239,80 @@ TEST(irradiance_lookup_normal_and_cutoff) {
     free(ph);
 }
 
-/* Combined maps. M = 4 independent jittered 100 x 100 grids, each photon with the power of a
- * photon of their union (which is one map of 40,000). Oracles:
- *  (a) the single map of all photons with k = 100: the combined estimate (25 per map) agrees
- *      with it: both means within 0.5% of the analytic irradiance (the bound of the square
- *      test) and their mean paired difference below 0.3% (their small biases differ; measured
- *      about 0.1%);
- *  (b) over the same lookups with k = 16 (4 per map), the naive sum of per-map estimates has a
- *      variance at least 1.3 times that of the combined formula (Poisson theory: 1/(k-2M) vs
- *      1/(k-2), i.e. 1.75 times; measured about 1.5). The combined mean stays within 1% of the
- *      truth; the naive one is biased high (4-photon ratios; measured about +7%). */
+/* Combined maps from M = 4 independent maps of 10,000 photons each, every photon with the power
+ * of a photon of their union (one map of 40,000). Oracles:
+ *  (a) Poisson maps (uniform random positions), k = 100 (25 per map): the single map of all
+ *      photons with k = 100 (same distribution, combined.h): mean paired difference within 3
+ *      standard errors + 0.1%; the combined mean within 0.5% of the analytic irradiance times
+ *      (k - 1/2)/(k - 1), the disc's expectation on Poisson photons (estimate.h);
+ *  (b) Poisson maps, k = 16 (4 per map): the naive sum of per-map estimates has a variance at
+ *      least 1.3 times that of the combined formula (Poisson theory: ratios of Gamma(4) and
+ *      Gamma(16) variables, about 1.8 times) and reads higher;
+ *  (c) jittered (stratified) maps, k = 100: each map's own k-th radius is then nearly fixed,
+ *      pi lambda_m r_m^2 ~ km - 1/2, so the combined estimate reads high against the single
+ *      map by (M - 1)/(2k - M) (combined.h); checked within 0.5%. */
 TEST(irradiance_combined_maps) {
     enum { M = 4, S = 100 };
     const unsigned lookups = PM_TEST_SANITIZED ? 1000 : 4000;
     const float P = 0x1p-15f;
     pm_photon *maps[M], *all = malloc(sizeof *all * M * S * S);
-    pm_kdtree *trees[M], *one = NULL;
-    pm_kdtree_config cfg = pm_kdtree_photon_config(1);
-    size_t na = 0;
-    for (int m = 0; m < M; m++) {
-        size_t n = 0;
-        maps[m] = malloc(sizeof(pm_photon) * S * S);
-        add_grid(maps[m], &n, S, 0, 1, P, 0, 100 + (uint64_t)m);
-        memcpy(all + na, maps[m], n * sizeof *all);
-        na += n;
-        ASSERT_EQ_INT(pm_kdtree_build(&trees[m], maps[m], n, &cfg, NULL), PM_OK);
-    }
-    ASSERT_EQ_INT(pm_kdtree_build(&one, all, na, &cfg, NULL), PM_OK);
-    float dec[3];
-    pm_rgbe_decode(all[0].power, dec);
-    const double truth = (double)na * dec[0];
     void *scratch = malloc(pm_estimate_scratch_bytes(100));
-    rng_t r = {77};
-    stats diff = {0, 0, 0}, comb = {0, 0, 0}, single = {0, 0, 0}, c16 = {0, 0, 0}, n16 = {0, 0, 0};
-    for (unsigned l = 0; l < lookups; l++) {
-        float q[3] = {(float)(0.1 + 0.8 * rng_unit(&r)), (float)(0.1 + 0.8 * rng_unit(&r)), 0};
-        pm_estimate_options o;
-        pm_estimate_result res;
-        double c[3], nv[3];
-        pm_estimate_options_init(&o, PM_EST_DISC, 100);
-        ASSERT_EQ_INT(pm_estimate((const pm_kdtree *)one, q, UP, &o, scratch, &res, NULL), PM_OK);
-        ASSERT_EQ_INT(pm_estimate_combined((const pm_kdtree *const *)trees, M, q, UP, &o, scratch, c, nv, NULL), PM_OK);
-        st_add(&diff, (c[0] - res.rgb[0]) / truth);
-        st_add(&comb, c[0] / truth - 1);
-        st_add(&single, res.rgb[0] / truth - 1);
-        o.k = 16;
-        ASSERT_EQ_INT(pm_estimate_combined((const pm_kdtree *const *)trees, M, q, UP, &o, scratch, c, nv, NULL), PM_OK);
-        st_add(&c16, c[0] / truth - 1);
-        st_add(&n16, nv[0] / truth - 1);
+    for (int strat = 0; strat < 2; strat++) {
+        pm_kdtree *trees[M], *one = NULL;
+        pm_kdtree_config cfg = pm_kdtree_photon_config(1);
+        size_t na = 0;
+        rng_t pr = {500};
+        for (int m = 0; m < M; m++) {
+            size_t n = 0;
+            maps[m] = malloc(sizeof(pm_photon) * S * S);
+            if (strat) add_grid(maps[m], &n, S, 0, 1, P, 0, 100 + (uint64_t)m);
+            else
+                for (; n < S * S; n++) {
+                    float pos[3] = {(float)rng_unit(&pr), (float)rng_unit(&pr), 0};
+                    pm_photon_init(&maps[m][n], pos, (float[3]){P, P, P}, DOWN, UP, PM_KIND_DIRECT);
+                }
+            memcpy(all + na, maps[m], n * sizeof *all);
+            na += n;
+            ASSERT_EQ_INT(pm_kdtree_build(&trees[m], maps[m], n, &cfg, NULL), PM_OK);
+        }
+        ASSERT_EQ_INT(pm_kdtree_build(&one, all, na, &cfg, NULL), PM_OK);
+        float dec[3];
+        pm_rgbe_decode(all[0].power, dec);
+        const double truth = (double)na * dec[0];
+        rng_t r = {77};
+        stats diff = {0, 0, 0}, comb = {0, 0, 0}, c16 = {0, 0, 0}, n16 = {0, 0, 0};
+        for (unsigned l = 0; l < lookups; l++) {
+            float q[3] = {(float)(0.1 + 0.8 * rng_unit(&r)), (float)(0.1 + 0.8 * rng_unit(&r)), 0};
+            pm_estimate_options o;
+            pm_estimate_result res;
+            double c[3], nv[3];
+            pm_estimate_options_init(&o, PM_EST_DISC, 100);
+            ASSERT_EQ_INT(pm_estimate(one, q, UP, &o, scratch, &res, NULL), PM_OK);
+            ASSERT_EQ_INT(pm_estimate_combined((const pm_kdtree *const *)trees, M, q, UP, &o, scratch, c, nv, NULL), PM_OK);
+            st_add(&diff, c[0] / res.rgb[0] - 1);
+            st_add(&comb, c[0] / truth - 1);
+            o.k = 16;
+            ASSERT_EQ_INT(pm_estimate_combined((const pm_kdtree *const *)trees, M, q, UP, &o, scratch, c, nv, NULL), PM_OK);
+            st_add(&c16, c[0] / truth - 1);
+            st_add(&n16, nv[0] / truth - 1);
+        }
+        double se = sqrt(st_var(&diff) / diff.n);
+        printf("%s maps, combined k=100: mean %+.3f%% vs truth, paired diff from the single map %+.3f%% (se %.3f%%)\n",
+               strat ? "jittered" : "Poisson", 100 * st_mean(&comb), 100 * st_mean(&diff), 100 * se);
+        if (!strat) {
+            printf("k=16, M=4: combined mean %+.2f%% var %.5f, naive mean %+.2f%% var %.5f (ratio %.2f)\n",
+                   100 * st_mean(&c16), st_var(&c16), 100 * st_mean(&n16), st_var(&n16), st_var(&n16) / st_var(&c16));
+            EXPECT_MSG(fabs(st_mean(&diff)) <= 3 * se + 0.001, "combined vs single: %+.3f%% (se %.3f%%)", 100 * st_mean(&diff), 100 * se);
+            EXPECT_MSG(fabs((1 + st_mean(&comb)) / (99.5 / 99.0) - 1) <= 0.005, "combined mean %+.3f%%", 100 * st_mean(&comb));
+            EXPECT_MSG(st_var(&n16) >= 1.3 * st_var(&c16), "variance naive %.5f vs combined %.5f", st_var(&n16), st_var(&c16));
+            EXPECT_MSG(st_mean(&n16) > st_mean(&c16), "naive k=16 mean %+.2f%%", 100 * st_mean(&n16));
+        } else {
+            double want = (M - 1.0) / (2.0 * 100 - M);
+            EXPECT_MSG(fabs(st_mean(&diff) - want) <= 0.005, "jittered: combined vs single %+.3f%%, want %+.3f%%", 100 * st_mean(&diff), 100 * want);
+        }
+        for (int m = 0; m < M; m++) pm_kdtree_free(trees[m]), free(maps[m]);
+        pm_kdtree_free(one);
     }
-    double se = sqrt(st_var(&diff) / diff.n);
-    printf("combined k=100: mean %+.3f%%, single map %+.3f%%, paired diff %+.3f%% (se %.3f%%)\n",
-           100 * st_mean(&comb), 100 * st_mean(&single), 100 * st_mean(&diff), 100 * se);
-    printf("k=16, M=4: combined mean %+.2f%% var %.5f, naive mean %+.2f%% var %.5f (ratio %.2f)\n",
-           100 * st_mean(&c16), st_var(&c16), 100 * st_mean(&n16), st_var(&n16), st_var(&n16) / st_var(&c16));
-    EXPECT_MSG(fabs(st_mean(&diff)) <= 0.003, "combined vs single: %+.3f%% (se %.3f%%)", 100 * st_mean(&diff), 100 * se);
-    EXPECT_MSG(fabs(st_mean(&comb)) <= 0.005, "combined mean %+.3f%%", 100 * st_mean(&comb));
-    EXPECT_MSG(fabs(st_mean(&single)) <= 0.005, "single mean %+.3f%%", 100 * st_mean(&single));
-    EXPECT_MSG(st_var(&n16) >= 1.3 * st_var(&c16), "variance naive %.5f vs combined %.5f", st_var(&n16), st_var(&c16));
-    EXPECT_MSG(fabs(st_mean(&c16)) <= 0.01, "combined k=16 mean %+.2f%%", 100 * st_mean(&c16));
-    EXPECT_MSG(st_mean(&n16) > st_mean(&c16), "naive k=16 mean %+.2f%%", 100 * st_mean(&n16));
-    for (int m = 0; m < M; m++) pm_kdtree_free(trees[m]), free(maps[m]);
-    pm_kdtree_free(one);
     free(all), free(scratch);
 }
 
@@ -324,7 +336,9 @@ TEST(irradiance_combine_degenerate) {
     }
     pm_combine_init(&acc);
     EXPECT_EQ_INT(pm_combine_add(&acc, ph, nb, 4, 4, INFINITY, PM_BIAS_AREA, x), PM_OK);
-    EXPECT_EQ_INT(pm_combine_add(&acc, ph, nb, 2, 4, 0.5f, PM_BIAS_HALF_FARTHEST, x), PM_OK);
+    EXPECT_EQ_INT(pm_combine_add(&acc, ph, nb, 2, 4, 0.5f, PM_BIAS_AREA, x), PM_OK);
+    /* one bias rule per estimate */
+    EXPECT_EQ_INT(pm_combine_add(&acc, ph, nb, 2, 4, 0.5f, PM_BIAS_HALF_FARTHEST, x), PM_EINVAL);
     pm_combine_finish(&acc, c, nv);
     for (int i = 0; i < 3; i++) EXPECT(isfinite(c[i]) && c[i] > 0 && isfinite(nv[i]) && nv[i] > 0);
     /* exact: one map of 2 unit photons that ran dry within r^2 = 0.5, one empty dry map:
@@ -501,4 +515,79 @@ TEST(irradiance_memory_measured) {
     }
     pm_kdtree_free(tree);
     free(ph);
+}
+
+/* Oracle: the single-map estimate with the same photons. One map of Poisson (uniform random)
+ * photons with random powers on the unit square is split at random into M maps (each photon
+ * goes to a map drawn uniformly); at random points well inside the square, the combined
+ * estimate with k = M * km photons (km per map) is compared with pm_estimate on the whole map
+ * with k photons, both with the default bias correction (PM_BIAS_AREA) and with
+ * PM_BIAS_HALF_FARTHEST. Under the Poisson model both have the same distribution (the
+ * derivation is in combined.h), so the ratio of their means over the points must be within 1%
+ * and within 3 standard errors of 1, for M = 4 and 16 and km = 4, 16 and 64. (The mean of the
+ * per-point ratios would not do: for two correlated noisy estimates E[c/s] exceeds E[c]/E[s]
+ * by about var(s)(1 - correlation), over 1% at k = 16.) */
+TEST(combined_random_split_matches_single_map) {
+    const size_t N = PM_TEST_SANITIZED ? 60000 : 200000;
+    const unsigned lookups = PM_TEST_SANITIZED ? 150 : 600; /* at 16 per map; 4x for 4 */
+    pm_photon *all = malloc(sizeof *all * N), *split[2];
+    rng_t r = {2024};
+    for (size_t i = 0; i < N; i++) {
+        float pos[3] = {(float)rng_unit(&r), (float)rng_unit(&r), 0};
+        float p = (float)(0x1p-17 * (0.5 + rng_unit(&r)));
+        pm_photon_init(&all[i], pos, (float[3]){p, p, p}, DOWN, UP, PM_KIND_DIRECT);
+    }
+    pm_kdtree *one = NULL;
+    pm_kdtree_config cfg = pm_kdtree_photon_config(1);
+    const unsigned Ms[2] = {4, 16}, kms[3] = {4, 16, 64};
+    pm_kdtree *trees[2][16];
+    unsigned char *to = malloc(N);
+    for (int mi = 0; mi < 2; mi++) {
+        unsigned M = Ms[mi];
+        size_t cnt[16] = {0}, start[16], fill[16], s0 = 0;
+        for (size_t i = 0; i < N; i++) to[i] = (unsigned char)(rng_u64(&r) % M), cnt[to[i]]++;
+        for (unsigned m = 0; m < M; s0 += cnt[m], m++) start[m] = fill[m] = s0;
+        split[mi] = malloc(sizeof *split[mi] * N);
+        for (size_t i = 0; i < N; i++) split[mi][fill[to[i]]++] = all[i];
+        for (unsigned m = 0; m < M; m++)
+            ASSERT_EQ_INT(pm_kdtree_build(&trees[mi][m], split[mi] + start[m], cnt[m], &cfg, NULL), PM_OK);
+    }
+    free(to);
+    ASSERT_EQ_INT(pm_kdtree_build(&one, all, N, &cfg, NULL), PM_OK);
+    void *scratch = malloc(pm_estimate_scratch_bytes(16 * 64));
+    for (int bias = PM_BIAS_AREA; bias <= PM_BIAS_HALF_FARTHEST; bias++)
+        for (int mi = 0; mi < 2; mi++)
+            for (int ki = 0; ki < 3; ki++) {
+                unsigned M = Ms[mi], k = M * kms[ki], nl = lookups * 16 / kms[ki];
+                double sc = 0, ss = 0, *cv = malloc(sizeof *cv * 2 * nl);
+                for (unsigned l = 0; l < nl; l++) {
+                    float q[3] = {(float)(0.2 + 0.6 * rng_unit(&r)), (float)(0.2 + 0.6 * rng_unit(&r)), 0};
+                    pm_estimate_options o;
+                    pm_estimate_result res;
+                    double c[3];
+                    pm_estimate_options_init(&o, PM_EST_DISC, k);
+                    o.bias = bias;
+                    ASSERT_EQ_INT(pm_estimate(one, q, UP, &o, scratch, &res, NULL), PM_OK);
+                    ASSERT_EQ_INT(pm_estimate_combined((const pm_kdtree *const *)trees[mi], M, q, UP, &o, scratch, c, NULL, NULL), PM_OK);
+                    cv[2 * l] = c[0], cv[2 * l + 1] = res.rgb[0];
+                    sc += c[0], ss += res.rgb[0];
+                }
+                /* the ratio of the means, and its standard error by linearisation */
+                double R = sc / ss, m = R - 1;
+                stats d = {0, 0, 0};
+                for (unsigned l = 0; l < nl; l++) st_add(&d, cv[2 * l] - R * cv[2 * l + 1]);
+                double se = sqrt(st_var(&d) / d.n) / (ss / nl);
+                free(cv);
+                printf("random split, %s, M = %2u, %2u per map: combined vs single map %+.3f%% (se %.3f%%)\n",
+                       bias == PM_BIAS_AREA ? "area" : "half-farthest", M, kms[ki], 100 * m, 100 * se);
+                EXPECT_MSG(fabs(m) <= 0.01 && fabs(m) <= 3 * se, "%s M=%u km=%u: %+.3f%% (se %.3f%%)",
+                           bias == PM_BIAS_AREA ? "area" : "half-farthest", M, kms[ki], 100 * m, 100 * se);
+            }
+    free(scratch);
+    for (int mi = 0; mi < 2; mi++) {
+        for (unsigned m = 0; m < Ms[mi]; m++) pm_kdtree_free(trees[mi][m]);
+        free(split[mi]);
+    }
+    pm_kdtree_free(one);
+    free(all);
 }

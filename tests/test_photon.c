@@ -15,7 +15,9 @@
 #include <dirent.h>
 #include <sys/stat.h>
 #include <sys/sysmacros.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
+#include <signal.h>
 #include <unistd.h>
 
 #include "photon.h"
@@ -584,5 +586,38 @@ TEST(map_file_load_checks_the_header_against_the_size) {
         fclose(f);
         EXPECT_MSG(pm_map_load(path, &q, &g) == PM_EFORMAT, "byte %d = %d", offs[i], vals[i]);
     }
+    free(p);
+}
+
+/* Oracle: the directory listing and the old file's bytes. A save that fails while writing
+ * (a child process limited to 4 KB files by RLIMIT_FSIZE, so write() fails with EFBIG) returns
+ * PM_EIO, leaves no temporary behind and leaves the existing file as it was. */
+TEST(map_file_failed_save_removes_its_temporary) {
+    const char *dir = pm_test_tmpdir();
+    char path[600];
+    snprintf(path, sizeof path, "%s/map.pm", dir);
+    size_t n = 100, big = 3000;
+    pm_photon *p = some_photons(big);
+    pm_map_header h = {0, 0, n, PM_MAP_GLOBAL, 1, 0};
+    ASSERT_EQ_INT(pm_map_save(path, p, &h), PM_OK);
+    pid_t kid = fork();
+    ASSERT(kid >= 0);
+    if (kid == 0) {
+        signal(SIGXFSZ, SIG_IGN);
+        struct rlimit rl = {4096, 4096};
+        if (setrlimit(RLIMIT_FSIZE, &rl) != 0) _exit(3);
+        pm_map_header hb = {0, 0, big, PM_MAP_GLOBAL, 1, 0};
+        _exit(pm_map_save(path, p, &hb) == PM_EIO ? 0 : 1);
+    }
+    int status = 0;
+    ASSERT(waitpid(kid, &status, 0) == kid);
+    EXPECT_MSG(WIFEXITED(status) && WEXITSTATUS(status) == 0, "child status %d", status);
+    const char *known[] = {"map.pm"};
+    EXPECT_EQ_INT(stray_entries(dir, known, 1), 0);
+    pm_photon *q = NULL;
+    pm_map_header g;
+    ASSERT_EQ_INT(pm_map_load(path, &q, &g), PM_OK);
+    EXPECT(g.count == n && memcmp(p, q, n * sizeof *p) == 0);
+    free(q);
     free(p);
 }
