@@ -211,6 +211,37 @@ check: all
 	PM_BUILD_DIR=$(abspath $(BUILD)) PM_SOURCE_DIR=$(CURDIR) $(TEST_BIN) \
 	    $(addprefix -x ,$(CHECK_SKIP)) $(TESTS)
 
+# ---- MPI (optional) ------------------------------------------------------------------------
+# `make MPI=1` also builds render-mpi, the distributed renderer (render/mpi/, docs/MPI.md):
+# render/main.c compiled again with mpicc, main renamed render_main and its image loop
+# render_image_ctl replaced by render/mpi's (-D below), linked with render/mpi/*.c. The
+# default build never compiles render/mpi/ nor needs mpi.h. OpenMPI is installed
+# (install-deps.sh --mpi) when mpicc is missing. `make MPI=1 test-mpi` runs
+# scripts/test-mpi.sh (its own "N passed, N failed" line).
+MPI ?= 0
+MPICC ?= mpicc
+RENDER_MPI_BIN := $(BUILD)/render-mpi
+MPI_OBJ := $(BUILD)/obj/render/main_mpi.o $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard render/mpi/*.c))
+ifeq ($(MPI),1)
+all: $(RENDER_MPI_BIN)
+endif
+.PHONY: render-mpi test-mpi mpi-deps
+render-mpi: $(RENDER_MPI_BIN)
+mpi-deps:
+	@command -v $(MPICC) >/dev/null 2>&1 || sh scripts/install-deps.sh --mpi
+$(BUILD)/obj/render/mpi/%.o: render/mpi/%.c $(FLAGS_STAMP) | mpi-deps
+	@mkdir -p $(@D)
+	$(MPICC) $(ALL_CFLAGS) -MMD -MP -I. -Iphotonmap -Irender -c $< -o $@
+$(BUILD)/obj/render/main_mpi.o: render/main.c $(FLAGS_STAMP) | mpi-deps
+	@mkdir -p $(@D)
+	$(MPICC) $(ALL_CFLAGS) -Dmain=render_main -Drender_image_ctl=dist_render_image_ctl -MMD -MP \
+	    -I. -Iphotonmap -c $< -o $@
+$(RENDER_MPI_BIN): $(MPI_OBJ) $(RENDER_OBJ) $(LIB) $(FLAGS_STAMP)
+	$(MPICC) -o $@ $(filter %.o %.a,$^) $(ALL_LDFLAGS) $(RENDER_LIBS)
+-include $(MPI_OBJ:.o=.d)
+test-mpi: $(RENDER_MPI_BIN) $(RENDER_BIN)
+	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/test-mpi.sh
+
 # ---- run -----------------------------------------------------------------------------------
 SCENE ?= data/scenes/cornell_box.json
 run: $(RENDER_BIN)

@@ -202,6 +202,109 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
     return 0;
 }
 
+/* ---- batches, and distributed rounds of batches ------------------------------------------- */
+
+/* Trace photons start .. start + PT_BATCH - 1 on nthreads threads into the per-thread buffers
+ * (thread t: tg[t] and ts[t]). 1 on failure (out of memory). */
+static int trace_batch(const pass_ctx *c, uint64_t start, fbuf *tg, fbuf *ts, int nthreads,
+                       uint64_t *nfirst_out) {
+    int fail = 0;
+    uint64_t nfirst = 0;
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(nthreads) schedule(dynamic, 64) reduction(| : fail) \
+    reduction(+ : nfirst)
+#endif
+    for (int k = 0; k < PT_BATCH; k++) {
+        int t = 0, fs = 0;
+#ifdef _OPENMP
+        t = omp_get_thread_num();
+#endif
+        /* Without a global map the shadow photons are the pass's main output. */
+        if (trace_photon(c, start + (uint64_t)k, &tg[t], c->want_global ? &ts[t] : &tg[t], &fs) < 0)
+            fail = 1;
+        nfirst += (uint64_t)fs;
+    }
+    *nfirst_out += nfirst;
+    return fail;
+}
+
+static const trace_dist *g_dist;
+
+void photon_trace_set_dist(const trace_dist *d) { g_dist = d; }
+
+/* One batch as exchanged: this head, then nmain main-buffer and nshadow shadow-buffer photons
+ * in index order. Four 8-byte words keep the photons after it aligned. */
+typedef struct batch_head {
+    uint64_t nmain, nshadow, nfirst, fail;
+} batch_head;
+
+/* The exchanged bytes of the current round: batch j of it starts at photon start + j PT_BATCH;
+ * `next` is the batch to hand out, at byte `off`. */
+typedef struct round_buf {
+    uint64_t start;
+    int nbatch, next;
+    char *all;
+    size_t *sizes, off;
+} round_buf;
+
+/* A round: trace this process's batch of the round that begins at photon `start`, exchange.
+ * 1 on failure here or (seen in the exchange) anywhere. */
+static int dist_round(const pass_ctx *c, round_buf *rb, uint64_t start, fbuf *tg, fbuf *ts,
+                      int nthreads) {
+    const trace_dist *d = g_dist;
+    size_t *sizes = rb->sizes ? rb->sizes : calloc((size_t)d->nparts, sizeof *sizes);
+    free(rb->all);
+    memset(rb, 0, sizeof *rb);
+    rb->sizes = sizes;
+    batch_head h = {0, 0, 0, 0};
+    fbuf m = {0}, sh = {0};
+    h.fail = (uint64_t)trace_batch(c, start + (uint64_t)d->part * PT_BATCH, tg, ts, nthreads, &h.nfirst);
+    if (!rb->sizes || fbuf_merge(&m, tg, nthreads) < 0 || fbuf_merge(&sh, ts, nthreads) < 0) h.fail = 1;
+    h.nmain = m.n;
+    h.nshadow = sh.n;
+    size_t nbytes = sizeof h + (m.n + sh.n) * sizeof(fphoton);
+    char *mine = h.fail ? NULL : malloc(nbytes);
+    if (!mine) {
+        h = (batch_head){0, 0, 0, 1};
+        nbytes = sizeof h;
+        mine = (char *)&h;
+    } else {
+        memcpy(mine, &h, sizeof h);
+        if (m.n) memcpy(mine + sizeof h, m.v, m.n * sizeof(fphoton));
+        if (sh.n) memcpy(mine + sizeof h + m.n * sizeof(fphoton), sh.v, sh.n * sizeof(fphoton));
+    }
+    int rc = rb->sizes ? d->allgather(d->user, mine, nbytes, (void **)&rb->all, rb->sizes) : -1;
+    if (mine != (char *)&h) free(mine);
+    free(m.v);
+    free(sh.v);
+    for (int t = 0; t < nthreads; t++) tg[t].n = ts[t].n = 0;
+    if (rc < 0) return 1;
+    rb->start = start;
+    rb->nbatch = d->nparts;
+    return 0;
+}
+
+/* Batch [n_e, n_e + PT_BATCH) of a distributed pass into tg[0] and ts[0] (the other buffers
+ * stay empty, so run_pass merges them as it merges its own), from the current round, or from
+ * a new one when that is used up. 1 on failure anywhere. */
+static int dist_batch(const pass_ctx *c, round_buf *rb, uint64_t n_e, fbuf *tg, fbuf *ts,
+                      int nthreads, uint64_t *nfirst) {
+    if (!rb->all || rb->next == rb->nbatch || rb->start + (uint64_t)rb->next * PT_BATCH != n_e)
+        if (dist_round(c, rb, n_e, tg, ts, nthreads)) return 1;
+    batch_head h;
+    memcpy(&h, rb->all + rb->off, sizeof h);
+    if (h.fail) return 1;
+    const fphoton *p = (const fphoton *)(rb->all + rb->off + sizeof h);
+    for (uint64_t i = 0; i < h.nmain; i++)
+        if (fbuf_push(&tg[0], &p[i]) < 0) return 1;
+    for (uint64_t i = 0; i < h.nshadow; i++)
+        if (fbuf_push(&ts[0], &p[h.nmain + i]) < 0) return 1;
+    *nfirst += h.nfirst;
+    rb->off += sizeof h + (size_t)(h.nmain + h.nshadow) * sizeof(fphoton);
+    rb->next++;
+    return 0;
+}
+
 /* ---- passes ------------------------------------------------------------------------------- */
 
 static int pack(const fbuf *b, double scale, pm_photon **out, size_t *n) {
@@ -241,23 +344,10 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
     progress prog;
     progress_begin(&prog, title, target, o->quiet);
     size_t reported = 0;
+    round_buf rb = {0};
     while ((long)main_buf->n < target && (double)n_e < limit && rc == 0) {
-        int fail = 0;
-#ifdef _OPENMP
-#pragma omp parallel for num_threads(nthreads) schedule(dynamic, 64) reduction(| : fail) \
-    reduction(+ : nfirst)
-#endif
-        for (int k = 0; k < PT_BATCH; k++) {
-            int t = 0, fs = 0;
-#ifdef _OPENMP
-            t = omp_get_thread_num();
-#endif
-            /* Without a global map the shadow photons are the pass's main output. */
-            if (trace_photon(c, n_e + (uint64_t)k, &tg[t], c->want_global ? &ts[t] : &tg[t],
-                             &fs) < 0)
-                fail = 1;
-            nfirst += (uint64_t)fs;
-        }
+        int fail = g_dist ? dist_batch(c, &rb, n_e, tg, ts, nthreads, &nfirst)
+                          : trace_batch(c, n_e, tg, ts, nthreads, &nfirst);
         n_e += PT_BATCH;
         if (fail || fbuf_merge(main_buf, tg, nthreads) < 0 ||
             (shadow_buf && fbuf_merge(shadow_buf, ts, nthreads) < 0)) {
@@ -269,6 +359,8 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
         reported = now;
     }
     progress_end(&prog);
+    free(rb.all);
+    free(rb.sizes);
     *runaway = rc == 0 && (long)main_buf->n < target;
     if (*runaway)
         fprintf(stderr,

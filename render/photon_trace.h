@@ -43,6 +43,14 @@
  *
  * OWNERSHIP. photon_trace fills a photon_maps (photon_maps.h) whose arrays it allocates;
  * photon_maps_free frees them.
+ *
+ * DISTRIBUTED PASSES (render/mpi/). After photon_trace_set_dist(d), a pass runs in rounds of
+ * d->nparts batches: this process traces batch d->part of the round (photons
+ * n + part PT_BATCH .. n + (part + 1) PT_BATCH - 1, on its threads), and d->allgather gives
+ * every process all the round's batches, which then go through the one-process bookkeeping
+ * one batch at a time: stored counts, the stopping test, the index-order merge. So every
+ * process ends with the one-process maps bit for bit, having traced about 1/nparts of the
+ * photons (plus at most nparts - 1 batches of a last round that the stopping test drops).
  */
 #ifndef RENDER_PHOTON_TRACE_H
 #define RENDER_PHOTON_TRACE_H
@@ -71,6 +79,18 @@ typedef struct trace_opts {
 
 /* Fill the options from the scene's settings: seed, max_depth; the rest zero. */
 void trace_opts_init(trace_opts *o, const scene *s);
+
+typedef struct trace_dist {
+    int nparts, part; /* processes, and this one's place among them */
+    /* Every process calls it with its bytes; it returns the concatenation of all processes'
+     * bytes in part order (*all: malloc'd, the caller frees it) and their sizes (sizes[k]
+     * for part k). 0, or negative on failure (then every process must see the failure). */
+    int (*allgather)(void *user, const void *mine, size_t nbytes, void **all, size_t *sizes);
+    void *user;
+} trace_dist;
+/* Distribute every later pass as described above (NULL: back to one process). The caller
+ * keeps d alive while passes run. */
+void photon_trace_set_dist(const trace_dist *d);
 /* Trace the maps. Returns 0, or a negative PM_E* code with a message (PM_ENOMEM). */
 int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err, size_t errcap);
 

@@ -234,3 +234,41 @@ int render_image_ctl(const scene *s, const integrator *it, const render_job *job
     stats_time_add("Time/Rendering", stats_now() - t0);
     return rc;
 }
+
+int render_tiles(const scene *s, const integrator *it, const render_job *job, render_state *st,
+                 const int *tiles, int ntiles) {
+    const camera *c = &s->cam;
+    if (st->width != c->width || st->height != c->height || st->spp != c->spp) return PM_EINVAL;
+    render_control none;
+    memset(&none, 0, sizeof none);
+    loop L;
+    memset(&L, 0, sizeof L);
+    L.s = s;
+    L.it = it;
+    L.job = job;
+    L.ctl = &none;
+    L.st = st;
+    L.tiles_x = (c->width + RENDER_TILE - 1) / RENDER_TILE;
+    int all = L.tiles_x * ((c->height + RENDER_TILE - 1) / RENDER_TILE);
+    for (int i = 0; i < ntiles; i++)
+        if (tiles[i] < 0 || tiles[i] >= all) return PM_EINVAL;
+    L.stat_nonfinite = stats_register("Film/Non-finite samples");
+    L.due = INFINITY;
+    L.pause_at = -1;
+    progress_begin(&L.prog, "Rendering", (int64_t)ntiles * RENDER_TILE * RENDER_TILE * c->spp, 1);
+    _Atomic int next = 0;
+#ifdef _OPENMP
+    int nthreads = job->threads > 0 ? job->threads : omp_get_max_threads();
+#pragma omp parallel num_threads(nthreads)
+#endif
+    {
+        void *scratch = it->thread_begin ? it->thread_begin(it) : NULL;
+        for (;;) {
+            int i = atomic_fetch_add(&next, 1);
+            if (i >= ntiles) break;
+            render_tile(&L, tiles[i], scratch);
+        }
+        if (it->thread_end) it->thread_end(it, scratch);
+    }
+    return 0;
+}

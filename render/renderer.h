@@ -81,6 +81,15 @@ int render_image(const scene *s, const integrator *it, const render_job *job, fi
 int render_image_ctl(const scene *s, const integrator *it, const render_job *job,
                      const render_control *ctl, film *out);
 
+/* Render the listed tiles (indices row-major over the RENDER_TILE grid) completely into st,
+ * threads taking the next tile as in render_image; no film, progress, pauses or timers. Each
+ * pixel gets exactly the sums render_image gives it, so a distributed render (render/mpi/)
+ * can hand tiles to any process and copy the sums into one state. 0, or PM_EINVAL for a
+ * state of another size or a tile index out of range. */
+int render_tiles(const scene *s, const integrator *it, const render_job *job, render_state *st,
+                 const int *tiles, int ntiles);
+
+
 #ifdef __cplusplus
 }
 #endif

@@ -87,6 +87,14 @@ int stats_find(const char *name) {
     return id;
 }
 
+const char *stats_name(int id) {
+    pthread_mutex_lock(&g_lock);
+    init_core_names();
+    const char *name = id >= 0 && id < g_ncounters ? g_names[id] : NULL;
+    pthread_mutex_unlock(&g_lock);
+    return name;
+}
+
 uint64_t stats_total(int id) {
     if (id < 0 || id >= STATS_MAX) return 0;
     uint64_t s = g_overflow[id];

@@ -58,6 +58,8 @@ int stats_register(const char *name);
 uint64_t stats_total(int id);
 /* The id of a named counter, or -1. */
 int stats_find(const char *name);
+/* The name of counter id, or NULL when id is not registered. */
+const char *stats_name(int id);
 void stats_time_add(const char *name, double seconds);
 void stats_reset(void);
 /* Print every counter (zeros too, so skipped work shows as 0) and every timer. */

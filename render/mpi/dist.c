@@ -1,0 +1,527 @@
+/* dist.c: the MPI side of render-mpi: the start agreement, the photon exchange, the tile
+ * queue and the film gathering, failures; see dist.h.
+ *
+ * Only the main thread calls MPI (MPI_THREAD_FUNNELED): OpenMP threads work inside
+ * render_tiles and the photon batches, between MPI calls.
+ *
+ * Messages of the pixel pass (all through rank 0, which counts their bytes):
+ *   REQ     worker -> 0   int32 threads: "give me one more chunk"
+ *   ASSIGN  0 -> worker   int32 n, then n tile indices (n = 0: the queue is empty)
+ *   RESULT  worker -> 0   int32 n, then per tile: int32 tile, int32 0, the tile's pixel sums
+ *                         (3 doubles each, rows of the tile clipped to the image)
+ *   STATS   worker -> 0   the worker's pixel-pass counters (name, value), its last message
+ *   FAIL    worker -> 0   int32 status, then its message
+ * A worker keeps one request ahead (two at the start), so the next chunk is already there
+ * when it finishes one; replies to one worker come in the order of its requests, so after
+ * the first empty ASSIGN every later reply is empty too. REQ is small, so it travels
+ * eagerly even while a large RESULT waits for its receiver.
+ */
+#include "dist.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <limits.h>
+#include <mpi.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "photonmap/common.h"
+#include "photon_trace.h"
+#include "progress.h"
+#include "stats.h"
+
+enum { TAG_REQ = 101, TAG_ASSIGN, TAG_RESULT, TAG_STATS, TAG_FAIL };
+#define MSG_MAX 1024
+#define NAME_MAX_LEN 80
+
+static int g_rank, g_size, g_mode;
+static int g_stage;      /* 0: before dist_start; 1: agreed, rendering; 2: film gathered */
+static int g_real_err = 2; /* ranks > 0: the stderr they were started with */
+static uint64_t g_bytes_photon, g_bytes_pixel; /* rank 0: bytes sent by all ranks */
+static trace_dist g_td;
+static struct sigaction g_old_term, g_old_int;
+
+int dist_rank(void) { return g_rank; }
+int dist_size(void) { return g_size; }
+
+/* The last lines this rank wrote to its (captured) stderr: its own failure message. */
+static void captured_tail(char *out, size_t cap) {
+    out[0] = 0;
+    if (g_rank == 0) return;
+    fflush(stderr);
+    struct stat sb;
+    if (fstat(2, &sb) < 0 || sb.st_size <= 0) return;
+    off_t from = sb.st_size > (off_t)(cap - 1) ? sb.st_size - (off_t)(cap - 1) : 0;
+    ssize_t n = pread(2, out, cap - 1, from);
+    if (n <= 0) return;
+    out[n] = 0;
+    while (n > 0 && (out[n - 1] == '\n' || out[n - 1] == ' ')) out[--n] = 0;
+    char *start = out;
+    if (from > 0 && strchr(out, '\n')) start = strchr(out, '\n') + 1; /* whole lines only */
+    memmove(out, start, strlen(start) + 1);
+}
+
+/* A failure inside a collective step, where nobody can listen: say it on this rank's real
+ * stderr and stop the job. */
+static void die_now(const char *what) {
+    char line[MSG_MAX + 64];
+    int n = snprintf(line, sizeof line, "render-mpi: rank %d of %d: %s; stopping every rank, "
+                     "nothing is written\n", g_rank, g_size, what);
+    if (write(g_real_err, line, (size_t)(n < (int)sizeof line ? n : (int)sizeof line - 1)) < 0) {
+        /* nothing more to do: the abort below still stops the job */
+    }
+    MPI_Abort(MPI_COMM_WORLD, 1);
+    _exit(1);
+}
+
+/* Rank 0, when mpirun stops the job (a rank died or the job was cancelled) or the user
+ * interrupts: say so, then let main.c's handler (output.h: remove temporaries) end us. */
+static void on_stop(int sig) {
+    static const char m[] = "render-mpi: rank 0: the job is being stopped before the image was "
+                            "complete (a rank died, or the job was cancelled); no output is "
+                            "written\n";
+    ssize_t r = write(2, m, sizeof m - 1);
+    (void)r;
+    struct sigaction *old = sig == SIGTERM ? &g_old_term : &g_old_int;
+    if (old->sa_handler == SIG_IGN || old->sa_handler == SIG_DFL) signal(sig, SIG_DFL);
+    else sigaction(sig, old, NULL);
+    raise(sig); /* delivered when this handler returns */
+}
+
+typedef struct start_msg {
+    int rc; /* 0 ready to render, > 0 failed with this status, -1 finished without rendering */
+    char msg[MSG_MAX];
+} start_msg;
+
+/* The agreement (see dist.h). Returns when every rank is ready to render, or every rank
+ * finished without rendering (*all_done = 1); otherwise exits with the failing status. */
+static void dist_start(int rc, const char *msg, int *all_done) {
+    if (all_done) *all_done = 0;
+    if (g_stage > 0) return;
+    start_msg m;
+    memset(&m, 0, sizeof m);
+    m.rc = rc;
+    snprintf(m.msg, sizeof m.msg, "%s", msg ? msg : "");
+    start_msg *all = g_rank == 0 ? calloc((size_t)g_size, sizeof *all) : NULL;
+    if (g_rank == 0 && !all) die_now("out of memory");
+    MPI_Gather(&m, (int)sizeof m, MPI_BYTE, all, (int)sizeof m, MPI_BYTE, 0, MPI_COMM_WORLD);
+    int verdict = 0; /* > 0: exit with it; -1: all finished; 0: render */
+    if (g_rank == 0) {
+        int failed = 0, finished = 0, ready = 0;
+        for (int k = 0; k < g_size; k++) {
+            if (all[k].rc > 0 && !verdict) verdict = all[k].rc;
+            failed += all[k].rc > 0;
+            finished += all[k].rc < 0;
+            ready += all[k].rc == 0;
+        }
+        /* Rank 0 said its own error already; the others' follow, each text once. */
+        for (int k = 1; k < g_size; k++) {
+            if (all[k].rc <= 0 || (all[0].rc > 0 && all[0].rc == all[k].rc)) continue;
+            int seen = 0;
+            for (int j = 1; j < k; j++) seen |= all[j].rc > 0 && strcmp(all[j].msg, all[k].msg) == 0;
+            if (seen) continue;
+            fprintf(stderr, "render-mpi: rank %d", k);
+            for (int j = k + 1; j < g_size; j++)
+                if (all[j].rc > 0 && strcmp(all[j].msg, all[k].msg) == 0) fprintf(stderr, ", %d", j);
+            fprintf(stderr, " of %d could not start (status %d): %s\n", g_size, all[k].rc,
+                    all[k].msg[0] ? all[k].msg : "(no message)");
+        }
+        if (!verdict && finished && ready) {
+            fprintf(stderr, "render-mpi: the ranks were given different commands (some rendered, "
+                    "some did not)\n");
+            verdict = 2;
+        } else if (!verdict && finished) {
+            verdict = -1;
+        }
+        if (verdict > 0)
+            fprintf(stderr, "render-mpi: stopped before rendering: %d of %d rank%s could not start; "
+                    "nothing was written\n", failed ? failed : g_size, g_size, g_size == 1 ? "" : "s");
+        free(all);
+    }
+    MPI_Bcast(&verdict, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    if (verdict > 0) {
+        MPI_Finalize();
+        exit(verdict);
+    }
+    if (verdict < 0) {
+        if (all_done) *all_done = 1;
+        return;
+    }
+    g_stage = 1;
+    if (g_rank == 0) {
+        struct sigaction sa;
+        memset(&sa, 0, sizeof sa);
+        sa.sa_handler = on_stop;
+        sigemptyset(&sa.sa_mask);
+        sigaction(SIGTERM, &sa, &g_old_term);
+        sigaction(SIGINT, &sa, &g_old_int);
+    }
+}
+
+void dist_fail_early(int rc, const char *msg) {
+    if (g_rank == 0 && msg) fprintf(stderr, "%s\n", msg);
+    dist_start(rc, msg, NULL);
+    /* Not reached when rc > 0: dist_start exits with the status. */
+    MPI_Finalize();
+    exit(rc);
+}
+
+int dist_finish(int rc) {
+    char tail[MSG_MAX];
+    captured_tail(tail, sizeof tail);
+    if (g_stage == 0) {
+        int done;
+        dist_start(rc ? rc : -1, tail, &done); /* exits unless every rank finished */
+        MPI_Finalize();
+        return rc;
+    }
+    if (g_stage == 1) {
+        if (g_rank == 0) {
+            fprintf(stderr, "render-mpi: rank 0 failed (see above); stopping every rank; nothing "
+                    "was written\n");
+            fflush(stderr);
+            MPI_Abort(MPI_COMM_WORLD, rc > 0 ? rc : 1);
+        } else {
+            /* Rank 0 reads this in its tile loop and stops the job. */
+            char buf[sizeof(int32_t) + MSG_MAX];
+            int32_t st = rc > 0 ? rc : 1;
+            memcpy(buf, &st, sizeof st);
+            snprintf(buf + sizeof st, MSG_MAX, "%s", tail[0] ? tail : "(no message)");
+            MPI_Send(buf, (int)(sizeof st + strlen(buf + sizeof st) + 1), MPI_BYTE, 0, TAG_FAIL,
+                     MPI_COMM_WORLD);
+            for (int i = 0; i < 120; i++) sleep(1);
+            MPI_Abort(MPI_COMM_WORLD, st);
+        }
+    }
+    MPI_Finalize();
+    return rc;
+}
+
+/* ---- photon pass ---------------------------------------------------------------------- */
+
+static int photon_allgather(void *user, const void *mine, size_t nbytes, void **all, size_t *sizes) {
+    (void)user;
+    dist_start(0, NULL, NULL);
+    unsigned long long n = nbytes, *ns = malloc((size_t)g_size * sizeof *ns);
+    int *cnt = malloc((size_t)g_size * sizeof *cnt), *dsp = malloc((size_t)g_size * sizeof *dsp);
+    if (!ns || !cnt || !dsp) die_now("out of memory in the photon exchange");
+    MPI_Allgather(&n, 1, MPI_UNSIGNED_LONG_LONG, ns, 1, MPI_UNSIGNED_LONG_LONG, MPI_COMM_WORLD);
+    unsigned long long total = 0;
+    for (int k = 0; k < g_size; k++) {
+        if (total > (unsigned long long)INT_MAX) break;
+        cnt[k] = (int)ns[k];
+        dsp[k] = (int)total;
+        total += ns[k];
+    }
+    if (total > (unsigned long long)INT_MAX)
+        die_now("a photon round exceeds 2 GiB (MPI's int counts)");
+    char *buf = malloc(total ? (size_t)total : 1);
+    if (!buf) die_now("out of memory in the photon exchange");
+    MPI_Allgatherv(mine, (int)n, MPI_BYTE, buf, cnt, dsp, MPI_BYTE, MPI_COMM_WORLD);
+    for (int k = 0; k < g_size; k++) sizes[k] = (size_t)ns[k];
+    g_bytes_photon += total * (unsigned long long)(g_size - 1); /* each part goes to the others */
+    *all = buf;
+    free(ns);
+    free(cnt);
+    free(dsp);
+    return 0;
+}
+
+void dist_init(int mode) {
+    MPI_Comm_rank(MPI_COMM_WORLD, &g_rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &g_size);
+    g_mode = mode;
+    if (g_rank > 0) {
+        /* Quiet ranks: stdout discarded, stderr kept for the failure message. */
+        fflush(stdout);
+        fflush(stderr);
+        int devnull = open("/dev/null", O_WRONLY);
+        if (devnull >= 0) {
+            dup2(devnull, 1);
+            close(devnull);
+        }
+        g_real_err = dup(2);
+        FILE *cap = tmpfile();
+        if (cap && g_real_err >= 0) dup2(fileno(cap), 2);
+        else g_real_err = 2;
+    }
+    g_td.nparts = g_size;
+    g_td.part = g_rank;
+    g_td.allgather = photon_allgather;
+    g_td.user = NULL;
+    photon_trace_set_dist(&g_td);
+}
+
+/* ---- pixel pass ----------------------------------------------------------------------- */
+
+typedef struct tile_box {
+    int x0, y0, x1, y1;
+} tile_box;
+
+static tile_box tile_of(const camera *c, int tile) {
+    int tx = (c->width + RENDER_TILE - 1) / RENDER_TILE;
+    tile_box b;
+    b.x0 = (tile % tx) * RENDER_TILE;
+    b.y0 = (tile / tx) * RENDER_TILE;
+    b.x1 = b.x0 + RENDER_TILE < c->width ? b.x0 + RENDER_TILE : c->width;
+    b.y1 = b.y0 + RENDER_TILE < c->height ? b.y0 + RENDER_TILE : c->height;
+    return b;
+}
+
+static int tile_pixels(const camera *c, int tile) {
+    tile_box b = tile_of(c, tile);
+    return (b.x1 - b.x0) * (b.y1 - b.y0);
+}
+
+/* Tiles for a rank with `threads` threads: one per thread, fewer as the queue empties so the
+ * last chunks spread over the ranks. */
+static int chunk_size(int threads, int left) {
+    int fair = (left + g_size - 1) / g_size;
+    int n = threads < fair ? threads : fair;
+    return n < 1 ? 1 : n;
+}
+
+typedef struct queue {
+    const scene *s;
+    render_state *st;
+    int ntiles, next, done;
+    int *per_rank; /* tiles rendered by each rank */
+    progress prog;
+} queue;
+
+static void add_tiles_done(queue *q, int rank, const int *tiles, int n) {
+    int64_t samples = 0;
+    for (int i = 0; i < n; i++) samples += (int64_t)tile_pixels(&q->s->cam, tiles[i]) * q->st->spp;
+    q->done += n;
+    q->per_rank[rank] += n;
+    progress_add(&q->prog, samples);
+}
+
+/* Rank 0: one message from a worker. */
+static void serve(queue *q, MPI_Status *ms, int *finished) {
+    int nbytes;
+    MPI_Get_count(ms, MPI_BYTE, &nbytes);
+    char *buf = malloc(nbytes > 0 ? (size_t)nbytes : 1);
+    if (!buf) die_now("out of memory in the tile queue");
+    MPI_Recv(buf, nbytes, MPI_BYTE, ms->MPI_SOURCE, ms->MPI_TAG, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    g_bytes_pixel += (uint64_t)nbytes;
+    int src = ms->MPI_SOURCE;
+    const camera *c = &q->s->cam;
+    if (ms->MPI_TAG == TAG_REQ) {
+        int32_t threads;
+        memcpy(&threads, buf, sizeof threads);
+        int n = q->next < q->ntiles ? chunk_size(threads, q->ntiles - q->next) : 0;
+        if (n > q->ntiles - q->next) n = q->ntiles - q->next;
+        int32_t *reply = malloc((size_t)(n + 1) * sizeof *reply);
+        if (!reply) die_now("out of memory in the tile queue");
+        reply[0] = n;
+        for (int i = 0; i < n; i++) reply[1 + i] = q->next++;
+        MPI_Send(reply, (int)((size_t)(n + 1) * sizeof *reply), MPI_BYTE, src, TAG_ASSIGN,
+                 MPI_COMM_WORLD);
+        g_bytes_pixel += (uint64_t)(n + 1) * sizeof *reply;
+        free(reply);
+    } else if (ms->MPI_TAG == TAG_RESULT) {
+        int32_t n;
+        memcpy(&n, buf, sizeof n);
+        size_t off = sizeof n;
+        int *tiles = malloc((size_t)(n > 0 ? n : 1) * sizeof *tiles);
+        if (!tiles) die_now("out of memory in the tile queue");
+        for (int i = 0; i < n; i++) {
+            int32_t t;
+            memcpy(&t, buf + off, sizeof t);
+            off += 2 * sizeof t;
+            tiles[i] = t;
+            tile_box b = tile_of(c, t);
+            for (int y = b.y0; y < b.y1; y++) {
+                size_t p = (size_t)y * c->width + b.x0, w = (size_t)(b.x1 - b.x0);
+                memcpy(q->st->sum + 3 * p, buf + off, 3 * w * sizeof(double));
+                off += 3 * w * sizeof(double);
+                for (size_t x = 0; x < w; x++) q->st->count[p + x] = (uint32_t)q->st->spp;
+            }
+        }
+        add_tiles_done(q, src, tiles, n);
+        free(tiles);
+    } else if (ms->MPI_TAG == TAG_STATS) {
+        uint64_t n;
+        memcpy(&n, buf, sizeof n);
+        size_t off = sizeof n;
+        for (uint64_t i = 0; i < n; i++) {
+            char name[NAME_MAX_LEN];
+            uint64_t v;
+            memcpy(name, buf + off, NAME_MAX_LEN);
+            name[NAME_MAX_LEN - 1] = 0;
+            memcpy(&v, buf + off + NAME_MAX_LEN, sizeof v);
+            off += NAME_MAX_LEN + sizeof v;
+            int id = stats_register(name);
+            if (id >= 0) stat_add(id, v);
+        }
+        (*finished)++;
+    } else if (ms->MPI_TAG == TAG_FAIL) {
+        int32_t st;
+        memcpy(&st, buf, sizeof st);
+        buf[nbytes - 1] = 0;
+        fprintf(stderr, "render-mpi: rank %d of %d failed (status %d): %s\n", src, g_size, (int)st,
+                buf + sizeof st);
+        fprintf(stderr, "render-mpi: stopping every rank; nothing was written\n");
+        fflush(stderr);
+        MPI_Abort(MPI_COMM_WORLD, st > 0 ? st : 1);
+    }
+    free(buf);
+}
+
+static int render_root(const scene *s, const integrator *it, const render_job *job,
+                       render_state *st) {
+    const camera *c = &s->cam;
+    queue q;
+    memset(&q, 0, sizeof q);
+    q.s = s;
+    q.st = st;
+    int tx = (c->width + RENDER_TILE - 1) / RENDER_TILE;
+    q.ntiles = tx * ((c->height + RENDER_TILE - 1) / RENDER_TILE);
+    q.per_rank = calloc((size_t)g_size, sizeof *q.per_rank);
+    int threads = job->threads > 0 ? job->threads : 1;
+    int *mine = malloc((size_t)threads * sizeof *mine);
+    if (!q.per_rank || !mine) die_now("out of memory in the tile queue");
+    progress_begin(&q.prog, "Rendering", (int64_t)c->width * c->height * c->spp, job->quiet);
+    int finished = 0, rc = 0;
+    while (q.done < q.ntiles || finished < g_size - 1) {
+        int flag = 1;
+        MPI_Status ms;
+        while (flag) {
+            MPI_Iprobe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &flag, &ms);
+            if (flag) serve(&q, &ms, &finished);
+        }
+        if (q.next < q.ntiles) {
+            int n = chunk_size(threads, q.ntiles - q.next);
+            for (int i = 0; i < n; i++) mine[i] = q.next++;
+            if ((rc = render_tiles(s, it, job, st, mine, n)) < 0) break;
+            add_tiles_done(&q, 0, mine, n);
+        } else if (q.done < q.ntiles || finished < g_size - 1) {
+            MPI_Probe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &ms);
+            serve(&q, &ms, &finished);
+        }
+    }
+    if (rc == 0) {
+        progress_end(&q.prog);
+        printf("MPI: %d rank%s x %d thread%s; tiles rendered per rank:", g_size,
+               g_size == 1 ? "" : "s", threads, threads == 1 ? "" : "s");
+        for (int k = 0; k < g_size; k++) printf(" %d", q.per_rank[k]);
+        printf(" (of %d)\n", q.ntiles);
+        printf("MPI: bytes sent: photon exchange %llu, pixel pass %llu (%.2f per pixel)\n",
+               (unsigned long long)g_bytes_photon, (unsigned long long)g_bytes_pixel,
+               (double)g_bytes_pixel / ((double)c->width * c->height));
+        stat_add(stats_register("MPI/Bytes sent in photon exchanges (all ranks)"), g_bytes_photon);
+        stat_add(stats_register("MPI/Bytes sent in the pixel pass (all ranks)"), g_bytes_pixel);
+        stat_add(stats_register("MPI/Tiles rendered by rank 0"), (uint64_t)q.per_rank[0]);
+    }
+    free(q.per_rank);
+    free(mine);
+    return rc;
+}
+
+/* A worker: ask, render, send, until the queue is empty; then the statistics. */
+static int render_worker(const scene *s, const integrator *it, const render_job *job,
+                         render_state *st, const uint64_t *base) {
+    const camera *c = &s->cam;
+    int32_t threads = job->threads > 0 ? job->threads : 1;
+    int maxn = threads;
+    int32_t *assign = malloc((size_t)(maxn + 1) * sizeof *assign);
+    size_t cap = sizeof(int32_t) + (size_t)maxn * (2 * sizeof(int32_t) +
+                 (size_t)RENDER_TILE * RENDER_TILE * 3 * sizeof(double));
+    char *out = malloc(cap);
+    if (!assign || !out) die_now("out of memory in the tile queue");
+    MPI_Request sent = MPI_REQUEST_NULL;
+    int outstanding = 0;
+    for (int i = 0; i < 2; i++, outstanding++)
+        MPI_Send(&threads, (int)sizeof threads, MPI_BYTE, 0, TAG_REQ, MPI_COMM_WORLD);
+    for (;;) {
+        MPI_Recv(assign, (int)((size_t)(maxn + 1) * sizeof *assign), MPI_BYTE, 0, TAG_ASSIGN,
+                 MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        outstanding--;
+        int n = assign[0];
+        if (n == 0) break;
+        /* Ask for the next chunk now, so it is here when this one is done. */
+        MPI_Send(&threads, (int)sizeof threads, MPI_BYTE, 0, TAG_REQ, MPI_COMM_WORLD);
+        outstanding++;
+        int rc = render_tiles(s, it, job, st, assign + 1, n);
+        if (rc < 0) return rc;
+        MPI_Wait(&sent, MPI_STATUS_IGNORE); /* the previous results have left `out` */
+        int32_t n32 = n;
+        size_t off = 0;
+        memcpy(out, &n32, sizeof n32);
+        off += sizeof n32;
+        for (int i = 0; i < n; i++) {
+            int32_t t[2] = {assign[1 + i], 0};
+            memcpy(out + off, t, sizeof t);
+            off += sizeof t;
+            tile_box b = tile_of(c, t[0]);
+            for (int y = b.y0; y < b.y1; y++) {
+                size_t p = (size_t)y * c->width + b.x0, w = (size_t)(b.x1 - b.x0);
+                memcpy(out + off, st->sum + 3 * p, 3 * w * sizeof(double));
+                off += 3 * w * sizeof(double);
+            }
+        }
+        MPI_Isend(out, (int)off, MPI_BYTE, 0, TAG_RESULT, MPI_COMM_WORLD, &sent);
+    }
+    while (outstanding-- > 0)
+        MPI_Recv(assign, (int)((size_t)(maxn + 1) * sizeof *assign), MPI_BYTE, 0, TAG_ASSIGN,
+                 MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    MPI_Wait(&sent, MPI_STATUS_IGNORE);
+    /* The pixel pass's counters: what this rank added since the pass began. */
+    char *sbuf = malloc(sizeof(uint64_t) + STATS_MAX * (NAME_MAX_LEN + sizeof(uint64_t)));
+    if (!sbuf) die_now("out of memory");
+    uint64_t ns = 0;
+    size_t off = sizeof ns;
+    for (int id = 0; id < STATS_MAX; id++) {
+        const char *name = stats_name(id);
+        uint64_t d = name ? stats_total(id) - base[id] : 0;
+        if (!d) continue;
+        memset(sbuf + off, 0, NAME_MAX_LEN);
+        snprintf(sbuf + off, NAME_MAX_LEN, "%s", name);
+        memcpy(sbuf + off + NAME_MAX_LEN, &d, sizeof d);
+        off += NAME_MAX_LEN + sizeof d;
+        ns++;
+    }
+    memcpy(sbuf, &ns, sizeof ns);
+    MPI_Send(sbuf, (int)off, MPI_BYTE, 0, TAG_STATS, MPI_COMM_WORLD);
+    free(sbuf);
+    free(assign);
+    free(out);
+    return 0;
+}
+
+int dist_render_image_ctl(const scene *s, const integrator *it, const render_job *job,
+                          const render_control *ctl, film *out) {
+    (void)ctl; /* render_mpi.c refuses checkpoints, snapshots and resumes */
+    dist_start(0, NULL, NULL);
+    const camera *c = &s->cam;
+    render_state st;
+    int rc = render_state_init(&st, c->width, c->height, c->spp);
+    if (rc < 0) return rc;
+    double t0 = stats_now();
+    if (g_rank == 0) {
+        rc = render_root(s, it, job, &st);
+        if (rc == 0) rc = film_init(out, c->width, c->height);
+        if (rc == 0) render_state_to_film(&st, out);
+        render_state_free(&st);
+        stats_time_add("Time/Rendering", stats_now() - t0);
+        if (rc == 0) g_stage = 2;
+        return rc;
+    }
+    uint64_t *base = calloc(STATS_MAX, sizeof *base);
+    if (!base) return PM_ENOMEM;
+    for (int id = 0; id < STATS_MAX; id++) base[id] = stats_total(id);
+    rc = render_worker(s, it, job, &st, base);
+    free(base);
+    render_state_free(&st);
+    if (rc < 0) return rc;
+    /* Done: rank 0 has this rank's tiles and statistics, and writes the image. */
+    g_stage = 2;
+    fflush(stdout);
+    MPI_Finalize();
+    exit(0);
+}

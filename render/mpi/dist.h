@@ -1,0 +1,69 @@
+/* dist.h: the distributed renderer `render-mpi`: one render spread over MPI processes
+ * (ranks), on one machine or many, giving the image of the one-process `render` bit for bit.
+ *
+ * HOW IT IS BUILT. render-mpi is render/main.c compiled a second time with mpicc and
+ * -Dmain=render_main -Drender_image_ctl=dist_render_image_ctl (Makefile, MPI=1), linked
+ * with the files of render/mpi/. So it parses the same options and runs the same scene loading,
+ * preprocessing and output code; render_mpi.c's main wraps it, and the two seams are the
+ * image loop (dist_render_image_ctl, below) and the photon passes (photon_trace.h's
+ * trace_dist, set by dist_init). The default build never sees mpi.h.
+ *
+ * PHOTON PASS. Every rank loads the scene and plans alike. Each pass runs in rounds: rank r
+ * traces batch r of the round, an all-gather gives every rank all the batches, and every
+ * rank keeps the one-process bookkeeping (photon_trace.h, DISTRIBUTED PASSES). So every
+ * rank builds the same maps as a one-process run (replicated mode, the default).
+ *
+ * PIXEL PASS. Rank 0 keeps a queue of the image's 16x16 tiles. A worker rank asks for a
+ * chunk of tiles (at most its thread count, fewer as the queue empties), renders it with
+ * render_tiles (OpenMP threads inside the rank) and sends the tiles' per-pixel sums back,
+ * asking for the next chunk before it starts rendering one, so it never waits for rank 0.
+ * Rank 0 answers between chunks of its own. A pixel's sum is made on one rank in sample
+ * order exactly as in render_image, and rank 0 copies it into one render_state: the film is
+ * bit-identical whatever tile went where. Rank 0 shows the progress, adds every rank's
+ * pixel-pass statistics to its own, writes the outputs once through main.c's atomic output
+ * code, and prints the traffic ("MPI:" lines; statistics "MPI/...").
+ *
+ * FAILURES. Until the first collective step every rank runs alone; there (dist_start) the
+ * ranks agree: if any failed (a scene it could not load, a bad option), rank 0 prints each
+ * failing rank's message and every rank exits with the failing rank's status (2 for input
+ * errors), nothing written. A rank failing later sends its message to rank 0, which prints
+ * it and aborts the job (MPI_Abort) before anything is written. A rank that dies (killed, a
+ * lost node) makes mpirun stop the job; rank 0 then says so on stderr from its SIGTERM
+ * handler and, the output being written only at the very end through a temporary and a
+ * rename, leaves no output file.
+ *
+ * Ranks other than 0 print nothing: their stdout is discarded and their stderr kept in a
+ * temporary file, whose last lines become their failure message.
+ */
+#ifndef RENDER_MPI_DIST_H
+#define RENDER_MPI_DIST_H
+
+#include <stdint.h>
+
+#include "renderer.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+enum { DIST_REPLICATED = 0, DIST_PARTITIONED = 1 };
+
+/* After MPI_Init: rank and size, streams of ranks > 0, the photon-pass hook. mode: a DIST_*. */
+void dist_init(int mode);
+int dist_rank(void);
+int dist_size(void);
+/* This rank's own failure before the render started (usage error, bad option), with a
+ * message (printed by rank 0 only). Joins dist_start and exits the program with status rc. */
+void dist_fail_early(int rc, const char *msg);
+/* What render_main returned on this rank: finishes MPI and returns the exit status. */
+int dist_finish(int rc);
+/* The image loop of a distributed render (see above), called by main.c in place of
+ * render_image_ctl. On ranks > 0 it does not return: they exit once their tiles are sent.
+ * ctl must not carry a state or pauses (render-mpi refuses checkpoints). */
+int dist_render_image_ctl(const scene *s, const integrator *it, const render_job *job,
+                          const render_control *ctl, film *out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_MPI_DIST_H */

@@ -1,0 +1,104 @@
+/* render_mpi.c: main() of render-mpi, the distributed renderer (dist.h says how it works).
+ *
+ *   mpirun -np N render-mpi SCENE.json [render's options] [--pm distributed=replicated]
+ *
+ * It starts MPI, takes the options that only a distributed render has (or refuses: a
+ * distributed render keeps no checkpoint), and runs render's own main (render/main.c,
+ * compiled as render_main) on every rank. What it changes in the arguments, per rank:
+ *   - --threads: when not given, the cores of the node divided among the ranks on it (OpenMP
+ *     would otherwise start all cores' worth of threads in every rank);
+ *   - ranks > 0 get --quiet and lose --save-photons (rank 0 saves the maps once).
+ */
+#include <mpi.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "dist.h"
+
+int render_main(int argc, char **argv);
+
+static void usage_mpi(void) {
+    printf("\nrender-mpi (the same options, run under mpirun):\n"
+           "  mpirun -np N render-mpi SCENE.json [options] [--pm distributed=MODE]\n"
+           "  --pm distributed=replicated   every rank holds all photons (the default): the\n"
+           "                    image is bit-identical to render's\n"
+           "  --threads N       OpenMP threads per rank (default: the node's cores divided\n"
+           "                    among its ranks)\n"
+           "  Not available: --checkpoint, --resume, --snapshot-every.\n");
+}
+
+int main(int argc, char **argv) {
+    int provided;
+    if (MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) {
+        fprintf(stderr, "render-mpi: MPI_Init failed\n");
+        return 1;
+    }
+    int rank;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    char msg[512] = "";
+    int mode = DIST_REPLICATED, has_threads = 0, help = 0;
+    char **av = calloc((size_t)argc + 4, sizeof *av);
+    int ac = 0;
+    if (!av) {
+        fprintf(stderr, "render-mpi: out of memory\n");
+        MPI_Abort(MPI_COMM_WORLD, 1);
+    }
+    for (int i = 0; i < argc; i++) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (i > 0 && strcmp(a, "--pm") == 0 && v && strncmp(v, "distributed=", 12) == 0) {
+            if (strcmp(v + 12, "replicated") == 0) {
+                mode = DIST_REPLICATED;
+            } else if (strcmp(v + 12, "partitioned") == 0) {
+                mode = DIST_PARTITIONED;
+                snprintf(msg, sizeof msg, "render-mpi: --pm distributed=partitioned: not available "
+                         "in this version (see docs/MPI.md); use replicated");
+            } else {
+                snprintf(msg, sizeof msg, "render-mpi: --pm distributed: expected replicated or "
+                         "partitioned, got '%s'", v + 12);
+            }
+            i++;
+            continue;
+        }
+        if (i > 0 && (strcmp(a, "--checkpoint") == 0 || strcmp(a, "--checkpoint-every") == 0 ||
+                      strcmp(a, "--resume") == 0 || strcmp(a, "--snapshot-every") == 0)) {
+            snprintf(msg, sizeof msg, "render-mpi: %s is not available in a distributed render "
+                     "(use render for checkpoints and snapshots)", a);
+            break;
+        }
+        if (i > 0 && rank > 0 && strcmp(a, "--save-photons") == 0 && v) {
+            i++;
+            continue;
+        }
+        if (strcmp(a, "--threads") == 0) has_threads = 1;
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) help = 1;
+        av[ac++] = argv[i];
+    }
+    dist_init(mode);
+    if (msg[0]) dist_fail_early(2, msg);
+    static char threads_arg[24];
+    int tool = argc > 1 && (strcmp(argv[1], "--compare") == 0 || strcmp(argv[1], "--tonemap") == 0 ||
+                            strcmp(argv[1], "--dump-scene") == 0);
+    if (!has_threads && !tool && !help) {
+        /* Ranks sharing this node share its cores. */
+        MPI_Comm node;
+        int local = 1;
+        if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) ==
+            MPI_SUCCESS) {
+            MPI_Comm_size(node, &local);
+            MPI_Comm_free(&node);
+        }
+        long cores = sysconf(_SC_NPROCESSORS_ONLN);
+        long t = cores > 0 ? cores / local : 1;
+        snprintf(threads_arg, sizeof threads_arg, "%ld", t > 0 ? t : 1);
+        av[ac++] = "--threads";
+        av[ac++] = threads_arg;
+    }
+    if (rank > 0 && !tool) av[ac++] = "--quiet";
+    av[ac] = NULL;
+    int rc = render_main(ac, av);
+    if (help && rank == 0) usage_mpi();
+    fflush(stdout);
+    return dist_finish(rc);
+}
