@@ -31,6 +31,7 @@ typedef struct {
 
 /* Direct light at a diffuse hit: f * Li * cos / (pdf_omega * p_light). */
 static rgb direct_light(const scene *s, const material *m, const hit *h, vec3 n, vec3 wo, rng *g) {
+    vec3 nsh = material_shading_side(wo, h->ng, h->ns); /* cosines; n (geometric) keeps the side */
     double ulight = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
     if (s->nlights == 0 || s->light_distrib.n == 0) return v3s(0);
     double pl;
@@ -38,9 +39,9 @@ static rgb direct_light(const scene *s, const material *m, const hit *h, vec3 n,
     if (!(pl > 0)) return v3s(0);
     light_sample ls;
     if (!light_sample_li(s, li, h->p, u1, u2, &ls)) return v3s(0);
-    double cos_s = v3_dot(ls.wi, n);
-    if (cos_s <= 0 || v3_iszero(ls.L)) return v3s(0);
-    rgb f = material_diffuse_f(m, n, wo, ls.wi);
+    double cos_s = v3_dot(ls.wi, nsh);
+    if (cos_s <= 0 || v3_dot(ls.wi, n) <= 0 || v3_iszero(ls.L)) return v3s(0);
+    rgb f = material_diffuse_f(m, nsh, wo, ls.wi);
     if (v3_iszero(f)) return v3s(0);
     stat_inc(STAT_SHADOW_RAYS);
     const light *l = &s->lights[li];
@@ -75,7 +76,7 @@ static rgb pt_li(const integrator *self, const scene *s, ray r, rng *g, const sa
         }
         double ul = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
         bsdf_sample bs;
-        int alive = material_sample(m, wo, h.ng, s->medium_ior, ul, u1, u2, &bs);
+        int alive = material_sample_ns(m, wo, h.ng, h.ns, s->medium_ior, ul, u1, u2, &bs);
         if (bs.lobe == LOBE_DIFFUSE) {
             vec3 n = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
             L = v3_add(L, v3_mul(beta, direct_light(s, m, &h, n, wo, g)));
