@@ -78,6 +78,73 @@ static int is_done(const pm_irradiance *irr, size_t i) {
     return (int)((irr->mask[i >> 6] >> (i & 63)) & 1u);
 }
 
+/* The smallest-eigenvalue eigenvector of the symmetric 3x3 matrix a (cyclic Jacobi
+ * rotations; a is destroyed). */
+static void smallest_eigvec(double a[3][3], double out[3]) {
+    double v[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    for (int sweep = 0; sweep < 30; sweep++) {
+        double off = a[0][1] * a[0][1] + a[0][2] * a[0][2] + a[1][2] * a[1][2];
+        double diag = a[0][0] * a[0][0] + a[1][1] * a[1][1] + a[2][2] * a[2][2];
+        if (!(off > 1e-30 * diag)) break;
+        for (int p = 0; p < 2; p++)
+            for (int q = p + 1; q < 3; q++) {
+                if (a[p][q] == 0) continue;
+                double th = (a[q][q] - a[p][p]) / (2 * a[p][q]);
+                double t = (th >= 0 ? 1 : -1) / (fabs(th) + sqrt(th * th + 1));
+                double c = 1 / sqrt(t * t + 1), s = t * c;
+                for (int k = 0; k < 3; k++) { /* columns p, q of a */
+                    double akp = a[k][p], akq = a[k][q];
+                    a[k][p] = c * akp - s * akq, a[k][q] = s * akp + c * akq;
+                }
+                for (int k = 0; k < 3; k++) { /* rows p, q */
+                    double apk = a[p][k], aqk = a[q][k];
+                    a[p][k] = c * apk - s * aqk, a[q][k] = s * apk + c * aqk;
+                }
+                for (int k = 0; k < 3; k++) {
+                    double vkp = v[k][p], vkq = v[k][q];
+                    v[k][p] = c * vkp - s * vkq, v[k][q] = s * vkp + c * vkq;
+                }
+            }
+    }
+    int m = 0;
+    if (a[1][1] < a[m][m]) m = 1;
+    if (a[2][2] < a[m][m]) m = 2;
+    for (int k = 0; k < 3; k++) out[k] = v[k][m];
+}
+
+/* cos 12 degrees: more than the normal code's worst rounding (about 9.72 degrees, photon.h). */
+#define PM__FIT_COS 0.97814760073380569
+
+/* The normal of the plane fitted (least squares) to the k photons nearest p, oriented like
+ * the quantized normal q; q itself if the fit is more than 12 degrees from q (a corner, a
+ * curved patch, too few photons), since then it is no better than the code. */
+static void fitted_normal(const pm_kdtree *tree, const float p[3], const float q[3], unsigned k,
+                          float max_dist2, pm_neighbor *nb, float out[3]) {
+    memcpy(out, q, 3 * sizeof *out);
+    int found = pm_kdtree_knn(tree, p, k, max_dist2, nb, 0, NULL);
+    if (found < 3) return;
+    double mean[3] = {0, 0, 0}, cov[3][3] = {{0}};
+    for (int i = 0; i < found; i++) {
+        const float *x = pm_kdtree_pos(tree, nb[i].index);
+        for (int c = 0; c < 3; c++) mean[c] += x[c];
+    }
+    for (int c = 0; c < 3; c++) mean[c] /= found;
+    for (int i = 0; i < found; i++) {
+        const float *x = pm_kdtree_pos(tree, nb[i].index);
+        double d[3] = {x[0] - mean[0], x[1] - mean[1], x[2] - mean[2]};
+        for (int r = 0; r < 3; r++)
+            for (int c = 0; c < 3; c++) cov[r][c] += d[r] * d[c];
+    }
+    double e[3];
+    smallest_eigvec(cov, e);
+    double len = sqrt(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+    if (!(len > 0) || !isfinite(len)) return;
+    double dot = (e[0] * q[0] + e[1] * q[1] + e[2] * q[2]) / len;
+    if (fabs(dot) < PM__FIT_COS) return;
+    double sgn = dot < 0 ? -1.0 : 1.0;
+    for (int c = 0; c < 3; c++) out[c] = (float)(sgn * e[c] / len);
+}
+
 /* The estimates at the chosen photons of `tree`: rgbe[i] (and r2[i]) for every i whose bit is
  * set in mask; returns the count, or a negative code. */
 static long precompute(const pm_kdtree *tree, const pm_irradiance_options *opt,
@@ -117,6 +184,12 @@ static long precompute(const pm_kdtree *tree, const pm_irradiance_options *opt,
                     continue;
                 const pm_photon *p = &ph[i];
                 const float *nrm = opt->normals ? opt->normals + 3 * i : normals[p->normal];
+                float fit[3];
+                if (!opt->normals && opt->squash > 1.0f) {
+                    fitted_normal(tree, p->pos, nrm, opt->k, opt->max_dist2,
+                                  (pm_neighbor *)scratch[t], fit);
+                    nrm = fit;
+                }
                 pm_estimate_result r;
                 float rgb[3];
                 if (pm_estimate(tree, p->pos, nrm, &eo, scratch[t], &r, NULL) != PM_OK) continue;

@@ -37,10 +37,17 @@
  * dist2, which one answers is a fixed function of the build.
  *
  * LEAK CONTROL AT BUILD. opt.squash > 1 searches an ellipsoid compressed along the surface
- * normal; a tilted normal makes the flat ellipsoid cut the surface and miss photons (a bias
- * low). The stored 1-byte normal is up to about 10 degrees off (photon.h), so give the exact
- * normals in opt.normals (3 floats per photon, in the map's tree order: reorder with the perm
- * of pm_kdtree_build) whenever squash > 1; without them the quantized normal is used.
+ * normal; a normal a few degrees off makes the flat ellipsoid cut the surface and miss photons
+ * (a bias low that grows with squash), and the stored 1-byte normal is up to about 10 degrees
+ * off (photon.h). So the squashed search never uses that code directly: it uses the exact
+ * normals of opt.normals when given (3 floats per photon, in the map's tree order: reorder
+ * with the perm of pm_kdtree_build), else a normal fitted to the photons: the least-squares
+ * plane through the k photons nearest the photon (one extra sphere search per precomputed
+ * photon), oriented like the code, and used only if within 12 degrees of it (beyond that, at
+ * a corner or on a tight curve, the fit is no better and the code is used). On a plane either
+ * way squash then leaves the estimates as they are without it
+ * (irradiance_squash_uses_an_exact_normal, with planes the code rounds 5 and 9.7 degrees off).
+ * The normal-behind test (reject_behind) and the lookup's normal test keep using the code.
  *
  * THREADS. A built pm_irradiance is read-only: lookups never allocate or lock and may run on
  * any number of threads. pm_irradiance_build allocates (the caller frees with
