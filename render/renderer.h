@@ -89,7 +89,6 @@ int render_image_ctl(const scene *s, const integrator *it, const render_job *job
 int render_tiles(const scene *s, const integrator *it, const render_job *job, render_state *st,
                  const int *tiles, int ntiles);
 
-
 #ifdef __cplusplus
 }
 #endif

@@ -1,0 +1,163 @@
+#!/bin/sh
+# test-mpi.sh: the tests of render-mpi, the distributed renderer (docs/MPI.md).
+#
+#   PM_BUILD_DIR=build/release sh scripts/test-mpi.sh      (make MPI=1 test-mpi does this)
+#
+# Needs $PM_BUILD_DIR/render and $PM_BUILD_DIR/render-mpi (make MPI=1) and mpirun. Every
+# output goes to a fresh temporary directory, removed at the end. Last line: "N passed,
+# N failed". The oracle of each test is said above it. mpirun refuses root unless told:
+# the two OMPI_ALLOW_RUN_AS_ROOT variables are set here, for CI, which runs as root.
+set -u
+here=$(cd "$(dirname "$0")/.." && pwd)
+B="${PM_BUILD_DIR:-$here/build/release}"
+R="$B/render"
+M="$B/render-mpi"
+for p in "$R" "$M"; do
+  [ -x "$p" ] || { echo "test-mpi: $p not found (make MPI=1 first)" >&2; echo "0 passed, 1 failed"; exit 1; }
+done
+command -v mpirun >/dev/null 2>&1 || { echo "test-mpi: mpirun not found" >&2; echo "0 passed, 1 failed"; exit 1; }
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+# This machine may have fewer cores than ranks: allow several ranks per core.
+MPIRUN="mpirun --oversubscribe"
+T=$(mktemp -d "${TMPDIR:-/tmp}/test-mpi.XXXXXX")
+trap 'rm -rf "$T"' EXIT
+cd "$here"
+pass=0
+fail=0
+ok() { pass=$((pass + 1)); echo "PASS $1"; }
+bad() { fail=$((fail + 1)); echo "FAIL $1: $2"; }
+
+# ---- bit-identical images --------------------------------------------------------------
+# Oracle: the one-process render with 2 threads (itself bit-identical for any thread count).
+# The PFM bytes must be equal for -np 1, 2, 3 and 4 (1 thread per rank; -np 2 also with
+# 2 threads), in path and pm modes. Sizes that are not whole tiles (40x40, 48x24) check the
+# edge tiles; the pm scenes have caustics (cornell_spheres) and final gathering
+# (cornell_diffuse), with photon counts that end the passes in the middle of a round.
+PMSMALL="--pm global_photons=15000 --pm caustic_photons=12000"
+identical() { # name scene args...
+  name=$1; scene=$2; shift 2
+  "$R" "$scene" "$@" --threads 2 --quiet --hdr "$T/$name.ref.pfm" >"$T/$name.ref.log" 2>&1 \
+    || { bad "$name" "the one-process render failed: $(tail -1 "$T/$name.ref.log")"; return; }
+  for run in "1 1" "2 1" "2 2" "3 1" "4 1"; do
+    np=${run% *}; th=${run#* }
+    out="$T/$name.np$np.t$th.pfm"
+    if ! $MPIRUN -np "$np" "$M" "$scene" "$@" --threads "$th" --quiet --hdr "$out" \
+         >"$T/$name.np$np.log" 2>&1; then
+      bad "$name np=$np threads=$th" "render-mpi failed: $(grep render "$T/$name.np$np.log" | tail -2)"
+    elif cmp -s "$out" "$T/$name.ref.pfm"; then
+      ok "$name np=$np threads=$th: PFM bytes equal the one-process render"
+    else
+      bad "$name np=$np threads=$th" "the image differs from the one-process render"
+    fi
+  done
+}
+identical path_box data/scenes/cornell_box.json --mode path --width 40 --height 40 --spp 4
+identical pm_spheres data/scenes/cornell_spheres.json --mode pm --width 48 --height 24 --spp 4 $PMSMALL
+identical pm_diffuse data/scenes/cornell_diffuse.json --mode pm --width 32 --height 32 --spp 1 $PMSMALL
+
+# ---- the photon maps themselves -------------------------------------------------------------
+# Oracle: the maps the one-process render saves. render-mpi -np 3 saves them once, from rank
+# 0, after the distributed passes: the files must be byte-identical.
+"$R" data/scenes/cornell_spheres.json --mode pm --width 16 --height 16 --spp 1 $PMSMALL --quiet \
+  --threads 2 --save-photons "$T/maps1" --hdr "$T/maps1.pfm" >"$T/maps1.log" 2>&1
+$MPIRUN -np 3 "$M" data/scenes/cornell_spheres.json --mode pm --width 16 --height 16 --spp 1 \
+  $PMSMALL --quiet --threads 1 --save-photons "$T/maps3" --hdr "$T/maps3.pfm" >"$T/maps3.log" 2>&1
+same=1
+for f in global caustic shadow; do
+  [ -f "$T/maps1/$f.pmap" ] || { [ -f "$T/maps3/$f.pmap" ] && same=0; continue; }
+  cmp -s "$T/maps1/$f.pmap" "$T/maps3/$f.pmap" || same=0
+done
+if [ -f "$T/maps1/global.pmap" ] && [ "$same" = 1 ]; then
+  ok "photon maps of -np 3 are byte-identical to the one-process maps"
+else
+  bad "photon maps -np 3" "the saved maps differ (or none were saved)"
+fi
+
+# ---- statistics and the tile queue ----------------------------------------------------------
+# Oracle: the one-process render's counters. The pixel pass's counters of every rank are
+# added up on rank 0, so Film/Samples, camera and shadow rays must equal the one-process
+# figures exactly; and with 16 tiles and 2 ranks both ranks must have rendered some.
+stat() { sed -n "s/^ *$1  *\([0-9][0-9]*\)$/\1/p" "$2" | head -1; }
+"$R" data/scenes/cornell_box.json --mode path --width 64 --height 64 --spp 4 --threads 2 --quiet \
+  --hdr "$T/st1.pfm" >"$T/st1.log" 2>&1
+$MPIRUN -np 2 "$M" data/scenes/cornell_box.json --mode path --width 64 --height 64 --spp 4 \
+  --threads 1 --quiet --hdr "$T/st2.pfm" >"$T/st2.log" 2>&1
+allsame=1
+for c in Samples "Camera rays" "Shadow rays" "Indirect rays" "BVH nodes visited"; do
+  a=$(stat "$c" "$T/st1.log"); b=$(stat "$c" "$T/st2.log")
+  if [ -z "$a" ] || [ "$a" != "$b" ]; then allsame=0; echo "  $c: one process '$a', 2 ranks '$b'"; fi
+done
+[ "$allsame" = 1 ] && ok "pixel-pass statistics summed over ranks equal the one-process ones" \
+  || bad "statistics" "the summed counters differ"
+tiles=$(sed -n 's/^MPI: .*tiles rendered per rank: \([0-9]*\) \([0-9]*\) (of \([0-9]*\))$/\1 \2 \3/p' "$T/st2.log")
+set -- $tiles
+if [ $# = 3 ] && [ "$1" -gt 0 ] && [ "$2" -gt 0 ] && [ $(($1 + $2)) = "$3" ]; then
+  ok "tile queue: ranks rendered $1 and $2 of $3 tiles"
+else
+  bad "tile queue" "expected both ranks to render tiles, got '$tiles'"
+fi
+
+# ---- failures ----------------------------------------------------------------------------
+# A scene error on every rank: exit 2, the loader's message (with the line) once from rank 0,
+# and no output file.
+printf '{"camera": 3\n' > "$T/bad.json"
+$MPIRUN -np 3 "$M" "$T/bad.json" --hdr "$T/bad.pfm" >"$T/bad.log" 2>&1
+rc=$?
+if [ $rc = 2 ] && [ ! -e "$T/bad.pfm" ] && grep -q "bad.json: line 2" "$T/bad.log" \
+   && [ "$(grep -c 'bad.json: line 2' "$T/bad.log")" = 1 ] \
+   && grep -q "render-mpi: stopped before rendering" "$T/bad.log"; then
+  ok "a bad scene: exit 2, one message, no output"
+else
+  bad "bad scene" "rc $rc; $(grep render "$T/bad.log" | head -3)"
+fi
+# One rank cannot load its scene (given another path through mpirun's MPMD syntax): rank 0
+# names it and its reason, exit 2, no output.
+$MPIRUN -np 1 "$M" data/scenes/furnace.json --width 16 --height 16 --spp 1 --hdr "$T/one.pfm" \
+  : -np 1 "$M" "$T/missing.json" --width 16 --height 16 --spp 1 --hdr "$T/one.pfm" \
+  >"$T/one.log" 2>&1
+rc=$?
+if [ $rc = 2 ] && [ ! -e "$T/one.pfm" ] \
+   && grep -q "render-mpi: rank 1 of 2 could not start (status 2): render: .*missing.json: cannot open" "$T/one.log"; then
+  ok "one rank without its scene: rank 0 names it, exit 2, no output"
+else
+  bad "one rank without its scene" "rc $rc; $(grep render "$T/one.log" | head -3)"
+fi
+# Options a distributed render does not have: exit 2 with the reason.
+$MPIRUN -np 2 "$M" data/scenes/furnace.json --checkpoint "$T/ck" --hdr "$T/ck.pfm" >"$T/ck.log" 2>&1
+rc=$?
+if [ $rc = 2 ] && [ ! -e "$T/ck.pfm" ] && [ ! -e "$T/ck" ] \
+   && grep -q "render-mpi: --checkpoint is not available" "$T/ck.log"; then
+  ok "--checkpoint refused with exit 2"
+else
+  bad "--checkpoint" "rc $rc; $(grep render "$T/ck.log" | head -2)"
+fi
+# A rank killed (SIGKILL) in the middle of the pixel pass: the job ends with a non-zero
+# status, rank 0 says the job is being stopped, and no output (nor temporary) is left.
+id="h8-$$-$(date +%s)"
+mkdir -p "$T/kill"
+(PM_TEST_MPI_ID=$id $MPIRUN -np 2 "$M" data/scenes/cornell_box.json --mode path --width 64 \
+   --height 64 --spp 1024 --threads 1 --hdr "$T/kill/o.pfm" -o "$T/kill/o.png" \
+   >"$T/kill.log" 2>"$T/kill.err"; echo $? > "$T/kill.rc") &
+killed=""
+i=0
+while [ $i -lt 200 ] && [ -z "$killed" ]; do
+  sleep 0.2
+  i=$((i + 1))
+  grep -q "^Rendering:" "$T/kill.err" 2>/dev/null || continue
+  for p in $(pgrep -f "$M"); do
+    tr '\0' '\n' < /proc/$p/environ 2>/dev/null | grep -qx "PM_TEST_MPI_ID=$id" || continue
+    tr '\0' '\n' < /proc/$p/environ 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=1" || continue
+    kill -9 "$p" && killed=$p
+  done
+done
+wait
+rc=$(cat "$T/kill.rc" 2>/dev/null || echo none)
+if [ -n "$killed" ] && [ "$rc" != 0 ] && [ -z "$(ls -A "$T/kill")" ] \
+   && grep -q "render-mpi: rank 0: the job is being stopped" "$T/kill.err"; then
+  ok "a rank killed mid-render: rank 0's message, status $rc, no output"
+else
+  bad "rank killed" "killed '$killed', rc $rc, left: $(ls -A "$T/kill" | tr '\n' ' '); $(grep render "$T/kill.err" | head -2)"
+fi
+
+echo "$pass passed, $fail failed"
+[ "$fail" = 0 ]
