@@ -9,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "errors.h"
 #include "photonmap/common.h"
 #include "stats.h"
 
@@ -90,14 +91,14 @@ int scene_prepare(scene *s, json_err *e) {
         int rc = distrib1d_init(&s->light_distrib, w, s->nlights);
         if (rc < 0) {
             free(w);
-            return json_fail(e, rc, "lights: %s", pm_strerror(rc));
+            return json_fail(e, rc, "lights: %s", render_strerror(rc));
         }
     }
     free(w);
     double t_bvh = stats_now();
     int rc = bvh_build(&s->accel, s->tris, s->ntris, s->spheres, s->nspheres);
     stats_time_add("Time/BVH build", stats_now() - t_bvh);
-    if (rc < 0) return json_fail(e, rc, "building the BVH: %s", pm_strerror(rc));
+    if (rc < 0) return json_fail(e, rc, "building the BVH: %s", render_strerror(rc));
     return 0;
 }
 

@@ -17,6 +17,7 @@
 
 #include "photonmap/common.h"
 #include "compare.h"
+#include "errors.h"
 #include "film.h"
 
 /* A whole number in [lo, hi] with nothing after it: 0, or -1. */
@@ -42,7 +43,7 @@ int cli_parse_positive(const char *s, double *out) {
 static int read_pfm_or_say(film *f, const char *path) {
     int rc = film_read_pfm(f, path);
     if (rc < 0)
-        fprintf(stderr, "render: %s: %s\n", path, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
+        fprintf(stderr, "render: %s: %s\n", path, render_strerror(rc));
     return rc;
 }
 
@@ -129,7 +130,7 @@ int tools_compare(int argc, char **argv) {
         printf("pixels %ld\nrmse %.6g\nrel_rmse %.6g\nmre %.6g\nmean_a %.6g\nmean_b %.6g\nrel_mean %.6g\n",
                d.npixels, d.rmse, d.rel_rmse, d.mre, d.mean_a, d.mean_b, d.rel_mean);
         if (fdiff && (rc = image_diff_png(&a, &b, dscale, fdiff)) < 0)
-            fprintf(stderr, "render: %s: %s\n", fdiff, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
+            fprintf(stderr, "render: %s: %s\n", fdiff, render_strerror(rc));
     }
     film_free(&a);
     film_free(&b);
@@ -175,7 +176,7 @@ int tools_tonemap(int argc, char **argv) {
     int rc = film_write_png(&f, out, tone, exposure, 1.0, &used);
     film_free(&f);
     if (rc < 0) {
-        fprintf(stderr, "render: %s: %s\n", out, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
+        fprintf(stderr, "render: %s: %s\n", out, render_strerror(rc));
         return 1;
     }
     printf("Wrote %s (%s, exposure %.4g%s)\n", out, tone == FILM_TONE_SRGB ? "sRGB" : "filmic", used,

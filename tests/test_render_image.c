@@ -11,6 +11,7 @@
 #include "test.h"
 #include "../photonmap/common.h"
 #include "../render/compare.h"
+#include "../render/errors.h"
 #include "../render/film.h"
 #include "../render/integrator.h"
 #include "../render/renderer.h"
@@ -312,4 +313,40 @@ TEST(render_object_masks_and_region_compare) {
     film_free(&a);
     film_free(&b);
     film_free(&k);
+}
+
+/* Oracle: the renderer words its own errors. A file that is not a PFM, given to
+ * `render --compare` and `render --tonemap`, exits 2 with a message that names the file and
+ * says the format is wrong, never the module's "photon-map file" wording; a missing file
+ * gives the system's "No such file or directory". render_strerror gives a text of its own
+ * for every code the renderer returns. */
+TEST(render_errors_are_the_renderers_own) {
+    char bad[1024], good[1024], missing[1024], png[1024], cmd[4096], out[4096];
+    snprintf(bad, sizeof bad, "%s/bad.pfm", pm_test_tmpdir());
+    snprintf(good, sizeof good, "%s/good.pfm", pm_test_tmpdir());
+    snprintf(missing, sizeof missing, "%s/missing.pfm", pm_test_tmpdir());
+    snprintf(png, sizeof png, "%s/out.png", pm_test_tmpdir());
+    FILE *f = fopen(bad, "w");
+    ASSERT(f != NULL);
+    fputs("P6\n2 2\n255\nnot a float map\n", f);
+    fclose(f);
+    film g;
+    ASSERT_EQ_INT(film_init(&g, 2, 2), 0);
+    ASSERT_EQ_INT(film_write_pfm(&g, good), 0);
+    film_free(&g);
+    snprintf(cmd, sizeof cmd, "%s/render --compare '%s' '%s'", pm_test_build_dir(), bad, good);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 2);
+    EXPECT_MSG(strstr(out, bad) && strstr(out, "file format") && !strstr(out, "photon-map"), "%s",
+               out);
+    snprintf(cmd, sizeof cmd, "%s/render --tonemap '%s' '%s'", pm_test_build_dir(), bad, png);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 2);
+    EXPECT_MSG(strstr(out, "file format") && !strstr(out, "photon-map"), "%s", out);
+    snprintf(cmd, sizeof cmd, "%s/render --compare '%s' '%s'", pm_test_build_dir(), missing, good);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 2);
+    EXPECT_MSG(strstr(out, "No such file or directory") != NULL, "%s", out);
+    for (int code = PM_EINVAL; code >= PM_ENOTFILE; code--) {
+        const char *t = render_strerror(code);
+        EXPECT_MSG(t && *t && !strstr(t, "photon-map") && strcmp(t, "unknown error") != 0,
+                   "code %d: %s", code, t ? t : "(null)");
+    }
 }
