@@ -6,8 +6,9 @@
 #                        and shared library), run the whole test suite
 #                        (last line: N passed, N failed, N skipped)
 #   make check           the quick tests only, for the edit-test loop (under 20 s on an idle
-#                        machine): the suite without the slow renders, the quick benchmark run
-#                        and the staged install (CHECK_SKIP lists what it leaves out)
+#                        machine): it leaves out the tests that took more than 1 CPU-second or
+#                        3 s in the last `make test` (BUILD/test-times.txt) and those in
+#                        CHECK_SKIP (slow renders, the quick benchmark, the staged install)
 #   make run             render the default Cornell box to out/
 #   make bench           run the full benchmarks, write bench/results/*.csv, plots and docs
 #   make bench-quick     a small benchmark subset (also run by the test suite)
@@ -201,15 +202,19 @@ example: $(LIB) $(SHLIB) $(RENDER_BIN)
 	$(EXAMPLE_CC) -o $(BUILD)/example/knn_example_static $$(pkg-config --cflags photonmap) \
 	    $$(pkg-config --static --libs photonmap | sed 's/-lphotonmap/-l:libphotonmap.a/')
 
+# The runner records each test's CPU and wall time in $(BUILD)/test-times.txt.
 test: all example
-	PM_BUILD_DIR=$(abspath $(BUILD)) PM_SOURCE_DIR=$(CURDIR) $(TEST_BIN) $(TESTS)
+	PM_BUILD_DIR=$(abspath $(BUILD)) PM_SOURCE_DIR=$(CURDIR) $(TEST_BIN) \
+	    --times $(BUILD)/test-times.txt $(TESTS)
 
-# `make check`: what takes more than a second or two stays out (a pattern skips every test
-# whose name or file contains it).
-CHECK_SKIP := bench_quick_run agrees_with_path_tracing example_ packaging_ docs_ build_tracks
+# `make check` leaves out the tests that took more than 1 CPU-second or 3 s in the last
+# recorded run (runner --quick), and always those that need the staged install or are known
+# to be slow (CHECK_SKIP: a pattern leaves out every test whose name or file contains it).
+CHECK_SKIP := bench_quick_run agrees_with_path_tracing matches_path example_ packaging_ docs_ \
+              build_tracks tungsten_cornell signal_phases
 check: all
 	PM_BUILD_DIR=$(abspath $(BUILD)) PM_SOURCE_DIR=$(CURDIR) $(TEST_BIN) \
-	    $(addprefix -x ,$(CHECK_SKIP)) $(TESTS)
+	    --times $(BUILD)/test-times.txt --quick $(addprefix -x ,$(CHECK_SKIP)) $(TESTS)
 
 # ---- MPI (optional) ------------------------------------------------------------------------
 # `make MPI=1` also builds render-mpi, the distributed renderer (render/mpi/, docs/MPI.md):

@@ -1,8 +1,12 @@
 /* runner.c: runs every registered test, each in its own forked child.
  *
- * Usage: run_tests [--list] [-j N] [-x PATTERN]... [PATTERN...]
+ * Usage: run_tests [--list] [-j N] [-x PATTERN]... [--times FILE [--quick]] [PATTERN...]
  *   PATTERN selects tests whose name or file contains it (any pattern matches); -x PATTERN
  *   leaves out those whose name or file contains it (`make check` uses it for slow tests).
+ *   --times FILE reads and rewrites FILE, one "name cpu_seconds wall_seconds" line per test
+ *   as last measured (CPU time of the test's process and everything it ran). With --quick,
+ *   the tests that FILE says took more than QUICK_CPU CPU-seconds or QUICK_WALL seconds are
+ *   left out and named (`make check`: the full `make test` records the times).
  *   -j N runs N tests at once (default: PM_TEST_JOBS, else 2). Each child's output is
  *   captured and printed whole when it ends, so parallel output does not interleave.
  *   PM_TEST_TIMEOUT (seconds, default 300) kills a test that runs too long.
@@ -20,6 +24,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/time.h>
 #include <sys/wait.h>
 #include <time.h>
@@ -28,7 +33,13 @@
 typedef struct {
     const char *name, *file;
     pm_test_fn fn;
+    int timed;          /* cpu and wall hold a measurement (read from --times or just made) */
+    double cpu, wall;
 } test_entry;
+
+/* --quick leaves out what took longer than this in the last recorded run. */
+#define QUICK_CPU 1.0
+#define QUICK_WALL 3.0
 
 static test_entry *g_tests;
 static int g_ntests, g_cap;
@@ -42,7 +53,7 @@ void pm_test_register(const char *name, const char *file, pm_test_fn fn) {
         g_tests = realloc(g_tests, (size_t)g_cap * sizeof *g_tests);
         if (!g_tests) abort();
     }
-    g_tests[g_ntests++] = (test_entry){name, file, fn};
+    g_tests[g_ntests++] = (test_entry){name, file, fn, 0, 0, 0};
 }
 
 void pm_test_fail(const char *file, int line, const char *fmt, ...) {
@@ -173,6 +184,36 @@ static void skip_reason(FILE *log, char *buf, size_t cap) {
         }
 }
 
+static void read_times(const char *path) {
+    FILE *f = fopen(path, "r");
+    char name[256];
+    double cpu, wall;
+    if (!f) return; /* no record yet: nothing is known to be slow */
+    while (fscanf(f, "%255s %lf %lf", name, &cpu, &wall) == 3)
+        for (int i = 0; i < g_ntests; i++)
+            if (!strcmp(g_tests[i].name, name)) {
+                g_tests[i].timed = 1;
+                g_tests[i].cpu = cpu;
+                g_tests[i].wall = wall;
+            }
+    fclose(f);
+}
+
+/* Whole or not at all: a temporary beside it, renamed over it. */
+static void write_times(const char *path) {
+    char tmp[4096];
+    FILE *f;
+    snprintf(tmp, sizeof tmp, "%s.tmp", path);
+    if (!(f = fopen(tmp, "w"))) { perror(tmp); return; }
+    for (int i = 0; i < g_ntests; i++)
+        if (g_tests[i].timed) fprintf(f, "%s %.3f %.3f\n", g_tests[i].name, g_tests[i].cpu, g_tests[i].wall);
+    if (fclose(f) != 0 || rename(tmp, path) != 0) perror(path);
+}
+
+static int too_slow(const test_entry *t) {
+    return t->timed && (t->cpu > QUICK_CPU || t->wall > QUICK_WALL);
+}
+
 int main(int argc, char **argv) {
     int jobs = 2, npat = 0, nexcl = 0, list = 0, passed = 0, failed = 0, skipped = 0;
     char **pat = calloc((size_t)argc, sizeof *pat), **excl = calloc((size_t)argc, sizeof *excl);
@@ -181,7 +222,8 @@ int main(int argc, char **argv) {
     const char *env;
     unsigned timeout = 300;
     running *run;
-    int nrun = 0, next = 0;
+    int nrun = 0, next = 0, quick = 0, nslow = 0;
+    const char *times = NULL;
 
     if ((env = getenv("PM_TEST_JOBS")) && atoi(env) > 0) jobs = atoi(env);
     if ((env = getenv("PM_TEST_TIMEOUT")) && atoi(env) > 0) timeout = (unsigned)atoi(env);
@@ -189,12 +231,16 @@ int main(int argc, char **argv) {
         if (!strcmp(argv[i], "--list")) list = 1;
         else if (!strcmp(argv[i], "-j") && i + 1 < argc) jobs = atoi(argv[++i]);
         else if (!strcmp(argv[i], "-x") && i + 1 < argc) excl[nexcl++] = argv[++i];
+        else if (!strcmp(argv[i], "--times") && i + 1 < argc) times = argv[++i];
+        else if (!strcmp(argv[i], "--quick")) quick = 1;
         else if (!strcmp(argv[i], "-h") || !strcmp(argv[i], "--help")) {
-            printf("usage: %s [--list] [-j N] [-x PATTERN]... [PATTERN...]\n", argv[0]);
+            printf("usage: %s [--list] [-j N] [-x PATTERN]... [--times FILE [--quick]] [PATTERN...]\n",
+                   argv[0]);
             return 0;
         } else pat[npat++] = argv[i];
     }
     if (jobs < 1) jobs = 1;
+    if (times) read_times(times);
     if (list) {
         for (int i = 0; i < g_ntests; i++)
             if (selected(&g_tests[i], npat, pat, nexcl, excl)) printf("%s  (%s)\n", g_tests[i].name, g_tests[i].file);
@@ -208,6 +254,11 @@ int main(int argc, char **argv) {
             FILE *log;
             pid_t pid;
             if (!selected(&g_tests[i], npat, pat, nexcl, excl)) continue;
+            if (quick && too_slow(&g_tests[i])) {
+                if (nslow++ == 0) printf("left out as slow in the last recorded run (%s):\n", times);
+                printf("  %s (%.1f CPU-s, %.1f s)\n", g_tests[i].name, g_tests[i].cpu, g_tests[i].wall);
+                continue;
+            }
             log = tmpfile();
             if (!log) { perror("tmpfile"); return 2; }
             fflush(NULL);
@@ -219,7 +270,8 @@ int main(int argc, char **argv) {
         if (nrun == 0) break;
         {
             int status, k;
-            pid_t pid = wait(&status);
+            struct rusage ru;
+            pid_t pid = wait4(-1, &status, 0, &ru);
             char buf[4096];
             size_t got;
             const test_entry *t;
@@ -234,8 +286,12 @@ int main(int argc, char **argv) {
             t = &g_tests[run[k].idx];
             ok = WIFEXITED(status) && WEXITSTATUS(status) == 0;
             skip = WIFEXITED(status) && WEXITSTATUS(status) == PM_TEST_SKIP_STATUS;
+            g_tests[run[k].idx].timed = 1;
+            g_tests[run[k].idx].wall = now_s() - run[k].t0;
+            g_tests[run[k].idx].cpu = (double)ru.ru_utime.tv_sec + 1e-6 * (double)ru.ru_utime.tv_usec +
+                                      (double)ru.ru_stime.tv_sec + 1e-6 * (double)ru.ru_stime.tv_usec;
             printf("%s %s (%.2fs)\n", ok ? "PASS" : skip ? "SKIP" : "FAIL", t->name,
-                   now_s() - run[k].t0);
+                   g_tests[run[k].idx].wall);
             rewind(run[k].log);
             while ((got = fread(buf, 1, sizeof buf, run[k].log)) > 0) fwrite(buf, 1, got, stdout);
             if (WIFSIGNALED(status))
@@ -257,6 +313,7 @@ int main(int argc, char **argv) {
             run[k] = run[--nrun];
         }
     }
+    if (times) write_times(times);
     if (skipped) printf("skipped:\n%s", skips);
     printf("%d passed, %d failed, %d skipped\n", passed, failed, skipped);
     free(skips);

@@ -57,6 +57,29 @@ TEST(runner_reports_skips) {
     EXPECT_MSG(strstr(out, "harness_skips_inner") == NULL, "-x did not exclude: %s", out);
 }
 
+/* Oracle: the documented --times/--quick rules. A test recorded above 1 CPU-second is left
+ * out and named; a quick one runs; the file is rewritten with the new measurement beside the
+ * old ones it did not replace. */
+TEST(runner_quick_leaves_out_recorded_slow_tests) {
+    char out[4096], cmd[2048], path[1024];
+    if (getenv("PM_TEST_INNER")) return;
+    snprintf(path, sizeof path, "%s/times.txt", pm_test_tmpdir());
+    FILE *f = fopen(path, "w");
+    ASSERT(f != NULL);
+    fprintf(f, "strerror_names_every_code 5.000 0.100\nharness_skips_inner 0.010 0.020\n");
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "PM_TEST_INNER=1 %s/run_tests --times %s --quick strerror_names harness_skips_inner",
+             pm_test_build_dir(), path);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "  strerror_names_every_code (5.0 CPU-s, 0.1 s)\n"), "runner printed: %s", out);
+    EXPECT_MSG(strstr(out, "\n0 passed, 0 failed, 1 skipped\n") != NULL, "runner printed: %s", out);
+    snprintf(cmd, sizeof cmd, "cat %s", path);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "strerror_names_every_code 5.000 0.100\n"), "times file: %s", out);
+    EXPECT_MSG(strstr(out, "harness_skips_inner ") && !strstr(out, "harness_skips_inner 0.010 0.020"),
+               "times file not updated: %s", out);
+}
+
 TEST(harness_skips_inner) {
     /* Only meaningful when run by runner_reports_skips; passes when run normally. */
     if (getenv("PM_TEST_INNER")) SKIP("no such tool here");
