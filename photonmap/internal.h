@@ -8,12 +8,13 @@
  * otherwise, so the worst case stays O(n log n). Indices are distinct, so every correct sort
  * gives the same array.
  *
- * HEAP. A max-heap on dist2 alone, in h[0..n): h[0] is the farthest, the current k-th
+ * HEAP. A binary max-heap on dist2 alone, in h[0..n): h[0] is the farthest, the current k-th
  * distance of a k-nearest search. pm__heap_sift_down places v at slot i and moves it down;
  * the larger child is picked without a branch (the comparison is a coin toss, so a branch
  * would mispredict half the time). Ties between children go to the left one and a child that
- * equals v stays below it: the searches' tie rules (kdtree.h, TIES) depend on exactly these
- * choices, so they are fixed here once.
+ * equals v stays below it: which of several tied records a search returns (kdtree.h, TIES:
+ * the one that leaves is the heap's top) follows from exactly these choices, so they are
+ * fixed here once. (A 4-ary heap was measured and gave nothing: docs/BENCHMARKS.md.)
  */
 #ifndef PM_INTERNAL_H
 #define PM_INTERNAL_H
@@ -86,45 +87,6 @@ static inline void pm__heapify(pm_neighbor *h, unsigned n) {
 /* Replaces the farthest entry h[0] by v and restores the heap. */
 static inline void pm__heap_replace_top(pm_neighbor *h, unsigned n, pm_neighbor v) {
     pm__heap_sift_down(h, n, 0, v);
-}
-
-/* Sorts a max-heap on dist2, h[0..n) (as the k-nearest searches leave it), by (dist2, index)
- * ascending, in place. Cheaper than pm__nb_sort from scratch: the heap is already built, and
- * each extraction walks the hole left by the top down to a leaf along the larger children
- * without comparing against the moved element, then sifts that element up (Floyd's variant:
- * about half the comparisons, and the child choice is branch-free). The result is ordered by
- * dist2; a final insertion pass orders runs of equal dist2 by index, which costs one
- * comparison per entry when there are no ties. */
-static inline void pm__heap_sort(pm_neighbor *h, unsigned n) {
-    for (unsigned e = n; e-- > 1;) {
-        pm_neighbor top = h[0], v = h[e];
-        unsigned i = 0;
-        for (;;) {
-            unsigned c = 2 * i + 1;
-            if (c >= e) break;
-            if (c + 1 < e) c += h[c + 1].dist2 > h[c].dist2;
-            h[i] = h[c];
-            i = c;
-        }
-        while (i > 0) {
-            unsigned p = (i - 1) / 2;
-            if (!(h[p].dist2 < v.dist2)) break;
-            h[i] = h[p];
-            i = p;
-        }
-        h[i] = v;
-        h[e] = top;
-    }
-    for (unsigned i = 1; i < n; i++) {
-        if (!(h[i].dist2 == h[i - 1].dist2 && h[i].index < h[i - 1].index)) continue;
-        pm_neighbor v = h[i];
-        unsigned j = i;
-        while (j > 0 && pm__nb_less(&v, &h[j - 1])) {
-            h[j] = h[j - 1];
-            j--;
-        }
-        h[j] = v;
-    }
 }
 
 /* Up to this many results are sorted by pm__nb_sort_keys, on the stack (2 x 8 bytes each). */

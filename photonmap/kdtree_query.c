@@ -243,7 +243,8 @@ PM__INLINE int single_record(const view *v, uint64_t node) {
 }
 
 /* When near's children are buckets (the two are adjacent in memory), start loading them:
- * the bucket scan is where a query waits for memory most. At most 512 bytes. */
+ * the bucket scan is where a query waits for memory most. At most PM__PREFETCH_MAX bytes (1280:
+ * both whole buckets up to B = 32; measured in docs/BENCHMARKS.md, "What did not pay off"). */
 PM__INLINE void prefetch_buckets(const view *v, uint64_t near) {
     const uint64_t L = v->L;
     if (near >= (L >> 1) && near < L) {
@@ -251,7 +252,7 @@ PM__INLINE void prefetch_buckets(const view *v, uint64_t near) {
         const char *r = v->rec + b * v->stride;
         uint64_t bytes = (uint64_t)v->t->bucket * v->stride * 2;
 #ifndef PM__PREFETCH_MAX
-#define PM__PREFETCH_MAX 512
+#define PM__PREFETCH_MAX 1280
 #endif
         if (bytes > PM__PREFETCH_MAX) bytes = PM__PREFETCH_MAX;
         for (uint64_t o = 0; o < bytes; o += 64) __builtin_prefetch(r + o);
@@ -408,9 +409,7 @@ static int knn_finish(knn_state *s, unsigned flags, pm_query_stats *stats) {
         stats->dist_evals += s->evals;
     }
     if (flags & PM_SORT) {
-        /* k found: out is the max-heap on dist2; fewer: arrival order */
         if (s->found <= PM__SORT_KEYS_MAX) pm__nb_sort_keys(s->out, s->found);
-        else if (s->found == s->k) pm__heap_sort(s->out, s->found);
         else pm__nb_sort(s->out, s->found);
     }
     return (int)s->found;
