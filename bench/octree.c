@@ -395,7 +395,6 @@ int bench_octree_knn(const bench_octree *tree, const float q[3], unsigned k, flo
     }
     if (flags & PM_SORT) {
         if (found <= PM__SORT_KEYS_MAX) pm__nb_sort_keys(out, found);
-        else if (found == k) pm__heap_sort(out, found); /* out is the max-heap on dist2 */
         else pm__nb_sort(out, found);
     }
     return (int)found;
