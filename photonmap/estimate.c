@@ -384,6 +384,16 @@ static void hull(const pm_photon *ph, const pm_neighbor *nb, unsigned count, con
     int limited;
     long far, m = 0;
 
+    /* Far from every photon (a dist2 overflowed) the disc gives 0 with PM_EST_F_FAR; so does
+     * the hull: its projected doubles would not overflow, but the photons found are then an
+     * arbitrary set of tied infinite distances, not the nearest. */
+    {
+        unsigned fl = 0;
+        if (!isfinite(radius2(nb, count, x, opt, &limited, &far, &fl))) {
+            disc(ph, nb, count, x, opt, b, out);
+            return;
+        }
+    }
     if (count < 3) goto fallback;
     if (normal) {
         double len = sqrt((double)normal[0] * normal[0] + (double)normal[1] * normal[1] +

@@ -795,3 +795,101 @@ TEST(estimate_parallel_matches_serial) {
     pm_kdtree_free(tree);
     free(qs), free(serial), free(par), free(sq.ph);
 }
+
+/* Oracle: the disc estimate's own flag. For every estimator, PM_EST_F_FAR is set, and the
+ * estimate is exactly 0, exactly when the disc sets it on the same neighbour list. Lists: 12
+ * photons spread over 1e-3 or 0.5 times their distance from the origin, around points at
+ * 1e19..1e20, with x at the opposite 1e19..1e20 (some or all float dist2 overflow), or with x
+ * near the photons (none do). Before the hull checked
+ * it, the hull returned a finite value from the (arbitrary) photons of an all-infinite list. */
+TEST(estimate_far_flag_agrees_with_the_disc) {
+    enum { NP = 12 };
+    pm_photon ph[NP];
+    pm_neighbor nb[NP];
+    rng_t r = {404};
+    void *scratch = malloc(pm_estimate_scratch_bytes(NP));
+    unsigned far_cases = 0, near_cases = 0;
+    for (int trial = 0; trial < 300; trial++) {
+        double scale = trial % 3 == 2 ? 1.0 : pow(10.0, 19 + rng_unit(&r));
+        float c[3] = {(float)scale, (float)(scale * rng_unit(&r)), (float)(0.5 * scale * rng_unit(&r))};
+        float x[3];
+        for (int a = 0; a < 3; a++) x[a] = trial % 3 == 2 ? c[a] + 0.01f : -c[a] * (float)(0.5 + rng_unit(&r));
+        float spread = trial % 2 ? 1e-3f : 0.5f;
+        for (int i = 0; i < NP; i++) {
+            float pos[3] = {c[0] * (1 + spread * (float)rng_unit(&r)), c[1] + spread * (float)rng_unit(&r) * c[0],
+                            c[2] + spread * (float)rng_unit(&r) * c[0]};
+            pm_photon_init(&ph[i], pos, (float[3]){1, 1, 1}, DOWN, UP, 0);
+            float d[3] = {pos[0] - x[0], pos[1] - x[1], pos[2] - x[2]};
+            nb[i].index = (uint32_t)i, nb[i].dist2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        }
+        pm_estimate_options o;
+        pm_estimate_result disc, res;
+        pm_estimate_options_init(&o, PM_EST_DISC, NP);
+        ASSERT_EQ_INT(pm_estimate_core(ph, nb, NP, x, UP, &o, scratch, &disc), PM_OK);
+        int far = (disc.flags & PM_EST_F_FAR) != 0;
+        far_cases += (unsigned)far, near_cases += (unsigned)!far;
+        for (int kind = 0; kind < PM_EST_COUNT_; kind++) {
+            pm_estimate_options_init(&o, (pm_estimator)kind, NP);
+            ASSERT_EQ_INT(pm_estimate_core(ph, nb, NP, x, UP, &o, scratch, &res), PM_OK);
+            int f = (res.flags & PM_EST_F_FAR) != 0;
+            EXPECT_MSG(f == far, "trial %d, %s: FAR %d, disc %d", trial, pm_estimator_name((pm_estimator)kind), f, far);
+            if (far) EXPECT_MSG(res.rgb[0] == 0 && res.rgb[1] == 0 && res.rgb[2] == 0, "trial %d, %s: %g with FAR", trial,
+                                pm_estimator_name((pm_estimator)kind), res.rgb[0]);
+            else EXPECT_MSG(res.rgb[0] > 0, "trial %d, %s: 0 without FAR", trial, pm_estimator_name((pm_estimator)kind));
+        }
+    }
+    EXPECT(far_cases >= 100 && near_cases >= 50);
+    free(scratch);
+}
+
+/* Oracle: the analytic irradiance of a half-lit plane (E on x < 0.5, 0 beyond) and the
+ * behaviour documented in estimate.h. Random (Poisson) photons on [0, 0.5] x [0, 1]; at
+ * points a distance D past the lit edge (D = 0 to 25 mean photon spacings h), with k = 50:
+ * the hull keeps reading the lit side's density (its photons all lie in the lit region and
+ * their hull covers only them): within 15% of E at every D; the disc falls off (its radius
+ * grows with D) and reads below 0.3 E from D = 10 h on; with max_dist2 = (5h)^2 every estimator
+ * reads exactly 0 from D = 6 h on (no photon within the radius). */
+TEST(estimate_hull_past_the_edge_of_a_lit_region) {
+    const size_t N = 40000;
+    pm_photon *ph = malloc(sizeof *ph * N);
+    rng_t r = {808};
+    for (size_t i = 0; i < N; i++) {
+        float pos[3] = {(float)(0.5 * rng_unit(&r)), (float)rng_unit(&r), 0};
+        pm_photon_init(&ph[i], pos, (float[3]){0x1p-16f, 0x1p-16f, 0x1p-16f}, DOWN, UP, 0);
+    }
+    const double E = (double)N * 0x1p-16 / 0.5, h = sqrt(0.5 / (double)N);
+    pm_kdtree *t = NULL;
+    pm_kdtree_config cfg = pm_kdtree_photon_config(8);
+    ASSERT_EQ_INT(pm_kdtree_build(&t, ph, N, &cfg, NULL), PM_OK);
+    void *scratch = malloc(pm_estimate_scratch_bytes(50));
+    const double Ds[] = {0, 2, 5, 10, 25};
+    for (int di = 0; di < 5; di++) {
+        double sh = 0, sd = 0, s0 = 0;
+        const int L = 300;
+        for (int l = 0; l < L; l++) {
+            float x[3] = {(float)(0.5 + Ds[di] * h), (float)(0.2 + 0.6 * rng_unit(&r)), 0};
+            pm_estimate_options o;
+            pm_estimate_result res;
+            pm_estimate_options_init(&o, PM_EST_HULL, 50);
+            ASSERT_EQ_INT(pm_estimate(t, x, UP, &o, scratch, &res, NULL), PM_OK);
+            sh += res.rgb[0] / E;
+            o.kind = PM_EST_DISC;
+            ASSERT_EQ_INT(pm_estimate(t, x, UP, &o, scratch, &res, NULL), PM_OK);
+            sd += res.rgb[0] / E;
+            o.max_dist2 = (float)(25 * h * h);
+            for (int kind = 0; kind < PM_EST_COUNT_; kind++) {
+                o.kind = (pm_estimator)kind;
+                ASSERT_EQ_INT(pm_estimate(t, x, UP, &o, scratch, &res, NULL), PM_OK);
+                s0 = fmax(s0, res.rgb[0] / E);
+            }
+        }
+        printf("past the edge by %4.1f spacings: hull %.3f E, disc %.3f E; with max_dist2 (5 h)^2 at most %.3f E\n",
+               Ds[di], sh / L, sd / L, s0);
+        EXPECT_MSG(fabs(sh / L - 1) <= 0.15, "hull at D = %g h: %.3f E", Ds[di], sh / L);
+        if (Ds[di] >= 10) EXPECT_MSG(sd / L < 0.3, "disc at D = %g h: %.3f E", Ds[di], sd / L);
+        if (Ds[di] >= 6) EXPECT_MSG(s0 == 0, "max_dist2 at D = %g h: %.3f E", Ds[di], s0);
+    }
+    free(scratch);
+    pm_kdtree_free(t);
+    free(ph);
+}
