@@ -9,10 +9,13 @@
  * relative tolerance in its orientation test, after an Akl-Toussaint prefilter has set aside
  * the points that are surely interior; any doubt (too few points, fewer than three hull
  * vertices, a sliver) sends it to the disc estimate, so it never divides by a zero area.
- * Sorting (hull, differential) is an in-place heapsort on the caller's scratch, because qsort
- * may allocate and the estimates promise not to.
+ * Sorting is in place on the caller's scratch, because qsort may allocate and the estimates
+ * promise not to: differential checking sorts its neighbours with the module's one
+ * (dist2, index) sort (internal.h); the hull heapsorts its projected points by (u, v), a key
+ * no other code sorts by.
  */
 #include "estimate.h"
+#include "internal.h"
 
 #include <math.h>
 #include <string.h>
@@ -219,29 +222,6 @@ static void filtered(const pm_photon *ph, const pm_neighbor *nb, unsigned count,
     finish(out, sum, PM__PI * r2 * norm);
 }
 
-/* In-place heapsort of neighbours by dist2 (then index, for a deterministic order). */
-static int nb_less(const pm_neighbor *a, const pm_neighbor *b) {
-    return a->dist2 < b->dist2 || (a->dist2 == b->dist2 && a->index < b->index);
-}
-static void nb_sift(pm_neighbor *a, size_t i, size_t n) {
-    for (;;) {
-        size_t c = 2 * i + 1;
-        if (c >= n) return;
-        if (c + 1 < n && nb_less(&a[c], &a[c + 1])) c++;
-        if (!nb_less(&a[i], &a[c])) return;
-        pm_neighbor t = a[i];
-        a[i] = a[c], a[c] = t, i = c;
-    }
-}
-static void nb_sort(pm_neighbor *a, size_t n) {
-    for (size_t i = n / 2; i-- > 0;) nb_sift(a, i, n);
-    for (size_t e = n; e > 1; e--) {
-        pm_neighbor t = a[0];
-        a[0] = a[e - 1], a[e - 1] = t;
-        nb_sift(a, 0, e - 1);
-    }
-}
-
 static double lum(const double c[3]) { return c[0] + c[1] + c[2]; }
 
 static void differential(const pm_photon *ph, const pm_neighbor *nb, unsigned count,
@@ -259,7 +239,7 @@ static void differential(const pm_photon *ph, const pm_neighbor *nb, unsigned co
 
     if (dmin < 2) dmin = 2;
     memcpy(s, nb, (size_t)count * sizeof *s);
-    nb_sort(s, count);
+    pm__nb_sort(s, count);
     for (unsigned j = 0; j < count; j++) {
         contrib(b, &ph[s[j].index], c);
         double d2 = fmax((double)s[j].dist2, fl);
