@@ -344,6 +344,31 @@ static int push_children(const bench_octree *t, const oct_item *it, const float 
     return sp;
 }
 
+/* The root cell on an empty stack; returns the stack size. */
+static int push_root(const bench_octree *t, const float q[3], oct_item *stack) {
+    stack[0].cell = 0;
+    memcpy(stack[0].lo, t->lo, sizeof t->lo);
+    memcpy(stack[0].hi, t->hi, sizeof t->hi);
+    stack[0].d2 = box_dist2(q, t->lo, t->hi);
+    return 1;
+}
+
+/* Pops cells, nearest first, until a leaf whose box is within bound (NaN: unlimited), pushing
+ * the children of the internal cells met; returns that leaf, or NULL when the stack is empty.
+ * bound cannot change on the way: no record is taken between two leaves. */
+static const oct_cell *next_leaf(const bench_octree *t, const float q[3], float bound,
+                                 oct_item *stack, int *sp, uint64_t *nodes) {
+    while (*sp > 0) {
+        const oct_item it = stack[--*sp];
+        if (it.d2 >= bound) continue;
+        const oct_cell *cell = &t->cells[it.cell];
+        (*nodes)++;
+        if (!cell->child) return cell;
+        *sp = push_children(t, &it, q, bound, stack, *sp);
+    }
+    return NULL;
+}
+
 int bench_octree_knn(const bench_octree *tree, const float q[3], unsigned k, float max_dist2,
                   pm_neighbor *out, unsigned flags, pm_query_stats *stats) {
     oct_item stack[OCT_STACK];
@@ -359,21 +384,9 @@ int bench_octree_knn(const bench_octree *tree, const float q[3], unsigned k, flo
     /* Unlimited is NaN inside, and every test is !(x >= bound), as in the kd-tree: then a
      * record whose float dist2 overflowed to +inf is still accepted. */
     const float r2 = max_dist2 == INFINITY ? NAN : max_dist2;
-    stack[0].cell = 0;
-    memcpy(stack[0].lo, tree->lo, sizeof tree->lo);
-    memcpy(stack[0].hi, tree->hi, sizeof tree->hi);
-    stack[0].d2 = box_dist2(q, tree->lo, tree->hi);
-    sp = 1;
-    while (sp > 0) {
-        const oct_item it = stack[--sp];
-        float bound = found == k ? out[0].dist2 : r2;
-        if (it.d2 >= bound) continue;
-        const oct_cell *cell = &tree->cells[it.cell];
-        nodes++;
-        if (cell->child) {
-            sp = push_children(tree, &it, q, bound, stack, sp);
-            continue;
-        }
+    sp = push_root(tree, q, stack);
+    const oct_cell *cell;
+    while ((cell = next_leaf(tree, q, found == k ? out[0].dist2 : r2, stack, &sp, &nodes))) {
         evals += cell->end - cell->begin;
         for (uint32_t i = cell->begin; i < cell->end; i++) {
             float d2 = rec_dist2(tree, q, i);
@@ -413,20 +426,9 @@ long bench_octree_radius(const bench_octree *tree, const float q[3], float r2, p
     if (cap > 0 && !out) return PM_EINVAL;
 
     if (r2 == INFINITY) r2 = NAN; /* unlimited: see bench_octree_knn */
-    stack[0].cell = 0;
-    memcpy(stack[0].lo, tree->lo, sizeof tree->lo);
-    memcpy(stack[0].hi, tree->hi, sizeof tree->hi);
-    stack[0].d2 = box_dist2(q, tree->lo, tree->hi);
-    sp = 1;
-    while (sp > 0) {
-        const oct_item it = stack[--sp];
-        if (it.d2 >= r2) continue;
-        const oct_cell *cell = &tree->cells[it.cell];
-        nodes++;
-        if (cell->child) {
-            sp = push_children(tree, &it, q, r2, stack, sp);
-            continue;
-        }
+    sp = push_root(tree, q, stack);
+    const oct_cell *cell;
+    while ((cell = next_leaf(tree, q, r2, stack, &sp, &nodes))) {
         evals += cell->end - cell->begin;
         for (uint32_t i = cell->begin; i < cell->end; i++) {
             float d2 = rec_dist2(tree, q, i);
