@@ -10,7 +10,8 @@
  * file, applies the transform, and, when smooth, makes the corner normals (mesh.h). Errors
  * name the JSON path, and the file with its line or byte offset.
  *
- * Timing: both add their wall-clock time to the statistics timer "Time/Mesh loading" (stats.h).
+ * Timing: both add their wall-clock time to the statistics timer "Time/Mesh loading", and
+ * mesh_object_read its process CPU time to "Time/Mesh loading (CPU)" (stats.h).
  */
 #ifndef RENDER_IMPORT_H
 #define RENDER_IMPORT_H

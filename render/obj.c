@@ -71,6 +71,8 @@ static int read_vec(parser *p, const char *s, const char *end, const char *what,
             n++;
         }
         tmp[n] = 0;
+        if (s + n < end && !is_space(s[n]))
+            return fail(p, PM_EINVAL, "%s: coordinate %d is too long a number", what, k + 1);
         char *e;
         errno = 0;
         c[k] = strtod(tmp, &e);
@@ -79,7 +81,6 @@ static int read_vec(parser *p, const char *s, const char *end, const char *what,
         if (!isfinite(c[k]))
             return fail(p, PM_EINVAL, "%s: coordinate %d is not finite (%s)", what, k + 1, tmp);
         s += n;
-        while (s < end && !is_space(*s)) s++;
     }
     *out = v3(c[0], c[1], c[2]);
     return 0;

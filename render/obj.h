@@ -10,9 +10,10 @@
  * statement is an error, so nothing in the file is silently dropped.
  *
  * Errors (PM_EINVAL, PM_EIO, PM_ENOMEM) name the file and line: a missing or non-numeric
- * coordinate, NaN or infinity, an index of 0 or out of range, a face with fewer than three
- * corners, a degenerate face (zero area, judged as triangle_make does), a file with no face.
- * Speed: one pass over the file in memory; a 1M-triangle file loads in about a second.
+ * coordinate (or one longer than 63 characters), NaN or infinity, an index of 0 or out of
+ * range, a face with fewer than three corners, a degenerate face (zero area, judged as
+ * triangle_make does), a file with no face. Speed: one pass over the file in memory
+ * (docs/IMPORT.md has the time for a 1M-triangle file).
  */
 #ifndef RENDER_OBJ_H
 #define RENDER_OBJ_H

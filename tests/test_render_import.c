@@ -115,6 +115,8 @@ TEST(obj_errors_name_line_and_reason) {
         {"v 0 0 0\nv 1 0 0\nv 0 1 inf\nf 1 2 3\n", "t.obj:3: v: coordinate 3 is not finite"},
         {"v 0 0 0\nv 1 0 0\nv 0 1 1e999\nf 1 2 3\n", "t.obj:3: v: coordinate 3 is not finite"},
         {"v 0 0 0\nv 1 0 x\n", "t.obj:2: v: coordinate 3 is not a number"},
+        {"v 0 0 0\nv 1 0 0.00000000000000000000000000000000000000000000000000000000000000000001\n",
+         "t.obj:2: v: coordinate 3 is too long a number"}, /* never cut short silently */
         {"v 0 0 0\nv 1 0 0\nv 0 1 0\n", "t.obj: empty mesh"},
         {"# nothing\n", "t.obj: empty mesh"},
         {"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "t.obj:4: degenerate face"},
@@ -355,6 +357,14 @@ TEST(mesh_shading_normal_never_decides_side) {
     mesh_scene(scn, "\"file\": \"u.obj\", \"material\": \"m\", \"usemtl\": false");
     EXPECT_MSG(scene_load(&s, scn, &e) == 0, "%s", e.msg);
     scene_free(&s);
+    /* a mirroring transform turns the front around (the winding decides, as in Tungsten) */
+    ASSERT(write_text(obj2, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n") == 0);
+    mesh_scene(scn, "\"file\": \"u.obj\", \"material\": \"m\", \"transform\": [-2, 0, 0, 1, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]");
+    ASSERT_MSG(scene_load(&s, scn, &e) == 0, "%s", e.msg);
+    EXPECT_NEAR(s.tris[0].n.z, -1, 1e-12);
+    EXPECT_NEAR(s.tris[0].v0.x, 1, 1e-12);
+    EXPECT_NEAR(s.tris[0].e1.x, -2, 1e-12);
+    scene_free(&s);
     mesh_scene(scn, "\"file\": \"missing.obj\", \"material\": \"m\"");
     EXPECT_MSG(scene_load(&s, scn, &e) < 0 && strstr(e.msg, "missing.obj: cannot open"), "%s", e.msg);
     mesh_scene(scn, "\"file\": \"u.obj\", \"material\": \"m\", \"transform\": [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 1, 1]");
@@ -480,8 +490,8 @@ TEST(tungsten_rotation_order) {
 /* Oracle: the Tungsten definitions: a quad is the unit square in x-z around the origin with
  * its front along +y, emitting from the front only; "power" P of a quad becomes radiance
  * P / (pi area); a sphere's radius is its largest scale; resolution, fov, spp and max_bounces
- * map to our camera and render keys; a null bsdf without emission disappears; a dielectric
- * without refraction keeps only its Fresnel reflection. */
+ * map to our camera and render keys; a null bsdf without emission, and a forward one without
+ * a medium, disappear; a dielectric without refraction keeps only its Fresnel reflection. */
 TEST(tungsten_conversion_values) {
     const char *t =
         "{\"media\": [], \"bsdfs\": [{\"name\": \"w\", \"type\": \"lambert\", \"albedo\": [0.5, 0.6, 0.7]},\n"
@@ -490,7 +500,7 @@ TEST(tungsten_conversion_values) {
         " \"primitives\": [\n"
         "  {\"type\": \"quad\", \"bsdf\": \"w\", \"power\": [10, 20, 30], \"transform\": {\"position\": [1, 2, 3], \"scale\": [2, 1, 0.5]}},\n"
         "  {\"type\": \"sphere\", \"bsdf\": \"g\", \"transform\": {\"position\": [0, 1, 0], \"scale\": [0.5, 0.25, 0.75]}},\n"
-        "  {\"type\": \"quad\", \"bsdf\": \"n\"},\n"
+        "  {\"type\": \"quad\", \"bsdf\": \"n\"}, {\"type\": \"cube\", \"bsdf\": {\"type\": \"forward\"}},\n"
         "  {\"type\": \"sphere\", \"bsdf\": {\"type\": \"mirror\"}, \"transform\": {\"scale\": 2}}],\n"
         " \"camera\": {\"type\": \"pinhole\", \"fov\": 35, \"resolution\": [40, 30], \"reconstruction_filter\": \"tent\",\n"
         "   \"transform\": {\"position\": [0, 1, 6], \"look_at\": [0, 1, 0], \"up\": [0, 1, 0]}},\n"
@@ -786,4 +796,32 @@ TEST(smooth_shading_uses_vertex_normals) {
     film_free(&F);
     film_free(&A);
     film_free(&M);
+}
+
+/* Oracle: the tetrahedron's area by hand (three right triangles of 1/2 and an equilateral one
+ * of side sqrt 2: 3/2 + sqrt(3)/2), times 4 for a scale of 2. A Tungsten mesh primitive
+ * reading a wo3 file with "power" P gets the radiance P / (pi area), and keeps its transform
+ * (scale 2, then moved by +1 in x) and, with smooth, the file's normals. */
+TEST(tungsten_mesh_power_and_transform) {
+    unsigned char b[256];
+    size_t n = tetra_wo3(b);
+    char path[1024], t[4096];
+    snprintf(path, sizeof path, "%s/tetra.wo3", pm_test_tmpdir());
+    ASSERT(write_bytes(path, b, n) == 0);
+    snprintf(t, sizeof t,
+             "{\"bsdfs\": [{\"name\": \"w\", \"type\": \"lambert\", \"albedo\": 0.5}],\n"
+             " \"primitives\": [{\"type\": \"mesh\", \"file\": \"%s\", \"bsdf\": \"w\", \"power\": 10, \"smooth\": true,\n"
+             "   \"transform\": {\"position\": [1, 0, 0], \"scale\": 2}}],\n"
+             " \"camera\": {\"resolution\": 8, \"transform\": {\"position\": [0, 1, 6.8], \"look_at\": [0, 1, 0]}}}", path);
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, t, &e) == 0, "%s", e.msg);
+    ASSERT_EQ_INT(s.ntris, 4);
+    double area = 0;
+    for (int i = 0; i < 4; i++) area += s.tris[i].area;
+    EXPECT_NEAR(area, 4 * (1.5 + sqrt(3) / 2), 1e-9);
+    EXPECT_NEAR(s.mats[s.tris[0].mat].emission.x, 10 / (M_PI * area), 1e-9);
+    EXPECT_NEAR(s.tris[3].v0.x, 1 + 2 * 1, 1e-12); /* triangle 3 starts at vertex 1 = (1, 0, 0) */
+    EXPECT_EQ_INT(s.ntri_ns, 4);
+    scene_free(&s);
 }
