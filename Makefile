@@ -19,7 +19,9 @@
 #   make clean
 #
 # Options:
-#   SANITIZE=address,undefined   build with sanitizers (into build/san-*); also thread
+#   SANITIZE=address,undefined   build with sanitizers (into build/san-*)
+#   SANITIZE=thread CC=clang     ThreadSanitizer; with clang's OpenMP runtime, whose Archer tool
+#                                the tests load (gcc's libgomp is not TSan-aware: false races)
 #   SIMD=avx2                    allow AVX2/FMA code (the default build runs on any x86-64)
 #   OPENMP=0                     build without OpenMP
 #   BUILD=dir                    where objects and binaries go (default build/release)
@@ -202,9 +204,15 @@ example: $(LIB) $(SHLIB) $(RENDER_BIN)
 	$(EXAMPLE_CC) -o $(BUILD)/example/knn_example_static $$(pkg-config --cflags photonmap) \
 	    $$(pkg-config --static --libs photonmap | sed 's/-lphotonmap/-l:libphotonmap.a/')
 
+# Under ThreadSanitizer, libomp's Archer tool tells TSan about OpenMP's synchronisation, and
+# TSan ignores the uninstrumented runtime's own accesses.
+ifneq ($(findstring thread,$(SANITIZE)),)
+  TEST_ENV := OMP_TOOL_LIBRARIES=$(firstword $(wildcard /usr/lib/llvm-*/lib/libarcher.so)) \
+              TSAN_OPTIONS="ignore_noninstrumented_modules=1 halt_on_error=1"
+endif
 # The runner records each test's CPU and wall time in $(BUILD)/test-times.txt.
 test: all example
-	PM_BUILD_DIR=$(abspath $(BUILD)) PM_SOURCE_DIR=$(CURDIR) $(TEST_BIN) \
+	$(TEST_ENV) PM_BUILD_DIR=$(abspath $(BUILD)) PM_SOURCE_DIR=$(CURDIR) $(TEST_BIN) \
 	    --times $(BUILD)/test-times.txt $(TESTS)
 
 # `make check` leaves out the tests that took more than 1 CPU-second or 3 s in the last
@@ -213,7 +221,7 @@ test: all example
 CHECK_SKIP := bench_quick_run agrees_with_path_tracing matches_path example_ packaging_ docs_ \
               build_tracks tungsten_cornell signal_phases
 check: all
-	PM_BUILD_DIR=$(abspath $(BUILD)) PM_SOURCE_DIR=$(CURDIR) $(TEST_BIN) \
+	$(TEST_ENV) PM_BUILD_DIR=$(abspath $(BUILD)) PM_SOURCE_DIR=$(CURDIR) $(TEST_BIN) \
 	    --times $(BUILD)/test-times.txt --quick $(addprefix -x ,$(CHECK_SKIP)) $(TESTS)
 
 # ---- MPI (optional) ------------------------------------------------------------------------
