@@ -232,55 +232,87 @@ static const trace_dist *g_dist;
 
 void photon_trace_set_dist(const trace_dist *d) { g_dist = d; }
 
-/* One batch as exchanged: this head, then nmain main-buffer and nshadow shadow-buffer photons
- * in index order. Four 8-byte words keep the photons after it aligned. */
+/* One batch as exchanged: this head in the room of one photon record, then nmain main-buffer
+ * and nshadow shadow-buffer photons in index order. A process that failed sends only a head
+ * with fail set. */
 typedef struct batch_head {
     uint64_t nmain, nshadow, nfirst, fail;
 } batch_head;
 
 /* The exchanged bytes of the current round: batch j of it starts at photon start + j PT_BATCH;
- * `next` is the batch to hand out, at byte `off`. */
+ * `next` is the batch to hand out, at byte `off`. target, stored and limit are the pass's,
+ * for sizing the rounds. */
 typedef struct round_buf {
     uint64_t start;
     int nbatch, next;
     char *all;
     size_t *sizes, off;
+    long target;
+    const fbuf *stored;
+    double limit;
 } round_buf;
 
-/* A round: trace this process's batch of the round that begins at photon `start`, exchange.
- * 1 on failure here or (seen in the exchange) anywhere. */
+#define ROUND_MAX_PER_PART 16
+
+/* Batches per process in the round that begins at photon `start`: 1 at first; then as many as
+ * still fit in every process's share of the batches the pass needs at the rate stored so far
+ * (and of the emission budget), at most ROUND_MAX_PER_PART. Fewer rounds mean fewer waits
+ * for the slowest process; the last rounds shrink to one batch each, so at most
+ * nparts - 1 batches are traced past the stopping point. Every process computes the same
+ * number from the same bookkeeping. */
+static int round_batches(const round_buf *rb, uint64_t start, int nparts) {
+    uint64_t done = start / PT_BATCH;
+    if (!rb->stored || done == 0 || rb->stored->n == 0) return 1;
+    double left = ((double)rb->target - (double)rb->stored->n) * (double)done / (double)rb->stored->n;
+    double budget = (rb->limit - (double)start) / PT_BATCH;
+    if (budget < left) left = budget;
+    double m = floor(left / nparts);
+    return m < 1 ? 1 : m > ROUND_MAX_PER_PART ? ROUND_MAX_PER_PART : (int)m;
+}
+
+/* A round: trace this process's batches of the round that begins at photon `start`, exchange.
+ * Process p traces the round's batches p m .. p m + m - 1, so the exchange, in process order,
+ * is in batch order. 1 on failure here or (seen in the exchange) anywhere. */
 static int dist_round(const pass_ctx *c, round_buf *rb, uint64_t start, fbuf *tg, fbuf *ts,
                       int nthreads) {
     const trace_dist *d = g_dist;
+    int per = round_batches(rb, start, d->nparts);
     size_t *sizes = rb->sizes ? rb->sizes : calloc((size_t)d->nparts, sizeof *sizes);
     free(rb->all);
-    memset(rb, 0, sizeof *rb);
+    rb->all = NULL;
     rb->sizes = sizes;
-    batch_head h = {0, 0, 0, 0};
-    fbuf m = {0}, sh = {0};
-    h.fail = (uint64_t)trace_batch(c, start + (uint64_t)d->part * PT_BATCH, tg, ts, nthreads, &h.nfirst);
-    if (!rb->sizes || fbuf_merge(&m, tg, nthreads) < 0 || fbuf_merge(&sh, ts, nthreads) < 0) h.fail = 1;
-    h.nmain = m.n;
-    h.nshadow = sh.n;
-    size_t nbytes = sizeof h + (m.n + sh.n) * sizeof(fphoton);
-    char *mine = h.fail ? NULL : malloc(nbytes);
-    if (!mine) {
-        h = (batch_head){0, 0, 0, 1};
-        nbytes = sizeof h;
-        mine = (char *)&h;
-    } else {
-        memcpy(mine, &h, sizeof h);
-        if (m.n) memcpy(mine + sizeof h, m.v, m.n * sizeof(fphoton));
-        if (sh.n) memcpy(mine + sizeof h + m.n * sizeof(fphoton), sh.v, sh.n * sizeof(fphoton));
+    rb->next = rb->nbatch = 0;
+    rb->off = 0;
+    fbuf out = {0}; /* this process's blocks: head, then its photons, per batch */
+    int fail = !sizes;
+    for (int j = 0; j < per && !fail; j++) {
+        batch_head h = {0, 0, 0, 0};
+        fbuf m = {0}, sh = {0};
+        uint64_t first = start + ((uint64_t)d->part * (uint64_t)per + (uint64_t)j) * PT_BATCH;
+        h.fail = (uint64_t)trace_batch(c, first, tg, ts, nthreads, &h.nfirst);
+        if (fbuf_merge(&m, tg, nthreads) < 0 || fbuf_merge(&sh, ts, nthreads) < 0) h.fail = 1;
+        h.nmain = m.n;
+        h.nshadow = sh.n;
+        /* The head takes half a photon record's room (fphoton is 8-byte aligned, 64 bytes). */
+        fphoton head[1];
+        memset(head, 0, sizeof head);
+        memcpy(head, &h, sizeof h);
+        if (!h.fail && fbuf_push(&out, head) < 0) h.fail = 1;
+        for (size_t i = 0; !h.fail && i < m.n; i++) h.fail = fbuf_push(&out, &m.v[i]) < 0;
+        for (size_t i = 0; !h.fail && i < sh.n; i++) h.fail = fbuf_push(&out, &sh.v[i]) < 0;
+        free(m.v);
+        free(sh.v);
+        for (int t = 0; t < nthreads; t++) tg[t].n = ts[t].n = 0;
+        fail = (int)h.fail;
     }
-    int rc = rb->sizes ? d->allgather(d->user, mine, nbytes, (void **)&rb->all, rb->sizes) : -1;
-    if (mine != (char *)&h) free(mine);
-    free(m.v);
-    free(sh.v);
-    for (int t = 0; t < nthreads; t++) tg[t].n = ts[t].n = 0;
+    batch_head failed = {0, 0, 0, 1};
+    int rc = !sizes ? -1
+             : fail ? d->allgather(d->user, &failed, sizeof failed, (void **)&rb->all, sizes)
+                    : d->allgather(d->user, out.v, out.n * sizeof(fphoton), (void **)&rb->all, sizes);
+    free(out.v);
     if (rc < 0) return 1;
     rb->start = start;
-    rb->nbatch = d->nparts;
+    rb->nbatch = d->nparts * per;
     return 0;
 }
 
@@ -294,13 +326,13 @@ static int dist_batch(const pass_ctx *c, round_buf *rb, uint64_t n_e, fbuf *tg, 
     batch_head h;
     memcpy(&h, rb->all + rb->off, sizeof h);
     if (h.fail) return 1;
-    const fphoton *p = (const fphoton *)(rb->all + rb->off + sizeof h);
+    const fphoton *p = (const fphoton *)(rb->all + rb->off) + 1; /* after the head's slot */
     for (uint64_t i = 0; i < h.nmain; i++)
         if (fbuf_push(&tg[0], &p[i]) < 0) return 1;
     for (uint64_t i = 0; i < h.nshadow; i++)
         if (fbuf_push(&ts[0], &p[h.nmain + i]) < 0) return 1;
     *nfirst += h.nfirst;
-    rb->off += sizeof h + (size_t)(h.nmain + h.nshadow) * sizeof(fphoton);
+    rb->off += (size_t)(1 + h.nmain + h.nshadow) * sizeof(fphoton);
     rb->next++;
     return 0;
 }
@@ -345,6 +377,9 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
     progress_begin(&prog, title, target, o->quiet);
     size_t reported = 0;
     round_buf rb = {0};
+    rb.target = target;
+    rb.stored = main_buf;
+    rb.limit = limit;
     while ((long)main_buf->n < target && (double)n_e < limit && rc == 0) {
         int fail = g_dist ? dist_batch(c, &rb, n_e, tg, ts, nthreads, &nfirst)
                           : trace_batch(c, n_e, tg, ts, nthreads, &nfirst);

@@ -45,12 +45,13 @@
  * photon_maps_free frees them.
  *
  * DISTRIBUTED PASSES (render/mpi/). After photon_trace_set_dist(d), a pass runs in rounds of
- * d->nparts batches: this process traces batch d->part of the round (photons
- * n + part PT_BATCH .. n + (part + 1) PT_BATCH - 1, on its threads), and d->allgather gives
- * every process all the round's batches, which then go through the one-process bookkeeping
- * one batch at a time: stored counts, the stopping test, the index-order merge. So every
- * process ends with the one-process maps bit for bit, having traced about 1/nparts of the
- * photons (plus at most nparts - 1 batches of a last round that the stopping test drops).
+ * d->nparts x m batches: this process traces the round's batches d->part m .. d->part m + m - 1
+ * (on its threads), and d->allgather gives every process all the round's batches, which then
+ * go through the one-process bookkeeping one batch at a time: stored counts, the budgets and
+ * stopping tests, the index-order merge. So every process ends with the one-process maps bit
+ * for bit, having traced about 1/nparts of the photons. m starts at 1 and then follows the
+ * batches still needed at the rate stored so far (at most 16), so rounds are few and at most
+ * nparts - 1 batches are traced past the stopping point and dropped.
  */
 #ifndef RENDER_PHOTON_TRACE_H
 #define RENDER_PHOTON_TRACE_H

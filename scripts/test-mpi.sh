@@ -89,12 +89,19 @@ for c in Samples "Camera rays" "Shadow rays" "Indirect rays" "BVH nodes visited"
 done
 [ "$allsame" = 1 ] && ok "pixel-pass statistics summed over ranks equal the one-process ones" \
   || bad "statistics" "the summed counters differ"
-tiles=$(sed -n 's/^MPI: .*tiles rendered per rank: \([0-9]*\) \([0-9]*\) (of \([0-9]*\))$/\1 \2 \3/p' "$T/st2.log")
+# The queue is dynamic: with rank 1 made slow (test hook PM_RENDER_MPI_TEST_SLOW: 2 s before
+# each chunk it renders), rank 0 must take at least twice as many of the 16 tiles (rank 1
+# holds its two early requests' chunks of 1 tile each, and asks again only every 2 s), and
+# the image must still equal the one-process one.
+PM_RENDER_MPI_TEST_SLOW="1 2" $MPIRUN -np 2 -x PM_RENDER_MPI_TEST_SLOW "$M" \
+  data/scenes/cornell_box.json --mode path --width 64 --height 64 --spp 4 --threads 1 --quiet \
+  --hdr "$T/slow.pfm" >"$T/slow.log" 2>&1
+tiles=$(sed -n 's/^MPI: .*tiles rendered per rank: \([0-9]*\) \([0-9]*\) (of \([0-9]*\))$/\1 \2 \3/p' "$T/slow.log")
 set -- $tiles
-if [ $# = 3 ] && [ "$1" -gt 0 ] && [ "$2" -gt 0 ] && [ $(($1 + $2)) = "$3" ]; then
-  ok "tile queue: ranks rendered $1 and $2 of $3 tiles"
+if [ $# = 3 ] && [ "$1" -ge $((2 * $2)) ] && [ $(($1 + $2)) = "$3" ] && cmp -s "$T/slow.pfm" "$T/st1.pfm"; then
+  ok "tile queue: a slow rank 1 rendered $2 of $3 tiles, rank 0 $1; same image"
 else
-  bad "tile queue" "expected both ranks to render tiles, got '$tiles'"
+  bad "tile queue" "expected rank 0 to take twice rank 1's tiles and the same image, got '$tiles'"
 fi
 
 # ---- failures ----------------------------------------------------------------------------

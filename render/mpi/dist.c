@@ -27,6 +27,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "photonmap/common.h"
@@ -436,6 +437,13 @@ static int render_worker(const scene *s, const integrator *it, const render_job 
     if (!assign || !out) die_now("out of memory in the tile queue");
     MPI_Request sent = MPI_REQUEST_NULL;
     int outstanding = 0;
+    /* Test hook: PM_RENDER_MPI_TEST_SLOW="RANK SECONDS" makes that rank wait before each
+     * chunk, so a test can check that the queue gives the slow rank fewer tiles. */
+    double test_slow = 0;
+    const char *slow = getenv("PM_RENDER_MPI_TEST_SLOW");
+    int slow_rank;
+    if (slow && sscanf(slow, "%d %lf", &slow_rank, &test_slow) != 2) test_slow = 0;
+    if (slow && slow_rank != g_rank) test_slow = 0;
     for (int i = 0; i < 2; i++, outstanding++)
         MPI_Send(&threads, (int)sizeof threads, MPI_BYTE, 0, TAG_REQ, MPI_COMM_WORLD);
     for (;;) {
@@ -447,6 +455,10 @@ static int render_worker(const scene *s, const integrator *it, const render_job 
         /* Ask for the next chunk now, so it is here when this one is done. */
         MPI_Send(&threads, (int)sizeof threads, MPI_BYTE, 0, TAG_REQ, MPI_COMM_WORLD);
         outstanding++;
+        if (test_slow > 0) {
+            struct timespec ts = {(time_t)test_slow, (long)((test_slow - (double)(time_t)test_slow) * 1e9)};
+            nanosleep(&ts, NULL);
+        }
         int rc = render_tiles(s, it, job, st, assign + 1, n);
         if (rc < 0) return rc;
         MPI_Wait(&sent, MPI_STATUS_IGNORE); /* the previous results have left `out` */
