@@ -94,6 +94,9 @@ awk -F, 'NR > 1 && $4 == 50 {
   END { for (i = 1; i <= no; i++) { split(order[i], f, "|")
     printf "| %s | %s | **%.2fx** (%s) | %.2fx (%s) | %.2fx (%s) | %.2fx |\n", f[1], f[2], mn[order[i]], wmn[order[i]], mx[order[i]], wmx[order[i]], smn[order[i]], wsmn[order[i]], smx[order[i]] } }' "$KB"
 echo
+for n in $(awk -F, 'NR > 1 {print $2}' "$KB" | sort -un); do
+  for mode in unlimited radius; do img "knn_ratio_${mode}_$n" "kd-tree / FLANN best exact against k, N = $n, $mode radius"; done
+done
 echo "## Targets"
 echo
 echo "Every target, its measured value (the worst over the workloads and query sets it covers), and whether it is met. Figures from bench/results/knn_best.csv, knn.csv and knn_build.csv."

@@ -11,6 +11,8 @@
 #   recall_<dist>.png  FLANN forest recall against queries/s, beside the exact searches
 #   n_photon.png       queries/s against N; build_photon.png: build time against N
 #   estimate_<region>.png  RMS relative error of each estimator against ns per estimate
+#   knn_ratio_<mode>_<n>.png  the workload race: kd-tree / FLANN best exact against k, per
+#                      workload and query set (bench_knn's knn_best.csv)
 set -eu
 case "${1:-}" in
   -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
@@ -93,6 +95,18 @@ plot "$IMG/n_photon.png" 'photon-like, k=50, max radius finding ~50, 1 thread' '
 # build.csv columns: 1 sweep 2 dist 3 n 4 index 5 param 6 build_s
 series "$B" '$1=="n" && $2=="photon"' '$3' '$6' '$4 " " $5'
 plot "$IMG/build_photon.png" 'photon-like: build time (median)' 'N (photons)' 'seconds' 1 1
+
+# knn_best.csv columns: 1 workload 2 n 3 queries 4 k 5 mode ... 15 ratio_flann
+KB="$R/knn_best.csv"
+if [ -f "$KB" ]; then
+  for n in $(awk -F, 'NR > 1 {print $2}' "$KB" | sort -un); do
+    for mode in unlimited radius; do
+      series "$KB" "\$2==$n && \$5==\"$mode\"" '$4' '$15' '$1 " " $3'
+      plot "$IMG/knn_ratio_${mode}_$n.png" "workload race, N=$n, $mode radius: kd-tree / FLANN best exact (1 = par), 1 thread" \
+        'k' 'queries/s ratio' 1 0 'set yrange [0:*]; set arrow from graph 0,first 1 to graph 1,first 1 nohead dt 2; set arrow from graph 0,first 2 to graph 1,first 2 nohead dt 3'
+    done
+  done
+fi
 
 # estimate.csv columns: 1 region 2 estimator 3 bias 4 k ... ns_per_estimate, rms_rel_error
 E="$R/estimate.csv"
