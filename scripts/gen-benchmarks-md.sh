@@ -95,7 +95,7 @@ awk -F, 'NR > 1 && $4 == 50 {
     printf "| %s | %s | **%.2fx** (%s) | %.2fx (%s) | %.2fx (%s) | %.2fx |\n", f[1], f[2], mn[order[i]], wmn[order[i]], mx[order[i]], wmx[order[i]], smn[order[i]], wsmn[order[i]], smx[order[i]] } }' "$KB"
 echo
 for n in $(awk -F, 'NR > 1 {print $2}' "$KB" | sort -un); do
-  for mode in unlimited radius; do img "knn_ratio_${mode}_$n" "kd-tree / FLANN best exact against k, N = $n, $mode radius"; done
+  for mode in unlimited radius; do img "knn_ratio_${mode}_$n" "kd-tree / FLANN best exact against k, N = $n, $( [ $mode = radius ] && echo "maximum radius finding about k" || echo "unlimited radius")"; done
 done
 echo "## Targets"
 echo
