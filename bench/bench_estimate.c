@@ -15,7 +15,11 @@
  * precomputation (pm_irradiance_build, all threads) is reported as setup_s and the timed part
  * is pm_irradiance_lookup alone. Errors come from a separate untimed pass.
  *
- * OUTPUT: estimate.csv in the output directory (columns in bench/README.md). --help for options.
+ * OUTPUT: estimate.csv in the output directory (columns in bench/README.md), and two more
+ * tables for docs/ACCURACY.md (scripts/gen-accuracy-md.sh): accuracy.csv (bias and noise of
+ * every estimator on stratified and random photons and a focused caustic, untimed; see
+ * accuracy() below) and irradiance_lookup.csv (the precomputed-irradiance lookup raced against
+ * a private pm_photon tree; see lookup_race()). --help for options.
  */
 #define _GNU_SOURCE
 #include <math.h>
@@ -64,6 +68,8 @@ static void usage(FILE *f) {
             "\n"
             "  --quick      N = 20000 photons, 300 points per region\n"
             "  --lookup-only  only the precomputed-irradiance lookup race (irradiance_lookup.csv)\n"
+            "  --accuracy-only  only the accuracy tables (accuracy.csv: stratified, random and\n"
+            "               caustic photons; untimed)\n"
             "  --out DIR    output directory (default bench/results; must exist)\n"
             "  --n N        photons (default 200000)\n"
             "  --points P   estimate points per region (default 3000)\n"
@@ -196,11 +202,141 @@ static int lookup_race(const char *out, size_t n, size_t nq, int runs, uint64_t 
     return 0;
 }
 
+/* ---- accuracy: bias and noise on stratified and random photons and a focused caustic ------
+ *
+ * Untimed. Three photon layouts with analytic irradiance:
+ *   stratified  N photons on the unit square y = 0, one uniform point per cell of a jittered
+ *               grid (as a stratified emission onto a plane would give);
+ *   random      N uniform independent photons on the same square (what photon tracing gives:
+ *               a Poisson-like map);
+ *   caustic     a focused caustic: N photons drawn from a 2D Gaussian of standard deviation
+ *               sigma = 0.05 around (0.5, 0.5), total power 1, so E(x) = exp(-d^2/(2 sigma^2))
+ *               / (2 pi sigma^2); at two photon counts. The focus is the gathering radius
+ *               over sigma: at the centre a k-photon disc has r/sigma = sqrt(2k/N), from 0.04
+ *               (k = 15, N = 10000) to 0.63 (k = 200, N = 1000), so the caustic's curvature
+ *               inside the disc goes from negligible to dominant.
+ * Regions: the square's interior ([0.25, 0.75]^2) and edge (x within 3 photon spacings of
+ * x = 0, where the true irradiance steps from E to 0); the caustic's centre (d < sigma/2)
+ * and flank (sigma < d < 1.5 sigma). Each point's relative error is E_est / E_true - 1; the
+ * CSV gives the mean (the bias), its standard error and the RMS over the points. */
+typedef struct acc_method {
+    const char *name, *variant;
+    pm_estimator kind;
+    int bias;
+    double boundary;
+} acc_method;
+
+static const acc_method ACC_METHODS[] = {
+    {"disc", "none", PM_EST_DISC, PM_BIAS_NONE, 0.2},
+    {"disc", "area", PM_EST_DISC, PM_BIAS_AREA, 0.2},
+    {"cone", "k_c=1", PM_EST_CONE, PM_BIAS_AREA, 0.2},
+    {"gauss", "", PM_EST_GAUSS, PM_BIAS_AREA, 0.2},
+    {"differential", "", PM_EST_DIFFERENTIAL, PM_BIAS_AREA, 0.2},
+    {"hull", "boundary=0.2", PM_EST_HULL, PM_BIAS_AREA, 0.2},
+    {"hull", "boundary=0", PM_EST_HULL, PM_BIAS_AREA, 0.0},
+};
+static const unsigned ACC_KS[] = {15, 50, 200};
+
+#define ACC_SIGMA 0.05
+
+static double gauss_sample(bench_rng *r) { /* Box-Muller, one of the pair */
+    double u = bench_rng_unit(r), v = bench_rng_unit(r);
+    return sqrt(-2.0 * log(1.0 - u)) * cos(2 * 3.14159265358979323846 * v);
+}
+
+static int accuracy(const char *out, int quick, uint64_t seed) {
+    const int side = quick ? 100 : 200;
+    const size_t npts = quick ? 300 : 4000;
+    const size_t ncaus[2] = {quick ? 500u : 1000u, quick ? 5000u : 10000u};
+    FILE *csv = bench_csv_open(out, "accuracy.csv",
+                               "layout,region,photons,estimator,variant,k,points,mean_rel_error,"
+                               "sem,rms_rel_error");
+    const float up[3] = {0, 1, 0}, down[3] = {0, -1, 0};
+    bench_rng rng;
+    bench_rng_seed(&rng, seed + 17);
+    void *scratch = malloc(pm_estimate_scratch_bytes(200));
+    float *pts = malloc(npts * 3 * sizeof *pts);
+    double *etrue = malloc(npts * sizeof *etrue);
+    if (!scratch || !pts || !etrue) return -1;
+    for (int lay = 0; lay < 4; lay++) {
+        const char *layout = lay == 0 ? "stratified" : lay == 1 ? "random" : "caustic";
+        size_t n = lay < 2 ? (size_t)side * side : ncaus[lay - 2];
+        pm_photon *ph = malloc(n * sizeof *ph);
+        if (!ph) return -1;
+        for (size_t i = 0; i < n; i++) {
+            double x, z;
+            if (lay == 0) {
+                x = ((double)(i / (size_t)side) + bench_rng_unit(&rng)) / side;
+                z = ((double)(i % (size_t)side) + bench_rng_unit(&rng)) / side;
+            } else if (lay == 1) {
+                x = bench_rng_unit(&rng), z = bench_rng_unit(&rng);
+            } else {
+                x = 0.5 + ACC_SIGMA * gauss_sample(&rng), z = 0.5 + ACC_SIGMA * gauss_sample(&rng);
+            }
+            float pos[3] = {(float)x, 0.0f, (float)z}, pw = (float)(1.0 / (double)n);
+            pm_photon_init(&ph[i], pos, (float[3]){pw, pw, pw}, down, up, PM_KIND_INDIRECT);
+        }
+        float dec[3];
+        pm_rgbe_decode(ph[0].power, dec);
+        const double ptot = (double)n * dec[0]; /* total decoded power (1 within RGBE rounding) */
+        pm_kdtree *tree = NULL;
+        pm_kdtree_config cfg = pm_kdtree_photon_config(8);
+        if (pm_kdtree_build(&tree, ph, n, &cfg, NULL) != 0) return -1;
+        for (int reg = 0; reg < 2; reg++) {
+            const char *region = lay < 2 ? (reg ? "edge" : "interior") : (reg ? "flank" : "centre");
+            for (size_t i = 0; i < npts; i++) {
+                double x, z;
+                if (lay < 2) {
+                    z = 0.25 + 0.5 * bench_rng_unit(&rng);
+                    x = reg ? 3.0 / side * bench_rng_unit(&rng) : 0.25 + 0.5 * bench_rng_unit(&rng);
+                    etrue[i] = ptot;
+                } else {
+                    /* uniform over the annulus (or disc) of the region */
+                    double r0 = reg ? ACC_SIGMA : 0, r1 = reg ? 1.5 * ACC_SIGMA : 0.5 * ACC_SIGMA;
+                    double d = sqrt(r0 * r0 + (r1 * r1 - r0 * r0) * bench_rng_unit(&rng));
+                    double a = 2 * 3.14159265358979323846 * bench_rng_unit(&rng);
+                    x = 0.5 + d * cos(a), z = 0.5 + d * sin(a);
+                    etrue[i] = ptot * exp(-d * d / (2 * ACC_SIGMA * ACC_SIGMA)) /
+                               (2 * 3.14159265358979323846 * ACC_SIGMA * ACC_SIGMA);
+                }
+                pts[3 * i] = (float)x, pts[3 * i + 1] = 0.0f, pts[3 * i + 2] = (float)z;
+            }
+            for (size_t ki = 0; ki < NELEM(ACC_KS); ki++)
+                for (size_t mi = 0; mi < NELEM(ACC_METHODS); mi++) {
+                    const acc_method *m = &ACC_METHODS[mi];
+                    pm_estimate_options o;
+                    pm_estimate_options_init(&o, m->kind, ACC_KS[ki]);
+                    o.bias = m->bias;
+                    o.hull_boundary = m->boundary;
+                    double sum = 0, sum2 = 0;
+                    for (size_t i = 0; i < npts; i++) {
+                        pm_estimate_result res;
+                        if (pm_estimate(tree, &pts[3 * i], up, &o, scratch, &res, NULL) != 0) return -1;
+                        double rel = res.rgb[0] / etrue[i] - 1.0;
+                        sum += rel, sum2 += rel * rel;
+                    }
+                    double mean = sum / (double)npts;
+                    double var = (sum2 - (double)npts * mean * mean) / (double)(npts - 1);
+                    fprintf(csv, "%s,%s,%zu,%s,%s,%u,%zu,%.6f,%.6f,%.6f\n", layout, region, n, m->name,
+                            m->variant, ACC_KS[ki], npts, mean, sqrt(fmax(var, 0) / (double)npts),
+                            sqrt(sum2 / (double)npts));
+                }
+            fflush(csv);
+        }
+        bench_log("accuracy: %s, %zu photons done", layout, n);
+        pm_kdtree_free(tree);
+        free(ph);
+    }
+    fclose(csv);
+    free(scratch), free(pts), free(etrue);
+    return 0;
+}
+
 int main(int argc, char **argv) {
     static const char *const P = "bench_estimate";
     const char *out = "bench/results";
     size_t n = 0, npts = 0;
-    int runs = 5, quick = 0, lookup_only = 0;
+    int runs = 5, quick = 0, lookup_only = 0, accuracy_only = 0;
     unsigned bucket = 1;
     uint64_t seed = 1;
     for (int i = 1; i < argc; i++) {
@@ -210,6 +346,8 @@ int main(int argc, char **argv) {
             return 0;
         } else if (!strcmp(a, "--lookup-only")) {
             lookup_only = 1;
+        } else if (!strcmp(a, "--accuracy-only")) {
+            accuracy_only = 1;
         } else if (!strcmp(a, "--quick")) {
             quick = 1;
         } else if (!strcmp(a, "--full")) {
@@ -241,11 +379,16 @@ int main(int argc, char **argv) {
     }
     if (!n) n = quick ? 20000 : 200000;
     if (!npts) npts = quick ? 300 : 3000;
-    if (lookup_race(out, n, quick ? 20000 : 100000, runs, seed) < 0) {
+    if (!accuracy_only && lookup_race(out, n, quick ? 20000 : 100000, runs, seed) < 0) {
         fprintf(stderr, "bench_estimate: irradiance lookup race failed\n");
         return 1;
     }
     if (lookup_only) return 0;
+    if (accuracy(out, quick, seed) < 0) {
+        fprintf(stderr, "bench_estimate: accuracy run failed\n");
+        return 1;
+    }
+    if (accuracy_only) return 0;
 
     /* The lit square: equal powers summing to 1, arriving straight down. */
     pm_photon *ph = malloc(n * sizeof *ph);
