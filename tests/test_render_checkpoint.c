@@ -216,3 +216,159 @@ TEST(render_checkpoint_damaged_files_refused) {
     render_state_free(&bs);
     render_state_free(&st);
 }
+
+/* ---- the render program ------------------------------------------------------------------- */
+
+#define PATH_SCENE "'%s/data/scenes/cornell_box.json' --width 40 --height 24 --spp 16"
+#define PM_SCENE                                                                             \
+    "'%s/data/scenes/cornell_spheres.json' --mode pm --pm global_photons=20000 --pm "       \
+    "caustic_photons=20000 --width 32 --height 32 --spp 16"
+
+/* Run a shell command in the test's directory (the whole command: its background jobs too). */
+static int run(const char *cmdline, char *out, size_t cap) {
+    char cmd[16384];
+    snprintf(cmd, sizeof cmd, "cd '%s' || exit 9; %s", pm_test_tmpdir(), cmdline);
+    return pm_test_run(cmd, out, cap);
+}
+
+/* render SCENE ARGS [--threads T] (scene given as a format with the source dir). */
+static int render_run(const char *scene_fmt, const char *args, char *out, size_t cap) {
+    char sc[2048], cmd[8192];
+    snprintf(sc, sizeof sc, scene_fmt, pm_test_source_dir());
+    snprintf(cmd, sizeof cmd, "timeout 60 '%s/render' %s %s --quiet", pm_test_build_dir(), sc, args);
+    return run(cmd, out, cap);
+}
+
+/* As render_run, paused by PM_RENDER_TEST_PAUSE=phase and then sent sig; the shell's status. */
+static int render_stopped(const char *phase, const char *sig, const char *scene_fmt, const char *args,
+                          char *out, size_t cap) {
+    char sc[2048], cmd[8192];
+    snprintf(sc, sizeof sc, scene_fmt, pm_test_source_dir());
+    snprintf(cmd, sizeof cmd,
+             "PM_RENDER_TEST_PAUSE=%s '%s/render' %s %s >log.txt 2>&1 & pid=$!; i=0; "
+             "while ! grep -q 'test pause at' log.txt 2>/dev/null; do i=$((i+1)); "
+             "[ $i -gt 1200 ] && break; sleep 0.05; done; kill -%s $pid; wait $pid; "
+             "echo \"exit=$?\"; cat log.txt",
+             phase, pm_test_build_dir(), sc, args, sig);
+    if (run(cmd, out, cap) != 0) return -1;
+    const char *e = strstr(out, "exit=");
+    return e ? atoi(e + 5) : -1;
+}
+
+static int same_file(const char *a, const char *b) {
+    char cmd[4096], out[256];
+    snprintf(cmd, sizeof cmd, "cmp '%s' '%s'", a, b);
+    return run(cmd, out, sizeof out) == 0;
+}
+
+/* Oracle: the PFM of an uninterrupted render (2 threads), byte for byte. The render is
+ * stopped by SIGINT at 30% and 80% (the program writes a checkpoint and ends by SIGINT,
+ * status 130), and by SIGKILL at 60% after periodic checkpoints (every millisecond: whatever
+ * the last complete one is); each is resumed with `render SCENE --resume FILE` alone (its
+ * options replayed) at 1 or 3 threads. Path tracing and photon mapping (the maps are saved
+ * beside the checkpoint and loaded on resume). */
+static void resume_cases(const char *scene_fmt) {
+    char out[16384];
+    ASSERT_MSG(render_run(scene_fmt, "--threads 2 --hdr ref.pfm -o ref.png", out, sizeof out) == 0, "%s", out);
+    static const struct {
+        const char *phase, *sig, *extra;
+        int status, threads;
+    } cases[] = {{"render:0.3", "INT", "", 130, 1},
+                 {"render:0.8", "INT", "", 130, 3},
+                 {"render:0.6", "KILL", "--checkpoint-every 0.001", 137, 3}};
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        char args[1024], sc[2048], cmd[8192];
+        run("rm -rf c.ckpt c.ckpt.photons c.pfm c.png", out, sizeof out);
+        snprintf(args, sizeof args, "--threads 2 --hdr c.pfm -o c.png --checkpoint c.ckpt %s", cases[k].extra);
+        int rc = render_stopped(cases[k].phase, cases[k].sig, scene_fmt, args, out, sizeof out);
+        EXPECT_MSG(rc == cases[k].status, "%s %s: status %d: %s", cases[k].phase, cases[k].sig, rc, out);
+        EXPECT_MSG(access(path_in("c.pfm"), F_OK) != 0, "%s: an image was written", cases[k].phase);
+        /* only the scene part of the format: --resume replays the rest */
+        snprintf(sc, sizeof sc, scene_fmt, pm_test_source_dir());
+        *strchr(sc + 1, '\'') = 0;
+        snprintf(cmd, sizeof cmd, "'%s/render' %s' --resume c.ckpt --threads %d", pm_test_build_dir(),
+                 sc, cases[k].threads);
+        rc = run(cmd, out, sizeof out);
+        EXPECT_MSG(rc == 0, "%s: resume failed (%d): %s", cases[k].phase, rc, out);
+        EXPECT_MSG(strstr(out, "Resuming: "), "%s: the progress does not show the resumed state: %s",
+                   cases[k].phase, out);
+        EXPECT_MSG(same_file("c.pfm", "ref.pfm") && same_file("c.png", "ref.png"),
+                   "%s %s, resumed at %d threads: the image differs from the uninterrupted one",
+                   cases[k].phase, cases[k].sig, cases[k].threads);
+    }
+    run("ls -A | grep -c tmp", out, sizeof out);
+    EXPECT_MSG(atoi(out) == 0, "temporaries left: %s", out);
+}
+
+TEST(render_checkpoint_cli_resume_path) { resume_cases(PATH_SCENE); }
+TEST(render_checkpoint_cli_resume_pm) { resume_cases(PM_SCENE); }
+
+/* Oracle: the documented refusals, status 2 with a message and no image, quickly: a
+ * checkpoint resumed with another scene, with other settings (--spp), with photon maps that
+ * changed, and a truncated checkpoint. */
+TEST(render_checkpoint_cli_refusals) {
+    char out[16384], cmd[8192];
+    int rc = render_stopped("render:0.5", "INT", PM_SCENE, "--threads 2 --hdr c.pfm --checkpoint c.ckpt",
+                            out, sizeof out);
+    ASSERT_MSG(rc == 130, "status %d: %s", rc, out);
+    /* the same scene with one more newline: another file, so another scene hash */
+    snprintf(cmd, sizeof cmd, "cp '%s/data/scenes/cornell_spheres.json' other.json && echo >> other.json",
+             pm_test_source_dir());
+    ASSERT(run(cmd, out, sizeof out) == 0);
+    run("head -c 1000 c.ckpt > trunc.ckpt", out, sizeof out);
+    static const struct {
+        const char *args, *expect;
+    } cases[] = {
+        {"other.json --resume c.ckpt", "another scene"},
+        {"SCENE --resume c.ckpt --spp 4", "other settings"},
+        {"SCENE --resume c.ckpt --pm k_global=7", "other settings"},
+        {"SCENE --resume trunc.ckpt", "truncated"},
+        {"SCENE --resume nosuch.ckpt", "nosuch.ckpt"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        char args[2048];
+        if (strncmp(cases[k].args, "SCENE", 5) == 0)
+            snprintf(args, sizeof args, "'%s/data/scenes/cornell_spheres.json'%s", pm_test_source_dir(),
+                     cases[k].args + 5);
+        else
+            snprintf(args, sizeof args, "%s", cases[k].args);
+        snprintf(cmd, sizeof cmd, "timeout 5 '%s/render' %s", pm_test_build_dir(), args);
+        rc = run(cmd, out, sizeof out);
+        EXPECT_MSG(rc == 2, "%s: status %d: %s", args, rc, out);
+        EXPECT_MSG(strstr(out, cases[k].expect), "%s: expected \"%s\" in: %s", args, cases[k].expect, out);
+        EXPECT_MSG(access(path_in("c.pfm"), F_OK) != 0, "%s: an image was written", args);
+    }
+    /* changed photon maps */
+    run("cp c.ckpt.photons/caustic.pmap x && head -c 2000 x > c.ckpt.photons/caustic.pmap", out, sizeof out);
+    snprintf(cmd, sizeof cmd, "timeout 5 '%s/render' '%s/data/scenes/cornell_spheres.json' --resume c.ckpt",
+             pm_test_build_dir(), pm_test_source_dir());
+    rc = run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 2 && strstr(out, "photon maps"), "status %d: %s", rc, out);
+}
+
+/* Oracle: a snapshot is a whole PNG of the image's size while the render is paused half way
+ * (PNG signature and IHDR width/height), and after the render the PNG is the one an
+ * uninterrupted render writes, byte for byte. */
+TEST(render_checkpoint_cli_snapshot) {
+    char out[16384];
+    ASSERT(render_run(PATH_SCENE, "--threads 2 -o ref.png", out, sizeof out) == 0);
+    char sc[2048], cmd[8192];
+    snprintf(sc, sizeof sc, PATH_SCENE, pm_test_source_dir());
+    snprintf(cmd, sizeof cmd,
+             "PM_RENDER_TEST_PAUSE=render:0.5 '%s/render' %s --threads 2 -o s.png --snapshot-every "
+             "0.001 >log.txt 2>&1 & pid=$!; i=0; while ! grep -q 'test pause at' log.txt; do "
+             "i=$((i+1)); [ $i -gt 1200 ] && break; sleep 0.05; done; cp s.png mid.png; kill -INT "
+             "$pid; wait $pid; '%s/render' %s --threads 2 -o s.png --quiet",
+             pm_test_build_dir(), sc, pm_test_build_dir(), sc);
+    EXPECT_MSG(run(cmd, out, sizeof out) == 0, "%s", out);
+    FILE *f = fopen(path_in("mid.png"), "rb");
+    ASSERT_MSG(f, "no snapshot while paused");
+    unsigned char b[24];
+    size_t n = fread(b, 1, 24, f);
+    fclose(f);
+    ASSERT_EQ_INT(n, 24);
+    EXPECT(memcmp(b, "\x89PNG\r\n\x1a\n", 8) == 0 && memcmp(b + 12, "IHDR", 4) == 0);
+    EXPECT_EQ_INT((b[16] << 24) | (b[17] << 16) | (b[18] << 8) | b[19], 40);
+    EXPECT_EQ_INT((b[20] << 24) | (b[21] << 16) | (b[22] << 8) | b[23], 24);
+    EXPECT(same_file("s.png", "ref.png"));
+}

@@ -258,3 +258,161 @@ TEST(render_output_pfm_header_bounded) {
     film_free(&f);
     film_free(&g);
 }
+
+/* ---- the render program ------------------------------------------------------------------- */
+
+#define SCENE_ARGS "'%s/data/scenes/cornell_box.json' --width 32 --height 32 --threads 2 --quiet"
+#define PM_ARGS                                                                              \
+    "'%s/data/scenes/cornell_spheres.json' --mode pm --pm global_photons=20000 --pm "       \
+    "caustic_photons=20000 --width 32 --height 32 --threads 2 --quiet"
+
+/* Run render with args (after the scene part) in dir; 0 on exit 0. */
+static int render_cmd(const char *dir, const char *scene_fmt, const char *args, char *out, size_t cap) {
+    char scene[2048], cmd[8192];
+    snprintf(scene, sizeof scene, scene_fmt, pm_test_source_dir());
+    snprintf(cmd, sizeof cmd, "cd '%s' && timeout 60 '%s/render' %s %s", dir, pm_test_build_dir(),
+             scene, args);
+    return pm_test_run(cmd, out, cap);
+}
+
+/* Start render with PM_RENDER_TEST_PAUSE=phase, wait until it says it paused, send sig, and
+ * return its exit status as the shell reports it (128 + signal when killed), -1 if unknown. */
+static int render_signalled(const char *dir, const char *phase, const char *sig, const char *scene_fmt,
+                            const char *args, char *out, size_t cap) {
+    char scene[2048], cmd[8192];
+    snprintf(scene, sizeof scene, scene_fmt, pm_test_source_dir());
+    snprintf(cmd, sizeof cmd,
+             "cd '%s' && PM_RENDER_TEST_PAUSE=%s '%s/render' %s %s --quiet >log.txt 2>&1 & pid=$!; "
+             "i=0; while ! grep -q 'test pause at' '%s/log.txt' 2>/dev/null; do i=$((i+1)); "
+             "[ $i -gt 1200 ] && break; sleep 0.05; done; kill -%s $pid; wait $pid; echo \"exit=$?\"; "
+             "cat '%s/log.txt'; rm -f '%s/log.txt'",
+             dir, phase, pm_test_build_dir(), scene, args, dir, sig, dir, dir);
+    if (pm_test_run(cmd, out, cap) != 0) return -1;
+    const char *e = strstr(out, "exit=");
+    return e ? atoi(e + 5) : -1;
+}
+
+static int same_file(const char *a, const char *b) {
+    size_t na, nb;
+    char *x = slurp(a, &na), *y = slurp(b, &nb);
+    int same = x && y && na == nb && memcmp(x, y, na) == 0;
+    free(x);
+    free(y);
+    return same;
+}
+
+/* Oracle: the bytes of the same render written to a regular file. A FIFO (read by cat in the
+ * background) receives exactly those bytes and stays a FIFO; a character device made with
+ * mknod stays the same device; through a symlink, the target gets those bytes and the link
+ * stays a link. */
+TEST(render_output_cli_special_paths) {
+    const char *dir = pm_test_tmpdir();
+    char out[16384], args[4096];
+    ASSERT_MSG(render_cmd(dir, SCENE_ARGS, "--spp 4 -o ref.png --hdr ref.pfm", out, sizeof out) == 0, "%s", out);
+    ASSERT(mkfifo(path_in("fifo.png"), 0600) == 0);
+    /* the reader in the same directory; timeout: a missed reader must not hang the suite */
+    snprintf(args, sizeof args,
+             "--spp 4 -o fifo.png --hdr x.pfm & (cd '%s' && timeout 20 cat fifo.png > fifo.got); wait $!",
+             dir);
+    EXPECT_MSG(render_cmd(dir, SCENE_ARGS, args, out, sizeof out) == 0, "%s", out);
+    struct stat st;
+    ASSERT(lstat(path_in("fifo.png"), &st) == 0);
+    EXPECT(S_ISFIFO(st.st_mode));
+    EXPECT(same_file(path_in("fifo.got"), path_in("ref.png")));
+    EXPECT(same_file(path_in("x.pfm"), path_in("ref.pfm")));
+
+    if (mknod(path_in("dev.pfm"), S_IFCHR | 0666, makedev(1, 3)) == 0) {
+        EXPECT_MSG(render_cmd(dir, SCENE_ARGS, "--spp 4 --hdr dev.pfm", out, sizeof out) == 0, "%s", out);
+        ASSERT(lstat(path_in("dev.pfm"), &st) == 0);
+        EXPECT(S_ISCHR(st.st_mode) && major(st.st_rdev) == 1 && minor(st.st_rdev) == 3);
+    } else {
+        printf("    mknod not permitted (%s): device case skipped\n", strerror(errno));
+    }
+
+    ASSERT(write_text(path_in("real.png"), "old") == 0);
+    ASSERT(symlink("real.png", path_in("link.png")) == 0);
+    EXPECT_MSG(render_cmd(dir, SCENE_ARGS, "--spp 4 -o link.png", out, sizeof out) == 0, "%s", out);
+    ASSERT(lstat(path_in("link.png"), &st) == 0);
+    EXPECT(S_ISLNK(st.st_mode));
+    EXPECT(same_file(path_in("real.png"), path_in("ref.png")));
+    /* a dangling link is refused before rendering, with a message, and stays dangling */
+    ASSERT(symlink("missing/x.png", path_in("dangling.png")) == 0);
+    EXPECT(render_cmd(dir, SCENE_ARGS, "--spp 4 -o dangling.png", out, sizeof out) == 2);
+    EXPECT_MSG(strstr(out, "symbolic link"), "%s", out);
+    EXPECT(lstat(path_in("dangling.png"), &st) == 0 && S_ISLNK(st.st_mode));
+    EXPECT_EQ_INT(count_temps(dir), 0);
+}
+
+/* Oracle: "all old or all new". Old outputs come from seed 1; a run with seed 2 is stopped by
+ * SIGINT at each phase (before the photon pass, in the middle of rendering, after the PFM
+ * temporary, after the PNG temporary) and must end by SIGINT (status 130) leaving the old
+ * bytes and no temporary; the same run without a signal leaves exactly the bytes of an
+ * undisturbed seed-2 render. SIGTERM at the PNG phase too. */
+TEST(render_output_cli_signal_phases) {
+    const char *dir = pm_test_tmpdir();
+    char out[16384];
+    const char *a1 = "--seed 1 --spp 4 -o old.png --hdr old.pfm";
+    const char *a2 = "--seed 2 --spp 4 -o new.png --hdr new.pfm";
+    ASSERT_MSG(render_cmd(dir, PM_ARGS, a1, out, sizeof out) == 0, "%s", out);
+    ASSERT_MSG(render_cmd(dir, PM_ARGS, a2, out, sizeof out) == 0, "%s", out);
+    static const struct {
+        const char *phase, *sig;
+        int status;
+    } cases[] = {{"photons", "INT", 130}, {"render:0.5", "INT", 130}, {"pfm", "INT", 130},
+                 {"png", "INT", 130}, {"png", "TERM", 143}};
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        ASSERT(system("true") == 0);
+        char cmd[4096];
+        snprintf(cmd, sizeof cmd, "cd '%s' && cp old.png o.png && cp old.pfm o.pfm", dir);
+        ASSERT(pm_test_run(cmd, out, sizeof out) == 0);
+        int rc = render_signalled(dir, cases[k].phase, cases[k].sig, PM_ARGS,
+                                  "--seed 2 --spp 4 -o o.png --hdr o.pfm", out, sizeof out);
+        EXPECT_MSG(rc == cases[k].status, "%s/%s: status %d: %s", cases[k].phase, cases[k].sig, rc, out);
+        EXPECT_MSG(same_file(path_in("o.png"), path_in("old.png")) &&
+                       same_file(path_in("o.pfm"), path_in("old.pfm")),
+                   "%s: the old outputs changed", cases[k].phase);
+        EXPECT_MSG(count_temps(dir) == 0, "%s: temporaries left", cases[k].phase);
+    }
+    ASSERT(render_cmd(dir, PM_ARGS, "--seed 2 --spp 4 -o o.png --hdr o.pfm", out, sizeof out) == 0);
+    EXPECT(same_file(path_in("o.png"), path_in("new.png")) && same_file(path_in("o.pfm"), path_in("new.pfm")));
+    EXPECT_EQ_INT(count_temps(dir), 0);
+}
+
+/* Oracle: status 2 and a message naming the problem, within 5 s (a read to the end of
+ * /dev/zero or a 48 GiB allocation would not finish): /dev/zero as the scene (input only),
+ * a scene over --max-scene-mb, a PFM whose header is bigger than the file, a photon-map
+ * directory that cannot be created (refused before any photon is traced). */
+TEST(render_output_cli_bad_input) {
+    const char *dir = pm_test_tmpdir();
+    char out[16384], cmd[4096];
+    FILE *f = fopen(path_in("big.json"), "wb");
+    ASSERT(f);
+    for (int i = 0; i < (3 << 20) / 64; i++) fputs("                                                               \n", f);
+    fputs("{}", f);
+    fclose(f);
+    ASSERT(write_text(path_in("huge.pfm"), "PF\n65536 65536\n-1.0\n0123456789ab") == 0);
+    static const struct {
+        const char *args, *expect;
+    } cases[] = {
+        {"/dev/zero -o a.png", "NUL byte"},
+        {"big.json --max-scene-mb 2 -o a.png", "larger than the limit of 2 MiB"},
+        {"--tonemap huge.pfm a.png", "huge.pfm"},
+        {"'%s/data/scenes/cornell_spheres.json' --mode pm --save-photons no/such/dir -o a.png",
+         "cannot be created"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        char args[2048];
+        snprintf(args, sizeof args, cases[k].args, pm_test_source_dir());
+        snprintf(cmd, sizeof cmd, "cd '%s' && timeout 5 '%s/render' %s", dir, pm_test_build_dir(), args);
+        int rc = pm_test_run(cmd, out, sizeof out);
+        EXPECT_MSG(rc == 2, "%s: status %d: %s", args, rc, out);
+        EXPECT_MSG(strstr(out, cases[k].expect), "%s: expected \"%s\" in: %s", args, cases[k].expect, out);
+        EXPECT_MSG(!strstr(out, "Photons:"), "%s: traced photons before failing", args);
+        EXPECT(access(path_in("a.png"), F_OK) != 0);
+    }
+    /* the limit can be raised: the same big file is read (and is an empty scene) */
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' big.json --max-scene-mb 4 -o a.png", dir,
+             pm_test_build_dir());
+    pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(!strstr(out, "larger than the limit"), "%s", out);
+}
