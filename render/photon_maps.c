@@ -13,6 +13,7 @@
 #include "photonmap/common.h"
 #include "photonmap/estimate.h"
 #include "material.h"
+#include "output.h"
 
 void photon_maps_free(photon_maps *m) {
     free(m->global);
@@ -75,13 +76,21 @@ int photon_maps_save(const photon_maps *m, const char *dir, char *err, size_t er
         return PM_EIO;
     }
     int rc;
+    /* pm_map_save's temporaries are not in output.h's registry: SIGINT/SIGTERM wait until the
+     * three files are complete (then end the program), so none is left behind. */
+    out_defer_begin();
     if ((rc = save_map(dir, "global.pmap", m->global, m->nglobal, PM_MAP_GLOBAL, m->global_emitted,
                        0, err, errcap)) < 0 ||
         (rc = save_map(dir, "caustic.pmap", m->caustic, m->ncaustic, PM_MAP_CAUSTIC,
                        m->caustic_emitted, 0, err, errcap)) < 0 ||
         (rc = save_map(dir, "shadow.pmap", m->shadow, m->nshadow, PM_MAP_SHADOW, m->global_emitted,
-                       0, err, errcap)) < 0)
+                       0, err, errcap)) < 0) {
+        out_defer_end();
+        out_die_if_pending();
         return rc;
+    }
+    out_defer_end();
+    out_die_if_pending();
     return 0;
 }
 
