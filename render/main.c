@@ -57,7 +57,8 @@ static void usage(FILE *f) {
             "  --tone T          filmic or srgb (PNG tone curve)\n"
             "  --exposure X      fixed exposure multiplier instead of auto exposure\n"
             "  --pm KEY=VALUE    a photon-mapping setting, as in the scene's \"photon_mapping\"\n"
-            "                    object (e.g. --pm global_photons=500000 --pm caustics=false)\n"
+            "                    object (e.g. --pm global_photons=500000 --pm caustics=false);\n"
+            "                    the settings are listed below\n"
             "  --save-photons DIR  save the photon maps (DIR/global.pmap, caustic.pmap, shadow.pmap)\n"
             "  --load-photons DIR  use saved photon maps instead of tracing photons\n"
             "  --checkpoint FILE   save the render state to FILE (atomically) every\n"
@@ -70,6 +71,8 @@ static void usage(FILE *f) {
             "  --max-scene-mb N  refuse scene files larger than N MiB (default 256)\n"
             "  --quiet           no progress output\n"
             "  --help            this text\n"
+            "  --help-settings[=markdown]  the photon-mapping settings alone (markdown: the\n"
+            "                    table of data/scenes/README.md)\n"
             "\n"
             "Outputs (-o, --hdr, --checkpoint, photon maps): a regular file is replaced whole\n"
             "(temporary + rename; all outputs together), a FIFO or character device is written\n"
@@ -83,7 +86,10 @@ static void usage(FILE *f) {
             "the luminance difference A - B (orange: A brighter, blue: darker), saturating\n"
             "at --diff-scale S (default 0.25) of B's mean luminance.\n"
             "\n"
-            "exit status: 0 ok, 1 render or write failure, 2 usage error or invalid scene\n");
+            "exit status: 0 ok, 1 render or write failure, 2 usage error or invalid scene\n"
+            "\n"
+            "photon-mapping settings (\"photon_mapping\" in the scene, or --pm KEY=VALUE):\n");
+    photon_settings_print(f, 0);
 }
 
 /* An integer option's value in [lo, hi]: 0, or -1 after saying what was expected. */
@@ -99,6 +105,11 @@ static const char *basename_of(const char *p) {
 }
 
 int main(int argc, char **argv) {
+    if (argc == 2 && (strcmp(argv[1], "--help-settings") == 0 ||
+                      strcmp(argv[1], "--help-settings=markdown") == 0)) {
+        photon_settings_print(stdout, argv[1][15] == '=');
+        return 0;
+    }
     if (argc >= 2 && strcmp(argv[1], "--tonemap") == 0) return tools_tonemap(argc, argv);
     if (argc >= 2 && strcmp(argv[1], "--dump-scene") == 0) return scene_dump_main(argc, argv);
     if (argc >= 2 && strcmp(argv[1], "--compare") == 0) {

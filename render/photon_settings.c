@@ -1,152 +1,286 @@
-/* photon_settings.c: the photon-mapping settings: defaults, reading "$.photon_mapping", and
- * the command-line flags that set the same keys; see photon_settings.h.
+/* photon_settings.c: the photon-mapping settings; see photon_settings.h.
+ *
+ * One table, k_settings, holds every key: its type, the field it fills, its default, its
+ * range and its help. The defaults, the parsing of "$.photon_mapping", the known-keys check,
+ * the typing of `--pm KEY=VALUE`, `render --help` and the table in data/scenes/README.md
+ * (`render --help-settings=markdown`) all read it, so a key, a default or a range is written
+ * once. Numbers are kept as doubles in the table; every integer default and bound is exact
+ * in a double.
  */
 #include "photon_settings.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "photonmap/common.h"
 
+typedef enum {
+    ST_FORCE,  /* true/false, absent = automatic (PLAN_*), an int field */
+    ST_BOOL,   /* true/false, an int field */
+    ST_INT,    /* a whole number in [lo, hi], an int field */
+    ST_LONG,   /* a whole number in [lo, hi], a long field */
+    ST_NUMBER, /* a finite number in [lo, hi], a double field */
+    ST_FILTER, /* a caustic filter name, an int field (CAUSTIC_FILTER_*) */
+    ST_DIR,    /* a directory (string), a char[PHOTON_SETTINGS_PATH_MAX] field */
+    ST_TEXT    /* anything; ignored (comments) */
+} setting_type;
+
+typedef struct setting_def {
+    const char *key;
+    setting_type type;
+    size_t offset; /* of the field in photon_settings */
+    double def, lo, hi;
+    const char *help;
+} setting_def;
+
+#define F(field) offsetof(photon_settings, field)
+#define NONE 0, 0 /* lo, hi: no range */
+
+static const setting_def k_settings[] = {
+    {"caustics", ST_FORCE, F(force_caustics), PLAN_AUTO, 0, 0,
+     "build the caustic map or not; absent, the plan decides from the scene and prints why"},
+    {"global", ST_FORCE, F(force_global), PLAN_AUTO, 0, 0,
+     "build the global map or not (absent: the plan decides)"},
+    {"shadow", ST_FORCE, F(force_shadow), PLAN_AUTO, 0, 0,
+     "store shadow photons or not (absent: the plan decides)"},
+    {"final_gather", ST_FORCE, F(force_final_gather), PLAN_AUTO, 0, 0,
+     "final gathering or the global map shown directly (absent: the plan decides)"},
+    {"global_photons", ST_LONG, F(global_photons), 200000, 0, 100000000,
+     "photons to store in the global map"},
+    {"caustic_photons", ST_LONG, F(caustic_photons), 500000, 0, 100000000,
+     "photons to store in the caustic map"},
+    {"k_global", ST_INT, F(k_global), 100, 1, 10000,
+     "photons per precomputed-irradiance estimate (and per preview estimate)"},
+    {"k_caustic", ST_INT, F(k_caustic), 60, 1, 10000, "photons per caustic estimate"},
+    {"k_shadow", ST_INT, F(k_shadow), 16, 1, 1000, "photons per shadow-map query"},
+    {"max_radius_global", ST_NUMBER, F(max_radius_global), 0, 0, INFINITY,
+     "largest search radius of a global-map estimate, in scene units; 0: Christensen's radius "
+     "for a threshold radiance of 0.5% of the mean"},
+    {"max_radius_caustic", ST_NUMBER, F(max_radius_caustic), 0, 0, INFINITY,
+     "the same for the caustic map"},
+    {"filter", ST_FILTER, F(filter), CAUSTIC_FILTER_CONE, NONE,
+     "filter of the caustic estimate: none (a disc), cone, gauss or hull (convex hull)"},
+    {"gather_rays", ST_INT, F(gather_rays), 4, 0, 100000,
+     "final-gather rays per camera sample at a diffuse surface (scaled by the path's "
+     "throughput after glass, at least 1)"},
+    {"secondary_rays", ST_INT, F(secondary_rays), 2, 0, 100000,
+     "rays of a secondary gather, made where a gather ray hits a surface closer than "
+     "secondary_distance"},
+    {"secondary_distance", ST_NUMBER, F(secondary_distance), 0, 0, INFINITY,
+     "0: the radius of a k_global estimate at the global map's mean density"},
+    {"split_depth", ST_INT, F(split_depth), 2, 0, 16,
+     "camera-path bounces at which glass traces both its reflected and its refracted ray "
+     "(weighted) instead of choosing one"},
+    {"caustic_stride", ST_INT, F(caustic_stride), 2, 1, 64,
+     "the caustic map is read at one camera sample in c x c strata (a stratified subset, "
+     "weighted c^2; 1: at every sample)"},
+    {"emission_strata", ST_INT, F(emission_strata), 2, 0, 16,
+     "emission seen by the camera (directly or through mirrors and glass) comes from m x m "
+     "extra emission-only rays per sample; 0: from the sample's own path"},
+    {"max_emitted_factor", ST_NUMBER, F(max_emitted_factor), 64, 1, 1e9,
+     "a photon pass gives up, with a message, after emitting this many times its target "
+     "without storing it"},
+    {"projection", ST_BOOL, F(projection), 1, NONE,
+     "aim caustic photons at specular objects through a projection map"},
+    {"projection_cells", ST_INT, F(projection_cells), 64, 1, 4096,
+     "cells per side of a light's projection map"},
+    {"progress", ST_BOOL, F(progress), 1, NONE,
+     "progress lines while tracing photons (render --quiet sets it false)"},
+    {"save_photons", ST_DIR, F(save_dir), 0, NONE,
+     "a directory to save the maps to (global.pmap, caustic.pmap, shadow.pmap; the format of "
+     "photonmap/mapfile.h), as traced"},
+    {"load_photons", ST_DIR, F(load_dir), 0, NONE,
+     "a directory to load the maps from instead of tracing them"},
+    {"comment", ST_TEXT, 0, 0, NONE, "ignored"},
+};
+#define NSETTINGS (sizeof k_settings / sizeof k_settings[0])
+
+static const char *const k_filter_names[] = {"none", "cone", "gauss", "hull"};
+
+static const setting_def *find(const char *key) {
+    for (size_t k = 0; key && k < NSETTINGS; k++)
+        if (strcmp(k_settings[k].key, key) == 0) return &k_settings[k];
+    return NULL;
+}
+
 void photon_settings_defaults(photon_settings *c) {
     memset(c, 0, sizeof *c);
-    c->force_caustics = c->force_global = c->force_shadow = c->force_final_gather = PLAN_AUTO;
-    c->global_photons = 200000;
-    c->caustic_photons = 500000;
-    c->k_global = 100;
-    c->k_caustic = 60;
-    c->k_shadow = 16;
-    c->filter = CAUSTIC_FILTER_CONE;
-    c->gather_rays = 4;
-    c->secondary_rays = 2;
-    c->split_depth = 2;
-    c->caustic_stride = 2;
-    c->emission_strata = 2;
-    c->max_emitted_factor = 64;
-    c->projection_cells = 64;
-    c->projection = 1;
-    c->progress = 1;
+    for (size_t k = 0; k < NSETTINGS; k++) {
+        const setting_def *d = &k_settings[k];
+        void *field = (char *)c + d->offset;
+        switch (d->type) {
+        case ST_FORCE:
+        case ST_BOOL:
+        case ST_INT:
+        case ST_FILTER: *(int *)field = (int)d->def; break;
+        case ST_LONG: *(long *)field = (long)d->def; break;
+        case ST_NUMBER: *(double *)field = d->def; break;
+        case ST_DIR:
+        case ST_TEXT: break; /* empty */
+        }
+    }
 }
 
 const char *caustic_filter_name(int filter) {
-    switch (filter) {
-    case CAUSTIC_FILTER_NONE: return "none";
-    case CAUSTIC_FILTER_CONE: return "cone";
-    case CAUSTIC_FILTER_GAUSS: return "gauss";
-    case CAUSTIC_FILTER_HULL: return "hull";
+    return filter >= 0 && filter < 4 ? k_filter_names[filter] : "?";
+}
+
+#define P "$.photon_mapping"
+
+static int parse_one(photon_settings *c, const setting_def *d, const cJSON *pm, json_err *e) {
+    void *field = (char *)c + d->offset;
+    int rc = 0;
+    switch (d->type) {
+    case ST_FORCE: {
+        int b = 0;
+        if ((rc = json_bool(pm, P, d->key, 1, &b, e)) == 0) *(int *)field = b ? PLAN_ON : PLAN_OFF;
+        break;
     }
-    return "?";
-}
-
-static int get_force(const cJSON *pm, const char *key, int *out, json_err *e) {
-    if (!json_get(pm, key)) return 0;
-    int b = 0;
-    int rc = json_bool(pm, "$.photon_mapping", key, 1, &b, e);
-    if (rc < 0) return rc;
-    *out = b ? PLAN_ON : PLAN_OFF;
-    return 0;
-}
-
-static int get_long(const cJSON *pm, const char *key, long lo, long hi, long *out, json_err *e) {
-    return json_int(pm, "$.photon_mapping", key, 0, lo, hi, out, e);
-}
-
-static int get_int(const cJSON *pm, const char *key, long lo, long hi, int *out, json_err *e) {
-    long v = *out;
-    int rc = json_int(pm, "$.photon_mapping", key, 0, lo, hi, &v, e);
-    if (rc == 0) *out = (int)v;
+    case ST_BOOL: rc = json_bool(pm, P, d->key, 1, (int *)field, e); break;
+    case ST_INT:
+    case ST_LONG: {
+        long v = 0;
+        rc = json_int(pm, P, d->key, 1, (long)d->lo, (long)d->hi, &v, e);
+        if (rc == 0 && d->type == ST_INT) *(int *)field = (int)v;
+        if (rc == 0 && d->type == ST_LONG) *(long *)field = v;
+        break;
+    }
+    case ST_NUMBER: {
+        double v = 0;
+        if ((rc = json_number(pm, P, d->key, 1, &v, e)) < 0) break;
+        if (!(v >= d->lo && v <= d->hi)) {
+            if (isinf(d->hi))
+                return json_fail(e, PM_EINVAL, P ".%s: must be >= %g, got %g", d->key, d->lo, v);
+            return json_fail(e, PM_EINVAL, P ".%s: must be in [%g, %g], got %g", d->key, d->lo,
+                             d->hi, v);
+        }
+        *(double *)field = v;
+        break;
+    }
+    case ST_FILTER: {
+        const char *f = NULL;
+        if ((rc = json_string(pm, P, d->key, 1, &f, e)) < 0) break;
+        /* The names the estimators go by elsewhere are accepted too. */
+        static const char *const alias[] = {"disc", NULL, "gaussian", "convex_hull"};
+        for (int k = 0; k < 4; k++)
+            if (strcmp(f, k_filter_names[k]) == 0 || (alias[k] && strcmp(f, alias[k]) == 0)) {
+                *(int *)field = k;
+                return 0;
+            }
+        return json_fail(e, PM_EINVAL,
+                         P ".%s: expected \"none\", \"cone\", \"gauss\" or \"hull\", got \"%s\"",
+                         d->key, f);
+    }
+    case ST_DIR: {
+        const char *s = NULL;
+        if ((rc = json_string(pm, P, d->key, 1, &s, e)) < 0) break;
+        if (strlen(s) >= PHOTON_SETTINGS_PATH_MAX)
+            return json_fail(e, PM_EINVAL, P ".%s: path too long", d->key);
+        snprintf((char *)field, PHOTON_SETTINGS_PATH_MAX, "%s", s);
+        break;
+    }
+    case ST_TEXT: break;
+    }
     return rc;
 }
-
-static int get_nonneg(const cJSON *pm, const char *key, double *out, json_err *e) {
-    int rc = json_number(pm, "$.photon_mapping", key, 0, out, e);
-    if (rc < 0) return rc;
-    if (*out < 0)
-        return json_fail(e, PM_EINVAL, "$.photon_mapping.%s: must be >= 0, got %g", key, *out);
-    return 0;
-}
-
-static int get_dir(const cJSON *pm, const char *key, char *dst, size_t cap, json_err *e) {
-    const char *s = NULL;
-    int rc = json_string(pm, "$.photon_mapping", key, 0, &s, e);
-    if (rc < 0) return rc;
-    if (s) {
-        if (strlen(s) >= cap)
-            return json_fail(e, PM_EINVAL, "$.photon_mapping.%s: path too long", key);
-        snprintf(dst, cap, "%s", s);
-    }
-    return 0;
-}
-
-#define TRY(x)                  \
-    do {                        \
-        int rc_ = (x);          \
-        if (rc_ < 0) return rc_; \
-    } while (0)
 
 int photon_settings_parse(photon_settings *c, const cJSON *pm, json_err *e) {
     photon_settings_defaults(c);
     if (!pm) return 0;
-    static const char *known[] = {
-        "caustics", "global", "shadow", "final_gather", "global_photons", "caustic_photons",
-        "k_global", "k_caustic", "k_shadow", "max_radius_global", "max_radius_caustic",
-        "filter", "gather_rays", "secondary_rays", "split_depth", "caustic_stride", "emission_strata", "secondary_distance", "max_emitted_factor",
-        "projection_cells", "projection", "progress", "save_photons", "load_photons", "comment"};
-    for (const cJSON *it = pm->child; it; it = it->next) {
-        int ok = 0;
-        for (size_t k = 0; k < sizeof known / sizeof *known; k++)
-            if (it->string && strcmp(it->string, known[k]) == 0) ok = 1;
-        if (!ok)
-            return json_fail(e, PM_EINVAL, "$.photon_mapping.%s: unknown key",
-                             it->string ? it->string : "?");
-    }
-    TRY(get_force(pm, "caustics", &c->force_caustics, e));
-    TRY(get_force(pm, "global", &c->force_global, e));
-    TRY(get_force(pm, "shadow", &c->force_shadow, e));
-    TRY(get_force(pm, "final_gather", &c->force_final_gather, e));
-    TRY(get_long(pm, "global_photons", 0, 100000000L, &c->global_photons, e));
-    TRY(get_long(pm, "caustic_photons", 0, 100000000L, &c->caustic_photons, e));
-    TRY(get_int(pm, "k_global", 1, 10000, &c->k_global, e));
-    TRY(get_int(pm, "k_caustic", 1, 10000, &c->k_caustic, e));
-    TRY(get_int(pm, "k_shadow", 1, 1000, &c->k_shadow, e));
-    TRY(get_nonneg(pm, "max_radius_global", &c->max_radius_global, e));
-    TRY(get_nonneg(pm, "max_radius_caustic", &c->max_radius_caustic, e));
-    TRY(get_int(pm, "gather_rays", 0, 100000, &c->gather_rays, e));
-    TRY(get_int(pm, "secondary_rays", 0, 100000, &c->secondary_rays, e));
-    TRY(get_int(pm, "split_depth", 0, 16, &c->split_depth, e));
-    TRY(get_int(pm, "caustic_stride", 1, 64, &c->caustic_stride, e));
-    TRY(get_int(pm, "emission_strata", 0, 16, &c->emission_strata, e));
-    TRY(get_nonneg(pm, "secondary_distance", &c->secondary_distance, e));
-    TRY(get_nonneg(pm, "max_emitted_factor", &c->max_emitted_factor, e));
-    if (c->max_emitted_factor < 1)
-        return json_fail(e, PM_EINVAL, "$.photon_mapping.max_emitted_factor: must be >= 1, got %g",
-                         c->max_emitted_factor);
-    TRY(get_int(pm, "projection_cells", 1, 4096, &c->projection_cells, e));
-    TRY(json_bool(pm, "$.photon_mapping", "projection", 0, &c->projection, e));
-    TRY(json_bool(pm, "$.photon_mapping", "progress", 0, &c->progress, e));
-    const char *f = NULL;
-    TRY(json_string(pm, "$.photon_mapping", "filter", 0, &f, e));
-    if (f) {
-        if (strcmp(f, "none") == 0 || strcmp(f, "disc") == 0)
-            c->filter = CAUSTIC_FILTER_NONE;
-        else if (strcmp(f, "cone") == 0)
-            c->filter = CAUSTIC_FILTER_CONE;
-        else if (strcmp(f, "gauss") == 0 || strcmp(f, "gaussian") == 0)
-            c->filter = CAUSTIC_FILTER_GAUSS;
-        else if (strcmp(f, "hull") == 0 || strcmp(f, "convex_hull") == 0)
-            c->filter = CAUSTIC_FILTER_HULL;
-        else
-            return json_fail(e, PM_EINVAL,
-                             "$.photon_mapping.filter: expected \"none\", \"cone\", \"gauss\" or "
-                             "\"hull\", got \"%s\"",
-                             f);
-    }
-    TRY(get_dir(pm, "save_photons", c->save_dir, sizeof c->save_dir, e));
-    TRY(get_dir(pm, "load_photons", c->load_dir, sizeof c->load_dir, e));
+    for (const cJSON *it = pm->child; it; it = it->next)
+        if (!find(it->string))
+            return json_fail(e, PM_EINVAL, P ".%s: unknown key", it->string ? it->string : "?");
+    /* In table order, so that of several bad keys the same one is always reported. */
+    for (size_t k = 0; k < NSETTINGS; k++)
+        if (json_get(pm, k_settings[k].key)) {
+            int rc = parse_one(c, &k_settings[k], pm, e);
+            if (rc < 0) return rc;
+        }
     return 0;
 }
+
+/* ---- documentation ------------------------------------------------------------------------- */
+
+static const char *type_name(setting_type t) {
+    switch (t) {
+    case ST_FORCE: return "true/false";
+    case ST_BOOL: return "true/false";
+    case ST_INT:
+    case ST_LONG: return "integer";
+    case ST_NUMBER: return "number";
+    case ST_FILTER: return "string";
+    case ST_DIR: return "directory";
+    case ST_TEXT: return "any";
+    }
+    return "?";
+}
+
+static void default_text(const setting_def *d, char *buf, size_t cap) {
+    switch (d->type) {
+    case ST_FORCE: snprintf(buf, cap, "automatic"); break;
+    case ST_BOOL: snprintf(buf, cap, "%s", d->def != 0 ? "true" : "false"); break;
+    case ST_INT:
+    case ST_LONG:
+    case ST_NUMBER: snprintf(buf, cap, "%.15g", d->def); break;
+    case ST_FILTER: snprintf(buf, cap, "\"%s\"", caustic_filter_name((int)d->def)); break;
+    case ST_DIR:
+    case ST_TEXT: snprintf(buf, cap, "none"); break;
+    }
+}
+
+static void range_text(const setting_def *d, char *buf, size_t cap) {
+    switch (d->type) {
+    case ST_INT:
+    case ST_LONG:
+    case ST_NUMBER:
+        if (isinf(d->hi))
+            snprintf(buf, cap, ">= %.15g", d->lo);
+        else
+            snprintf(buf, cap, "%.15g to %.15g", d->lo, d->hi);
+        break;
+    case ST_FILTER: snprintf(buf, cap, "none, cone, gauss, hull"); break;
+    default: snprintf(buf, cap, "-"); break;
+    }
+}
+
+/* text in lines of at most `width` columns, each indented by `indent` spaces. */
+static void print_wrapped(FILE *f, const char *text, int indent, int width) {
+    const char *s = text;
+    while (*s) {
+        int room = width - indent, n = (int)strlen(s);
+        if (n > room) {
+            n = room;
+            while (n > 0 && s[n] != ' ') n--;
+            if (n == 0) n = room; /* one word longer than a line */
+        }
+        fprintf(f, "%*s%.*s\n", indent, "", n, s);
+        s += n;
+        while (*s == ' ') s++;
+    }
+}
+
+void photon_settings_print(FILE *f, int markdown) {
+    char def[64], range[64];
+    if (markdown) fprintf(f, "| key | type | default | range | meaning |\n|---|---|---|---|---|\n");
+    for (size_t k = 0; k < NSETTINGS; k++) {
+        const setting_def *d = &k_settings[k];
+        default_text(d, def, sizeof def);
+        range_text(d, range, sizeof range);
+        if (markdown)
+            fprintf(f, "| `%s` | %s | %s | %s | %s |\n", d->key, type_name(d->type), def, range,
+                    d->help);
+        else {
+            fprintf(f, "  %-20s %s, default %s%s%s\n", d->key, type_name(d->type), def,
+                    strcmp(range, "-") ? ", " : "", strcmp(range, "-") ? range : "");
+            print_wrapped(f, d->help, 23, 80);
+        }
+    }
+}
+
+/* ---- command line ------------------------------------------------------------------------ */
 
 int plan_cli_set(cJSON **pm, const char *flag, const char *value, char *err, size_t errcap) {
     char key[64];
@@ -173,13 +307,15 @@ int plan_cli_set(cJSON **pm, const char *flag, const char *value, char *err, siz
     char *end;
     errno = 0;
     double num = strtod(val, &end);
-    int is_path = strcmp(key, "save_photons") == 0 || strcmp(key, "load_photons") == 0 ||
-                  strcmp(key, "filter") == 0;
-    if (!is_path && strcmp(val, "true") == 0)
+    /* The table says which keys take text; any other value is typed as JSON would type it
+     * (an unknown key is reported, with its path, when the settings are read). */
+    const setting_def *d = find(key);
+    int is_text = d && (d->type == ST_DIR || d->type == ST_FILTER || d->type == ST_TEXT);
+    if (!is_text && strcmp(val, "true") == 0)
         item = cJSON_CreateBool(1);
-    else if (!is_path && strcmp(val, "false") == 0)
+    else if (!is_text && strcmp(val, "false") == 0)
         item = cJSON_CreateBool(0);
-    else if (!is_path && *val && !*end && !errno)
+    else if (!is_text && *val && !*end && !errno)
         item = cJSON_CreateNumber(num);
     else
         item = cJSON_CreateString(val);

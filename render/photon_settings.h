@@ -1,25 +1,14 @@
 /* photon_settings.h: the settings of photon mapping.
  *
- * photon_settings holds every parameter of photon mapping, read from "$.photon_mapping" with the
- * json.h getters (errors name the JSON path and make `render` exit with status 2). The
+ * photon_settings holds every parameter of photon mapping, read from "$.photon_mapping"
+ * with the json.h getters (errors name the JSON path and make `render` exit with status 2). The
  * command line sets the same keys: plan_cli_set() applies `--pm KEY=VALUE`,
  * `--save-photons DIR` and `--load-photons DIR` to the scene's photon_mapping object before
  * the integrator reads it, so a flag and the file can never disagree about names.
  *
- * Keys (defaults in parentheses): global_photons (200000 stored), caustic_photons (500000
- * stored), k_global (100; photons per precomputed irradiance estimate and per preview
- * estimate), k_caustic (60), max_radius_global / max_radius_caustic (0: automatic,
- * Christensen's radius for a threshold radiance), filter ("cone", also "none", "gauss",
- * "hull"), gather_rays (4 per camera sample at the first diffuse hit: a few rays per sample and many
- * samples beat many rays per sample, docs/RESULTS.md), secondary_rays (2),
- * split_depth (2: eye-path bounces at which glass traces both its branches), caustic_stride
- * (2: the caustic map is read at one camera sample in 2 x 2 strata, weighted 4),
- * emission_strata (2: emission seen by the camera comes from 2 x 2 extra rays per sample),
- * secondary_distance (0: automatic, the radius of a k_global estimate at the mean photon
- * density), k_shadow (16), max_emitted_factor (64: give up when this many times the target
- * were emitted), projection_cells (64: cells per side of a light's caustic projection map),
- * projection (true), progress (true; --quiet sets it false), caustics/global/shadow/final_gather (absent: automatic), save_photons,
- * load_photons (directories).
+ * Keys, types, defaults, ranges and meanings are one table in photon_settings.c; read it
+ * with `render --help`, or as the table in data/scenes/README.md, which is
+ * `render --help-settings=markdown` verbatim (a test checks they are equal).
  *
  * Plain data; nothing is shared between threads.
  */
@@ -28,6 +17,7 @@
 
 #include <cjson/cJSON.h>
 #include <stddef.h>
+#include <stdio.h>
 
 #include "json.h"
 
@@ -36,6 +26,7 @@ extern "C" {
 #endif
 
 enum { PLAN_AUTO = -1, PLAN_OFF = 0, PLAN_ON = 1 };
+#define PHOTON_SETTINGS_PATH_MAX 512
 enum { CAUSTIC_FILTER_NONE, CAUSTIC_FILTER_CONE, CAUSTIC_FILTER_GAUSS, CAUSTIC_FILTER_HULL };
 
 typedef struct photon_settings {
@@ -53,13 +44,17 @@ typedef struct photon_settings {
     int projection_cells;
     int projection;
     int progress; /* progress bars while tracing (render --quiet sets it false) */
-    char save_dir[512], load_dir[512]; /* empty: none */
+    /* Directories for save_photons and load_photons; empty: none. */
+    char save_dir[PHOTON_SETTINGS_PATH_MAX], load_dir[PHOTON_SETTINGS_PATH_MAX];
 } photon_settings;
 
 void photon_settings_defaults(photon_settings *c);
 /* Read "$.photon_mapping" (pm may be NULL: defaults). 0 or a negative code with e->msg. */
 int photon_settings_parse(photon_settings *c, const cJSON *pm, json_err *e);
 const char *caustic_filter_name(int filter);
+/* The settings table: markdown = 0 an indented listing for `render --help`, 1 the markdown
+ * table of data/scenes/README.md (header row included). */
+void photon_settings_print(FILE *f, int markdown);
 
 /* Apply a command-line option to the scene's photon_mapping object (created if NULL):
  * flag "--pm" with value "KEY=VALUE" (VALUE a number, true/false or a string), or

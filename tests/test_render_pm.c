@@ -12,6 +12,7 @@
  */
 #include <dirent.h>
 #include <fcntl.h>
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -886,4 +887,122 @@ TEST(render_pm_furnace) {
     EXPECT_NEAR(sum / n, 2.0, 0.02);
     EXPECT_MSG(lo >= 1.94 && hi <= 2.06, "pixels from %.4f to %.4f", lo, hi);
     film_free(&f);
+}
+
+/* ---- the settings table ------------------------------------------------------------------ */
+
+/* Oracle: data/scenes/README.md as committed. Its settings table, between the markers, is
+ * byte for byte what `render --help-settings=markdown` prints, so the documented keys,
+ * defaults and ranges are the ones the program has (regenerate the table with that command
+ * when a setting changes). */
+TEST(render_settings_readme_table_is_generated) {
+    char path[1024], cmd[2048], gen[1024];
+    snprintf(path, sizeof path, "%s/data/scenes/README.md", pm_test_source_dir());
+    snprintf(gen, sizeof gen, "%s/table.md", pm_test_tmpdir());
+    snprintf(cmd, sizeof cmd, "%s/render --help-settings=markdown > '%s'", pm_test_build_dir(), gen);
+    char out[256];
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    char *readme = read_file(path, NULL), *table = read_file(gen, NULL);
+    ASSERT(readme && table);
+    const char *begin = "<!-- settings table: render --help-settings=markdown -->\n";
+    const char *end = "<!-- end of settings table -->";
+    char *a = strstr(readme, begin), *b = a ? strstr(a, end) : NULL;
+    ASSERT_MSG(a && b, "%s: the settings table's markers are missing", path);
+    a += strlen(begin);
+    *b = 0;
+    EXPECT_MSG(strcmp(a, table) == 0,
+               "%s: the settings table differs from `render --help-settings=markdown`; "
+               "regenerate it\n--- README:\n%s--- generated:\n%s", path, a, table);
+    free(readme);
+    free(table);
+}
+
+/* Trim the spaces around s in place. */
+static char *trim(char *s) {
+    while (*s == ' ') s++;
+    size_t n = strlen(s);
+    while (n && s[n - 1] == ' ') s[--n] = 0;
+    return s;
+}
+
+/* Parse {"key": value}: 0 and *c, or < 0 with e->msg. */
+static int parse_one_setting(const char *key, const char *value, photon_settings *c, json_err *e) {
+    char text[256];
+    snprintf(text, sizeof text, "{\"%s\": %s}", key, value);
+    cJSON *o = cJSON_Parse(text);
+    if (!o) {
+        snprintf(e->msg, sizeof e->msg, "bad JSON %s", text);
+        return -100;
+    }
+    int rc = photon_settings_parse(c, o, e);
+    cJSON_Delete(o);
+    return rc;
+}
+
+/* Oracle: the documented table (`render --help-settings=markdown`), read as a user reads it.
+ * Each documented default, written explicitly into "$.photon_mapping", gives exactly the
+ * settings of an empty object; the ends of each documented range are accepted and values
+ * just outside refused with a message naming the key's JSON path; each documented filter
+ * name is accepted and another refused. */
+TEST(render_settings_documented_defaults_and_ranges_hold) {
+    char cmd[2048], gen[1024], out[256];
+    snprintf(gen, sizeof gen, "%s/table.md", pm_test_tmpdir());
+    snprintf(cmd, sizeof cmd, "%s/render --help-settings=markdown > '%s'", pm_test_build_dir(), gen);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    char *table = read_file(gen, NULL);
+    ASSERT(table);
+    photon_settings def, got;
+    photon_settings_defaults(&def);
+    json_err e;
+    ASSERT_EQ_INT(photon_settings_parse(&got, NULL, &e), 0);
+    EXPECT(memcmp(&got, &def, sizeof def) == 0);
+    int rows = 0, ranges = 0;
+    char *save = NULL;
+    for (char *line = strtok_r(table, "\n", &save); line; line = strtok_r(NULL, "\n", &save)) {
+        char key[64], tb[32], db[64], rb[64];
+        if (sscanf(line, "| `%63[^`]` | %31[^|]| %63[^|]| %63[^|]|", key, tb, db, rb) != 4) continue;
+        rows++;
+        char *type = trim(tb), *dflt = trim(db), *range = trim(rb), path[128], v[64];
+        snprintf(path, sizeof path, "$.photon_mapping.%s", key);
+        if (strcmp(dflt, "automatic") != 0 && strcmp(dflt, "none") != 0) {
+            int rc = parse_one_setting(key, dflt, &got, &e);
+            EXPECT_MSG(rc == 0 && memcmp(&got, &def, sizeof def) == 0,
+                       "%s: the documented default %s is not the default (%s)", key, dflt,
+                       rc ? e.msg : "other settings");
+        }
+        double lo, hi;
+        int integer = strcmp(type, "integer") == 0;
+        int two = sscanf(range, "%lf to %lf", &lo, &hi) == 2;
+        if (two || sscanf(range, ">= %lf", &lo) == 1) {
+            ranges++;
+            if (!two) hi = 1e6 > lo ? 1e6 : lo; /* any large value */
+            double below = integer ? lo - 1 : lo - 1e-3 * (fabs(lo) > 1 ? fabs(lo) : 1);
+            double above = integer ? hi + 1 : hi + 1e-3 * (fabs(hi) > 1 ? fabs(hi) : 1);
+            double ok[2] = {lo, hi}, bad[2] = {below, above};
+            for (int k = 0; k < 2; k++) {
+                snprintf(v, sizeof v, "%.17g", ok[k]);
+                EXPECT_MSG(parse_one_setting(key, v, &got, &e) == 0, "%s = %s refused: %s", key, v,
+                           e.msg);
+                if (k == 1 && !two) continue; /* no upper end */
+                snprintf(v, sizeof v, "%.17g", bad[k]);
+                int rc = parse_one_setting(key, v, &got, &e);
+                EXPECT_MSG(rc < 0 && strstr(e.msg, path), "%s = %s: rc %d, '%s'", key, v, rc,
+                           rc ? e.msg : "accepted");
+            }
+        } else if (strcmp(type, "string") == 0) {
+            char names[64];
+            snprintf(names, sizeof names, "%s", range);
+            char *s2 = NULL;
+            for (char *n = strtok_r(names, ", ", &s2); n; n = strtok_r(NULL, ", ", &s2)) {
+                snprintf(v, sizeof v, "\"%s\"", n);
+                EXPECT_MSG(parse_one_setting(key, v, &got, &e) == 0, "%s = %s refused: %s", key, v,
+                           e.msg);
+            }
+            EXPECT(parse_one_setting(key, "\"no such name\"", &got, &e) < 0 && strstr(e.msg, path));
+        }
+    }
+    free(table);
+    EXPECT_MSG(rows >= 25 && ranges >= 15, "%d rows, %d with a numeric range", rows, ranges);
+    /* And a key that is not in the table is refused by name. */
+    EXPECT(parse_one_setting("k_globle", "1", &got, &e) < 0 && strstr(e.msg, "k_globle: unknown key"));
 }
