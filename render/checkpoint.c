@@ -399,6 +399,19 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
         fprintf(stderr, "render: photon maps: %s\n", msg);
         return 2;
     }
+    /* pm_map_save replaces regular files only (a FIFO, device or symlink there is refused):
+     * say so now rather than after the photon pass. */
+    static const char *names[3] = {"global.pmap", "caustic.pmap", "shadow.pmap"};
+    for (int k = 0; save && !resume && k < 3; k++) {
+        char path[OUT_PATH_MAX];
+        struct stat sb;
+        snprintf(path, sizeof path, "%s/%s", save, names[k]);
+        if (lstat(path, &sb) == 0 && !S_ISREG(sb.st_mode)) {
+            fprintf(stderr, "render: photon maps: %s is not a regular file; photon maps replace "
+                    "only regular files\n", path);
+            return 2;
+        }
+    }
     ckpt_settings_text(s, s->settings.mode, ci->settings, sizeof ci->settings);
     err[0] = 0;
     ci->scene_hash = CKPT_HASH_INIT;

@@ -7,7 +7,8 @@
  * and nothing appears; SIGINT/SIGTERM leave the old outputs and no temporaries. The render
  * program is run as a user would (signals at each phase through the documented test-only
  * PM_RENDER_TEST_PAUSE hook), and bad input (/dev/zero as a scene, a PFM header bigger than
- * its file) must give exit status 2 with a message, quickly. Every output path is inside
+ * its file, a photon-map directory that cannot be made or holds a FIFO where a map goes) must
+ * give exit status 2 with a message, quickly, before any photon is traced. Every output path is inside
  * pm_test_tmpdir(); device nodes are made there with mknod, never under /dev.
  */
 #define _XOPEN_SOURCE 700 /* mknod, S_IFCHR */
@@ -399,7 +400,10 @@ TEST(render_output_cli_bad_input) {
         {"--tonemap huge.pfm a.png", "huge.pfm"},
         {"'%s/data/scenes/cornell_spheres.json' --mode pm --save-photons no/such/dir -o a.png",
          "cannot be created"},
+        {"'%s/data/scenes/cornell_spheres.json' --mode pm --save-photons maps -o a.png",
+         "maps/caustic.pmap is not a regular file"},
     };
+    ASSERT(mkdir(path_in("maps"), 0755) == 0 && mkfifo(path_in("maps/caustic.pmap"), 0600) == 0);
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
         char args[2048];
         snprintf(args, sizeof args, cases[k].args, pm_test_source_dir());
@@ -410,6 +414,8 @@ TEST(render_output_cli_bad_input) {
         EXPECT_MSG(!strstr(out, "Photons:"), "%s: traced photons before failing", args);
         EXPECT(access(path_in("a.png"), F_OK) != 0);
     }
+    struct stat st;
+    EXPECT(lstat(path_in("maps/caustic.pmap"), &st) == 0 && S_ISFIFO(st.st_mode));
     /* the limit can be raised: the same big file is read (and is an empty scene) */
     snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' big.json --max-scene-mb 4 -o a.png", dir,
              pm_test_build_dir());
