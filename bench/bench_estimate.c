@@ -218,7 +218,8 @@ static int lookup_race(const char *out, size_t n, size_t nq, int runs, uint64_t 
  * Regions: the square's interior ([0.25, 0.75]^2) and edge (x within 3 photon spacings of
  * x = 0, where the true irradiance steps from E to 0); the caustic's centre (d < sigma/2)
  * and flank (sigma < d < 1.5 sigma). Each point's relative error is E_est / E_true - 1; the
- * CSV gives the mean (the bias), its standard error and the RMS over the points. */
+ * CSV gives the mean (the bias), its standard error (from independent photon maps) and the
+ * RMS over the points. */
 typedef struct acc_method {
     const char *name, *variant;
     pm_estimator kind;
@@ -246,8 +247,14 @@ static double gauss_sample(bench_rng *r) { /* Box-Muller, one of the pair */
 
 static int accuracy(const char *out, int quick, uint64_t seed) {
     const int side = quick ? 100 : 200;
-    const size_t npts = quick ? 300 : 4000;
+    /* Each layout is drawn R times, independently; every realization gets npts / R points per
+     * region, and the standard error comes from the spread of the R realization means: points
+     * of one photon map share photons (all of a caustic's centre does), so their errors are
+     * correlated and a spread over points would understate it. */
+    const int R = quick ? 4 : 32;
+    const size_t npts = quick ? 400 : 6400, per = npts / (size_t)R;
     const size_t ncaus[2] = {quick ? 500u : 1000u, quick ? 5000u : 10000u};
+    enum { NK = NELEM(ACC_KS), NM = NELEM(ACC_METHODS) };
     FILE *csv = bench_csv_open(out, "accuracy.csv",
                                "layout,region,photons,estimator,variant,k,points,mean_rel_error,"
                                "sem,rms_rel_error");
@@ -255,76 +262,89 @@ static int accuracy(const char *out, int quick, uint64_t seed) {
     bench_rng rng;
     bench_rng_seed(&rng, seed + 17);
     void *scratch = malloc(pm_estimate_scratch_bytes(200));
-    float *pts = malloc(npts * 3 * sizeof *pts);
-    double *etrue = malloc(npts * sizeof *etrue);
+    float *pts = malloc(per * 3 * sizeof *pts);
+    double *etrue = malloc(per * sizeof *etrue);
     if (!scratch || !pts || !etrue) return -1;
     for (int lay = 0; lay < 4; lay++) {
         const char *layout = lay == 0 ? "stratified" : lay == 1 ? "random" : "caustic";
         size_t n = lay < 2 ? (size_t)side * side : ncaus[lay - 2];
+        double acc[2][NK][NM][3]; /* sum of realization means, of their squares, of rel^2 */
+        memset(acc, 0, sizeof acc);
         pm_photon *ph = malloc(n * sizeof *ph);
         if (!ph) return -1;
-        for (size_t i = 0; i < n; i++) {
-            double x, z;
-            if (lay == 0) {
-                x = ((double)(i / (size_t)side) + bench_rng_unit(&rng)) / side;
-                z = ((double)(i % (size_t)side) + bench_rng_unit(&rng)) / side;
-            } else if (lay == 1) {
-                x = bench_rng_unit(&rng), z = bench_rng_unit(&rng);
-            } else {
-                x = 0.5 + ACC_SIGMA * gauss_sample(&rng), z = 0.5 + ACC_SIGMA * gauss_sample(&rng);
+        for (int rep = 0; rep < R; rep++) {
+            for (size_t i = 0; i < n; i++) {
+                double x, z;
+                if (lay == 0) {
+                    x = ((double)(i / (size_t)side) + bench_rng_unit(&rng)) / side;
+                    z = ((double)(i % (size_t)side) + bench_rng_unit(&rng)) / side;
+                } else if (lay == 1) {
+                    x = bench_rng_unit(&rng), z = bench_rng_unit(&rng);
+                } else {
+                    x = 0.5 + ACC_SIGMA * gauss_sample(&rng), z = 0.5 + ACC_SIGMA * gauss_sample(&rng);
+                }
+                float pos[3] = {(float)x, 0.0f, (float)z}, pw = (float)(1.0 / (double)n);
+                pm_photon_init(&ph[i], pos, (float[3]){pw, pw, pw}, down, up, PM_KIND_INDIRECT);
             }
-            float pos[3] = {(float)x, 0.0f, (float)z}, pw = (float)(1.0 / (double)n);
-            pm_photon_init(&ph[i], pos, (float[3]){pw, pw, pw}, down, up, PM_KIND_INDIRECT);
+            float dec[3];
+            pm_rgbe_decode(ph[0].power, dec);
+            const double ptot = (double)n * dec[0]; /* total decoded power (1 within RGBE rounding) */
+            pm_kdtree *tree = NULL;
+            pm_kdtree_config cfg = pm_kdtree_photon_config(8);
+            if (pm_kdtree_build(&tree, ph, n, &cfg, NULL) != 0) return -1;
+            for (int reg = 0; reg < 2; reg++) {
+                for (size_t i = 0; i < per; i++) {
+                    double x, z;
+                    if (lay < 2) {
+                        z = 0.25 + 0.5 * bench_rng_unit(&rng);
+                        x = reg ? 3.0 / side * bench_rng_unit(&rng) : 0.25 + 0.5 * bench_rng_unit(&rng);
+                        etrue[i] = ptot;
+                    } else {
+                        /* uniform over the region's disc or annulus */
+                        double r0 = reg ? ACC_SIGMA : 0, r1 = reg ? 1.5 * ACC_SIGMA : 0.5 * ACC_SIGMA;
+                        double d = sqrt(r0 * r0 + (r1 * r1 - r0 * r0) * bench_rng_unit(&rng));
+                        double a = 2 * 3.14159265358979323846 * bench_rng_unit(&rng);
+                        x = 0.5 + d * cos(a), z = 0.5 + d * sin(a);
+                        etrue[i] = ptot * exp(-d * d / (2 * ACC_SIGMA * ACC_SIGMA)) /
+                                   (2 * 3.14159265358979323846 * ACC_SIGMA * ACC_SIGMA);
+                    }
+                    pts[3 * i] = (float)x, pts[3 * i + 1] = 0.0f, pts[3 * i + 2] = (float)z;
+                }
+                for (size_t ki = 0; ki < NK; ki++)
+                    for (size_t mi = 0; mi < NM; mi++) {
+                        const acc_method *m = &ACC_METHODS[mi];
+                        pm_estimate_options o;
+                        pm_estimate_options_init(&o, m->kind, ACC_KS[ki]);
+                        o.bias = m->bias;
+                        o.hull_boundary = m->boundary;
+                        double sum = 0, sum2 = 0;
+                        for (size_t i = 0; i < per; i++) {
+                            pm_estimate_result res;
+                            if (pm_estimate(tree, &pts[3 * i], up, &o, scratch, &res, NULL) != 0) return -1;
+                            double rel = res.rgb[0] / etrue[i] - 1.0;
+                            sum += rel, sum2 += rel * rel;
+                        }
+                        double mean = sum / (double)per;
+                        acc[reg][ki][mi][0] += mean;
+                        acc[reg][ki][mi][1] += mean * mean;
+                        acc[reg][ki][mi][2] += sum2;
+                    }
+            }
+            pm_kdtree_free(tree);
         }
-        float dec[3];
-        pm_rgbe_decode(ph[0].power, dec);
-        const double ptot = (double)n * dec[0]; /* total decoded power (1 within RGBE rounding) */
-        pm_kdtree *tree = NULL;
-        pm_kdtree_config cfg = pm_kdtree_photon_config(8);
-        if (pm_kdtree_build(&tree, ph, n, &cfg, NULL) != 0) return -1;
         for (int reg = 0; reg < 2; reg++) {
             const char *region = lay < 2 ? (reg ? "edge" : "interior") : (reg ? "flank" : "centre");
-            for (size_t i = 0; i < npts; i++) {
-                double x, z;
-                if (lay < 2) {
-                    z = 0.25 + 0.5 * bench_rng_unit(&rng);
-                    x = reg ? 3.0 / side * bench_rng_unit(&rng) : 0.25 + 0.5 * bench_rng_unit(&rng);
-                    etrue[i] = ptot;
-                } else {
-                    /* uniform over the annulus (or disc) of the region */
-                    double r0 = reg ? ACC_SIGMA : 0, r1 = reg ? 1.5 * ACC_SIGMA : 0.5 * ACC_SIGMA;
-                    double d = sqrt(r0 * r0 + (r1 * r1 - r0 * r0) * bench_rng_unit(&rng));
-                    double a = 2 * 3.14159265358979323846 * bench_rng_unit(&rng);
-                    x = 0.5 + d * cos(a), z = 0.5 + d * sin(a);
-                    etrue[i] = ptot * exp(-d * d / (2 * ACC_SIGMA * ACC_SIGMA)) /
-                               (2 * 3.14159265358979323846 * ACC_SIGMA * ACC_SIGMA);
+            for (size_t ki = 0; ki < NK; ki++)
+                for (size_t mi = 0; mi < NM; mi++) {
+                    const double *a = acc[reg][ki][mi];
+                    double mean = a[0] / R, var = (a[1] - R * mean * mean) / (R - 1);
+                    fprintf(csv, "%s,%s,%zu,%s,%s,%u,%zu,%.6f,%.6f,%.6f\n", layout, region, n,
+                            ACC_METHODS[mi].name, ACC_METHODS[mi].variant, ACC_KS[ki], per * (size_t)R,
+                            mean, sqrt(fmax(var, 0) / R), sqrt(a[2] / (double)(per * (size_t)R)));
                 }
-                pts[3 * i] = (float)x, pts[3 * i + 1] = 0.0f, pts[3 * i + 2] = (float)z;
-            }
-            for (size_t ki = 0; ki < NELEM(ACC_KS); ki++)
-                for (size_t mi = 0; mi < NELEM(ACC_METHODS); mi++) {
-                    const acc_method *m = &ACC_METHODS[mi];
-                    pm_estimate_options o;
-                    pm_estimate_options_init(&o, m->kind, ACC_KS[ki]);
-                    o.bias = m->bias;
-                    o.hull_boundary = m->boundary;
-                    double sum = 0, sum2 = 0;
-                    for (size_t i = 0; i < npts; i++) {
-                        pm_estimate_result res;
-                        if (pm_estimate(tree, &pts[3 * i], up, &o, scratch, &res, NULL) != 0) return -1;
-                        double rel = res.rgb[0] / etrue[i] - 1.0;
-                        sum += rel, sum2 += rel * rel;
-                    }
-                    double mean = sum / (double)npts;
-                    double var = (sum2 - (double)npts * mean * mean) / (double)(npts - 1);
-                    fprintf(csv, "%s,%s,%zu,%s,%s,%u,%zu,%.6f,%.6f,%.6f\n", layout, region, n, m->name,
-                            m->variant, ACC_KS[ki], npts, mean, sqrt(fmax(var, 0) / (double)npts),
-                            sqrt(sum2 / (double)npts));
-                }
-            fflush(csv);
         }
-        bench_log("accuracy: %s, %zu photons done", layout, n);
-        pm_kdtree_free(tree);
+        fflush(csv);
+        bench_log("accuracy: %s, %zu photons, %d maps done", layout, n, R);
         free(ph);
     }
     fclose(csv);
