@@ -984,3 +984,68 @@ TEST(estimate_hull_past_the_edge_of_a_lit_region) {
     pm_kdtree_free(t);
     free(ph);
 }
+
+/* Oracle: the committed files. scripts/gen-accuracy-md.sh run on the committed
+ * docs/accuracy/ reproduces the committed docs/ACCURACY.md byte for byte (the document holds
+ * no figure that is not in those files). */
+TEST(accuracy_doc_regenerates_exactly) {
+    char cmd[4096], out[4096];
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-accuracy-md.sh' --out '%s/ACCURACY.md' && cmp '%s/ACCURACY.md' '%s/docs/ACCURACY.md'",
+             pm_test_source_dir(), pm_test_tmpdir(), pm_test_tmpdir(), pm_test_source_dir());
+    int rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 0, "docs/ACCURACY.md does not regenerate: %s", out);
+}
+
+/* Oracle: the derivations of docs/ACCURACY.md, on bench_estimate's own quick run. accuracy.csv
+ * has every layout, region, estimator and k (4 layouts x 2 regions x 3 k x 7 methods), every
+ * value finite; on random photons in the interior the corrected disc's bias is within 4
+ * standard errors + 1% of the derived (k - 1/2)/(k - 1) - 1, and the default hull reads above
+ * the boundary-0 hull at k = 15 (estimate.h, RANDOM PHOTONS); on stratified photons the
+ * corrected disc is within 4 standard errors + 1% of 0. */
+TEST(bench_estimate_accuracy_tables) {
+    char cmd[4096], out[8192], path[2048];
+    snprintf(cmd, sizeof cmd, "%s/bench_estimate --quick --accuracy-only --out %s", pm_test_build_dir(), pm_test_tmpdir());
+    int rc = pm_test_run(cmd, out, sizeof out);
+    ASSERT_MSG(rc == 0, "bench_estimate failed (%d): %s", rc, out);
+    snprintf(path, sizeof path, "%s/accuracy.csv", pm_test_tmpdir());
+    FILE *f = fopen(path, "r");
+    ASSERT(f);
+    char line[512];
+    ASSERT(fgets(line, sizeof line, f));
+    EXPECT(strcmp(line, "layout,region,photons,estimator,variant,k,points,mean_rel_error,sem,rms_rel_error\n") == 0);
+    int rows = 0, checked = 0;
+    double hull02 = NAN, hull0 = NAN;
+    while (fgets(line, sizeof line, f)) {
+        char lay[32], reg[32], est[32], var[32];
+        unsigned long n, pts;
+        unsigned k;
+        double mean, sem, rms;
+        /* variant may be empty: parse the fields by hand */
+        char *fld[10], *p = line;
+        int nf = 0;
+        while (nf < 10 && p) {
+            fld[nf++] = p;
+            p = strchr(p, ',');
+            if (p) *p++ = 0;
+        }
+        ASSERT_EQ_INT(nf, 10);
+        snprintf(lay, sizeof lay, "%s", fld[0]), snprintf(reg, sizeof reg, "%s", fld[1]);
+        snprintf(est, sizeof est, "%s", fld[3]), snprintf(var, sizeof var, "%s", fld[4]);
+        n = strtoul(fld[2], NULL, 10), k = (unsigned)strtoul(fld[5], NULL, 10), pts = strtoul(fld[6], NULL, 10);
+        mean = atof(fld[7]), sem = atof(fld[8]), rms = atof(fld[9]);
+        rows++;
+        EXPECT(n > 0 && pts > 0 && isfinite(mean) && isfinite(sem) && sem >= 0 && isfinite(rms) && rms >= fabs(mean) - 1e-9);
+        if (!strcmp(reg, "interior") && !strcmp(est, "disc") && !strcmp(var, "area")) {
+            double want = strcmp(lay, "random") == 0 ? (k - 0.5) / (k - 1.0) - 1 : 0.0;
+            EXPECT_MSG(fabs(mean - want) <= 4 * sem + 0.01, "%s k=%u disc: %+.3f%% (se %.3f%%), want %+.3f%%", lay, k,
+                       100 * mean, 100 * sem, 100 * want);
+            checked++;
+        }
+        if (!strcmp(lay, "random") && !strcmp(reg, "interior") && !strcmp(est, "hull") && k == 15)
+            *(strcmp(var, "boundary=0") ? &hull02 : &hull0) = mean;
+    }
+    fclose(f);
+    EXPECT_EQ_INT(rows, 4 * 2 * 3 * 7);
+    EXPECT_EQ_INT(checked, 6);
+    EXPECT_MSG(hull02 > hull0, "random k=15: hull %g, boundary 0 %g", hull02, hull0);
+}
