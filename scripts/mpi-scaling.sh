@@ -1,0 +1,106 @@
+#!/bin/sh
+# mpi-scaling.sh: measure render-mpi (time and traffic) and write docs/MPI.md from it.
+#
+#   PM_BUILD_DIR=build/release sh scripts/mpi-scaling.sh [--reps N] [OUT_DIR]
+#
+# Needs $PM_BUILD_DIR/render and render-mpi (make MPI=1). Writes into OUT_DIR (default
+# docs/mpi): timing.csv (one row per run: the one-process render with 2 threads, render-mpi
+# with 1 rank x 2 threads and with 2 ranks x 1 thread, in pm and path modes, N repetitions
+# interleaved, default 3), traffic.csv (one pm run per rank count 1..4, 1 thread each: the
+# bytes of the photon exchange and of the pixel pass, the photons stored and emitted, the
+# tiles), measurement.txt (commit, date, machine, load, settings); then runs
+# scripts/gen-mpi-md.sh, which turns those files into docs/MPI.md. Renders go to a temporary
+# directory. Takes about 5 minutes on 2 idle cores.
+set -eu
+here=$(cd "$(dirname "$0")/.." && pwd)
+B="${PM_BUILD_DIR:-$here/build/release}"
+reps=3
+out="$here/docs/mpi"
+while [ $# -gt 0 ]; do
+  case "$1" in
+    -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
+    --reps) [ $# -ge 2 ] || { echo "mpi-scaling: --reps needs a number" >&2; exit 2; }
+            reps=$2; shift 2 ;;
+    -*) echo "mpi-scaling: unknown option '$1' (see --help)" >&2; exit 2 ;;
+    *) out=$1; shift ;;
+  esac
+done
+for p in "$B/render" "$B/render-mpi"; do
+  [ -x "$p" ] || { echo "mpi-scaling: $p not found (make MPI=1 first)" >&2; exit 2; }
+done
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+T=$(mktemp -d "${TMPDIR:-/tmp}/mpi-scaling.XXXXXX")
+trap 'rm -rf "$T"' EXIT
+mkdir -p "$out"
+cd "$here"
+
+SCENE=data/scenes/cornell_spheres.json
+SIZE="--width 64 --height 64"
+PM="--mode pm --spp 16 --pm global_photons=60000 --pm caustic_photons=60000"
+PATHM="--mode path --spp 256"
+# No binding: a rank's OpenMP threads may use every core (OpenMPI binds small jobs to cores).
+MPIRUN="mpirun --oversubscribe --bind-to none"
+
+# A timer from a log's statistics ("    Photon kd-trees     1.234 s"), 0 when absent.
+timer() { awk -v k="$1" '{ line = $0; sub(/^ +/, "", line) }
+  index(line, k) == 1 && $NF == "s" { v = $(NF - 1) } END { print v == "" ? 0 : v }' "$2"; }
+wall() { sed -n 's/^Summary: wall time \([0-9.]*\) s.*/\1/p' "$1"; }
+
+run() { # config log mode-args
+  cfg=$1; log=$2; shift 2
+  case $cfg in
+    render_2t) "$B/render" $SCENE $SIZE "$@" --threads 2 --quiet --hdr "$T/o.pfm" >"$log" 2>&1 ;;
+    mpi_1x2) $MPIRUN -np 1 "$B/render-mpi" $SCENE $SIZE "$@" --threads 2 --quiet \
+               --hdr "$T/o.pfm" >"$log" 2>&1 ;;
+    mpi_2x1) $MPIRUN -np 2 "$B/render-mpi" $SCENE $SIZE "$@" --threads 1 --quiet \
+               --hdr "$T/o.pfm" >"$log" 2>&1 ;;
+  esac
+}
+
+echo "mode,config,rep,wall_s,tracing_s,trees_s,irradiance_s,rendering_s" > "$out/timing.csv"
+load0=$(cut -d' ' -f1-3 /proc/loadavg)
+r=1
+while [ "$r" -le "$reps" ]; do
+  for mode in pm path; do
+    [ $mode = pm ] && args=$PM || args=$PATHM
+    for cfg in render_2t mpi_1x2 mpi_2x1; do
+      log="$T/$mode.$cfg.$r.log"
+      # shellcheck disable=SC2086
+      run $cfg "$log" $args || { echo "mpi-scaling: $cfg $mode failed:" >&2; tail -5 "$log" >&2; exit 1; }
+      echo "$mode,$cfg,$r,$(wall "$log"),$(timer "Photon tracing" "$log"),$(timer "Photon kd-trees" "$log"),$(timer "Precomputed irradiance" "$log"),$(timer "Rendering" "$log")" >> "$out/timing.csv"
+      echo "mpi-scaling: $mode $cfg rep $r: $(wall "$log") s" >&2
+    done
+  done
+  r=$((r + 1))
+done
+
+echo "ranks,photons_stored,emitted_global,emitted_caustic,bytes_photon,pixels,tiles,tiles_rank0,bytes_pixel,stored_global_pass,stored_caustic_pass" > "$out/traffic.csv"
+for np in 1 2 3 4; do
+  log="$T/traffic.$np.log"
+  # shellcheck disable=SC2086
+  $MPIRUN -np $np "$B/render-mpi" $SCENE $SIZE $PM --threads 1 --quiet \
+    --hdr "$T/o.pfm" >"$log" 2>&1 || { echo "mpi-scaling: -np $np failed" >&2; tail -5 "$log" >&2; exit 1; }
+  awk -v np=$np '
+    /^Photons: / { g = $2; s = $4; eg = $7; c = $9; ec = $12; gsub(/[^0-9]/, "", g); gsub(/[^0-9]/, "", s)
+                   gsub(/[^0-9]/, "", eg); gsub(/[^0-9]/, "", c); gsub(/[^0-9]/, "", ec) }
+    /^Rendering [0-9]+x[0-9]+/ { split($2, wh, "x"); px = wh[1] * wh[2] }
+    /^MPI: .*tiles rendered per rank:/ { t0 = $0; sub(/.*per rank: /, "", t0); split(t0, a, " "); r0 = a[1]
+                                        tot = $NF; gsub(/[^0-9]/, "", tot) }
+    /^MPI: bytes sent:/ { bp = $6; gsub(/[^0-9]/, "", bp); bx = $9 }
+    END { printf "%d,%d,%d,%d,%d,%d,%d,%d,%d,%d,%d\n", np, g + s + c, eg, ec, bp, px, tot, r0, bx, g + s, c }' \
+    "$log" >> "$out/traffic.csv"
+  echo "mpi-scaling: traffic -np $np: $(tail -1 "$out/traffic.csv")" >&2
+done
+
+{
+  echo "commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet 2>/dev/null || echo ' (with uncommitted changes)')"
+  echo "date $(date -u +%Y-%m-%dT%H:%MZ)"
+  echo "machine $(nproc) cores, $(uname -m), $(mpirun --version 2>/dev/null | head -1)"
+  echo "load_before $load0"
+  echo "load_after $(cut -d' ' -f1-3 /proc/loadavg)"
+  echo "scene $SCENE, 64x64"
+  echo "pm_args $PM"
+  echo "path_args $PATHM"
+  echo "reps $reps"
+} > "$out/measurement.txt"
+sh "$here/scripts/gen-mpi-md.sh" "$out"

@@ -1,0 +1,58 @@
+/* test_mpi.c: the distributed renderer's checks that belong in `make test`.
+ *
+ * The full suite of render-mpi (every rank count, failures, killed ranks) is
+ * scripts/test-mpi.sh (`make MPI=1 test-mpi`, run by .ci/run). Here: the default build stays
+ * free of MPI, docs/MPI.md regenerates from its measurements, and, when render-mpi was built
+ * into this build directory (make MPI=1), one quick bit-identity check; without it that test
+ * is skipped.
+ */
+#include <stdio.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "test.h"
+
+/* Oracle: the promise of the build. No file the default build compiles includes mpi.h (only
+ * render/mpi/ does), and the default render binary does not link an MPI library. */
+TEST(mpi_default_build_needs_no_mpi) {
+    char cmd[4096], out[4096];
+    snprintf(cmd, sizeof cmd, "cd '%s' && grep -l '^#include <mpi[.]h>' photonmap/*.c photonmap/*.h "
+             "render/*.c render/*.h bench/*.c tests/*.c 2>/dev/null; true", pm_test_source_dir());
+    pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(out[0] == 0, "files of the default build include mpi.h:\n%s", out);
+    snprintf(cmd, sizeof cmd, "ldd '%s/render' | grep -i -c 'libmpi'; true", pm_test_build_dir());
+    pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(strncmp(out, "0", 1) == 0, "render links MPI: %s", out);
+}
+
+/* Oracle: the committed document itself, byte for byte (as test_docs.c does for the other
+ * generated documents): docs/MPI.md from docs/mpi/ through scripts/gen-mpi-md.sh. */
+TEST(mpi_docs_regenerate_exactly) {
+    char cmd[4096], out[16384], got[1024];
+    snprintf(got, sizeof got, "%s/MPI.md", pm_test_tmpdir());
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-mpi-md.sh' --out '%s' '%s/docs/mpi'",
+             pm_test_source_dir(), got, pm_test_source_dir());
+    int rc = pm_test_run(cmd, out, sizeof out);
+    ASSERT_MSG(rc == 0, "generator failed (%d): %s\n%s", rc, cmd, out);
+    snprintf(cmd, sizeof cmd, "diff -u '%s/docs/MPI.md' '%s' | head -40", pm_test_source_dir(), got);
+    pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(out[0] == 0, "docs/MPI.md does not regenerate exactly from docs/mpi/:\n%s", out);
+}
+
+/* Oracle: the one-process render with 2 threads; render-mpi on 2 ranks (1 thread each) must
+ * write the same PFM bytes. Skipped unless render-mpi and mpirun are there. */
+TEST(mpi_two_ranks_match_one_process) {
+    char mpi[2048], cmd[8192], out[8192];
+    struct stat sb;
+    snprintf(mpi, sizeof mpi, "%s/render-mpi", pm_test_build_dir());
+    if (stat(mpi, &sb) != 0) SKIP("render-mpi not built here (make MPI=1)");
+    if (pm_test_run("command -v mpirun", out, sizeof out) != 0) SKIP("mpirun not found");
+    const char *d = pm_test_tmpdir();
+    const char *args = "data/scenes/cornell_box.json --mode path --width 40 --height 24 --spp 4 --quiet";
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' %s --threads 2 --hdr '%s/one.pfm' && "
+             "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --oversubscribe "
+             "-np 2 '%s' %s --threads 1 --hdr '%s/two.pfm' && cmp '%s/one.pfm' '%s/two.pfm'",
+             pm_test_source_dir(), pm_test_build_dir(), args, d, mpi, args, d, d, d);
+    int rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 0, "render-mpi -np 2 differs from render (or failed): %s", out);
+}
