@@ -68,6 +68,8 @@ EOF
 
 # ---- the workload race (bench_knn): headline, targets, every cell ------------------------------
 KB="$R/knn_best.csv"; KQ="$R/knn.csv"; KD="$R/knn_build.csv"; X="$R/experiments.csv"
+KM="$R/knn_machine.csv"
+kval() { awk -F, -v k="$1" '$1==k {sub(/^[^,]*,/, ""); print; exit}' "$KM"; }
 if [ -f "$KB" ]; then
 cat <<'EOF'
 ## Headline: the worst case over workloads
@@ -81,6 +83,12 @@ its `empty` queries lie 0.02 to 0.1 above the plane), `map:SCENE` (the global ph
 renderer dumped for a shipped scene). Query sets: `near` (records jittered by 1e-3 of the
 box) and `empty` (uniform in the bounding box).
 
+EOF
+if [ -f "$KM" ]; then
+  echo "Measured by \`bench_knn\` at commit $(kval commit) on $(kval date) (load average before / after: $(kval load_before) / $(kval load_after); $(kval bench_seconds) s for the race and its maps, including the renders). Times are the CPU time of the thread running the queries or the build, so that time slices the shared machine gave to other jobs do not count."
+  echo
+fi
+cat <<'EOF'
 | N | mode | ours, unsorted: min (where) | max (where) | ours with PM_SORT: min (where) | max |
 |---|---|---|---|---|---|
 EOF
@@ -153,8 +161,8 @@ awk -F, 'NR > 1 && $7 == "kdtree" && $8 == "knn" {
       printf "| %s | %d cells | %.2f (%s) |\n", B, wins, worst, where } }' "$KQ"
 echo
 cat <<'EOF'
-Notes: a cell is one (workload, N, query set, k, mode). "Ours" is the fastest of B = 8, 16 and
-32 for that cell, as FLANN's is the fastest of its leaf sizes 16, 32 and 64 and of batched
+Notes: a cell is one (workload, N, query set, k, mode; above 1.5M points only k = 50). "Ours"
+is the fastest of B = 16 and 32 for that cell, as FLANN's is the fastest of its leaf sizes 16, 32 and 64 and of batched
 k-NN (cut at the radius in radius mode: the sorted k nearest within r2 are the answer) and
 radius search with max_neighbors = k. FLANN's answers are always sorted (sorted = 1); ours
 with PM_SORT are compared with it in the last columns above. Every configuration was checked
@@ -167,7 +175,7 @@ against brute force before it was timed (column exact in the table below).
 EOF
 awk -F, 'NR > 1 { printf "| %s | %s | %s | %s | %s | %s: %.0f | %s: %.0f | %s: %.0f | %.2fx | %.2fx | %s | %s | %s |\n", $1, $2, $3, $4, $5, $7, $8, $9, $10, $11, $12, $15, $16, ($18 == "" ? "–" : sprintf("%.2fx", $18)), $19, $21 }' "$KB"
 echo
-echo "Builds (median of the runs) and memory:"
+echo "Builds (CPU time of one build) and memory:"
 echo
 echo "| workload | N | index | param | build s | bytes per photon |"
 echo "|---|---|---|---|---|---|"
@@ -189,6 +197,8 @@ cat <<'EOF'
 ## The photon-like race (bench_search)
 
 EOF
+echo "Measured by \`bench_search\` at commit $(mval commit) on $(mval date) (the machine table above; \`make bench\` reruns it with the race, \`PM_BENCH_ONLY=knn\` keeps it)."
+echo
 
 awk -F, 'NR > 1 && $1 == "photon" {n = $2} END {
   printf "At N = %s photon-like points (the six inner walls of a box, 30%% in a small floor disc), ", n

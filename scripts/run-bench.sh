@@ -30,6 +30,15 @@ mkdir -p "$OUT" "$IMG" "$DOCS"
 start=$(date +%s)
 log() { echo "run-bench: [$(( $(date +%s) - start ))s] $*" >&2; }
 
+# PM_BENCH_ONLY=knn runs the workload race alone (bench_knn, its maps, plots, the document
+# and the README headline) and keeps the committed results of the other benchmarks, whose
+# own machine.csv then still says when and at which commit they were measured; the race's
+# stamp is always knn_machine.csv.
+ONLY=${PM_BENCH_ONLY:-all}
+case "$ONLY" in all|knn) ;; *) echo "run-bench.sh: PM_BENCH_ONLY must be all or knn" >&2; exit 2 ;; esac
+MACH="$OUT/machine.csv"
+[ "$ONLY" = knn ] && MACH="$OUT/knn_machine.csv"
+
 # The machine, for the document.
 {
   echo "key,value"
@@ -45,7 +54,7 @@ log() { echo "run-bench: [$(( $(date +%s) - start ))s] $*" >&2; }
   echo "commit,$(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet HEAD -- photonmap bench 2>/dev/null || echo ' plus uncommitted changes in photonmap/ or bench/')"
   echo "mode,$MODE"
   echo "load_before,$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo '?')"
-} > "$OUT/machine.csv"
+} > "$MACH"
 
 # The real photon map: the global map of data/scenes/cornell_spheres.json, traced by the
 # renderer in its fast preview mode (a tiny image, so almost all the time is photon tracing:
@@ -54,6 +63,7 @@ log() { echo "run-bench: [$(( $(date +%s) - start ))s] $*" >&2; }
 # map. PM_BENCH_MAP=file.pmap uses that file instead; PM_BENCH_MAP=none skips the workload.
 MAPARG=
 MAP=${PM_BENCH_MAP:-}
+if [ "$ONLY" = knn ] && [ "$MODE" = full ]; then MAP=none; fi
 if [ -z "$MAP" ]; then
   if [ -x "$BUILD/render" ]; then
     if [ "$MODE" = full ]; then np=1000000; else np=20000; fi
@@ -72,12 +82,14 @@ if [ -z "$MAP" ]; then
 fi
 if [ -n "$MAP" ] && [ "$MAP" != none ]; then
   MAPARG="--map $MAP"
-  echo "map,${PM_BENCH_MAP:-render --mode preview data/scenes/cornell_spheres.json --pm global_photons=$np --seed 1}" >> "$OUT/machine.csv"
+  echo "map,${PM_BENCH_MAP:-render --mode preview data/scenes/cornell_spheres.json --pm global_photons=$np --seed 1}" >> "$MACH"
 fi
 
-log "search benchmark ($MODE)"
-# shellcheck disable=SC2086
-"$BUILD/bench_search" $QFLAG --out "$OUT" $MAPARG
+if [ "$ONLY" = all ]; then
+  log "search benchmark ($MODE)"
+  # shellcheck disable=SC2086
+  "$BUILD/bench_search" $QFLAG --out "$OUT" $MAPARG
+fi
 
 # The workload race (bench_knn): clustered, slab and planar-caustic points it generates, plus
 # the global photon maps of two shipped scenes at each N, dumped by the renderer as above.
@@ -96,7 +108,7 @@ if [ -x "$BUILD/render" ] && [ -z "${PM_BENCH_MAP:-}" ]; then
         KNNMAPS="$KNNMAPS --map $scene=$d/global.pmap"
       done
     done
-    echo "knn_maps,render --mode preview data/scenes/{cornell_spheres;sun_spheres}.json --pm global_photons={1000000;4000000} --seed 1" >> "$OUT/machine.csv"
+    echo "knn_maps,render --mode preview data/scenes/{cornell_spheres;sun_spheres}.json --pm global_photons={1000000;4000000} --seed 1" >> "$MACH"
   elif [ -n "$MAP" ] && [ "$MAP" != none ]; then
     KNNMAPS="--map cornell_spheres=$MAP"
   fi
@@ -105,8 +117,15 @@ log "k-NN workload race ($MODE)"
 # shellcheck disable=SC2086
 "$BUILD/bench_knn" $QFLAG --out "$OUT" $KNNMAPS
 rm -rf "$OUT/map.tmp" "$OUT/map.tmp.log"
+if [ "$ONLY" = knn ]; then
+  # the race's own stamp, complete; the other benchmarks are not rerun
+  echo "load_after,$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo '?')" >> "$MACH"
+  echo "bench_seconds,$(( $(date +%s) - start ))" >> "$MACH"
+else
+  cp "$MACH" "$OUT/knn_machine.csv.tmp"
+fi
 
-if [ -x "$BUILD/bench_estimate" ]; then
+if [ "$ONLY" = all ] && [ -x "$BUILD/bench_estimate" ]; then
   log "estimate benchmark ($MODE)"
   # shellcheck disable=SC2086
   "$BUILD/bench_estimate" $QFLAG --out "$OUT"
@@ -117,8 +136,8 @@ fi
 # totals go to profile.csv, the self cost by function to profile_*.txt. The simulated last
 # level is 1 MB, 16-way, the size of a per-core second-level cache (a virtual machine may
 # report no or absurd cache sizes): a miss there costs a trip to L3 or DRAM.
-rm -f "$OUT"/profile_*.txt "$OUT/profile.csv"
-if [ "$MODE" = full ] && command -v valgrind >/dev/null 2>&1 && command -v callgrind_annotate >/dev/null 2>&1; then
+[ "$ONLY" = knn ] || rm -f "$OUT"/profile_*.txt "$OUT/profile.csv"
+if [ "$ONLY" = all ] && [ "$MODE" = full ] && command -v valgrind >/dev/null 2>&1 && command -v callgrind_annotate >/dev/null 2>&1; then
   PQ=4000
   echo "probe,queries,instr_per_query,data_reads_per_query,d1_read_misses_per_query,ll_read_misses_per_query,caches" > "$OUT/profile.csv"
   n=$(awk -F, '$1=="headline" && $2=="photon" {print $3; exit}' "$OUT/queries.csv")
@@ -147,8 +166,12 @@ if [ "$MODE" = full ] && command -v valgrind >/dev/null 2>&1 && command -v callg
   done
 fi
 
-echo "load_after,$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo '?')" >> "$OUT/machine.csv"
-echo "bench_seconds,$(( $(date +%s) - start ))" >> "$OUT/machine.csv"
+if [ "$ONLY" = all ]; then
+  echo "load_after,$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo '?')" >> "$MACH"
+  echo "bench_seconds,$(( $(date +%s) - start ))" >> "$MACH"
+  mv "$OUT/knn_machine.csv.tmp" "$OUT/knn_machine.csv"
+  cat "$MACH" | sed -n '/^load_after,/p; /^bench_seconds,/p' >> "$OUT/knn_machine.csv"
+fi
 
 if command -v gnuplot >/dev/null 2>&1; then
   log "plots -> $IMG"
