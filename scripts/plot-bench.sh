@@ -68,6 +68,7 @@ B="$R/build.csv"
 # queries.csv columns: 1 sweep 2 dist 3 n 4 index 5 variant 6 param 7 k 8 r_rel 9 r2 10 threads
 #  11 queries 12 runs 13 qps 14 qps_min 15 qps_max 16 ns 17 nodes 18 evals 19 found 20 recall
 for d in photon uniform file; do
+  [ -f "$Q" ] || break
   grep -q ",$d," "$Q" 2>/dev/null || continue
   series "$Q" "\$1==\"param\" && \$2==\"$d\" && \$10==1 && \$4!=\"flann_forest4\" && \$4!=\"brute\"" \
     '$6' '$13' '$4 " " $5'
@@ -89,12 +90,14 @@ for d in photon uniform file; do
     'queries per second' 'recall' 1 0 'set yrange [0:1.05]'
 done
 
-series "$Q" '$1=="n" && $2=="photon"' '$3' '$13' '$4 " " $5 " " $6'
-plot "$IMG/n_photon.png" 'photon-like, k=50, max radius finding ~50, 1 thread' 'N (photons)' \
-  'queries per second' 1 1
-# build.csv columns: 1 sweep 2 dist 3 n 4 index 5 param 6 build_s
-series "$B" '$1=="n" && $2=="photon"' '$3' '$6' '$4 " " $5'
-plot "$IMG/build_photon.png" 'photon-like: build time (median)' 'N (photons)' 'seconds' 1 1
+if [ -f "$Q" ] && [ -f "$B" ]; then
+  series "$Q" '$1=="n" && $2=="photon"' '$3' '$13' '$4 " " $5 " " $6'
+  plot "$IMG/n_photon.png" 'photon-like, k=50, max radius finding ~50, 1 thread' 'N (photons)' \
+    'queries per second' 1 1
+  # build.csv columns: 1 sweep 2 dist 3 n 4 index 5 param 6 build_s
+  series "$B" '$1=="n" && $2=="photon"' '$3' '$6' '$4 " " $5'
+  plot "$IMG/build_photon.png" 'photon-like: build time (median)' 'N (photons)' 'seconds' 1 1
+fi
 
 # knn_best.csv columns: 1 workload 2 n 3 queries 4 k 5 mode ... 15 ratio_flann
 KB="$R/knn_best.csv"
