@@ -83,18 +83,9 @@ int pm_estimate_combined(const pm_kdtree *const *trees, unsigned M, const float 
     if (!isfinite(x[0]) || !isfinite(x[1]) || !isfinite(x[2])) return PM_ENONFINITE;
     if (opt->reject_behind && !n) return PM_EINVAL;
     unsigned km = opt->k / M ? opt->k / M : 1;
-    float nrm[3] = {0, 0, 1};
-    if (n) memcpy(nrm, n, sizeof nrm);
+    float nrm[3];
     pm_knn_options ko;
-    memset(&ko, 0, sizeof ko);
-    if (n && opt->squash > 1.0f) {
-        ko.normal = nrm;
-        ko.squash = opt->squash;
-    }
-    if (opt->reject_behind) {
-        ko.filter = pm_filter_front;
-        ko.filter_user = nrm;
-    }
+    pm_estimate_search_options(opt, n, nrm, &ko);
     pm_combine_init(&acc);
     for (unsigned m = 0; m < M; m++) {
         if (!trees[m]) return PM_EINVAL;

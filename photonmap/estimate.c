@@ -479,6 +479,21 @@ static void *core_scratch(void *scratch, unsigned k) {
     return (char *)scratch + (((size_t)k * sizeof(pm_neighbor) + 7u) & ~(size_t)7u);
 }
 
+void pm_estimate_search_options(const pm_estimate_options *opt, const float normal[3],
+                                float nrm[3], pm_knn_options *ko) {
+    nrm[0] = 0, nrm[1] = 0, nrm[2] = 1;
+    if (normal) memcpy(nrm, normal, 3 * sizeof *nrm);
+    memset(ko, 0, sizeof *ko);
+    if (normal && opt->squash > 1.0f) {
+        ko->normal = nrm;
+        ko->squash = opt->squash;
+    }
+    if (opt->reject_behind) {
+        ko->filter = pm_filter_front;
+        ko->filter_user = nrm;
+    }
+}
+
 int pm_estimate(const pm_kdtree *tree, const float x[3], const float normal[3],
                 const pm_estimate_options *opt, void *scratch, pm_estimate_result *out,
                 pm_query_stats *stats) {
@@ -489,18 +504,9 @@ int pm_estimate(const pm_kdtree *tree, const float x[3], const float normal[3],
     if (!tree || !scratch) return PM_EINVAL;
     if (!x || !finite3(x) || (normal && !finite3(normal))) return PM_ENONFINITE;
     if (opt->reject_behind && !normal) return PM_EINVAL;
-    float nrm[3] = {0, 0, 1};
-    if (normal) memcpy(nrm, normal, sizeof nrm);
+    float nrm[3];
     pm_knn_options ko;
-    memset(&ko, 0, sizeof ko);
-    if (normal && opt->squash > 1.0f) {
-        ko.normal = nrm;
-        ko.squash = opt->squash;
-    }
-    if (opt->reject_behind) {
-        ko.filter = pm_filter_front;
-        ko.filter_user = nrm;
-    }
+    pm_estimate_search_options(opt, normal, nrm, &ko);
     pm_neighbor *nb = (pm_neighbor *)scratch;
     int found = pm_kdtree_knn_ex(tree, x, opt->k, opt->max_dist2, &ko, nb, stats);
     if (found < 0) return found;

@@ -198,6 +198,14 @@ int pm_estimate(const pm_kdtree *tree, const float x[3], const float normal[3],
                 const pm_estimate_options *opt, void *scratch, pm_estimate_result *out,
                 pm_query_stats *stats);
 
+/* The k-nearest options of the wrapper's leak-controlled search, for callers who run the
+ * search themselves (then pm_estimate_core): the ellipsoid metric along normal if
+ * opt->squash > 1 and normal is given, and pm_filter_front if opt->reject_behind. nrm is the
+ * caller's storage that *ko points into (a copy of normal, or +z); keep it alive while ko is
+ * used. pm_estimate and pm_estimate_combined use exactly this. */
+void pm_estimate_search_options(const pm_estimate_options *opt, const float normal[3],
+                                float nrm[3], pm_knn_options *ko);
+
 /* A pm_filter_fn for leak control: user points to a unit normal float[3]; accepts a photon
  * (pm_photon record) whose travel direction d has d . normal <= 0, i.e. that arrived at the
  * front of the surface. */
