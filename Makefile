@@ -57,6 +57,9 @@ CFLAGS_BASE := -std=c11 -D_POSIX_C_SOURCE=200809L -g $(OPT) -Wall -Wextra -Wshad
 ifeq ($(OPENMP),1)
   CFLAGS_BASE += -fopenmp
   OMP_LIBS := -fopenmp
+else
+  # Without OpenMP its pragmas are meant to be ignored: that is not worth a warning.
+  CFLAGS_BASE += -Wno-unknown-pragmas
 endif
 ifeq ($(SIMD),avx2)
   CFLAGS_BASE += -mavx2 -mfma
