@@ -236,7 +236,7 @@ static int traverse(const bvh *b, ray r, double tmin, double tmax, int any, doub
                     h = triangle_intersect(&b->tris[id], r, tmin, best, &tt, &uu, &vv);
                 } else {
                     nsph++;
-                    h = sphere_intersect(&b->spheres[id - b->ntris], r, tmin, best, &tt);
+                    h = sphere_intersect(&b->spheres[id - (uint32_t)b->ntris], r, tmin, best, &tt);
                 }
                 if (h) {
                     found = 1;

@@ -72,10 +72,20 @@ static void set(plan_item *it, int on, const char *fmt, const char *arg) {
 
 static void plan_caustics(const scene *s, render_plan *p) {
     int nspec = 0;
-    for (int i = 0; i < prim_count(s); i++) nspec += material_is_specular(prim_mat(s, i));
-    if (!nspec) return set(&p->caustics, 0, "no specular surface%s", "");
-    if (!emitting_lights(s)) return set(&p->caustics, 0, "no light emits photons%s", "");
-    if (!any_diffuse(s)) return set(&p->caustics, 0, "no diffuse surface to receive them%s", "");
+    for (int i = 0; i < prim_count(s); i++)
+        nspec += material_is_specular(prim_mat(s, i));
+    if (!nspec) {
+        set(&p->caustics, 0, "no specular surface%s", "");
+        return;
+    }
+    if (!emitting_lights(s)) {
+        set(&p->caustics, 0, "no light emits photons%s", "");
+        return;
+    }
+    if (!any_diffuse(s)) {
+        set(&p->caustics, 0, "no diffuse surface to receive them%s", "");
+        return;
+    }
     rng g = rng_stream(PLAN_SEED, 1, 0);
     for (int i = 0; i < prim_count(s); i++) {
         if (!material_is_specular(prim_mat(s, i))) continue;
@@ -86,9 +96,10 @@ static void plan_caustics(const scene *s, render_plan *p) {
                 if (lit_by(s, li, q, n, &g)) {
                     char what[96];
                     snprintf(what, sizeof what, "%s", prim_mat(s, i)->name);
-                    return set(&p->caustics, 1,
-                               "specular surface \"%s\" is lit straight from a light: L S+ D paths",
-                               what);
+                    set(&p->caustics, 1,
+                        "specular surface \"%s\" is lit straight from a light: L S+ D paths",
+                        what);
+                    return;
                 }
         }
     }
@@ -131,9 +142,10 @@ static int probe_to_diffuse(const scene *s, ray *r, rng *g, hit *h) {
  * matters: probing both sides of every diffuse primitive would count the unlit inside of a
  * closed sphere or mesh, which always "sees" itself. */
 static void plan_global(const scene *s, render_plan *p) {
-    if (!emitting_lights(s))
-        return set(&p->global, 0,
-                   "no light emits photons%s", "");
+    if (!emitting_lights(s)) {
+        set(&p->global, 0, "no light emits photons%s", "");
+        return;
+    }
     rng g = rng_stream(PLAN_SEED, 2, 0);
     for (int k = 0; k < 4096; k++) {
         double pl, u[4];
@@ -148,11 +160,13 @@ static void plan_global(const scene *s, render_plan *p) {
         vec3 ny = v3_dot(r.d, y.ng) <= 0 ? y.ng : v3_neg(y.ng); /* the side it arrived at */
         vec3 d2 = sampling_to_world(sample_cosine_hemisphere(rng_uniform(&g), rng_uniform(&g)), ny);
         ray r2 = {v3_offset(y.p, y.ng, d2), d2};
-        if (probe_to_diffuse(s, &r2, &g, &x))
-            return set(&p->global, 1,
-                       "diffuse surfaces reflect onto each other (\"%s\" sees another): "
-                       "indirect diffuse light",
-                       scene_material(s, &y)->name);
+        if (probe_to_diffuse(s, &r2, &g, &x)) {
+            set(&p->global, 1,
+                "diffuse surfaces reflect onto each other (\"%s\" sees another): "
+                "indirect diffuse light",
+                scene_material(s, &y)->name);
+            return;
+        }
     }
     set(&p->global, 0, "no diffuse surface reflects onto another%s", "");
 }
@@ -160,11 +174,19 @@ static void plan_global(const scene *s, render_plan *p) {
 static void plan_shadow(const scene *s, render_plan *p) {
     int area = 0;
     for (int i = 0; i < s->nlights; i++) area += s->lights[i].type == LIGHT_AREA && v3_maxc(s->lights[i].power) > 0;
-    if (!area)
-        return set(&p->shadow, 0, "no area light of triangles (point, directional and sphere lights take one shadow ray each)%s", "");
+    if (!area) {
+        set(&p->shadow, 0,
+            "no area light of triangles (point, directional and sphere lights take one shadow ray each)%s",
+            "");
+        return;
+    }
     int ndiff = 0;
-    for (int i = 0; i < prim_count(s); i++) ndiff += material_is_diffuse(prim_mat(s, i));
-    if (!ndiff) return set(&p->shadow, 0, "no diffuse surface%s", "");
+    for (int i = 0; i < prim_count(s); i++)
+        ndiff += material_is_diffuse(prim_mat(s, i));
+    if (!ndiff) {
+        set(&p->shadow, 0, "no diffuse surface%s", "");
+        return;
+    }
     rng g = rng_stream(PLAN_SEED, 3, 0);
     int tried = 0, blocked = 0;
     for (int k = 0; k < 8192; k++) {
@@ -187,7 +209,8 @@ static void plan_shadow(const scene *s, render_plan *p) {
     if (blocked) {
         char buf[64];
         snprintf(buf, sizeof buf, "%d of %d", blocked, tried);
-        return set(&p->shadow, 1, "area light with occluders (%s probe segments blocked)", buf);
+        set(&p->shadow, 1, "area light with occluders (%s probe segments blocked)", buf);
+        return;
     }
     set(&p->shadow, 0, "nothing occludes the area lights%s", "");
 }

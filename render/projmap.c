@@ -125,7 +125,7 @@ static int cell_active(const scene *s, int li, int G, int cx, int cy, const bsph
 static int projmap_build(projmap *pm, const scene *s, int li, int G, const bsph *sph, int nsph) {
     pm->G = G;
     pm->nactive = 0;
-    pm->active = malloc((size_t)G * G * sizeof *pm->active);
+    pm->active = malloc((size_t)G * (size_t)G * sizeof *pm->active);
     if (!pm->active) return PM_ENOMEM;
     for (int cy = 0; cy < G; cy++)
         for (int cx = 0; cx < G; cx++)
@@ -141,7 +141,7 @@ int projmap_cells(const scene *s, int li, int G, unsigned char *active) {
     projmap pm;
     int rc = projmap_build(&pm, s, li, G, sph, nsph);
     if (rc == 0) {
-        memset(active, 0, (size_t)G * G);
+        memset(active, 0, (size_t)G * (size_t)G);
         for (int k = 0; k < pm.nactive; k++) active[pm.active[k]] = 1;
         rc = pm.nactive;
     }
