@@ -131,6 +131,8 @@ typedef struct expected_plan {
  *   furnace          nothing specular, and its one light is the emitting sphere itself (a
  *                    sphere light, not triangles: no shadow photons). Half its radiance is
  *                    interreflection (L = Le + rho L): global map and final gather.
+ *   cornell_rect, cornell_tungsten   the Cornell box with its blocks (Lambertian only).
+ *   water_caustic    a water surface (glass) under the area light: caustics on the floor.
  * A new scene file without a row here fails the test. */
 static const expected_plan k_plans[] = {
     {"cornell_box", 0, 1, 1, 1, "no specular surface", "", "", ""},
@@ -139,6 +141,9 @@ static const expected_plan k_plans[] = {
     {"cornell_point", 0, 1, 0, 1, "no specular surface", "", "no area light", ""},
     {"sun_spheres", 1, 1, 0, 1, "", "", "no area light", ""},
     {"furnace", 0, 1, 0, 1, "no specular surface", "", "no area light", ""},
+    {"cornell_rect", 0, 1, 1, 1, "no specular surface", "", "", ""},
+    {"cornell_tungsten", 0, 1, 1, 1, "no specular surface", "", "", ""},
+    {"water_caustic", 1, 1, 1, 1, "", "", "", ""},
 };
 
 static void check_item(const char *scene_name, const char *what, const plan_item *it, int want,
