@@ -338,7 +338,7 @@ static void serve(queue *q, MPI_Status *ms, int *finished) {
             tiles[i] = t;
             tile_box b = tile_of(c, t);
             for (int y = b.y0; y < b.y1; y++) {
-                size_t p = (size_t)y * c->width + b.x0, w = (size_t)(b.x1 - b.x0);
+                size_t p = (size_t)y * (size_t)c->width + (size_t)b.x0, w = (size_t)(b.x1 - b.x0);
                 memcpy(q->st->sum + 3 * p, buf + off, 3 * w * sizeof(double));
                 off += 3 * w * sizeof(double);
                 for (size_t x = 0; x < w; x++) q->st->count[p + x] = (uint32_t)q->st->spp;
@@ -472,7 +472,7 @@ static int render_worker(const scene *s, const integrator *it, const render_job 
             off += sizeof t;
             tile_box b = tile_of(c, t[0]);
             for (int y = b.y0; y < b.y1; y++) {
-                size_t p = (size_t)y * c->width + b.x0, w = (size_t)(b.x1 - b.x0);
+                size_t p = (size_t)y * (size_t)c->width + (size_t)b.x0, w = (size_t)(b.x1 - b.x0);
                 memcpy(out + off, st->sum + 3 * p, 3 * w * sizeof(double));
                 off += 3 * w * sizeof(double);
             }

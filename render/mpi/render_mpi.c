@@ -98,6 +98,7 @@ int main(int argc, char **argv) {
     if (rank > 0 && !tool) av[ac++] = "--quiet";
     av[ac] = NULL;
     int rc = render_main(ac, av);
+    free(av);
     if (help && rank == 0) usage_mpi();
     fflush(stdout);
     return dist_finish(rc);
