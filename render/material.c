@@ -94,35 +94,7 @@ rgb material_f(const material *m, vec3 ng, double n_medium, vec3 wo, vec3 wi) {
 
 int material_sample(const material *m, vec3 wo, vec3 ng, double n_medium, double u_lobe, double u1,
                     double u2, bsdf_sample *s) {
-    double w[LOBE_COUNT];
-    material_weights(m, wo, ng, n_medium, w);
-    vec3 n = v3_dot(wo, ng) >= 0 ? ng : v3_neg(ng); /* the normal on wo's side */
-    s->tir = 0;
-    if (u_lobe < w[LOBE_REFLECT]) {
-        s->lobe = LOBE_REFLECT;
-        s->wi = v3_reflect(v3_neg(wo), n);
-        s->weight = m->specular_tint;
-        return !v3_iszero(s->weight);
-    }
-    if (u_lobe < w[LOBE_REFLECT] + w[LOBE_TRANSMIT]) {
-        double n1, n2;
-        material_indices(m, wo, ng, n_medium, &n1, &n2);
-        s->lobe = LOBE_TRANSMIT;
-        s->weight = m->transmit_tint;
-        if (!refract_dir(v3_neg(wo), n, n1 / n2, &s->wi)) {
-            /* Only reachable with a constant R: with Fresnel, R = 1 under TIR. */
-            s->wi = v3_reflect(v3_neg(wo), n);
-            s->tir = 1;
-        }
-        return !v3_iszero(s->weight);
-    }
-    s->lobe = LOBE_DIFFUSE;
-    vec3 l = sample_cosine_hemisphere(u1, u2);
-    s->wi = sampling_to_world(l, n);
-    if (l.z <= 0) return 0;
-    /* f cos / pdf with pdf = cos/pi: Lambert gives rho exactly. */
-    s->weight = v3_scale(material_diffuse_f(m, n, wo, s->wi), M_PI);
-    return !v3_iszero(s->weight);
+    return material_sample_ns(m, wo, ng, ng, n_medium, u_lobe, u1, u2, s);
 }
 
 int material_is_specular(const material *m) {
@@ -156,8 +128,6 @@ int material_refract_shaded(vec3 d, vec3 n_g, vec3 n_s, double eta, vec3 *out) {
 
 int material_sample_ns(const material *m, vec3 wo, vec3 ng, vec3 ns, double n_medium, double u_lobe,
                        double u1, double u2, bsdf_sample *s) {
-    if (ns.x == ng.x && ns.y == ng.y && ns.z == ng.z)
-        return material_sample(m, wo, ng, n_medium, u_lobe, u1, u2, s);
     double w[LOBE_COUNT];
     material_weights(m, wo, ng, n_medium, w);
     vec3 n = v3_dot(wo, ng) >= 0 ? ng : v3_neg(ng); /* the geometric side of wo */
@@ -184,6 +154,7 @@ int material_sample_ns(const material *m, vec3 wo, vec3 ng, vec3 ns, double n_me
     vec3 l = sample_cosine_hemisphere(u1, u2);
     s->wi = sampling_to_world(l, nsh);
     if (l.z <= 0 || v3_dot(s->wi, n) <= 0) return 0;
+    /* f cos / pdf with pdf = cos/pi: Lambert gives rho exactly. */
     s->weight = v3_scale(material_diffuse_f(m, nsh, wo, s->wi), M_PI);
     return !v3_iszero(s->weight);
 }

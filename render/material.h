@@ -106,7 +106,8 @@ int material_sample(const material *m, vec3 wo, vec3 ng, double n_medium, double
  * when the shaded direction would leave on the wrong side of the real surface.
  * material_sample_ns() is material_sample() with a shading normal: the same branch choice
  * (weights from ng), the directions and the cosine sampling from ns, and a direction below the
- * geometric surface is absorbed (returns 0). With ns == ng all of these equal the plain ones. */
+ * geometric surface is absorbed (returns 0). material_sample() is material_sample_ns() with
+ * ns = ng, and with ns == ng the _shaded directions are the plain ones. */
 vec3 material_shading_side(vec3 wo, vec3 ng, vec3 ns);
 vec3 material_reflect_shaded(vec3 d, vec3 n_g, vec3 n_s);
 int material_refract_shaded(vec3 d, vec3 n_g, vec3 n_s, double eta, vec3 *out);

@@ -65,10 +65,19 @@ static int has_ext(const char *path, const char *ext) {
 
 int mesh_load(const char *path, mesh_data *m, char *err, size_t cap) {
     memset(m, 0, sizeof *m);
-    if (has_ext(path, ".obj")) return obj_read(path, m, err, cap);
-    if (has_ext(path, ".wo3")) return wo3_read(path, m, err, cap);
-    snprintf(err, cap, "%s: unknown mesh format (the name must end in .obj or .wo3)", path);
-    return PM_EINVAL;
+    int is_obj = has_ext(path, ".obj");
+    if (!is_obj && !has_ext(path, ".wo3")) {
+        snprintf(err, cap, "%s: unknown mesh format (the name must end in .obj or .wo3)", path);
+        return PM_EINVAL;
+    }
+    char *buf;
+    size_t len;
+    int rc = mesh_read_file(path, &buf, &len, err, cap);
+    if (rc < 0) return rc;
+    rc = is_obj ? obj_parse(buf, len, path, m, err, cap)
+                : wo3_parse((const unsigned char *)buf, len, path, m, err, cap);
+    free(buf);
+    return rc;
 }
 
 void mesh_free(mesh_data *m) {

@@ -260,14 +260,3 @@ int obj_parse(const char *text, size_t len, const char *name, mesh_data *m, char
     if (rc < 0) mesh_free(m);
     return rc;
 }
-
-int obj_read(const char *path, mesh_data *m, char *err, size_t cap) {
-    char *buf;
-    size_t len;
-    memset(m, 0, sizeof *m);
-    int rc = mesh_read_file(path, &buf, &len, err, cap);
-    if (rc < 0) return rc;
-    rc = obj_parse(buf, len, path, m, err, cap);
-    free(buf);
-    return rc;
-}

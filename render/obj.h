@@ -26,8 +26,8 @@
 extern "C" {
 #endif
 
-int obj_read(const char *path, mesh_data *m, char *err, size_t cap);
-/* The same from text in memory; name is used in messages. */
+/* Parse the text of an OBJ file (len bytes); name is used in messages. mesh_load() reads a
+ * file and calls this. */
 int obj_parse(const char *text, size_t len, const char *name, mesh_data *m, char *err, size_t cap);
 
 #ifdef __cplusplus

@@ -150,12 +150,12 @@ static cJSON *material_json(const tbsdf *b, rgb Le) {
     return m;
 }
 
-static vec3 xf_point(const double M[3][4], vec3 p) {
+static vec3 xf_point(double M[3][4], vec3 p) {
     return v3(M[0][0] * p.x + M[0][1] * p.y + M[0][2] * p.z + M[0][3],
               M[1][0] * p.x + M[1][1] * p.y + M[1][2] * p.z + M[1][3],
               M[2][0] * p.x + M[2][1] * p.y + M[2][2] * p.z + M[2][3]);
 }
-static vec3 xf_col(const double M[3][4], int c) { return v3(M[0][c], M[1][c], M[2][c]); }
+static vec3 xf_col(double M[3][4], int c) { return v3(M[0][c], M[1][c], M[2][c]); }
 
 int tungsten_transform(const cJSON *t, const char *path, double M[3][4], json_err *e) {
     memset(M, 0, 12 * sizeof(double));

@@ -83,7 +83,7 @@ int wo3_parse(const unsigned char *buf, size_t len, const char *name, mesh_data 
         for (int k = 0; k < 6; k++) f[k] = rd_f32(p + 4 * k);
         for (int k = 0; k < 6 && rc == 0; k++)
             if (!isfinite(f[k]))
-                rc = fail(err, cap, name, (size_t)(p - buf) + 4 * k, "vertex %llu: %s %c is not finite",
+                rc = fail(err, cap, name, (size_t)(p - buf) + (size_t)(4 * k), "vertex %llu: %s %c is not finite",
                           (unsigned long long)i, k < 3 ? "position" : "normal", "xyzxyz"[k]);
         m->pos[i] = v3(f[0], f[1], f[2]);
         m->nrm[i] = v3(f[3], f[4], f[5]);
@@ -94,7 +94,7 @@ int wo3_parse(const unsigned char *buf, size_t len, const char *name, mesh_data 
         for (int k = 0; k < 3 && rc == 0; k++) {
             uint32_t x = rd_u32(p + 4 * k);
             if (x >= nv)
-                rc = fail(err, cap, name, (size_t)(p - buf) + 4 * k,
+                rc = fail(err, cap, name, (size_t)(p - buf) + (size_t)(4 * k),
                           "triangle %llu: vertex index %u out of range (%llu vertices)", (unsigned long long)i, x,
                           (unsigned long long)nv);
             v[k] = (int)x;
@@ -112,16 +112,5 @@ int wo3_parse(const unsigned char *buf, size_t len, const char *name, mesh_data 
         m->tri_group[i] = -1;
     }
     if (rc < 0) mesh_free(m);
-    return rc;
-}
-
-int wo3_read(const char *path, mesh_data *m, char *err, size_t cap) {
-    char *buf;
-    size_t len;
-    memset(m, 0, sizeof *m);
-    int rc = mesh_read_file(path, &buf, &len, err, cap);
-    if (rc < 0) return rc;
-    rc = wo3_parse((const unsigned char *)buf, len, path, m, err, cap);
-    free(buf);
     return rc;
 }

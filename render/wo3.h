@@ -22,8 +22,8 @@
 extern "C" {
 #endif
 
-int wo3_read(const char *path, mesh_data *m, char *err, size_t cap);
-/* The same from bytes in memory; name is used in messages. */
+/* Parse the bytes of a wo3 file (len of them); name is used in messages. mesh_load() reads a
+ * file and calls this. */
 int wo3_parse(const unsigned char *buf, size_t len, const char *name, mesh_data *m, char *err,
               size_t cap);
 
