@@ -125,7 +125,8 @@ byte-identical to the 2-thread `render` in path and pm modes (caustics, final ga
 images that are not whole tiles); maps saved by `-np 3` are byte-identical to one process's;
 the pixel-pass counters summed over ranks equal one process's; a rank made slow gets fewer
 tiles; a bad scene, a rank that cannot load its scene and a refused option exit 2 with the
-message and no output; a rank killed with SIGKILL mid-render ends the job with rank 0's
+message and no output; a photon pass that stores nothing ends every rank with `render`'s
+status and message; a rank killed with SIGKILL mid-render ends the job with rank 0's
 message and no output.
 
 EOF

@@ -129,6 +129,31 @@ if [ $rc = 2 ] && [ ! -e "$T/one.pfm" ] \
 else
   bad "one rank without its scene" "rc $rc; $(grep render "$T/one.log" | head -3)"
 fi
+# A photon pass that stores nothing (a point light in a closed mirror sphere above a diffuse
+# floor, caustics forced): every rank sees the same counts, so the pass ends on every rank at
+# once. Oracle: the one-process render: the same status, and its message (when it fails,
+# then with nothing written) or its image (when it renders); the job must end within 120 s.
+cat > "$T/cage.json" <<'SCENE'
+{"camera": {"eye": [0, 3, -8], "look_at": [0, 1, 0], "fov_deg": 50, "width": 8, "height": 8, "spp": 1},
+ "materials": {"mirror": {"type": "mirror"}, "white": {"type": "lambert", "reflectance": 0.5}},
+ "objects": [{"type": "sphere", "center": [0, 1, 0], "radius": 1, "material": "mirror"},
+             {"type": "quad", "vertices": [[-5, 0, -5], [-5, 0, 5], [5, 0, 5], [5, 0, -5]], "material": "white"}],
+ "lights": [{"type": "point", "position": [0, 1, 0], "power": 100}]}
+SCENE
+cage="$T/cage.json --mode pm --pm caustics=true"
+# shellcheck disable=SC2086
+"$R" $cage --hdr "$T/cage1.pfm" >"$T/cage1.log" 2>&1
+rc1=$?
+# shellcheck disable=SC2086
+timeout 120 $MPIRUN -np 3 "$M" $cage --threads 1 --hdr "$T/cage3.pfm" >"$T/cage3.log" 2>&1
+rc3=$?
+msg=$(grep "^render: " "$T/cage1.log" | head -1)
+if [ "$rc3" = "$rc1" ] && { { [ "$rc1" != 0 ] && [ -n "$msg" ] && grep -qF "$msg" "$T/cage3.log" \
+     && [ ! -e "$T/cage3.pfm" ]; } || { [ "$rc1" = 0 ] && cmp -s "$T/cage1.pfm" "$T/cage3.pfm"; }; }; then
+  ok "a pass storing nothing: status $rc3 and the outcome of render, within 120 s"
+else
+  bad "pass storing nothing" "render $rc1, render-mpi $rc3; $(grep render "$T/cage3.log" | head -3)"
+fi
 # Options a distributed render does not have: exit 2 with the reason.
 $MPIRUN -np 2 "$M" data/scenes/furnace.json --checkpoint "$T/ck" --hdr "$T/ck.pfm" >"$T/ck.log" 2>&1
 rc=$?
