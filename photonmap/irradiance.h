@@ -9,8 +9,8 @@
  * that arrived from behind that surface. The set is either every photon or about a quarter of
  * them: those with pm_kdtree_height(tree, i) >= 2, i.e. neither leaves nor parents of leaves
  * (for the classic tree, B = 1, exactly the records i with 4 (i + 1) <= n). With leaf buckets
- * of B > 2 records fewer qualify (measured on 100,000 uniform points: 25% for B = 1 and 2, 16%
- * for B = 4, 8% for B = 8). The loop runs in parallel with OpenMP when the build has it.
+ * of B > 2 records fewer qualify (pm_irradiance_count says how many). The loop runs in
+ * parallel with OpenMP when the build has it.
  *
  * The k photons of the estimate at photon i include i itself. At its own sample point a density
  * estimate reads high (about 1/k for Poisson photons), but a value is only ever used through a

@@ -13,23 +13,23 @@
  *   normal     uint8       the surface normal where the photon was stored, quantized to one
  *                          of 256 directions (used by precomputed irradiance)
  *
- * Precision of the packed fields (bounds derived in photon.c, measured over 2M random inputs
- * and tested in tests/test_photon.c):
+ * Precision of the packed fields (bounds derived in photon.c and asserted over random inputs
+ * in tests/test_photon.c):
  *   - RGBE: each channel is an 8-bit mantissa scaled by one shared 8-bit exponent, rounded to
- *     nearest. The largest channel has a relative error <= 2^-8 (0.39%; measured 0.389%); every
- *     other channel an absolute error <= max(r,g,b) * 2^-8 / (1 - 2^-9) (0.3914% of the
- *     largest; measured 0.3912%), so channels far below the largest lose relative precision
- *     and those below max/512 may become 0. A largest channel below 2^-128 (2.9e-39) encodes
+ *     nearest. The largest channel has a relative error <= 2^-8 (0.39%); every other
+ *     channel an absolute error <= max(r,g,b) * 2^-8 / (1 - 2^-9) (0.3914% of the largest),
+ *     so channels far below the largest lose relative precision and those below max/512
+ *     may become 0. A largest channel below 2^-128 (2.9e-39) encodes
  *     as zero; above 255 * 2^119 (1.69e38), and +inf, saturate to that value. Negative and NaN
  *     channels encode as zero. Decoding is exact arithmetic (byte * a power of two).
  *   - direction: theta = acos(z) and phi = atan2(y, x) are quantized to 256 bins each and
  *     decoded at the bin centre: at most 0.35 degrees in theta and 0.70*sin(theta) degrees in
- *     phi, 0.79 degrees in all (measured 0.784), and 0.36 at the poles (measured 0.346). The
- *     decoded vector has unit length within 1e-6.
+ *     phi, 0.79 degrees in all, and 0.36 at the poles. The decoded vector has unit length
+ *     within 1e-6.
  *   - normal: the nearest (exactly, by dot product) of 256 points of a spherical Fibonacci
  *     lattice; the angular error is at most the lattice's covering radius, about 9.72 degrees
- *     (measured 9.717 over 2M random normals; the test asserts <= 10).
- *     Encoding costs about 50 dot products; decoding is a table lookup.
+ *     (the test asserts <= 10 degrees over random normals). Encoding costs about 50 dot
+ *     products; decoding is a table lookup.
  *
  * THE TREE'S BITS. A pm_kdtree built with pm_kdtree_photon_config() keeps the split axis of
  * each internal node in bits 0-1 of that record's flag byte (PM_FLAG_TREE_MASK), writes 0
