@@ -22,14 +22,7 @@
 #include "../render/output.h"
 #include "../render/renderer.h"
 #include "../render/scene.h"
-
-static char *path_in(const char *name) {
-    static char buf[8][1024];
-    static int k;
-    char *p = buf[k++ % 8];
-    snprintf(p, 1024, "%s/%s", pm_test_tmpdir(), name);
-    return p;
-}
+#include "test_render_run.h"
 
 static int load_scene(scene *s, const char *name, int w, int h, int spp) {
     char path[1024];
@@ -75,7 +68,7 @@ TEST(render_checkpoint_resume_bit_identical) {
     ASSERT(render_image(&s, &it, &job, &ref) == 0);
     int stops[3] = {1, 3, 7};
     for (int k = 0; k < 3; k++) {
-        stopper sp = {0, stops[k], path_in("a.ckpt"), {0}};
+        stopper sp = {0, stops[k], rt_path("a.ckpt"), {0}};
         snprintf(sp.info.settings, sizeof sp.info.settings, "test");
         render_state st;
         ASSERT(render_state_init(&st, 40, 24, 9) == 0);
@@ -165,7 +158,7 @@ TEST(render_checkpoint_damaged_files_refused) {
     memcpy(ci.args, "--spp\0" "4\0", 8);
     ci.args_len = 8;
     char err[512];
-    const char *p = path_in("good.ckpt");
+    const char *p = rt_path("good.ckpt");
     ASSERT_MSG(ckpt_write(p, &ci, &st, err, sizeof err) == 0, "%s", err);
     FILE *f = fopen(p, "rb");
     ASSERT(f);
@@ -174,7 +167,7 @@ TEST(render_checkpoint_damaged_files_refused) {
     fclose(f);
     ASSERT_EQ_INT(n, 56 + 9 + 8 + 15 * 28 + 8);
     size_t cuts[] = {0, 7, 30, 56, 60, 80, n / 2, n - 9, n - 1};
-    const char *q = path_in("bad.ckpt");
+    const char *q = rt_path("bad.ckpt");
     ckpt_info back;
     render_state bs;
     for (size_t k = 0; k < sizeof cuts / sizeof cuts[0]; k++) {
@@ -224,43 +217,6 @@ TEST(render_checkpoint_damaged_files_refused) {
     "'%s/data/scenes/cornell_spheres.json' --mode pm --pm global_photons=8000 --pm "        \
     "caustic_photons=8000 --width 32 --height 32 --spp 9"
 
-/* Run a shell command in the test's directory (the whole command: its background jobs too). */
-static int run(const char *cmdline, char *out, size_t cap) {
-    char cmd[16384];
-    snprintf(cmd, sizeof cmd, "cd '%s' || exit 9; %s", pm_test_tmpdir(), cmdline);
-    return pm_test_run(cmd, out, cap);
-}
-
-/* render SCENE ARGS [--threads T] (scene given as a format with the source dir). */
-static int render_run(const char *scene_fmt, const char *args, char *out, size_t cap) {
-    char sc[2048], cmd[8192];
-    snprintf(sc, sizeof sc, scene_fmt, pm_test_source_dir());
-    snprintf(cmd, sizeof cmd, "timeout 60 '%s/render' %s %s --quiet", pm_test_build_dir(), sc, args);
-    return run(cmd, out, cap);
-}
-
-/* As render_run, paused by PM_RENDER_TEST_PAUSE=phase and then sent sig; the shell's status. */
-static int render_stopped(const char *phase, const char *sig, const char *scene_fmt, const char *args,
-                          char *out, size_t cap) {
-    char sc[2048], cmd[8192];
-    snprintf(sc, sizeof sc, scene_fmt, pm_test_source_dir());
-    snprintf(cmd, sizeof cmd,
-             "PM_RENDER_TEST_PAUSE=%s '%s/render' %s %s >log.txt 2>&1 & pid=$!; i=0; "
-             "while ! grep -q 'test pause at' log.txt 2>/dev/null; do i=$((i+1)); "
-             "[ $i -gt 1200 ] && break; sleep 0.05; done; kill -%s $pid; wait $pid; "
-             "echo \"exit=$?\"; cat log.txt",
-             phase, pm_test_build_dir(), sc, args, sig);
-    if (run(cmd, out, cap) != 0) return -1;
-    const char *e = strstr(out, "exit=");
-    return e ? atoi(e + 5) : -1;
-}
-
-static int same_file(const char *a, const char *b) {
-    char cmd[4096], out[256];
-    snprintf(cmd, sizeof cmd, "cmp '%s' '%s'", a, b);
-    return run(cmd, out, sizeof out) == 0;
-}
-
 /* Oracle: the PFM of an uninterrupted render (2 threads), byte for byte. The render is
  * stopped by SIGINT at 30% and 80% (the program writes a checkpoint and ends by SIGINT,
  * status 130), and by SIGKILL at 60% after periodic checkpoints (every millisecond: whatever
@@ -269,7 +225,7 @@ static int same_file(const char *a, const char *b) {
  * beside the checkpoint and loaded on resume). */
 static void resume_cases(const char *scene_fmt) {
     char out[16384];
-    ASSERT_MSG(render_run(scene_fmt, "--threads 2 --hdr ref.pfm -o ref.png", out, sizeof out) == 0, "%s", out);
+    ASSERT_MSG(rt_render(scene_fmt, "--threads 2 --hdr ref.pfm -o ref.png --quiet", out, sizeof out) == 0, "%s", out);
     static const struct {
         const char *phase, *sig, *extra;
         int status, threads;
@@ -280,25 +236,25 @@ static void resume_cases(const char *scene_fmt) {
     size_t ncases = PM_TEST_SANITIZED ? 2 : sizeof cases / sizeof cases[0];
     for (size_t k = 0; k < ncases; k++) {
         char args[1024], sc[2048], cmd[8192];
-        run("rm -rf c.ckpt c.ckpt.photons c.pfm c.png", out, sizeof out);
+        rt_run("rm -rf c.ckpt c.ckpt.photons c.pfm c.png", out, sizeof out);
         snprintf(args, sizeof args, "--threads 2 --hdr c.pfm -o c.png --checkpoint c.ckpt %s", cases[k].extra);
-        int rc = render_stopped(cases[k].phase, cases[k].sig, scene_fmt, args, out, sizeof out);
+        int rc = rt_render_paused(cases[k].phase, cases[k].sig, scene_fmt, args, "", out, sizeof out);
         EXPECT_MSG(rc == cases[k].status, "%s %s: status %d: %s", cases[k].phase, cases[k].sig, rc, out);
-        EXPECT_MSG(access(path_in("c.pfm"), F_OK) != 0, "%s: an image was written", cases[k].phase);
+        EXPECT_MSG(access(rt_path("c.pfm"), F_OK) != 0, "%s: an image was written", cases[k].phase);
         /* only the scene part of the format: --resume replays the rest */
         snprintf(sc, sizeof sc, scene_fmt, pm_test_source_dir());
         *strchr(sc + 1, '\'') = 0;
         snprintf(cmd, sizeof cmd, "'%s/render' %s' --resume c.ckpt --threads %d", pm_test_build_dir(),
                  sc, cases[k].threads);
-        rc = run(cmd, out, sizeof out);
+        rc = rt_run(cmd, out, sizeof out);
         EXPECT_MSG(rc == 0, "%s: resume failed (%d): %s", cases[k].phase, rc, out);
         EXPECT_MSG(strstr(out, "Resuming: "), "%s: the progress does not show the resumed state: %s",
                    cases[k].phase, out);
-        EXPECT_MSG(same_file("c.pfm", "ref.pfm") && same_file("c.png", "ref.png"),
+        EXPECT_MSG(rt_same_file("c.pfm", "ref.pfm") && rt_same_file("c.png", "ref.png"),
                    "%s %s, resumed at %d threads: the image differs from the uninterrupted one",
                    cases[k].phase, cases[k].sig, cases[k].threads);
     }
-    run("ls -A | grep -c tmp", out, sizeof out);
+    rt_run("ls -A | grep -c tmp", out, sizeof out);
     EXPECT_MSG(atoi(out) == 0, "temporaries left: %s", out);
 }
 
@@ -310,14 +266,14 @@ TEST(render_checkpoint_cli_resume_pm) { resume_cases(PM_SCENE); }
  * changed, and a truncated checkpoint. */
 TEST(render_checkpoint_cli_refusals) {
     char out[16384], cmd[8192];
-    int rc = render_stopped("render:0.5", "INT", PM_SCENE, "--threads 2 --hdr c.pfm --checkpoint c.ckpt",
-                            out, sizeof out);
+    int rc = rt_render_paused("render:0.5", "INT", PM_SCENE, "--threads 2 --hdr c.pfm --checkpoint c.ckpt",
+                              "", out, sizeof out);
     ASSERT_MSG(rc == 130, "status %d: %s", rc, out);
     /* the same scene with one more newline: another file, so another scene hash */
     snprintf(cmd, sizeof cmd, "cp '%s/data/scenes/cornell_spheres.json' other.json && echo >> other.json",
              pm_test_source_dir());
-    ASSERT(run(cmd, out, sizeof out) == 0);
-    run("head -c 1000 c.ckpt > trunc.ckpt", out, sizeof out);
+    ASSERT(rt_run(cmd, out, sizeof out) == 0);
+    rt_run("head -c 1000 c.ckpt > trunc.ckpt", out, sizeof out);
     static const struct {
         const char *args, *expect;
     } cases[] = {
@@ -335,16 +291,16 @@ TEST(render_checkpoint_cli_refusals) {
         else
             snprintf(args, sizeof args, "%s", cases[k].args);
         snprintf(cmd, sizeof cmd, "timeout 5 '%s/render' %s", pm_test_build_dir(), args);
-        rc = run(cmd, out, sizeof out);
+        rc = rt_run(cmd, out, sizeof out);
         EXPECT_MSG(rc == 2, "%s: status %d: %s", args, rc, out);
         EXPECT_MSG(strstr(out, cases[k].expect), "%s: expected \"%s\" in: %s", args, cases[k].expect, out);
-        EXPECT_MSG(access(path_in("c.pfm"), F_OK) != 0, "%s: an image was written", args);
+        EXPECT_MSG(access(rt_path("c.pfm"), F_OK) != 0, "%s: an image was written", args);
     }
     /* changed photon maps */
-    run("cp c.ckpt.photons/caustic.pmap x && head -c 2000 x > c.ckpt.photons/caustic.pmap", out, sizeof out);
+    rt_run("cp c.ckpt.photons/caustic.pmap x && head -c 2000 x > c.ckpt.photons/caustic.pmap", out, sizeof out);
     snprintf(cmd, sizeof cmd, "timeout 5 '%s/render' '%s/data/scenes/cornell_spheres.json' --resume c.ckpt",
              pm_test_build_dir(), pm_test_source_dir());
-    rc = run(cmd, out, sizeof out);
+    rc = rt_run(cmd, out, sizeof out);
     EXPECT_MSG(rc == 2 && strstr(out, "photon maps"), "status %d: %s", rc, out);
 }
 
@@ -353,17 +309,12 @@ TEST(render_checkpoint_cli_refusals) {
  * uninterrupted render writes, byte for byte. */
 TEST(render_checkpoint_cli_snapshot) {
     char out[16384];
-    ASSERT(render_run(PATH_SCENE, "--threads 2 -o ref.png", out, sizeof out) == 0);
-    char sc[2048], cmd[8192];
-    snprintf(sc, sizeof sc, PATH_SCENE, pm_test_source_dir());
-    snprintf(cmd, sizeof cmd,
-             "PM_RENDER_TEST_PAUSE=render:0.5 '%s/render' %s --threads 2 -o s.png --snapshot-every "
-             "0.001 >log.txt 2>&1 & pid=$!; i=0; while ! grep -q 'test pause at' log.txt; do "
-             "i=$((i+1)); [ $i -gt 1200 ] && break; sleep 0.05; done; cp s.png mid.png; kill -INT "
-             "$pid; wait $pid; '%s/render' %s --threads 2 -o s.png --quiet",
-             pm_test_build_dir(), sc, pm_test_build_dir(), sc);
-    EXPECT_MSG(run(cmd, out, sizeof out) == 0, "%s", out);
-    FILE *f = fopen(path_in("mid.png"), "rb");
+    ASSERT(rt_render(PATH_SCENE, "--threads 2 -o ref.png --quiet", out, sizeof out) == 0);
+    int rc = rt_render_paused("render:0.5", "INT", PATH_SCENE, "--threads 2 -o s.png --snapshot-every 0.001",
+                              "cp s.png mid.png", out, sizeof out);
+    EXPECT_MSG(rc == 130, "status %d: %s", rc, out);
+    EXPECT_MSG(rt_render(PATH_SCENE, "--threads 2 -o s.png --quiet", out, sizeof out) == 0, "%s", out);
+    FILE *f = fopen(rt_path("mid.png"), "rb");
     ASSERT_MSG(f, "no snapshot while paused");
     unsigned char b[24];
     size_t n = fread(b, 1, 24, f);
@@ -372,5 +323,5 @@ TEST(render_checkpoint_cli_snapshot) {
     EXPECT(memcmp(b, "\x89PNG\r\n\x1a\n", 8) == 0 && memcmp(b + 12, "IHDR", 4) == 0);
     EXPECT_EQ_INT((b[16] << 24) | (b[17] << 16) | (b[18] << 8) | b[19], 40);
     EXPECT_EQ_INT((b[20] << 24) | (b[21] << 16) | (b[22] << 8) | b[23], 24);
-    EXPECT(same_file("s.png", "ref.png"));
+    EXPECT(rt_same_file("s.png", "ref.png"));
 }

@@ -12,7 +12,6 @@
  * pm_test_tmpdir(); device nodes are made there with mknod, never under /dev.
  */
 #define _XOPEN_SOURCE 700 /* mknod, S_IFCHR */
-#include <dirent.h>
 #include <errno.h>
 #include <signal.h>
 #include <stdio.h>
@@ -29,58 +28,13 @@
 #include "../photonmap/common.h"
 #include "../render/film.h"
 #include "../render/output.h"
-
-static char *path_in(const char *name) {
-    static char buf[8][1024];
-    static int k;
-    char *p = buf[k++ % 8];
-    snprintf(p, 1024, "%s/%s", pm_test_tmpdir(), name);
-    return p;
-}
+#include "test_render_run.h"
 
 static int write_text(const char *path, const char *text) {
     FILE *f = fopen(path, "wb");
     if (!f) return -1;
     fputs(text, f);
     return fclose(f);
-}
-
-/* The whole file, NUL-terminated; *n its length. NULL if unreadable. */
-static char *slurp(const char *path, size_t *n) {
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    size_t cap = 1 << 16, len = 0;
-    char *b = malloc(cap + 1);
-    size_t got;
-    while (b && (got = fread(b + len, 1, cap - len, f)) > 0) {
-        len += got;
-        if (len == cap) {
-            char *nb = realloc(b, 2 * cap + 1);
-            if (!nb) {
-                free(b);
-                b = NULL;
-                break;
-            }
-            b = nb;
-            cap *= 2;
-        }
-    }
-    fclose(f);
-    if (b) b[len] = 0;
-    if (n) *n = len;
-    return b;
-}
-
-/* Names in dir containing ".tmp" (leftover temporaries). */
-static int count_temps(const char *dir) {
-    DIR *d = opendir(dir);
-    if (!d) return -1;
-    int n = 0;
-    struct dirent *e;
-    while ((e = readdir(d)))
-        if (strstr(e->d_name, ".tmp")) n++;
-    closedir(d);
-    return n;
 }
 
 /* Write text to path through output.h as one output. */
@@ -96,7 +50,7 @@ static int out_write_text(const char *path, const char *text, char *err, size_t 
 /* Oracle: a regular file is replaced by exactly the new bytes (a new inode: it was renamed
  * into place, not rewritten), a new path is created, and no temporary remains. */
 TEST(render_output_regular_and_new) {
-    const char *p = path_in("reg.txt"), *q = path_in("new.txt");
+    const char *p = rt_path("reg.txt"), *q = rt_path("new.txt");
     ASSERT(write_text(p, "old contents") == 0);
     struct stat a, b;
     ASSERT(stat(p, &a) == 0);
@@ -106,17 +60,17 @@ TEST(render_output_regular_and_new) {
     ASSERT(stat(p, &b) == 0);
     EXPECT(S_ISREG(b.st_mode));
     EXPECT(a.st_ino != b.st_ino);
-    char *s = slurp(p, NULL), *t = slurp(q, NULL);
+    char *s = rt_slurp(p, NULL), *t = rt_slurp(q, NULL);
     EXPECT(s && strcmp(s, "new") == 0);
     EXPECT(t && strcmp(t, "fresh") == 0);
     free(s);
     free(t);
-    EXPECT_EQ_INT(count_temps(pm_test_tmpdir()), 0);
+    EXPECT_EQ_INT(rt_count_temps(), 0);
 }
 
 /* Oracle: the FIFO is still a FIFO afterwards and a reader got exactly the bytes written. */
 TEST(render_output_fifo_written_through) {
-    const char *fifo = path_in("fifo"), *got = path_in("fifo.got");
+    const char *fifo = rt_path("fifo"), *got = rt_path("fifo.got");
     ASSERT(mkfifo(fifo, 0600) == 0);
     pid_t pid = fork();
     ASSERT(pid >= 0);
@@ -135,16 +89,16 @@ TEST(render_output_fifo_written_through) {
     struct stat st;
     ASSERT(lstat(fifo, &st) == 0);
     EXPECT(S_ISFIFO(st.st_mode));
-    char *s = slurp(got, NULL);
+    char *s = rt_slurp(got, NULL);
     EXPECT(s && strcmp(s, "through the pipe") == 0);
     free(s);
-    EXPECT_EQ_INT(count_temps(pm_test_tmpdir()), 0);
+    EXPECT_EQ_INT(rt_count_temps(), 0);
 }
 
 /* Oracle: a character device (a null device made here with mknod c 1 3) keeps its type and
  * device number after being used as an output; the write succeeds (the device discards). */
 TEST(render_output_chardev_survives) {
-    const char *dev = path_in("null");
+    const char *dev = rt_path("null");
     if (mknod(dev, S_IFCHR | 0666, makedev(1, 3)) != 0) {
         printf("    mknod not permitted here (%s): skipped\n", strerror(errno));
         return;
@@ -156,13 +110,13 @@ TEST(render_output_chardev_survives) {
     ASSERT(lstat(dev, &st) == 0);
     EXPECT(S_ISCHR(st.st_mode));
     EXPECT(major(st.st_rdev) == 1 && minor(st.st_rdev) == 3);
-    EXPECT_EQ_INT(count_temps(pm_test_tmpdir()), 0);
+    EXPECT_EQ_INT(rt_count_temps(), 0);
 }
 
 /* Oracle: the link stays a link to the same name; the target gets the new bytes; a link to a
  * missing file, and a directory, are refused with a message and nothing is created. */
 TEST(render_output_symlink_and_refusals) {
-    const char *target = path_in("target.txt"), *link = path_in("link.txt");
+    const char *target = rt_path("target.txt"), *link = rt_path("link.txt");
     ASSERT(write_text(target, "old") == 0);
     ASSERT(symlink("target.txt", link) == 0);
     char err[512];
@@ -173,25 +127,25 @@ TEST(render_output_symlink_and_refusals) {
     char lt[256];
     ssize_t n = readlink(link, lt, sizeof lt - 1);
     EXPECT(n == 10 && memcmp(lt, "target.txt", 10) == 0);
-    char *s = slurp(target, NULL);
+    char *s = rt_slurp(target, NULL);
     EXPECT(s && strcmp(s, "via link") == 0);
     free(s);
 
-    const char *dangling = path_in("dangling");
+    const char *dangling = rt_path("dangling");
     ASSERT(symlink("nowhere/missing.png", dangling) == 0);
     err[0] = 0;
     EXPECT(out_write_text(dangling, "x", err, sizeof err) == PM_EIO);
     EXPECT_MSG(strstr(err, "symbolic link"), "message: %s", err);
     EXPECT(out_check(dangling, err, sizeof err) == PM_EIO);
-    EXPECT(access(path_in("nowhere"), F_OK) != 0);
+    EXPECT(access(rt_path("nowhere"), F_OK) != 0);
     err[0] = 0;
     EXPECT(out_write_text(pm_test_tmpdir(), "x", err, sizeof err) == PM_EIO);
     EXPECT_MSG(strstr(err, "Is a directory"), "message: %s", err);
-    EXPECT(out_check_dir(path_in("target.txt"), err, sizeof err) == PM_EIO);
-    EXPECT(out_check_dir(path_in("no/such/dir"), err, sizeof err) == PM_EIO);
-    EXPECT(out_check_dir(path_in("newdir"), err, sizeof err) == 0);
-    EXPECT(access(path_in("newdir"), F_OK) != 0);
-    EXPECT_EQ_INT(count_temps(pm_test_tmpdir()), 0);
+    EXPECT(out_check_dir(rt_path("target.txt"), err, sizeof err) == PM_EIO);
+    EXPECT(out_check_dir(rt_path("no/such/dir"), err, sizeof err) == PM_EIO);
+    EXPECT(out_check_dir(rt_path("newdir"), err, sizeof err) == 0);
+    EXPECT(access(rt_path("newdir"), F_OK) != 0);
+    EXPECT_EQ_INT(rt_count_temps(), 0);
 }
 
 /* Oracle: a process that has two complete temporaries but is stopped by SIGINT or SIGTERM
@@ -200,7 +154,7 @@ TEST(render_output_symlink_and_refusals) {
 TEST(render_output_signal_removes_temporaries) {
     int sigs[2] = {SIGINT, SIGTERM};
     for (int k = 0; k < 3; k++) {
-        const char *a = path_in("sig_a"), *b = path_in("sig_b");
+        const char *a = rt_path("sig_a"), *b = rt_path("sig_b");
         ASSERT(write_text(a, "old a") == 0 && write_text(b, "old b") == 0);
         pid_t pid = fork();
         ASSERT(pid >= 0);
@@ -218,7 +172,7 @@ TEST(render_output_signal_removes_temporaries) {
         }
         int status;
         waitpid(pid, &status, 0);
-        char *sa = slurp(a, NULL), *sb = slurp(b, NULL);
+        char *sa = rt_slurp(a, NULL), *sb = rt_slurp(b, NULL);
         if (k < 2) {
             EXPECT_MSG(WIFSIGNALED(status) && WTERMSIG(status) == sigs[k], "status %d", status);
             EXPECT(sa && strcmp(sa, "old a") == 0 && sb && strcmp(sb, "old b") == 0);
@@ -228,7 +182,7 @@ TEST(render_output_signal_removes_temporaries) {
         }
         free(sa);
         free(sb);
-        EXPECT_EQ_INT(count_temps(pm_test_tmpdir()), 0);
+        EXPECT_EQ_INT(rt_count_temps(), 0);
     }
 }
 
@@ -236,24 +190,24 @@ TEST(render_output_signal_removes_temporaries) {
  * (PM_EFORMAT) before any allocation: a 65536 x 65536 header would need 48 GiB, and the
  * read returns at once; a 1-pixel-short file is refused too, and the exact file reads. */
 TEST(render_output_pfm_header_bounded) {
-    const char *p = path_in("huge.pfm");
+    const char *p = rt_path("huge.pfm");
     ASSERT(write_text(p, "PF\n65536 65536\n-1.0\nabcdabcdabcd") == 0);
     film f;
     EXPECT_EQ_INT(film_read_pfm(&f, p), PM_EFORMAT);
     film g;
     ASSERT(film_init(&g, 3, 2) == 0);
     for (int i = 0; i < 18; i++) g.px[i] = (float)i * 0.25f;
-    const char *q = path_in("small.pfm");
+    const char *q = rt_path("small.pfm");
     ASSERT(film_write_pfm(&g, q) == 0);
     size_t n;
-    char *bytes = slurp(q, &n);
+    char *bytes = rt_slurp(q, &n);
     ASSERT(bytes);
-    FILE *t = fopen(path_in("short.pfm"), "wb");
+    FILE *t = fopen(rt_path("short.pfm"), "wb");
     ASSERT(t);
     fwrite(bytes, 1, n - 1, t);
     fclose(t);
     free(bytes);
-    EXPECT_EQ_INT(film_read_pfm(&f, path_in("short.pfm")), PM_EFORMAT);
+    EXPECT_EQ_INT(film_read_pfm(&f, rt_path("short.pfm")), PM_EFORMAT);
     ASSERT(film_read_pfm(&f, q) == 0);
     EXPECT(f.width == 3 && f.height == 2 && memcmp(f.px, g.px, 18 * sizeof(float)) == 0);
     film_free(&f);
@@ -267,41 +221,6 @@ TEST(render_output_pfm_header_bounded) {
     "'%s/data/scenes/cornell_spheres.json' --mode pm --pm global_photons=8000 --pm "        \
     "caustic_photons=8000 --width 32 --height 32 --threads 2 --quiet"
 
-/* Run render with args (after the scene part) in dir; 0 on exit 0. */
-static int render_cmd(const char *dir, const char *scene_fmt, const char *args, char *out, size_t cap) {
-    char scene[2048], cmd[8192];
-    snprintf(scene, sizeof scene, scene_fmt, pm_test_source_dir());
-    snprintf(cmd, sizeof cmd, "cd '%s' && timeout 60 '%s/render' %s %s", dir, pm_test_build_dir(),
-             scene, args);
-    return pm_test_run(cmd, out, cap);
-}
-
-/* Start render with PM_RENDER_TEST_PAUSE=phase, wait until it says it paused, send sig, and
- * return its exit status as the shell reports it (128 + signal when killed), -1 if unknown. */
-static int render_signalled(const char *dir, const char *phase, const char *sig, const char *scene_fmt,
-                            const char *args, char *out, size_t cap) {
-    char scene[2048], cmd[8192];
-    snprintf(scene, sizeof scene, scene_fmt, pm_test_source_dir());
-    snprintf(cmd, sizeof cmd,
-             "cd '%s' && PM_RENDER_TEST_PAUSE=%s '%s/render' %s %s --quiet >log.txt 2>&1 & pid=$!; "
-             "i=0; while ! grep -q 'test pause at' '%s/log.txt' 2>/dev/null; do i=$((i+1)); "
-             "[ $i -gt 1200 ] && break; sleep 0.05; done; kill -%s $pid; wait $pid; echo \"exit=$?\"; "
-             "cat '%s/log.txt'; rm -f '%s/log.txt'",
-             dir, phase, pm_test_build_dir(), scene, args, dir, sig, dir, dir);
-    if (pm_test_run(cmd, out, cap) != 0) return -1;
-    const char *e = strstr(out, "exit=");
-    return e ? atoi(e + 5) : -1;
-}
-
-static int same_file(const char *a, const char *b) {
-    size_t na, nb;
-    char *x = slurp(a, &na), *y = slurp(b, &nb);
-    int same = x && y && na == nb && memcmp(x, y, na) == 0;
-    free(x);
-    free(y);
-    return same;
-}
-
 /* Oracle: the bytes of the same render written to a regular file. A FIFO (read by cat in the
  * background) receives exactly those bytes and stays a FIFO; a character device made with
  * mknod stays the same device; through a symlink, the target gets those bytes and the link
@@ -309,39 +228,39 @@ static int same_file(const char *a, const char *b) {
 TEST(render_output_cli_special_paths) {
     const char *dir = pm_test_tmpdir();
     char out[16384], args[4096];
-    ASSERT_MSG(render_cmd(dir, SCENE_ARGS, "--spp 4 -o ref.png --hdr ref.pfm", out, sizeof out) == 0, "%s", out);
-    ASSERT(mkfifo(path_in("fifo.png"), 0600) == 0);
+    ASSERT_MSG(rt_render(SCENE_ARGS, "--spp 4 -o ref.png --hdr ref.pfm", out, sizeof out) == 0, "%s", out);
+    ASSERT(mkfifo(rt_path("fifo.png"), 0600) == 0);
     /* the reader in the same directory; timeout: a missed reader must not hang the suite */
     snprintf(args, sizeof args,
              "--spp 4 -o fifo.png --hdr x.pfm & (cd '%s' && timeout 20 cat fifo.png > fifo.got); wait $!",
              dir);
-    EXPECT_MSG(render_cmd(dir, SCENE_ARGS, args, out, sizeof out) == 0, "%s", out);
+    EXPECT_MSG(rt_render(SCENE_ARGS, args, out, sizeof out) == 0, "%s", out);
     struct stat st;
-    ASSERT(lstat(path_in("fifo.png"), &st) == 0);
+    ASSERT(lstat(rt_path("fifo.png"), &st) == 0);
     EXPECT(S_ISFIFO(st.st_mode));
-    EXPECT(same_file(path_in("fifo.got"), path_in("ref.png")));
-    EXPECT(same_file(path_in("x.pfm"), path_in("ref.pfm")));
+    EXPECT(rt_same_file(rt_path("fifo.got"), rt_path("ref.png")));
+    EXPECT(rt_same_file(rt_path("x.pfm"), rt_path("ref.pfm")));
 
-    if (mknod(path_in("dev.pfm"), S_IFCHR | 0666, makedev(1, 3)) == 0) {
-        EXPECT_MSG(render_cmd(dir, SCENE_ARGS, "--spp 4 --hdr dev.pfm", out, sizeof out) == 0, "%s", out);
-        ASSERT(lstat(path_in("dev.pfm"), &st) == 0);
+    if (mknod(rt_path("dev.pfm"), S_IFCHR | 0666, makedev(1, 3)) == 0) {
+        EXPECT_MSG(rt_render(SCENE_ARGS, "--spp 4 --hdr dev.pfm", out, sizeof out) == 0, "%s", out);
+        ASSERT(lstat(rt_path("dev.pfm"), &st) == 0);
         EXPECT(S_ISCHR(st.st_mode) && major(st.st_rdev) == 1 && minor(st.st_rdev) == 3);
     } else {
         printf("    mknod not permitted (%s): device case skipped\n", strerror(errno));
     }
 
-    ASSERT(write_text(path_in("real.png"), "old") == 0);
-    ASSERT(symlink("real.png", path_in("link.png")) == 0);
-    EXPECT_MSG(render_cmd(dir, SCENE_ARGS, "--spp 4 -o link.png", out, sizeof out) == 0, "%s", out);
-    ASSERT(lstat(path_in("link.png"), &st) == 0);
+    ASSERT(write_text(rt_path("real.png"), "old") == 0);
+    ASSERT(symlink("real.png", rt_path("link.png")) == 0);
+    EXPECT_MSG(rt_render(SCENE_ARGS, "--spp 4 -o link.png", out, sizeof out) == 0, "%s", out);
+    ASSERT(lstat(rt_path("link.png"), &st) == 0);
     EXPECT(S_ISLNK(st.st_mode));
-    EXPECT(same_file(path_in("real.png"), path_in("ref.png")));
+    EXPECT(rt_same_file(rt_path("real.png"), rt_path("ref.png")));
     /* a dangling link is refused before rendering, with a message, and stays dangling */
-    ASSERT(symlink("missing/x.png", path_in("dangling.png")) == 0);
-    EXPECT(render_cmd(dir, SCENE_ARGS, "--spp 4 -o dangling.png", out, sizeof out) == 2);
+    ASSERT(symlink("missing/x.png", rt_path("dangling.png")) == 0);
+    EXPECT(rt_render(SCENE_ARGS, "--spp 4 -o dangling.png", out, sizeof out) == 2);
     EXPECT_MSG(strstr(out, "symbolic link"), "%s", out);
-    EXPECT(lstat(path_in("dangling.png"), &st) == 0 && S_ISLNK(st.st_mode));
-    EXPECT_EQ_INT(count_temps(dir), 0);
+    EXPECT(lstat(rt_path("dangling.png"), &st) == 0 && S_ISLNK(st.st_mode));
+    EXPECT_EQ_INT(rt_count_temps(), 0);
 }
 
 /* Oracle: "all old or all new". Old outputs come from seed 1; a run with seed 2 is stopped by
@@ -355,12 +274,12 @@ TEST(render_output_cli_signal_phases) {
     char out[16384];
     const char *a1 = "--seed 1 --spp 4 -o old.png --hdr old.pfm";
     const char *a2 = "--seed 2 --spp 4 -o new.png --hdr new.pfm";
-    ASSERT_MSG(render_cmd(dir, PM_ARGS, a1, out, sizeof out) == 0, "%s", out);
-    ASSERT_MSG(render_cmd(dir, PM_ARGS, a2, out, sizeof out) == 0, "%s", out);
+    ASSERT_MSG(rt_render(PM_ARGS, a1, out, sizeof out) == 0, "%s", out);
+    ASSERT_MSG(rt_render(PM_ARGS, a2, out, sizeof out) == 0, "%s", out);
     /* the photon pass only exists in pm mode; the other phases are the same in path mode,
      * which is faster (sanitizer builds) */
-    ASSERT(render_cmd(dir, SCENE_ARGS, "--seed 1 --spp 4 -o pold.png --hdr pold.pfm", out, sizeof out) == 0);
-    ASSERT(render_cmd(dir, SCENE_ARGS, "--seed 2 --spp 4 -o pnew.png --hdr pnew.pfm", out, sizeof out) == 0);
+    ASSERT(rt_render(SCENE_ARGS, "--seed 1 --spp 4 -o pold.png --hdr pold.pfm", out, sizeof out) == 0);
+    ASSERT(rt_render(SCENE_ARGS, "--seed 2 --spp 4 -o pnew.png --hdr pnew.pfm", out, sizeof out) == 0);
     static const struct {
         const char *phase, *sig;
         int status;
@@ -373,21 +292,21 @@ TEST(render_output_cli_signal_phases) {
         const char *oldp = pm ? "old" : "pold";
         snprintf(cmd, sizeof cmd, "cd '%s' && cp %s.png o.png && cp %s.pfm o.pfm", dir, oldp, oldp);
         ASSERT(pm_test_run(cmd, out, sizeof out) == 0);
-        int rc = render_signalled(dir, cases[k].phase, cases[k].sig, pm ? PM_ARGS : SCENE_ARGS,
-                                  "--seed 2 --spp 4 -o o.png --hdr o.pfm", out, sizeof out);
+        int rc = rt_render_paused(cases[k].phase, cases[k].sig, pm ? PM_ARGS : SCENE_ARGS,
+                                  "--seed 2 --spp 4 -o o.png --hdr o.pfm", "", out, sizeof out);
         EXPECT_MSG(rc == cases[k].status, "%s/%s: status %d: %s", cases[k].phase, cases[k].sig, rc, out);
         char op[64], of[64];
         snprintf(op, sizeof op, "%s.png", oldp);
         snprintf(of, sizeof of, "%s.pfm", oldp);
-        EXPECT_MSG(same_file(path_in("o.png"), path_in(op)) && same_file(path_in("o.pfm"), path_in(of)),
+        EXPECT_MSG(rt_same_file(rt_path("o.png"), rt_path(op)) && rt_same_file(rt_path("o.pfm"), rt_path(of)),
                    "%s: the old outputs changed", cases[k].phase);
-        EXPECT_MSG(count_temps(dir) == 0, "%s: temporaries left", cases[k].phase);
+        EXPECT_MSG(rt_count_temps() == 0, "%s: temporaries left", cases[k].phase);
     }
-    ASSERT(render_cmd(dir, PM_ARGS, "--seed 2 --spp 4 -o o.png --hdr o.pfm", out, sizeof out) == 0);
-    EXPECT(same_file(path_in("o.png"), path_in("new.png")) && same_file(path_in("o.pfm"), path_in("new.pfm")));
-    ASSERT(render_cmd(dir, SCENE_ARGS, "--seed 2 --spp 4 -o o.png --hdr o.pfm", out, sizeof out) == 0);
-    EXPECT(same_file(path_in("o.png"), path_in("pnew.png")) && same_file(path_in("o.pfm"), path_in("pnew.pfm")));
-    EXPECT_EQ_INT(count_temps(dir), 0);
+    ASSERT(rt_render(PM_ARGS, "--seed 2 --spp 4 -o o.png --hdr o.pfm", out, sizeof out) == 0);
+    EXPECT(rt_same_file(rt_path("o.png"), rt_path("new.png")) && rt_same_file(rt_path("o.pfm"), rt_path("new.pfm")));
+    ASSERT(rt_render(SCENE_ARGS, "--seed 2 --spp 4 -o o.png --hdr o.pfm", out, sizeof out) == 0);
+    EXPECT(rt_same_file(rt_path("o.png"), rt_path("pnew.png")) && rt_same_file(rt_path("o.pfm"), rt_path("pnew.pfm")));
+    EXPECT_EQ_INT(rt_count_temps(), 0);
 }
 
 /* Oracle: status 2 and a message naming the problem, within 5 s (a read to the end of
@@ -397,12 +316,12 @@ TEST(render_output_cli_signal_phases) {
 TEST(render_output_cli_bad_input) {
     const char *dir = pm_test_tmpdir();
     char out[16384], cmd[4096];
-    FILE *f = fopen(path_in("big.json"), "wb");
+    FILE *f = fopen(rt_path("big.json"), "wb");
     ASSERT(f);
     for (int i = 0; i < (3 << 20) / 64; i++) fputs("                                                               \n", f);
     fputs("{}", f);
     fclose(f);
-    ASSERT(write_text(path_in("huge.pfm"), "PF\n65536 65536\n-1.0\n0123456789ab") == 0);
+    ASSERT(write_text(rt_path("huge.pfm"), "PF\n65536 65536\n-1.0\n0123456789ab") == 0);
     static const struct {
         const char *args, *expect;
     } cases[] = {
@@ -414,7 +333,7 @@ TEST(render_output_cli_bad_input) {
         {"'%s/data/scenes/cornell_spheres.json' --mode pm --save-photons maps -o a.png",
          "maps/caustic.pmap is not a regular file"},
     };
-    ASSERT(mkdir(path_in("maps"), 0755) == 0 && mkfifo(path_in("maps/caustic.pmap"), 0600) == 0);
+    ASSERT(mkdir(rt_path("maps"), 0755) == 0 && mkfifo(rt_path("maps/caustic.pmap"), 0600) == 0);
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
         char args[2048];
         snprintf(args, sizeof args, cases[k].args, pm_test_source_dir());
@@ -423,10 +342,10 @@ TEST(render_output_cli_bad_input) {
         EXPECT_MSG(rc == 2, "%s: status %d: %s", args, rc, out);
         EXPECT_MSG(strstr(out, cases[k].expect), "%s: expected \"%s\" in: %s", args, cases[k].expect, out);
         EXPECT_MSG(!strstr(out, "Photons:"), "%s: traced photons before failing", args);
-        EXPECT(access(path_in("a.png"), F_OK) != 0);
+        EXPECT(access(rt_path("a.png"), F_OK) != 0);
     }
     struct stat st;
-    EXPECT(lstat(path_in("maps/caustic.pmap"), &st) == 0 && S_ISFIFO(st.st_mode));
+    EXPECT(lstat(rt_path("maps/caustic.pmap"), &st) == 0 && S_ISFIFO(st.st_mode));
     /* the limit can be raised: the same big file is read (and is an empty scene) */
     snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' big.json --max-scene-mb 4 -o a.png", dir,
              pm_test_build_dir());
