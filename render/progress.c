@@ -30,9 +30,10 @@ static void fmt_time(char *buf, size_t cap, double s) {
 static void draw(progress *p, int64_t done, int final) {
     double el = stats_now() - p->t0;
     double frac = p->total > 0 ? (double)done / (double)p->total : 1.0;
+    double ran = done > p->base ? (double)(done - p->base) : 0; /* work of this run */
     char e[32], r[32];
     fmt_time(e, sizeof e, el);
-    fmt_time(r, sizeof r, frac > 0 ? el / frac - el : 0);
+    fmt_time(r, sizeof r, ran > 0 ? el / ran * (double)(p->total - done) : 0);
     if (p->tty) {
         char bar[41];
         int fill = (int)(frac * 40);
@@ -56,6 +57,7 @@ void progress_begin(progress *p, const char *title, int64_t total, int quiet) {
     p->total = total;
     atomic_store(&p->done, 0);
     p->quiet = quiet;
+    p->base = 0;
     p->tty = !quiet && isatty(STDERR_FILENO);
     atomic_store(&p->next_report, step_of(p));
     p->t0 = stats_now();
@@ -69,6 +71,14 @@ void progress_add(progress *p, int64_t n) {
     if (done < due || done >= p->total) return;
     int64_t step = step_of(p), next = (done / step + 1) * step;
     if (atomic_compare_exchange_strong(&p->next_report, &due, next)) draw(p, done, 0);
+}
+
+void progress_resume(progress *p, int64_t done) {
+    p->base = done;
+    atomic_store(&p->done, done);
+    int64_t step = step_of(p);
+    atomic_store(&p->next_report, (done / step + 1) * step);
+    if (!p->quiet) draw(p, done, 0);
 }
 
 void progress_end(progress *p) {

@@ -28,10 +28,15 @@ typedef struct progress {
     _Atomic int64_t next_report; /* work count at which the next line or redraw is due */
     double t0;
     int tty, quiet;
+    int64_t base; /* work already done when this run began (a resumed render); the ETA
+                   * counts only the work done since */
 } progress;
 
 void progress_begin(progress *p, const char *title, int64_t total, int quiet);
 void progress_add(progress *p, int64_t n);
+/* Start from done units already finished (a resumed render): the bar shows them, and the
+ * ETA is estimated from the rate of this run alone. Call right after progress_begin. */
+void progress_resume(progress *p, int64_t done);
 void progress_end(progress *p);
 
 #ifdef __cplusplus

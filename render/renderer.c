@@ -175,7 +175,7 @@ int render_image_ctl(const scene *s, const integrator *it, const render_job *job
         fprintf(stderr, "Resuming: %lld of %lld samples done (%.1f%%)\n", (long long)done,
                 (long long)total, 100.0 * (double)done / (double)total);
     progress_begin(&L.prog, "Rendering", total, job->quiet);
-    progress_add(&L.prog, done); /* the bar starts at the resumed state */
+    if (done > 0) progress_resume(&L.prog, done); /* the bar starts at the resumed state */
     double t0 = stats_now();
     int *todo = malloc((size_t)ntiles * sizeof *todo);
     if (!todo) rc = PM_ENOMEM;
