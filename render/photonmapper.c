@@ -142,8 +142,8 @@ static rgb direct_light(const mapper_state *st, const scene *s, const material *
     if (!(pl > 0)) return v3s(0);
     light_sample ls;
     if (!light_sample_li(s, li, h->p, u1, u2, &ls)) return v3s(0);
-    double cos_s = v3_dot(ls.wi, ns);
-    if (cos_s <= 0 || v3_iszero(ls.L)) return v3s(0);
+    double cos_s = v3_dot(ls.wi, material_shading_side(wo, h->ng, h->ns)); /* ns: the side */
+    if (cos_s <= 0 || v3_dot(ls.wi, ns) <= 0 || v3_iszero(ls.L)) return v3s(0);
     rgb f = material_f(m, h->ng, s->medium_ior, wo, ls.wi);
     if (v3_iszero(f)) return v3s(0);
     const light *l = &s->lights[li];
@@ -186,14 +186,15 @@ static int to_diffuse(const mapper_state *st, const scene *s, ray r, rng *g, hit
         double ws = w[LOBE_REFLECT] + w[LOBE_TRANSMIT];
         if (!(ws > 0)) return 0;
         vec3 ns = v3_dot(wo, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
+        vec3 nsh = material_shading_side(wo, h->ng, h->ns);
         vec3 d;
         if (rng_uniform(g) * ws < w[LOBE_REFLECT]) {
-            d = v3_reflect(r.d, ns);
+            d = material_reflect_shaded(r.d, ns, nsh);
             *beta = v3_scale(v3_mul(*beta, m->specular_tint), ws);
         } else {
             double n1, n2;
             material_indices(m, wo, h->ng, s->medium_ior, &n1, &n2);
-            if (!refract_dir(r.d, ns, n1 / n2, &d)) d = v3_reflect(r.d, ns);
+            if (!material_refract_shaded(r.d, ns, nsh, n1 / n2, &d)) d = material_reflect_shaded(r.d, ns, nsh);
             *beta = v3_scale(v3_mul(*beta, m->transmit_tint), ws);
         }
         if (v3_iszero(*beta)) return 0;
@@ -255,7 +256,7 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
     for (int k = 0; k < n; k++) {
         /* Stratified over the hemisphere: n strata in the first coordinate. */
         double u1 = (k + rng_uniform(g)) / n, u2 = rng_uniform(g);
-        vec3 d = sampling_to_world(sample_cosine_hemisphere(u1, u2), ns);
+        vec3 d = sampling_to_world(sample_cosine_hemisphere(u1, u2), material_shading_side(wo, h->ng, h->ns));
         if (v3_dot(d, ns) <= 0) continue;
         rgb f = material_f(m, h->ng, s->medium_ior, wo, d);
         if (v3_iszero(f)) continue;
@@ -355,10 +356,11 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
         }
         double ws = w[LOBE_REFLECT] + w[LOBE_TRANSMIT];
         if (!(ws > 0) || depth >= st->max_depth) break;
-        vec3 dr = v3_reflect(r.d, ns), dt;
+        vec3 nsh = material_shading_side(wo, h.ng, h.ns);
+        vec3 dr = material_reflect_shaded(r.d, ns, nsh), dt;
         double n1, n2;
         material_indices(m, wo, h.ng, s->medium_ior, &n1, &n2);
-        int tir = w[LOBE_TRANSMIT] > 0 && !refract_dir(r.d, ns, n1 / n2, &dt);
+        int tir = w[LOBE_TRANSMIT] > 0 && !material_refract_shaded(r.d, ns, nsh, n1 / n2, &dt);
         if (tir) stat_inc(STAT_TIR);
         rgb br = v3_scale(v3_mul(beta, m->specular_tint), w[LOBE_REFLECT]);
         rgb bt = v3_scale(v3_mul(beta, m->transmit_tint), w[LOBE_TRANSMIT]);
