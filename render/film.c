@@ -33,20 +33,6 @@ void film_free(film *f) {
     f->width = f->height = 0;
 }
 
-int film_check_writable(const char *path) {
-    char err[512];
-    if (!path || !*path) {
-        errno = ENOENT;
-        return PM_EIO;
-    }
-    struct stat st;
-    if (stat(path, &st) == 0 && S_ISDIR(st.st_mode)) {
-        errno = EISDIR;
-        return PM_EIO;
-    }
-    return out_check(path, err, sizeof err) < 0 ? (errno = errno ? errno : EACCES, PM_EIO) : 0;
-}
-
 /* One output through output.h: open, write with fn, commit. */
 static int write_one(const char *path, int (*fn)(const void *, FILE *), const void *arg) {
     char err[512];

@@ -53,10 +53,6 @@ static inline rgb film_get(const film *f, int x, int y) {
 
 int film_write_pfm(const film *f, const char *path);
 int film_write_pfm_fp(const film *f, FILE *fp);
-/* Whether path could be written: not a directory, and a temporary file can be created beside
- * it (and is removed again). Lets a program refuse an unwritable output before a long render.
- * 0 or PM_EIO with errno set (ENOENT, EACCES, EISDIR, ...). Nothing is left behind. */
-int film_check_writable(const char *path);
 /* Read a colour PFM ("PF"); handles either byte order. 0, PM_EIO or PM_EFORMAT. */
 int film_read_pfm(film *f, const char *path);
 

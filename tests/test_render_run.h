@@ -56,7 +56,7 @@ static inline int rt_same_file(const char *a, const char *b) {
     char pa[1024], pb[1024];
     snprintf(pa, sizeof pa, "%s", a[0] == '/' ? a : rt_path(a));
     snprintf(pb, sizeof pb, "%s", b[0] == '/' ? b : rt_path(b));
-    size_t na, nb;
+    size_t na = 0, nb = 0;
     char *x = rt_slurp(pa, &na), *y = rt_slurp(pb, &nb);
     int same = x && y && na == nb && memcmp(x, y, na) == 0;
     free(x);
