@@ -5,8 +5,9 @@
  * PRECOMPUTED IRRADIANCE. pm_irradiance_build takes a built pm_kdtree over pm_photon records
  * and computes, at a chosen set of photons, the irradiance E (or, given a diffuse reflectance
  * rho, the radiance rho E / pi) with the bias-corrected disc estimate of k photons, using the
- * photon's own quantized normal (pm_photon.normal) as the surface normal and rejecting photons
- * that arrived from behind that surface. The set is either every photon or about a quarter of
+ * photon's normal as the surface normal (its 1-byte code, pm_photon.normal, or the exact or
+ * fitted normal of LEAK CONTROL AT BUILD below) and rejecting photons that arrived from behind
+ * that surface. The set is either every photon or about a quarter of
  * them: those with pm_kdtree_height(tree, i) >= 2, i.e. neither leaves nor parents of leaves
  * (for the classic tree, B = 1, exactly the records i with 4 (i + 1) <= n). With leaf buckets
  * of B > 2 records fewer qualify (pm_irradiance_count says how many). The loop runs in
@@ -23,10 +24,11 @@
  * freed or reused afterwards. Per precomputed photon: a 20-byte record (float position, RGBE
  * value, normal code, the lookup tree's axis byte, 2 bytes of padding), its slot for
  * pm_irradiance_value (4 bytes) and, only if opt.store_radius, the float radius^2 of its own
- * estimate (4 bytes): 24 bytes, or 28 with radii. Per photon of the map: one bit (was it precomputed) and a 4-byte rank per 64 photons
- * (3/16 byte in all). pm_irradiance_bytes() adds up what was actually allocated and the tests
- * check it against this formula; bench_estimate prints it per photon. RGBE keeps a relative
- * error below 2^-8 in the largest channel.
+ * estimate (4 bytes): 24 bytes, or 28 with radii. Per photon of the map: one bit (was it
+ * precomputed) and a 4-byte rank per 64 photons (3/16 byte in all). pm_irradiance_bytes() adds
+ * up what was actually allocated; irradiance_memory_measured checks it against the heap's
+ * growth and against this layout, and docs/ACCURACY.md reports it per precomputed photon.
+ * RGBE keeps a relative error below 2^-8 in the largest channel.
  *
  * LOOKUP. pm_irradiance_lookup returns the value of the single nearest precomputed photon whose
  * decoded normal has dot(normal, n) >= cos_min, within radius^2 max_dist2 and (with stored
@@ -47,7 +49,9 @@
  * a corner or on a tight curve, the fit is no better and the code is used). On a plane either
  * way squash then leaves the estimates as they are without it
  * (irradiance_squash_uses_an_exact_normal, with planes the code rounds 5 and 9.7 degrees off).
- * The normal-behind test (reject_behind) and the lookup's normal test keep using the code.
+ * That normal is the estimate's surface normal throughout (the squash and the behind test);
+ * the lookup's normal test uses the 1-byte code kept with each precomputed photon (the code of
+ * opt.normals when given).
  *
  * THREADS. A built pm_irradiance is read-only: lookups never allocate or lock and may run on
  * any number of threads. pm_irradiance_build allocates (the caller frees with

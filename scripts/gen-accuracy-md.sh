@@ -48,7 +48,7 @@ if [ -n "$run" ]; then
     echo "commit $(git -C "$here" rev-parse --short HEAD 2>/dev/null || echo unknown)$(git -C "$here" diff --quiet HEAD -- photonmap bench/bench_estimate.c 2>/dev/null || echo ' (with uncommitted changes to photonmap/ or bench_estimate.c)')"
     echo "date $(date -u '+%Y-%m-%d %H:%M UTC')"
     echo "machine $(uname -m), $(getconf _NPROCESSORS_ONLN 2>/dev/null || echo '?') cores, $(awk -F': ' '/model name/ { print $2; exit }' /proc/cpuinfo 2>/dev/null || echo 'unknown CPU')"
-    echo "command bench_estimate $quick --accuracy-only; bench_estimate $quick --lookup-only"
+    echo "command bench_estimate${quick:+ $quick} --accuracy-only; bench_estimate${quick:+ $quick} --lookup-only"
   } > "$res/measurement.txt"
 fi
 
