@@ -8,6 +8,11 @@
 # N failed". The oracle of each test is said above it. mpirun refuses root unless told:
 # the two OMPI_ALLOW_RUN_AS_ROOT variables are set here, for CI, which runs as root.
 set -u
+case "${1:-}" in
+  -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
+  "") ;;
+  *) echo "test-mpi: unknown option '$1' (see --help)" >&2; exit 2 ;;
+esac
 here=$(cd "$(dirname "$0")/.." && pwd)
 B="${PM_BUILD_DIR:-$here/build/release}"
 R="$B/render"

@@ -7,6 +7,7 @@
  * is skipped.
  */
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 
@@ -55,4 +56,22 @@ TEST(mpi_two_ranks_match_one_process) {
              pm_test_source_dir(), pm_test_build_dir(), args, d, mpi, args, d, d, d);
     int rc = pm_test_run(cmd, out, sizeof out);
     EXPECT_MSG(rc == 0, "render-mpi -np 2 differs from render (or failed): %s", out);
+}
+
+/* Oracle: the documented usage of the MPI scripts: --help prints it with status 0 and does
+ * nothing else (no render, no file written). */
+TEST(mpi_scripts_have_help) {
+    static const char *scripts[] = {"test-mpi.sh", "mpi-scaling.sh", "gen-mpi-md.sh"};
+    for (size_t i = 0; i < sizeof scripts / sizeof scripts[0]; i++) {
+        char cmd[4096], out[8192];
+        snprintf(cmd, sizeof cmd, "cd '%s' && sh '%s/scripts/%s' --help 2>&1", pm_test_tmpdir(),
+                 pm_test_source_dir(), scripts[i]);
+        EXPECT_MSG(pm_test_run(cmd, out, sizeof out) == 0, "%s --help: %s", scripts[i], out);
+        EXPECT_MSG(strstr(out, scripts[i]) && !strstr(out, "PASS") && !strstr(out, " passed, "),
+                   "%s --help printed: %s", scripts[i], out);
+    }
+    char cmd[2048], out[256];
+    snprintf(cmd, sizeof cmd, "ls -A '%s' | wc -l", pm_test_tmpdir());
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strtol(out, NULL, 10) == 0, "--help left files: %s", out);
 }
