@@ -197,6 +197,19 @@ static int fetch(const cJSON *obj, const char *path, const char *key, int requir
     return 0;
 }
 
+/* fetch, then the item's type: 1 with *it, 0 when absent and optional, or an error saying
+ * what was expected ("%s.%s: expected an object, got a string"). */
+static int fetch_as(const cJSON *obj, const char *path, const char *key, int required,
+                    cJSON_bool (*is)(const cJSON *), const char *expected, const cJSON **it,
+                    json_err *e) {
+    int rc = fetch(obj, path, key, required, it, e);
+    if (rc <= 0) return rc;
+    if (!is(*it))
+        return json_fail(e, PM_EINVAL, "%s.%s: expected %s, got %s", path, key, expected,
+                         json_type_name(*it));
+    return 1;
+}
+
 static int check_number(const cJSON *it, const char *p1, const char *p2, double *out, json_err *e) {
     if (!cJSON_IsNumber(it))
         return json_fail(e, PM_EINVAL, "%s%s: expected a number, got %s", p1, p2, json_type_name(it));
@@ -233,11 +246,8 @@ int json_int(const cJSON *obj, const char *path, const char *key, int required, 
 int json_bool(const cJSON *obj, const char *path, const char *key, int required, int *out,
               json_err *e) {
     const cJSON *it;
-    int rc = fetch(obj, path, key, required, &it, e);
+    int rc = fetch_as(obj, path, key, required, cJSON_IsBool, "true or false", &it, e);
     if (rc <= 0) return rc;
-    if (!cJSON_IsBool(it))
-        return json_fail(e, PM_EINVAL, "%s.%s: expected true or false, got %s", path, key,
-                         json_type_name(it));
     *out = cJSON_IsTrue(it) ? 1 : 0;
     return 0;
 }
@@ -245,11 +255,8 @@ int json_bool(const cJSON *obj, const char *path, const char *key, int required,
 int json_string(const cJSON *obj, const char *path, const char *key, int required,
                 const char **out, json_err *e) {
     const cJSON *it;
-    int rc = fetch(obj, path, key, required, &it, e);
+    int rc = fetch_as(obj, path, key, required, cJSON_IsString, "a string", &it, e);
     if (rc <= 0) return rc;
-    if (!cJSON_IsString(it))
-        return json_fail(e, PM_EINVAL, "%s.%s: expected a string, got %s", path, key,
-                         json_type_name(it));
     *out = it->valuestring;
     return 0;
 }
@@ -300,11 +307,8 @@ int json_object(const cJSON *obj, const char *path, const char *key, int require
                 const cJSON **out, json_err *e) {
     const cJSON *it;
     *out = NULL;
-    int rc = fetch(obj, path, key, required, &it, e);
+    int rc = fetch_as(obj, path, key, required, cJSON_IsObject, "an object", &it, e);
     if (rc <= 0) return rc;
-    if (!cJSON_IsObject(it))
-        return json_fail(e, PM_EINVAL, "%s.%s: expected an object, got %s", path, key,
-                         json_type_name(it));
     *out = it;
     return 0;
 }
@@ -313,11 +317,8 @@ int json_array(const cJSON *obj, const char *path, const char *key, int required
                const cJSON **out, json_err *e) {
     const cJSON *it;
     *out = NULL;
-    int rc = fetch(obj, path, key, required, &it, e);
+    int rc = fetch_as(obj, path, key, required, cJSON_IsArray, "an array", &it, e);
     if (rc <= 0) return rc;
-    if (!cJSON_IsArray(it))
-        return json_fail(e, PM_EINVAL, "%s.%s: expected an array, got %s", path, key,
-                         json_type_name(it));
     *out = it;
     return 0;
 }
