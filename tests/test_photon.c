@@ -358,29 +358,31 @@ TEST(map_file_round_trip_and_errors) {
 }
 
 /* Oracle: brute force. Random (Poisson) photons in a built kd-tree (axis bits in the flag
- * byte, bucket 1 and 8); every record's power (and kind) is then rewritten with pm_photon_set
- * from its own decoded fields, as a renderer scaling powers after the build does. 1000 k-NN
+ * byte, bucket 1 and 8); every record's power (and kind) is then rewritten, with pm_photon_set
+ * from its own decoded fields or with pm_photon_set_power and pm_photon_set_kind, as a
+ * renderer scaling powers after the build does. 1000 k-NN
  * queries (k = 10) must still return exactly the brute-force multiset of distances, and every
  * rewritten field must read back. */
 TEST(photon_set_after_build_keeps_the_tree) {
     const size_t n = 20000;
     const unsigned K = 10, Q = 1000;
     pm_photon *p = malloc(n * sizeof *p);
-    for (int b = 0; b < 2; b++) {
+    for (int b = 0; b < 4; b++) { /* bucket 1 and 8; pm_photon_set, then pm_photon_set_power */
         for (size_t i = 0; i < n; i++) {
             float pos[3] = {(float)ph_uniform(), (float)ph_uniform(), (float)ph_uniform()};
             float pw[3] = {1, 1, 1}, dir[3] = {0, 0, -1}, nrm[3] = {0, 0, 1};
             pm_photon_init(&p[i], pos, pw, dir, nrm, PM_KIND_INDIRECT);
         }
         pm_kdtree *t = NULL;
-        pm_kdtree_config cfg = pm_kdtree_photon_config(b ? 8u : 1u);
+        pm_kdtree_config cfg = pm_kdtree_photon_config(b & 1 ? 8u : 1u);
         ASSERT_EQ_INT(pm_kdtree_build(&t, p, n, &cfg, NULL), PM_OK);
         for (size_t i = 0; i < n; i++) {
             float pw[3] = {(float)(i % 7), 0.5f, 2.0f}, dir[3], nrm[3];
             pm_dir_decode(p[i].theta, p[i].phi, dir);
             pm_normal_decode(p[i].normal, nrm);
             float pos[3] = {p[i].pos[0], p[i].pos[1], p[i].pos[2]};
-            pm_photon_set(&p[i], pos, pw, dir, nrm, PM_KIND_CAUSTIC);
+            if (b < 2) pm_photon_set(&p[i], pos, pw, dir, nrm, PM_KIND_CAUSTIC);
+            else pm_photon_set_power(&p[i], pw), pm_photon_set_kind(&p[i], PM_KIND_CAUSTIC);
         }
         unsigned wrong = 0;
         float d2[10];
@@ -401,7 +403,8 @@ TEST(photon_set_after_build_keeps_the_tree) {
             for (unsigned j = 0; ok && j < K; j++) ok = nb[j].dist2 == d2[j];
             wrong += !ok;
         }
-        EXPECT_MSG(wrong == 0, "bucket %d: %u of %u k-NN queries wrong after pm_photon_set", b ? 8 : 1, wrong, Q);
+        EXPECT_MSG(wrong == 0, "bucket %d: %u of %u k-NN queries wrong after %s", b & 1 ? 8 : 1, wrong, Q,
+                   b < 2 ? "pm_photon_set" : "pm_photon_set_power/kind");
         float back[3];
         pm_rgbe_decode(p[5].power, back);
         EXPECT(back[0] == 5.0f && back[1] == 0.5f && back[2] == 2.0f);
