@@ -287,7 +287,9 @@ Asked for, render-mpi exits 2 and says so. What it needs, and what is missing:
 ## Limitations
 
 - Each rank holds the full film state (24 bytes per pixel) and, in replicated mode, the whole
-  photon map: the memory per rank is that of a one-process render.
+  photon map: the memory per rank is that of a one-process render, plus the round being
+  exchanged (up to 16 R batches of 4096 photons, 64 bytes per stored photon; a round never
+  spans more batches than the pass still needs).
 - No checkpoints; a failed rank ends the job (there is no recovery in OpenMPI 4.1 without
   ULFM), and the render must be started again.
 - Statistics: the pixel pass's counters are the sum over ranks; the preprocessing counters
