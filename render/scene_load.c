@@ -475,24 +475,26 @@ int scene_from_json(scene *s, const cJSON *root, json_err *e) {
     return rc;
 }
 
-int scene_load_text(scene *s, const char *text, json_err *e) {
-    cJSON *root;
-    memset(s, 0, sizeof *s);
-    int rc = json_parse_text(text, &root, e);
+/* A parsed document (rc from its parser) to a scene: Tungsten scenes converted and mesh
+ * paths resolved (import.h; filename NULL for a text), then loaded; the document is freed. */
+static int load_parsed(scene *s, int rc, cJSON *root, const char *filename, json_err *e) {
     if (rc < 0) return rc;
-    rc = scene_import(&root, NULL, e);
+    rc = scene_import(&root, filename, e);
     if (rc == 0) rc = scene_from_json(s, root, e);
     cJSON_Delete(root);
     return rc;
 }
 
+int scene_load_text(scene *s, const char *text, json_err *e) {
+    cJSON *root = NULL;
+    memset(s, 0, sizeof *s);
+    int rc = json_parse_text(text, &root, e);
+    return load_parsed(s, rc, root, NULL, e);
+}
+
 int scene_load(scene *s, const char *filename, json_err *e) {
-    cJSON *root;
+    cJSON *root = NULL;
     memset(s, 0, sizeof *s);
     int rc = json_parse_file(filename, &root, e);
-    if (rc < 0) return rc;
-    rc = scene_import(&root, filename, e); /* Tungsten scenes, mesh paths (import.h) */
-    if (rc == 0) rc = scene_from_json(s, root, e);
-    cJSON_Delete(root);
-    return rc;
+    return load_parsed(s, rc, root, filename, e);
 }
