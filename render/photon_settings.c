@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "photon_trace.h"
 #include "photonmap/common.h"
 
 typedef enum {
@@ -83,6 +84,12 @@ static const setting_def k_settings[] = {
     {"max_emitted_factor", ST_NUMBER, F(max_emitted_factor), 64, 1, 1e9,
      "a photon pass gives up, with a message, after emitting this many times its target "
      "without storing it"},
+    {"max_emitted", ST_NUMBER, F(max_emitted), PASS_MAX_EMITTED, PT_BATCH, 1e15,
+     "a photon pass also stops after emitting this many photons (a pass budget, photon_trace.h)"},
+    {"max_memory_mb", ST_LONG, F(max_memory_mb), PASS_MAX_MEMORY_MB, 16, 1L << 30,
+     "MiB of photon buffers a pass may hold (a pass budget)"},
+    {"max_bounces", ST_INT, F(max_bounces), PASS_MAX_BOUNCES, 1, 1000000,
+     "bounces per photon (a pass budget, below render.max_depth)"},
     {"projection", ST_BOOL, F(projection), 1, NONE,
      "aim caustic photons at specular objects through a projection map"},
     {"projection_cells", ST_INT, F(projection_cells), 64, 1, 4096,

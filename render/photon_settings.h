@@ -41,6 +41,9 @@ typedef struct photon_settings {
     int emission_strata; /* m: m x m emission-only camera rays per sample (0: none) */
     double secondary_distance; /* 0: automatic */
     double max_emitted_factor;
+    double max_emitted; /* pass budgets: photons emitted, MiB of buffers, bounces per photon */
+    long max_memory_mb;
+    int max_bounces;
     int projection_cells;
     int projection;
     int progress; /* progress bars while tracing (render --quiet sets it false) */

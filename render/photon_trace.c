@@ -115,6 +115,19 @@ static double maxc_prod(double w, rgb t, rgb P) {
     return w * fmax(t.x * P.x, fmax(t.y * P.y, t.z * P.z));
 }
 
+/* The pilot's counters: per material, shared by the threads. */
+static void pilot_count(pilot_counts *pc, int mat) {
+    if (mat < 0 || mat >= PILOT_MAX_MATS) mat = PILOT_MAX_MATS - 1;
+#ifdef _OPENMP
+#pragma omp atomic
+#endif
+    pc->by_mat[mat]++;
+#ifdef _OPENMP
+#pragma omp atomic
+#endif
+    pc->total++;
+}
+
 /* Trace photon i; stores into gb (global or caustic) and sb (shadow), and sets *first_specular
  * to 1 if it is a caustic-pass photon whose first hit is specular. Returns 0 or ENOMEM. */
 static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *first_specular) {
@@ -124,12 +137,23 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
     vec3 p, n, d;
     rgb P;
     emit_photon(c, i, &g, &li, &p, &n, &d, &P);
+    trace_pilot *pl = c->o->pilot;
+    if (pl) {
+#ifdef _OPENMP
+#pragma omp atomic
+#endif
+        pl->emitted++;
+    }
     if (v3_iszero(P)) return 0;
     int from_area = s->lights[li].type == LIGHT_AREA;
+    int first_spec_mat = -1, diffuse_mat = -1; /* the pilot's evidence: which surfaces */
     ray r = {v3_offset(p, n, d), d};
     int all_specular = 1; /* no diffuse bounce yet */
     fphoton fp;
-    for (int depth = 0; depth <= c->o->max_depth; depth++) {
+    int max_depth = c->o->max_depth;
+    if (c->o->max_bounces > 0 && c->o->max_bounces < max_depth) max_depth = c->o->max_bounces;
+    int depth;
+    for (depth = 0; depth <= max_depth; depth++) {
         hit h;
         if (!scene_intersect(s, r, INFINITY, &h)) break;
         const material *m = scene_material(s, &h);
@@ -139,15 +163,19 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
         double w[LOBE_COUNT];
         material_weights(m, wo, h.ng, s->medium_ior, w);
         int diffuse_here = w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0;
-        if (c->caustic_pass && depth == 0 && !diffuse_here) *first_specular = 1;
+        if (c->caustic_pass && depth == 0 && !diffuse_here) *first_specular |= 1;
+        if (depth == 0) first_spec_mat = h.mat; /* an L S+ D path's first surface is specular */
+        if (pl && depth == 0) pilot_count(&pl->first_hits, h.mat);
         if (diffuse_here) {
             if (c->caustic_pass) {
                 if (depth > 0 && all_specular) {
+                    if (pl) pilot_count(&pl->caustic, first_spec_mat);
                     make_fp(&fp, i, h.p, P, d, ns, PM_KIND_CAUSTIC);
                     if (fbuf_push(gb, &fp) < 0) return PM_ENOMEM;
                 }
             } else {
                 int kind = depth == 0 ? PM_KIND_DIRECT : PM_KIND_INDIRECT;
+                if (pl && !all_specular) pilot_count(&pl->diffuse_bounce, diffuse_mat);
                 make_fp(&fp, i, h.p, P, d, ns, kind);
                 if (c->want_global && fbuf_push(gb, &fp) < 0) return PM_ENOMEM;
                 if (c->want_shadow && from_area && depth == 0 && fbuf_push(sb, &fp) < 0)
@@ -157,12 +185,14 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
         if (c->want_shadow && from_area && depth == 0) {
             /* Shadow photons: the light's ray continued straight on through every surface. */
             hit h2 = h;
+            int counted = 0; /* the pilot counts one occluded photon, not each shadow photon */
             for (int k = 0; k < 16; k++) {
                 ray r2 = {v3_offset(h2.p, h2.ng, d), d};
                 if (!scene_intersect(s, r2, INFINITY, &h2)) break;
                 const material *m2 = scene_material(s, &h2);
                 if (!material_is_diffuse(m2)) continue;
                 vec3 ns2 = v3_dot(wo, h2.ng) >= 0 ? h2.ng : v3_neg(h2.ng);
+                if (pl && !counted++) pilot_count(&pl->occluder, h.mat);
                 make_fp(&fp, i, h2.p, v3s(0), d, ns2, PM_KIND_SHADOW);
                 if (fbuf_push(sb, &fp) < 0) return PM_ENOMEM;
             }
@@ -183,6 +213,7 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
             rgb f = material_diffuse_f(m, nsh, wo, nd);
             P = v3_scale(v3_mul(P, f), M_PI * w[LOBE_DIFFUSE] / pd);
             all_specular = 0;
+            diffuse_mat = h.mat;
         } else if (u < pd + pr) {
             nd = material_reflect_shaded(d, ns, nsh);
             P = v3_scale(v3_mul(P, m->specular_tint), w[LOBE_REFLECT] / pr);
@@ -199,6 +230,8 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
         r.o = v3_offset(h.p, h.ng, d);
         r.d = d;
     }
+    /* Still alive after the last bounce allowed: the path-length budget cut it. */
+    if (depth > max_depth && max_depth < c->o->max_depth) *first_specular |= 2;
     return 0;
 }
 
@@ -222,7 +255,9 @@ static int trace_batch(const pass_ctx *c, uint64_t start, fbuf *tg, fbuf *ts, in
         /* Without a global map the shadow photons are the pass's main output. */
         if (trace_photon(c, start + (uint64_t)k, &tg[t], c->want_global ? &ts[t] : &tg[t], &fs) < 0)
             fail = 1;
-        nfirst += (uint64_t)fs;
+        /* fs bit 0: first hit specular (caustic pass); bit 1: cut by the path-length budget,
+         * counted in the high half so that one word carries both through the exchange. */
+        nfirst += (uint64_t)(fs & 1) + ((uint64_t)(fs >> 1) << 32);
     }
     *nfirst_out += nfirst;
     return fail;
@@ -353,7 +388,27 @@ static int pack(const fbuf *b, double scale, pm_photon **out, size_t *n) {
     return 0;
 }
 
-/* Run one pass until `target` photons are in main_buf (or the runaway limit). */
+/* Keep the photons of the first emitted photons whose stores reach `target` (each emitted
+ * photon whole: all its stores or none) and return how many were emitted: the maps are then
+ * exactly those of a pass that stopped at that photon, so the powers (divided by the number
+ * emitted) stay unbiased, and the stored count overshoots the target by less than one path. */
+static uint64_t cut_at_target(fbuf *main_buf, fbuf *shadow_buf, long target, uint64_t n_e) {
+    if (target <= 0 || main_buf->n <= (size_t)target) return n_e;
+    uint64_t last = main_buf->v[target - 1].index;
+    size_t k = (size_t)target;
+    while (k < main_buf->n && main_buf->v[k].index == last) k++;
+    main_buf->n = k;
+    if (shadow_buf) {
+        size_t j = 0;
+        while (j < shadow_buf->n && shadow_buf->v[j].index <= last) j++;
+        shadow_buf->n = j;
+    }
+    return last + 1;
+}
+
+/* Run one pass until `target` photons are in main_buf, or until a budget stops it (see
+ * PASS BUDGETS in photon_trace.h). Returns 0, PM_ENOMEM, or PM_EEMPTY (with the message in
+ * err) when the pass stores nothing. */
 static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, uint64_t *emitted,
                     uint64_t *first_specular, int *runaway, const char *title, char *err,
                     size_t errcap) {
@@ -370,9 +425,17 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
         snprintf(err, errcap, "out of memory");
         return PM_ENOMEM;
     }
+    /* The emission budget: max_emitted_factor x target, and at most max_emitted. */
     double limit = o->max_emitted_factor * (double)target;
+    const char *limit_name = "max_emitted_factor";
+    if (o->max_emitted > 0 && (double)o->max_emitted < limit) {
+        limit = (double)o->max_emitted;
+        limit_name = "max_emitted";
+    }
     uint64_t n_e = 0, nfirst = 0;
     int rc = 0;
+    const char *stop = NULL; /* the budget that stopped the pass */
+    char why[256] = "";
     progress prog;
     progress_begin(&prog, title, target, o->quiet);
     size_t reported = 0;
@@ -380,13 +443,45 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
     rb.target = target;
     rb.stored = main_buf;
     rb.limit = limit;
-    while ((long)main_buf->n < target && (double)n_e < limit && rc == 0) {
+    while ((long)main_buf->n < target && rc == 0) {
+        if ((double)n_e >= limit) {
+            stop = limit_name;
+            snprintf(why, sizeof why, "%.0f photons emitted", limit);
+            break;
+        }
+        /* Nothing stored after PASS_EMPTY_BATCHES batches: the lights reach no surface that
+         * stores photons (they face nothing, or only mirrors and glass that never lead to a
+         * diffuse surface). Any one photon that could store would have had a chance of at
+         * least 1 in PASS_EMPTY_BATCHES x PT_BATCH to be seen by now. */
+        if (main_buf->n == 0 && n_e >= (uint64_t)PASS_EMPTY_BATCHES * PT_BATCH) {
+            stop = "nothing stored";
+            break;
+        }
+        /* Stored so slowly that the emission budget cannot reach the target: stop now rather
+         * than after the whole budget (the map keeps what was stored). */
+        if (main_buf->n > 0 && n_e >= 4 * (uint64_t)PT_BATCH) {
+            double need = (double)target * (double)n_e / (double)main_buf->n;
+            if (need > 2 * limit) {
+                stop = limit_name;
+                snprintf(why, sizeof why,
+                         "the target needs about %.3g photons emitted at the rate seen (%zu stored "
+                         "of %llu emitted), over the budget of %.3g",
+                         need, main_buf->n, (unsigned long long)n_e, limit);
+                break;
+            }
+        }
+        size_t bytes = (main_buf->cap + (shadow_buf ? shadow_buf->cap : 0)) * sizeof(fphoton);
+        if (o->max_memory_bytes > 0 && bytes > o->max_memory_bytes) {
+            stop = "max_memory_mb";
+            snprintf(why, sizeof why, "%zu MiB of photon buffers", bytes >> 20);
+            break;
+        }
         int fail = g_dist ? dist_batch(c, &rb, n_e, tg, ts, nthreads, &nfirst)
                           : trace_batch(c, n_e, tg, ts, nthreads, &nfirst);
         n_e += PT_BATCH;
         if (fail || fbuf_merge(main_buf, tg, nthreads) < 0 ||
             (shadow_buf && fbuf_merge(shadow_buf, ts, nthreads) < 0)) {
-            snprintf(err, errcap, "out of memory while tracing photons");
+            snprintf(err, errcap, "out of memory while tracing photons (%s)", title);
             rc = PM_ENOMEM;
         }
         size_t now = main_buf->n < (size_t)target ? main_buf->n : (size_t)target;
@@ -396,12 +491,28 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
     progress_end(&prog);
     free(rb.all);
     free(rb.sizes);
-    *runaway = rc == 0 && (long)main_buf->n < target;
-    if (*runaway)
+    if (rc == 0) n_e = cut_at_target(main_buf, shadow_buf, target, n_e);
+    uint64_t cut = nfirst >> 32;
+    nfirst &= 0xffffffffULL;
+    if (rc == 0 && cut > 0 && !o->pilot)
         fprintf(stderr,
-                "photon tracing: %s: only %zu of %ld photons stored after %llu emitted; stopping "
-                "(do the lights face anything?)\n",
-                title, main_buf->n, target, (unsigned long long)n_e);
+                "photon tracing: %s: %llu photon paths were cut by the path-length budget "
+                "(photon_mapping.max_bounces = %d)\n",
+                title, (unsigned long long)cut, o->max_bounces);
+    *runaway = rc == 0 && (long)main_buf->n < target;
+    if (rc == 0 && stop && main_buf->n == 0) {
+        snprintf(err, errcap,
+                 "photon tracing: %s: no photon stored after %llu emitted: the lights reach no "
+                 "surface that stores photons (do they face anything? are they enclosed by "
+                 "mirrors or glass only?)%s%s",
+                 title, (unsigned long long)n_e, why[0] ? "; stopped by " : "",
+                 why[0] ? limit_name : "");
+        rc = PM_EEMPTY;
+    } else if (*runaway && !o->pilot)
+        fprintf(stderr,
+                "photon tracing: %s: only %zu of %ld photons stored after %llu emitted; stopped by "
+                "the photon_mapping.%s budget (%s)\n",
+                title, main_buf->n, target, (unsigned long long)n_e, stop ? stop : "?", why);
     *emitted = n_e;
     if (first_specular) *first_specular = nfirst;
     for (int t = 0; t < nthreads; t++) {
@@ -418,6 +529,9 @@ void trace_opts_init(trace_opts *o, const scene *s) {
     o->seed = s->settings.seed;
     o->max_depth = s->settings.max_depth;
     o->max_emitted_factor = 64;
+    o->max_emitted = PASS_MAX_EMITTED;
+    o->max_memory_bytes = (size_t)PASS_MAX_MEMORY_MB << 20;
+    o->max_bounces = PASS_MAX_BOUNCES;
     o->projection = 1;
     o->projection_cells = 64;
 }
@@ -468,7 +582,7 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
         rc = run_pass(&c, o->global_target, o->global ? &gbuf : &sbuf, o->global ? &sbuf : NULL,
                       &m->global_emitted, NULL, &m->global_runaway,
                       o->global ? "Tracing global photons" : "Tracing shadow photons", err, errcap);
-        stat_add(st_emit_g, m->global_emitted);
+        if (!o->pilot) stat_add(st_emit_g, m->global_emitted);
     }
 
     /* Caustic pass. */
@@ -507,9 +621,9 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
             if (m->caustic_fraction > 0)
                 m->caustic_saved =
                     (uint64_t)((double)m->caustic_emitted * (1.0 / m->caustic_fraction - 1.0) + 0.5);
-            stat_add(st_emit_c, m->caustic_emitted);
-            stat_add(st_saved, m->caustic_saved);
-            stat_add(st_first, m->caustic_first_specular);
+            if (!o->pilot) stat_add(st_emit_c, m->caustic_emitted);
+            if (!o->pilot) stat_add(st_saved, m->caustic_saved);
+            if (!o->pilot) stat_add(st_first, m->caustic_first_specular);
         }
         if (rc == PM_ENOMEM && !err[0]) snprintf(err, errcap, "out of memory");
         projmap_free_all(proj, nl);
@@ -523,9 +637,9 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
     if (rc == 0 && m->caustic_emitted)
         rc = pack(&cbuf, 1.0 / (double)m->caustic_emitted, &m->caustic, &m->ncaustic);
     if (rc < 0 && !err[0]) snprintf(err, errcap, "%s", pm_strerror(rc));
-    stat_add(st_glob, m->nglobal);
-    stat_add(st_caus, m->ncaustic);
-    stat_add(st_shadow, m->nshadow);
+    if (!o->pilot) stat_add(st_glob, m->nglobal);
+    if (!o->pilot) stat_add(st_caus, m->ncaustic);
+    if (!o->pilot) stat_add(st_shadow, m->nshadow);
     free(gbuf.v);
     free(sbuf.v);
     free(cbuf.v);

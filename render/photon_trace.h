@@ -37,9 +37,22 @@
  * So the maps are bit-identical for any thread count, and a small change to the scene changes
  * only the photons whose paths it touches.
  *
- * RUNAWAY SCENES. A pass stops when its target count is stored, or when
- * max_emitted_factor * target photons were emitted without reaching it (e.g. lights that face
- * nothing): then it prints a message to stderr and keeps what it stored (maybe nothing).
+ * PASS BUDGETS. A pass stops when its target count is stored: it keeps the stores of the
+ * first emitted photons that reach the target, each photon whole, and counts only those as
+ * emitted (so the stored count exceeds the target by less than one path, and the powers stay
+ * unbiased). Budgets stop it earlier, and the message on stderr names the one that did
+ * ("stopped by the photon_mapping.KEY budget"):
+ *   emitted    max_emitted_factor x target, and at most max_emitted photons; a pass whose
+ *              storage rate (after 4 batches) needs more than twice that stops at once;
+ *   memory     max_memory_mb of photon buffers (checked between batches);
+ *   path       max_bounces bounces per photon (below the scene's max_depth), so one photon
+ *              stores a bounded number of records (the furnace with reflectance 1 would
+ *              bounce to max_depth); the paths cut are counted and reported;
+ *   stored     the target itself, as above.
+ * A pass that stores nothing in PASS_EMPTY_BATCHES batches (lights that face nothing, a light
+ * inside a closed mirror) ends with PM_EEMPTY and a message that says so: there is no map to
+ * render from, and `render` exits non-zero instead of writing a black image. A pass that
+ * stored some photons but hit a budget keeps them (runaway flag set).
  *
  * OWNERSHIP. photon_trace fills a photon_maps (photon_maps.h) whose arrays it allocates;
  * photon_maps_free frees them.
@@ -66,16 +79,47 @@ extern "C" {
 #endif
 
 #define PT_BATCH 4096
+/* Budget defaults (PASS BUDGETS above), sized for a machine of 24 GiB and 2 cores: a pass may
+ * use 8 GiB of photon buffers (48 bytes per photon while tracing: 170 M photons, more than
+ * the largest target the settings allow), emit 2^32 photons (about an hour on 2 cores for
+ * photons that hit something), and follow a photon for 256 bounces (a photon that survives
+ * Russian roulette that long carries at most 0.9^256 = 2e-12 of its power in a scene of
+ * reflectance 0.9: only a lossless scene reaches it). */
+#define PASS_MAX_MEMORY_MB 8192
+#define PASS_MAX_EMITTED 4294967296.0
+#define PASS_MAX_BOUNCES 256
+/* A pass that stores nothing in this many batches stops with PM_EEMPTY. */
+#define PASS_EMPTY_BATCHES 16
+
+/* A pilot pass's evidence (plan.c): counts of pilot photons, in total and by the material
+ * named (its index; PILOT_MAX_MATS - 1 collects any beyond). */
+#define PILOT_MAX_MATS 64
+typedef struct pilot_counts {
+    unsigned long long total, by_mat[PILOT_MAX_MATS];
+} pilot_counts;
+typedef struct trace_pilot {
+    unsigned long long emitted; /* pilot photons emitted */
+    pilot_counts first_hits;     /* photons' first hits, by the surface hit */
+    pilot_counts caustic;        /* L S+ D stores (caustic pass), by the first specular surface */
+    pilot_counts diffuse_bounce; /* stores after a diffuse bounce, by that bounce's surface */
+    pilot_counts occluder;       /* photons from area lights that reach a diffuse surface behind
+                                    their first hit (a shadow photon), by the first hit */
+} trace_pilot;
 
 typedef struct trace_opts {
     int global, caustic, shadow;     /* which maps to build */
     long global_target, caustic_target; /* photons to store */
     double max_emitted_factor;       /* give up after this many times the target emitted */
+    double max_emitted;              /* and after this many emitted (0: no absolute cap) */
+    size_t max_memory_bytes;         /* photon buffers of a pass (0: no cap) */
+    int max_bounces;                 /* photon path length cap below max_depth (0: none) */
     int projection, projection_cells;
     int max_depth;
     uint64_t seed;
     int threads; /* 0: OpenMP's default */
     int quiet;   /* no progress or messages except errors and the runaway warning */
+    trace_pilot *pilot; /* non-NULL: a pilot pass; counts evidence here, prints nothing and
+                           adds nothing to the statistics */
 } trace_opts;
 
 /* Fill the options from the scene's settings: seed, max_depth; the rest zero. */
@@ -92,7 +136,8 @@ typedef struct trace_dist {
 /* Distribute every later pass as described above (NULL: back to one process). The caller
  * keeps d alive while passes run. */
 void photon_trace_set_dist(const trace_dist *d);
-/* Trace the maps. Returns 0, or a negative PM_E* code with a message (PM_ENOMEM). */
+/* Trace the maps. Returns 0, or a negative PM_E* code with a message (PM_ENOMEM; PM_EEMPTY
+ * for a pass that stores nothing, see PASS BUDGETS). */
 int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err, size_t errcap);
 
 #ifdef __cplusplus

@@ -46,6 +46,7 @@
 #include "photonmap/kdtree.h"
 #include "photonmap/photon.h"
 #include "photon_maps.h"
+#include "photon_sides.h"
 #include "photon_trace.h"
 #include "plan.h"
 #include "stats.h"
@@ -57,16 +58,14 @@ typedef struct mapper_state {
     int max_depth, rr_depth;
     photon_maps maps;
     pm_kdtree *tg, *tc, *ts; /* global, caustic, shadow trees (NULL when absent/empty) */
-    pm_irradiance *irr;
-    pm_photon *irr_ph; /* the precomputed photons alone, power = irradiance, in ti's order */
-    pm_kdtree *ti;
+    side_cache sides; /* precomputed irradiance that keeps to each query's side (photon_sides.h) */
     float r2_global, r2_caustic, r2_shadow, r2_lookup;
     double sec_dist;
     pm_estimate_options caus_opt, glob_opt;
     unsigned kmax;
     int st_emission_rays;
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
-        st_global_est;
+        st_global_est, st_lookup_miss, st_side_rays, st_side_again;
 } mapper_state;
 
 typedef struct mapper_scratch {
@@ -206,30 +205,20 @@ static int to_diffuse(const mapper_state *st, const scene *s, ray r, rng *g, hit
     return 0;
 }
 
-/* Accept a precomputed photon whose normal is within about 45 degrees of the user's. */
-static int normal_agrees(void *user, const void *record, uint32_t index) {
-    (void)index;
-    const float *n = user;
-    float pn[3];
-    pm_normal_decode(((const pm_photon *)record)->normal, pn);
-    return n[0] * pn[0] + n[1] * pn[1] + n[2] * pn[2] >= 0.7f;
-}
-
 /* Outgoing diffuse radiance at y toward wo from the precomputed irradiance of the nearest
- * precomputed photon with a similar normal (pm_irradiance_lookup's rule, on a tree of the
- * precomputed photons alone: the search then never wades through the other 3/4). */
-static rgb lookup_radiance(const mapper_state *st, const scene *s, const hit *h, vec3 wo) {
-    if (!st->ti) return v3s(0);
+ * precomputed photon with a similar normal that is within its own estimate radius of y and
+ * on y's side of every surface (side_cache_lookup: a photon behind a wall holds another
+ * room's light). *found = 0 when there is none. */
+static rgb lookup_radiance(const mapper_state *st, const scene *s, const hit *h, vec3 wo, int *found) {
+    *found = 0;
+    if (!st->sides.tree) return v3s(0);
     const material *m = scene_material(s, h);
     vec3 ns = v3_dot(wo, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
-    float xf[3], nf[3], e[3];
-    to_f3(h->p, xf);
-    to_f3(ns, nf);
+    float e[3];
     stat_inc(st->st_lookup);
-    pm_neighbor nb;
-    if (pm_kdtree_nearest_if(st->ti, xf, st->r2_lookup, normal_agrees, nf, &nb, NULL) <= 0)
-        return v3s(0);
-    pm_rgbe_decode(st->irr_ph[nb.index].power, e);
+    /* Searched within the global radius: each candidate's own estimate radius is the bound. */
+    if (!side_cache_lookup(&st->sides, s, h->p, ns, st->r2_global, e)) return v3s(0);
+    *found = 1;
     rgb a = diffuse_albedo(s, m, wo, h->ng);
     return v3(a.x * e[0] / M_PI, a.y * e[1] / M_PI, a.z * e[2] / M_PI);
 }
@@ -251,7 +240,7 @@ static rgb secondary_radiance(const mapper_state *st, const scene *s, const hit 
 
 static rgb gather(const mapper_state *st, const scene *s, const material *m, const hit *h, vec3 ns,
                   vec3 wo, int n, int secondary, rng *g, mapper_scratch *sc) {
-    if (n <= 0 || !st->ti) return v3s(0);
+    if (n <= 0 || !st->sides.tree) return v3s(0);
     rgb sum = v3s(0);
     for (int k = 0; k < n; k++) {
         /* Stratified over the hemisphere: n strata in the first coordinate. */
@@ -270,10 +259,19 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
         if (!steps) continue;
         /* y is seen from -din, the last segment's direction (not d after a mirror). */
         rgb Lo;
+        int found = 0;
         if (!secondary && steps == 1 && y.t < st->sec_dist)
             Lo = secondary_radiance(st, s, &y, v3_neg(din), g, sc);
-        else
-            Lo = lookup_radiance(st, s, &y, v3_neg(din));
+        else {
+            Lo = lookup_radiance(st, s, &y, v3_neg(din), &found);
+            /* No precomputed value on y's side within reach: y is in a photon-starved
+             * corner (behind a wall from every nearby photon). Compute its light instead;
+             * inside a secondary gather that would recurse, so it counts as dark there. */
+            if (!found && !secondary) {
+                stat_inc(st->st_lookup_miss);
+                Lo = secondary_radiance(st, s, &y, v3_neg(din), g, sc);
+            }
+        }
         /* cosine sampling: f cos / pdf = pi f */
         sum = v3_add(sum, v3_mul(v3_mul(f, beta), Lo));
     }
@@ -447,9 +445,7 @@ static void mapper_thread_end(const integrator *self, void *scratch) {
 static void mapper_destroy(integrator *self) {
     mapper_state *st = self->data;
     if (!st) return;
-    pm_irradiance_free(st->irr);
-    pm_kdtree_free(st->ti);
-    free(st->irr_ph);
+    side_cache_free(&st->sides);
     pm_kdtree_free(st->tg);
     pm_kdtree_free(st->tc);
     pm_kdtree_free(st->ts);
@@ -485,6 +481,9 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         o.global_target = st->cfg.global_photons;
         o.caustic_target = st->cfg.caustic_photons;
         o.max_emitted_factor = st->cfg.max_emitted_factor;
+        o.max_emitted = st->cfg.max_emitted;
+        o.max_memory_bytes = (size_t)st->cfg.max_memory_mb << 20;
+        o.max_bounces = st->cfg.max_bounces;
         o.projection = st->cfg.projection;
         o.projection_cells = st->cfg.projection_cells;
         o.quiet = !st->cfg.progress;
@@ -531,34 +530,15 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
 
     if (st->tg && !st->direct_vis) {
         t0 = stats_now();
-        pm_irradiance_options io;
-        pm_irradiance_options_init(&io, (unsigned)st->cfg.k_global);
-        io.max_dist2 = st->r2_global;
-        io.fraction = PM_PRECOMP_QUARTER;
-        rc = pm_irradiance_build(&st->irr, st->tg, &io);
-        if (rc < 0) {
-            snprintf(err, errcap, "precomputing irradiance: %s", pm_strerror(rc));
-            return rc;
-        }
-        size_t ni = pm_irradiance_count(st->irr), j = 0;
-        st->irr_ph = malloc((ni ? ni : 1) * sizeof *st->irr_ph);
-        if (!st->irr_ph) {
-            snprintf(err, errcap, "out of memory");
-            return PM_ENOMEM;
-        }
-        const pm_photon *gp = pm_kdtree_records(st->tg);
-        for (size_t i = 0; i < m->nglobal && j < ni; i++) {
-            float e[3];
-            if (pm_irradiance_value(st->irr, (uint32_t)i, e)) {
-                st->irr_ph[j] = gp[i];
-                pm_rgbe_encode(e, st->irr_ph[j].power);
-                j++;
-            }
-        }
-        if ((rc = photon_tree_build(&st->ti, st->irr_ph, j, 8, err, errcap)) < 0) return rc;
+        rc = side_cache_build(&st->sides, s, st->tg, pm_kdtree_records(st->tg), m->nglobal,
+                              (unsigned)st->cfg.k_global, st->r2_global, err, errcap);
+        if (rc < 0) return rc;
+        stat_add(st->st_side_rays, st->sides.rays_first + st->sides.rays_second);
+        stat_add(st->st_side_again, st->sides.researched);
         stats_time_add("Time/Precomputed irradiance", stats_now() - t0);
-        printf("Precomputed irradiance at %zu of %zu global photons\n", pm_irradiance_count(st->irr),
-               m->nglobal);
+        printf("Precomputed irradiance at %zu of %zu global photons (%zu estimates searched again "
+               "for a hidden neighbour)\n",
+               st->sides.n, m->nglobal, st->sides.researched);
     }
     fflush(stdout);
     return 0;
@@ -593,6 +573,9 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
     st->st_gather = stats_register("Photon mapping/Final gather rays");
     st->st_secondary = stats_register("Photon mapping/Secondary gather rays");
     st->st_lookup = stats_register("Photon mapping/Irradiance lookups");
+    st->st_lookup_miss = stats_register("Photon mapping/Irradiance lookups finding nothing on their side");
+    st->st_side_rays = stats_register("Photon mapping/Precomputed irradiance: visibility rays");
+    st->st_side_again = stats_register("Photon mapping/Precomputed irradiance: searches again (hidden neighbour)");
     st->st_global_est = stats_register("Photon mapping/Global-map estimates (direct view)");
     st->st_emission_rays = stats_register("Photon mapping/Emission-only camera rays");
     it->data = st;

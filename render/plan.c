@@ -1,10 +1,18 @@
 /* plan.c: the per-scene plan of photon-mapping effects; see plan.h.
  *
- * The plan is decided by probes, not by material names alone: a glass sphere hidden in a box
- * without light makes no caustics, and a single diffuse sphere under a sun has nothing to
- * interreflect with. Each probe is a fixed number of rays drawn from fixed streams (seed
- * PLAN_SEED), so the decision is deterministic. The probes are cheap (a few thousand rays)
- * next to tracing photons.
+ * The plan is decided from the lights' point of view, not by material names alone: a glass
+ * sphere hidden in a box without light makes no caustics, a light inside a closed mirror
+ * stores nothing, and a single diffuse sphere under a sun has nothing to interreflect with.
+ * A pilot pass traces a few thousand photons with photon_trace itself (so the pilot and the
+ * real passes can never disagree about what a photon does) and counts what they do: L S+ D
+ * stores (caustic pilot, aimed at the specular objects through the projection maps, so an
+ * opening is found whenever a fair share of the aimed photons passes it: an opening that
+ * passes fewer than about 1 in 8192 of them can still be missed), stores after a diffuse
+ * bounce (global), and photons that pass their first hit and reach a diffuse surface behind
+ * it (shadow photons). Each reason prints those counts and the materials involved. The
+ * pilot uses fixed streams (seed PLAN_SEED), so the plan is deterministic, and costs about
+ * 16384 photon paths. Its photons are not reused by the real passes (those use their own
+ * streams and targets).
  */
 #include "plan.h"
 
@@ -12,29 +20,18 @@
 #include <string.h>
 
 #include "photonmap/common.h"
+#include "photon_trace.h"
 #include "rng.h"
 #include "sampling.h"
 
 #define PLAN_SEED 0x706c616eULL /* "plan" */
+#define PILOT_BATCHES 2          /* photons per pilot: 2 x PT_BATCH = 8192 */
 
 /* ---- probes ------------------------------------------------------------------------------ */
 
 static int prim_count(const scene *s) { return s->ntris + s->nspheres; }
 static const material *prim_mat(const scene *s, int prim) {
     return &s->mats[prim < s->ntris ? s->tris[prim].mat : s->spheres[prim - s->ntris].mat];
-}
-
-/* A uniform point on primitive prim and its outward (front) normal. */
-static void prim_point(const scene *s, int prim, rng *g, vec3 *p, vec3 *n) {
-    double u1 = rng_uniform(g), u2 = rng_uniform(g);
-    if (prim < s->ntris) {
-        *p = triangle_sample(&s->tris[prim], u1, u2);
-        *n = s->tris[prim].n;
-    } else {
-        const sphere *sp = &s->spheres[prim - s->ntris];
-        *n = sample_uniform_sphere(u1, u2);
-        *p = v3_madd(sp->c, *n, sp->r);
-    }
 }
 
 /* Lights that emit photons: every light in the list with some power. */
@@ -50,27 +47,69 @@ static int any_diffuse(const scene *s) {
     return 0;
 }
 
-/* Is point p (normal n, either side) lit straight by light li for some sample? */
-static int lit_by(const scene *s, int li, vec3 p, vec3 n, rng *g) {
-    const light *l = &s->lights[li];
-    if (l->type == LIGHT_DIRECTIONAL) {
-        vec3 w = v3_neg(l->dir);
-        vec3 nn = v3_dot(w, n) >= 0 ? n : v3_neg(n);
-        return scene_visible_dir(s, p, nn, w);
-    }
-    light_sample ls;
-    if (!light_sample_li(s, li, p, rng_uniform(g), rng_uniform(g), &ls)) return 0;
-    if (v3_iszero(ls.L)) return 0;
-    vec3 nn = v3_dot(ls.wi, n) >= 0 ? n : v3_neg(n);
-    return scene_visible(s, p, nn, ls.p, ls.n);
-}
-
 static void set(plan_item *it, int on, const char *fmt, const char *arg) {
     it->on = on;
     snprintf(it->reason, sizeof it->reason, fmt, arg);
 }
 
-static void plan_caustics(const scene *s, render_plan *p) {
+/* ---- the pilot pass ------------------------------------------------------------------------ */
+
+/* "\"white\" 120, \"red\" 31" : the (up to) three materials with the largest counts. */
+static void top_mats(const scene *s, const pilot_counts *pc, char *buf, size_t cap) {
+    int used[PILOT_MAX_MATS] = {0};
+    size_t len = 0;
+    buf[0] = 0;
+    for (int r = 0; r < 3; r++) {
+        int best = -1;
+        for (int i = 0; i < PILOT_MAX_MATS; i++)
+            if (!used[i] && pc->by_mat[i] > 0 && (best < 0 || pc->by_mat[i] > pc->by_mat[best])) best = i;
+        if (best < 0) break;
+        used[best] = 1;
+        const char *name = best < s->nmats && best < PILOT_MAX_MATS - 1 ? s->mats[best].name : "(others)";
+        int w = snprintf(buf + len, cap - len, "%s\"%s\" %llu", r ? ", " : "", name,
+                         pc->by_mat[best]);
+        if (w < 0 || (size_t)w >= cap - len) break;
+        len += (size_t)w;
+    }
+}
+
+typedef struct pilot_result {
+    trace_pilot g, c;                     /* evidence of the global and the caustic pilot */
+    uint64_t g_emitted, c_emitted;        /* pilot photons emitted by each */
+    size_t g_stored;                      /* photons the global pilot stored */
+} pilot_result;
+
+/* The pilot: PILOT_BATCHES batches of photons traced exactly as the real passes trace them
+ * (same emission, scattering and storage rules; the caustic pilot aimed at the specular
+ * objects by the projection maps, so a specular object lit only through a small opening still
+ * receives its share of the aimed photons), counting what they do instead of keeping them. */
+static void run_pilot(const scene *s, pilot_result *r) {
+    memset(r, 0, sizeof *r);
+    trace_opts o;
+    trace_opts_init(&o, s);
+    o.seed = PLAN_SEED;
+    o.quiet = 1;
+    o.max_emitted = (double)PILOT_BATCHES * PT_BATCH;
+    o.max_emitted_factor = 1e300;
+    photon_maps m;
+    char err[256];
+    o.pilot = &r->g;
+    o.global = o.shadow = 1;
+    o.global_target = 1L << 40; /* never reached: the emission budget ends the pilot */
+    photon_trace(s, &o, &m, err, sizeof err); /* PM_EEMPTY (nothing stored) is evidence too */
+    r->g_emitted = r->g.emitted;
+    r->g_stored = m.nglobal;
+    photon_maps_free(&m);
+    o.pilot = &r->c;
+    o.global = o.shadow = 0;
+    o.caustic = 1;
+    o.caustic_target = 1L << 40;
+    photon_trace(s, &o, &m, err, sizeof err);
+    r->c_emitted = r->c.emitted;
+    photon_maps_free(&m);
+}
+
+static void plan_caustics(const scene *s, const pilot_result *r, render_plan *p) {
     int nspec = 0;
     for (int i = 0; i < prim_count(s); i++)
         nspec += material_is_specular(prim_mat(s, i));
@@ -86,92 +125,61 @@ static void plan_caustics(const scene *s, render_plan *p) {
         set(&p->caustics, 0, "no diffuse surface to receive them%s", "");
         return;
     }
-    rng g = rng_stream(PLAN_SEED, 1, 0);
-    for (int i = 0; i < prim_count(s); i++) {
-        if (!material_is_specular(prim_mat(s, i))) continue;
-        for (int k = 0; k < 64; k++) {
-            vec3 q, n;
-            prim_point(s, i, &g, &q, &n);
-            for (int li = 0; li < s->nlights; li++)
-                if (lit_by(s, li, q, n, &g)) {
-                    char what[96];
-                    snprintf(what, sizeof what, "%s", prim_mat(s, i)->name);
-                    set(&p->caustics, 1,
-                        "specular surface \"%s\" is lit straight from a light: L S+ D paths",
-                        what);
-                    return;
-                }
-        }
+    char mats[128], buf[300];
+    if (r->c.caustic.total > 0) {
+        top_mats(s, &r->c.caustic, mats, sizeof mats);
+        snprintf(buf, sizeof buf,
+                 "L S+ D paths: %llu photons stored through specular surfaces (first %s), from "
+                 "%llu pilot photons aimed at them",
+                 r->c.caustic.total, mats, (unsigned long long)r->c_emitted);
+        set(&p->caustics, 1, "%s", buf);
+        return;
     }
-    set(&p->caustics, 0, "no specular surface reachable from a light%s", "");
+    if (r->c_emitted == 0) {
+        set(&p->caustics, 0,
+            "no specular surface reachable from a light (no light faces one: the "
+            "projection maps are empty)%s",
+            "");
+        return;
+    }
+    top_mats(s, &r->c.first_hits, mats, sizeof mats);
+    snprintf(buf, sizeof buf,
+             "no specular surface reachable from a light leads to a diffuse one: 0 of %llu pilot "
+             "photons aimed at the specular surfaces were stored (first hits: %s)",
+             (unsigned long long)r->c_emitted, mats[0] ? mats : "none");
+    set(&p->caustics, 0, "%s", buf);
 }
 
-/* Follow a probe ray through specular surfaces (one branch chosen by weight, as a photon
- * would) to the first surface with a diffuse branch. Returns 1 with the hit in *h and the
- * ray's last direction in r->d; 0 if it escapes, is absorbed or runs out of steps. */
-static int probe_to_diffuse(const scene *s, ray *r, rng *g, hit *h) {
-    for (int step = 0; step < 16; step++) {
-        if (!scene_intersect(s, *r, INFINITY, h)) return 0;
-        const material *m = scene_material(s, h);
-        vec3 wo = v3_neg(r->d);
-        double w[LOBE_COUNT];
-        material_weights(m, wo, h->ng, s->medium_ior, w);
-        if (w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0) return 1;
-        double wr = v3_iszero(m->specular_tint) ? 0 : w[LOBE_REFLECT];
-        double wt = v3_iszero(m->transmit_tint) ? 0 : w[LOBE_TRANSMIT];
-        if (!(wr + wt > 0)) return 0;
-        vec3 ns = v3_dot(wo, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
-        vec3 d;
-        if (rng_uniform(g) * (wr + wt) < wr) {
-            d = v3_reflect(r->d, ns);
-        } else {
-            double n1, n2;
-            material_indices(m, wo, h->ng, s->medium_ior, &n1, &n2);
-            if (!refract_dir(r->d, ns, n1 / n2, &d)) d = v3_reflect(r->d, ns);
-        }
-        r->o = v3_offset(h->p, h->ng, d);
-        r->d = d;
-    }
-    return 0;
-}
-
-/* The probe follows light as photons do: a ray leaves a light (light_sample_le), passes
- * specular surfaces to a diffuse surface y, and leaves y on the side it arrived at with a
- * cosine-distributed direction; if that ray reaches another diffuse surface (again through
- * any specular ones), diffuse light reflects onto diffuse surfaces. Starting from the lights
- * matters: probing both sides of every diffuse primitive would count the unlit inside of a
- * closed sphere or mesh, which always "sees" itself. */
-static void plan_global(const scene *s, render_plan *p) {
+static void plan_global(const scene *s, const pilot_result *r, render_plan *p) {
     if (!emitting_lights(s)) {
         set(&p->global, 0, "no light emits photons%s", "");
         return;
     }
-    rng g = rng_stream(PLAN_SEED, 2, 0);
-    for (int k = 0; k < 4096; k++) {
-        double pl, u[4];
-        int li = distrib1d_sample(&s->light_distrib, rng_uniform(&g), &pl);
-        if (!(pl > 0)) continue;
-        for (int j = 0; j < 4; j++) u[j] = rng_uniform(&g);
-        vec3 o, n, d;
-        light_sample_le(s, li, u, &o, &n, &d);
-        ray r = {v3_offset(o, n, d), d};
-        hit y, x;
-        if (!probe_to_diffuse(s, &r, &g, &y)) continue;
-        vec3 ny = v3_dot(r.d, y.ng) <= 0 ? y.ng : v3_neg(y.ng); /* the side it arrived at */
-        vec3 d2 = sampling_to_world(sample_cosine_hemisphere(rng_uniform(&g), rng_uniform(&g)), ny);
-        ray r2 = {v3_offset(y.p, y.ng, d2), d2};
-        if (probe_to_diffuse(s, &r2, &g, &x)) {
-            set(&p->global, 1,
-                "diffuse surfaces reflect onto each other (\"%s\" sees another): "
-                "indirect diffuse light",
-                scene_material(s, &y)->name);
-            return;
-        }
+    char mats[128], buf[300];
+    if (r->g.diffuse_bounce.total > 0) {
+        top_mats(s, &r->g.diffuse_bounce, mats, sizeof mats);
+        snprintf(buf, sizeof buf,
+                 "diffuse surfaces reflect onto each other: %llu photons stored after a diffuse "
+                 "bounce off %s, from %llu pilot photons: indirect diffuse light",
+                 r->g.diffuse_bounce.total, mats, (unsigned long long)r->g_emitted);
+        set(&p->global, 1, "%s", buf);
+        return;
     }
-    set(&p->global, 0, "no diffuse surface reflects onto another%s", "");
+    top_mats(s, &r->g.first_hits, mats, sizeof mats);
+    if (r->g_stored == 0)
+        snprintf(buf, sizeof buf,
+                 "no diffuse surface reflects onto another: no surface the lights reach stores "
+                 "photons, 0 of %llu pilot photons stored (first hits: %s)",
+                 (unsigned long long)r->g_emitted, mats[0] ? mats : "none");
+    else
+        snprintf(buf, sizeof buf,
+                 "no diffuse surface reflects onto another: %zu pilot photons stored, none after "
+                 "a diffuse bounce (%llu emitted)",
+                 r->g_stored, (unsigned long long)r->g_emitted);
+    set(&p->global, 0, "%s", buf);
 }
 
-static void plan_shadow(const scene *s, render_plan *p) {
+static void plan_shadow(const scene *s, const pilot_result *r, render_plan *p) {
     int area = 0;
     for (int i = 0; i < s->nlights; i++) area += s->lights[i].type == LIGHT_AREA && v3_maxc(s->lights[i].power) > 0;
     if (!area) {
@@ -187,32 +195,28 @@ static void plan_shadow(const scene *s, render_plan *p) {
         set(&p->shadow, 0, "no diffuse surface%s", "");
         return;
     }
-    rng g = rng_stream(PLAN_SEED, 3, 0);
-    int tried = 0, blocked = 0;
-    for (int k = 0; k < 8192; k++) {
-        int li = (int)(rng_uniform(&g) * s->nlights);
-        int pi = (int)(rng_uniform(&g) * prim_count(s));
-        if (li >= s->nlights || pi >= prim_count(s)) continue;
-        if (s->lights[li].type != LIGHT_AREA || !material_is_diffuse(prim_mat(s, pi))) continue;
-        if (pi < s->ntris && s->tris[pi].light == li) continue;
-        vec3 q, n;
-        prim_point(s, pi, &g, &q, &n);
-        light_sample ls;
-        if (!light_sample_li(s, li, q, rng_uniform(&g), rng_uniform(&g), &ls) || v3_iszero(ls.L))
-            continue;
-        /* Only pairs that face each other: a wall behind the light is not "occluded". */
-        vec3 nn = v3_dot(ls.wi, n) >= 0 ? n : v3_neg(n);
-        if (pi >= s->ntris && v3_dot(ls.wi, n) < 0) continue; /* far side of a sphere: self */
-        tried++;
-        if (!scene_visible(s, q, nn, ls.p, ls.n)) blocked++;
-    }
-    if (blocked) {
-        char buf[64];
-        snprintf(buf, sizeof buf, "%d of %d", blocked, tried);
-        set(&p->shadow, 1, "area light with occluders (%s probe segments blocked)", buf);
+    char mats[128], buf[300];
+    if (r->g.occluder.total > 0) {
+        top_mats(s, &r->g.occluder, mats, sizeof mats);
+        snprintf(buf, sizeof buf,
+                 "area light with occluders: %llu of %llu pilot photons reach a diffuse surface "
+                 "behind their first hit; occluders %s",
+                 r->g.occluder.total, (unsigned long long)r->g_emitted, mats);
+        set(&p->shadow, 1, "%s", buf);
         return;
     }
-    set(&p->shadow, 0, "nothing occludes the area lights%s", "");
+    top_mats(s, &r->g.first_hits, mats, sizeof mats);
+    if (r->g_stored == 0)
+        snprintf(buf, sizeof buf,
+                 "no surface the lights reach stores photons: 0 of %llu pilot photons stored "
+                 "(first hits: %s)",
+                 (unsigned long long)r->g_emitted, mats[0] ? mats : "none");
+    else
+        snprintf(buf, sizeof buf,
+                 "nothing occludes the area lights: none of %llu pilot photons reaches a "
+                 "diffuse surface behind its first hit (first hits: %s)",
+                 (unsigned long long)r->g_emitted, mats);
+    set(&p->shadow, 0, "%s", buf);
 }
 
 /* Apply a forced setting from the scene file (or --pm key=true|false). */
@@ -224,9 +228,11 @@ static void force(plan_item *it, int f, const char *key) {
 
 void plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p) {
     memset(p, 0, sizeof *p);
-    plan_caustics(s, p);
-    plan_global(s, p);
-    plan_shadow(s, p);
+    pilot_result r;
+    run_pilot(s, &r);
+    plan_caustics(s, &r, p);
+    plan_global(s, &r, p);
+    plan_shadow(s, &r, p);
     force(&p->caustics, c->force_caustics, "caustics");
     force(&p->global, c->force_global, "global");
     force(&p->shadow, c->force_shadow, "shadow");

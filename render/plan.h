@@ -36,7 +36,7 @@ extern "C" {
 
 typedef struct plan_item {
     int on;
-    char reason[160];
+    char reason[320];
 } plan_item;
 
 typedef struct render_plan {

@@ -1,0 +1,89 @@
+/* photon_sides.h: photon lookups that keep to the query's side of its surface.
+ *
+ * A density estimate at x reads the photons nearest x. Near a wall the nearest photons can lie
+ * on the other side of it: the lower half of a box cut in two by an opaque partition shares its
+ * side walls' planes with the lit upper half, a closed room standing on a lit floor shares the
+ * floor's plane with the outside. Normals cannot tell such photons apart (they are on the same
+ * plane, facing the same way), and a distance bound cannot either (the wall may be as thin as
+ * a single quad). Only visibility can: a photon belongs to x's estimate only if light could
+ * travel from where the photon landed to x without crossing a surface. This file applies that
+ * rule where it changes the image:
+ *
+ *   side_visible     the visibility test. The segment joins the two points LIFTED off their
+ *                    surfaces along their normals by a quarter of their distance (plus the
+ *                    usual offset). Why lifted: two points on one smooth convex surface (a
+ *                    sphere of radius R) see each other only through the surface itself, the
+ *                    chord of length L passes L^2/(8R) below it; lifting both ends by L/4
+ *                    clears any surface with R > L/2, so photons on one curved surface are
+ *                    never cut off from each other. A wall between the points is still hit
+ *                    unless it is lower than the lift (under L/4 high) or has a gap. The lift
+ *                    stops halfway to the first surface above the point (its "free height",
+ *                    one ray per photon, computed once), so a lifted end never pokes through a
+ *                    shelf or a ceiling into another room.
+ *   side_cache_build precomputed irradiance (Christensen) at a quarter of the global photons,
+ *                    like pm_irradiance_build (same choice of photons, the same bias-corrected
+ *                    disc estimate of k photons, photons from behind the photon's surface
+ *                    skipped), but each estimate sums only the neighbours side_visible from the
+ *                    photon. Why this holds: a neighbour hidden from photon i lies on another
+ *                    surface as far as light is concerned, and its power never reached i's.
+ *                    The search first takes the k nearest front-side photons and tests each
+ *                    (k short shadow rays); only if one is hidden does it search again with the
+ *                    test inside the search, so that the estimate still has k photons on its
+ *                    own side (the radius then grows into the dark side, which holds none of
+ *                    them: the same boundary bias as at any edge of a surface, low, never a
+ *                    leak). Each precomputed photon keeps the radius^2 of its own estimate.
+ *   side_cache_lookup what a final-gather ray reads at its hit y: the nearest precomputed
+ *                    photon whose normal is within about 45 degrees of y's, that is within its
+ *                    own estimate radius of y (its value describes the disc it was computed
+ *                    over, no farther) and that side_visible sees y. Why: the value of a
+ *                    photon behind a wall is the irradiance of another room. With none, the
+ *                    lookup reports "none" (the caller computes y's light otherwise).
+ *
+ * Threads: side_cache_build runs on OpenMP threads; a built cache is read-only and lookups
+ * may run on any thread. The caller frees the cache with side_cache_free.
+ */
+#ifndef RENDER_PHOTON_SIDES_H
+#define RENDER_PHOTON_SIDES_H
+
+#include <stddef.h>
+
+#include "photonmap/kdtree.h"
+#include "photonmap/photon.h"
+#include "scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* 1 if the surface point q (normal nq) is on p's side of every surface between them; see above. */
+int side_visible(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq);
+/* The distance from p along np to the first surface, at most cap (one ray). */
+double side_free_height(const scene *s, vec3 p, vec3 np, double cap);
+/* side_visible with the free heights hp, hq of both ends known: one ray. */
+int side_visible_h(const scene *s, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq);
+
+typedef struct side_cache {
+    pm_photon *recs; /* the precomputed photons, power = irradiance E (RGBE), in tree order */
+    float *r2;       /* radius^2 of each one's own estimate, same order */
+    float *hfree;    /* each one's free height (side_free_height), same order */
+    size_t n;
+    pm_kdtree *tree; /* over recs (NULL when n == 0) */
+    unsigned long long rays_first, rays_second; /* shadow rays of the build (first, second search) */
+    size_t researched;                          /* estimates searched again (a neighbour was hidden) */
+} side_cache;
+
+/* Build over the global map's kd-tree (records in tree order, n of them): k photons per
+ * estimate within radius^2 max_dist2. 0, or a negative PM_E* code with a message. */
+int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
+                     size_t n, unsigned k, float max_dist2, char *err, size_t errcap);
+void side_cache_free(side_cache *c);
+
+/* Irradiance at the surface point y (unit normal n, the side the gather ray came from), read
+ * from the cache within radius^2 max_dist2. Returns 1 and sets e, or 0 (none found: e = 0). */
+int side_cache_lookup(const side_cache *c, const scene *s, vec3 y, vec3 n, float max_dist2,
+                      float e[3]);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_PHOTON_SIDES_H */
