@@ -111,7 +111,7 @@ int ckpt_write(const char *path, const ckpt_info *ci, const render_state *st, ch
         for (; m < 256 && i < n; m++, i++) {
             for (int c = 0; c < 3; c++) {
                 uint64_t u;
-                memcpy(&u, &st->sum[3 * i + c], 8);
+                memcpy(&u, &st->sum[3 * i + (size_t)c], 8);
                 le64(px + PIXEL_BYTES * m + 8 * c, u);
             }
             le32(px + PIXEL_BYTES * m + 24, st->count[i]);
@@ -217,7 +217,7 @@ int ckpt_read(const char *path, ckpt_info *ci, render_state *st, char *err, size
         for (size_t j = 0; j < m; j++, i++) {
             for (int c = 0; c < 3; c++) {
                 uint64_t u = get64(px + PIXEL_BYTES * j + 8 * c);
-                memcpy(&st->sum[3 * i + c], &u, 8);
+                memcpy(&st->sum[3 * i + (size_t)c], &u, 8);
             }
             st->count[i] = get32(px + PIXEL_BYTES * j + 24);
         }

@@ -53,7 +53,7 @@ static int write_one(const char *path, int (*fn)(const void *, FILE *), const vo
 int film_write_pfm_fp(const film *f, FILE *fp) {
     int ok = fprintf(fp, "PF\n%d %d\n-1.0\n", f->width, f->height) > 0;
     for (int y = f->height - 1; y >= 0 && ok; y--) {
-        const float *row = f->px + (size_t)y * f->width * 3;
+        const float *row = f->px + (size_t)y * (size_t)f->width * 3;
         /* The format is little-endian with scale -1; x86 is little-endian already, but write
          * byte by byte so the file is right on any host. */
         for (int i = 0; i < f->width * 3 && ok; i++) {
@@ -125,7 +125,7 @@ int film_read_pfm(film *f, const char *path) {
                                       (uint32_t)b[3] << 24
                                 : (uint32_t)b[3] | (uint32_t)b[2] << 8 | (uint32_t)b[1] << 16 |
                                       (uint32_t)b[0] << 24;
-            memcpy(&f->px[(size_t)y * w * 3 + i], &u, 4);
+            memcpy(&f->px[(size_t)y * (size_t)w * 3 + (size_t)i], &u, 4);
         }
     }
     free(buf);

@@ -53,7 +53,7 @@ uint64_t render_state_done(const render_state *st) {
 void render_state_to_film(const render_state *st, film *f) {
     for (int y = 0; y < st->height; y++)
         for (int x = 0; x < st->width; x++) {
-            size_t i = (size_t)y * st->width + x;
+            size_t i = (size_t)y * (size_t)st->width + (size_t)x;
             const double *s = st->sum + 3 * i;
             rgb c = st->count[i] ? v3_scale(v3(s[0], s[1], s[2]), 1.0 / st->count[i]) : v3s(0);
             film_set(f, x, y, c);
@@ -78,7 +78,7 @@ static int tile_done(const loop *L, int tile) {
     int x0 = (tile % L->tiles_x) * RENDER_TILE, y0 = (tile / L->tiles_x) * RENDER_TILE;
     for (int y = y0; y < y0 + RENDER_TILE && y < st->height; y++)
         for (int x = x0; x < x0 + RENDER_TILE && x < st->width; x++)
-            if (st->count[(size_t)y * st->width + x] < (uint32_t)st->spp) return 0;
+            if (st->count[(size_t)y * (size_t)st->width + (size_t)x] < (uint32_t)st->spp) return 0;
     return 1;
 }
 
@@ -101,7 +101,7 @@ static void render_tile(loop *L, int tile, void *scratch) {
     uint32_t kmin = UINT32_MAX;
     for (int y = y0; y < y1; y++)
         for (int x = x0; x < x1; x++) {
-            uint32_t k = st->count[(size_t)y * c->width + x];
+            uint32_t k = st->count[(size_t)y * (size_t)c->width + (size_t)x];
             if (k < kmin) kmin = k;
         }
     for (int k = (int)kmin; k < c->spp; k++) {
