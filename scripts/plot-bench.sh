@@ -11,7 +11,7 @@
 #   recall_<dist>.png  FLANN forest recall against queries/s, beside the exact searches
 #   n_photon.png       queries/s against N; build_photon.png: build time against N
 #   estimate_<region>.png  RMS relative error of each estimator against ns per estimate
-#   knn_ratio_<mode>_<n>.png  the workload race: kd-tree / FLANN best exact against k, per
+#   knn_ratio_<mode>_<N>M.png  the workload race: kd-tree / FLANN best exact against k, per
 #                      workload and query set (bench_knn's knn_best.csv)
 set -eu
 case "${1:-}" in
@@ -102,10 +102,10 @@ fi
 # knn_best.csv columns: 1 workload 2 n 3 queries 4 k 5 mode ... 15 ratio_flann
 KB="$R/knn_best.csv"
 if [ -f "$KB" ]; then
-  for n in $(awk -F, 'NR > 1 {print $2}' "$KB" | sort -un); do
+  for n in $(awk -F, 'NR > 1 {printf "%.0f\n", $2 / 1e6}' "$KB" | sort -un); do
     for mode in unlimited radius; do
-      series "$KB" "\$2==$n && \$5==\"$mode\"" '$4' '$15' '$1 " " $3'
-      plot "$IMG/knn_ratio_${mode}_$n.png" "workload race, N=$n, $mode radius: kd-tree / FLANN best exact (1 = par), 1 thread" \
+      series "$KB" "int(\$2 / 1e6 + 0.5)==$n && \$5==\"$mode\"" '$4' '$15' '$1 " " $3'
+      plot "$IMG/knn_ratio_${mode}_${n}M.png" "workload race, N=${n}M, $mode radius: kd-tree / FLANN best exact (1 = par), 1 thread" \
         'k' 'queries/s ratio' 1 0 'set yrange [0:*]; set arrow from graph 0,first 1 to graph 1,first 1 nohead dt 2; set arrow from graph 0,first 2 to graph 1,first 2 nohead dt 3'
     done
   done
