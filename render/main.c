@@ -16,7 +16,8 @@
 #include <string.h>
 
 #include "checkpoint.h"
-#include "common.h"
+#include "errors.h"
+#include "photonmap/common.h"
 #include "film.h"
 #include "import.h"
 #include "integrator.h"
@@ -388,7 +389,7 @@ int main(int argc, char **argv) {
         out_die_if_pending();
     }
     if (rc < 0) {
-        fprintf(stderr, "render: rendering failed: %s%s%s\n", pm_strerror(rc), cs.err[0] ? ": " : "", cs.err);
+        fprintf(stderr, "render: rendering failed: %s%s%s\n", render_strerror(rc), cs.err[0] ? ": " : "", cs.err);
         scene_free(&s);
         return 1;
     }
