@@ -53,7 +53,7 @@ else
   OPT ?= -O1
 endif
 CFLAGS_BASE := -std=c11 -D_POSIX_C_SOURCE=200809L -g $(OPT) -Wall -Wextra -Wshadow \
-               -Wno-unused-parameter -fno-math-errno
+               -fno-math-errno
 ifeq ($(OPENMP),1)
   CFLAGS_BASE += -fopenmp
   OMP_LIBS := -fopenmp

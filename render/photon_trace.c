@@ -243,6 +243,7 @@ static int trace_batch(const pass_ctx *c, uint64_t start, fbuf *tg, fbuf *ts, in
                        uint64_t *nfirst_out) {
     int fail = 0;
     uint64_t nfirst = 0;
+    (void)nthreads; /* read by OpenMP only */
 #ifdef _OPENMP
 #pragma omp parallel for num_threads(nthreads) schedule(dynamic, 64) reduction(| : fail) \
     reduction(+ : nfirst)

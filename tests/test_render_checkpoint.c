@@ -46,6 +46,7 @@ typedef struct stopper {
 /* Write a checkpoint at every pause; at the stop_after-th, end the render as a kill would. */
 static int on_pause(void *user, const render_state *st, int why) {
     stopper *sp = user;
+    (void)why;
     char err[512];
     if (ckpt_write(sp->ckpt, &sp->info, st, err, sizeof err) < 0) {
         printf("    %s\n", err);
@@ -103,6 +104,7 @@ TEST(render_checkpoint_resume_bit_identical) {
 
 static int raise_int(void *user, const render_state *st, int why) {
     int *calls = user;
+    (void)st;
     if (why == RENDER_PAUSE_SIGNAL) return 0;
     if (++*calls == 2) raise(SIGINT);
     return 0;
