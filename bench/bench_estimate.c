@@ -120,7 +120,7 @@ static int lookup_race(const char *out, size_t n, size_t nq, int runs, uint64_t 
     for (size_t i = 0; i < nq; i++) {
         size_t j = (size_t)(bench_rng_unit(&rng) * (double)n);
         const float *nm = nrm3[j % 3];
-        for (int a = 0; a < 3; a++) {
+        for (size_t a = 0; a < 3; a++) {
             q[6 * i + a] = ph[j].pos[a] + (float)(0.002 * (bench_rng_unit(&rng) - 0.5)) * (1 - fabsf(nm[a]));
             q[6 * i + 3 + a] = nm[a];
         }
@@ -267,7 +267,7 @@ static int accuracy(const char *out, int quick, uint64_t seed) {
     if (!scratch || !pts || !etrue) return -1;
     for (int lay = 0; lay < 4; lay++) {
         const char *layout = lay == 0 ? "stratified" : lay == 1 ? "random" : "caustic";
-        size_t n = lay < 2 ? (size_t)side * side : ncaus[lay - 2];
+        size_t n = lay < 2 ? (size_t)side * (size_t)side : ncaus[lay - 2];
         double acc[2][NK][NM][3]; /* sum of realization means, of their squares, of rel^2 */
         memset(acc, 0, sizeof acc);
         pm_photon *ph = malloc(n * sizeof *ph);

@@ -164,7 +164,7 @@ static void dataset_finish(dataset *d, int planar) {
     }
     for (int a = 0; a < 3; a++) d->lo[a] = INFINITY, d->hi[a] = -INFINITY;
     for (size_t i = 0; i < d->n; i++)
-        for (int a = 0; a < 3; a++) {
+        for (size_t a = 0; a < 3; a++) {
             float x = d->ph[i].pos[a];
             d->xyz[3 * i + a] = x;
             if (x < d->lo[a]) d->lo[a] = x;

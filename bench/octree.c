@@ -151,7 +151,7 @@ static int build_cell(oct_build *b, uint32_t ci, const float lo[3], const float 
 
     if ((rc = add_cells(t, 8, &first)) != 0) return rc;
     t->cells[ci].child = first;
-    for (int c = 0; c < 8; c++) {
+    for (uint32_t c = 0; c < 8; c++) {
         t->cells[first + c].child = 0;
         t->cells[first + c].begin = (uint32_t)bound[c];
         t->cells[first + c].end = (uint32_t)bound[c + 1];

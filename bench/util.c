@@ -86,7 +86,7 @@ void bench_make_queries(float *q, size_t m, int dist, const pm_photon *ph, size_
     for (size_t i = 0; i < m; i++) {
         if (dist == BENCH_FILE && n > 0) {
             const pm_photon *p = &ph[bench_rng_u64(&r) % n];
-            for (int a = 0; a < 3; a++)
+            for (size_t a = 0; a < 3; a++)
                 q[3 * i + a] = p->pos[a] + jitter * (float)(2.0 * bench_rng_unit(&r) - 1.0);
         } else {
             bench_sample(&r, dist, &q[3 * i]);

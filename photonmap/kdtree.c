@@ -73,7 +73,7 @@ int pm_kdtree_height(const pm_kdtree *t, uint32_t i) {
     int level = pm__ilog2(p);
     int below = (int)t->depth - 1 - level; /* internal levels under p */
     /* Records in the buckets under p: p's subtree spans 2^(D - level) buckets. */
-    uint64_t span = (uint64_t)1 << (t->depth - level);
+    uint64_t span = (uint64_t)1 << (t->depth - (uint32_t)level);
     uint64_t j0 = (uint64_t)p * span - t->nleaves;
     uint64_t inb = pm__cum(t, j0 + span) - pm__cum(t, j0);
     return below + (inb > 0 ? 1 : 0);
@@ -195,7 +195,7 @@ static int config_ok(const pm_kdtree_config *c, const void *records) {
 
 /* Subtree size of heap node p at the given level. */
 static uint64_t subtree_size(const pm_kdtree *t, uint64_t p, int level) {
-    uint64_t span = (uint64_t)1 << (t->depth - level);
+    uint64_t span = (uint64_t)1 << (t->depth - (uint32_t)level);
     uint64_t j0 = p * span - t->nleaves;
     return (span - 1) + pm__cum(t, j0 + span) - pm__cum(t, j0);
 }

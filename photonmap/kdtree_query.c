@@ -220,7 +220,7 @@ PM__INLINE void knn_bucket(knn_state *s, const view *v, uint64_t node, int metri
             if (!m) continue;
             float dv[4];
             _mm_storeu_ps(dv, d2);
-            for (int l = 0; l < 4; l++) {
+            for (unsigned l = 0; l < 4; l++) {
                 if ((m >> l) & 1 && !(dv[l] >= s->r2)) {
                     if (filter && !s->filter(s->user, v->rec + (i + l) * v->stride,
                                              (uint32_t)(i + l)))
