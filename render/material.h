@@ -41,7 +41,9 @@
 extern "C" {
 #endif
 
-enum { MAT_LAMBERT, MAT_OREN_NAYAR, MAT_MIRROR, MAT_DIELECTRIC, MAT_MIX };
+/* MAT_NULL: an invisible interface (a medium's boundary): T = 1 with the index of the medium
+ * around it, so every integrator passes straight through; medium.h says how media use it. */
+enum { MAT_LAMBERT, MAT_OREN_NAYAR, MAT_MIRROR, MAT_DIELECTRIC, MAT_MIX, MAT_NULL };
 
 typedef struct material {
     char name[64];

@@ -18,10 +18,21 @@
  * Random numbers come only from the sample's own stream, in a fixed order per bounce
  * (lobe, direction (2), light choice, light point (2), roulette), so an image does not
  * depend on the thread count.
+ *
+ * Participating media (medium.h), only in scenes that have a medium or a null surface (the
+ * others run the loop above unchanged, bit for bit): the path knows the medium it is in (the
+ * camera's, then the side of each surface it leaves by). In a medium, free-flight sampling
+ * draws a distance (channel, distance: 2 numbers); a scattering event before the next surface
+ * counts as a bounce: next-event estimation with the HG phase function and the transmittance
+ * of the shadow segment, then an HG direction (2 numbers), then roulette. Otherwise the ray
+ * reaches the surface with weight Tr / P(reach). Null surfaces are crossed without a bounce
+ * (the medium changes); shadow rays from surfaces and media carry the transmittance through
+ * media and null surfaces and stop at anything else.
  */
 #include <stdlib.h>
 
 #include "integrator.h"
+#include "medium.h"
 #include "stats.h"
 #include "photonmap/common.h"
 
@@ -29,20 +40,54 @@ typedef struct {
     int max_depth, rr_depth;
 } pt_state;
 
-/* Direct light at a diffuse hit: f * Li * cos / (pdf_omega * p_light). */
-static rgb direct_light(const scene *s, const material *m, const hit *h, vec3 n, vec3 wo, rng *g) {
-    vec3 nsh = material_shading_side(wo, h->ng, h->ns); /* cosines; n (geometric) keeps the side */
+/* No media: the shadow test is plain visibility (the medium-free images stay bit-identical). */
+#define NO_MEDIA (-2)
+
+/* One light in proportion to power and one point on it, seen from p: 3 numbers. 0 if none. */
+static int pick_light(const scene *s, vec3 p, rng *g, light_sample *ls, double *pl, int *li) {
     double ulight = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
-    if (s->nlights == 0 || s->light_distrib.n == 0) return v3s(0);
-    double pl;
-    int li = distrib1d_sample(&s->light_distrib, ulight, &pl);
-    if (!(pl > 0)) return v3s(0);
+    if (s->nlights == 0 || s->light_distrib.n == 0) return 0;
+    *li = distrib1d_sample(&s->light_distrib, ulight, pl);
+    if (!(*pl > 0)) return 0;
+    return light_sample_li(s, *li, p, u1, u2, ls);
+}
+
+/* Transmittance from p (normal np) to the light sample, starting in medium med. */
+static rgb shadow_tr(const scene *s, int li, vec3 p, vec3 np, const light_sample *ls, int med) {
+    stat_inc(STAT_SHADOW_RAYS);
+    if (s->lights[li].type == LIGHT_DIRECTIONAL) return scene_transmittance_dir(s, p, np, ls->wi, med);
+    return scene_transmittance(s, p, np, ls->p, ls->n, med);
+}
+
+/* Direct light at a scattering event at p in medium med, for a path going along d:
+ * phase * Li * Tr / p_light (the phase function is its own pdf-free weight here). */
+static rgb direct_light_medium(const scene *s, vec3 p, vec3 d, int med, rng *g) {
     light_sample ls;
-    if (!light_sample_li(s, li, h->p, u1, u2, &ls)) return v3s(0);
+    double pl;
+    int li;
+    if (!pick_light(s, p, g, &ls, &pl, &li) || v3_iszero(ls.L)) return v3s(0);
+    double f = hg_phase(s->media[med].g, v3_dot(d, ls.wi));
+    rgb tr = shadow_tr(s, li, p, v3s(0), &ls, med);
+    return v3_scale(v3_mul(tr, ls.L), f / pl);
+}
+
+/* Direct light at a diffuse hit: f * Li * cos / (pdf_omega * p_light), times the shadow
+ * segment's transmittance when med is not NO_MEDIA. */
+static rgb direct_light(const scene *s, const material *m, const hit *h, vec3 n, vec3 wo, rng *g,
+                        int med) {
+    vec3 nsh = material_shading_side(wo, h->ng, h->ns); /* cosines; n (geometric) keeps the side */
+    light_sample ls;
+    double pl;
+    int li;
+    if (!pick_light(s, h->p, g, &ls, &pl, &li)) return v3s(0);
     double cos_s = v3_dot(ls.wi, nsh);
     if (cos_s <= 0 || v3_dot(ls.wi, n) <= 0 || v3_iszero(ls.L)) return v3s(0);
     rgb f = material_diffuse_f(m, nsh, wo, ls.wi);
     if (v3_iszero(f)) return v3s(0);
+    if (med != NO_MEDIA) {
+        rgb tr = shadow_tr(s, li, h->p, h->ng, &ls, scene_medium_after(s, h, ls.wi));
+        return v3_scale(v3_mul(v3_mul(f, ls.L), tr), cos_s / pl);
+    }
     stat_inc(STAT_SHADOW_RAYS);
     const light *l = &s->lights[li];
     int vis;
@@ -54,11 +99,100 @@ static rgb direct_light(const scene *s, const material *m, const hit *h, vec3 n,
     return v3_scale(v3_mul(f, ls.L), cos_s / pl);
 }
 
+/* Russian roulette after rr_depth bounces; 0 if the path ends. */
+static int roulette(const pt_state *st, int depth, rgb *beta, rng *g) {
+    double urr = rng_uniform(g);
+    if (depth + 1 >= st->rr_depth) {
+        double q = fmin(0.95, v3_maxc(*beta));
+        if (!(urr < q)) {
+            stat_inc(STAT_RR_TERMINATED);
+            return 0;
+        }
+        *beta = v3_scale(*beta, 1.0 / q);
+    }
+    return 1;
+}
+
+/* The path loop of a scene with media or null surfaces (the top of the file). */
+static rgb pt_li_media(const pt_state *st, const scene *s, ray r, rng *g) {
+    rgb L = v3s(0), beta = v3s(1);
+    int count_emission = 1, med = s->camera_medium, crossings = 0;
+    for (int depth = 0;;) {
+        hit h;
+        int got = scene_intersect(s, r, INFINITY, &h);
+        if (med >= 0) {
+            double uc = rng_uniform(g), ud = rng_uniform(g), t;
+            rgb w;
+            int scatter = medium_sample_distance(&s->media[med], got ? h.t : INFINITY, uc, ud, &t, &w);
+            beta = v3_mul(beta, w);
+            if (v3_iszero(beta)) break;
+            if (scatter) {
+                stat_inc(STAT_PATH_VERTICES);
+                if (depth >= st->max_depth) {
+                    stat_inc(STAT_MAXDEPTH);
+                    break;
+                }
+                vec3 p = ray_at(r, t);
+                L = v3_add(L, v3_mul(beta, direct_light_medium(s, p, r.d, med, g)));
+                count_emission = 0;
+                double u1 = rng_uniform(g), u2 = rng_uniform(g);
+                vec3 nd;
+                hg_sample(s->media[med].g, r.d, u1, u2, &nd); /* weight phase / pdf = 1 */
+                if (!roulette(st, depth, &beta, g)) break;
+                r.o = p;
+                r.d = nd;
+                depth++;
+                stat_inc(STAT_INDIRECT_RAYS);
+                continue;
+            }
+        }
+        if (!got) break;
+        const material *m = scene_material(s, &h);
+        if (m->kind == MAT_NULL) { /* an invisible boundary: only the medium changes */
+            if (++crossings > 4 * st->max_depth + 1024) break;
+            med = scene_medium_after(s, &h, r.d);
+            r.o = v3_offset(h.p, h.ng, r.d);
+            continue;
+        }
+        stat_inc(STAT_PATH_VERTICES);
+        vec3 wo = v3_neg(r.d);
+        if (material_is_emissive(m) && (v3_dot(wo, h.ng) > 0 || m->two_sided) &&
+            (count_emission || !scene_prim_is_light(s, h.prim)))
+            L = v3_add(L, v3_mul(beta, m->emission));
+        if (depth >= st->max_depth) {
+            stat_inc(STAT_MAXDEPTH);
+            break;
+        }
+        double ul = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
+        bsdf_sample bs;
+        int alive = material_sample_ns(m, wo, h.ng, h.ns, s->medium_ior, ul, u1, u2, &bs);
+        if (bs.lobe == LOBE_DIFFUSE) {
+            vec3 n = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
+            L = v3_add(L, v3_mul(beta, direct_light(s, m, &h, n, wo, g, med)));
+            count_emission = 0;
+        } else {
+            count_emission = 1;
+            stat_inc(STAT_SPECULAR_BOUNCES);
+            if (bs.tir) stat_inc(STAT_TIR);
+        }
+        if (!alive) break;
+        beta = v3_mul(beta, bs.weight);
+        if (!roulette(st, depth, &beta, g)) break;
+        med = scene_medium_after(s, &h, bs.wi);
+        r.o = v3_offset(h.p, h.ng, bs.wi);
+        r.d = bs.wi;
+        depth++;
+        stat_inc(STAT_INDIRECT_RAYS);
+    }
+    return L;
+}
+
 static rgb pt_li(const integrator *self, const scene *s, ray r, rng *g, const sample_id *id,
                  void *scratch) {
     (void)id;
     (void)scratch;
     const pt_state *st = self->data;
+    if (scene_has_media(s)) return pt_li_media(st, s, r, g);
     rgb L = v3s(0), beta = v3s(1);
     int count_emission = 1;
     for (int depth = 0;; depth++) {
@@ -79,7 +213,7 @@ static rgb pt_li(const integrator *self, const scene *s, ray r, rng *g, const sa
         int alive = material_sample_ns(m, wo, h.ng, h.ns, s->medium_ior, ul, u1, u2, &bs);
         if (bs.lobe == LOBE_DIFFUSE) {
             vec3 n = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
-            L = v3_add(L, v3_mul(beta, direct_light(s, m, &h, n, wo, g)));
+            L = v3_add(L, v3_mul(beta, direct_light(s, m, &h, n, wo, g, NO_MEDIA)));
             count_emission = 0;
         } else {
             count_emission = 1;
@@ -88,15 +222,7 @@ static rgb pt_li(const integrator *self, const scene *s, ray r, rng *g, const sa
         }
         if (!alive) break;
         beta = v3_mul(beta, bs.weight);
-        double urr = rng_uniform(g);
-        if (depth + 1 >= st->rr_depth) {
-            double q = fmin(0.95, v3_maxc(beta));
-            if (!(urr < q)) {
-                stat_inc(STAT_RR_TERMINATED);
-                break;
-            }
-            beta = v3_scale(beta, 1.0 / q);
-        }
+        if (!roulette(st, depth, &beta, g)) break;
         r.o = v3_offset(h.p, h.ng, bs.wi);
         r.d = bs.wi;
         stat_inc(STAT_INDIRECT_RAYS);

@@ -112,6 +112,8 @@ void scene_free(scene *s) {
     free(s->tri_obj);
     free(s->sphere_obj);
     free(s->tri_ns);
+    free(s->media);
+    free(s->obj_medium);
     free(s->lights);
     distrib1d_free(&s->light_distrib);
     bvh_free(&s->accel);

@@ -28,6 +28,7 @@
 #include "json.h"
 #include "light.h"
 #include "material.h"
+#include "medium.h"
 #include "sampling.h"
 #include "shapes.h"
 #include "vec.h"
@@ -64,6 +65,13 @@ typedef struct scene {
     int nlights;
     distrib1d light_distrib; /* choose a light in proportion to its power (mean of RGB) */
     double medium_ior;       /* index of refraction of the space between objects; default 1 */
+    medium *media;           /* participating media ($.media; medium.h), nmedia of them */
+    int nmedia;
+    int global_medium;       /* index in media of $.medium (between objects), or -1 */
+    int camera_medium;       /* the medium the camera is in (found from the nearest surface) */
+    int *obj_medium;         /* per object of $.objects: its interior_medium, or -1 */
+    int nobj;
+    int has_null;            /* some surface has the "null" (invisible interface) material */
     vec3 bounds_lo, bounds_hi;
     vec3 bsphere_c; /* bounding sphere of all geometry */
     double bsphere_r;

@@ -161,10 +161,15 @@ static int load_material(material *m, const cJSON *it, const char *P, json_err *
         TRY(check_unit_rgb(m->specular_tint, P, "specular_tint", e));
         TRY(json_rgb(it, P, "transmit_tint", 0, &m->transmit_tint, e));
         TRY(check_unit_rgb(m->transmit_tint, P, "transmit_tint", e));
+    } else if (strcmp(type, "null") == 0 || strcmp(type, "interface") == 0) {
+        m->kind = MAT_NULL; /* invisible: its ior is set to medium_ior by the caller */
+        m->transparency = 1;
+        if (json_get(it, "emission"))
+            return json_fail(e, PM_EINVAL, "%s.emission: a null (invisible) surface cannot emit", P);
     } else {
         return json_fail(e, PM_EINVAL,
                          "%s.type: unknown material type \"%s\" (lambert, oren_nayar, mirror, "
-                         "dielectric, mix)", P, type);
+                         "dielectric, mix, null)", P, type);
     }
     if (!(m->ior > 0)) return json_fail(e, PM_EINVAL, "%s.ior: must be positive, got %g", P, m->ior);
     TRY(json_rgb(it, P, "emission", 0, &m->emission, e));
@@ -416,17 +421,139 @@ static int load_settings(scene *s, const cJSON *root, json_err *e) {
     return 0;
 }
 
+/* $.media: named homogeneous media (medium.h). */
+static int load_media(scene *s, const cJSON *root, json_err *e) {
+    const cJSON *ms;
+    TRY(json_object(root, "$", "media", 0, &ms, e));
+    int n = ms ? cJSON_GetArraySize(ms) : 0;
+    if (n == 0) return 0;
+    s->media = calloc((size_t)n, sizeof *s->media);
+    if (!s->media) return json_fail(e, PM_ENOMEM, "out of memory");
+    char P[P_MAX];
+    for (const cJSON *it = ms->child; it; it = it->next) {
+        medium *m = &s->media[s->nmedia];
+        json_path_key(P, sizeof P, "$.media", it->string ? it->string : "?");
+        if (!cJSON_IsObject(it))
+            return json_fail(e, PM_EINVAL, "%s: expected an object, got %s", P, json_type_name(it));
+        if (strlen(it->string) >= sizeof m->name)
+            return json_fail(e, PM_EINVAL, "%s: medium name too long (max %d characters)", P,
+                             (int)sizeof m->name - 1);
+        snprintf(m->name, sizeof m->name, "%s", it->string);
+        TRY(json_rgb(it, P, "sigma_a", 0, &m->sigma_a, e));
+        TRY(check_nonneg_rgb(m->sigma_a, P, "sigma_a", e));
+        TRY(json_rgb(it, P, "sigma_s", 0, &m->sigma_s, e));
+        TRY(check_nonneg_rgb(m->sigma_s, P, "sigma_s", e));
+        TRY(json_number(it, P, "g", 0, &m->g, e));
+        if (!(m->g > -1 && m->g < 1))
+            return json_fail(e, PM_EINVAL, "%s.g: must be in (-1, 1), got %g", P, m->g);
+        m->sigma_t = v3_add(m->sigma_a, m->sigma_s);
+        s->nmedia++;
+    }
+    return 0;
+}
+
+/* The index of the medium named by the string at obj.key, in *out. */
+static int find_medium(const scene *s, const cJSON *obj, const char *P, const char *key, int *out,
+                       json_err *e) {
+    const char *name;
+    TRY(json_string(obj, P, key, 1, &name, e));
+    for (int i = 0; i < s->nmedia; i++)
+        if (strcmp(s->media[i].name, name) == 0) {
+            *out = i;
+            return 0;
+        }
+    return json_fail(e, PM_EINVAL, "%s.%s: unknown medium \"%s\" (not in $.media)", P, key, name);
+}
+
+/* Edge order for the closedness check: the 6 coordinates of a directed edge. */
+static int edge_cmp(const void *a, const void *b) {
+    const double *x = a, *y = b;
+    for (int k = 0; k < 6; k++)
+        if (x[k] != y[k]) return x[k] < y[k] ? -1 : 1;
+    return 0;
+}
+
+/* Triangles first..s->ntris-1 bound a medium only if they form a closed, consistently wound
+ * surface whose normals point out: each directed edge (by vertex position) appears once and
+ * its reverse once, and the enclosed signed volume is positive. */
+static int check_closed(const scene *s, int first, const char *P, json_err *e) {
+    int nt = s->ntris - first;
+    if (nt < 4)
+        return json_fail(e, PM_EINVAL, "%s.interior_medium: a medium needs a closed surface "
+                         "(this one has %d triangles)", P, nt);
+    double(*ed)[6] = malloc((size_t)nt * 3 * sizeof *ed);
+    if (!ed) return json_fail(e, PM_ENOMEM, "out of memory");
+    double vol = 0;
+    for (int t = 0; t < nt; t++) {
+        const triangle *tr = &s->tris[first + t];
+        vec3 v[3] = {tr->v0, v3_add(tr->v0, tr->e1), v3_add(tr->v0, tr->e2)};
+        vol += v3_dot(v[0], v3_cross(v[1], v[2])) / 6;
+        for (int k = 0; k < 3; k++) {
+            vec3 a = v[k], b = v[(k + 1) % 3];
+            double *d = ed[3 * t + k];
+            d[0] = a.x, d[1] = a.y, d[2] = a.z, d[3] = b.x, d[4] = b.y, d[5] = b.z;
+        }
+    }
+    int n = 3 * nt, bad = 0;
+    qsort(ed, (size_t)n, sizeof *ed, edge_cmp);
+    for (int i = 0; i < n && !bad; i++) {
+        double rev[6] = {ed[i][3], ed[i][4], ed[i][5], ed[i][0], ed[i][1], ed[i][2]};
+        if (i + 1 < n && edge_cmp(ed[i], ed[i + 1]) == 0) bad = 1; /* an edge used twice one way */
+        else if (!bsearch(rev, ed, (size_t)n, sizeof *ed, edge_cmp)) bad = 2; /* an open edge */
+    }
+    free(ed);
+    if (bad)
+        return json_fail(e, PM_EINVAL, "%s.interior_medium: a medium needs a closed surface, "
+                         "consistently wound (%s)", P,
+                         bad == 1 ? "an edge is shared by faces of the same winding"
+                                  : "an edge belongs to one face only: the mesh is open");
+    if (!(vol > 0))
+        return json_fail(e, PM_EINVAL, "%s.interior_medium: the surface's normals point inward "
+                         "(reverse the winding so the front side is the outside)", P);
+    return 0;
+}
+
+/* An object's "interior_medium": spheres and closed meshes only. */
+static int load_interior_medium(scene *s, const cJSON *o, const char *P, int obj, int first_tri,
+                                json_err *e) {
+    if (!json_get(o, "interior_medium")) return 0;
+    int med;
+    TRY(find_medium(s, o, P, "interior_medium", &med, e));
+    const char *type = json_get(o, "type")->valuestring;
+    if (strcmp(type, "triangle") == 0 || strcmp(type, "quad") == 0)
+        return json_fail(e, PM_EINVAL, "%s.interior_medium: a %s is open and cannot bound a medium "
+                         "(use a sphere or a closed mesh)", P, type);
+    if (strcmp(type, "mesh") == 0) TRY(check_closed(s, first_tri, P, e));
+    s->obj_medium[obj] = med;
+    return 0;
+}
+
+/* Which medium the camera is in: the side of the nearest surface a ray from the eye meets
+ * (the rule of medium.h); the global medium when it meets nothing. */
+static void find_camera_medium(scene *s) {
+    s->camera_medium = s->global_medium;
+    if (s->nmedia == 0) return;
+    ray r = {s->cam.eye, s->cam.forward};
+    hit h;
+    if (scene_intersect(s, r, INFINITY, &h))
+        s->camera_medium = scene_medium_after(s, &h, v3_neg(r.d));
+}
+
 static int from_json(scene *s, const cJSON *root, json_err *e) {
     caps cp = {0};
     if (!cJSON_IsObject(root))
         return json_fail(e, PM_EINVAL, "$: expected an object, got %s", json_type_name(root));
     static const char *known[] = {"camera", "materials", "objects", "lights", "medium_ior",
-                                  "render", "image", "photon_mapping", "comment", "description"};
+                                  "media", "medium", "render", "image", "photon_mapping", "comment", "description"};
     for (const cJSON *it = root->child; it; it = it->next) {
         int ok = 0;
         for (size_t k = 0; k < sizeof known / sizeof *known; k++)
             if (it->string && strcmp(it->string, known[k]) == 0) ok = 1;
-        if (!ok) fprintf(stderr, "warning: $.%s: unknown key, ignored\n", it->string ? it->string : "?");
+        if (!ok) {
+            const char *near = json_nearest_key(it->string, known, sizeof known / sizeof *known);
+            fprintf(stderr, "warning: $.%s: unknown key, ignored%s%s%s\n", it->string ? it->string : "?",
+                    near ? " (did you mean \"" : "", near ? near : "", near ? "\"?)" : "");
+        }
     }
     TRY(load_camera(s, root, e));
     TRY(load_settings(s, root, e));
@@ -434,6 +561,9 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
     TRY(json_number(root, "$", "medium_ior", 0, &s->medium_ior, e));
     if (!(s->medium_ior > 0))
         return json_fail(e, PM_EINVAL, "$.medium_ior: must be positive, got %g", s->medium_ior);
+    s->global_medium = -1;
+    TRY(load_media(s, root, e));
+    if (json_get(root, "medium")) TRY(find_medium(s, root, "$", "medium", &s->global_medium, e));
     const cJSON *mats, *objs, *lights, *pm;
     TRY(json_object(root, "$", "materials", 1, &mats, e));
     char p[P_MAX];
@@ -444,15 +574,25 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
             return json_fail(e, PM_EINVAL, "%s: material name too long (max %d characters)", p,
                              (int)sizeof m.name - 1);
         TRY(load_material(&m, it, p, e));
+        if (m.kind == MAT_NULL) {
+            m.ior = s->medium_ior;
+            s->has_null = 1;
+        }
         if (push((void **)&s->mats, &s->nmats, &cp.mcap, sizeof m, &m) < 0)
             return json_fail(e, PM_ENOMEM, "out of memory");
     }
     TRY(json_array(root, "$", "objects", 1, &objs, e));
     int i = 0;
+    s->nobj = cJSON_GetArraySize(objs);
+    s->obj_medium = malloc((size_t)(s->nobj > 0 ? s->nobj : 1) * sizeof *s->obj_medium);
+    if (!s->obj_medium) return json_fail(e, PM_ENOMEM, "out of memory");
+    for (int k = 0; k < s->nobj; k++) s->obj_medium[k] = -1;
     for (const cJSON *it = objs->child; it; it = it->next, i++) {
         json_path_index(p, sizeof p, "$.objects", i);
         cp.obj = i;
+        int first_tri = s->ntris;
         TRY(load_object(s, &cp, it, p, e));
+        TRY(load_interior_medium(s, it, p, i, first_tri, e));
     }
     TRY(json_array(root, "$", "lights", 0, &lights, e));
     i = 0;
@@ -465,7 +605,9 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
         s->photon_mapping = cJSON_Duplicate(pm, 1);
         if (!s->photon_mapping) return json_fail(e, PM_ENOMEM, "out of memory");
     }
-    return scene_prepare(s, e);
+    TRY(scene_prepare(s, e));
+    find_camera_medium(s);
+    return 0;
 }
 
 int scene_from_json(scene *s, const cJSON *root, json_err *e) {
