@@ -6,6 +6,10 @@
  * edited by hand, a generator changed without regenerating, or a generator that reads
  * something other than its files (the clock, the checkout's commit, the machine) shows up.
  * Oracle: the committed document itself, byte for byte.
+ *
+ * docs/MPI.md is checked the same way in tests/test_mpi.c. docs/IMPORT.md is not here: its
+ * generator (scripts/gen-import-md.sh) measures by rendering, it keeps no results files to
+ * regenerate from.
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -42,6 +46,14 @@ TEST(docs_benchmarks_md_regenerates_exactly) {
     snprintf(cmd, sizeof cmd, "cd '%s' && sh scripts/gen-benchmarks-md.sh bench/results bench > '%s'",
              pm_test_source_dir(), got);
     expect_regenerates(cmd, got, "docs/BENCHMARKS.md");
+}
+
+/* docs/ACCURACY.md from docs/accuracy/ (scripts/gen-accuracy-md.sh). */
+TEST(docs_accuracy_md_regenerates_exactly) {
+    char cmd[4096], got[2048];
+    snprintf(got, sizeof got, "%s/ACCURACY.md", pm_test_tmpdir());
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-accuracy-md.sh' --out '%s'", pm_test_source_dir(), got);
+    expect_regenerates(cmd, got, "docs/ACCURACY.md");
 }
 
 /* Oracle: measurement.txt is the only source of the stamp. With its commit and date replaced
