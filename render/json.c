@@ -322,3 +322,41 @@ int json_array(const cJSON *obj, const char *path, const char *key, int required
     *out = it;
     return 0;
 }
+
+/* Optimal string alignment distance (Damerau-Levenshtein without repeated edits of a
+ * substring), two rows of the table plus the one before; keys are short. */
+static size_t edit_distance(const char *a, const char *b) {
+    size_t la = strlen(a), lb = strlen(b);
+    if (la > 63 || lb > 63) return (size_t)-1;
+    size_t d[3][64];
+    for (size_t j = 0; j <= lb; j++) d[0][j] = j;
+    for (size_t i = 1; i <= la; i++) {
+        size_t *cur = d[i % 3], *prev = d[(i - 1) % 3], *pp = d[(i + 1) % 3];
+        cur[0] = i;
+        for (size_t j = 1; j <= lb; j++) {
+            size_t cost = a[i - 1] != b[j - 1];
+            size_t v = prev[j] + 1;
+            if (cur[j - 1] + 1 < v) v = cur[j - 1] + 1;
+            if (prev[j - 1] + cost < v) v = prev[j - 1] + cost;
+            if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1] && pp[j - 2] + 1 < v)
+                v = pp[j - 2] + 1;
+            cur[j] = v;
+        }
+    }
+    return d[la % 3][lb];
+}
+
+const char *json_nearest_key(const char *key, const char *const *known, size_t n) {
+    if (!key) return NULL;
+    size_t limit = strlen(key) / 3, best_d = (size_t)-1;
+    if (limit < 1) limit = 1;
+    const char *best = NULL;
+    for (size_t k = 0; k < n; k++) {
+        size_t dk = edit_distance(key, known[k]);
+        if (dk < best_d) {
+            best_d = dk;
+            best = known[k];
+        }
+    }
+    return best_d <= limit ? best : NULL;
+}

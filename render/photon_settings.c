@@ -198,8 +198,13 @@ int photon_settings_parse(photon_settings *c, const cJSON *pm, json_err *e) {
     photon_settings_defaults(c);
     if (!pm) return 0;
     for (const cJSON *it = pm->child; it; it = it->next)
-        if (!find(it->string))
-            return json_fail(e, PM_EINVAL, P ".%s: unknown key", it->string ? it->string : "?");
+        if (!find(it->string)) {
+            const char *names[NSETTINGS];
+            for (size_t k = 0; k < NSETTINGS; k++) names[k] = k_settings[k].key;
+            const char *near = json_nearest_key(it->string, names, NSETTINGS);
+            return json_fail(e, PM_EINVAL, P ".%s: unknown key%s%s%s", it->string ? it->string : "?",
+                             near ? " (did you mean \"" : "", near ? near : "", near ? "\"?)" : "");
+        }
     /* In table order, so that of several bad keys the same one is always reported. */
     for (size_t k = 0; k < NSETTINGS; k++)
         if (json_get(pm, k_settings[k].key)) {

@@ -61,3 +61,24 @@ static void check_partition(const char *name) {
 
 TEST(render_hard_partition_thin_no_leak) { check_partition("partition_thin"); }
 TEST(render_hard_partition_thick_no_leak) { check_partition("partition_thick"); }
+
+/* Oracle: the settings table's keys. A misspelt photon-mapping key is an input error (exit 2)
+ * that names the JSON path and the nearest known key; one far from every key gets no guess. */
+TEST(render_hard_typo_suggests_the_key) {
+    char cmd[4096], out[16384];
+    snprintf(cmd, sizeof cmd,
+             "%s/render '%s/data/scenes/cornell_box.json' --mode pm --width 8 --height 8 --spp 1 "
+             "--quiet --pm global_photon=5000 2>&1",
+             pm_test_build_dir(), pm_test_source_dir());
+    int rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 2, "exit %d: %s", rc, out);
+    EXPECT_MSG(strstr(out, "photon_mapping.global_photon: unknown key (did you mean \"global_photons\"?)"),
+               "%s", out);
+    snprintf(cmd, sizeof cmd,
+             "%s/render '%s/data/scenes/cornell_box.json' --mode pm --width 8 --height 8 --spp 1 "
+             "--quiet --pm zzzzzzzz=1 2>&1",
+             pm_test_build_dir(), pm_test_source_dir());
+    rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 2 && strstr(out, "zzzzzzzz: unknown key") && !strstr(out, "did you mean"),
+               "exit %d: %s", rc, out);
+}
