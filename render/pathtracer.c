@@ -113,19 +113,62 @@ static int roulette(const pt_state *st, int depth, rgb *beta, rng *g) {
     return 1;
 }
 
+/* A path's running sums: radiance, throughput, and whether the next emitter hit counts. */
+typedef struct {
+    rgb L, beta;
+    int count_emission;
+} pt_path;
+
+/* The surface event at h for a path arriving along r->d, at bounce depth: emission, the depth
+ * limit, one material branch (next-event estimation on the diffuse branch, its shadow test per
+ * med: NO_MEDIA or the medium-aware one), roulette; the continuation in *r. 0 when the path
+ * ends. */
+static int surface_event(const pt_state *st, const scene *s, const hit *h, ray *r, int depth, int med,
+                         pt_path *pp, rng *g) {
+    stat_inc(STAT_PATH_VERTICES);
+    const material *m = scene_material(s, h);
+    vec3 wo = v3_neg(r->d);
+    if (material_is_emissive(m) && (v3_dot(wo, h->ng) > 0 || m->two_sided) &&
+        (pp->count_emission || !scene_prim_is_light(s, h->prim)))
+        pp->L = v3_add(pp->L, v3_mul(pp->beta, m->emission));
+    if (depth >= st->max_depth) {
+        stat_inc(STAT_MAXDEPTH);
+        return 0;
+    }
+    double ul = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
+    bsdf_sample bs;
+    int alive = material_sample_ns(m, wo, h->ng, h->ns, s->medium_ior, ul, u1, u2, &bs);
+    if (bs.lobe == LOBE_DIFFUSE) {
+        vec3 n = v3_dot(wo, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
+        pp->L = v3_add(pp->L, v3_mul(pp->beta, direct_light(s, m, h, n, wo, g, med)));
+        pp->count_emission = 0;
+    } else {
+        pp->count_emission = 1;
+        stat_inc(STAT_SPECULAR_BOUNCES);
+        if (bs.tir) stat_inc(STAT_TIR);
+    }
+    if (!alive) return 0;
+    pp->beta = v3_mul(pp->beta, bs.weight);
+    if (!roulette(st, depth, &pp->beta, g)) return 0;
+    r->o = v3_offset(h->p, h->ng, bs.wi);
+    r->d = bs.wi;
+    stat_inc(STAT_INDIRECT_RAYS);
+    return 1;
+}
+
 /* The path loop of a scene with media or null surfaces (the top of the file). */
 static rgb pt_li_media(const pt_state *st, const scene *s, ray r, rng *g) {
-    rgb L = v3s(0), beta = v3s(1);
-    int count_emission = 1, med = s->camera_medium, crossings = 0;
-    for (int depth = 0;;) {
+    pt_path pp = {v3s(0), v3s(1), 1};
+    int med = s->camera_medium, crossings = 0;
+    for (int depth = 0;; depth++) {
         hit h;
         int got = scene_intersect(s, r, INFINITY, &h);
         if (med >= 0) {
             double uc = rng_uniform(g), ud = rng_uniform(g), t;
             rgb w;
             int scatter = medium_sample_distance(&s->media[med], got ? h.t : INFINITY, uc, ud, &t, &w);
-            beta = v3_mul(beta, w);
-            if (v3_iszero(beta)) break;
+            pp.beta = v3_mul(pp.beta, w);
+            if (v3_iszero(pp.beta)) break;
             if (scatter) {
                 stat_inc(STAT_PATH_VERTICES);
                 if (depth >= st->max_depth) {
@@ -133,58 +176,30 @@ static rgb pt_li_media(const pt_state *st, const scene *s, ray r, rng *g) {
                     break;
                 }
                 vec3 p = ray_at(r, t);
-                L = v3_add(L, v3_mul(beta, direct_light_medium(s, p, r.d, med, g)));
-                count_emission = 0;
+                pp.L = v3_add(pp.L, v3_mul(pp.beta, direct_light_medium(s, p, r.d, med, g)));
+                pp.count_emission = 0;
                 double u1 = rng_uniform(g), u2 = rng_uniform(g);
                 vec3 nd;
                 hg_sample(s->media[med].g, r.d, u1, u2, &nd); /* weight phase / pdf = 1 */
-                if (!roulette(st, depth, &beta, g)) break;
+                if (!roulette(st, depth, &pp.beta, g)) break;
                 r.o = p;
                 r.d = nd;
-                depth++;
                 stat_inc(STAT_INDIRECT_RAYS);
                 continue;
             }
         }
         if (!got) break;
-        const material *m = scene_material(s, &h);
-        if (m->kind == MAT_NULL) { /* an invisible boundary: only the medium changes */
+        if (scene_material(s, &h)->kind == MAT_NULL) { /* invisible: only the medium changes */
             if (++crossings > 4 * st->max_depth + 1024) break;
             med = scene_medium_after(s, &h, r.d);
             r.o = v3_offset(h.p, h.ng, r.d);
+            depth--; /* not a bounce */
             continue;
         }
-        stat_inc(STAT_PATH_VERTICES);
-        vec3 wo = v3_neg(r.d);
-        if (material_is_emissive(m) && (v3_dot(wo, h.ng) > 0 || m->two_sided) &&
-            (count_emission || !scene_prim_is_light(s, h.prim)))
-            L = v3_add(L, v3_mul(beta, m->emission));
-        if (depth >= st->max_depth) {
-            stat_inc(STAT_MAXDEPTH);
-            break;
-        }
-        double ul = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
-        bsdf_sample bs;
-        int alive = material_sample_ns(m, wo, h.ng, h.ns, s->medium_ior, ul, u1, u2, &bs);
-        if (bs.lobe == LOBE_DIFFUSE) {
-            vec3 n = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
-            L = v3_add(L, v3_mul(beta, direct_light(s, m, &h, n, wo, g, med)));
-            count_emission = 0;
-        } else {
-            count_emission = 1;
-            stat_inc(STAT_SPECULAR_BOUNCES);
-            if (bs.tir) stat_inc(STAT_TIR);
-        }
-        if (!alive) break;
-        beta = v3_mul(beta, bs.weight);
-        if (!roulette(st, depth, &beta, g)) break;
-        med = scene_medium_after(s, &h, bs.wi);
-        r.o = v3_offset(h.p, h.ng, bs.wi);
-        r.d = bs.wi;
-        depth++;
-        stat_inc(STAT_INDIRECT_RAYS);
+        if (!surface_event(st, s, &h, &r, depth, med, &pp, g)) break;
+        med = scene_medium_after(s, &h, r.d);
     }
-    return L;
+    return pp.L;
 }
 
 static rgb pt_li(const integrator *self, const scene *s, ray r, rng *g, const sample_id *id,
@@ -193,41 +208,13 @@ static rgb pt_li(const integrator *self, const scene *s, ray r, rng *g, const sa
     (void)scratch;
     const pt_state *st = self->data;
     if (scene_has_media(s)) return pt_li_media(st, s, r, g);
-    rgb L = v3s(0), beta = v3s(1);
-    int count_emission = 1;
+    pt_path pp = {v3s(0), v3s(1), 1};
     for (int depth = 0;; depth++) {
         hit h;
         if (!scene_intersect(s, r, INFINITY, &h)) break;
-        stat_inc(STAT_PATH_VERTICES);
-        const material *m = scene_material(s, &h);
-        vec3 wo = v3_neg(r.d);
-        if (material_is_emissive(m) && (v3_dot(wo, h.ng) > 0 || m->two_sided) &&
-            (count_emission || !scene_prim_is_light(s, h.prim)))
-            L = v3_add(L, v3_mul(beta, m->emission));
-        if (depth >= st->max_depth) {
-            stat_inc(STAT_MAXDEPTH);
-            break;
-        }
-        double ul = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
-        bsdf_sample bs;
-        int alive = material_sample_ns(m, wo, h.ng, h.ns, s->medium_ior, ul, u1, u2, &bs);
-        if (bs.lobe == LOBE_DIFFUSE) {
-            vec3 n = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
-            L = v3_add(L, v3_mul(beta, direct_light(s, m, &h, n, wo, g, NO_MEDIA)));
-            count_emission = 0;
-        } else {
-            count_emission = 1;
-            stat_inc(STAT_SPECULAR_BOUNCES);
-            if (bs.tir) stat_inc(STAT_TIR);
-        }
-        if (!alive) break;
-        beta = v3_mul(beta, bs.weight);
-        if (!roulette(st, depth, &beta, g)) break;
-        r.o = v3_offset(h.p, h.ng, bs.wi);
-        r.d = bs.wi;
-        stat_inc(STAT_INDIRECT_RAYS);
+        if (!surface_event(st, s, &h, &r, depth, NO_MEDIA, &pp, g)) break;
     }
-    return L;
+    return pp.L;
 }
 
 static void pt_destroy(integrator *self) { free(self->data); }

@@ -144,7 +144,8 @@ TEST(render_media_scene_format) {
     }
 }
 
-/* Oracle: input errors exit with status 2 and print the JSON path (render's contract). */
+/* Oracle: input errors exit with status 2 and print the JSON path (render's contract), and
+ * nothing is written; so does --mode pm on a valid scene with a medium (not supported yet). */
 TEST(render_media_bad_scene_exits_2) {
     static char txt[8192], out[8192];
     scene_text(txt, sizeof txt, "\"fog\": {\"sigma_a\": -1}", "", "\"x\": {\"type\": \"null\"}",
@@ -160,6 +161,19 @@ TEST(render_media_bad_scene_exits_2) {
     int rc = pm_test_run(cmd, out, sizeof out);
     EXPECT_EQ_INT(rc, 2);
     EXPECT_MSG(strstr(out, "$.media.fog.sigma_a") != NULL, "%s", out);
+    EXPECT_MSG(fopen(png, "r") == NULL, "an output was written");
+    /* A valid scene with a medium: photon mapping has no volume map yet and says so. */
+    scene_text(txt, sizeof txt, "\"fog\": {\"sigma_s\": 0.1}", "\"medium\": \"fog\",",
+               "\"x\": {\"type\": \"null\"}",
+               "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"white\"}");
+    f = fopen(path, "w");
+    ASSERT(f != NULL);
+    fputs(txt, f);
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "%s/render '%s' --quiet --mode pm -o '%s'", pm_test_build_dir(), path, png);
+    rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_EQ_INT(rc, 2);
+    EXPECT_MSG(strstr(out, "does not render participating media") != NULL, "%s", out);
     EXPECT_MSG(fopen(png, "r") == NULL, "an output was written");
 }
 
