@@ -19,6 +19,7 @@
 #include "../render/integrator.h"
 #include "../render/medium.h"
 #include "../render/scene.h"
+#include "../render/volume.h"
 
 /* ---- helpers ------------------------------------------------------------------------------ */
 
@@ -219,7 +220,7 @@ TEST(render_media_hg_sampling) {
             else
                 p = (1 - g * g) / (2 * g) * (1 / sqrt(1 + g * g - 2 * g * c1) - 1 / sqrt(1 + g * g - 2 * g * c0));
             double ex = p * N;
-            chi2 += (hist[k] - ex) * (hist[k] - ex) / ex;
+            chi2 += ((double)hist[k] - ex) * ((double)hist[k] - ex) / ex;
         }
         printf("    g %+.4f: mean cos %+.5f (se %.5f), chi2 %.1f (39 dof)\n", g, mean, se, chi2);
         EXPECT_MSG(chi2 < 72.1, "g %g: chi2 %g", g, chi2);
@@ -408,4 +409,85 @@ TEST(render_media_furnace) {
         EXPECT_MSG(fabs(m - 2) < 4 * se && se < 0.04, "mean %g se %g", m, se);
         scene_free(&s);
     }
+}
+
+/* ---- volume photons ----------------------------------------------------------------------- */
+
+/* Oracles: a point light of power Phi in an unbounded grey medium (sigma_t = 1, albedo
+ * a = 0.6; the only surface is 1000 mean free paths away). Every photon scatters first at an
+ * exponential distance: n DIRECT photons, their mean distance from the light 1/sigma_t
+ * within 4 standard errors, their power summing to Phi a (within 1%: RGBE rounding). Each
+ * later event is stored with probability a^k: all stored power sums to Phi a / (1 - a) within
+ * 4 standard errors plus 1%. No CAUSTIC photons without specular surfaces. Then a fog box
+ * (null boundary, vacuum around) above a point light with a mirror below it: photons that
+ * reach the fog after the mirror are CAUSTIC, those straight from the light DIRECT, and every
+ * photon lies inside the box. */
+TEST(render_media_volume_photons) {
+    static char txt[8192], box[2048], objs[4096];
+    snprintf(txt, sizeof txt,
+             "{\"camera\": {\"eye\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+             " \"media\": {\"fog\": {\"sigma_a\": 0.4, \"sigma_s\": 0.6, \"g\": 0.5}}, \"medium\": \"fog\","
+             " \"materials\": {\"w\": {\"type\": \"lambert\", \"reflectance\": 0.5}},"
+             " \"objects\": [{\"type\": \"quad\", \"vertices\": [[-1, -1, 1000], [1, -1, 1000], [1, 1, 1000], [-1, 1, 1000]], \"material\": \"w\"}],"
+             " \"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"power\": 10}]}");
+    scene s;
+    json_err e = {0};
+    ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
+    uint64_t n = PM_TEST_SANITIZED ? 5000 : 20000;
+    vol_photons vp;
+    ASSERT_EQ_INT(vol_trace(&s, n, 9, 10000, &vp), 0);
+    double pdirect = 0, dsum = 0, dsum2 = 0, ptotal = 0;
+    long ndirect = 0, ncaustic = 0;
+    for (size_t i = 0; i < vp.count; i++) {
+        float pw[3];
+        pm_rgbe_decode(vp.photons[i].power, pw);
+        double v = (pw[0] + pw[1] + pw[2]) / 3;
+        ptotal += v;
+        int kind = pm_photon_kind(&vp.photons[i]);
+        if (kind == PM_KIND_CAUSTIC) ncaustic++;
+        if (kind != PM_KIND_DIRECT) continue;
+        ndirect++;
+        pdirect += v;
+        const float *x = vp.photons[i].pos;
+        double r = sqrt((double)x[0] * x[0] + (double)x[1] * x[1] + (double)x[2] * x[2]);
+        dsum += r;
+        dsum2 += r * r;
+    }
+    double mr = dsum / (double)ndirect, se = sqrt((dsum2 / (double)ndirect - mr * mr) / (double)ndirect);
+    /* total power per photon: (Phi a / n) times a geometric count of mean 1/(1-a), variance a/(1-a)^2 */
+    double want_total = 10 * 0.6 / 0.4, se_total = 10 * 0.6 / sqrt((double)n) * sqrt(0.6) / 0.4;
+    printf("    grey medium: %ld direct (of %llu), mean distance %.4f (se %.4f, 1), direct power %.4f (6),"
+           " total %.4f (%.4f, se %.4f)\n", ndirect, (unsigned long long)n, mr, se, pdirect, ptotal,
+           want_total, se_total);
+    EXPECT_EQ_INT(ndirect, (long)n);
+    EXPECT_EQ_INT(ncaustic, 0);
+    EXPECT_MSG(fabs(mr - 1) < 4 * se, "mean distance %g (se %g)", mr, se);
+    EXPECT_NEAR(pdirect, 6.0, 0.06);
+    EXPECT_MSG(fabs(ptotal - want_total) < 4 * se_total + 0.01 * want_total, "total %g", ptotal);
+    free(vp.photons);
+    scene_free(&s);
+
+    box_mesh(box, sizeof box, v3(-1, -1, 2), v3(1, 1, 4), -1, 0);
+    snprintf(objs, sizeof objs, "{\"type\": \"mesh\", %s, \"material\": \"air\", \"interior_medium\": \"fog\"}", box);
+    snprintf(txt, sizeof txt,
+             "{\"camera\": {\"eye\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+             " \"media\": {\"fog\": {\"sigma_s\": 0.5}},"
+             " \"materials\": {\"m\": {\"type\": \"mirror\"}, \"air\": {\"type\": \"null\"}},"
+             " \"objects\": [{\"type\": \"quad\", \"vertices\": [[-3, -3, -0.5], [3, -3, -0.5], [3, 3, -0.5], [-3, 3, -0.5]], \"material\": \"m\"}, %s],"
+             " \"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"power\": 10}]}", objs);
+    ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
+    ASSERT_EQ_INT(vol_trace(&s, n, 10, 100, &vp), 0);
+    long nk[4] = {0}, outside = 0;
+    for (size_t i = 0; i < vp.count; i++) {
+        nk[pm_photon_kind(&vp.photons[i])]++;
+        const float *x = vp.photons[i].pos;
+        if (fabsf(x[0]) > 1.001f || fabsf(x[1]) > 1.001f || x[2] < 1.999f || x[2] > 4.001f) outside++;
+    }
+    printf("    fog box over a mirror: %ld direct, %ld caustic, %ld indirect, %ld outside the box\n",
+           nk[PM_KIND_DIRECT], nk[PM_KIND_CAUSTIC], nk[PM_KIND_INDIRECT], outside);
+    EXPECT_MSG(nk[PM_KIND_DIRECT] > 0 && nk[PM_KIND_CAUSTIC] > 0, "direct %ld caustic %ld", nk[PM_KIND_DIRECT],
+               nk[PM_KIND_CAUSTIC]);
+    EXPECT_EQ_INT(outside, 0);
+    free(vp.photons);
+    scene_free(&s);
 }
