@@ -245,7 +245,11 @@ static int trace_batch(const pass_ctx *c, uint64_t start, fbuf *tg, fbuf *ts, in
     uint64_t nfirst = 0;
     (void)nthreads; /* read by OpenMP only */
 #ifdef _OPENMP
-#pragma omp parallel for num_threads(nthreads) schedule(dynamic, 64) reduction(| : fail) \
+/* monotonic: each thread must get its chunks in increasing order, because fbuf_merge takes
+ * every per-thread buffer as sorted by photon index. OpenMP 5 makes plain dynamic
+ * nonmonotonic, and LLVM's libomp then steals chunks from the other threads' far ends, which
+ * made the maps depend on the thread count in clang builds. */
+#pragma omp parallel for num_threads(nthreads) schedule(monotonic : dynamic, 64) reduction(| : fail) \
     reduction(+ : nfirst)
 #endif
     for (int k = 0; k < PT_BATCH; k++) {

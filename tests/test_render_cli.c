@@ -186,12 +186,12 @@ TEST(render_cli_progress_bar_on_a_terminal) {
     if (pm_test_run("command -v script >/dev/null", NULL, 0) != 0)
         SKIP("script(1) not installed: terminal progress not checked");
     const char *dir = pm_test_tmpdir(), *scene = scene_path();
-    snprintf(cmd, sizeof cmd, "cd '%s' && script -qec \"%s/render '%s' --spp 4 --hdr t.pfm\" /dev/null",
+    snprintf(cmd, sizeof cmd, "cd '%s' && script -qec \"%s/render '%s' --spp 4 --hdr t.pfm\" ts.log",
              dir, pm_test_build_dir(), scene);
     ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
     const char *bar = strstr(out, "\rRendering [");
     EXPECT_MSG(bar && strstr(bar, "ETA "), "no progress bar with an ETA: %s", out);
-    snprintf(cmd, sizeof cmd, "cd '%s' && script -qec \"%s/render '%s' --spp 4 --hdr t.pfm --quiet\" /dev/null",
+    snprintf(cmd, sizeof cmd, "cd '%s' && script -qec \"%s/render '%s' --spp 4 --hdr t.pfm --quiet\" ts.log",
              dir, pm_test_build_dir(), scene);
     ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
     EXPECT_MSG(!strstr(out, "ETA"), "--quiet still shows progress: %s", out);

@@ -605,7 +605,10 @@ static int render_text(const char *name, const char *text, const char *flags, ch
     char spath[1024], cmd[8192];
     snprintf(spath, sizeof spath, "%s/%s.json", pm_test_tmpdir(), name);
     if (write_file(spath, text) != 0) return -1;
-    snprintf(cmd, sizeof cmd, "%s/render '%s' --quiet %s 2>&1", pm_test_build_dir(), spath, flags);
+    /* Run in the test's own directory: a render without -o writes out.png into the current
+     * directory, and that must be the test's, never the checkout's. */
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' '%s' --quiet %s 2>&1", pm_test_tmpdir(),
+             pm_test_build_dir(), spath, flags);
     double t0 = stats_now();
     int rc = pm_test_run(cmd, out, cap);
     *secs = stats_now() - t0;
