@@ -140,10 +140,12 @@ int mesh_smooth_normals(mesh_data *m, int recompute) {
     int *start = calloc((size_t)m->npos + 1, sizeof *start);
     int *list = malloc((size_t)(m->ntris ? m->ntris : 1) * 3 * sizeof *list);
     vec3 *ng = malloc((size_t)(m->ntris ? m->ntris : 1) * sizeof *ng);
-    if (!m->corner_n || !start || !list || !ng) {
+    int *fill = malloc((size_t)(m->npos ? m->npos : 1) * sizeof *fill);
+    if (!m->corner_n || !start || !list || !ng || !fill) {
         free(start);
         free(list);
         free(ng);
+        free(fill);
         free(m->corner_n);
         m->corner_n = NULL;
         return PM_ENOMEM;
@@ -153,15 +155,6 @@ int mesh_smooth_normals(mesh_data *m, int recompute) {
         for (int k = 0; k < 3; k++) start[m->tri[t][k] + 1]++;
     }
     for (int v = 0; v < m->npos; v++) start[v + 1] += start[v];
-    int *fill = malloc((size_t)(m->npos ? m->npos : 1) * sizeof *fill);
-    if (!fill) {
-        free(start);
-        free(list);
-        free(ng);
-        free(m->corner_n);
-        m->corner_n = NULL;
-        return PM_ENOMEM;
-    }
     memcpy(fill, start, (size_t)m->npos * sizeof *fill);
     for (int t = 0; t < m->ntris; t++)
         for (int k = 0; k < 3; k++) list[fill[m->tri[t][k]]++] = t;
