@@ -4,7 +4,7 @@
  * unbiased:
  *   - at each hit one material branch is chosen in proportion to its weight R, (1-R)T,
  *     (1-R)(1-T) (material.h), so the weight/probability ratio is 1;
- *   - on the diffuse branch, next-event estimation: one light chosen in proportion to its
+ *   - on the diffuse branch, next-event estimation (direct.h): one light chosen in proportion to its
  *     power, one point on it, a shadow ray; the area pdf becomes a solid-angle pdf through
  *     dist^2 / (cos_light A) (light.c). The continuation is cosine-weighted;
  *   - emission seen directly, or after a specular bounce, is added; after a diffuse bounce
@@ -31,6 +31,7 @@
  */
 #include <stdlib.h>
 
+#include "direct.h"
 #include "integrator.h"
 #include "medium.h"
 #include "stats.h"
@@ -42,62 +43,6 @@ typedef struct {
 
 /* No media: the shadow test is plain visibility (the medium-free images stay bit-identical). */
 #define NO_MEDIA (-2)
-
-/* One light in proportion to power and one point on it, seen from p: 3 numbers. 0 if none. */
-static int pick_light(const scene *s, vec3 p, rng *g, light_sample *ls, double *pl, int *li) {
-    double ulight = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
-    if (s->nlights == 0 || s->light_distrib.n == 0) return 0;
-    *li = distrib1d_sample(&s->light_distrib, ulight, pl);
-    if (!(*pl > 0)) return 0;
-    return light_sample_li(s, *li, p, u1, u2, ls);
-}
-
-/* Transmittance from p (normal np) to the light sample, starting in medium med. */
-static rgb shadow_tr(const scene *s, int li, vec3 p, vec3 np, const light_sample *ls, int med) {
-    stat_inc(STAT_SHADOW_RAYS);
-    if (s->lights[li].type == LIGHT_DIRECTIONAL) return scene_transmittance_dir(s, p, np, ls->wi, med);
-    return scene_transmittance(s, p, np, ls->p, ls->n, med);
-}
-
-/* Direct light at a scattering event at p in medium med, for a path going along d:
- * phase * Li * Tr / p_light (the phase function is its own pdf-free weight here). */
-static rgb direct_light_medium(const scene *s, vec3 p, vec3 d, int med, rng *g) {
-    light_sample ls;
-    double pl;
-    int li;
-    if (!pick_light(s, p, g, &ls, &pl, &li) || v3_iszero(ls.L)) return v3s(0);
-    double f = hg_phase(s->media[med].g, v3_dot(d, ls.wi));
-    rgb tr = shadow_tr(s, li, p, v3s(0), &ls, med);
-    return v3_scale(v3_mul(tr, ls.L), f / pl);
-}
-
-/* Direct light at a diffuse hit: f * Li * cos / (pdf_omega * p_light), times the shadow
- * segment's transmittance when med is not NO_MEDIA. */
-static rgb direct_light(const scene *s, const material *m, const hit *h, vec3 n, vec3 wo, rng *g,
-                        int med) {
-    vec3 nsh = material_shading_side(wo, h->ng, h->ns); /* cosines; n (geometric) keeps the side */
-    light_sample ls;
-    double pl;
-    int li;
-    if (!pick_light(s, h->p, g, &ls, &pl, &li)) return v3s(0);
-    double cos_s = v3_dot(ls.wi, nsh);
-    if (cos_s <= 0 || v3_dot(ls.wi, n) <= 0 || v3_iszero(ls.L)) return v3s(0);
-    rgb f = material_diffuse_f(m, nsh, wo, ls.wi);
-    if (v3_iszero(f)) return v3s(0);
-    if (med != NO_MEDIA) {
-        rgb tr = shadow_tr(s, li, h->p, h->ng, &ls, scene_medium_after(s, h, ls.wi));
-        return v3_scale(v3_mul(v3_mul(f, ls.L), tr), cos_s / pl);
-    }
-    stat_inc(STAT_SHADOW_RAYS);
-    const light *l = &s->lights[li];
-    int vis;
-    if (l->type == LIGHT_DIRECTIONAL)
-        vis = scene_visible_dir(s, h->p, h->ng, ls.wi);
-    else
-        vis = scene_visible(s, h->p, h->ng, ls.p, ls.n);
-    if (!vis) return v3s(0);
-    return v3_scale(v3_mul(f, ls.L), cos_s / pl);
-}
 
 /* Russian roulette after rr_depth bounces; 0 if the path ends. */
 static int roulette(const pt_state *st, int depth, rgb *beta, rng *g) {
@@ -140,7 +85,8 @@ static int surface_event(const pt_state *st, const scene *s, const hit *h, ray *
     int alive = material_sample_ns(m, wo, h->ng, h->ns, s->medium_ior, ul, u1, u2, &bs);
     if (bs.lobe == LOBE_DIFFUSE) {
         vec3 n = v3_dot(wo, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
-        pp->L = v3_add(pp->L, v3_mul(pp->beta, direct_light(s, m, h, n, wo, g, med)));
+        direct_options o = {DIRECT_BSDF_DIFFUSE_LOBE, med != NO_MEDIA, NULL, NULL};
+        pp->L = v3_add(pp->L, v3_mul(pp->beta, direct_light_surface(s, m, h, n, wo, g, &o)));
         pp->count_emission = 0;
     } else {
         pp->count_emission = 1;

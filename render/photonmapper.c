@@ -41,6 +41,7 @@
 
 #include "photonmap/common.h"
 #include "photonmap/estimate.h"
+#include "direct.h"
 #include "integrator.h"
 #include "photonmap/irradiance.h"
 #include "photonmap/kdtree.h"
@@ -131,34 +132,32 @@ static int shadow_map_says(const mapper_state *st, vec3 x, vec3 ns, pm_neighbor 
     return -1;
 }
 
-/* Direct light at a diffuse point: one light sample. */
+/* The shadow-photon map as direct_light_surface's shadow hint (direct.h): for area lights the
+ * k_shadow nearest shadow-map photons decide when they agree; the counters say how often. */
+typedef struct shadow_hint_ctx {
+    const mapper_state *st;
+    mapper_scratch *sc;
+} shadow_hint_ctx;
+
+static int shadow_hint(void *user, const scene *s, int li, const hit *h, vec3 n) {
+    const shadow_hint_ctx *c = user;
+    int vis = s->lights[li].type == LIGHT_AREA ? shadow_map_says(c->st, h->p, n, c->sc->nb) : -1;
+    if (vis == 1)
+        stat_inc(c->st->st_saved_lit);
+    else if (vis == 0)
+        stat_inc(c->st->st_saved_dark);
+    else
+        stat_inc(c->st->st_traced);
+    return vis;
+}
+
+/* Direct light at a diffuse point: one light sample (direct.h), weighted by the full BSDF
+ * (the diffuse branch's weight included: no branch is chosen here). */
 static rgb direct_light(const mapper_state *st, const scene *s, const material *m, const hit *h,
                         vec3 ns, vec3 wo, rng *g, mapper_scratch *sc) {
-    double ul = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
-    if (s->nlights == 0 || s->light_distrib.n == 0) return v3s(0);
-    double pl;
-    int li = distrib1d_sample(&s->light_distrib, ul, &pl);
-    if (!(pl > 0)) return v3s(0);
-    light_sample ls;
-    if (!light_sample_li(s, li, h->p, u1, u2, &ls)) return v3s(0);
-    double cos_s = v3_dot(ls.wi, material_shading_side(wo, h->ng, h->ns)); /* ns: the side */
-    if (cos_s <= 0 || v3_dot(ls.wi, ns) <= 0 || v3_iszero(ls.L)) return v3s(0);
-    rgb f = material_f(m, h->ng, s->medium_ior, wo, ls.wi);
-    if (v3_iszero(f)) return v3s(0);
-    const light *l = &s->lights[li];
-    int vis = l->type == LIGHT_AREA ? shadow_map_says(st, h->p, ns, sc->nb) : -1;
-    if (vis == 1)
-        stat_inc(st->st_saved_lit);
-    else if (vis == 0)
-        stat_inc(st->st_saved_dark);
-    else {
-        stat_inc(st->st_traced);
-        stat_inc(STAT_SHADOW_RAYS);
-        vis = l->type == LIGHT_DIRECTIONAL ? scene_visible_dir(s, h->p, h->ng, ls.wi)
-                                           : scene_visible(s, h->p, h->ng, ls.p, ls.n);
-    }
-    if (!vis) return v3s(0);
-    return v3_scale(v3_mul(f, ls.L), cos_s / pl);
+    shadow_hint_ctx c = {st, sc};
+    direct_options o = {DIRECT_BSDF_FULL, 0, shadow_hint, &c};
+    return direct_light_surface(s, m, h, ns, wo, g, &o);
 }
 
 static rgb caustics_at(const mapper_state *st, const scene *s, const material *m, const hit *h,

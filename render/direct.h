@@ -1,0 +1,71 @@
+/* direct.h: next-event estimation, the direct light at a point from one light sample. The path
+ * tracer (pathtracer.c) and the photon mapper (photonmapper.c) both compute direct light here,
+ * so the two modes that are compared with each other sample lights the same way.
+ *
+ * How: one light chosen in proportion to its power (scene->light_distrib), one point on it
+ * (light_sample_li), a shadow test; the estimate is f * Li * cos / (p_light * pdf_omega), the
+ * area pdf already turned into a solid-angle one by light.c. Three random numbers per call,
+ * always drawn (light choice, then the point's two), so a caller's stream advances the same way
+ * whether or not a light is found: images do not depend on which samples found nothing.
+ *
+ * At a surface (direct_light_surface) the cosine is taken with the shading normal turned to wo's
+ * side (material_shading_side); n, the geometric normal on wo's side, decides whether the light
+ * is in front at all. Two things differ between the callers and are options:
+ *   - bsdf: DIRECT_BSDF_DIFFUSE_LOBE weights the light by material_diffuse_f alone (shading
+ *     normal, no branch weight): the path tracer calls it after it chose the diffuse branch,
+ *     whose weight/probability ratio is 1. DIRECT_BSDF_FULL weights it by material_f (geometric
+ *     normal, times the diffuse branch weight (1-R)(1-T)): the photon mapper adds direct light
+ *     at every surface with a diffuse branch without choosing one;
+ *   - the shadow test: media = 1 multiplies by the transmittance of the shadow segment through
+ *     media and null surfaces (scene_transmittance, starting in the medium on the light's side
+ *     of the surface), media = 0 is plain visibility. A hint (the photon mapper's shadow-photon
+ *     map) may answer lit (1) or dark (0) before the ray is traced, or -1 to trace it; it is
+ *     asked only with media = 0, and only for samples that would contribute.
+ * Every traced shadow segment counts in STAT_SHADOW_RAYS.
+ *
+ * In a medium (direct_light_medium) the phase function replaces f * cos, and the shadow segment
+ * always carries the transmittance.
+ *
+ * Thread-safety: reads the scene only; the hint is called on the caller's thread.
+ */
+#ifndef RENDER_DIRECT_H
+#define RENDER_DIRECT_H
+
+#include "rng.h"
+#include "scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum direct_bsdf {
+    DIRECT_BSDF_DIFFUSE_LOBE, /* material_diffuse_f(m, shading normal, wo, wi) */
+    DIRECT_BSDF_FULL          /* material_f(m, ng, scene ior, wo, wi): with the branch weight */
+} direct_bsdf;
+
+/* Shadow shortcut for light sample li seen from h (n: geometric normal on wo's side): 1 lit,
+ * 0 dark, -1 trace the shadow ray. */
+typedef int (*direct_shadow_hint)(void *user, const scene *s, int li, const hit *h, vec3 n);
+
+typedef struct direct_options {
+    direct_bsdf bsdf;
+    int media;                /* 1: shadow segments carry the media's transmittance */
+    direct_shadow_hint hint;  /* NULL: always trace (ignored when media = 1) */
+    void *hint_user;
+} direct_options;
+
+/* Direct light leaving the surface at h toward wo (material m, n the geometric normal on wo's
+ * side), from one light sample: 3 numbers from g. 0 when no light is found, the light is behind
+ * the surface, f is 0 or the light is blocked. */
+rgb direct_light_surface(const scene *s, const material *m, const hit *h, vec3 n, vec3 wo, rng *g,
+                         const direct_options *o);
+
+/* Direct light scattered at p, inside medium med, into a path travelling along d: phase *
+ * Li * Tr / p_light, from one light sample: 3 numbers from g. */
+rgb direct_light_medium(const scene *s, vec3 p, vec3 d, int med, rng *g);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif
