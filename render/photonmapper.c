@@ -46,6 +46,7 @@
 #include "photonmap/irradiance.h"
 #include "photonmap/kdtree.h"
 #include "photonmap/photon.h"
+#include "photon_lookup.h"
 #include "photon_maps.h"
 #include "photon_sides.h"
 #include "photon_trace.h"
@@ -61,6 +62,7 @@ typedef struct mapper_state {
     pm_kdtree *tg, *tc, *ts; /* global, caustic, shadow trees (NULL when absent/empty) */
     side_cache sides; /* precomputed irradiance that keeps to each query's side (photon_sides.h) */
     float r2_global, r2_caustic, r2_shadow, r2_lookup;
+    size_t nglobal_all, ncaustic_all; /* photons in the whole maps (all processes' parts) */
     double sec_dist;
     pm_estimate_options caus_opt, glob_opt;
     unsigned kmax;
@@ -72,7 +74,13 @@ typedef struct mapper_state {
 typedef struct mapper_scratch {
     void *est;
     pm_neighbor *nb;
+    const sample_id *id; /* the camera sample being traced (for the lookup hook) */
 } mapper_scratch;
+
+/* A distributed render's lookups (photon_lookup.h); NULL in one process. */
+static const photon_lookup_hook *g_lookup;
+
+void photon_lookup_set_hook(const photon_lookup_hook *h) { g_lookup = h; }
 
 /* ---- helpers ------------------------------------------------------------------------------ */
 
@@ -107,6 +115,18 @@ static rgb map_estimate(const pm_kdtree *t, const pm_estimate_options *base, vec
     pm_estimate_result res;
     if (pm_estimate(t, xf, nf, &o, scratch, &res, NULL) < 0) return v3s(0);
     return v3(res.rgb[0], res.rgb[1], res.rgb[2]);
+}
+
+/* Radiance estimate from the global or caustic map (a PHOTON_LOOKUP_*): this process's tree,
+ * or through the lookup hook (the irradiance of all processes' parts, times the BRDF). */
+static rgb estimate_at(const mapper_state *st, int which, vec3 x, vec3 ns, rgb albedo,
+                       mapper_scratch *sc) {
+    if (!g_lookup)
+        return which == PHOTON_LOOKUP_CAUSTIC ? map_estimate(st->tc, &st->caus_opt, x, ns, albedo, sc->est)
+                                              : map_estimate(st->tg, &st->glob_opt, x, ns, albedo, sc->est);
+    double e[3];
+    g_lookup->estimate(g_lookup->user, sc->id, which, x, ns, e);
+    return v3(albedo.x * e[0] / M_PI, albedo.y * e[1] / M_PI, albedo.z * e[2] / M_PI);
 }
 
 /* -1: trace the shadow ray; 1: the shadow map says lit; 0: it says dark. */
@@ -162,9 +182,9 @@ static rgb direct_light(const mapper_state *st, const scene *s, const material *
 
 static rgb caustics_at(const mapper_state *st, const scene *s, const material *m, const hit *h,
                        vec3 ns, vec3 wo, mapper_scratch *sc) {
-    if (!st->tc) return v3s(0);
+    if (!st->ncaustic_all) return v3s(0);
     stat_inc(st->st_caustic);
-    return map_estimate(st->tc, &st->caus_opt, h->p, ns, diffuse_albedo(s, m, wo, h->ng), sc->est);
+    return estimate_at(st, PHOTON_LOOKUP_CAUSTIC, h->p, ns, diffuse_albedo(s, m, wo, h->ng), sc);
 }
 
 /* Follow a ray through specular surfaces to the first diffuse hit. Returns the number of
@@ -338,9 +358,9 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
             rgb Ld;
             if (st->direct_vis) {
                 stat_inc(st->st_global_est);
-                Ld = st->tg ? map_estimate(st->tg, &st->glob_opt, h.p, ns,
-                                           diffuse_albedo(s, m, wo, h.ng), sc->est)
-                            : v3s(0);
+                Ld = st->nglobal_all ? estimate_at(st, PHOTON_LOOKUP_GLOBAL, h.p, ns,
+                                                   diffuse_albedo(s, m, wo, h.ng), sc)
+                                     : v3s(0);
             } else {
                 Ld = direct_light(st, s, m, &h, ns, wo, g, sc);
                 if (cw > 0) Ld = v3_add(Ld, v3_scale(caustics_at(st, s, m, &h, ns, wo, sc), cw));
@@ -407,6 +427,7 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
 static rgb mapper_li(const integrator *self, const scene *s, ray r, rng *g, const sample_id *id,
                  void *scratch) {
     const mapper_state *st = self->data;
+    if (scratch) ((mapper_scratch *)scratch)->id = id;
     int m = st->cfg.emission_strata;
     if (m <= 0 || !id || id->strata <= 0)
         return eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_ALL, g, scratch);
@@ -504,14 +525,19 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         printf("Saved photon maps to %s\n", st->cfg.save_dir);
     }
 
+    /* The radii of the whole maps, before a distributed render keeps only its part of them. */
+    map_radii rad;
+    photon_maps_radii(s, m, &st->cfg, &rad);
+    st->nglobal_all = m->nglobal;
+    st->ncaustic_all = m->ncaustic;
+    if (g_lookup && (rc = g_lookup->partition(g_lookup->user, m, err, errcap)) < 0) return rc;
+
     t0 = stats_now();
     if ((rc = photon_tree_build(&st->tg, m->global, m->nglobal, BUCKET_GLOBAL, err, errcap)) < 0 ||
         (rc = photon_tree_build(&st->tc, m->caustic, m->ncaustic, BUCKET_CAUSTIC, err, errcap)) < 0 ||
         (rc = photon_tree_build(&st->ts, m->shadow, m->nshadow, BUCKET_SHADOW, err, errcap)) < 0)
         return rc;
     stats_time_add("Time/Photon kd-trees", stats_now() - t0);
-    map_radii rad;
-    photon_maps_radii(s, m, &st->cfg, &rad);
     st->r2_global = rad.r2_global;
     st->r2_caustic = rad.r2_caustic;
     st->r2_lookup = rad.r2_lookup;
@@ -529,17 +555,25 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     st->glob_opt.max_dist2 = st->r2_global;
     st->glob_opt.reject_behind = 1;
 
-    if (st->tg && !st->direct_vis) {
+    if (st->nglobal_all && !st->direct_vis) {
         t0 = stats_now();
-        rc = side_cache_build(&st->sides, s, st->tg, pm_kdtree_records(st->tg), m->nglobal,
-                              (unsigned)st->cfg.k_global, st->r2_global, err, errcap);
+        rc = g_lookup ? g_lookup->side_build(g_lookup->user, &st->sides, s, st->tg,
+                                             st->tg ? pm_kdtree_records(st->tg) : NULL, m->nglobal,
+                                             (unsigned)st->cfg.k_global, st->r2_global, err, errcap)
+                      : side_cache_build(&st->sides, s, st->tg, pm_kdtree_records(st->tg), m->nglobal,
+                                         (unsigned)st->cfg.k_global, st->r2_global, err, errcap);
         if (rc < 0) return rc;
         stat_add(st->st_side_rays, st->sides.rays_first + st->sides.rays_second);
         stat_add(st->st_side_again, st->sides.researched);
         stats_time_add("Time/Precomputed irradiance", stats_now() - t0);
         printf("Precomputed irradiance at %zu of %zu global photons (%zu estimates searched again "
                "for a hidden neighbour)\n",
-               st->sides.n, m->nglobal, st->sides.researched);
+               st->sides.n, st->nglobal_all, st->sides.researched);
+    }
+    if (g_lookup) {
+        const pm_kdtree *trees[2] = {st->tg, st->tc};
+        pm_estimate_options opts[2] = {st->glob_opt, st->caus_opt};
+        g_lookup->ready(g_lookup->user, trees, opts);
     }
     fflush(stdout);
     return 0;
