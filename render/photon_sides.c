@@ -84,6 +84,11 @@ static double visible_disc_fraction(const scene *s, vec3 p, vec3 n, double r) {
     return sum / SIDE_AREA_DIRS;
 }
 
+double side_disc_fraction(const scene *s, vec3 p, vec3 n, double r) {
+    double f = visible_disc_fraction(s, p, n, r);
+    return f < 1.0 / SIDE_AREA_DIRS ? 1.0 / SIDE_AREA_DIRS : f;
+}
+
 /* The disc estimate of irradiance from the photons nb[0..count) over the disc of radius^2
  * r2: with rim = 1 the farthest of them lies on the rim (a k-th nearest), and the area is
  * scaled by k / (k - 0.5) as pm_estimate's PM_BIAS_AREA does; with rim = 0 the whole disc

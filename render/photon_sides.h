@@ -62,6 +62,11 @@ double side_free_height(const scene *s, vec3 p, vec3 np, double cap);
 /* side_visible with the free heights hp, hq of both ends known: one ray. */
 int side_visible_h(const scene *s, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq);
 
+/* The part of the disc of radius r around the surface point p (normal n) on p's side of every
+ * surface (side_cache_build's area for an estimate that met a wall, at least 1/32): 33 rays.
+ * For a distributed build (render/mpi/lookup.c) that combines such estimates. */
+double side_disc_fraction(const scene *s, vec3 p, vec3 n, double r);
+
 typedef struct side_cache {
     pm_photon *recs; /* the precomputed photons, power = irradiance E (RGBE), in tree order */
     float *r2;       /* radius^2 of each one's own estimate, same order */
