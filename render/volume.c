@@ -1,27 +1,71 @@
-/* volume.c: photon tracing through participating media for the volume photon map; see
- * volume.h. One loop per photon: free flight in the current medium, a stored photon and an
- * HG bounce at each scattering event, a material bounce or a medium change at each surface.
+/* volume.c: photon tracing through participating media for the volume photon maps and the
+ * surface maps of a scene with media; see volume.h. trace_photon follows one photon (free
+ * flight in the current medium, a volume store and an HG bounce at each scattering event, a
+ * surface store and a material bounce at each diffuse surface, a medium change at each null
+ * surface) into its batch's buffer; vol_trace_pass runs rounds of batches on the threads and
+ * merges them in photon order, cutting each map at its target by whole photon paths.
  */
 #include "volume.h"
 
 #include <stdlib.h>
+#include <string.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "medium.h"
 #include "photonmap/common.h"
 #include "rng.h"
 
-static int store(vol_photons *o, vec3 p, rgb power, vec3 d, int kind) {
-    if (o->count == o->cap) {
-        size_t nc = o->cap ? 2 * o->cap : 1024;
-        pm_photon *np = realloc(o->photons, nc * sizeof *np);
-        if (!np) return PM_ENOMEM;
-        o->photons = np;
-        o->cap = nc;
+enum { WHERE_SURFACE, WHERE_VOLUME };
+
+/* A stored photon before the power is divided by the map's emitted count. */
+typedef struct vrec {
+    uint64_t index; /* photon index in the pass */
+    float pos[3], power[3], dir[3], nrm[3];
+    int kind, where;
+} vrec;
+
+typedef struct vbuf {
+    vrec *r;
+    size_t n, cap;
+    vol_pilot pilot; /* this batch's counts */
+    int fail;
+} vbuf;
+
+typedef struct vctx {
+    const scene *s;
+    const vol_pass_opts *o;
+    int keep_surface, keep_volume, counting;
+} vctx;
+
+static void to3(float f[3], vec3 v) {
+    f[0] = (float)v.x;
+    f[1] = (float)v.y;
+    f[2] = (float)v.z;
+}
+
+static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kind, int where) {
+    if (b->fail) return;
+    if (b->n == b->cap) {
+        size_t nc = b->cap ? 2 * b->cap : 1024;
+        vrec *nr = realloc(b->r, nc * sizeof *nr);
+        if (!nr) {
+            b->fail = 1;
+            return;
+        }
+        b->r = nr;
+        b->cap = nc;
     }
-    float fp[3] = {(float)p.x, (float)p.y, (float)p.z}, fw[3] = {(float)power.x, (float)power.y, (float)power.z},
-          fd[3] = {(float)d.x, (float)d.y, (float)d.z};
-    pm_photon_init(&o->photons[o->count++], fp, fw, fd, NULL, kind);
-    return 0;
+    vrec *v = &b->r[b->n++];
+    v->index = i;
+    to3(v->pos, p);
+    to3(v->power, power);
+    to3(v->dir, d);
+    to3(v->nrm, n);
+    v->kind = kind;
+    v->where = where;
 }
 
 /* Roulette on a throughput factor w: survive with q = min(1, max channel), power * w / q. */
@@ -32,65 +76,227 @@ static int survive(rgb *power, rgb w, rng *g) {
     return 1;
 }
 
+static int clampi(int v, int n) { return v < 0 || v >= n ? n - 1 : v; }
+
+static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
+    const scene *s = c->s;
+    const int caustic_pass = c->o->caustic_pass, max_depth = c->o->max_depth;
+    rng g = rng_stream(c->o->seed, i, caustic_pass ? 8 : 7);
+    double pl, u[4];
+    int li = distrib1d_sample(&s->light_distrib, rng_uniform(&g), &pl);
+    for (int k = 0; k < 4; k++) u[k] = rng_uniform(&g);
+    b->pilot.emitted++;
+    if (!(pl > 0)) return;
+    vec3 p, nl, d;
+    light_sample_le(s, li, u, &p, &nl, &d);
+    rgb power = v3_scale(s->lights[li].power, 1.0 / pl);
+    if (v3_iszero(power)) return;
+    ray r = {v3_iszero(nl) ? p : v3_offset(p, nl, d), d};
+    /* specular: a specular bounce so far; scattered: a diffuse bounce or a scattering event;
+     * in_medium_scatter: a scattering event so far. med -2: not known until the first hit. */
+    int med = -2, specular = 0, scattered = 0, vscattered = 0, crossings = 0, spec_mat = -1;
+    for (int depth = 0; depth <= max_depth;) {
+        hit h;
+        int got = scene_intersect(s, r, INFINITY, &h);
+        if (med == -2) med = got ? scene_medium_after(s, &h, v3_neg(r.d)) : s->global_medium;
+        if (med >= 0) {
+            double uc = rng_uniform(&g), ud = rng_uniform(&g), t;
+            rgb w;
+            if (medium_sample_distance(&s->media[med], got ? h.t : INFINITY, uc, ud, &t, &w)) {
+                vec3 x = ray_at(r, t);
+                int kind = scattered ? PM_KIND_INDIRECT : specular ? PM_KIND_CAUSTIC : PM_KIND_DIRECT;
+                b->pilot.events[clampi(med, VOL_PILOT_MEDIA)][kind]++;
+                if (kind == PM_KIND_CAUSTIC) b->pilot.caustic_by_mat[clampi(spec_mat, VOL_PILOT_MATS)]++;
+                if (c->keep_volume && (!caustic_pass || kind == PM_KIND_CAUSTIC))
+                    push(b, i, x, v3_mul(power, w), r.d, v3s(0), kind, WHERE_VOLUME);
+                if (caustic_pass) return; /* not L S+ any more */
+                scattered = vscattered = 1;
+                if (!survive(&power, w, &g)) return;
+                vec3 nd;
+                hg_sample(s->media[med].g, r.d, rng_uniform(&g), rng_uniform(&g), &nd);
+                r.o = x;
+                r.d = nd;
+                depth++;
+                continue;
+            }
+            power = v3_mul(power, w);
+            if (v3_iszero(power)) return;
+        }
+        if (!got) return;
+        const material *m = scene_material(s, &h);
+        if (m->kind == MAT_NULL) {
+            if (++crossings > 4 * max_depth + 1024) return;
+            med = scene_medium_after(s, &h, r.d);
+            r.o = v3_offset(h.p, h.ng, r.d);
+            continue;
+        }
+        vec3 wo = v3_neg(r.d);
+        double wl[LOBE_COUNT];
+        material_weights(m, wo, h.ng, s->medium_ior, wl);
+        if (wl[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0) {
+            int kind = scattered ? PM_KIND_INDIRECT : specular ? PM_KIND_CAUSTIC : PM_KIND_DIRECT;
+            if (kind == PM_KIND_DIRECT) b->pilot.surf_direct++;
+            if (kind == PM_KIND_CAUSTIC) b->pilot.surf_caustic++;
+            if (kind == PM_KIND_INDIRECT) b->pilot.surf_indirect++;
+            if (vscattered) b->pilot.surf_after_scatter++;
+            vec3 ns = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
+            /* The global map has no caustic kind (photon_trace.h): L S+ D counts as indirect. */
+            if (c->keep_surface && !caustic_pass)
+                push(b, i, h.p, power, r.d, ns, kind == PM_KIND_DIRECT ? kind : PM_KIND_INDIRECT, WHERE_SURFACE);
+            if (c->keep_surface && caustic_pass && kind == PM_KIND_CAUSTIC)
+                push(b, i, h.p, power, r.d, ns, kind, WHERE_SURFACE);
+        }
+        bsdf_sample bs;
+        double ul = rng_uniform(&g), u1 = rng_uniform(&g), u2 = rng_uniform(&g);
+        if (!material_sample_ns(m, wo, h.ng, h.ns, s->medium_ior, ul, u1, u2, &bs)) return;
+        if (bs.lobe == LOBE_DIFFUSE) {
+            if (caustic_pass) return;
+            scattered = 1;
+        } else if (!specular) {
+            specular = 1;
+            spec_mat = h.mat;
+        }
+        if (!survive(&power, bs.weight, &g)) return;
+        med = scene_medium_after(s, &h, bs.wi);
+        r.o = v3_offset(h.p, h.ng, bs.wi);
+        r.d = bs.wi;
+        depth++;
+    }
+}
+
+static void pilot_add(vol_pilot *a, const vol_pilot *b) {
+    a->emitted += b->emitted;
+    for (int m = 0; m < VOL_PILOT_MEDIA; m++)
+        for (int k = 0; k < 4; k++) a->events[m][k] += b->events[m][k];
+    for (int k = 0; k < VOL_PILOT_MATS; k++) a->caustic_by_mat[k] += b->caustic_by_mat[k];
+    a->surf_direct += b->surf_direct;
+    a->surf_caustic += b->surf_caustic;
+    a->surf_indirect += b->surf_indirect;
+    a->surf_after_scatter += b->surf_after_scatter;
+}
+
+/* One map being filled: its records in photon order, and where it was cut. */
+typedef struct vmap {
+    int keep;
+    long target;
+    vrec *r;
+    size_t n, cap;
+    uint64_t cut; /* photons [0, cut) kept; UINT64_MAX: not cut yet */
+} vmap;
+
+static int vmap_take(vmap *m, const vrec *v) {
+    if (!m->keep || v->index >= m->cut) return 0;
+    if (m->n == m->cap) {
+        size_t nc = m->cap ? 2 * m->cap : 4096;
+        vrec *nr = realloc(m->r, nc * sizeof *nr);
+        if (!nr) return PM_ENOMEM;
+        m->r = nr;
+        m->cap = nc;
+    }
+    m->r[m->n++] = *v;
+    if (m->cut == UINT64_MAX && (long)m->n >= m->target) m->cut = v->index + 1;
+    return 0;
+}
+
+/* The records as pm_photons with the power divided by the map's emitted count. */
+static int vmap_finish(vmap *m, uint64_t emitted, pm_photon **out, size_t *n, uint64_t *ne) {
+    *out = NULL;
+    *n = 0;
+    *ne = m->cut == UINT64_MAX ? emitted : m->cut;
+    if (!m->keep || m->n == 0) return 0;
+    pm_photon *ph = malloc(m->n * sizeof *ph);
+    if (!ph) return PM_ENOMEM;
+    float sc = (float)(1.0 / (double)*ne);
+    for (size_t k = 0; k < m->n; k++) {
+        const vrec *v = &m->r[k];
+        float pw[3] = {v->power[0] * sc, v->power[1] * sc, v->power[2] * sc};
+        pm_photon_init(&ph[k], v->pos, pw, v->dir, v->where == WHERE_SURFACE ? v->nrm : NULL, v->kind);
+    }
+    *out = ph;
+    *n = m->n;
+    return 0;
+}
+
+void vol_pass_free(vol_pass_result *r) {
+    free(r->surface);
+    free(r->volume);
+    memset(r, 0, sizeof *r);
+}
+
+int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res) {
+    memset(res, 0, sizeof *res);
+    if (s->nlights == 0 || s->light_distrib.n == 0) return PM_EINVAL;
+    if (!(o->max_emitted >= 1) || o->max_depth < 0 || o->surface_target < 0 || o->volume_target < 0)
+        return PM_EINVAL;
+    vctx c = {s, o, o->surface_target > 0 && !o->pilot, o->volume_target > 0 && !o->pilot, o->pilot != NULL};
+    vmap ms = {c.keep_surface, o->surface_target, NULL, 0, 0, c.keep_surface ? UINT64_MAX : 0};
+    vmap mv = {c.keep_volume, o->volume_target, NULL, 0, 0, c.keep_volume ? UINT64_MAX : 0};
+    vbuf bufs[VOL_ROUND];
+    memset(bufs, 0, sizeof bufs);
+    int nthreads = 1;
+#ifdef _OPENMP
+    nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
+#endif
+    uint64_t emitted = 0, max_emitted = (uint64_t)o->max_emitted;
+    int rc = 0;
+    while (emitted < max_emitted && (c.counting || ms.cut == UINT64_MAX || mv.cut == UINT64_MAX)) {
+        uint64_t start = emitted;
+        int nb = VOL_ROUND;
+        (void)nthreads;
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(nthreads) schedule(dynamic, 1)
+#endif
+        for (int b = 0; b < nb; b++) {
+            vbuf *bf = &bufs[b];
+            bf->n = 0;
+            memset(&bf->pilot, 0, sizeof bf->pilot);
+            uint64_t lo = start + (uint64_t)b * VOL_BATCH, hi = lo + VOL_BATCH;
+            if (hi > max_emitted) hi = max_emitted;
+            for (uint64_t i = lo; i < hi; i++) trace_photon(&c, i, bf);
+        }
+        for (int b = 0; b < nb && rc == 0; b++) {
+            if (bufs[b].fail) rc = PM_ENOMEM;
+            if (o->pilot) pilot_add(o->pilot, &bufs[b].pilot);
+            for (size_t k = 0; k < bufs[b].n && rc == 0; k++) {
+                const vrec *v = &bufs[b].r[k];
+                rc = vmap_take(v->where == WHERE_SURFACE ? &ms : &mv, v);
+            }
+        }
+        if (rc < 0) break;
+        uint64_t end = start + (uint64_t)nb * VOL_BATCH;
+        emitted = end < max_emitted ? end : max_emitted;
+        /* A map that stored nothing in its first VOL_EMPTY_PHOTONS photons stays empty. */
+        if (emitted >= VOL_EMPTY_PHOTONS) {
+            if (ms.cut == UINT64_MAX && ms.n == 0) ms.cut = emitted;
+            if (mv.cut == UINT64_MAX && mv.n == 0) mv.cut = emitted;
+        }
+    }
+    for (int b = 0; b < VOL_ROUND; b++) free(bufs[b].r);
+    res->emitted = emitted;
+    res->surface_short = ms.keep && ms.cut == UINT64_MAX;
+    res->volume_short = mv.keep && mv.cut == UINT64_MAX;
+    if (rc == 0) rc = vmap_finish(&ms, emitted, &res->surface, &res->nsurface, &res->surface_emitted);
+    if (rc == 0) rc = vmap_finish(&mv, emitted, &res->volume, &res->nvolume, &res->volume_emitted);
+    free(ms.r);
+    free(mv.r);
+    if (rc < 0) vol_pass_free(res);
+    return rc;
+}
+
 int vol_trace(const scene *s, uint64_t n, uint64_t seed, int max_depth, vol_photons *out) {
     out->photons = NULL;
     out->count = out->cap = 0;
-    if (s->nlights == 0 || s->light_distrib.n == 0) return PM_EINVAL;
-    for (uint64_t i = 0; i < n; i++) {
-        rng g = rng_stream(seed, i, 7);
-        double pl, u[4];
-        int li = distrib1d_sample(&s->light_distrib, rng_uniform(&g), &pl);
-        for (int k = 0; k < 4; k++) u[k] = rng_uniform(&g);
-        vec3 p, nl, d;
-        light_sample_le(s, li, u, &p, &nl, &d);
-        if (!(pl > 0)) continue;
-        rgb power = v3_scale(s->lights[li].power, 1.0 / ((double)n * pl));
-        ray r = {v3_iszero(nl) ? p : v3_offset(p, nl, d), d};
-        int med = s->global_medium, specular = 0, scattered = 0, crossings = 0;
-        for (int depth = 0; depth <= max_depth;) {
-            hit h;
-            int got = scene_intersect(s, r, INFINITY, &h);
-            if (med >= 0) {
-                double uc = rng_uniform(&g), ud = rng_uniform(&g), t;
-                rgb w;
-                if (medium_sample_distance(&s->media[med], got ? h.t : INFINITY, uc, ud, &t, &w)) {
-                    vec3 x = ray_at(r, t);
-                    int kind = scattered ? PM_KIND_INDIRECT : specular ? PM_KIND_CAUSTIC : PM_KIND_DIRECT;
-                    if (store(out, x, v3_mul(power, w), r.d, kind) < 0) {
-                        free(out->photons);
-                        out->photons = NULL;
-                        out->count = out->cap = 0;
-                        return PM_ENOMEM;
-                    }
-                    scattered = 1;
-                    if (!survive(&power, w, &g)) break;
-                    vec3 nd;
-                    hg_sample(s->media[med].g, r.d, rng_uniform(&g), rng_uniform(&g), &nd);
-                    r.o = x;
-                    r.d = nd;
-                    depth++;
-                    continue;
-                }
-                power = v3_mul(power, w);
-            }
-            if (!got) break;
-            const material *m = scene_material(s, &h);
-            if (m->kind == MAT_NULL) {
-                if (++crossings > 4 * max_depth + 1024) break;
-                med = scene_medium_after(s, &h, r.d);
-                r.o = v3_offset(h.p, h.ng, r.d);
-                continue;
-            }
-            bsdf_sample bs;
-            double ul = rng_uniform(&g), u1 = rng_uniform(&g), u2 = rng_uniform(&g);
-            if (!material_sample_ns(m, v3_neg(r.d), h.ng, h.ns, s->medium_ior, ul, u1, u2, &bs)) break;
-            if (bs.lobe == LOBE_DIFFUSE) scattered = 1; else specular = 1;
-            if (!survive(&power, bs.weight, &g)) break;
-            med = scene_medium_after(s, &h, bs.wi);
-            r.o = v3_offset(h.p, h.ng, bs.wi);
-            r.d = bs.wi;
-            depth++;
-        }
-    }
+    vol_pass_opts o = {0};
+    o.volume_target = (long)(n * (uint64_t)max_depth + n + 1); /* never reached: keep all */
+    o.max_emitted = (double)n;
+    o.max_depth = max_depth;
+    o.seed = seed;
+    vol_pass_result r;
+    int rc = vol_trace_pass(s, &o, &r);
+    if (rc < 0) return rc;
+    out->photons = r.volume;
+    out->count = out->cap = r.nvolume;
+    r.volume = NULL;
+    vol_pass_free(&r);
     return 0;
 }

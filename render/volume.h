@@ -1,24 +1,43 @@
-/* volume.h: photon tracing for participating media: the photons a volume photon map holds.
+/* volume.h: photon tracing for scenes with participating media: the volume photon maps, and the
+ * surface maps attenuated by the media on the way.
  *
- * vol_trace() emits n photons from the scene's lights (a light chosen in proportion to its
- * power, photon power = light power / (n p_light)) and follows each through media and
- * surfaces. In a medium it samples free-flight distances (medium.h); at each scattering event
- * it stores one photon: its position, the direction it travelled, and the scattered power
- * (the power arriving times the free-flight weight, which is sigma_s / sigma_t in a grey
- * medium), then continues in an HG direction with Russian roulette on that weight, so a
- * photon's power stays constant in a grey medium. Surfaces scatter it by material_sample
- * (roulette on the branch weight); null surfaces only change the medium. Nothing is stored
- * on surfaces: that is photon_trace's work.
+ * One photon: a light is chosen in proportion to its power and a point and direction sampled
+ * from it (light_sample_le; photon power = light power / (n p_light) for n emitted). The
+ * photon starts in the medium on the light's side of the first surface its ray meets (the
+ * global medium if it meets none). In a medium it samples free-flight distances (medium.h);
+ * at each scattering event it may store a VOLUME photon: its position, the direction it
+ * travelled, and the scattered power (the power arriving times the free-flight weight, which
+ * is sigma_s / sigma_t in a grey medium), then continues in an HG direction with Russian
+ * roulette on that weight, so a photon's power stays constant in a grey medium. At a surface
+ * with a diffuse branch it may store a SURFACE photon (position, the power arriving, the
+ * direction, the normal on the side it arrived at), then scatters by material_sample
+ * (roulette on the branch weight). Null surfaces only change the medium (no bounce).
  *
- * Kinds (pm_photon_kind): PM_KIND_DIRECT for the first event of a photon straight from the
- * light, PM_KIND_CAUSTIC for the first event after one or more specular surface bounces and
- * nothing else (a volumetric caustic, L S+ V), PM_KIND_INDIRECT for every other event. A
- * renderer that computes single scattering by ray marching with shadow rays leaves the
- * DIRECT ones out.
+ * Kinds (pm_photon_kind), the same for both places: PM_KIND_DIRECT for a photon's first event
+ * straight from the light (through media without scattering), PM_KIND_CAUSTIC for the first
+ * event after one or more specular surface bounces and nothing else (L S+ V, L S+ D),
+ * PM_KIND_INDIRECT for every other event. A renderer that computes single scattering by ray
+ * marching with shadow rays leaves the DIRECT volume photons out of its estimates.
  *
- * Limits (so far): photons start in the global medium (a light inside a medium-filled object
- * is not followed correctly); single-threaded; this module is not yet used by --mode pm.
- * Ownership: the caller frees out->photons with free(). Deterministic for a seed.
+ * PASSES (vol_trace_pass). The GLOBAL pass keeps every surface photon (the global map) and
+ * every volume photon; the CAUSTIC pass keeps only L S+ D surface photons (the caustic map) and
+ * L S+ V volume photons (the volume caustic map), and ends a photon's path at its first diffuse
+ * bounce or scattering event. Each kept map has its own store target and its own emitted
+ * count: the map holds the photons of the first n_e emitted paths whose stores reach the target
+ * (each path whole), scaled by 1/n_e, so a thin medium can take many more photons than the
+ * surfaces without the surface map growing with it. A map that never reaches its target keeps
+ * everything emitted, within max_emitted. A map that stores nothing in the first
+ * VOL_EMPTY_PHOTONS emitted stops there (empty).
+ *
+ * DETERMINISM AND THREADS. Photon i of a pass uses only rng_stream(seed, i, stream); photons are
+ * traced in batches of VOL_BATCH, VOL_ROUND batches at a time on all threads (OpenMP), each
+ * batch into its own buffer, merged in photon order. The maps are bit-identical for any thread
+ * count.
+ *
+ * PILOT. With a vol_pilot the pass keeps nothing and counts what the photons do (the plan's
+ * evidence, plan.h).
+ *
+ * Ownership: the caller frees the result's arrays (vol_pass_free, or free() on vol_photons).
  */
 #ifndef RENDER_VOLUME_H
 #define RENDER_VOLUME_H
@@ -33,14 +52,52 @@
 extern "C" {
 #endif
 
+#define VOL_BATCH 1024
+#define VOL_ROUND 8
+#define VOL_EMPTY_PHOTONS 131072
+#define VOL_PILOT_MEDIA 16 /* media counted separately; the last slot collects any beyond */
+#define VOL_PILOT_MATS 64  /* materials counted separately; the last slot collects any beyond */
+
 typedef struct vol_photons {
     pm_photon *photons;
     size_t count, cap;
 } vol_photons;
 
-/* Trace n photons (bounces limited to max_depth per photon). 0, or PM_ENOMEM / PM_EINVAL
- * (no light with power) with out empty. */
+/* Trace n photons (bounces limited to max_depth per photon), keeping every volume photon (all
+ * kinds) and no surface photon, powers for n emitted. 0, or PM_ENOMEM / PM_EINVAL (no light
+ * with power) with out empty. */
 int vol_trace(const scene *s, uint64_t n, uint64_t seed, int max_depth, vol_photons *out);
+
+typedef struct vol_pilot {
+    unsigned long long emitted;
+    unsigned long long events[VOL_PILOT_MEDIA][4]; /* scattering events by medium and kind */
+    unsigned long long caustic_by_mat[VOL_PILOT_MATS]; /* L S+ V events by the first specular
+                                                           surface's material */
+    unsigned long long surf_direct, surf_caustic, surf_indirect; /* diffuse-surface arrivals */
+    unsigned long long surf_after_scatter; /* of those, after a scattering event in a medium */
+} vol_pilot;
+
+typedef struct vol_pass_opts {
+    int caustic_pass;               /* 0: the global pass, 1: the caustic pass */
+    long surface_target, volume_target; /* stores to reach; 0: that map is not kept */
+    double max_emitted;             /* photons emitted at most */
+    int max_depth;                  /* bounces (surface and volume) per photon */
+    uint64_t seed;
+    int threads;       /* 0: OpenMP's default */
+    vol_pilot *pilot;  /* non-NULL: count (summed into it), keep nothing */
+} vol_pass_opts;
+
+typedef struct vol_pass_result {
+    pm_photon *surface, *volume;
+    size_t nsurface, nvolume;
+    uint64_t surface_emitted, volume_emitted; /* each map's n_e */
+    uint64_t emitted;                         /* photons traced by the pass */
+    int surface_short, volume_short;          /* 1: the map stopped short of its target */
+} vol_pass_result;
+
+/* Run a pass. 0, or PM_ENOMEM / PM_EINVAL (no light with power, bad options) with r empty. */
+int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *r);
+void vol_pass_free(vol_pass_result *r);
 
 #ifdef __cplusplus
 }
