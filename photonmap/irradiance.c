@@ -7,12 +7,17 @@
  * reported without racing. Values go to a temporary array over the whole map (RGBE) next to a
  * bitmask of which photons were done. The done photons are then copied into compact 20-byte
  * records (position, RGBE value, normal code, the tree's axis byte), with radii^2 in a parallel
- * array when kept, and a kd-tree (bucket PM__IRR_BUCKET) is built over those records alone, so that a lookup never wades through the photons that were not precomputed. A rank
- * table (one uint32 per 64 photons of the map) and a slot array (the record of each
- * precomputed photon) keep pm_irradiance_value(i) O(1) in the map's own indices.
+ * array when kept (and the map indices, with store_index), and a kd-tree (bucket
+ * PM__IRR_BUCKET) is built over those records alone, so that a lookup never wades through the
+ * photons that were not precomputed. A rank table (one uint32 per 64 photons of the map) and a
+ * slot array (the record of each precomputed photon) keep pm_irradiance_value(i) O(1) in the
+ * map's own indices. pm_irradiance_build_values fills the same temporary arrays from the
+ * caller's values instead of estimates, and shares the rest (irr_alloc, irr_finish).
  *
  * LOOKUP. pm_kdtree_nearest_if on the compact tree with a predicate that is a table lookup
- * (the 256 decoded normals), a dot product and, with stored radii, one comparison.
+ * (the 256 decoded normals), a dot product and, with stored radii, one comparison. The lookup
+ * with the caller's rule takes the `tries` nearest that pass that predicate (a sorted k-nearest
+ * search into a stack buffer) and asks the caller's rule about them in order.
  */
 #include "irradiance.h"
 
@@ -49,6 +54,7 @@ struct pm_irradiance {
     uint32_t *slot;      /* done entries: record (in recs) of the j-th precomputed photon */
     pm__irr_rec *recs;   /* done records, in the lookup tree's order */
     float *r2;           /* done radii^2, same order, or NULL */
+    uint32_t *photon;    /* done map indices, same order, or NULL (opt.store_index) */
     pm_kdtree *tree;     /* over recs (NULL when done = 0) */
     float normals[256][3];
 };
@@ -71,6 +77,7 @@ void pm_irradiance_free(pm_irradiance *irr) {
     free(irr->slot);
     free(irr->recs);
     free(irr->r2);
+    free(irr->photon);
     free(irr);
 }
 
@@ -207,14 +214,13 @@ static long precompute(const pm_kdtree *tree, const pm_irradiance_options *opt,
     return err ? err : done;
 }
 
-int pm_irradiance_build(pm_irradiance **out, const pm_kdtree *tree,
-                        const pm_irradiance_options *opt) {
+/* The common checks of both builds and a structure with the normal table, mask and rank
+ * arrays allocated; the caller fills the mask. */
+static int irr_alloc(pm_irradiance **out, const pm_kdtree *tree, const pm_irradiance_options *opt) {
     if (!out) return PM_EINVAL;
     *out = NULL;
-    if (!tree || !opt || opt->k == 0) return PM_EINVAL;
+    if (!tree || !opt) return PM_EINVAL;
     if (opt->fraction != PM_PRECOMP_ALL && opt->fraction != PM_PRECOMP_QUARTER) return PM_EINVAL;
-    if (opt->bias < PM_BIAS_NONE || opt->bias > PM_BIAS_HALF_FARTHEST) return PM_EINVAL;
-    if (isnan(opt->max_dist2) || isnan(opt->squash)) return PM_ENONFINITE;
     size_t n = pm_kdtree_size(tree);
     if (n == 0) return PM_EEMPTY;
     pm_irradiance *irr = calloc(1, sizeof *irr);
@@ -222,28 +228,33 @@ int pm_irradiance_build(pm_irradiance **out, const pm_kdtree *tree,
     irr->n = n;
     for (int c = 0; c < 256; c++) pm_normal_decode((uint8_t)c, irr->normals[c]);
     size_t nwords = (n + 63) / 64;
-    uint8_t(*rgbe)[4] = malloc(n * sizeof *rgbe);
-    float *r2 = opt->store_radius ? malloc(n * sizeof *r2) : NULL;
-    uint32_t *perm = NULL;
     irr->mask = calloc(nwords, sizeof *irr->mask);
     irr->rank = malloc(nwords * sizeof *irr->rank);
-    long rc = PM_ENOMEM;
-    if (!rgbe || (opt->store_radius && !r2) || !irr->mask || !irr->rank) goto fail;
-    rc = precompute(tree, opt, (const float(*)[3])irr->normals, irr->mask, rgbe, r2);
-    if (rc < 0) goto fail;
-    irr->done = (size_t)rc;
-    rc = PM_ENOMEM;
-    size_t nd = irr->done ? irr->done : 1;
+    if (!irr->mask || !irr->rank) {
+        pm_irradiance_free(irr);
+        return PM_ENOMEM;
+    }
+    *out = irr;
+    return PM_OK;
+}
+
+/* Compact the precomputed photons (mask set, done counted) into records in map order with
+ * their values rgbe[i] and radii^2 r2[i] (map-indexed), then build the lookup tree, which
+ * reorders them. 0 or a negative code; irr is left for the caller to free on failure. */
+static int irr_finish(pm_irradiance *irr, const pm_kdtree *tree, const pm_irradiance_options *opt,
+                      const uint8_t (*rgbe)[4], const float *r2) {
+    size_t nwords = (irr->n + 63) / 64, nd = irr->done ? irr->done : 1;
     irr->slot = malloc(nd * sizeof *irr->slot);
     irr->recs = malloc(nd * sizeof *irr->recs);
-    perm = malloc(nd * sizeof *perm);
     if (opt->store_radius) irr->r2 = malloc(nd * sizeof *irr->r2);
-    if (!irr->slot || !irr->recs || !perm || (opt->store_radius && !irr->r2))
-        goto fail;
+    if (opt->store_index) irr->photon = malloc(nd * sizeof *irr->photon);
+    uint32_t *perm = malloc(nd * sizeof *perm), *src = malloc(nd * sizeof *src);
+    int rc = PM_ENOMEM;
+    if (!irr->slot || !irr->recs || !perm || !src || (opt->store_radius && !irr->r2) ||
+        (opt->store_index && !irr->photon))
+        goto done;
     /* Compact, in map order; the tree build then reorders the records. */
     const pm_photon *ph = (const pm_photon *)pm_kdtree_records(tree);
-    float *rr = opt->store_radius ? malloc(nd * sizeof *rr) : NULL;
-    if (opt->store_radius && !rr) goto fail;
     size_t j = 0;
     for (size_t w = 0; w < nwords; w++) {
         irr->rank[w] = (uint32_t)j;
@@ -254,35 +265,92 @@ int pm_irradiance_build(pm_irradiance **out, const pm_kdtree *tree,
             irr->recs[j].ncode = opt->normals ? pm_normal_encode(opt->normals + 3 * i) : ph[i].normal;
             irr->recs[j].axis = 0;
             irr->recs[j].pad[0] = irr->recs[j].pad[1] = 0;
-            if (rr) rr[j] = r2[i];
+            src[j] = (uint32_t)i;
             j++;
         }
     }
+    rc = PM_OK;
     if (irr->done) {
         pm_kdtree_config kc = {sizeof(pm__irr_rec), 0, (int)offsetof(pm__irr_rec, axis),
                                PM__IRR_BUCKET};
         rc = pm_kdtree_build(&irr->tree, irr->recs, irr->done, &kc, perm);
-        if (rc < 0) {
-            free(rr);
-            goto fail;
-        }
+        if (rc < 0) goto done;
         for (size_t t = 0; t < irr->done; t++) {
             irr->slot[perm[t]] = (uint32_t)t;
-            if (rr) irr->r2[t] = rr[perm[t]];
+            if (irr->r2) irr->r2[t] = r2[src[perm[t]]];
+            if (irr->photon) irr->photon[t] = src[perm[t]];
         }
     }
-    free(rr);
+done:
     free(perm);
+    free(src);
+    return rc;
+}
+
+int pm_irradiance_build(pm_irradiance **out, const pm_kdtree *tree,
+                        const pm_irradiance_options *opt) {
+    if (out) *out = NULL;
+    if (!out || !tree || !opt || opt->k == 0) return PM_EINVAL;
+    if (opt->bias < PM_BIAS_NONE || opt->bias > PM_BIAS_HALF_FARTHEST) return PM_EINVAL;
+    if (isnan(opt->max_dist2) || isnan(opt->squash)) return PM_ENONFINITE;
+    pm_irradiance *irr = NULL;
+    int rc0 = irr_alloc(&irr, tree, opt);
+    if (rc0 < 0) return rc0;
+    size_t n = irr->n;
+    uint8_t(*rgbe)[4] = malloc(n * sizeof *rgbe);
+    float *r2 = opt->store_radius ? malloc(n * sizeof *r2) : NULL;
+    long rc = PM_ENOMEM;
+    if (!rgbe || (opt->store_radius && !r2)) goto fail;
+    rc = precompute(tree, opt, (const float(*)[3])irr->normals, irr->mask, rgbe, r2);
+    if (rc < 0) goto fail;
+    irr->done = (size_t)rc;
+    rc = irr_finish(irr, tree, opt, (const uint8_t(*)[4])rgbe, r2);
+    if (rc < 0) goto fail;
     free(rgbe);
     free(r2);
     *out = irr;
     return PM_OK;
 fail:
-    free(perm);
     free(rgbe);
     free(r2);
     pm_irradiance_free(irr);
     return (int)rc;
+}
+
+int pm_irradiance_build_values(pm_irradiance **out, const pm_kdtree *tree,
+                               const pm_irradiance_options *opt, const float *rgb, const float *r2) {
+    if (out) *out = NULL;
+    if (!out || !tree || !opt || !rgb || (opt->store_radius && !r2)) return PM_EINVAL;
+    pm_irradiance *irr = NULL;
+    int rc = irr_alloc(&irr, tree, opt);
+    if (rc < 0) return rc;
+    size_t n = irr->n;
+    uint8_t(*rgbe)[4] = malloc(n * sizeof *rgbe);
+    rc = PM_ENOMEM;
+    if (!rgbe) goto fail;
+    /* The same choice as precompute(), checked and encoded. */
+    for (size_t i = 0; i < n; i++) {
+        if (opt->fraction == PM_PRECOMP_QUARTER && pm_kdtree_height(tree, (uint32_t)i) < 2) continue;
+        const float *v = rgb + 3 * i;
+        for (int c = 0; c < 3; c++) {
+            rc = !isfinite(v[c]) ? PM_ENONFINITE : v[c] < 0 ? PM_EINVAL : PM_OK;
+            if (rc < 0) goto fail;
+        }
+        rc = PM_ENONFINITE;
+        if (opt->store_radius && isnan(r2[i])) goto fail;
+        pm_rgbe_encode(v, rgbe[i]);
+        irr->mask[i >> 6] |= (uint64_t)1 << (i & 63);
+        irr->done++;
+    }
+    rc = irr_finish(irr, tree, opt, (const uint8_t(*)[4])rgbe, r2);
+    if (rc < 0) goto fail;
+    free(rgbe);
+    *out = irr;
+    return PM_OK;
+fail:
+    free(rgbe);
+    pm_irradiance_free(irr);
+    return rc;
 }
 
 size_t pm_irradiance_count(const pm_irradiance *irr) { return irr ? irr->done : 0; }
@@ -291,7 +359,8 @@ size_t pm_irradiance_bytes(const pm_irradiance *irr) {
     if (!irr) return 0;
     size_t nwords = (irr->n + 63) / 64, nd = irr->done ? irr->done : 1;
     return sizeof *irr + nwords * (sizeof *irr->mask + sizeof *irr->rank) +
-           nd * (sizeof *irr->slot + sizeof *irr->recs + (irr->r2 ? sizeof *irr->r2 : 0)) +
+           nd * (sizeof *irr->slot + sizeof *irr->recs + (irr->r2 ? sizeof *irr->r2 : 0) +
+                 (irr->photon ? sizeof *irr->photon : 0)) +
            pm_kdtree_index_bytes(irr->tree);
 }
 
@@ -317,7 +386,8 @@ typedef struct lookup_ctx {
     float cos_min;
 } lookup_ctx;
 
-static int accept(void *user, const void *record, uint32_t index) {
+/* THE NORMAL RULE of irradiance.h (and the stored radius). */
+static int accept_normal(void *user, const void *record, uint32_t index) {
     const lookup_ctx *c = (const lookup_ctx *)user;
     const pm__irr_rec *p = (const pm__irr_rec *)record;
     const float *pn = c->irr->normals[p->ncode];
@@ -343,8 +413,42 @@ int pm_irradiance_lookup(const pm_irradiance *irr, const float x[3], const float
         return 0;
     }
     c.irr = irr, c.n = n, c.q = x, c.cos_min = cos_min;
-    int rc = pm_kdtree_nearest_if(irr->tree, x, max_dist2, accept, &c, &nb, stats);
+    int rc = pm_kdtree_nearest_if(irr->tree, x, max_dist2, accept_normal, &c, &nb, stats);
     if (rc <= 0) return rc;
     pm_rgbe_decode(irr->recs[nb.index].rgbe, rgb);
     return 1;
+}
+
+int pm_irradiance_lookup_if(const pm_irradiance *irr, const float x[3], const float n[3],
+                            float max_dist2, float cos_min, unsigned tries,
+                            pm_irradiance_accept_fn accept, void *user, float rgb[3],
+                            uint32_t *photon, pm_query_stats *stats) {
+    if (rgb) rgb[0] = rgb[1] = rgb[2] = 0.0f;
+    if (!irr || !x || !n || !rgb || !irr->photon || tries == 0 || tries > PM_IRRADIANCE_MAX_TRIES)
+        return PM_EINVAL;
+    if (!isfinite(n[0]) || !isfinite(n[1]) || !isfinite(n[2]) || isnan(cos_min))
+        return PM_ENONFINITE;
+    if (!irr->tree) {
+        if (!isfinite(x[0]) || !isfinite(x[1]) || !isfinite(x[2]) || isnan(max_dist2))
+            return PM_ENONFINITE;
+        return 0;
+    }
+    /* The `tries` nearest that pass the normal rule, sorted, then the caller's rule in order. */
+    lookup_ctx c = {irr, n, x, cos_min};
+    pm_neighbor nb[PM_IRRADIANCE_MAX_TRIES];
+    pm_knn_options ko = {0};
+    ko.filter = accept_normal;
+    ko.filter_user = &c;
+    ko.flags = PM_SORT;
+    int found = pm_kdtree_knn_ex(irr->tree, x, tries, max_dist2, &ko, nb, stats);
+    if (found < 0) return found;
+    for (int t = 0; t < found; t++) {
+        const pm__irr_rec *p = &irr->recs[nb[t].index];
+        uint32_t i = irr->photon[nb[t].index];
+        if (accept && !accept(user, i, p->pos, irr->normals[p->ncode])) continue;
+        pm_rgbe_decode(p->rgbe, rgb);
+        if (photon) *photon = i;
+        return 1;
+    }
+    return 0;
 }

@@ -5,7 +5,8 @@
  * same point (precomputed lookups), the estimate recomputed at each precomputed photon (stored
  * values), pm_kdtree_height (which photons are precomputed), a brute-force scan of the
  * precomputed photons (lookups), the heap growth measured by mallinfo2 (memory), the analytic
- * irradiance and a single map of all photons (combined maps).
+ * irradiance and a single map of all photons (combined maps); for the lookup with the caller's
+ * rule, a brute-force scan with the rule applied in order of distance.
  */
 #define _GNU_SOURCE
 #include <malloc.h>
@@ -474,13 +475,374 @@ TEST(irradiance_lookup_matches_brute_force) {
     free(ph);
 }
 
+/* ---- the lookup with the caller's rule, and values of the caller's ------------------------ */
+
+/* The caller's rule of the tests below: rejects map photon i when a hash of i is 0 modulo mod
+ * (mod 0: accepts all; mod 1: rejects all; `only`: rejects that one photon alone), and logs
+ * every call: the photons asked, whether pos and normal were those of map photon i, whether
+ * the calls came nearest first. */
+typedef struct rule_log {
+    const pm_photon *tp; /* the map, tree order */
+    const float *q;
+    unsigned mod;
+    int64_t only;
+    unsigned calls;
+    uint32_t called[PM_IRRADIANCE_MAX_TRIES + 1];
+    float last_d2;
+    int bad_args, out_of_order;
+} rule_log;
+
+static int rule_rejects(const rule_log *l, uint32_t i) {
+    if (l->only >= 0) return (int64_t)i == l->only;
+    return l->mod && ((i * 2654435761u) >> 7) % l->mod == 0;
+}
+
+static float d2_to(const float a[3], const float b[3]) {
+    float d[3] = {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
+    return d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+}
+
+static int rule_accept(void *user, uint32_t i, const float pos[3], const float normal[3]) {
+    rule_log *l = user;
+    float nd[3];
+    pm_normal_decode(l->tp[i].normal, nd);
+    if (memcmp(pos, l->tp[i].pos, 3 * sizeof *pos) != 0 || memcmp(normal, nd, sizeof nd) != 0) l->bad_args++;
+    float d2 = d2_to(pos, l->q);
+    if (l->calls && d2 < l->last_d2 * (1 - 1e-6f)) l->out_of_order++;
+    l->last_d2 = d2;
+    if (l->calls <= PM_IRRADIANCE_MAX_TRIES) l->called[l->calls] = i;
+    l->calls++;
+    return !rule_rejects(l, i);
+}
+
+static rule_log rule_init(const pm_photon *tp, const float *q, unsigned mod) {
+    rule_log l;
+    memset(&l, 0, sizeof l);
+    l.tp = tp, l.q = q, l.mod = mod, l.only = -1;
+    return l;
+}
+
+typedef struct cand { float d2; uint32_t i; } cand;
+static int cand_cmp(const void *a, const void *b) {
+    const cand *x = a, *y = b;
+    return x->d2 < y->d2 ? -1 : x->d2 > y->d2 ? 1 : (x->i > y->i) - (x->i < y->i);
+}
+
+/* Oracle: a brute-force scan of the precomputed photons. The candidates are those passing the
+ * normal rule (dot >= cos_min), dist2 < max_dist2 and, with radii, dist2 < their own radius^2,
+ * sorted by dist2. With d* the dist2 of the nearest one the rule accepts, L the candidates
+ * nearer than d* and R the rejected ones at exactly d*: L >= tries gives none (the tries nearest
+ * were all rejected, though a farther one passes), L + R < tries gives a photon at d* that the
+ * rule accepts, with its value and index; in between (ties at the cut) either. Always: the rule
+ * is called only on candidates, nearest first, at most tries times, with the photon's own
+ * position and decoded normal; after a find, the answer was the last call; after none, it was
+ * called min(tries, candidates) times. Random planes (three_planes), quarter and all photons,
+ * with and without radii, bucket 1 and 8 map trees; tries 1..12 and the maximum; rules that
+ * reject none, about a third, half, all. Exact equality. */
+TEST(irradiance_lookup_if_matches_brute_force) {
+    const size_t per = PM_TEST_SANITIZED ? 500 : 1500;
+    const unsigned queries = PM_TEST_SANITIZED ? 300 : 1200;
+    pm_photon *ph = malloc(sizeof *ph * 3 * per);
+    unsigned found = 0, cut_by_tries = 0, exact = 0;
+    for (int variant = 0; variant < 4; variant++) {
+        size_t n = three_planes(ph, per, 90 + (uint64_t)variant);
+        pm_kdtree *tree = NULL;
+        pm_kdtree_config cfg = pm_kdtree_photon_config(variant & 2 ? 8 : 1);
+        ASSERT_EQ_INT(pm_kdtree_build(&tree, ph, n, &cfg, NULL), PM_OK);
+        pm_irradiance_options io;
+        pm_irradiance *irr = NULL;
+        pm_irradiance_options_init(&io, 16);
+        io.fraction = variant & 1 ? PM_PRECOMP_QUARTER : PM_PRECOMP_ALL;
+        io.store_radius = variant == 1 || variant == 2;
+        io.store_index = 1;
+        ASSERT_EQ_INT(pm_irradiance_build(&irr, tree, &io), PM_OK);
+        const pm_photon *tp = pm_kdtree_records(tree);
+        float *val = malloc(sizeof *val * 3 * n), *rad2 = malloc(sizeof *rad2 * n);
+        unsigned char *done = malloc(n), *is_cand = calloc(n, 1);
+        cand *cs = malloc(sizeof *cs * n);
+        void *scratch = malloc(pm_estimate_scratch_bytes(16));
+        pm_estimate_options eo;
+        pm_estimate_options_init(&eo, PM_EST_DISC, 16);
+        eo.reject_behind = 1;
+        for (uint32_t i = 0; i < n; i++) {
+            done[i] = (unsigned char)pm_irradiance_value(irr, i, &val[3 * i]);
+            rad2[i] = INFINITY;
+            if (done[i] && io.store_radius) {
+                float nrm[3];
+                pm_estimate_result er;
+                pm_normal_decode(tp[i].normal, nrm);
+                ASSERT_EQ_INT(pm_estimate(tree, tp[i].pos, nrm, &eo, scratch, &er, NULL), PM_OK);
+                rad2[i] = (float)fmin(er.r2, 3e38);
+            }
+        }
+        rng_t r = {177 + (uint64_t)variant};
+        for (unsigned qi = 0; qi < queries; qi++) {
+            float q[3], nq[3];
+            int kind = (int)(qi % 5);
+            for (int a = 0; a < 3; a++) q[a] = (float)(kind == 4 ? 3 * (rng_unit(&r) - 0.5) : rng_unit(&r));
+            if (kind == 0) q[2] = 0;
+            if (kind < 3) {
+                static const float ns[3][3] = {{0, 0, 1}, {1, 0, 0}, {-0.601815023f, 0, 0.798635510f}};
+                memcpy(nq, ns[qi % 3], sizeof nq);
+            } else {
+                double z = 2 * rng_unit(&r) - 1, a = 2 * PI * rng_unit(&r), s = sqrt(1 - z * z);
+                nq[0] = (float)(s * cos(a)), nq[1] = (float)(s * sin(a)), nq[2] = (float)z;
+            }
+            static const float cosv[4] = {-1.0f, 0.0f, 0.7f, 0.95f};
+            static const unsigned mods[4] = {0, 3, 2, 1};
+            float cmin = cosv[qi % 4];
+            float md2 = qi % 3 == 0 ? INFINITY : (float)(0.002 + 0.05 * rng_unit(&r));
+            unsigned tries = qi % 13 == 12 ? PM_IRRADIANCE_MAX_TRIES : 1 + qi % 12;
+            rule_log lg = rule_init(tp, q, mods[(qi / 4) % 4]);
+            size_t nc = 0;
+            for (uint32_t i = 0; i < n; i++) {
+                if (!done[i]) continue;
+                float pn[3];
+                pm_normal_decode(tp[i].normal, pn);
+                if (pn[0] * nq[0] + pn[1] * nq[1] + pn[2] * nq[2] < cmin) continue;
+                float d2 = d2_to(tp[i].pos, q);
+                if (!(d2 < md2) || !(d2 < rad2[i])) continue;
+                cs[nc].d2 = d2, cs[nc].i = i, nc++;
+                is_cand[i] = 1;
+            }
+            qsort(cs, nc, sizeof *cs, cand_cmp);
+            size_t first = nc;
+            for (size_t t = 0; t < nc && first == nc; t++)
+                if (!rule_rejects(&lg, cs[t].i)) first = t;
+            size_t L = 0, R = 0;
+            if (first < nc) {
+                while (L < nc && cs[L].d2 < cs[first].d2) L++;
+                for (size_t t = L; t < nc && cs[t].d2 == cs[first].d2; t++) R += (size_t)rule_rejects(&lg, cs[t].i);
+            }
+            float v[3] = {-1, -1, -1};
+            uint32_t who = UINT32_MAX;
+            int rc = pm_irradiance_lookup_if(irr, q, nq, md2, cmin, tries, rule_accept, &lg, v, &who, NULL);
+            EXPECT_MSG(lg.bad_args == 0 && lg.out_of_order == 0 && lg.calls <= tries,
+                       "variant %d query %u: %d calls with wrong arguments, %d out of order, %u calls for %u tries",
+                       variant, qi, lg.bad_args, lg.out_of_order, lg.calls, tries);
+            for (unsigned t = 0; t < lg.calls && t <= PM_IRRADIANCE_MAX_TRIES; t++)
+                EXPECT_MSG(is_cand[lg.called[t]], "variant %d query %u: the rule was asked about photon %u, no candidate",
+                           variant, qi, lg.called[t]);
+            int must_find = first < nc && L + R < tries, must_miss = first == nc || L >= tries;
+            if (must_miss) {
+                EXPECT_MSG(rc == 0 && v[0] == 0 && v[1] == 0 && v[2] == 0,
+                           "variant %d query %u: found %d, brute force none (%zu candidates, %zu nearer than the first accepted, %u tries)",
+                           variant, qi, rc, nc, L, tries);
+                cut_by_tries += first < nc;
+            }
+            if (must_find) ASSERT_MSG(rc == 1, "variant %d query %u: lookup %d, brute force a photon at dist2 %g",
+                                      variant, qi, rc, first < nc ? cs[first].d2 : -1.0f);
+            if (rc == 1) {
+                found++;
+                ASSERT_MSG(who < n && done[who], "variant %d query %u: answer %u", variant, qi, who);
+                EXPECT_MSG(first < nc && d2_to(tp[who].pos, q) == cs[first].d2 && !rule_rejects(&lg, who) &&
+                               memcmp(&val[3 * who], v, sizeof v) == 0 && is_cand[who],
+                           "variant %d query %u: photon %u is not an accepted candidate at the nearest dist2 with its value",
+                           variant, qi, who);
+                EXPECT_MSG(lg.calls >= 1 && lg.called[lg.calls - 1] == who, "variant %d query %u: the answer was not the last call",
+                           variant, qi);
+                exact += must_find;
+            } else {
+                EXPECT_MSG(rc == 0 && lg.calls == (nc < tries ? nc : tries),
+                           "variant %d query %u: rc %d after %u calls, %zu candidates, %u tries", variant, qi, rc, lg.calls, nc, tries);
+            }
+            for (size_t t = 0; t < nc; t++) is_cand[cs[t].i] = 0;
+        }
+        free(scratch);
+        free(cs);
+        free(is_cand);
+        free(done);
+        free(rad2);
+        free(val);
+        pm_irradiance_free(irr);
+        pm_kdtree_free(tree);
+    }
+    printf("lookup_if: %u found (%u decided by brute force), %u cut off by the tries limit\n", found, exact, cut_by_tries);
+    EXPECT_MSG(exact > queries / 2 && cut_by_tries > queries / 40, "too few decisive queries: %u finds, %u cut by tries", exact, cut_by_tries);
+    free(ph);
+}
+
+/* Oracle: counting. Photons in pairs at the same points of an integer grid on z = 0, queries at
+ * the centres of the cells, so 8 photons tie at the nearest dist2 0.5. Accepting all with one
+ * try finds a photon a at dist2 0.5, the same one every time (a fixed function of the build);
+ * rejecting a alone with one try finds none (only a was asked); with two tries it finds
+ * another photon b at the same dist2, having asked only photons at that dist2 (which two of
+ * the 8 tied are asked may differ from the one-try choice: the cut falls inside the tie). */
+TEST(irradiance_lookup_if_ties) {
+    const int side = 12;
+    size_t n = 0;
+    pm_photon *ph = malloc(sizeof *ph * 2 * side * side);
+    for (int i = 0; i < side; i++)
+        for (int j = 0; j < side; j++)
+            for (int c = 0; c < 2; c++) {
+                float pos[3] = {(float)i, (float)j, 0}, p = (float)(1 + i + side * j + c * 0.5);
+                pm_photon_init(&ph[n++], pos, (float[3]){p, p, p}, DOWN, UP, PM_KIND_DIRECT);
+            }
+    pm_kdtree *tree = NULL;
+    pm_kdtree_config cfg = pm_kdtree_photon_config(1);
+    ASSERT_EQ_INT(pm_kdtree_build(&tree, ph, n, &cfg, NULL), PM_OK);
+    pm_irradiance_options io;
+    pm_irradiance *irr = NULL;
+    pm_irradiance_options_init(&io, 4);
+    io.store_index = 1;
+    ASSERT_EQ_INT(pm_irradiance_build(&irr, tree, &io), PM_OK);
+    const pm_photon *tp = pm_kdtree_records(tree);
+    for (int i = 0; i + 1 < side; i++)
+        for (int j = 0; j + 1 < side; j++) {
+            float q[3] = {i + 0.5f, j + 0.5f, 0}, v[3], v2[3];
+            uint32_t a = UINT32_MAX, a2 = UINT32_MAX, b = UINT32_MAX;
+            rule_log lg = rule_init(tp, q, 0);
+            ASSERT_EQ_INT(pm_irradiance_lookup_if(irr, q, UP, INFINITY, 0.9f, 1, rule_accept, &lg, v, &a, NULL), 1);
+            ASSERT(a < n);
+            EXPECT(d2_to(tp[a].pos, q) == 0.5f && lg.calls == 1);
+            lg = rule_init(tp, q, 0);
+            EXPECT_EQ_INT(pm_irradiance_lookup_if(irr, q, UP, INFINITY, 0.9f, 1, rule_accept, &lg, v2, &a2, NULL), 1);
+            EXPECT(a2 == a && memcmp(v, v2, sizeof v) == 0);
+            lg = rule_init(tp, q, 0);
+            lg.only = a;
+            EXPECT_EQ_INT(pm_irradiance_lookup_if(irr, q, UP, INFINITY, 0.9f, 1, rule_accept, &lg, v2, &b, NULL), 0);
+            EXPECT(lg.calls == 1 && lg.called[0] == a && v2[0] == 0);
+            lg = rule_init(tp, q, 0);
+            lg.only = a;
+            EXPECT_EQ_INT(pm_irradiance_lookup_if(irr, q, UP, INFINITY, 0.9f, 2, rule_accept, &lg, v2, &b, NULL), 1);
+            EXPECT(lg.calls >= 1 && lg.calls <= 2 && lg.called[lg.calls - 1] == b && b != a && b < n &&
+                   d2_to(tp[b].pos, q) == 0.5f && d2_to(tp[lg.called[0]].pos, q) == 0.5f);
+            if (b < n) {
+                float want[3];
+                pm_irradiance_value(irr, b, want);
+                EXPECT(memcmp(want, v2, sizeof v2) == 0);
+            }
+        }
+    pm_irradiance_free(irr);
+    pm_kdtree_free(tree);
+    free(ph);
+}
+
+/* Oracle: pm_irradiance_build's own structure. Its values (pm_irradiance_value) and radii^2
+ * (pm_estimate at each precomputed photon) given back to pm_irradiance_build_values, with NaN
+ * at the photons not chosen (never read), give the same choice of photons, the same values bit
+ * for bit and the same lookups (pm_irradiance_lookup, exact equality); PM_PRECOMP_ALL chooses
+ * every photon. Bad input: NaN, infinite and negative values at a chosen photon, a NaN radius^2,
+ * missing arrays, an empty tree, and lookup_if without store_index, with tries 0 or above the
+ * maximum, or a NaN normal, each with its code; no allocation by lookup_if (mallinfo2). */
+TEST(irradiance_build_values_is_the_same_structure) {
+    const size_t per = PM_TEST_SANITIZED ? 400 : 1200;
+    pm_photon *ph = malloc(sizeof *ph * 3 * per);
+    size_t n = three_planes(ph, per, 5150);
+    pm_kdtree *tree = NULL;
+    pm_kdtree_config cfg = pm_kdtree_photon_config(1);
+    ASSERT_EQ_INT(pm_kdtree_build(&tree, ph, n, &cfg, NULL), PM_OK);
+    const pm_photon *tp = pm_kdtree_records(tree);
+    pm_irradiance_options io;
+    pm_irradiance *irr = NULL, *mine = NULL;
+    pm_irradiance_options_init(&io, 16);
+    io.fraction = PM_PRECOMP_QUARTER;
+    io.store_radius = 1;
+    ASSERT_EQ_INT(pm_irradiance_build(&irr, tree, &io), PM_OK);
+    float *val = malloc(sizeof *val * 3 * n), *rad2 = malloc(sizeof *rad2 * n);
+    void *scratch = malloc(pm_estimate_scratch_bytes(16));
+    pm_estimate_options eo;
+    pm_estimate_options_init(&eo, PM_EST_DISC, 16);
+    eo.reject_behind = 1;
+    size_t chosen = 0, first_chosen = n;
+    for (uint32_t i = 0; i < n; i++) {
+        val[3 * i] = val[3 * i + 1] = val[3 * i + 2] = rad2[i] = NAN;
+        float v[3];
+        if (!pm_irradiance_value(irr, i, v)) continue;
+        EXPECT(pm_kdtree_height(tree, i) >= 2);
+        memcpy(&val[3 * i], v, sizeof v);
+        float nrm[3];
+        pm_estimate_result er;
+        pm_normal_decode(tp[i].normal, nrm);
+        ASSERT_EQ_INT(pm_estimate(tree, tp[i].pos, nrm, &eo, scratch, &er, NULL), PM_OK);
+        rad2[i] = (float)fmin(er.r2, 3e38);
+        chosen++;
+        if (first_chosen == n) first_chosen = i;
+    }
+    ASSERT(chosen > 0 && chosen < n);
+    pm_irradiance_options vo;
+    pm_irradiance_options_init(&vo, 0); /* k is not used */
+    vo.fraction = PM_PRECOMP_QUARTER;
+    vo.store_radius = 1;
+    vo.store_index = 1;
+    ASSERT_EQ_INT(pm_irradiance_build_values(&mine, tree, &vo, val, rad2), PM_OK);
+    EXPECT(pm_irradiance_count(mine) == chosen);
+    for (uint32_t i = 0; i < n; i++) {
+        float a[3], b[3];
+        int da = pm_irradiance_value(irr, i, a), db = pm_irradiance_value(mine, i, b);
+        EXPECT_MSG(da == db && memcmp(a, b, sizeof a) == 0, "photon %u: %d %g, %d %g", i, da, a[0], db, b[0]);
+    }
+    rng_t r = {31};
+    for (int qi = 0; qi < 2000; qi++) {
+        float q[3] = {(float)rng_unit(&r), (float)rng_unit(&r), (float)(qi % 2 ? 0 : rng_unit(&r))}, a[3], b[3];
+        const float *nq = qi % 3 == 0 ? UP : (const float[3]){1, 0, 0};
+        int ra = pm_irradiance_lookup(irr, q, nq, INFINITY, 0.7f, a, NULL);
+        int rb = pm_irradiance_lookup(mine, q, nq, INFINITY, 0.7f, b, NULL);
+        EXPECT_MSG(ra == rb && memcmp(a, b, sizeof a) == 0, "query %d: %d %g, %d %g", qi, ra, a[0], rb, b[0]);
+    }
+    /* lookup_if allocates nothing */
+    struct mallinfo2 m0 = mallinfo2();
+    for (int qi = 0; qi < 200; qi++) {
+        float q[3] = {(float)rng_unit(&r), (float)rng_unit(&r), 0}, v[3];
+        EXPECT(pm_irradiance_lookup_if(mine, q, UP, INFINITY, 0.7f, PM_IRRADIANCE_MAX_TRIES, NULL, NULL, v, NULL, NULL) >= 0);
+    }
+    struct mallinfo2 m1 = mallinfo2();
+    if (!PM_TEST_SANITIZED) EXPECT(m1.uordblks == m0.uordblks);
+    /* bad input */
+    float q[3] = {0.5f, 0.5f, 0}, v[3], nan_n[3] = {NAN, 0, 1};
+    EXPECT_EQ_INT(pm_irradiance_lookup_if(irr, q, UP, INFINITY, 0.7f, 1, NULL, NULL, v, NULL, NULL), PM_EINVAL);
+    EXPECT_EQ_INT(pm_irradiance_lookup_if(mine, q, UP, INFINITY, 0.7f, 0, NULL, NULL, v, NULL, NULL), PM_EINVAL);
+    EXPECT_EQ_INT(pm_irradiance_lookup_if(mine, q, UP, INFINITY, 0.7f, PM_IRRADIANCE_MAX_TRIES + 1, NULL, NULL, v, NULL, NULL),
+                  PM_EINVAL);
+    EXPECT_EQ_INT(pm_irradiance_lookup_if(mine, q, nan_n, INFINITY, 0.7f, 1, NULL, NULL, v, NULL, NULL), PM_ENONFINITE);
+    pm_irradiance *bad = NULL;
+    size_t c = first_chosen;
+    float keep = val[3 * c];
+    val[3 * c] = NAN;
+    EXPECT_EQ_INT(pm_irradiance_build_values(&bad, tree, &vo, val, rad2), PM_ENONFINITE);
+    val[3 * c] = INFINITY;
+    EXPECT_EQ_INT(pm_irradiance_build_values(&bad, tree, &vo, val, rad2), PM_ENONFINITE);
+    val[3 * c] = -1;
+    EXPECT_EQ_INT(pm_irradiance_build_values(&bad, tree, &vo, val, rad2), PM_EINVAL);
+    val[3 * c] = keep;
+    keep = rad2[c];
+    rad2[c] = NAN;
+    EXPECT_EQ_INT(pm_irradiance_build_values(&bad, tree, &vo, val, rad2), PM_ENONFINITE);
+    rad2[c] = keep;
+    EXPECT_EQ_INT(pm_irradiance_build_values(&bad, tree, &vo, val, NULL), PM_EINVAL);
+    EXPECT_EQ_INT(pm_irradiance_build_values(&bad, tree, &vo, NULL, rad2), PM_EINVAL);
+    EXPECT(bad == NULL);
+    pm_kdtree *empty = NULL;
+    pm_kdtree_config ecfg = pm_kdtree_photon_config(1);
+    ASSERT_EQ_INT(pm_kdtree_build(&empty, ph, 0, &ecfg, NULL), PM_OK);
+    EXPECT_EQ_INT(pm_irradiance_build_values(&bad, empty, &vo, val, rad2), PM_EEMPTY);
+    pm_kdtree_free(empty);
+    /* every photon with PM_PRECOMP_ALL */
+    for (size_t i = 0; i < n; i++) {
+        val[3 * i] = val[3 * i + 1] = val[3 * i + 2] = (float)i;
+        rad2[i] = 1;
+    }
+    vo.fraction = PM_PRECOMP_ALL;
+    pm_irradiance *all = NULL;
+    ASSERT_EQ_INT(pm_irradiance_build_values(&all, tree, &vo, val, rad2), PM_OK);
+    EXPECT(pm_irradiance_count(all) == n);
+    pm_irradiance_free(all);
+    free(scratch);
+    free(rad2);
+    free(val);
+    pm_irradiance_free(mine);
+    pm_irradiance_free(irr);
+    pm_kdtree_free(tree);
+    free(ph);
+}
+
 /* Oracle: the heap, measured. mallinfo2().uordblks (bytes in use in the main arena; one
  * thread, so every allocation goes there) grows across pm_irradiance_build by what the built
  * structure keeps, which must equal pm_irradiance_bytes() within 1 KB: malloc's bookkeeping
  * (16 bytes per block, 8 blocks) and the OpenMP runtime's team records, which it frees and
  * allocates lazily around each parallel region (so the heap may grow a little less than
  * reported). The documented layout (irradiance.h) is then checked against
- * it: 24 bytes per precomputed photon (+4 with radii), 3/16 byte per photon of the map, and
+ * it: 24 bytes per precomputed photon (+4 with radii, +4 with indices), 3/16 byte per photon of the map, and
  * the fixed struct (under 4 KB). */
 TEST(irradiance_memory_measured) {
     const int side = PM_TEST_SANITIZED ? 60 : 150;
@@ -490,12 +852,13 @@ TEST(irradiance_memory_measured) {
     pm_kdtree *tree = NULL;
     pm_kdtree_config cfg = pm_kdtree_photon_config(1);
     ASSERT_EQ_INT(pm_kdtree_build(&tree, ph, n, &cfg, NULL), PM_OK);
-    for (int v = 0; v < 2; v++) {
+    for (int v = 0; v < 4; v++) {
         pm_irradiance_options io;
         pm_irradiance *irr = NULL;
         pm_irradiance_options_init(&io, 20);
         io.fraction = PM_PRECOMP_QUARTER;
-        io.store_radius = v;
+        io.store_radius = v & 1;
+        io.store_index = v >> 1;
         io.threads = 1;
         ASSERT_EQ_INT(pm_irradiance_build(&irr, tree, &io), PM_OK); /* warm up the runtime */
         pm_irradiance_free(irr);
@@ -506,10 +869,11 @@ TEST(irradiance_memory_measured) {
         double bytes = (double)pm_irradiance_bytes(irr), done = (double)pm_irradiance_count(irr);
         printf("precomputed irradiance%s: %.0f of %zu photons; heap grew %.0f bytes, reported %.0f: "
                "%.3f bytes per precomputed photon, %.3f per photon of the map\n",
-               v ? " with radii" : "", done, n, grown, bytes, grown / done, grown / (double)n);
+               (const char *[]){"", " with radii", " with indices", " with radii and indices"}[v], done, n,
+               grown, bytes, grown / done, grown / (double)n);
         if (!PM_TEST_SANITIZED) /* ASan's allocator does not feed mallinfo2 */
             EXPECT_MSG(fabs(grown - bytes) <= 1024, "heap grew %.0f, reported %.0f", grown, bytes);
-        double layout = done * (24 + 4 * v) + (double)((n + 63) / 64) * 12;
+        double layout = done * (24 + 4 * (v & 1) + 4 * (v >> 1)) + (double)((n + 63) / 64) * 12;
         EXPECT_MSG(bytes >= layout && bytes <= layout + 4096, "reported %.0f, layout %.0f", bytes, layout);
         pm_irradiance_free(irr);
     }
