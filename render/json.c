@@ -360,3 +360,27 @@ const char *json_nearest_key(const char *key, const char *const *known, size_t n
     }
     return best_d <= limit ? best : NULL;
 }
+
+int json_check_keys(const cJSON *obj, const char *path, const char *const *known, size_t n,
+                    const char *what, json_err *e) {
+    for (const cJSON *it = obj ? obj->child : NULL; it; it = it->next) {
+        int ok = 0;
+        for (size_t k = 0; k < n && !ok; k++) ok = it->string && strcmp(it->string, known[k]) == 0;
+        if (ok) continue;
+        const char *key = it->string ? it->string : "?";
+        const char *near = json_nearest_key(it->string, known, n);
+        if (near)
+            return json_fail(e, PM_EINVAL, "%s.%s: unknown key (did you mean \"%s\"?)", path, key, near);
+        char list[320];
+        size_t len = 0;
+        list[0] = 0;
+        for (size_t k = 0; k < n && len < sizeof list; k++) {
+            int w = snprintf(list + len, sizeof list - len, "%s%s", k ? ", " : "", known[k]);
+            if (w < 0) break;
+            len += (size_t)w;
+        }
+        return json_fail(e, PM_EINVAL, "%s.%s: unknown key%s%s (known: %s)", path, key,
+                         what ? " of " : "", what ? what : "", list);
+    }
+    return 0;
+}

@@ -78,6 +78,14 @@ const char *json_type_name(const cJSON *item);
  * swaps of neighbours each count 1), if it is within max(1, strlen(key) / 3) edits; else NULL.
  * For "did you mean" in unknown-key errors ("emision" -> "emission"). */
 const char *json_nearest_key(const char *key, const char *const *known, size_t n);
+/* Every key of obj must be one of the n names in known. Else an error naming the first
+ * unknown key's path and the nearest known key, or the known keys when none is near:
+ *   $.materials.light.emision: unknown key (did you mean "emission"?)
+ *   $.camera.zoom: unknown key of the camera (known: eye, look_at, ...)
+ * `what` names the object in the second form ("the camera", "a sphere"); NULL: left out.
+ * One rule for every object of the scene format: a misspelt key is an error, not a default. */
+int json_check_keys(const cJSON *obj, const char *path, const char *const *known, size_t n,
+                    const char *what, json_err *e);
 
 #ifdef __cplusplus
 }

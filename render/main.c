@@ -284,11 +284,23 @@ int main(int argc, char **argv) {
         camera_resize(&s.cam, w > 0 ? (int)w : 1, h > 0 ? (int)h : 1);
     }
     char err_unused[64];
+    /* The photon-mapping settings are checked in every mode, so a typo in them is found
+     * by a path-traced preview too: the scene's object first (its errors name the file),
+     * then each option alone (its errors name the option). */
+    {
+        photon_settings ps;
+        if (photon_settings_parse(&ps, s.photon_mapping, &e) < 0) {
+            fprintf(stderr, "render: %s: %s\n", scene_path, e.msg);
+            scene_free(&s);
+            return 2;
+        }
+    }
     for (int k = 0; k < npm; k++) {
         char perr[256];
         /* A resumed render loads the maps its checkpoint names; they were saved already. */
         if (resume && strcmp(pm_flag[k], "--save-photons") == 0) continue;
-        if (plan_cli_set(&s.photon_mapping, pm_flag[k], pm_value[k], perr, sizeof perr) < 0) {
+        if (photon_settings_check_cli(pm_flag[k], pm_value[k], perr, sizeof perr) < 0 ||
+            plan_cli_set(&s.photon_mapping, pm_flag[k], pm_value[k], perr, sizeof perr) < 0) {
             fprintf(stderr, "render: %s\n", perr);
             scene_free(&s);
             return 2;
@@ -347,7 +359,7 @@ int main(int argc, char **argv) {
         rc = it.preprocess(&it, &s, err, sizeof err);
         stats_time_add("Time/Preprocessing", stats_now() - t0);
         if (rc < 0) {
-            fprintf(stderr, "render: %s\n", err);
+            fprintf(stderr, "render: %s: %s\n", scene_path, err);
             integrator_destroy(&it);
             scene_free(&s);
             return rc == PM_EINVAL ? 2 : 1;

@@ -339,3 +339,26 @@ int plan_cli_set(cJSON **pm, const char *flag, const char *value, char *err, siz
     cJSON_AddItemToObject(*pm, key, item);
     return 0;
 }
+
+int photon_settings_check_cli(const char *flag, const char *value, char *err, size_t errcap) {
+    cJSON *one = NULL;
+    int rc = plan_cli_set(&one, flag, value, err, errcap);
+    if (rc == 0) {
+        photon_settings c;
+        json_err e;
+        rc = photon_settings_parse(&c, one, &e);
+        if (rc < 0) {
+            /* e.msg starts with "$.photon_mapping.KEY"; the user typed "--pm KEY=..." or
+             * "--save-photons DIR", so say that instead. */
+            const char *m = e.msg, *key = one && one->child ? one->child->string : "";
+            size_t lp = strlen(P "."), lk = strlen(key);
+            int is_pm = strcmp(flag, "--pm") == 0;
+            if (strncmp(m, P ".", lp) == 0 && strncmp(m + lp, key, lk) == 0)
+                snprintf(err, errcap, "%s%s%s%s", flag, is_pm ? " " : "", is_pm ? key : "", m + lp + lk);
+            else
+                snprintf(err, errcap, "%s %s: %s", flag, value, m);
+        }
+    }
+    cJSON_Delete(one);
+    return rc;
+}

@@ -63,6 +63,10 @@ void photon_settings_print(FILE *f, int markdown);
  * flag "--pm" with value "KEY=VALUE" (VALUE a number, true/false or a string), or
  * "--save-photons"/"--load-photons" with a directory. 0, or PM_EINVAL with a message. */
 int plan_cli_set(cJSON **pm, const char *flag, const char *value, char *err, size_t errcap);
+/* Check one command-line option as plan_cli_set would apply it (its key, type and range),
+ * without a scene: 0, or PM_EINVAL with a message that names the option, not a JSON path
+ * ("--pm global_photon: unknown key (did you mean "global_photons"?)"). */
+int photon_settings_check_cli(const char *flag, const char *value, char *err, size_t errcap);
 
 #ifdef __cplusplus
 }

@@ -57,10 +57,20 @@ static int check_nonneg_rgb(rgb c, const char *path, const char *key, json_err *
         if (rc__ < 0) return rc__; \
     } while (0)
 
+/* The known keys of each object of the format (json_check_keys: any other key is an error
+ * that suggests the nearest of these). "comment" is allowed everywhere, as free text. */
+#define KEYS(obj, path, what, ...)                                                         \
+    do {                                                                                    \
+        static const char *const k__[] = {__VA_ARGS__, "comment"};                          \
+        TRY(json_check_keys(obj, path, k__, sizeof k__ / sizeof *k__, what, e));            \
+    } while (0)
+
 static int load_camera(scene *s, const cJSON *root, json_err *e) {
     const cJSON *c;
     TRY(json_object(root, "$", "camera", 1, &c, e));
     const char *P = "$.camera";
+    KEYS(c, P, "the camera", "eye", "look_at", "forward", "up", "fov_deg", "focal_length_mm",
+         "sensor_width_mm", "width", "height", "spp");
     vec3 eye, look, fwd, up = v3(0, 1, 0);
     TRY(json_vec3(c, P, "eye", 1, &eye, e));
     int has_look = json_get(c, "look_at") != NULL, has_fwd = json_get(c, "forward") != NULL;
@@ -114,21 +124,25 @@ static int load_material(material *m, const cJSON *it, const char *P, json_err *
     m->transmit_tint = v3s(1);
     m->ior = 1.5;
     if (strcmp(type, "lambert") == 0) {
+        KEYS(it, P, "a lambert material", "type", "reflectance", "emission", "two_sided");
         m->kind = MAT_LAMBERT;
         TRY(json_rgb(it, P, "reflectance", 1, &m->diffuse, e));
         TRY(check_unit_rgb(m->diffuse, P, "reflectance", e));
     } else if (strcmp(type, "oren_nayar") == 0) {
+        KEYS(it, P, "an oren_nayar material", "type", "reflectance", "sigma", "emission", "two_sided");
         m->kind = MAT_OREN_NAYAR;
         TRY(json_rgb(it, P, "reflectance", 1, &m->diffuse, e));
         TRY(check_unit_rgb(m->diffuse, P, "reflectance", e));
         TRY(json_number(it, P, "sigma", 1, &m->sigma, e));
         if (m->sigma < 0) return json_fail(e, PM_EINVAL, "%s.sigma: must be >= 0, got %g", P, m->sigma);
     } else if (strcmp(type, "mirror") == 0) {
+        KEYS(it, P, "a mirror material", "type", "reflectance", "emission", "two_sided");
         m->kind = MAT_MIRROR;
         m->specular = 1;
         TRY(json_rgb(it, P, "reflectance", 0, &m->specular_tint, e));
         TRY(check_unit_rgb(m->specular_tint, P, "reflectance", e));
     } else if (strcmp(type, "dielectric") == 0) {
+        KEYS(it, P, "a dielectric material", "type", "ior", "tint", "emission", "two_sided");
         m->kind = MAT_DIELECTRIC;
         m->fresnel = 1;
         m->transparency = 1;
@@ -136,6 +150,8 @@ static int load_material(material *m, const cJSON *it, const char *P, json_err *
         TRY(json_rgb(it, P, "tint", 0, &m->transmit_tint, e));
         TRY(check_unit_rgb(m->transmit_tint, P, "tint", e));
     } else if (strcmp(type, "mix") == 0) {
+        KEYS(it, P, "a mix material", "type", "specular", "transparency", "ior", "diffuse", "sigma",
+             "specular_tint", "transmit_tint", "emission", "two_sided");
         m->kind = MAT_MIX;
         const cJSON *sp = json_get(it, "specular");
         if (cJSON_IsString(sp) && strcmp(sp->valuestring, "fresnel") == 0) {
@@ -162,6 +178,7 @@ static int load_material(material *m, const cJSON *it, const char *P, json_err *
         TRY(json_rgb(it, P, "transmit_tint", 0, &m->transmit_tint, e));
         TRY(check_unit_rgb(m->transmit_tint, P, "transmit_tint", e));
     } else if (strcmp(type, "null") == 0 || strcmp(type, "interface") == 0) {
+        KEYS(it, P, "a null material", "type", "emission", "two_sided");
         m->kind = MAT_NULL; /* invisible: its ior is set to medium_ior by the caller */
         m->transparency = 1;
         if (json_get(it, "emission"))
@@ -266,6 +283,7 @@ static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_e
     int mat;
     TRY(json_string(o, P, "type", 1, &type, e));
     if (strcmp(type, "sphere") == 0) {
+        KEYS(o, P, "a sphere", "type", "name", "center", "radius", "material", "interior_medium");
         sphere sp;
         TRY(json_vec3(o, P, "center", 1, &sp.c, e));
         TRY(json_number(o, P, "radius", 1, &sp.r, e));
@@ -279,19 +297,24 @@ static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_e
             push((void **)&s->sphere_obj, &n, &cp->socap, sizeof cp->obj, &cp->obj) < 0)
             return json_fail(e, PM_ENOMEM, "out of memory");
     } else if (strcmp(type, "triangle") == 0) {
+        KEYS(o, P, "a triangle", "type", "name", "vertices", "material", "interior_medium");
         vec3 v[3];
         TRY(read_points(o, P, "vertices", 3, v, e));
         TRY(find_material(s, o, P, &mat, e));
         TRY(add_tri(s, cp, v[0], v[1], v[2], mat, P, e));
     } else if (strcmp(type, "quad") == 0) {
+        KEYS(o, P, "a quad", "type", "name", "vertices", "material", "interior_medium");
         vec3 v[4];
         TRY(read_points(o, P, "vertices", 4, v, e));
         TRY(find_material(s, o, P, &mat, e));
         TRY(add_tri(s, cp, v[0], v[1], v[2], mat, P, e));
         TRY(add_tri(s, cp, v[0], v[2], v[3], mat, P, e));
     } else if (strcmp(type, "mesh") == 0 && json_get(o, "file")) {
+        KEYS(o, P, "a mesh from a file", "type", "name", "file", "material", "usemtl", "transform", "smooth",
+             "recompute_normals", "interior_medium", "vertices", "triangles"); /* import.c: not both */
         return load_mesh_file(s, cp, o, P, e);
     } else if (strcmp(type, "mesh") == 0) {
+        KEYS(o, P, "a mesh", "type", "name", "vertices", "triangles", "material", "interior_medium", "file");
         const cJSON *va, *ta;
         TRY(json_array(o, P, "vertices", 1, &va, e));
         TRY(json_array(o, P, "triangles", 1, &ta, e));
@@ -339,6 +362,7 @@ static int load_light(scene *s, caps *cp, const cJSON *o, const char *P, json_er
     l.tri = -1;
     TRY(json_string(o, P, "type", 1, &type, e));
     if (strcmp(type, "point") == 0) {
+        KEYS(o, P, "a point light", "type", "position", "intensity", "power");
         l.type = LIGHT_POINT;
         TRY(json_vec3(o, P, "position", 1, &l.pos, e));
         int has_i = json_get(o, "intensity") != NULL, has_p = json_get(o, "power") != NULL;
@@ -354,6 +378,7 @@ static int load_light(scene *s, caps *cp, const cJSON *o, const char *P, json_er
             l.intensity = v3_scale(pw, 1.0 / (4 * M_PI));
         }
     } else if (strcmp(type, "directional") == 0) {
+        KEYS(o, P, "a directional light", "type", "direction", "irradiance");
         l.type = LIGHT_DIRECTIONAL;
         TRY(json_vec3(o, P, "direction", 1, &l.dir, e));
         if (!(v3_len(l.dir) > 0))
@@ -383,6 +408,7 @@ static int load_settings(scene *s, const cJSON *root, json_err *e) {
     const cJSON *r, *im;
     TRY(json_object(root, "$", "render", 0, &r, e));
     if (r) {
+        KEYS(r, "$.render", "the render settings", "mode", "max_depth", "rr_depth", "seed");
         long v;
         v = st->max_depth;
         TRY(json_int(r, "$.render", "max_depth", 0, 1, 100000, &v, e));
@@ -399,6 +425,7 @@ static int load_settings(scene *s, const cJSON *root, json_err *e) {
     }
     TRY(json_object(root, "$", "image", 0, &im, e));
     if (im) {
+        KEYS(im, "$.image", "the image settings", "tone", "clip_percent", "exposure");
         const char *tone = NULL;
         TRY(json_string(im, "$.image", "tone", 0, &tone, e));
         if (tone) {
@@ -439,6 +466,7 @@ static int load_media(scene *s, const cJSON *root, json_err *e) {
             return json_fail(e, PM_EINVAL, "%s: medium name too long (max %d characters)", P,
                              (int)sizeof m->name - 1);
         snprintf(m->name, sizeof m->name, "%s", it->string);
+        KEYS(it, P, "a medium", "sigma_a", "sigma_s", "g");
         TRY(json_rgb(it, P, "sigma_a", 0, &m->sigma_a, e));
         TRY(check_nonneg_rgb(m->sigma_a, P, "sigma_a", e));
         TRY(json_rgb(it, P, "sigma_s", 0, &m->sigma_s, e));
@@ -543,18 +571,8 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
     caps cp = {0};
     if (!cJSON_IsObject(root))
         return json_fail(e, PM_EINVAL, "$: expected an object, got %s", json_type_name(root));
-    static const char *known[] = {"camera", "materials", "objects", "lights", "medium_ior",
-                                  "media", "medium", "render", "image", "photon_mapping", "comment", "description"};
-    for (const cJSON *it = root->child; it; it = it->next) {
-        int ok = 0;
-        for (size_t k = 0; k < sizeof known / sizeof *known; k++)
-            if (it->string && strcmp(it->string, known[k]) == 0) ok = 1;
-        if (!ok) {
-            const char *near = json_nearest_key(it->string, known, sizeof known / sizeof *known);
-            fprintf(stderr, "warning: $.%s: unknown key, ignored%s%s%s\n", it->string ? it->string : "?",
-                    near ? " (did you mean \"" : "", near ? near : "", near ? "\"?)" : "");
-        }
-    }
+    KEYS(root, "$", "a scene", "camera", "materials", "objects", "lights", "medium_ior", "media",
+         "medium", "render", "image", "photon_mapping", "description");
     TRY(load_camera(s, root, e));
     TRY(load_settings(s, root, e));
     s->medium_ior = 1.0;

@@ -63,7 +63,8 @@ TEST(render_hard_partition_thin_no_leak) { check_partition("partition_thin"); }
 TEST(render_hard_partition_thick_no_leak) { check_partition("partition_thick"); }
 
 /* Oracle: the settings table's keys. A misspelt photon-mapping key is an input error (exit 2)
- * that names the JSON path and the nearest known key; one far from every key gets no guess. */
+ * that names the option (--pm KEY) and the nearest known key; one far from every key gets no
+ * guess. */
 TEST(render_hard_typo_suggests_the_key) {
     char cmd[4096], out[16384];
     snprintf(cmd, sizeof cmd,
@@ -72,7 +73,7 @@ TEST(render_hard_typo_suggests_the_key) {
              pm_test_build_dir(), pm_test_source_dir());
     int rc = pm_test_run(cmd, out, sizeof out);
     EXPECT_MSG(rc == 2, "exit %d: %s", rc, out);
-    EXPECT_MSG(strstr(out, "photon_mapping.global_photon: unknown key (did you mean \"global_photons\"?)"),
+    EXPECT_MSG(strstr(out, "render: --pm global_photon: unknown key (did you mean \"global_photons\"?)"),
                "%s", out);
     snprintf(cmd, sizeof cmd,
              "%s/render '%s/data/scenes/cornell_box.json' --mode pm --width 8 --height 8 --spp 1 "
