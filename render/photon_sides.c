@@ -21,13 +21,15 @@
 /* Candidates examined by an estimate that meets a wall, as a multiple of k. */
 #define SIDE_WIDEN 4
 /* Candidates a lookup tests for visibility, nearest first. */
-#define SIDE_LOOKUP_CANDIDATES 8
+#define SIDE_LOOKUP_CANDIDATES 8u
+/* A lookup's normal rule (irradiance.h): the photon's normal within about 45 degrees of y's. */
+#define SIDE_LOOKUP_COS 0.7f
 
 static vec3 v3f(const float f[3]) { return v3(f[0], f[1], f[2]); }
 
 double side_free_height(const scene *s, vec3 p, vec3 np, double cap) {
     if (!(cap > 0)) return 0;
-    ray r = {v3_offset(p, np, np), np};
+    ray r = {scene_offset(s, p, np, np), np};
     hit h;
     if (!isfinite(cap)) cap = 1e300;
     if (!scene_intersect(s, r, cap, &h)) return cap;
@@ -62,7 +64,7 @@ int side_visible(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq) {
  * would run into the surface itself within a few of its free heights. */
 static double visible_disc_fraction(const scene *s, vec3 p, vec3 n, double r) {
     if (!(r > 0) || !isfinite(r)) return 1.0;
-    double scale = 1.0 + v3_maxabs(p), delta = 1e-5 * scale;
+    double scale = s->offset_floor + v3_maxabs(p), delta = 1e-5 * scale;
     ray down = {v3_madd(p, n, delta), v3_neg(n)};
     hit h;
     vec3 base = p, ng = n;
@@ -118,24 +120,16 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
     if (!which) goto nomem;
     for (size_t i = 0; i < n; i++)
         if (pm_kdtree_height(global, (uint32_t)i) >= 2) which[m++] = (uint32_t)i;
-    c->recs = calloc(m ? m : 1, sizeof *c->recs);
-    c->r2 = malloc((m ? m : 1) * sizeof *c->r2);
-    c->hfree = malloc((m ? m : 1) * sizeof *c->hfree);
-    float *r2tmp = malloc((m ? 2 * m : 1) * sizeof *r2tmp); /* r2, then free heights */
-    uint32_t *perm = malloc((m ? m : 1) * sizeof *perm);
-    if (!c->recs || !c->r2 || !c->hfree || !r2tmp || !perm) {
-        free(r2tmp);
-        free(perm);
-        free(which);
-        goto nomem;
-    }
+    /* The estimates by map index (read only at the chosen photons), for
+     * pm_irradiance_build_values. */
+    float *val = malloc(n * 3 * sizeof *val), *r2v = malloc(n * sizeof *r2v);
     /* Every photon's free height along its normal, up to the largest lift an estimate can
      * use (a quarter of the search radius): one ray per photon, so that each visibility test
-     * below is a single ray. */
-    float *hfree = malloc(n * sizeof *hfree);
-    if (!hfree) {
-        free(r2tmp);
-        free(perm);
+     * below, and each lookup's, is a single ray. */
+    float *hfree = c->hfree = malloc(n * sizeof *hfree);
+    if (!val || !r2v || !hfree) {
+        free(val);
+        free(r2v);
         free(which);
         goto nomem;
     }
@@ -149,7 +143,6 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
         hfree[i] = (float)side_free_height(s, v3f(ph[i].pos), v3f(nf), cap);
     }
     unsigned long long rays1 = n, rays2 = 0;
-    float *hsel = r2tmp + m; /* the chosen photons' free heights, by rank */
     size_t again = 0;
     int fail = 0;
 #ifdef _OPENMP
@@ -190,7 +183,7 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
                 /* The usual estimate: k photons, the k-th on the rim; or the whole disc. */
                 double r2 = (unsigned)found == k ? nb[found - 1].dist2 : (double)max_dist2;
                 disc_irradiance(ph, nb, found, r2, (unsigned)found == k, 1.0, e);
-                r2tmp[j] = (float)r2;
+                r2v[which[j]] = (float)r2;
             } else {
                 /* A wall: take SIDE_WIDEN x k candidates in order of distance and keep the
                  * visible ones until k are kept. Every photon closer than the last one tested
@@ -229,19 +222,16 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
                 rays2 += SIDE_AREA_DIRS + 1;
                 if (frac < 1.0 / SIDE_AREA_DIRS) frac = 1.0 / SIDE_AREA_DIRS;
                 disc_irradiance(ph, nb, kept, r2, rim, frac, e);
-                r2tmp[j] = (float)r2;
+                r2v[which[j]] = (float)r2;
             }
-            c->recs[j] = *p;
-            hsel[j] = hfree[which[j]];
-            pm_rgbe_encode(e, c->recs[j].power);
+            memcpy(&val[3 * (size_t)which[j]], e, sizeof e);
         }
         free(nb);
     }
     free(which);
-    free(hfree);
     if (fail) {
-        free(r2tmp);
-        free(perm);
+        free(val);
+        free(r2v);
         goto nomem;
     }
     c->n = m;
@@ -249,22 +239,23 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
     c->rays_second = rays2;
     c->researched = again;
     if (m) {
-        pm_kdtree_config kc = pm_kdtree_photon_config(8);
-        int rc = pm_kdtree_build(&c->tree, c->recs, m, &kc, perm);
+        /* The module keeps the values, the radii and the lookup (irradiance.h). */
+        pm_irradiance_options io;
+        pm_irradiance_options_init(&io, k);
+        io.fraction = PM_PRECOMP_QUARTER;
+        io.store_radius = 1;
+        io.store_index = 1;
+        int rc = pm_irradiance_build_values(&c->irr, global, &io, val, r2v);
         if (rc < 0) {
-            free(r2tmp);
-            free(perm);
+            free(val);
+            free(r2v);
             side_cache_free(c);
             snprintf(err, errcap, "precomputing irradiance: %s", pm_strerror(rc));
             return rc;
         }
-        for (size_t t = 0; t < m; t++) {
-            c->r2[t] = r2tmp[perm[t]];
-            c->hfree[t] = hsel[perm[t]];
-        }
     }
-    free(r2tmp);
-    free(perm);
+    free(val);
+    free(r2v);
     return 0;
 nomem:
     side_cache_free(c);
@@ -272,55 +263,69 @@ nomem:
     return PM_ENOMEM;
 }
 
+int side_cache_from_records(side_cache *c, pm_photon *recs, const float *r2, const float *hfree,
+                            size_t m, char *err, size_t errcap) {
+    memset(c, 0, sizeof *c);
+    if (m == 0) return 0;
+    pm_kdtree *t = NULL;
+    uint32_t *perm = malloc(m * sizeof *perm);
+    float *val = malloc(3 * m * sizeof *val), *r2t = malloc(m * sizeof *r2t);
+    c->hfree = malloc(m * sizeof *c->hfree);
+    int rc = PM_ENOMEM;
+    if (!perm || !val || !r2t || !c->hfree) goto done;
+    pm_kdtree_config kc = pm_kdtree_photon_config(8);
+    if ((rc = pm_kdtree_build(&t, recs, m, &kc, perm)) < 0) goto done;
+    for (size_t i = 0; i < m; i++) { /* tree order: record i was recs' perm[i] */
+        pm_rgbe_decode(recs[i].power, &val[3 * i]);
+        r2t[i] = r2[perm[i]];
+        c->hfree[i] = hfree[perm[i]];
+    }
+    pm_irradiance_options io;
+    pm_irradiance_options_init(&io, 1);
+    io.fraction = PM_PRECOMP_ALL;
+    io.store_radius = 1;
+    io.store_index = 1;
+    rc = pm_irradiance_build_values(&c->irr, t, &io, val, r2t);
+    c->n = m;
+done:
+    pm_kdtree_free(t);
+    free(perm);
+    free(val);
+    free(r2t);
+    if (rc < 0) {
+        side_cache_free(c);
+        snprintf(err, errcap, "precomputed irradiance: %s", pm_strerror(rc));
+    }
+    return rc < 0 ? rc : 0;
+}
+
 void side_cache_free(side_cache *c) {
-    pm_kdtree_free(c->tree);
-    free(c->recs);
-    free(c->r2);
+    pm_irradiance_free(c->irr);
     free(c->hfree);
     memset(c, 0, sizeof *c);
 }
 
-typedef struct look_ctx {
+/* The query's side of every wall, as pm_irradiance_lookup_if's rule: a photon answers only if
+ * the lifted segment from y reaches it (its free height from the build). */
+typedef struct side_rule {
     const side_cache *c;
     const scene *s;
     vec3 y, n;
     double hy; /* y's free height */
-    float nf[3], yf[3];
-} look_ctx;
+} side_rule;
 
-/* A similar normal (within about 45 degrees) and y within the photon's own estimate radius. */
-static int lookup_accepts(void *user, const void *record, uint32_t index) {
-    const look_ctx *l = user;
-    const pm_photon *p = record;
-    float pn[3];
-    pm_normal_decode(p->normal, pn);
-    if (l->nf[0] * pn[0] + l->nf[1] * pn[1] + l->nf[2] * pn[2] < 0.7f) return 0;
-    float d[3] = {p->pos[0] - l->yf[0], p->pos[1] - l->yf[1], p->pos[2] - l->yf[2]};
-    return d[0] * d[0] + d[1] * d[1] + d[2] * d[2] < l->c->r2[index];
+static int side_accepts(void *user, uint32_t photon, const float pos[3], const float normal[3]) {
+    const side_rule *r = user;
+    return side_visible_h(r->s, r->y, r->n, r->hy, v3f(pos), v3f(normal), r->c->hfree[photon]);
 }
 
 int side_cache_lookup(const side_cache *c, const scene *s, vec3 y, vec3 n, float max_dist2,
                       float e[3]) {
     e[0] = e[1] = e[2] = 0;
-    if (!c->tree) return 0;
-    look_ctx l = {c, s, y, n, side_free_height(s, y, n, 0.25 * sqrt((double)max_dist2)),
-                  {(float)n.x, (float)n.y, (float)n.z}, {(float)y.x, (float)y.y, (float)y.z}};
-    /* The nearest few that pass the cheap tests, then the first of them that y sees: a
-     * bounded number of shadow rays per lookup even beside a wall with many photons behind. */
-    pm_neighbor nb[SIDE_LOOKUP_CANDIDATES];
-    pm_knn_options ko = {0};
-    ko.filter = lookup_accepts;
-    ko.filter_user = &l;
-    ko.flags = PM_SORT;
-    int n2 = pm_kdtree_knn_ex(c->tree, l.yf, SIDE_LOOKUP_CANDIDATES, max_dist2, &ko, nb, NULL);
-    for (int t = 0; t < n2; t++) {
-        const pm_photon *p = &c->recs[nb[t].index];
-        float pn[3];
-        pm_normal_decode(p->normal, pn);
-        if (side_visible_h(s, y, n, l.hy, v3f(p->pos), v3f(pn), c->hfree[nb[t].index])) {
-            pm_rgbe_decode(p->power, e);
-            return 1;
-        }
-    }
-    return 0;
+    if (!c->irr) return 0;
+    side_rule r = {c, s, y, n, side_free_height(s, y, n, 0.25 * sqrt((double)max_dist2))};
+    float yf[3] = {(float)y.x, (float)y.y, (float)y.z}, nf[3] = {(float)n.x, (float)n.y, (float)n.z};
+    /* A bounded number of shadow rays per lookup, even beside a wall with many photons behind. */
+    return pm_irradiance_lookup_if(c->irr, yf, nf, max_dist2, SIDE_LOOKUP_COS, SIDE_LOOKUP_CANDIDATES,
+                                   side_accepts, &r, e, NULL, NULL) == 1;
 }

@@ -32,12 +32,15 @@
  *                    own side (the radius then grows into the dark side, which holds none of
  *                    them: the same boundary bias as at any edge of a surface, low, never a
  *                    leak). Each precomputed photon keeps the radius^2 of its own estimate.
- *   side_cache_lookup what a final-gather ray reads at its hit y: the nearest precomputed
- *                    photon whose normal is within about 45 degrees of y's, that is within its
- *                    own estimate radius of y (its value describes the disc it was computed
- *                    over, no farther) and that side_visible sees y. Why: the value of a
- *                    photon behind a wall is the irradiance of another room. With none, the
- *                    lookup reports "none" (the caller computes y's light otherwise).
+ *                    The values, their radii and the lookup structure belong to the module
+ *                    (pm_irradiance_build_values, photonmap/irradiance.h); the cache adds the
+ *                    free height of every photon of the global map.
+ *   side_cache_lookup what a final-gather ray reads at its hit y: pm_irradiance_lookup_if
+ *                    with the module's normal rule at cos_min 0.7 (about 45 degrees; y within
+ *                    the photon's own estimate radius) and side_visible from y as the caller's
+ *                    rule, tried on the 8 nearest candidates. Why: the value of a photon
+ *                    behind a wall is the irradiance of another room. With none, the lookup
+ *                    reports "none" (the caller computes y's light otherwise).
  *
  * Threads: side_cache_build runs on OpenMP threads; a built cache is read-only and lookups
  * may run on any thread. The caller frees the cache with side_cache_free.
@@ -47,6 +50,7 @@
 
 #include <stddef.h>
 
+#include "photonmap/irradiance.h"
 #include "photonmap/kdtree.h"
 #include "photonmap/photon.h"
 #include "scene.h"
@@ -68,11 +72,9 @@ int side_visible_h(const scene *s, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, 
 double side_disc_fraction(const scene *s, vec3 p, vec3 n, double r);
 
 typedef struct side_cache {
-    pm_photon *recs; /* the precomputed photons, power = irradiance E (RGBE), in tree order */
-    float *r2;       /* radius^2 of each one's own estimate, same order */
-    float *hfree;    /* each one's free height (side_free_height), same order */
-    size_t n;
-    pm_kdtree *tree; /* over recs (NULL when n == 0) */
+    pm_irradiance *irr; /* the values E with their radii^2 and the lookup (NULL when n == 0) */
+    float *hfree;    /* the free height (side_free_height) of every photon of the global map */
+    size_t n;        /* photons precomputed */
     unsigned long long rays_first, rays_second; /* shadow rays of the build (first, second search) */
     size_t researched;                          /* estimates searched again (a neighbour was hidden) */
 } side_cache;
@@ -82,6 +84,12 @@ typedef struct side_cache {
 int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
                      size_t n, unsigned k, float max_dist2, char *err, size_t errcap);
 void side_cache_free(side_cache *c);
+/* A cache from m precomputed photons computed elsewhere (render-mpi gathers them from its
+ * ranks): recs (power = E, RGBE; reordered in place into a kd-tree's order), their radii^2 r2
+ * and free heights hfree, in recs' order. Lookups then read them as side_cache_lookup says. 0,
+ * or a negative PM_E* code with a message. */
+int side_cache_from_records(side_cache *c, pm_photon *recs, const float *r2, const float *hfree,
+                            size_t m, char *err, size_t errcap);
 
 /* Irradiance at the surface point y (unit normal n, the side the gather ray came from), read
  * from the cache within radius^2 max_dist2. Returns 1 and sets e, or 0 (none found: e = 0). */

@@ -230,7 +230,7 @@ static int to_diffuse(const mapper_state *st, const scene *s, ray r, rng *g, hit
  * room's light). *found = 0 when there is none. */
 static rgb lookup_radiance(const mapper_state *st, const scene *s, const hit *h, vec3 wo, int *found) {
     *found = 0;
-    if (!st->sides.tree) return v3s(0);
+    if (!st->sides.irr) return v3s(0);
     const material *m = scene_material(s, h);
     vec3 ns = v3_dot(wo, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
     float e[3];
@@ -261,7 +261,7 @@ static rgb secondary_radiance(const mapper_state *st, const scene *s, const hit 
 
 static rgb gather(const mapper_state *st, const scene *s, const material *m, const hit *h, vec3 ns,
                   vec3 wo, int n, int secondary, rng *g, mapper_scratch *sc) {
-    if (n <= 0 || !st->sides.tree) return v3s(0);
+    if (n <= 0 || !st->sides.irr) return v3s(0);
     rgb sum = v3s(0);
     for (int k = 0; k < n; k++) {
         /* Stratified over the hemisphere: n strata in the first coordinate. */

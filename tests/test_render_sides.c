@@ -1,0 +1,122 @@
+/* test_render_sides.c: the side-keeping precomputed irradiance of render/photon_sides.h, read
+ * through the module's lookup with a caller's rule (photonmap/irradiance.h).
+ *
+ * Oracle: a brute-force scan of the records with the rules of photon_sides.h written out:
+ * the normal within the module's cos 0.7, the query within the record's own radius and the
+ * search radius, the 8 nearest such records, the first of them that side_visible_h sees from
+ * the query. The scene is a floor with a tall wall (every segment across it is blocked) and a
+ * low wall (a segment across it is blocked or not depending on how high its ends are lifted,
+ * so each record's own free height matters).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "test.h"
+#include "../render/photon_sides.h"
+#include "../render/scene.h"
+
+typedef struct { uint64_t s; } srng;
+static double srng_unit(srng *r) {
+    uint64_t z = (r->s += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return (double)((z ^ (z >> 31)) >> 11) * 0x1p-53;
+}
+
+static const char *SIDES_SCENE =
+    "{\"camera\": {\"eye\": [0, -5, 3], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+    " \"materials\": {\"white\": {\"type\": \"lambert\", \"reflectance\": 0.5}},"
+    " \"objects\": ["
+    "  {\"type\": \"quad\", \"vertices\": [[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]], \"material\": \"white\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[0, -2, 0], [0, 2, 0], [0, 2, 1], [0, -2, 1]], \"material\": \"white\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-2, 0.5, 0], [2, 0.5, 0], [2, 0.5, 0.02], [-2, 0.5, 0.02]], \"material\": \"white\"}]}";
+
+typedef struct sc_cand { float d2; uint32_t i; } sc_cand;
+static int sc_cmp(const void *a, const void *b) {
+    const sc_cand *x = a, *y = b;
+    return x->d2 < y->d2 ? -1 : x->d2 > y->d2;
+}
+
+/* Oracle above. Records: Poisson positions on the floor (none in a strip right of the tall
+ * wall, where a quarter of the queries fall), 85% facing up and 15% tilted past the normal
+ * rule, random RGB values, radii^2 and free heights. Queries: random floor points facing up. Exact equality of the values (RGBE bytes in, the same bytes out). Also: the wall
+ * decides some lookups (an answer that is not the nearest candidate, and "none" with
+ * candidates present), and the records come back in tree order (side_cache_from_records
+ * reorders them in place). */
+TEST(render_sides_cache_from_records_matches_brute_force) {
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, SIDES_SCENE, &e) == 0, "%s", e.msg);
+    const size_t m = PM_TEST_SANITIZED ? 1500 : 4000;
+    const int queries = PM_TEST_SANITIZED ? 400 : 2000;
+    const float max_dist2 = 0.02f;
+    pm_photon *recs = malloc(sizeof *recs * m), *orig = malloc(sizeof *orig * m);
+    float *r2 = malloc(sizeof *r2 * m), *hf = malloc(sizeof *hf * m);
+    sc_cand *cs = malloc(sizeof *cs * m);
+    srng r = {4242};
+    for (size_t i = 0; i < m; i++) {
+        float pos[3] = {(float)(2 * srng_unit(&r) - 1), (float)(2 * srng_unit(&r) - 1), 0};
+        if (pos[0] > 0 && pos[0] < 0.15f) pos[0] += 0.15f; /* a strip without photons right of the wall */
+        float up[3] = {0, 0, 1}, tilt[3] = {0.8f, 0, 0.6f}, down[3] = {0, 0, -1};
+        float p[3] = {(float)srng_unit(&r), (float)srng_unit(&r), (float)(0.01 + srng_unit(&r))};
+        pm_photon_init(&recs[i], pos, p, down, srng_unit(&r) < 0.85 ? up : tilt, PM_KIND_INDIRECT);
+        r2[i] = (float)(0.002 + 0.03 * srng_unit(&r));
+        hf[i] = (float)(0.1 * srng_unit(&r));
+    }
+    memcpy(orig, recs, sizeof *recs * m);
+    side_cache c;
+    char err[256];
+    ASSERT_EQ_INT(side_cache_from_records(&c, recs, r2, hf, m, err, sizeof err), 0);
+    ASSERT(c.n == m && c.irr != NULL);
+    EXPECT(memcmp(orig, recs, sizeof *recs * m) != 0); /* reordered in place */
+    int found = 0, none_with_candidates = 0, skipped_nearest = 0;
+    vec3 n = v3(0, 0, 1);
+    float nf[3] = {0, 0, 1};
+    for (int qi = 0; qi < queries; qi++) {
+        vec3 y = v3(qi % 4 ? 2 * srng_unit(&r) - 1 : 0.02 * srng_unit(&r), 2 * srng_unit(&r) - 1, 0);
+        float yf[3] = {(float)y.x, (float)y.y, (float)y.z};
+        double hy = side_free_height(&s, y, n, 0.25 * sqrt((double)max_dist2));
+        size_t nc = 0;
+        for (uint32_t i = 0; i < m; i++) {
+            float pn[3];
+            pm_normal_decode(orig[i].normal, pn);
+            if (pn[0] * nf[0] + pn[1] * nf[1] + pn[2] * nf[2] < 0.7f) continue;
+            float d[3] = {orig[i].pos[0] - yf[0], orig[i].pos[1] - yf[1], orig[i].pos[2] - yf[2]};
+            float d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            if (!(d2 < r2[i]) || !(d2 < max_dist2)) continue;
+            cs[nc].d2 = d2, cs[nc].i = i, nc++;
+        }
+        qsort(cs, nc, sizeof *cs, sc_cmp);
+        int want = -1;
+        for (size_t t = 0; t < nc && t < 8 && want < 0; t++) {
+            const pm_photon *p = &orig[cs[t].i];
+            float pn[3];
+            pm_normal_decode(p->normal, pn);
+            if (side_visible_h(&s, y, n, hy, v3(p->pos[0], p->pos[1], p->pos[2]), v3(pn[0], pn[1], pn[2]),
+                               hf[cs[t].i]))
+                want = (int)t;
+        }
+        float got[3], exp[3] = {0, 0, 0};
+        int rc = side_cache_lookup(&c, &s, y, n, max_dist2, got);
+        if (want >= 0) pm_rgbe_decode(orig[cs[want].i].power, exp);
+        EXPECT_MSG(rc == (want >= 0) && memcmp(got, exp, sizeof got) == 0,
+                   "query %d at (%g, %g): lookup %d (%g), brute force %s %g (%zu candidates)", qi, y.x, y.y, rc,
+                   got[0], want >= 0 ? "candidate" : "none", exp[0], nc);
+        found += want >= 0;
+        none_with_candidates += want < 0 && nc > 0;
+        skipped_nearest += want > 0;
+    }
+    printf("side cache from records: %d of %d lookups found, %d found none with candidates, %d skipped a hidden nearest\n",
+           found, queries, none_with_candidates, skipped_nearest);
+    EXPECT(found > queries / 2 && none_with_candidates > 0 && skipped_nearest > queries / 100);
+    side_cache_free(&c);
+    EXPECT(c.irr == NULL && c.hfree == NULL);
+    free(cs);
+    free(hf);
+    free(r2);
+    free(orig);
+    free(recs);
+    scene_free(&s);
+}
