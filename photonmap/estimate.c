@@ -11,8 +11,8 @@
  * vertices, a sliver) sends it to the disc estimate, so it never divides by a zero area.
  * Sorting is in place on the caller's scratch, because qsort may allocate and the estimates
  * promise not to: differential checking sorts its neighbours with the module's one
- * (dist2, index) sort (internal.h); the hull heapsorts its projected points by (u, v), a key
- * no other code sorts by.
+ * (dist2, index) sort (internal.h); the hull sorts its projected points by (u, v) with the
+ * same heapsort (PM__HEAPSORT, internal.h), only the key differs.
  */
 #include "estimate.h"
 #include "internal.h"
@@ -287,27 +287,11 @@ static void tangent_basis(const double n[3], double t[3], double bt[3]) {
     bt[0] = bb, bt[1] = sign + n[1] * n[1] * a, bt[2] = -n[1];
 }
 
-static int pt_less(const hull_pt *a, const hull_pt *b) {
+static inline int pt_less(const hull_pt *a, const hull_pt *b) {
     return a->u < b->u || (a->u == b->u && a->v < b->v);
 }
-static void pt_sift(hull_pt *a, size_t i, size_t n) {
-    for (;;) {
-        size_t c = 2 * i + 1;
-        if (c >= n) return;
-        if (c + 1 < n && pt_less(&a[c], &a[c + 1])) c++;
-        if (!pt_less(&a[i], &a[c])) return;
-        hull_pt t = a[i];
-        a[i] = a[c], a[c] = t, i = c;
-    }
-}
-static void pt_sort(hull_pt *a, size_t n) {
-    for (size_t i = n / 2; i-- > 0;) pt_sift(a, i, n);
-    for (size_t e = n; e > 1; e--) {
-        hull_pt t = a[0];
-        a[0] = a[e - 1], a[e - 1] = t;
-        pt_sift(a, 0, e - 1);
-    }
-}
+/* pt_sort(a, n): the module's heapsort (internal.h) by (u, v). */
+PM__HEAPSORT(pt_sort, hull_pt, pt_less)
 
 static double cross(const hull_pt *o, const hull_pt *a, const hull_pt *b) {
     return (a->u - o->u) * (b->v - o->v) - (a->v - o->v) * (b->u - o->u);

@@ -1,5 +1,5 @@
 /* internal.h: the one sort and the one max-heap of neighbours that the module's searches and
- * estimates share. Private: never installed, every name is pm__ and static inline, so each
+ * estimates share (the sort, a heapsort, is a macro so that the hull's points use it too). Private: never installed, every name is pm__ and static inline, so each
  * file that includes it gets its own copy and nothing is exported.
  *
  * ORDER. pm__nb_less is the deterministic result order of the whole module: by dist2, then by
@@ -29,19 +29,36 @@ static inline int pm__nb_less(const pm_neighbor *a, const pm_neighbor *b) {
     return a->dist2 < b->dist2 || (a->dist2 == b->dist2 && a->index < b->index);
 }
 
-/* Moves a[i] down the (dist2, index) max-heap a[0..n). */
-static inline void pm__nb_sift(pm_neighbor *a, size_t n, size_t i) {
-    for (;;) {
-        size_t c = 2 * i + 1;
-        if (c >= n) return;
-        if (c + 1 < n && pm__nb_less(&a[c], &a[c + 1])) c++;
-        if (!pm__nb_less(&a[i], &a[c])) return;
-        pm_neighbor s = a[i];
-        a[i] = a[c];
-        a[c] = s;
-        i = c;
+/* PM__HEAPSORT(name, type, less) defines static inline void name(type *a, size_t n): an
+ * in-place heapsort of a[0..n), ascending by less(const type *, const type *), that never
+ * allocates; and name##_sift, its sift-down in the max-heap a[0..n). This is the module's one
+ * comparison sort: the neighbours' (dist2, index) order below and the convex hull's 2-D points
+ * (estimate.c, by (u, v)) are its two instances. Not stable: equal keys may come out in any
+ * fixed order. */
+#define PM__HEAPSORT(name, type, less)                                                       \
+    static inline void name##_sift(type *a, size_t n, size_t i) {                            \
+        for (;;) {                                                                           \
+            size_t c = 2 * i + 1;                                                            \
+            if (c >= n) return;                                                              \
+            if (c + 1 < n && less(&a[c], &a[c + 1])) c++;                                    \
+            if (!less(&a[i], &a[c])) return;                                                 \
+            type s_ = a[i];                                                                  \
+            a[i] = a[c];                                                                     \
+            a[c] = s_;                                                                       \
+            i = c;                                                                           \
+        }                                                                                    \
+    }                                                                                        \
+    static inline void name(type *a, size_t n) {                                             \
+        for (size_t i = n / 2; i-- > 0;) name##_sift(a, n, i);                               \
+        for (size_t e = n; e > 1; e--) {                                                     \
+            type s_ = a[0];                                                                  \
+            a[0] = a[e - 1];                                                                 \
+            a[e - 1] = s_;                                                                   \
+            name##_sift(a, e - 1, 0);                                                        \
+        }                                                                                    \
     }
-}
+
+PM__HEAPSORT(pm__nb_heapsort, pm_neighbor, pm__nb_less)
 
 /* Sorts a[0..n) by (dist2, index) ascending, in place, without allocating. */
 static inline void pm__nb_sort(pm_neighbor *a, size_t n) {
@@ -57,13 +74,7 @@ static inline void pm__nb_sort(pm_neighbor *a, size_t n) {
         }
         return;
     }
-    for (size_t i = n / 2; i-- > 0;) pm__nb_sift(a, n, i);
-    for (size_t e = n - 1; e > 0; e--) {
-        pm_neighbor s = a[0];
-        a[0] = a[e];
-        a[e] = s;
-        pm__nb_sift(a, e, 0);
-    }
+    pm__nb_heapsort(a, n);
 }
 
 /* Max-heap on dist2 in h[0..n): puts v at slot i and sifts it down. */
