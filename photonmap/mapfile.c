@@ -68,6 +68,7 @@ static int write_all(int fd, const unsigned char *b, size_t n) {
 int pm_map_save(const char *path, const pm_photon *photons, const pm_map_header *hdr) {
     if (!path || !hdr || (hdr->count > 0 && !photons)) return PM_EINVAL;
     if (hdr->record_size != 0 && hdr->record_size != sizeof(pm_photon)) return PM_EINVAL;
+    if (hdr->kind < PM_MAP_GLOBAL || hdr->kind > PM_MAP_VOLUME) return PM_EINVAL;
     struct stat st;
     mode_t mode = 0644;
     if (lstat(path, &st) == 0) {
@@ -97,6 +98,10 @@ int pm_map_save(const char *path, const pm_photon *photons, const pm_map_header 
     put32(h + 28, (uint32_t)hdr->emitted);
     put32(h + 32, (uint32_t)(hdr->emitted >> 32));
     put32(h + 36, hdr->tree_bucket);
+    for (int t = 0; t < 2; t++) {
+        put32(h + 40 + 8 * t, (uint32_t)hdr->tag[t]);
+        put32(h + 44 + 8 * t, (uint32_t)(hdr->tag[t] >> 32));
+    }
     int ok = write_all(fd, h, sizeof h) == 0;
     unsigned char buf[PM__RECORD_BYTES * PM__CHUNK];
     for (uint64_t i = 0; ok && i < hdr->count;) {
@@ -142,14 +147,19 @@ int pm_map_load(const char *path, pm_photon **photons, pm_map_header *hdr) {
     hd.kind = get32(h + 24);
     hd.emitted = (uint64_t)get32(h + 28) | (uint64_t)get32(h + 32) << 32;
     hd.tree_bucket = get32(h + 36);
-    if (hd.version != PM_FILE_VERSION) {
+    for (int t = 0; t < 2; t++)
+        hd.tag[t] = (uint64_t)get32(h + 40 + 8 * t) | (uint64_t)get32(h + 44 + 8 * t) << 32;
+    if (hd.version != 1 && hd.version != PM_FILE_VERSION) {
         rc = PM_EVERSION;
         goto out;
     }
+    /* Version 1 reserved bytes 40..63 (zero) and knew kinds up to PM_MAP_OTHER; version 2
+     * keeps bytes 56..63 zero. */
     int reserved_zero = 1;
-    for (int i = 40; i < PM__HEADER_BYTES; i++) reserved_zero &= h[i] == 0;
-    if (hd.record_size != sizeof(pm_photon) || hd.kind < PM_MAP_GLOBAL ||
-        hd.kind > PM_MAP_OTHER || !reserved_zero) {
+    for (int i = hd.version == 1 ? 40 : 56; i < PM__HEADER_BYTES; i++) reserved_zero &= h[i] == 0;
+    uint32_t max_kind = hd.version == 1 ? PM_MAP_OTHER : PM_MAP_VOLUME;
+    if (hd.record_size != sizeof(pm_photon) || hd.kind < PM_MAP_GLOBAL || hd.kind > max_kind ||
+        !reserved_zero) {
         rc = PM_EFORMAT;
         goto out;
     }

@@ -13,8 +13,19 @@
  *   uint32   tree_bucket  0 if the records are in no particular order; B if they are in the
  *                         tree order of a pm_kdtree built with bucket size B (the loader can
  *                         then rebuild the tree without reordering)
- *   uint8    reserved[24] zero
+ *   uint64   tag[0]       two words the caller chooses to say what made the map (the
+ *   uint64   tag[1]       renderer: a hash of the scene and one of the photon settings;
+ *                         render/photon_maps.h); 0 = none. Stored and returned, never
+ *                         interpreted here
+ *   uint8    reserved[8]  zero
  * Records are stored little-endian whatever the host.
+ *
+ * VERSIONS. Version 2 (PM_FILE_VERSION, written by every save) added tag[] and the kind
+ * PM_MAP_VOLUME in bytes that version 1 kept zero (reserved[24] from byte 40) and in a kind
+ * value it refused. A version-1 file still loads: hdr->version = 1 and tag = {0, 0}, its
+ * bytes 40..63 must be zero and its kind one of PM_MAP_GLOBAL..PM_MAP_OTHER. A reader of
+ * version 1 refuses a version-2 file with PM_EVERSION (not as a corrupt one). Any other
+ * version is refused with PM_EVERSION.
  *
  * SAVING. pm_map_save writes the whole file to a new temporary file in the same directory
  * (PATH.XXXXXX, created by mkstemp, so concurrent saves never share one and no existing file
@@ -26,18 +37,19 @@
  * writes through a link or into a pipe or device. (Between that check and the rename another
  * process could put a link at PATH; the rename then replaces the link, never its target.)
  * A new file gets mode 0644; a replaced file keeps its permission bits. hdr->version is
- * ignored (PM_FILE_VERSION is written) and hdr->record_size must be 0 or 20.
+ * ignored (PM_FILE_VERSION is written), hdr->record_size must be 0 or 20 and hdr->kind one
+ * of the PM_MAP_* values (else PM_EINVAL, nothing written); hdr->tag is written as given.
  *
  * LOADING. pm_map_load reads the header and checks every field before allocating anything:
- * the magic, the version, the record size, the kind (a PM_MAP_* value), the reserved bytes
- * (zero), and that the file's size is exactly 64 + 20 * count (so a corrupt or hostile count
+ * the magic, the version (1 or 2), the record size, the kind (a PM_MAP_* value), the reserved
+ * bytes (zero), and that the file's size is exactly 64 + 20 * count (so a corrupt or hostile count
  * can never make it allocate more than the file holds). It allocates *photons with malloc
  * (NULL for an empty map); the caller frees it.
  *
  * ERRORS. PM_EIO (cannot open, read, write, flush or rename; errno has the detail),
  * PM_ENOTFILE (save: PATH exists and is not a regular file), PM_EFORMAT (bad magic, record
  * size, kind, reserved bytes, or a size that does not match the count), PM_EVERSION,
- * PM_EINVAL (NULL arguments, a bad record size), PM_ENOMEM, PM_ERANGE (a count this build
+ * PM_EINVAL (NULL arguments, a bad record size or kind), PM_ENOMEM, PM_ERANGE (a count this build
  * cannot address).
  *
  * Thread safety: no shared state; concurrent saves to one PATH each write their own temporary
@@ -53,16 +65,18 @@
 extern "C" {
 #endif
 
-#define PM_FILE_VERSION 1u
-enum { PM_MAP_GLOBAL = 1, PM_MAP_CAUSTIC = 2, PM_MAP_SHADOW = 3, PM_MAP_OTHER = 4 };
+#define PM_FILE_VERSION 2u
+/* What a map holds. PM_MAP_VOLUME (photons in a participating medium) is new in version 2. */
+enum { PM_MAP_GLOBAL = 1, PM_MAP_CAUSTIC = 2, PM_MAP_SHADOW = 3, PM_MAP_OTHER = 4, PM_MAP_VOLUME = 5 };
 
 typedef struct pm_map_header {
-    uint32_t version;
+    uint32_t version;     /* load: the file's version; save: ignored */
     uint32_t record_size;
     uint64_t count;
-    uint32_t kind;
+    uint32_t kind;        /* PM_MAP_* */
     uint64_t emitted;
     uint32_t tree_bucket;
+    uint64_t tag[2];      /* the caller's, see FORMAT; a version-1 file loads with {0, 0} */
 } pm_map_header;
 
 int pm_map_save(const char *path, const pm_photon *photons, const pm_map_header *hdr);

@@ -61,7 +61,12 @@ static void usage(FILE *f) {
             "                    object (e.g. --pm global_photons=500000 --pm caustics=false);\n"
             "                    the settings are listed below\n"
             "  --save-photons DIR  save the photon maps (DIR/global.pmap, caustic.pmap, shadow.pmap)\n"
-            "  --load-photons DIR  use saved photon maps instead of tracing photons\n"
+            "  --load-photons DIR  use saved photon maps instead of tracing photons; maps\n"
+            "                    traced for another scene (or before it was edited) or with\n"
+            "                    other photon settings are refused (exit status 2), as are a\n"
+            "                    missing, corrupt or wrong-kind map file\n"
+            "  --force-load-photons  use --load-photons maps of another scene or settings\n"
+            "                    anyway (a warning per file; same as --pm force_load_photons=true)\n"
             "  --checkpoint FILE   save the render state to FILE (atomically) every\n"
             "                    --checkpoint-every seconds (default 600) and on SIGINT/SIGTERM;\n"
             "                    photon maps go to FILE.photons/ unless --save/--load-photons\n"
@@ -203,6 +208,13 @@ int main(int argc, char **argv) {
             }
             pm_flag[npm] = a;
             pm_value[npm++] = v;
+        } else if (strcmp(a, "--force-load-photons") == 0) {
+            if (npm == 64) {
+                fprintf(stderr, "render: too many photon-mapping flags\n");
+                return 2;
+            }
+            pm_flag[npm] = "--pm";
+            pm_value[npm++] = "force_load_photons=true";
         } else if (strcmp(a, "--checkpoint") == 0) {
             NEED_VALUE();
             ckpt_path = v;

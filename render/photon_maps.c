@@ -12,8 +12,10 @@
 
 #include "photonmap/common.h"
 #include "photonmap/estimate.h"
+#include "checkpoint.h"
 #include "material.h"
 #include "output.h"
+#include "scene_hash.h"
 
 void photon_maps_free(photon_maps *m) {
     free(m->global);
@@ -22,32 +24,98 @@ void photon_maps_free(photon_maps *m) {
     memset(m, 0, sizeof *m);
 }
 
+static const char *kind_name(uint32_t kind) {
+    static const char *const names[] = {"?", "global", "caustic", "shadow", "other", "volume"};
+    return kind <= PM_MAP_VOLUME ? names[kind] : "?";
+}
+
+void map_stamp_make(const scene *s, const photon_settings *cfg, int global_on, int caustic_on,
+                    int shadow_on, map_stamp *st) {
+    st->scene = scene_transport_hash(s);
+    uint64_t h = CKPT_HASH_INIT;
+    h = hash_int(hash_int(hash_int(h, global_on != 0), caustic_on != 0), shadow_on != 0);
+    h = hash_int(h, s->settings.max_depth);
+    h = hash_double(h, cfg->max_emitted_factor);
+    h = hash_double(h, cfg->max_emitted);
+    h = hash_int(h, cfg->max_memory_mb);
+    h = hash_int(h, cfg->max_bounces);
+    /* The shadow map is stored by the global pass, whose target is global_photons. */
+    if (global_on || shadow_on) h = hash_int(h, cfg->global_photons);
+    if (caustic_on)
+        h = hash_int(hash_int(hash_int(h, cfg->caustic_photons), cfg->projection),
+                     cfg->projection_cells);
+    st->settings = h;
+}
+
 static int save_map(const char *dir, const char *name, const pm_photon *ph, size_t n, uint32_t kind,
-                    uint64_t emitted, unsigned bucket, char *err, size_t errcap) {
+                    uint64_t emitted, const map_stamp *stamp, char *err, size_t errcap) {
     char path[1024];
     snprintf(path, sizeof path, "%s/%s", dir, name);
-    pm_map_header hdr = {PM_FILE_VERSION, sizeof(pm_photon), n, kind, emitted, bucket};
+    pm_map_header hdr = {PM_FILE_VERSION, sizeof(pm_photon), n, kind, emitted, 0,
+                         {stamp->scene, stamp->settings}};
     int rc = pm_map_save(path, ph, &hdr);
     if (rc < 0)
         snprintf(err, errcap, "cannot save %s: %s", path, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
     return rc;
 }
 
-static int load_map(const char *dir, const char *name, pm_photon **ph, size_t *n, uint64_t *emitted,
+/* The stamp check of one loaded file: 0 when it matches (or, forced, after a warning), else
+ * PM_EINVAL with the message. */
+static int check_stamp(const char *path, const pm_map_header *hdr, const map_stamp *want, int force,
+                       char *err, size_t errcap) {
+    char why[1400];
+    if (hdr->tag[0] == 0 && hdr->tag[1] == 0)
+        snprintf(why, sizeof why, "%s carries no scene or settings stamp (a version-%u map file, "
+                 "or one saved by another program)", path, (unsigned)hdr->version);
+    else if (hdr->tag[0] != want->scene)
+        snprintf(why, sizeof why, "%s was traced for another scene, or the scene has changed "
+                 "since (its scene hash %016llx, this scene's %016llx)", path,
+                 (unsigned long long)hdr->tag[0], (unsigned long long)want->scene);
+    else if (hdr->tag[1] != want->settings)
+        snprintf(why, sizeof why, "%s was traced with other photon settings: the maps the plan "
+                 "traces, photon counts, pass budgets, projection maps or render.max_depth "
+                 "(its settings hash %016llx, this run's %016llx)", path,
+                 (unsigned long long)hdr->tag[1], (unsigned long long)want->settings);
+    else
+        return 0;
+    if (force) {
+        fprintf(stderr, "render: warning: force_load_photons: %s; used anyway\n", why);
+        return 0;
+    }
+    snprintf(err, errcap, "cannot load photon maps: %s; trace them again, or use them anyway "
+             "with --force-load-photons", why);
+    return PM_EINVAL;
+}
+
+static int load_map(const char *dir, const char *name, uint32_t kind, const map_stamp *want,
+                    int force, pm_photon **ph, size_t *n, uint64_t *emitted, map_stamp *got,
                     char *err, size_t errcap) {
     char path[1024];
     snprintf(path, sizeof path, "%s/%s", dir, name);
-    struct stat sb;
-    if (stat(path, &sb) != 0) return 0; /* absent: that map is empty */
     pm_map_header hdr;
     int rc = pm_map_load(path, ph, &hdr);
-    if (rc < 0) {
-        snprintf(err, errcap, "cannot load %s: %s", path, rc == PM_EIO ? strerror(errno) : pm_strerror(rc));
+    if (rc == PM_ENOMEM) {
+        snprintf(err, errcap, "cannot load %s: %s", path, pm_strerror(rc));
         return rc;
+    }
+    if (rc < 0) {
+        /* A missing, unreadable, truncated or foreign file is bad input: exit status 2. */
+        int missing = rc == PM_EIO && errno == ENOENT;
+        snprintf(err, errcap, "cannot load photon maps: %s: %s%s", path,
+                 rc == PM_EIO ? strerror(errno) : pm_strerror(rc),
+                 missing ? " (a directory of saved maps holds global.pmap, caustic.pmap and "
+                           "shadow.pmap)" : "");
+        return PM_EINVAL;
+    }
+    if (hdr.kind != kind) {
+        snprintf(err, errcap, "cannot load photon maps: %s holds a %s map, not a %s map", path,
+                 kind_name(hdr.kind), kind_name(kind));
+        return PM_EINVAL;
     }
     *n = (size_t)hdr.count;
     if (emitted) *emitted = hdr.emitted;
-    return 0;
+    if (got) got->scene = hdr.tag[0], got->settings = hdr.tag[1];
+    return check_stamp(path, &hdr, want, force, err, errcap);
 }
 
 int photon_tree_build(pm_kdtree **t, pm_photon *ph, size_t n, unsigned bucket, char *err, size_t errcap) {
@@ -59,13 +127,25 @@ int photon_tree_build(pm_kdtree **t, pm_photon *ph, size_t n, unsigned bucket, c
     return rc;
 }
 
-int photon_maps_load(photon_maps *m, const char *dir, char *err, size_t errcap) {
+int photon_maps_load(photon_maps *m, const char *dir, const map_stamp *want, int force, char *err,
+                     size_t errcap) {
+    struct stat sb;
+    const char *bad = NULL;
+    if (stat(dir, &sb) != 0)
+        bad = errno == ENOENT ? "no such directory" : strerror(errno);
+    else if (!S_ISDIR(sb.st_mode))
+        bad = "not a directory";
+    if (bad) {
+        snprintf(err, errcap, "cannot load photon maps from %s: %s", dir, bad);
+        return PM_EINVAL;
+    }
     int rc;
-    if ((rc = load_map(dir, "global.pmap", &m->global, &m->nglobal, &m->global_emitted, err,
-                       errcap)) < 0 ||
-        (rc = load_map(dir, "caustic.pmap", &m->caustic, &m->ncaustic, &m->caustic_emitted, err,
-                       errcap)) < 0 ||
-        (rc = load_map(dir, "shadow.pmap", &m->shadow, &m->nshadow, NULL, err, errcap)) < 0)
+    if ((rc = load_map(dir, "global.pmap", PM_MAP_GLOBAL, want, force, &m->global, &m->nglobal,
+                       &m->global_emitted, &m->stamp, err, errcap)) < 0 ||
+        (rc = load_map(dir, "caustic.pmap", PM_MAP_CAUSTIC, want, force, &m->caustic,
+                       &m->ncaustic, &m->caustic_emitted, NULL, err, errcap)) < 0 ||
+        (rc = load_map(dir, "shadow.pmap", PM_MAP_SHADOW, want, force, &m->shadow, &m->nshadow,
+                       NULL, NULL, err, errcap)) < 0)
         return rc;
     return 0;
 }
@@ -80,11 +160,11 @@ int photon_maps_save(const photon_maps *m, const char *dir, char *err, size_t er
      * three files are complete (then end the program), so none is left behind. */
     out_defer_begin();
     if ((rc = save_map(dir, "global.pmap", m->global, m->nglobal, PM_MAP_GLOBAL, m->global_emitted,
-                       0, err, errcap)) < 0 ||
+                       &m->stamp, err, errcap)) < 0 ||
         (rc = save_map(dir, "caustic.pmap", m->caustic, m->ncaustic, PM_MAP_CAUSTIC,
-                       m->caustic_emitted, 0, err, errcap)) < 0 ||
+                       m->caustic_emitted, &m->stamp, err, errcap)) < 0 ||
         (rc = save_map(dir, "shadow.pmap", m->shadow, m->nshadow, PM_MAP_SHADOW, m->global_emitted,
-                       0, err, errcap)) < 0) {
+                       &m->stamp, err, errcap)) < 0) {
         out_defer_end();
         out_die_if_pending();
         return rc;

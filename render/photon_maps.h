@@ -2,10 +2,30 @@
  * (photon_trace.h) fills or the map files give back, the kd-trees built over them, and the
  * radius policy of their estimates.
  *
- * MAP FILES. photon_maps_save writes DIR/global.pmap, caustic.pmap and shadow.pmap in the
- * format of photonmap/photon.h (tree_bucket 0: the photons as traced, before a kd-tree
- * reorders them, so loading them gives the same trees and the same image bit for bit);
- * photon_maps_load reads them back, an absent file being an empty map.
+ * MAP FILES. photon_maps_save writes DIR/global.pmap, caustic.pmap and shadow.pmap, all
+ * three (an empty map too), in the format of photonmap/mapfile.h (tree_bucket 0: the photons
+ * as traced, before a kd-tree reorders them, so loading them gives the same trees and the
+ * same image bit for bit). Each header carries the map's kind and the maps' stamp in its two
+ * tags: tag[0] the scene's transport hash (scene_hash.h: geometry, materials, lights, media;
+ * not the camera), tag[1] the hash of the settings that shaped the photons
+ * (map_stamp_make): which maps the plan traced, and for those maps the photon targets,
+ * every pass budget (max_emitted_factor, max_emitted, max_memory_mb, max_bounces), the
+ * projection maps (projection, projection_cells; caustic map only) and render.max_depth.
+ * Left out, because they do not change which photons a pass stores: the seed (it picks
+ * another sample of the same photon distribution, so loading one set of maps under several
+ * seeds is how new camera noise is drawn over fixed photons), the thread count (the maps
+ * do not depend on it), and everything the camera pass alone reads (image size, samples,
+ * k_*, radii, filter, gather settings, tone).
+ *
+ * photon_maps_load reads them back and refuses, with PM_EINVAL (render exits 2) and a
+ * message that names the file: a directory that does not exist or is not one; a missing
+ * file (a directory of saved maps holds all three); a file that is not a photon map, is
+ * truncated or corrupt, or of another version; a file of the wrong kind (global.pmap must
+ * hold a PM_MAP_GLOBAL map, and so on; forcing does not change this); and, unless forced,
+ * a map whose stamp differs from the run's: traced from another scene (or the scene was
+ * edited since), with other settings, or with no stamp (written by an older version, or by
+ * another program with tag 0). Forced, a mismatched map is used and one warning per file on
+ * stderr says what differs. Out of memory is PM_ENOMEM.
  *
  * RADII. Maximum search radii are automatic unless the settings give them: Christensen's
  * radius beyond which k photons of the largest power would give less than a threshold
@@ -31,6 +51,11 @@
 extern "C" {
 #endif
 
+/* A map set's stamp: scene_transport_hash and the settings hash (map_stamp_make). */
+typedef struct map_stamp {
+    uint64_t scene, settings;
+} map_stamp;
+
 typedef struct photon_maps {
     pm_photon *global, *caustic, *shadow;
     size_t nglobal, ncaustic, nshadow;
@@ -39,16 +64,25 @@ typedef struct photon_maps {
     uint64_t caustic_saved;         /* emissions the projection map saved */
     uint64_t caustic_first_specular; /* caustic-pass photons whose first hit was specular */
     int global_runaway, caustic_runaway; /* 1 if the pass stopped short of its target */
+    map_stamp stamp; /* what shaped them: set by the caller after tracing; by a load, the
+                      * global.pmap's */
 } photon_maps;
 
 void photon_maps_free(photon_maps *m);
 
-/* Save the three maps into dir (created if missing). 0, or a negative code with a message
- * naming the file. */
+/* The stamp of maps traced for scene s with settings cfg, the plan tracing the maps whose
+ * flag is set (see MAP FILES for what the settings hash covers). */
+void map_stamp_make(const scene *s, const photon_settings *cfg, int global_on, int caustic_on,
+                    int shadow_on, map_stamp *st);
+
+/* Save the three maps into dir (created if missing), each header stamped with m->stamp.
+ * 0, or a negative code with a message naming the file. */
 int photon_maps_save(const photon_maps *m, const char *dir, char *err, size_t errcap);
-/* Load the maps found in dir into a zeroed m (absent files: empty maps). 0, or a negative
- * code with a message naming the file; what was loaded stays in m for photon_maps_free. */
-int photon_maps_load(photon_maps *m, const char *dir, char *err, size_t errcap);
+/* Load the three maps of dir into a zeroed m, checking each file's kind and its stamp
+ * against want (force: a stamp mismatch is a warning). 0, or a negative code with a message
+ * naming the file (see MAP FILES); what was loaded stays in m for photon_maps_free. */
+int photon_maps_load(photon_maps *m, const char *dir, const map_stamp *want, int force, char *err,
+                     size_t errcap);
 
 /* A kd-tree over n photons (reordered in place), buckets of `bucket`; *t = NULL when n == 0.
  * 0, or a negative code with a message. */

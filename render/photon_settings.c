@@ -100,7 +100,11 @@ static const setting_def k_settings[] = {
      "a directory to save the maps to (global.pmap, caustic.pmap, shadow.pmap; the format of "
      "photonmap/mapfile.h), as traced"},
     {"load_photons", ST_DIR, F(load_dir), 0, NONE,
-     "a directory to load the maps from instead of tracing them"},
+     "a directory to load the maps from instead of tracing them; maps of another scene or "
+     "traced with other settings are refused"},
+    {"force_load_photons", ST_BOOL, F(force_load), 0, NONE,
+     "use the maps of load_photons even when their headers say another scene or other "
+     "settings traced them (a warning per file; render --force-load-photons sets it)"},
     {"comment", ST_TEXT, 0, 0, NONE, "ignored"},
 };
 #define NSETTINGS (sizeof k_settings / sizeof k_settings[0])

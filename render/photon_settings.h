@@ -47,6 +47,7 @@ typedef struct photon_settings {
     int projection_cells;
     int projection;
     int progress; /* progress bars while tracing (render --quiet sets it false) */
+    int force_load; /* load_photons: a stamp mismatch is a warning, not an error */
     /* Directories for save_photons and load_photons; empty: none. */
     char save_dir[PHOTON_SETTINGS_PATH_MAX], load_dir[PHOTON_SETTINGS_PATH_MAX];
 } photon_settings;

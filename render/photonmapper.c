@@ -486,8 +486,11 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     photon_maps *m = &st->maps;
     int rc;
     double t0 = stats_now();
+    map_stamp stamp; /* what shapes this run's maps: checked on load, written on save */
+    map_stamp_make(s, &st->cfg, st->plan.global.on, st->plan.caustics.on, st->plan.shadow.on, &stamp);
     if (st->cfg.load_dir[0]) {
-        if ((rc = photon_maps_load(m, st->cfg.load_dir, err, errcap)) < 0) return rc;
+        if ((rc = photon_maps_load(m, st->cfg.load_dir, &stamp, st->cfg.force_load, err, errcap)) < 0)
+            return rc;
         /* The plan decides which loaded maps are used. */
         if (!st->plan.global.on) m->nglobal = 0;
         if (!st->plan.caustics.on) m->ncaustic = 0;
@@ -510,6 +513,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         o.projection_cells = st->cfg.projection_cells;
         o.quiet = !st->cfg.progress;
         if ((rc = photon_trace(s, &o, m, err, errcap)) < 0) return rc;
+        m->stamp = stamp;
         printf("Photons: %zu global, %zu shadow-map (from %llu emitted); %zu caustic (from %llu "
                "emitted; projection maps cover %.2f%% of the light's power, saving %llu "
                "emissions)\n",

@@ -258,7 +258,7 @@ TEST(bench_reads_photon_map_files) {
         if (i % 4 == 0) pos[0] *= 0.01f, pos[1] = 0.0f; /* a thin dense strip */
         pm_photon_set(&ph[i], pos, pw, dir3, nrm, PM_KIND_INDIRECT);
     }
-    pm_map_header hdr = {PM_FILE_VERSION, (uint32_t)sizeof(pm_photon), n, PM_MAP_GLOBAL, n, 0};
+    pm_map_header hdr = {PM_FILE_VERSION, (uint32_t)sizeof(pm_photon), n, PM_MAP_GLOBAL, n, 0, {0, 0}};
     snprintf(map, sizeof map, "%s/synthetic.pmap", dir);
     ASSERT_EQ_INT(pm_map_save(map, ph, &hdr), 0);
     free(ph);

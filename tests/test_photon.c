@@ -56,7 +56,8 @@ TEST(map_file_bytes_match_the_documented_layout) {
     pm_photon_init(&p[0], pos, pw, dir, n, PM_KIND_SHADOW);
     p[1] = p[0];
     p[1].flag |= 2; /* as a tree's axis bits would be */
-    pm_map_header h = {0, 0, 2, PM_MAP_SHADOW, 0x0000000500000007ull, 8};
+    pm_map_header h = {0, 0, 2, PM_MAP_SHADOW, 0x0000000500000007ull, 8,
+                       {0x1122334455667788ull, 0x00000000000000a9ull}};
     ASSERT_EQ_INT(pm_map_save(path, p, &h), PM_OK);
     unsigned char b[64 + 40];
     FILE *f = fopen(path, "rb");
@@ -65,13 +66,15 @@ TEST(map_file_bytes_match_the_documented_layout) {
     EXPECT_EQ_INT(fgetc(f), EOF);
     fclose(f);
     EXPECT(memcmp(b, "PMAPHOTN", 8) == 0);
-    const uint32_t w[8] = {PM_FILE_VERSION, 20, 2, 0, PM_MAP_SHADOW, 7, 5, 8};
-    for (int i = 0; i < 8; i++) {
+    const uint32_t w[12] = {PM_FILE_VERSION, 20, 2, 0, PM_MAP_SHADOW, 7, 5, 8,
+                            0x55667788u, 0x11223344u, 0xa9u, 0};
+    EXPECT_EQ_INT(PM_FILE_VERSION, 2);
+    for (int i = 0; i < 12; i++) {
         uint32_t v = (uint32_t)b[8 + 4 * i] | (uint32_t)b[9 + 4 * i] << 8 |
                      (uint32_t)b[10 + 4 * i] << 16 | (uint32_t)b[11 + 4 * i] << 24;
         EXPECT_MSG(v == w[i], "header word %d at byte %d: %u, want %u", i, 8 + 4 * i, v, w[i]);
     }
-    for (int i = 40; i < 64; i++) EXPECT_EQ_INT(b[i], 0);
+    for (int i = 56; i < 64; i++) EXPECT_EQ_INT(b[i], 0);
     for (int r = 0; r < 2; r++) {
         const unsigned char *rec = b + 64 + 20 * r;
         for (int a = 0; a < 3; a++) {
@@ -274,7 +277,8 @@ TEST(map_file_round_trip_and_errors) {
     snprintf(path, sizeof path, "%s/map.pm", pm_test_tmpdir());
     size_t n = 3001;
     pm_photon *p = some_photons(n);
-    pm_map_header h = {PM_FILE_VERSION, sizeof(pm_photon), n, PM_MAP_CAUSTIC, 123456789012ull, 8};
+    pm_map_header h = {PM_FILE_VERSION, sizeof(pm_photon), n, PM_MAP_CAUSTIC, 123456789012ull, 8,
+                       {UINT64_MAX, 0x8000000000000001ull}};
     ASSERT_EQ_INT(pm_map_save(path, p, &h), 0);
     pm_photon *q = NULL;
     pm_map_header g;
@@ -288,13 +292,14 @@ TEST(map_file_round_trip_and_errors) {
     EXPECT_EQ_INT(g.tree_bucket, 8);
     EXPECT_EQ_INT(g.version, PM_FILE_VERSION);
     EXPECT_EQ_INT(g.record_size, 20);
+    EXPECT(g.tag[0] == UINT64_MAX && g.tag[1] == 0x8000000000000001ull);
     free(q);
     struct stat sb;
     ASSERT_EQ_INT(stat(path, &sb), 0);
     EXPECT_EQ_INT(sb.st_size, 64 + 20 * n);
 
     /* An empty map. */
-    pm_map_header h0 = {0, 0, 0, PM_MAP_GLOBAL, 0, 0};
+    pm_map_header h0 = {0, 0, 0, PM_MAP_GLOBAL, 0, 0, {0, 0}};
     ASSERT_EQ_INT(pm_map_save(path, NULL, &h0), 0);
     q = (pm_photon *)1;
     EXPECT_EQ_INT(pm_map_load(path, &q, &g), 0);
@@ -320,7 +325,7 @@ TEST(map_file_round_trip_and_errors) {
     ASSERT_EQ_INT(pm_map_save(path, p, &h), 0);
     f = fopen(path, "r+b");
     fseek(f, 8, SEEK_SET);
-    fputc(2, f);
+    fputc(3, f);
     fclose(f);
     EXPECT_EQ_INT(pm_map_load(path, &q, &g), PM_EVERSION);
     ASSERT_EQ_INT(pm_map_save(path, p, &h), 0);
@@ -455,7 +460,7 @@ TEST(map_file_never_replaces_what_is_not_a_regular_file) {
     char path[600], fifo[600], link[600], dev[600], old[600], sub[600];
     size_t n = 100;
     pm_photon *p = some_photons(n);
-    pm_map_header h = {PM_FILE_VERSION, 0, n, PM_MAP_GLOBAL, 1000, 0};
+    pm_map_header h = {PM_FILE_VERSION, 0, n, PM_MAP_GLOBAL, 1000, 0, {0, 0}};
     snprintf(path, sizeof path, "%s/map.pm", dir);
     snprintf(old, sizeof old, "%s/map.pm.tmp", dir);
     snprintf(fifo, sizeof fifo, "%s/fifo.pm", dir);
@@ -524,7 +529,7 @@ TEST(map_file_concurrent_saves) {
         kid[c] = fork();
         ASSERT(kid[c] >= 0);
         if (kid[c] == 0) {
-            pm_map_header h = {PM_FILE_VERSION, 0, n[c], PM_MAP_GLOBAL, 1, 0};
+            pm_map_header h = {PM_FILE_VERSION, 0, n[c], PM_MAP_GLOBAL, 1, 0, {0, 0}};
             int bad = 0;
             for (int i = 0; i < 50; i++) bad += pm_map_save(path, p[c], &h) != PM_OK;
             _exit(bad ? 1 : 0);
@@ -557,7 +562,7 @@ TEST(map_file_load_checks_the_header_against_the_size) {
     snprintf(path, sizeof path, "%s/map.pm", pm_test_tmpdir());
     size_t n = 50;
     pm_photon *p = some_photons(n), *q = (pm_photon *)1;
-    pm_map_header h = {PM_FILE_VERSION, 0, n, PM_MAP_CAUSTIC, 9, 0}, g;
+    pm_map_header h = {PM_FILE_VERSION, 0, n, PM_MAP_CAUSTIC, 9, 0, {0, 0}}, g;
     const off_t cuts[] = {0, 8, 63, 64, 65, 64 + 20 * 25, 64 + 20 * 49 + 19};
     for (size_t i = 0; i < sizeof cuts / sizeof cuts[0]; i++) {
         ASSERT_EQ_INT(pm_map_save(path, p, &h), PM_OK);
@@ -582,9 +587,9 @@ TEST(map_file_load_checks_the_header_against_the_size) {
         EXPECT_MSG(pm_map_load(path, &q, &g) == PM_EFORMAT, "count %llu", (unsigned long long)counts[i]);
         EXPECT(q == NULL);
     }
-    /* kind 0 and 5, and a non-zero reserved byte */
-    const int offs[3] = {24, 24, 50};
-    const unsigned char vals[3] = {0, 5, 1};
+    /* kind 0 and 6, and a non-zero reserved byte */
+    const int offs[3] = {24, 24, 60};
+    const unsigned char vals[3] = {0, 6, 1};
     for (int i = 0; i < 3; i++) {
         ASSERT_EQ_INT(pm_map_save(path, p, &h), PM_OK);
         FILE *f = fopen(path, "r+b");
@@ -606,7 +611,7 @@ TEST(map_file_failed_save_removes_its_temporary) {
     snprintf(path, sizeof path, "%s/map.pm", dir);
     size_t n = 100, big = 3000;
     pm_photon *p = some_photons(big);
-    pm_map_header h = {0, 0, n, PM_MAP_GLOBAL, 1, 0};
+    pm_map_header h = {0, 0, n, PM_MAP_GLOBAL, 1, 0, {0, 0}};
     ASSERT_EQ_INT(pm_map_save(path, p, &h), PM_OK);
     pid_t kid = fork();
     ASSERT(kid >= 0);
@@ -614,7 +619,7 @@ TEST(map_file_failed_save_removes_its_temporary) {
         signal(SIGXFSZ, SIG_IGN);
         struct rlimit rl = {4096, 4096};
         if (setrlimit(RLIMIT_FSIZE, &rl) != 0) _exit(3);
-        pm_map_header hb = {0, 0, big, PM_MAP_GLOBAL, 1, 0};
+        pm_map_header hb = {0, 0, big, PM_MAP_GLOBAL, 1, 0, {0, 0}};
         _exit(pm_map_save(path, p, &hb) == PM_EIO ? 0 : 1);
     }
     int status = 0;
@@ -623,5 +628,84 @@ TEST(map_file_failed_save_removes_its_temporary) {
     const char *known[] = {"map.pm"};
     EXPECT_EQ_INT(stray_entries(dir, known, 1), 0);
     EXPECT(file_holds(path, p, n));
+    free(p);
+}
+
+/* Patch len bytes at offset off of the file at path. */
+static int patch_bytes(const char *path, long off, const unsigned char *b, size_t len) {
+    FILE *f = fopen(path, "r+b");
+    if (!f) return -1;
+    int ok = fseek(f, off, SEEK_SET) == 0 && fwrite(b, 1, len, f) == len;
+    return fclose(f) == 0 && ok ? 0 : -1;
+}
+
+/* Oracle: mapfile.h's VERSIONS paragraph, on files patched byte by byte. A version-1 file
+ * (version word 1, bytes 40..63 zero) loads with version 1, tag {0, 0} and the same photons;
+ * a version-1 file with any non-zero byte at 40..63 (where version 2 keeps its tags) or with
+ * kind PM_MAP_VOLUME is corrupt; versions 0 and 3 are PM_EVERSION; a version-2 map of kind
+ * PM_MAP_VOLUME round-trips; saving a kind outside the PM_MAP_* values is PM_EINVAL and
+ * writes nothing. */
+TEST(map_file_reads_version_1_and_tags) {
+    char path[600];
+    snprintf(path, sizeof path, "%s/v.pm", pm_test_tmpdir());
+    size_t n = 40;
+    pm_photon *p = some_photons(n), *q = NULL;
+    pm_map_header h = {0, 0, n, PM_MAP_GLOBAL, 77, 0, {0xdeadbeefcafef00dull, 42}}, g;
+    const unsigned char one[4] = {1, 0, 0, 0}, zeros[24] = {0};
+    /* Version 1: the version word set to 1 and the tags cleared. */
+    ASSERT_EQ_INT(pm_map_save(path, p, &h), PM_OK);
+    ASSERT_EQ_INT(patch_bytes(path, 8, one, 4), 0);
+    ASSERT_EQ_INT(patch_bytes(path, 40, zeros, 24), 0);
+    memset(&g, 0xff, sizeof g);
+    ASSERT_EQ_INT(pm_map_load(path, &q, &g), PM_OK);
+    EXPECT_EQ_INT(g.version, 1);
+    EXPECT(g.tag[0] == 0 && g.tag[1] == 0);
+    EXPECT_EQ_INT(g.count, n);
+    EXPECT_EQ_INT(g.kind, PM_MAP_GLOBAL);
+    EXPECT(g.emitted == 77);
+    EXPECT(q && memcmp(p, q, n * sizeof *p) == 0);
+    free(q);
+    q = NULL;
+    /* Version 1 with a tag left in (any byte 40..63 non-zero): corrupt. */
+    for (int b = 40; b < 64; b += 5) {
+        ASSERT_EQ_INT(pm_map_save(path, p, &h), PM_OK);
+        ASSERT_EQ_INT(patch_bytes(path, 8, one, 4), 0);
+        ASSERT_EQ_INT(patch_bytes(path, 40, zeros, 24), 0);
+        const unsigned char x = 0x10;
+        ASSERT_EQ_INT(patch_bytes(path, b, &x, 1), 0);
+        EXPECT_MSG(pm_map_load(path, &q, &g) == PM_EFORMAT, "version 1, byte %d set", b);
+        EXPECT(q == NULL);
+    }
+    /* Version 1 knew no volume maps; version 2 does. */
+    pm_map_header hv = h;
+    hv.kind = PM_MAP_VOLUME;
+    ASSERT_EQ_INT(pm_map_save(path, p, &hv), PM_OK);
+    EXPECT_EQ_INT(pm_map_load(path, &q, &g), PM_OK);
+    EXPECT_EQ_INT(g.kind, PM_MAP_VOLUME);
+    EXPECT(g.tag[0] == 0xdeadbeefcafef00dull && g.tag[1] == 42);
+    EXPECT_EQ_INT(g.version, PM_FILE_VERSION);
+    free(q);
+    q = NULL;
+    ASSERT_EQ_INT(patch_bytes(path, 8, one, 4), 0);
+    ASSERT_EQ_INT(patch_bytes(path, 40, zeros, 24), 0);
+    EXPECT_EQ_INT(pm_map_load(path, &q, &g), PM_EFORMAT);
+    /* Versions 0 and 3. */
+    const unsigned char v0[4] = {0, 0, 0, 0}, v3[4] = {3, 0, 0, 0};
+    ASSERT_EQ_INT(pm_map_save(path, p, &h), PM_OK);
+    ASSERT_EQ_INT(patch_bytes(path, 8, v0, 4), 0);
+    EXPECT_EQ_INT(pm_map_load(path, &q, &g), PM_EVERSION);
+    ASSERT_EQ_INT(patch_bytes(path, 8, v3, 4), 0);
+    EXPECT_EQ_INT(pm_map_load(path, &q, &g), PM_EVERSION);
+    EXPECT(q == NULL);
+    /* A kind outside PM_MAP_*: refused before anything is written. */
+    char fresh[640];
+    snprintf(fresh, sizeof fresh, "%s/never.pm", pm_test_tmpdir());
+    const uint32_t bad_kinds[2] = {0, PM_MAP_VOLUME + 1};
+    for (int i = 0; i < 2; i++) {
+        pm_map_header hk = h;
+        hk.kind = bad_kinds[i];
+        EXPECT_EQ_INT(pm_map_save(fresh, p, &hk), PM_EINVAL);
+        EXPECT(access(fresh, F_OK) != 0);
+    }
     free(p);
 }
