@@ -167,19 +167,26 @@ static void finish(pm_estimate_result *out, const double sum[3], double area) {
     }
 }
 
+/* The radius^2 of an estimate over nb[0..count) (radius2), recorded in out with the count;
+ * not finite (the estimate reads 0, flagged PM_EST_F_FAR) when it overflowed. */
+static double begin_estimate(const pm_neighbor *nb, unsigned count, const float x[3],
+                             const pm_estimate_options *opt, int *limited, long *far,
+                             pm_estimate_result *out) {
+    double r2 = radius2(nb, count, x, opt, limited, far, &out->flags);
+    out->r2 = r2;
+    out->used = count;
+    if (!isfinite(r2)) out->flags |= PM_EST_F_FAR;
+    return r2;
+}
+
 /* Disc estimate over nb[0..count) with the bias rule; also the hull's fallback. */
 static void disc(const pm_photon *ph, const pm_neighbor *nb, unsigned count, const float x[3],
                  const pm_estimate_options *opt, const brdf_ctx *b, pm_estimate_result *out) {
     int limited;
     long far;
     double sum[3] = {0, 0, 0}, c[3];
-    double r2 = radius2(nb, count, x, opt, &limited, &far, &out->flags);
-    out->r2 = r2;
-    out->used = count;
-    if (!isfinite(r2)) {
-        out->flags |= PM_EST_F_FAR;
-        return;
-    }
+    double r2 = begin_estimate(nb, count, x, opt, &limited, &far, out);
+    if (!isfinite(r2)) return;
     for (unsigned i = 0; i < count; i++) {
         contrib(b, &ph[nb[i].index], c);
         double w = (opt->bias == PM_BIAS_HALF_FARTHEST && !limited && (long)i == far) ? 0.5 : 1.0;
@@ -197,13 +204,8 @@ static void filtered(const pm_photon *ph, const pm_neighbor *nb, unsigned count,
     int limited;
     long far;
     double sum[3] = {0, 0, 0}, c[3];
-    double r2 = radius2(nb, count, x, opt, &limited, &far, &out->flags);
-    out->r2 = r2;
-    out->used = count;
-    if (!isfinite(r2)) {
-        out->flags |= PM_EST_F_FAR;
-        return;
-    }
+    double r2 = begin_estimate(nb, count, x, opt, &limited, &far, out);
+    if (!isfinite(r2)) return;
     const double kr = opt->cone_k * sqrt(r2);
     const double eb = 1.0 - exp(-PM_GAUSS_BETA);
     for (unsigned i = 0; i < count; i++) {

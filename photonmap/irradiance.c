@@ -399,10 +399,10 @@ static int accept_normal(void *user, const void *record, uint32_t index) {
     return 1;
 }
 
-int pm_irradiance_lookup(const pm_irradiance *irr, const float x[3], const float n[3],
-                         float max_dist2, float cos_min, float rgb[3], pm_query_stats *stats) {
-    pm_neighbor nb;
-    lookup_ctx c;
+/* The argument checks both lookups share (rgb cleared first): a negative code, 0 when there is
+ * nothing to search (no precomputed photon), 1 to search. */
+static int lookup_begin(const pm_irradiance *irr, const float x[3], const float n[3],
+                        float max_dist2, float cos_min, float rgb[3]) {
     if (rgb) rgb[0] = rgb[1] = rgb[2] = 0.0f;
     if (!irr || !x || !n || !rgb) return PM_EINVAL;
     if (!isfinite(n[0]) || !isfinite(n[1]) || !isfinite(n[2]) || isnan(cos_min))
@@ -412,7 +412,15 @@ int pm_irradiance_lookup(const pm_irradiance *irr, const float x[3], const float
             return PM_ENONFINITE;
         return 0;
     }
-    c.irr = irr, c.n = n, c.q = x, c.cos_min = cos_min;
+    return 1;
+}
+
+int pm_irradiance_lookup(const pm_irradiance *irr, const float x[3], const float n[3],
+                         float max_dist2, float cos_min, float rgb[3], pm_query_stats *stats) {
+    pm_neighbor nb;
+    int go = lookup_begin(irr, x, n, max_dist2, cos_min, rgb);
+    if (go <= 0) return go;
+    lookup_ctx c = {irr, n, x, cos_min};
     int rc = pm_kdtree_nearest_if(irr->tree, x, max_dist2, accept_normal, &c, &nb, stats);
     if (rc <= 0) return rc;
     pm_rgbe_decode(irr->recs[nb.index].rgbe, rgb);
@@ -423,16 +431,10 @@ int pm_irradiance_lookup_if(const pm_irradiance *irr, const float x[3], const fl
                             float max_dist2, float cos_min, unsigned tries,
                             pm_irradiance_accept_fn accept, void *user, float rgb[3],
                             uint32_t *photon, pm_query_stats *stats) {
-    if (rgb) rgb[0] = rgb[1] = rgb[2] = 0.0f;
-    if (!irr || !x || !n || !rgb || !irr->photon || tries == 0 || tries > PM_IRRADIANCE_MAX_TRIES)
-        return PM_EINVAL;
-    if (!isfinite(n[0]) || !isfinite(n[1]) || !isfinite(n[2]) || isnan(cos_min))
-        return PM_ENONFINITE;
-    if (!irr->tree) {
-        if (!isfinite(x[0]) || !isfinite(x[1]) || !isfinite(x[2]) || isnan(max_dist2))
-            return PM_ENONFINITE;
-        return 0;
-    }
+    int go = lookup_begin(irr, x, n, max_dist2, cos_min, rgb);
+    if (go < 0) return go;
+    if (!irr->photon || tries == 0 || tries > PM_IRRADIANCE_MAX_TRIES) return PM_EINVAL;
+    if (go == 0) return 0;
     /* The `tries` nearest that pass the normal rule, sorted, then the caller's rule in order. */
     lookup_ctx c = {irr, n, x, cos_min};
     pm_neighbor nb[PM_IRRADIANCE_MAX_TRIES];
