@@ -17,6 +17,7 @@
  * eagerly even while a large RESULT waits for its receiver.
  */
 #include "dist.h"
+#include "lookup.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -232,6 +233,9 @@ static int photon_allgather(void *user, const void *mine, size_t nbytes, void **
     return 0;
 }
 
+void dist_collective_begin(void) { dist_start(0, NULL, NULL); }
+void dist_die(const char *what) { die_now(what); }
+
 void dist_init(int mode) {
     MPI_Comm_rank(MPI_COMM_WORLD, &g_rank);
     MPI_Comm_size(MPI_COMM_WORLD, &g_size);
@@ -255,6 +259,7 @@ void dist_init(int mode) {
     g_td.allgather = photon_allgather;
     g_td.user = NULL;
     photon_trace_set_dist(&g_td);
+    if (mode == DIST_PARTITIONED) lk_init(g_rank, g_size);
 }
 
 /* ---- pixel pass ----------------------------------------------------------------------- */
@@ -374,6 +379,24 @@ static void serve(queue *q, MPI_Status *ms, int *finished) {
     free(buf);
 }
 
+/* Rank 0 of a partitioned render, while it waits for lookups: serve the tile queue. */
+typedef struct root_ctx {
+    queue *q;
+    int *finished;
+} root_ctx;
+
+static int root_also(void *arg) {
+    root_ctx *r = arg;
+    int flag = 0, did = 0;
+    MPI_Status ms;
+    for (;;) {
+        MPI_Iprobe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &flag, &ms);
+        if (!flag) return did;
+        serve(r->q, &ms, r->finished);
+        did = 1;
+    }
+}
+
 static int render_root(const scene *s, const integrator *it, const render_job *job,
                        render_state *st) {
     const camera *c = &s->cam;
@@ -388,7 +411,8 @@ static int render_root(const scene *s, const integrator *it, const render_job *j
     int *mine = malloc((size_t)threads * sizeof *mine);
     if (!q.per_rank || !mine) die_now("out of memory in the tile queue");
     progress_begin(&q.prog, "Rendering", (int64_t)c->width * c->height * c->spp, job->quiet);
-    int finished = 0, rc = 0;
+    int finished = 0, rc = 0, told = 0;
+    root_ctx rctx = {&q, &finished};
     while (q.done < q.ntiles || finished < g_size - 1) {
         int flag = 1;
         MPI_Status ms;
@@ -399,9 +423,19 @@ static int render_root(const scene *s, const integrator *it, const render_job *j
         if (q.next < q.ntiles) {
             int n = chunk_size(threads, q.ntiles - q.next);
             for (int i = 0; i < n; i++) mine[i] = q.next++;
-            if ((rc = render_tiles(s, it, job, st, mine, n)) < 0) break;
+            rc = lk_on() ? lk_render_tiles(s, it, job, st, mine, n, root_also, &rctx)
+                         : render_tiles(s, it, job, st, mine, n);
+            if (rc < 0) break;
             add_tiles_done(&q, 0, mine, n);
+        } else if (lk_on() && !told) {
+            /* No tiles left for rank 0: answer the others' lookups until they are done too. */
+            lk_finish(root_also, &rctx);
+            told = 1;
         } else if (q.done < q.ntiles || finished < g_size - 1) {
+            if (lk_on()) {
+                if (!root_also(&rctx)) lk_idle();
+                continue;
+            }
             MPI_Probe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &ms);
             serve(&q, &ms, &finished);
         }
@@ -418,10 +452,40 @@ static int render_root(const scene *s, const integrator *it, const render_job *j
         stat_add(stats_register("MPI/Bytes sent in photon exchanges (all ranks)"), g_bytes_photon);
         stat_add(stats_register("MPI/Bytes sent in the pixel pass (all ranks)"), g_bytes_pixel);
         stat_add(stats_register("MPI/Tiles rendered by rank 0"), (uint64_t)q.per_rank[0]);
+        if (lk_on()) {
+            uint64_t nl = stats_total(stats_find("MPI/Partitioned: photon lookups sent (all ranks)"));
+            uint64_t bl = stats_total(stats_find("MPI/Partitioned: bytes sent in photon lookups (all ranks)"));
+            uint64_t ns = stats_total(stats_find("MPI/Partitioned: precomputed irradiance estimates"));
+            uint64_t bs = stats_total(stats_find("MPI/Partitioned: bytes sent precomputing irradiance (all ranks)"));
+            printf("MPI: partitioned maps: %llu lookups, %llu bytes (%.1f per lookup, %.2f per pixel); "
+                   "precomputed irradiance: %llu estimates, %llu bytes (%.1f per estimate)\n",
+                   (unsigned long long)nl, (unsigned long long)bl, nl ? (double)bl / (double)nl : 0.0,
+                   (double)bl / ((double)c->width * c->height), (unsigned long long)ns,
+                   (unsigned long long)bs, ns ? (double)bs / (double)ns : 0.0);
+        }
     }
     free(q.per_rank);
     free(mine);
     return rc;
+}
+
+/* A worker: the reply to its next request. In a partitioned render it answers the other ranks'
+ * lookups while it waits. */
+static void recv_assign(int32_t *assign, int maxn) {
+    int bytes = (int)((size_t)(maxn + 1) * sizeof *assign);
+    if (!lk_on()) {
+        MPI_Recv(assign, bytes, MPI_BYTE, 0, TAG_ASSIGN, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        return;
+    }
+    for (;;) {
+        int flag = 0;
+        MPI_Iprobe(0, TAG_ASSIGN, MPI_COMM_WORLD, &flag, MPI_STATUS_IGNORE);
+        if (flag) {
+            MPI_Recv(assign, bytes, MPI_BYTE, 0, TAG_ASSIGN, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+            return;
+        }
+        if (!lk_poll()) lk_idle();
+    }
 }
 
 /* A worker: ask, render, send, until the queue is empty; then the statistics. */
@@ -447,8 +511,7 @@ static int render_worker(const scene *s, const integrator *it, const render_job 
     for (int i = 0; i < 2; i++, outstanding++)
         MPI_Send(&threads, (int)sizeof threads, MPI_BYTE, 0, TAG_REQ, MPI_COMM_WORLD);
     for (;;) {
-        MPI_Recv(assign, (int)((size_t)(maxn + 1) * sizeof *assign), MPI_BYTE, 0, TAG_ASSIGN,
-                 MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        recv_assign(assign, maxn);
         outstanding--;
         int n = assign[0];
         if (n == 0) break;
@@ -459,7 +522,8 @@ static int render_worker(const scene *s, const integrator *it, const render_job 
             struct timespec ts = {(time_t)test_slow, (long)((test_slow - (double)(time_t)test_slow) * 1e9)};
             nanosleep(&ts, NULL);
         }
-        int rc = render_tiles(s, it, job, st, assign + 1, n);
+        int rc = lk_on() ? lk_render_tiles(s, it, job, st, assign + 1, n, NULL, NULL)
+                         : render_tiles(s, it, job, st, assign + 1, n);
         if (rc < 0) return rc;
         MPI_Wait(&sent, MPI_STATUS_IGNORE); /* the previous results have left `out` */
         int32_t n32 = n;
@@ -479,10 +543,9 @@ static int render_worker(const scene *s, const integrator *it, const render_job 
         }
         MPI_Isend(out, (int)off, MPI_BYTE, 0, TAG_RESULT, MPI_COMM_WORLD, &sent);
     }
-    while (outstanding-- > 0)
-        MPI_Recv(assign, (int)((size_t)(maxn + 1) * sizeof *assign), MPI_BYTE, 0, TAG_ASSIGN,
-                 MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    while (outstanding-- > 0) recv_assign(assign, maxn);
     MPI_Wait(&sent, MPI_STATUS_IGNORE);
+    if (lk_on()) lk_finish(NULL, NULL); /* the others may still need this rank's photons */
     /* The pixel pass's counters: what this rank added since the pass began. */
     char *sbuf = malloc(sizeof(uint64_t) + STATS_MAX * (NAME_MAX_LEN + sizeof(uint64_t)));
     if (!sbuf) die_now("out of memory");

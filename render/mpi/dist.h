@@ -55,6 +55,10 @@ int dist_size(void);
 /* This rank's own failure before the render started (usage error, bad option), with a
  * message (printed by rank 0 only). Joins dist_start and exits the program with status rc. */
 void dist_fail_early(int rc, const char *msg);
+/* Before this rank's first collective call outside the photon exchange (dist.c's agreement). */
+void dist_collective_begin(void);
+/* A failure where no rank can listen: the message on this rank's stderr, and the job stops. */
+void dist_die(const char *what);
 /* What render_main returned on this rank: finishes MPI and returns the exit status. */
 int dist_finish(int rc);
 /* The image loop of a distributed render (see above), called by main.c in place of

@@ -24,6 +24,8 @@ static void usage_mpi(void) {
            "  mpirun -np N render-mpi SCENE.json [options] [--pm distributed=MODE]\n"
            "  --pm distributed=replicated   every rank holds all photons (the default): the\n"
            "                    image is bit-identical to render's\n"
+           "  --pm distributed=partitioned  every rank keeps 1/N of the photon maps; estimates\n"
+           "                    combine the ranks' parts (docs/MPI.md: accuracy, traffic)\n"
            "  --threads N       OpenMP threads per rank (default: the node's cores divided\n"
            "                    among its ranks)\n"
            "  Not available: --checkpoint, --resume, --snapshot-every.\n");
@@ -52,8 +54,6 @@ int main(int argc, char **argv) {
                 mode = DIST_REPLICATED;
             } else if (strcmp(v + 12, "partitioned") == 0) {
                 mode = DIST_PARTITIONED;
-                snprintf(msg, sizeof msg, "render-mpi: --pm distributed=partitioned: not available "
-                         "in this version (see docs/MPI.md); use replicated");
             } else {
                 snprintf(msg, sizeof msg, "render-mpi: --pm distributed: expected replicated or "
                          "partitioned, got '%s'", v + 12);
