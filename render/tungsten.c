@@ -124,6 +124,10 @@ static cJSON *material_json(const tbsdf *b, rgb Le) {
     cJSON *m = cJSON_CreateObject();
     if (!m) return NULL;
     int white = b->albedo.x == 1 && b->albedo.y == 1 && b->albedo.z == 1;
+    if (strcmp(b->type, "boundary") == 0) { /* a null or forward surface between media */
+        cJSON_AddStringToObject(m, "type", "null");
+        return m;
+    }
     if (strcmp(b->type, "lambert") == 0) {
         cJSON_AddStringToObject(m, "type", "lambert");
         cJSON_AddItemToObject(m, "reflectance", jvec(b->albedo));
@@ -203,13 +207,99 @@ int tungsten_transform(const cJSON *t, const char *path, double M[3][4], json_er
     return 0;
 }
 
+#define T_MEDIA 64
+
 typedef struct conv {
     tbsdf *bsdfs;
     int nbsdfs;
     cJSON *mats, *objs;
+    cJSON *media;          /* our "media" object (NULL until the first medium) */
+    char mnames[T_MEDIA][64]; /* our names of the media, by index */
+    int nmedia;
+    int global;            /* the camera's medium: the one around every object (-1: none) */
+    long max_depth;        /* integrator.max_bounces as converted (a medium's limit below it is an error) */
     const char *dir;
     int nemit;
 } conv;
+
+/* One Tungsten medium object at path P into our media under the name `name`; its index in
+ * *idx. Homogeneous only: sigma = sigma_a|sigma_s times density, the phase function isotropic
+ * or Henyey-Greenstein. */
+static int read_medium(conv *c, const cJSON *m, const char *P, const char *name, int *idx, json_err *e) {
+    if (!cJSON_IsObject(m)) return json_fail(e, PM_EINVAL, "%s: expected an object or a medium name, got %s", P, json_type_name(m));
+    static const char *const ok[] = {"name", "type", "sigma_a", "sigma_s", "density", "phase_function", "max_bounces", NULL};
+    const char *type = "homogeneous";
+    TRY(json_string(m, P, "type", 1, &type, e));
+    if (strcmp(type, "homogeneous") != 0)
+        return json_fail(e, PM_EINVAL, "%s.type: medium type \"%s\" is not supported (homogeneous)", P, type);
+    TRY(check_keys(m, P, ok, NULL, "a medium key outside the supported subset", e));
+    if (c->nmedia == T_MEDIA) return json_fail(e, PM_EINVAL, "%s: more than %d media", P, T_MEDIA);
+    if (strlen(name) >= sizeof c->mnames[0]) return json_fail(e, PM_EINVAL, "%s.name: too long (max 63 characters)", P);
+    for (int i = 0; i < c->nmedia; i++)
+        if (strcmp(c->mnames[i], name) == 0) return json_fail(e, PM_EINVAL, "%s.name: \"%s\" is used twice", P, name);
+    rgb sa = v3s(0), ss = v3s(0);
+    double density = 1, g = 0;
+    TRY(tcolor(m, P, "sigma_a", &sa, e));
+    TRY(tcolor(m, P, "sigma_s", &ss, e));
+    TRY(json_number(m, P, "density", 0, &density, e));
+    if (sa.x < 0 || sa.y < 0 || sa.z < 0) return json_fail(e, PM_EINVAL, "%s.sigma_a: must not be negative", P);
+    if (ss.x < 0 || ss.y < 0 || ss.z < 0) return json_fail(e, PM_EINVAL, "%s.sigma_s: must not be negative", P);
+    if (!(density >= 0)) return json_fail(e, PM_EINVAL, "%s.density: must not be negative, got %g", P, density);
+    const cJSON *ph = json_get(m, "phase_function");
+    char pp[P_MAX];
+    json_path_key(pp, sizeof pp, P, "phase_function");
+    if (ph) {
+        const char *pt = NULL;
+        if (cJSON_IsString(ph)) {
+            pt = ph->valuestring;
+        } else if (cJSON_IsObject(ph)) {
+            static const char *const pok[] = {"type", "g", NULL};
+            TRY(json_string(ph, pp, "type", 1, &pt, e));
+            TRY(check_keys(ph, pp, pok, NULL, "a phase function takes type and g", e));
+            TRY(json_number(ph, pp, "g", 0, &g, e));
+        } else {
+            return json_fail(e, PM_EINVAL, "%s: expected an object or a type name, got %s", pp, json_type_name(ph));
+        }
+        if (strcmp(pt, "isotropic") == 0) {
+            if (g != 0) return json_fail(e, PM_EINVAL, "%s.g: an isotropic phase function has no g", pp);
+        } else if (strcmp(pt, "henyey_greenstein") != 0) {
+            return json_fail(e, PM_EINVAL, "%s%s: phase function \"%s\" is not supported (isotropic, henyey_greenstein)",
+                             pp, cJSON_IsObject(ph) ? ".type" : "", pt);
+        }
+        if (!(g > -1 && g < 1)) return json_fail(e, PM_EINVAL, "%s.g: must be in (-1, 1), got %g", pp, g);
+    }
+    long mb = 1024; /* Tungsten's default */
+    TRY(json_int(m, P, "max_bounces", 0, 0, 1L << 30, &mb, e));
+    if (mb < c->max_depth)
+        return json_fail(e, PM_EINVAL, "%s.max_bounces: %ld, below the integrator's max_bounces (%ld): a separate "
+                         "limit for scattering in a medium is not supported", P, mb, c->max_depth);
+    if (!c->media && !(c->media = cJSON_CreateObject())) return json_fail(e, PM_ENOMEM, "out of memory");
+    cJSON *o = cJSON_CreateObject();
+    if (!o) return json_fail(e, PM_ENOMEM, "out of memory");
+    cJSON_AddItemToObject(o, "sigma_a", jvec(v3_scale(sa, density)));
+    cJSON_AddItemToObject(o, "sigma_s", jvec(v3_scale(ss, density)));
+    cJSON_AddNumberToObject(o, "g", g);
+    cJSON_AddItemToObject(c->media, name, o);
+    snprintf(c->mnames[c->nmedia], sizeof c->mnames[0], "%s", name);
+    *idx = c->nmedia++;
+    return 0;
+}
+
+/* A medium reference at path P (Tungsten's fetchMedium): a name from $.media, or an inline
+ * medium object (named after its path). *idx = -1 when v is NULL. */
+static int medium_ref(conv *c, const cJSON *v, const char *P, int *idx, json_err *e) {
+    *idx = -1;
+    if (!v) return 0;
+    if (cJSON_IsString(v)) {
+        for (int i = 0; i < c->nmedia; i++)
+            if (strcmp(c->mnames[i], v->valuestring) == 0) {
+                *idx = i;
+                return 0;
+            }
+        return json_fail(e, PM_EINVAL, "%s: unknown medium \"%s\"", P, v->valuestring);
+    }
+    return read_medium(c, v, P, P + (P[0] == '$' && P[1] == '.' ? 2 : 0), idx, e);
+}
 
 /* The bsdf of a primitive: a name or an inline object. */
 static int prim_bsdf(conv *c, const cJSON *p, const char *P, int index, tbsdf *out, json_err *e) {
@@ -261,10 +351,8 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
     const char *type;
     TRY(json_string(p, P, "type", 1, &type, e));
     static const char *const common[] = {"name", "type", "transform", "bsdf", "emission", "power",
-                                         "file", "smooth", "recompute_normals", "backface_culling", NULL};
-    if (json_get(p, "int_medium") || json_get(p, "ext_medium"))
-        return json_fail(e, PM_EINVAL, "%s.%s: media are not supported yet", P,
-                         json_get(p, "int_medium") ? "int_medium" : "ext_medium");
+                                         "file", "smooth", "recompute_normals", "backface_culling",
+                                         "int_medium", "ext_medium", NULL};
     if (json_get(p, "bump")) return json_fail(e, PM_EINVAL, "%s.bump: bump maps are not supported", P);
     int is_mesh = strcmp(type, "mesh") == 0;
     if (!is_mesh && strcmp(type, "quad") != 0 && strcmp(type, "cube") != 0 && strcmp(type, "sphere") != 0)
@@ -289,8 +377,34 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
         return json_fail(e, PM_EINVAL, "%s.%s: must not be negative", P, has_e ? "emission" : "power");
     int emits = !v3_iszero(Le) || !v3_iszero(power);
     int invisible = strcmp(b.type, "null") == 0 || strcmp(b.type, "forward") == 0;
-    if (invisible && !emits) return 0; /* nothing to see, nothing to block (tungsten.h) */
-    if (invisible)
+    /* Media (tungsten.h): the outside must be the camera's medium; the inside is int_medium,
+     * or, for a surface light passes through that names no medium, the medium around it. */
+    const cJSON *im = json_get(p, "int_medium"), *xm = json_get(p, "ext_medium");
+    int imed, xmed, inside = -1;
+    char mp[P_MAX];
+    json_path_key(mp, sizeof mp, P, "int_medium");
+    TRY(medium_ref(c, im, mp, &imed, e));
+    json_path_key(mp, sizeof mp, P, "ext_medium");
+    TRY(medium_ref(c, xm, mp, &xmed, e));
+    if (xm && xmed != c->global)
+        return json_fail(e, PM_EINVAL, "%s: the medium outside the primitive (\"%s\") must be the camera's (%s%s%s): "
+                         "media around objects other than the one the camera is in are not supported", mp,
+                         c->mnames[xmed], c->global >= 0 ? "\"" : "", c->global >= 0 ? c->mnames[c->global] : "none",
+                         c->global >= 0 ? "\"" : "");
+    int passes = invisible || (strcmp(b.type, "dielectric") == 0 && b.refract);
+    if (passes) inside = im ? imed : xm ? -1 : c->global;
+    json_path_key(mp, sizeof mp, P, im ? "int_medium" : "bsdf");
+    if (invisible && emits && (im || xm))
+        return json_fail(e, PM_EINVAL, "%s.emission: an emitting \"%s\" medium boundary is not supported", P, b.type);
+    if (invisible && !emits && inside == c->global) return 0; /* changes nothing: dropped (tungsten.h) */
+    if (inside >= 0 && strcmp(type, "quad") == 0)
+        return json_fail(e, PM_EINVAL, "%s: a quad that light passes through would have the medium \"%s\" behind it: "
+                         "a medium needs a closed primitive (sphere, cube, closed mesh)", mp, c->mnames[inside]);
+    if (invisible && !emits) {
+        snprintf(b.name, sizeof b.name, "%s", "boundary");
+        b.type = "boundary";
+    }
+    if (invisible && emits)
         fprintf(stderr, "warning: %s.bsdf: a \"%s\" surface that emits becomes an opaque black emitter "
                 "(it blocks the light behind it; in Tungsten light passes through)\n", P, b.type);
     int smooth = 0, recompute = 0, cull = 0;
@@ -385,6 +499,7 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
     const char *pname = NULL;
     if (json_string(p, P, "name", 0, &pname, e) < 0) pname = NULL;
     if (pname) cJSON_AddStringToObject(obj, "name", pname);
+    if (inside >= 0) cJSON_AddStringToObject(obj, "interior_medium", c->mnames[inside]);
     cJSON_AddItemToArray(c->objs, obj);
     return add_material(c, mat, &b, emits ? Le : v3s(0), e);
 }
@@ -398,9 +513,8 @@ static int convert_camera(const cJSON *root, cJSON *out, long spp, json_err *e) 
     const cJSON *c;
     TRY(json_object(root, "$", "camera", 1, &c, e));
     const char *P = "$.camera";
-    static const char *const ok[] = {"type", "resolution", "transform", "fov", NULL};
+    static const char *const ok[] = {"type", "resolution", "transform", "fov", "medium", NULL};
     static const char *const warn[] = {"tonemap", "reconstruction_filter", NULL};
-    if (json_get(c, "medium")) return json_fail(e, PM_EINVAL, "%s.medium: media are not supported yet", P);
     TRY(check_keys(c, P, ok, warn, "a camera key outside the supported subset", e));
     const char *type = "pinhole";
     TRY(json_string(c, P, "type", 0, &type, e));
@@ -446,7 +560,7 @@ static int convert_camera(const cJSON *root, cJSON *out, long spp, json_err *e) 
     return 0;
 }
 
-static int convert_settings(const cJSON *root, cJSON *out, long *spp, json_err *e) {
+static int convert_settings(const cJSON *root, cJSON *out, long *spp, long *max_depth, json_err *e) {
     const cJSON *r, *in;
     TRY(json_object(root, "$", "renderer", 0, &r, e));
     *spp = 0;
@@ -463,6 +577,7 @@ static int convert_settings(const cJSON *root, cJSON *out, long *spp, json_err *
     cJSON *rs = cJSON_CreateObject();
     if (!rs) return json_fail(e, PM_ENOMEM, "out of memory");
     cJSON_AddItemToObject(out, "render", rs);
+    *max_depth = 64; /* our render.max_depth default */
     if (!in) return 0;
     const char *P = "$.integrator";
     static const char *const ok[] = {"type", "max_bounces", "min_bounces", "enable_two_sided_shading", NULL};
@@ -489,6 +604,7 @@ static int convert_settings(const cJSON *root, cJSON *out, long *spp, json_err *
     TRY(json_bool(in, P, "enable_two_sided_shading", 0, &two, e));
     if (!two) return json_fail(e, PM_EINVAL, "%s.enable_two_sided_shading: false is not supported", P);
     cJSON_AddNumberToObject(rs, "max_depth", (double)maxb);
+    *max_depth = maxb;
     return 0;
 }
 
@@ -497,8 +613,6 @@ static int convert(const cJSON *root, const char *dir, cJSON *out, json_err *e) 
     TRY(check_keys(root, "$", ok, NULL, "a top-level key outside the supported subset", e));
     const cJSON *media, *bsdfs, *prims;
     TRY(json_array(root, "$", "media", 0, &media, e));
-    if (media && cJSON_GetArraySize(media) > 0)
-        return json_fail(e, PM_EINVAL, "$.media: media are not supported yet");
     TRY(json_array(root, "$", "bsdfs", 0, &bsdfs, e));
     TRY(json_array(root, "$", "primitives", 1, &prims, e));
     conv c = {0};
@@ -518,8 +632,19 @@ static int convert(const cJSON *root, const char *dir, cJSON *out, json_err *e) 
         c.nbsdfs++;
     }
     long spp = 0;
-    if (rc == 0) rc = convert_settings(root, out, &spp, e);
+    c.global = -1;
+    if (rc == 0) rc = convert_settings(root, out, &spp, &c.max_depth, e);
     if (rc == 0) rc = convert_camera(root, out, spp, e);
+    i = 0;
+    for (const cJSON *m = media ? media->child : NULL; m && rc == 0; m = m->next, i++) {
+        int idx;
+        const char *name = NULL;
+        json_path_index(p, sizeof p, "$.media", i);
+        rc = cJSON_IsObject(m) ? json_string(m, p, "name", 1, &name, e) : 0;
+        if (rc == 0) rc = read_medium(&c, m, p, name ? name : "", &idx, e);
+    }
+    const cJSON *cam = json_get(root, "camera");
+    if (rc == 0 && cam) rc = medium_ref(&c, json_get(cam, "medium"), "$.camera.medium", &c.global, e);
     c.mats = cJSON_CreateObject();
     c.objs = cJSON_CreateArray();
     if (c.mats) cJSON_AddItemToObject(out, "materials", c.mats);
@@ -531,6 +656,8 @@ static int convert(const cJSON *root, const char *dir, cJSON *out, json_err *e) 
         rc = convert_primitive(&c, pr, p, i, e);
     }
     free(c.bsdfs);
+    if (c.media) cJSON_AddItemToObject(out, "media", c.media); /* owned by out from here */
+    if (rc == 0 && c.global >= 0) cJSON_AddStringToObject(out, "medium", c.mnames[c.global]);
     return rc;
 }
 

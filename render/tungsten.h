@@ -17,13 +17,23 @@
  * and from axis-angle rotations).
  *
  * Anything that would change the image and is not supported is an error naming its JSON path
- * and the feature ("$.primitives[4].bump: bump maps are not supported"); media give
- * "media are not supported yet". Keys that change only the file output, the noise or the
+ * and the feature ("$.primitives[4].bump: bump maps are not supported"). Keys that change only the file output, the noise or the
  * display (camera.tonemap, camera.reconstruction_filter, renderer.output_file, the photon
  * counts of Tungsten's photon mappers, ...) give a warning on stderr. A "null" bsdf without
  * emission and a "forward" bsdf without a medium are invisible and dropped; a "null" emitter
  * becomes a black emitter (it then blocks light behind it, which Tungsten's does not: a
  * warning says so).
+ *
+ * Media: "homogeneous" media only (sigma_a and sigma_s, numbers or [r, g, b], times "density";
+ * "phase_function" "isotropic" or "henyey_greenstein" with "g"; "max_bounces" only at or above
+ * the integrator's). A medium is named in $.media or written inline where it is used (it is then
+ * named after its JSON path). The camera's "medium" becomes our global "medium" (the one
+ * between objects); a primitive's "int_medium" its interior_medium (a closed primitive only);
+ * its "ext_medium", if given, must be the camera's medium (ours has one medium around all
+ * objects). Tungsten changes the medium only at a surface that names one, so a glass primitive
+ * that names none keeps the medium around it inside: it gets the global medium as its
+ * interior. A null or forward bsdf with a medium becomes our "null" material. Other medium
+ * types, phase functions, an emitting boundary and a glass quad in a medium are errors.
  *
  * Errors: a negative PM_E* code with the message in json_err. The caller owns *out.
  */
