@@ -276,23 +276,29 @@ int json_item_vec3(const cJSON *it, const char *path, vec3 *out, json_err *e) {
     return 0;
 }
 
+/* fetch, and the item's own path ("path.key") in p for the messages about its parts. */
+static int fetch_with_path(const cJSON *obj, const char *path, const char *key, int required,
+                           const cJSON **it, char *p, size_t pcap, json_err *e) {
+    int rc = fetch(obj, path, key, required, it, e);
+    if (rc > 0) json_path_key(p, pcap, path, key);
+    return rc;
+}
+
 int json_vec3(const cJSON *obj, const char *path, const char *key, int required, vec3 *out,
               json_err *e) {
     const cJSON *it;
-    int rc = fetch(obj, path, key, required, &it, e);
-    if (rc <= 0) return rc;
     char p[256];
-    json_path_key(p, sizeof p, path, key);
+    int rc = fetch_with_path(obj, path, key, required, &it, p, sizeof p, e);
+    if (rc <= 0) return rc;
     return json_item_vec3(it, p, out, e);
 }
 
 int json_rgb(const cJSON *obj, const char *path, const char *key, int required, rgb *out,
              json_err *e) {
     const cJSON *it;
-    int rc = fetch(obj, path, key, required, &it, e);
-    if (rc <= 0) return rc;
     char p[256];
-    json_path_key(p, sizeof p, path, key);
+    int rc = fetch_with_path(obj, path, key, required, &it, p, sizeof p, e);
+    if (rc <= 0) return rc;
     if (cJSON_IsNumber(it)) {
         double g;
         rc = check_number(it, p, "", &g, e);
@@ -303,24 +309,26 @@ int json_rgb(const cJSON *obj, const char *path, const char *key, int required, 
     return json_item_vec3(it, p, out, e);
 }
 
-int json_object(const cJSON *obj, const char *path, const char *key, int required,
-                const cJSON **out, json_err *e) {
+/* json_object and json_array: the item itself, NULL when absent (and optional). */
+static int fetch_item(const cJSON *obj, const char *path, const char *key, int required,
+                      cJSON_bool (*is)(const cJSON *), const char *expected, const cJSON **out,
+                      json_err *e) {
     const cJSON *it;
     *out = NULL;
-    int rc = fetch_as(obj, path, key, required, cJSON_IsObject, "an object", &it, e);
+    int rc = fetch_as(obj, path, key, required, is, expected, &it, e);
     if (rc <= 0) return rc;
     *out = it;
     return 0;
 }
 
+int json_object(const cJSON *obj, const char *path, const char *key, int required,
+                const cJSON **out, json_err *e) {
+    return fetch_item(obj, path, key, required, cJSON_IsObject, "an object", out, e);
+}
+
 int json_array(const cJSON *obj, const char *path, const char *key, int required,
                const cJSON **out, json_err *e) {
-    const cJSON *it;
-    *out = NULL;
-    int rc = fetch_as(obj, path, key, required, cJSON_IsArray, "an array", &it, e);
-    if (rc <= 0) return rc;
-    *out = it;
-    return 0;
+    return fetch_item(obj, path, key, required, cJSON_IsArray, "an array", out, e);
 }
 
 /* Optimal string alignment distance (Damerau-Levenshtein without repeated edits of a

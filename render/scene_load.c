@@ -296,19 +296,14 @@ static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_e
         if (push((void **)&s->spheres, &s->nspheres, &cp->scap, sizeof sp, &sp) < 0 ||
             push((void **)&s->sphere_obj, &n, &cp->socap, sizeof cp->obj, &cp->obj) < 0)
             return json_fail(e, PM_ENOMEM, "out of memory");
-    } else if (strcmp(type, "triangle") == 0) {
-        KEYS(o, P, "a triangle", "type", "name", "vertices", "material", "interior_medium");
-        vec3 v[3];
-        TRY(read_points(o, P, "vertices", 3, v, e));
-        TRY(find_material(s, o, P, &mat, e));
-        TRY(add_tri(s, cp, v[0], v[1], v[2], mat, P, e));
-    } else if (strcmp(type, "quad") == 0) {
-        KEYS(o, P, "a quad", "type", "name", "vertices", "material", "interior_medium");
+    } else if (strcmp(type, "triangle") == 0 || strcmp(type, "quad") == 0) {
+        int nv = strcmp(type, "quad") == 0 ? 4 : 3; /* a quad is the fan (0 1 2) (0 2 3) */
+        KEYS(o, P, nv == 4 ? "a quad" : "a triangle", "type", "name", "vertices", "material",
+             "interior_medium");
         vec3 v[4];
-        TRY(read_points(o, P, "vertices", 4, v, e));
+        TRY(read_points(o, P, "vertices", nv, v, e));
         TRY(find_material(s, o, P, &mat, e));
-        TRY(add_tri(s, cp, v[0], v[1], v[2], mat, P, e));
-        TRY(add_tri(s, cp, v[0], v[2], v[3], mat, P, e));
+        for (int i = 1; i + 1 < nv; i++) TRY(add_tri(s, cp, v[0], v[i], v[i + 1], mat, P, e));
     } else if (strcmp(type, "mesh") == 0 && json_get(o, "file")) {
         KEYS(o, P, "a mesh from a file", "type", "name", "file", "material", "usemtl", "transform", "smooth",
              "recompute_normals", "interior_medium", "vertices", "triangles"); /* import.c: not both */
