@@ -28,13 +28,6 @@ int integrator_create(const char *name, const scene *s, integrator *it, char *er
     memset(it, 0, sizeof *it);
     for (int i = 0; i < g_nmodes; i++) {
         if (strcmp(g_modes[i].name, name) == 0) {
-            /* Photon mapping has no volume photon map yet: refuse rather than render a scene
-             * with media as if it had none. */
-            if (s && s->nmedia > 0 && (strcmp(name, "pm") == 0 || strcmp(name, "preview") == 0)) {
-                snprintf(err, errcap, "$.media: mode \"%s\" does not render participating media "
-                         "yet (use --mode path)", name);
-                return PM_EINVAL;
-            }
             it->name = g_modes[i].name;
             int rc = g_modes[i].create(it, s, err, errcap);
             if (rc == 0 && !it->li) {

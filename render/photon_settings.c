@@ -96,6 +96,23 @@ static const setting_def k_settings[] = {
      "cells per side of a light's projection map"},
     {"progress", ST_BOOL, F(progress), 1, NONE,
      "progress lines while tracing photons (render --quiet sets it false)"},
+    {"volume", ST_FORCE, F(force_volume), PLAN_AUTO, 0, 0,
+     "build the volume photon map of a scene with media or not (absent: the plan decides)"},
+    {"volume_caustics", ST_FORCE, F(force_volume_caustics), PLAN_AUTO, 0, 0,
+     "build the volume caustic map (light sent into a medium by specular surfaces) or not "
+     "(absent: the plan decides)"},
+    {"volume_photons", ST_LONG, F(volume_photons), 100000, 0, 100000000,
+     "photons to store in the volume map (scattering events in media)"},
+    {"volume_caustic_photons", ST_LONG, F(volume_caustic_photons), 100000, 0, 100000000,
+     "photons to store in the volume caustic map (first scattering events after specular "
+     "surfaces only)"},
+    {"k_volume", ST_INT, F(k_volume), 50, 1, 10000,
+     "photons per volume radiance estimate (multiple scattering)"},
+    {"k_volume_caustic", ST_INT, F(k_volume_caustic), 30, 1, 10000,
+     "photons per volume caustic estimate"},
+    {"volume_step", ST_NUMBER, F(volume_step), 0, 0, INFINITY,
+     "ray-marching step in media, in scene units; 0: a quarter of the mean free path, at most "
+     "1/64 of the scene's diagonal"},
     {"save_photons", ST_DIR, F(save_dir), 0, NONE,
      "a directory to save the maps to (global.pmap, caustic.pmap, shadow.pmap; the format of "
      "photonmap/mapfile.h), as traced"},

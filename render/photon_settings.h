@@ -47,6 +47,11 @@ typedef struct photon_settings {
     int projection_cells;
     int projection;
     int progress; /* progress bars while tracing (render --quiet sets it false) */
+    /* Participating media (volume.h, pm_volume.h). */
+    int force_volume, force_volume_caustics; /* PLAN_* */
+    long volume_photons, volume_caustic_photons;
+    int k_volume, k_volume_caustic;
+    double volume_step; /* 0: automatic */
     int force_load; /* load_photons: a stamp mismatch is a warning, not an error */
     /* Directories for save_photons and load_photons; empty: none. */
     char save_dir[PHOTON_SETTINGS_PATH_MAX], load_dir[PHOTON_SETTINGS_PATH_MAX];

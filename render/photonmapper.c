@@ -51,6 +51,7 @@
 #include "photon_sides.h"
 #include "photon_trace.h"
 #include "plan.h"
+#include "pm_volume.h"
 #include "stats.h"
 
 typedef struct mapper_state {
@@ -60,6 +61,7 @@ typedef struct mapper_state {
     int max_depth, rr_depth;
     photon_maps maps;
     pm_kdtree *tg, *tc, *ts; /* global, caustic, shadow trees (NULL when absent/empty) */
+    pmv_state vol; /* participating media: volume maps and ray marching (pm_volume.h) */
     side_cache sides; /* precomputed irradiance that keeps to each query's side (photon_sides.h) */
     float r2_global, r2_caustic, r2_shadow, r2_lookup;
     size_t nglobal_all, ncaustic_all; /* photons in the whole maps (all processes' parts) */
@@ -176,7 +178,7 @@ static int shadow_hint(void *user, const scene *s, int li, const hit *h, vec3 n)
 static rgb direct_light(const mapper_state *st, const scene *s, const material *m, const hit *h,
                         vec3 ns, vec3 wo, rng *g, mapper_scratch *sc) {
     shadow_hint_ctx c = {st, sc};
-    direct_options o = {DIRECT_BSDF_FULL, 0, shadow_hint, &c};
+    direct_options o = {DIRECT_BSDF_FULL, st->vol.on, shadow_hint, &c}; /* media: transmittance */
     return direct_light_surface(s, m, h, ns, wo, g, &o);
 }
 
@@ -189,12 +191,28 @@ static rgb caustics_at(const mapper_state *st, const scene *s, const material *m
 
 /* Follow a ray through specular surfaces to the first diffuse hit. Returns the number of
  * specular bounces + 1 with the hit, the throughput and the direction of the last segment
- * (*din, pointing into the hit), or 0 if it escapes, is absorbed or runs out of bounces. */
-static int to_diffuse(const mapper_state *st, const scene *s, ray r, rng *g, hit *h, rgb *beta,
-                      vec3 *din) {
+ * (*din, pointing into the hit), or 0 if it escapes, is absorbed or runs out of bounces.
+ * With media (st->vol.on; med: the medium the ray starts in) null surfaces are passed, each
+ * segment's transmittance multiplies the throughput and its in-scattered light (pmv_gather,
+ * times the throughput) is added to *Lvol. */
+static int to_diffuse(const mapper_state *st, const scene *s, ray r, int med, rng *g, hit *h, rgb *beta,
+                      vec3 *din, rgb *Lvol, void *vscratch) {
     *beta = v3s(1);
-    for (int b = 0; b < 8; b++) {
-        if (!scene_intersect(s, r, INFINITY, h)) return 0;
+    *din = r.d;
+    for (int b = 0, crossings = 0; b < 8; b++) {
+        int got = scene_intersect(s, r, INFINITY, h);
+        if (st->vol.on) {
+            rgb tr, Lm = pmv_gather(&st->vol, s, r, got ? h->t : INFINITY, med, g, vscratch, &tr);
+            *Lvol = v3_add(*Lvol, v3_mul(*beta, Lm));
+            *beta = v3_mul(*beta, tr);
+            if (got && scene_material(s, h)->kind == MAT_NULL && crossings++ < 1024) {
+                med = scene_medium_after(s, h, r.d);
+                r.o = v3_offset(h->p, h->ng, r.d);
+                b--;
+                continue;
+            }
+        }
+        if (!got) return 0;
         const material *m = scene_material(s, h);
         vec3 wo = v3_neg(r.d);
         *din = r.d;
@@ -216,11 +234,11 @@ static int to_diffuse(const mapper_state *st, const scene *s, ray r, rng *g, hit
             *beta = v3_scale(v3_mul(*beta, m->transmit_tint), ws);
         }
         if (v3_iszero(*beta)) return 0;
+        if (st->vol.on) med = scene_medium_after(s, h, d);
         r.o = v3_offset(h->p, h->ng, d);
         r.d = d;
         stat_inc(STAT_INDIRECT_RAYS);
     }
-    (void)st;
     return 0;
 }
 
@@ -276,7 +294,10 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
         hit y;
         rgb beta;
         vec3 din;
-        int steps = to_diffuse(st, s, r, g, &y, &beta, &din);
+        rgb Lvol = v3s(0);
+        int steps = to_diffuse(st, s, r, st->vol.on ? scene_medium_after(s, h, d) : -1, g, &y, &beta, &din,
+                               &Lvol, sc->est);
+        if (st->vol.on) sum = v3_add(sum, v3_mul(f, Lvol));
         if (!steps) continue;
         /* y is seen from -din, the last segment's direction (not d after a mirror). */
         rgb Lo;
@@ -341,11 +362,25 @@ static int eye_roulette(const mapper_state *st, int depth, rgb *beta, rng *g) {
  * meets, the shading of diffuse surfaces, or both. */
 
 static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth, rgb beta,
-                        double cw, int what, rng *g, mapper_scratch *sc) {
+                        double cw, int what, int med, rng *g, mapper_scratch *sc) {
     rgb L = v3s(0);
+    int crossings = 0;
     for (;; depth++) {
         hit h;
-        if (!scene_intersect(s, r, INFINITY, &h)) break;
+        int got = scene_intersect(s, r, INFINITY, &h);
+        if (st->vol.on) { /* media: march the segment in med; null surfaces are passed */
+            rgb tr, Lm = pmv_march(&st->vol, s, r, got ? h.t : INFINITY, med, what != EYE_EMIT, g, sc->est, &tr);
+            L = v3_add(L, v3_mul(beta, Lm));
+            beta = v3_mul(beta, tr);
+            if (got && scene_material(s, &h)->kind == MAT_NULL) {
+                if (++crossings > 1024 || v3_iszero(beta)) break;
+                med = scene_medium_after(s, &h, r.d);
+                r.o = v3_offset(h.p, h.ng, r.d);
+                depth--; /* not a bounce */
+                continue;
+            }
+        }
+        if (!got) break;
         stat_inc(STAT_PATH_VERTICES);
         const material *m = scene_material(s, &h);
         vec3 wo = v3_neg(r.d);
@@ -395,7 +430,8 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
             if (eye_roulette(st, depth, &br, g)) {
                 ray rr = {v3_offset(h.p, h.ng, dr), dr};
                 stat_inc(STAT_INDIRECT_RAYS);
-                L = v3_add(L, eye_radiance(st, s, rr, depth + 1, br, cw, what, g, sc));
+                L = v3_add(L, eye_radiance(st, s, rr, depth + 1, br, cw, what,
+                                           st->vol.on ? scene_medium_after(s, &h, dr) : -1, g, sc));
             }
             beta = bt;
             d = dt;
@@ -411,6 +447,7 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
             }
         }
         if (!eye_roulette(st, depth, &beta, g) || v3_iszero(beta)) break;
+        if (st->vol.on) med = scene_medium_after(s, &h, d);
         r.o = v3_offset(h.p, h.ng, d);
         r.d = d;
         stat_inc(STAT_INDIRECT_RAYS);
@@ -430,8 +467,8 @@ static rgb mapper_li(const integrator *self, const scene *s, ray r, rng *g, cons
     if (scratch) ((mapper_scratch *)scratch)->id = id;
     int m = st->cfg.emission_strata;
     if (m <= 0 || !id || id->strata <= 0)
-        return eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_ALL, g, scratch);
-    rgb L = eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_SHADE, g, scratch);
+        return eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_ALL, s->camera_medium, g, scratch);
+    rgb L = eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_SHADE, s->camera_medium, g, scratch);
     rgb E = v3s(0);
     int n = id->strata, W = s->cam.width;
     double x = (double)(id->pixel % (uint64_t)W), y = (double)(id->pixel / (uint64_t)W);
@@ -441,7 +478,7 @@ static rgb mapper_li(const integrator *self, const scene *s, ray r, rng *g, cons
             double u = rng_uniform(g), v = rng_uniform(g);
             ray re = camera_ray(&s->cam, x + (sx + (a + u) / m) / n, y + (sy + (b + v) / m) / n);
             stat_inc(st->st_emission_rays);
-            E = v3_add(E, eye_radiance(st, s, re, 0, v3s(1), 0, EYE_EMIT, g, scratch));
+            E = v3_add(E, eye_radiance(st, s, re, 0, v3s(1), 0, EYE_EMIT, s->camera_medium, g, scratch));
         }
     return v3_add(L, v3_scale(E, 1.0 / (m * m)));
 }
@@ -468,6 +505,7 @@ static void mapper_destroy(integrator *self) {
     mapper_state *st = self->data;
     if (!st) return;
     side_cache_free(&st->sides);
+    pmv_free(&st->vol);
     pm_kdtree_free(st->tg);
     pm_kdtree_free(st->tc);
     pm_kdtree_free(st->ts);
@@ -488,7 +526,10 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     double t0 = stats_now();
     map_stamp stamp; /* what shapes this run's maps: checked on load, written on save */
     map_stamp_make(s, &st->cfg, st->plan.global.on, st->plan.caustics.on, st->plan.shadow.on, &stamp);
-    if (st->cfg.load_dir[0]) {
+    if (st->vol.on) { /* a scene with media: its own tracer, surface and volume maps */
+        if ((rc = pmv_trace(&st->vol, s, &st->cfg, &st->plan, m, err, errcap)) < 0) return rc;
+        m->stamp = stamp;
+    } else if (st->cfg.load_dir[0]) {
         if ((rc = photon_maps_load(m, st->cfg.load_dir, &stamp, st->cfg.force_load, err, errcap)) < 0)
             return rc;
         /* The plan decides which loaded maps are used. */
@@ -605,6 +646,15 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
     st->max_depth = s->settings.max_depth;
     st->rr_depth = s->settings.rr_depth;
     st->kmax = (unsigned)(st->cfg.k_global > st->cfg.k_caustic ? st->cfg.k_global : st->cfg.k_caustic);
+    if ((rc = pmv_init(&st->vol, s, &st->cfg)) < 0) {
+        snprintf(err, errcap, "out of memory");
+        free(st);
+        return rc;
+    }
+    if (st->vol.on) { /* the volume estimates share the estimate scratch */
+        if ((unsigned)st->cfg.k_volume > st->kmax) st->kmax = (unsigned)st->cfg.k_volume;
+        if ((unsigned)st->cfg.k_volume_caustic > st->kmax) st->kmax = (unsigned)st->cfg.k_volume_caustic;
+    }
     st->st_traced = stats_register("Photon mapping/Shadow rays traced");
     st->st_saved_lit = stats_register("Photon mapping/Shadow rays saved: all direct photons");
     st->st_saved_dark = stats_register("Photon mapping/Shadow rays saved: all shadow photons");

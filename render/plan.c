@@ -21,6 +21,7 @@
 
 #include "photonmap/common.h"
 #include "photon_trace.h"
+#include "volume.h"
 #include "rng.h"
 #include "sampling.h"
 
@@ -219,6 +220,122 @@ static void plan_shadow(const scene *s, const pilot_result *r, render_plan *p) {
     set(&p->shadow, 0, "%s", buf);
 }
 
+/* ---- scenes with media ------------------------------------------------------------------- */
+
+#define MEDIA_PILOT_PHOTONS (2 * PT_BATCH)
+
+/* The index of the largest of n counts (-1 if all are 0). */
+static int argmax(const unsigned long long *c, int n, size_t stride) {
+    int best = -1;
+    for (int i = 0; i < n; i++)
+        if (c[(size_t)i * stride] > 0 && (best < 0 || c[(size_t)i * stride] > c[(size_t)best * stride])) best = i;
+    return best;
+}
+
+static const char *medium_name(const scene *s, int m) {
+    return m >= 0 && m < s->nmedia && m < VOL_PILOT_MEDIA - 1 ? s->media[m].name : "(others)";
+}
+
+/* Every decision of a scene with media, from volume.h's pilot (the tracer of its maps). */
+static void plan_media(const scene *s, render_plan *p) {
+    vol_pilot pg, pc;
+    memset(&pg, 0, sizeof pg);
+    memset(&pc, 0, sizeof pc);
+    vol_pass_opts o = {0};
+    o.max_emitted = MEDIA_PILOT_PHOTONS;
+    o.lo = v3s(1);
+    o.hi = v3s(-1);
+    o.max_depth = s->settings.max_depth;
+    o.seed = PLAN_SEED;
+    o.pilot = &pg;
+    if (emitting_lights(s)) vol_trace_pass(s, &o, &(vol_pass_result){0});
+    o.caustic_pass = 1;
+    o.pilot = &pc;
+    if (emitting_lights(s)) vol_trace_pass(s, &o, &(vol_pass_result){0});
+    char buf[300];
+    int scatters = 0, nspec = 0;
+    for (int m = 0; m < s->nmedia; m++) scatters += v3_maxc(s->media[m].sigma_s) > 0;
+    for (int i = 0; i < prim_count(s); i++) nspec += material_is_specular(prim_mat(s, i));
+    unsigned long long ev[VOL_PILOT_MEDIA] = {0}, total = 0, direct = 0;
+    for (int m = 0; m < VOL_PILOT_MEDIA; m++) {
+        for (int k = 0; k < 4; k++) ev[m] += pg.events[m][k];
+        total += ev[m];
+        direct += pg.events[m][PM_KIND_DIRECT];
+    }
+    /* volume */
+    if (!emitting_lights(s))
+        set(&p->volume, 0, "no light emits photons%s", "");
+    else if (!s->nmedia)
+        set(&p->volume, 0, "no participating medium (only null surfaces): no volume photon map%s", "");
+    else if (!scatters)
+        set(&p->volume, 0, "no medium scatters light (sigma_s = 0 in every medium): they only attenuate, "
+                           "no volume photon map%s", "");
+    else if (total == 0) {
+        snprintf(buf, sizeof buf, "no medium is lit: 0 of %llu pilot photons scatter in a medium", pg.emitted);
+        set(&p->volume, 0, "%s", buf);
+    } else {
+        int top = argmax(ev, VOL_PILOT_MEDIA, 1);
+        snprintf(buf, sizeof buf,
+                 "medium \"%s\" is lit by the lights: %llu scattering events of %llu pilot photons in it "
+                 "(%llu in all media: %llu straight from a light, %llu after a bounce or an earlier "
+                 "event)",
+                 medium_name(s, top), ev[top], pg.emitted, total, direct, total - direct);
+        set(&p->volume, 1, "%s", buf);
+    }
+    /* volume caustics */
+    unsigned long long vc = 0, vcm[VOL_PILOT_MEDIA];
+    for (int m = 0; m < VOL_PILOT_MEDIA; m++) vc += (vcm[m] = pc.events[m][PM_KIND_CAUSTIC]);
+    if (!p->volume.on && !(scatters && vc > 0))
+        set(&p->volume_caustics, 0, "no volume map%s", "");
+    else if (!nspec)
+        set(&p->volume_caustics, 0, "no specular surface%s", "");
+    else if (vc == 0) {
+        snprintf(buf, sizeof buf,
+                 "no specular surface sends light into a medium: 0 of %llu pilot photons scatter in a "
+                 "medium after specular bounces only",
+                 pc.emitted);
+        set(&p->volume_caustics, 0, "%s", buf);
+    } else {
+        int tm = argmax(vcm, VOL_PILOT_MEDIA, 1), ts = argmax(pc.caustic_by_mat, VOL_PILOT_MATS, 1);
+        snprintf(buf, sizeof buf,
+                 "\"%s\" sends light into a medium: %llu of %llu pilot photons scatter in \"%s\" after "
+                 "specular bounces only (L S+ V)",
+                 ts >= 0 && ts < s->nmats && ts < VOL_PILOT_MATS - 1 ? s->mats[ts].name : "(others)", vc,
+                 pc.emitted, medium_name(s, tm));
+        set(&p->volume_caustics, 1, "%s", buf);
+    }
+    /* surface maps */
+    if (!nspec)
+        set(&p->caustics, 0, "no specular surface%s", "");
+    else if (pc.surf_caustic == 0) {
+        snprintf(buf, sizeof buf,
+                 "no L S+ D path: 0 of %llu pilot photons reach a diffuse surface through specular "
+                 "surfaces only (through media, unaimed)",
+                 pc.emitted);
+        set(&p->caustics, 0, "%s", buf);
+    } else {
+        snprintf(buf, sizeof buf,
+                 "L S+ D paths: %llu of %llu pilot photons reach a diffuse surface through specular "
+                 "surfaces only (through media, unaimed)",
+                 pc.surf_caustic, pc.emitted);
+        set(&p->caustics, 1, "%s", buf);
+    }
+    if (pg.surf_indirect == 0) {
+        snprintf(buf, sizeof buf,
+                 "no diffuse surface or medium sends light onto a diffuse surface: %llu of %llu pilot "
+                 "photons arrive after a bounce",
+                 pg.surf_indirect, pg.emitted);
+        set(&p->global, 0, "%s", buf);
+    } else {
+        snprintf(buf, sizeof buf,
+                 "diffuse surfaces and media send light onto diffuse surfaces: %llu of %llu pilot "
+                 "photons arrive after a bounce (%llu of them after scattering in a medium)",
+                 pg.surf_indirect, pg.emitted, pg.surf_after_scatter);
+        set(&p->global, 1, "%s", buf);
+    }
+    set(&p->shadow, 0, "a scene with media: shadow rays carry the transmittance, no shadow photons%s", "");
+}
+
 /* Apply a forced setting from the scene file (or --pm key=true|false). */
 static void force(plan_item *it, int f, const char *key) {
     if (f == PLAN_AUTO) return;
@@ -228,11 +345,19 @@ static void force(plan_item *it, int f, const char *key) {
 
 void plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p) {
     memset(p, 0, sizeof *p);
-    pilot_result r;
-    run_pilot(s, &r);
-    plan_caustics(s, &r, p);
-    plan_global(s, &r, p);
-    plan_shadow(s, &r, p);
+    if (scene_has_media(s)) {
+        plan_media(s, p);
+        force(&p->volume, c->force_volume, "volume");
+        force(&p->volume_caustics, c->force_volume_caustics, "volume_caustics");
+    } else {
+        pilot_result r;
+        run_pilot(s, &r);
+        plan_caustics(s, &r, p);
+        plan_global(s, &r, p);
+        plan_shadow(s, &r, p);
+        set(&p->volume, 0, "no participating medium in the scene: no volume photon map%s", "");
+        set(&p->volume_caustics, 0, "no participating medium in the scene%s", "");
+    }
     force(&p->caustics, c->force_caustics, "caustics");
     force(&p->global, c->force_global, "global");
     force(&p->shadow, c->force_shadow, "shadow");
@@ -255,4 +380,6 @@ void plan_print(const render_plan *p, FILE *f) {
     fprintf(f, "  global: %s (%s)\n", p->global.on ? "on" : "off", p->global.reason);
     fprintf(f, "  shadow photons: %s (%s)\n", p->shadow.on ? "on" : "off", p->shadow.reason);
     fprintf(f, "  final gather: %s (%s)\n", p->final_gather.on ? "on" : "off", p->final_gather.reason);
+    fprintf(f, "  volume: %s (%s)\n", p->volume.on ? "on" : "off", p->volume.reason);
+    fprintf(f, "  volume caustics: %s (%s)\n", p->volume_caustics.on ? "on" : "off", p->volume_caustics.reason);
 }

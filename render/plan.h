@@ -13,7 +13,18 @@
  *                 points on area lights and on diffuse surfaces that face each other; an
  *                 occluder exists if any is blocked);
  *   final gather  indirect diffuse by final gathering whenever there is a global map (the
- *                 preview mode shows the global map directly instead).
+ *                 preview mode shows the global map directly instead);
+ *   volume        a volume photon map only in a scene with a participating medium that
+ *                 scatters (sigma_s > 0) and is lit: the pilot of volume.h counts photons
+ *                 scattering in each medium; without a medium the line says that no volume
+ *                 map is built;
+ *   volume caustics  a volume caustic map only when a specular surface sends light into a
+ *                 medium (pilot photons that scatter in a medium after specular bounces only,
+ *                 L S+ V, counted by the first specular surface).
+ * In a scene with media (or null surfaces) every decision comes from volume.h's pilot (the
+ * tracer that builds those maps) instead of photon_trace's: caustics from its L S+ D stores,
+ * the global map from stores after a diffuse bounce or a scattering event; shadow photons are
+ * off (shadow rays there carry the media's transmittance).
  * Every probe uses fixed random streams, so the plan of a scene never changes between runs.
  * The scene's "photon_mapping" object may force any of them: "caustics": true/false, and the
  * same for "global", "shadow" and "final_gather"; the reason then says "forced".
@@ -40,7 +51,7 @@ typedef struct plan_item {
 } plan_item;
 
 typedef struct render_plan {
-    plan_item caustics, global, shadow, final_gather;
+    plan_item caustics, global, shadow, final_gather, volume, volume_caustics;
 } render_plan;
 
 /* Decide the plan for scene s under config c; preview = 1 turns final gathering off. */

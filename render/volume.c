@@ -76,6 +76,12 @@ static int survive(rgb *power, rgb w, rng *g) {
     return 1;
 }
 
+static int inside(const vol_pass_opts *o, vec3 x) {
+    if (!(o->lo.x <= o->hi.x)) return 1;
+    return x.x >= o->lo.x && x.y >= o->lo.y && x.z >= o->lo.z && x.x <= o->hi.x && x.y <= o->hi.y &&
+           x.z <= o->hi.z;
+}
+
 static int clampi(int v, int n) { return v < 0 || v >= n ? n - 1 : v; }
 
 static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
@@ -103,11 +109,12 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
             double uc = rng_uniform(&g), ud = rng_uniform(&g), t;
             rgb w;
             if (medium_sample_distance(&s->media[med], got ? h.t : INFINITY, uc, ud, &t, &w)) {
+                if (v3_iszero(w)) return; /* sigma_s = 0: absorbed, nothing scatters */
                 vec3 x = ray_at(r, t);
                 int kind = scattered ? PM_KIND_INDIRECT : specular ? PM_KIND_CAUSTIC : PM_KIND_DIRECT;
                 b->pilot.events[clampi(med, VOL_PILOT_MEDIA)][kind]++;
                 if (kind == PM_KIND_CAUSTIC) b->pilot.caustic_by_mat[clampi(spec_mat, VOL_PILOT_MATS)]++;
-                if (c->keep_volume && (!caustic_pass || kind == PM_KIND_CAUSTIC))
+                if (c->keep_volume && (!caustic_pass || kind == PM_KIND_CAUSTIC) && inside(c->o, x))
                     push(b, i, x, v3_mul(power, w), r.d, v3s(0), kind, WHERE_VOLUME);
                 if (caustic_pass) return; /* not L S+ any more */
                 scattered = vscattered = 1;
@@ -287,6 +294,8 @@ int vol_trace(const scene *s, uint64_t n, uint64_t seed, int max_depth, vol_phot
     out->photons = NULL;
     out->count = out->cap = 0;
     vol_pass_opts o = {0};
+    o.lo = v3s(1);
+    o.hi = v3s(-1); /* no limit */
     o.volume_target = (long)(n * (uint64_t)max_depth + n + 1); /* never reached: keep all */
     o.max_emitted = (double)n;
     o.max_depth = max_depth;

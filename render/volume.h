@@ -85,6 +85,9 @@ typedef struct vol_pass_opts {
     uint64_t seed;
     int threads;       /* 0: OpenMP's default */
     vol_pilot *pilot;  /* non-NULL: count (summed into it), keep nothing */
+    /* Volume photons outside [lo, hi] are traced on but not stored (where nothing reads them:
+     * an unbounded medium around the scene); lo > hi: no limit. */
+    vec3 lo, hi;
 } vol_pass_opts;
 
 typedef struct vol_pass_result {

@@ -1,0 +1,290 @@
+/* pm_volume.c: the volume photon maps and the ray marching of photon mapping in scenes with
+ * media; see pm_volume.h. pmv_trace runs volume.h's passes for the maps the plan wants and
+ * splits the volume photons by kind into trees; pmv_march integrates a segment of an eye ray
+ * with stratified steps (single scattering by shadow rays, the rest from the trees);
+ * pmv_gather takes one point of a gather ray's segment.
+ */
+#include "pm_volume.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+#include "direct.h"
+#include "medium.h"
+#include "photonmap/common.h"
+#include "photonmap/estimate.h"
+#include "stats.h"
+#include "volume.h"
+
+/* No segment is marched in more steps than this (a tiny step setting in a huge scene). */
+#define PMV_MAX_STEPS 4096
+
+int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
+    memset(v, 0, sizeof *v);
+    v->on = scene_has_media(s);
+    if (!v->on) return 0;
+    v->lo = v3_min(s->bounds_lo, s->cam.eye);
+    v->hi = v3_max(s->bounds_hi, s->cam.eye);
+    for (int i = 0; i < s->nlights; i++)
+        if (s->lights[i].type == LIGHT_POINT) {
+            v->lo = v3_min(v->lo, s->lights[i].pos);
+            v->hi = v3_max(v->hi, s->lights[i].pos);
+        }
+    double diag = v3_len(v3_sub(v->hi, v->lo));
+    if (!(diag > 0) || !isfinite(diag)) diag = 1;
+    /* A margin of 1% of the diagonal, so surfaces on the bounds are inside. */
+    v->lo = v3_sub(v->lo, v3s(0.01 * diag));
+    v->hi = v3_add(v->hi, v3s(0.01 * diag));
+    v->step = calloc((size_t)(s->nmedia > 0 ? s->nmedia : 1), sizeof *v->step);
+    if (!v->step) return PM_ENOMEM;
+    for (int m = 0; m < s->nmedia; m++) {
+        double st = v3_maxc(s->media[m].sigma_t), auto_step = diag / 64;
+        if (st > 0) auto_step = fmin(auto_step, 0.25 / st);
+        v->step[m] = c->volume_step > 0 ? c->volume_step : auto_step;
+    }
+    v->k_ms = (unsigned)c->k_volume;
+    v->k_caus = (unsigned)c->k_volume_caustic;
+    v->st_steps = stats_register("Photon mapping/Volume march steps");
+    v->st_ms = stats_register("Photon mapping/Volume estimates (multiple scattering)");
+    v->st_caus = stats_register("Photon mapping/Volume caustic estimates");
+    v->st_gather = stats_register("Photon mapping/Volume estimates of gather rays");
+    return 0;
+}
+
+void pmv_free(pmv_state *v) {
+    pm_kdtree_free(v->t_ms);
+    pm_kdtree_free(v->t_caus);
+    pm_kdtree_free(v->t_all);
+    free(v->a_ms);
+    free(v->a_caus);
+    free(v->a_all);
+    free(v->step);
+    memset(v, 0, sizeof *v);
+}
+
+size_t pmv_scratch_bytes(const pmv_state *v) {
+    unsigned k = v->k_ms > v->k_caus ? v->k_ms : v->k_caus;
+    return pm_estimate_scratch_bytes(k ? k : 1);
+}
+
+/* 2 r_typ squared for n photons of ph with k per estimate (pm_volume.h); INFINITY if n = 0. */
+static float radius2_from_density(const pm_photon *ph, size_t n, unsigned k) {
+    if (n == 0) return INFINITY;
+    float lo[3], hi[3];
+    for (int a = 0; a < 3; a++) lo[a] = hi[a] = ph[0].pos[a];
+    for (size_t i = 1; i < n; i++)
+        for (int a = 0; a < 3; a++) {
+            lo[a] = fminf(lo[a], ph[i].pos[a]);
+            hi[a] = fmaxf(hi[a], ph[i].pos[a]);
+        }
+    /* A flat or tiny cloud: at least a sliver of 1e-3 of its largest extent per axis. */
+    double ext = 0;
+    for (int a = 0; a < 3; a++) ext = fmax(ext, (double)hi[a] - lo[a]);
+    double vol = 1;
+    for (int a = 0; a < 3; a++) vol *= fmax((double)hi[a] - lo[a], 1e-3 * ext);
+    if (!(vol > 0)) return INFINITY;
+    double r = 2 * cbrt(3.0 * k * vol / (4 * M_PI * (double)n));
+    return (float)(r * r);
+}
+
+static int build(pm_kdtree **t, pm_photon *ph, size_t n, char *err, size_t errcap) {
+    return photon_tree_build(t, ph, n, 8, err, errcap);
+}
+
+int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const render_plan *p,
+              photon_maps *m, char *err, size_t errcap) {
+    memset(m, 0, sizeof *m);
+    int rc = 0;
+    int max_depth = s->settings.max_depth;
+    if (c->max_bounces > 0 && c->max_bounces < max_depth) max_depth = c->max_bounces;
+    vol_pass_result g = {0}, k = {0};
+    if (p->global.on || p->volume.on) {
+        vol_pass_opts o = {0};
+        o.surface_target = p->global.on ? c->global_photons : 0;
+        o.volume_target = p->volume.on ? c->volume_photons : 0;
+        long tmax = o.surface_target > o.volume_target ? o.surface_target : o.volume_target;
+        o.max_emitted = fmin(c->max_emitted, c->max_emitted_factor * (double)(tmax > 0 ? tmax : 1));
+        o.max_depth = max_depth;
+        o.seed = s->settings.seed;
+        o.lo = v->lo;
+        o.hi = v->hi;
+        if ((rc = vol_trace_pass(s, &o, &g)) < 0) goto fail;
+    }
+    if (p->caustics.on || p->volume_caustics.on) {
+        vol_pass_opts o = {0};
+        o.caustic_pass = 1;
+        o.surface_target = p->caustics.on ? c->caustic_photons : 0;
+        o.volume_target = p->volume_caustics.on ? c->volume_caustic_photons : 0;
+        long tmax = o.surface_target > o.volume_target ? o.surface_target : o.volume_target;
+        o.max_emitted = fmin(c->max_emitted, c->max_emitted_factor * (double)(tmax > 0 ? tmax : 1));
+        o.max_depth = max_depth;
+        o.seed = s->settings.seed;
+        o.lo = v->lo;
+        o.hi = v->hi;
+        if ((rc = vol_trace_pass(s, &o, &k)) < 0) goto fail;
+    }
+    /* Split the global pass's volume photons: multiple scattering, and all of them. */
+    size_t nms = 0;
+    for (size_t i = 0; i < g.nvolume; i++) {
+        int kind = pm_photon_kind(&g.volume[i]);
+        nms += kind == PM_KIND_INDIRECT || (kind == PM_KIND_CAUSTIC && !p->volume_caustics.on);
+    }
+    if (nms) {
+        if (!(v->a_ms = malloc(nms * sizeof *v->a_ms))) {
+            rc = PM_ENOMEM;
+            goto fail;
+        }
+        for (size_t i = 0; i < g.nvolume; i++) {
+            int kind = pm_photon_kind(&g.volume[i]);
+            if (kind == PM_KIND_INDIRECT || (kind == PM_KIND_CAUSTIC && !p->volume_caustics.on))
+                v->a_ms[v->n_ms++] = g.volume[i];
+        }
+    }
+    v->a_all = g.volume;
+    v->n_all = g.nvolume;
+    g.volume = NULL;
+    v->a_caus = k.volume;
+    v->n_caus = k.nvolume;
+    k.volume = NULL;
+    m->global = g.surface;
+    m->nglobal = g.nsurface;
+    m->global_emitted = g.surface_emitted;
+    m->global_runaway = g.surface_short;
+    g.surface = NULL;
+    m->caustic = k.surface;
+    m->ncaustic = k.nsurface;
+    m->caustic_emitted = k.surface_emitted;
+    m->caustic_runaway = k.surface_short;
+    m->caustic_fraction = 1;
+    k.surface = NULL;
+    v->r2_ms = radius2_from_density(v->a_ms, v->n_ms, v->k_ms);
+    v->r2_all = radius2_from_density(v->a_all, v->n_all, v->k_ms);
+    v->r2_caus = radius2_from_density(v->a_caus, v->n_caus, v->k_caus);
+    if ((rc = build(&v->t_ms, v->a_ms, v->n_ms, err, errcap)) < 0 ||
+        (rc = build(&v->t_all, v->a_all, v->n_all, err, errcap)) < 0 ||
+        (rc = build(&v->t_caus, v->a_caus, v->n_caus, err, errcap)) < 0)
+        goto fail;
+    printf("Photons (scene with media): %zu global (from %llu emitted), %zu caustic (from %llu "
+           "emitted); volume: %zu (from %llu emitted), %zu of them for multiple scattering (radius "
+           "%.4g), %zu volume-caustic (from %llu emitted, radius %.4g)\n",
+           m->nglobal, (unsigned long long)m->global_emitted, m->ncaustic,
+           (unsigned long long)m->caustic_emitted, v->n_all, (unsigned long long)g.volume_emitted,
+           v->n_ms, sqrt((double)v->r2_ms), v->n_caus, (unsigned long long)k.volume_emitted,
+           sqrt((double)v->r2_caus));
+    if (g.volume_short || k.volume_short)
+        fprintf(stderr, "render: a volume photon map stopped short of its target (the emission "
+                        "budget, photon_mapping.max_emitted_factor, ran out)\n");
+    vol_pass_free(&g);
+    vol_pass_free(&k);
+    return 0;
+fail:
+    if (rc == PM_ENOMEM && !err[0]) snprintf(err, errcap, "out of memory tracing volume photons");
+    else if (rc < 0 && !err[0]) snprintf(err, errcap, "tracing volume photons: %s", pm_strerror(rc));
+    vol_pass_free(&g);
+    vol_pass_free(&k);
+    return rc;
+}
+
+/* The HG phase of a photon (it came from wi) scattered toward the eye ray's origin. */
+typedef struct phase_ctx {
+    double g;
+    vec3 d; /* the eye ray's direction */
+} phase_ctx;
+
+static void phase_fn(void *user, const float wi[3], float f[3]) {
+    const phase_ctx *c = user;
+    double cs = (double)wi[0] * c->d.x + (double)wi[1] * c->d.y + (double)wi[2] * c->d.z;
+    f[0] = f[1] = f[2] = (float)hg_phase(c->g, cs);
+}
+
+/* sum phase dPhi / (4/3 pi r^3) from tree t at x, for an eye ray along d in medium med. */
+static rgb volume_estimate(const pm_kdtree *t, unsigned k, float r2, const scene *s, int med, vec3 x,
+                           vec3 d, void *scratch) {
+    pm_estimate_options o;
+    pm_estimate_options_init(&o, PM_EST_DISC, k);
+    o.max_dist2 = r2;
+    phase_ctx pc = {s->media[med].g, d};
+    if (fabs(pc.g) > 1e-3) {
+        o.brdf = phase_fn;
+        o.brdf_user = &pc;
+    }
+    float xf[3] = {(float)x.x, (float)x.y, (float)x.z};
+    pm_estimate_result res;
+    if (pm_estimate_volume(t, xf, 1.0, &o, scratch, &res, NULL) < 0) return v3s(0);
+    return v3(res.rgb[0], res.rgb[1], res.rgb[2]);
+}
+
+/* Where r leaves the bounds (0 if it misses them). */
+static double bounds_exit(const pmv_state *v, ray r) {
+    double t0 = 0, t1 = INFINITY;
+    for (int a = 0; a < 3; a++) {
+        double o = v3_idx(r.o, a), d = v3_idx(r.d, a), lo = v3_idx(v->lo, a), hi = v3_idx(v->hi, a);
+        if (d == 0) {
+            if (o < lo || o > hi) return 0;
+            continue;
+        }
+        double ta = (lo - o) / d, tb = (hi - o) / d;
+        if (ta > tb) {
+            double t = ta;
+            ta = tb;
+            tb = t;
+        }
+        t0 = fmax(t0, ta);
+        t1 = fmin(t1, tb);
+    }
+    return t1 >= t0 ? t1 : 0;
+}
+
+rgb pmv_march(const pmv_state *v, const scene *s, ray r, double tmax, int med, int inscatter, rng *g,
+              void *scratch, rgb *tr) {
+    *tr = v3s(1);
+    if (med < 0) return v3s(0);
+    const medium *md = &s->media[med];
+    double T = isfinite(tmax) ? tmax : bounds_exit(v, r);
+    *tr = isfinite(tmax) ? medium_tr(md, tmax) : medium_tr(md, INFINITY);
+    if (!inscatter || !(T > 0) || v3_iszero(md->sigma_s)) return v3s(0);
+    double nf = ceil(T / v->step[med]);
+    int n = nf > PMV_MAX_STEPS ? PMV_MAX_STEPS : nf < 1 ? 1 : (int)nf;
+    double dt = T / n, u = rng_uniform(g);
+    rgb L = v3s(0);
+    for (int i = 0; i < n; i++) {
+        double t = (i + u) * dt;
+        vec3 x = ray_at(r, t);
+        rgb src = v3_mul(md->sigma_s, direct_light_medium(s, x, r.d, med, g));
+        if (v->t_ms) {
+            src = v3_add(src, volume_estimate(v->t_ms, v->k_ms, v->r2_ms, s, med, x, r.d, scratch));
+            stat_inc(v->st_ms);
+        }
+        if (v->t_caus) {
+            src = v3_add(src, volume_estimate(v->t_caus, v->k_caus, v->r2_caus, s, med, x, r.d, scratch));
+            stat_inc(v->st_caus);
+        }
+        L = v3_add(L, v3_scale(v3_mul(medium_tr(md, t), src), dt));
+    }
+    stat_add(v->st_steps, (uint64_t)n);
+    return L;
+}
+
+rgb pmv_gather(const pmv_state *v, const scene *s, ray r, double tmax, int med, rng *g, void *scratch,
+               rgb *tr) {
+    *tr = v3s(1);
+    if (med < 0) return v3s(0);
+    const medium *md = &s->media[med];
+    double T = isfinite(tmax) ? tmax : bounds_exit(v, r);
+    *tr = medium_tr(md, tmax);
+    if (!v->t_all || !(T > 0) || v3_iszero(md->sigma_s)) return v3s(0);
+    /* t in [0, T] with density c e^{-k t}, k the mean sigma_t (uniform if k T is tiny). */
+    double kk = (md->sigma_t.x + md->sigma_t.y + md->sigma_t.z) / 3, u = rng_uniform(g), t, pdf;
+    if (kk * T < 1e-6) {
+        t = u * T;
+        pdf = 1 / T;
+    } else {
+        double norm = -expm1(-kk * T); /* 1 - e^{-k T} */
+        t = -log1p(-u * norm) / kk;
+        pdf = kk * exp(-kk * t) / norm;
+    }
+    vec3 x = ray_at(r, t);
+    stat_inc(v->st_gather);
+    rgb src = volume_estimate(v->t_all, v->k_ms, v->r2_all, s, med, x, r.d, scratch);
+    return v3_scale(v3_mul(medium_tr(md, t), src), 1 / pdf);
+}

@@ -1,0 +1,105 @@
+/* pm_volume.h: participating media in photon mapping ("--mode pm" and "--mode preview" on a
+ * scene with a medium or a null surface): the volume photon maps and the ray marching of eye
+ * rays and gather rays through media.
+ *
+ * MAPS (pmv_trace). The maps of a scene with media come from volume.h's tracer, not from
+ * photon_trace: its global pass gives the global map (diffuse-surface photons, attenuated and
+ * scattered by the media on their way) and the volume map, its caustic pass the caustic map
+ * (L S+ D) and the volume caustic map (L S+ V), each pass run only if the plan asks for one of
+ * its maps. Shadow photons and projection maps are not used (shadow rays carry the media's
+ * transmittance). The volume photons are split by kind into three kd-trees:
+ *   multiple scattering  INDIRECT photons (and, without a volume caustic map, the global
+ *                        pass's CAUSTIC ones): read while marching eye rays;
+ *   volume caustics      the caustic pass's L S+ V photons, read at every march step of every
+ *                        camera sample (full resolution, no stride);
+ *   all                  every volume photon of the global pass, DIRECT included: read by
+ *                        final-gather rays, which have no single-scattering term of their own.
+ * DIRECT photons are left out of the eye march because single scattering is computed there
+ * with shadow rays. The maps are always traced (deterministic for the seed), never loaded.
+ *
+ * EYE RAYS (pmv_march). A segment of an eye ray inside medium m, of length T (a surface, or
+ * where the ray leaves the scene's bounds), is marched in n = ceil(T / step) equal steps of
+ * length dt = T / n at t_i = (i + u) dt with one random offset u per segment, which makes the
+ * sum an unbiased estimate of the integral over [0, T]. At each point x (transmittance Tr from
+ * the segment's start):
+ *   L += Tr dt [ sigma_s * single(x) + S_ms(x) + S_caustic(x) ]
+ * single(x) is one light sample with the HG phase function and the shadow segment's
+ * transmittance (direct.h, direct_light_medium); S_ms and S_caustic are the volume radiance
+ * estimates (pm_estimate_volume with sigma_s = 1, i.e. sum phase dPhi / (4/3 pi r^3): the light
+ * scattered per unit length, HG phase per photon) of the two trees. The segment's
+ * transmittance exp(-sigma_t T) multiplies what lies beyond it. Photons of another medium
+ * within the search radius of x are counted too (a bias at medium boundaries of the order of
+ * the radius).
+ *
+ * GATHER RAYS (pmv_gather). A final-gather ray gets one point per segment, drawn in [0, T]
+ * with a density proportional to the mean-channel exp(-sigma_t t): its in-scattered light is
+ * the "all" tree's estimate times Tr / pdf (unbiased for the integral of that estimate); the
+ * segment's transmittance multiplies what lies beyond.
+ *
+ * STEP, k AND RADII, chosen from the densities:
+ *   step   settings volume_step, else per medium min(1 / (4 max sigma_t), D / 64), D the
+ *          diagonal of the scene's bounds (lights included): a quarter of the mean free path
+ *          in dense media, where Tr changes fast, and 64 steps across the scene in thin ones,
+ *          so light shafts and shadows are resolved;
+ *   k      k_volume (multiple scattering, the all tree) and k_volume_caustic (settings);
+ *   radius 2 r_typ for each tree, r_typ = cbrt(3 k V / (4 pi N)) the radius of a k-photon
+ *          estimate at the tree's mean density (N photons in the box V that bounds them): a
+ *          dense map (a thick medium, many photons) searches a small ball, a sparse one a
+ *          large one, and an estimate in the dark part of a medium stops at twice the typical
+ *          radius instead of gathering from far away.
+ *
+ * Threads: after pmv_trace, pmv_march and pmv_gather only read the state; each thread passes
+ * its own scratch of pmv_scratch_bytes().
+ */
+#ifndef RENDER_PM_VOLUME_H
+#define RENDER_PM_VOLUME_H
+
+#include <stddef.h>
+
+#include "photon_maps.h"
+#include "photon_settings.h"
+#include "photonmap/kdtree.h"
+#include "plan.h"
+#include "rng.h"
+#include "scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct pmv_state {
+    int on;                      /* the scene has a medium or a null surface */
+    pm_kdtree *t_ms, *t_caus, *t_all;
+    pm_photon *a_ms, *a_caus, *a_all; /* the trees' records (owned here) */
+    size_t n_ms, n_caus, n_all;
+    unsigned k_ms, k_caus;
+    float r2_ms, r2_caus, r2_all;
+    double *step;                /* per medium */
+    vec3 lo, hi;                 /* the scene's bounds, lights included */
+    int st_steps, st_ms, st_caus, st_gather;
+} pmv_state;
+
+/* Decide whether s needs the media code (v->on) and the steps; registers statistics. 0 or
+ * PM_ENOMEM. */
+int pmv_init(pmv_state *v, const scene *s, const photon_settings *c);
+/* Trace the maps the plan asks for into m (global, caustic; no shadow map) and build the volume
+ * trees; prints what it traced. 0, or a negative code with a message. */
+int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const render_plan *p,
+              photon_maps *m, char *err, size_t errcap);
+void pmv_free(pmv_state *v);
+/* Bytes of scratch per thread. */
+size_t pmv_scratch_bytes(const pmv_state *v);
+
+/* The light scattered toward r.o by the part [0, tmax) of r in medium med (tmax may be INFINITY:
+ * up to the scene's bounds), not multiplied by any throughput; *tr = its transmittance.
+ * inscatter = 0 gives only *tr (no random numbers used). med < 0: 0 and *tr = 1. */
+rgb pmv_march(const pmv_state *v, const scene *s, ray r, double tmax, int med, int inscatter, rng *g,
+              void *scratch, rgb *tr);
+/* The same for a final-gather ray: one point per segment from the "all" tree. */
+rgb pmv_gather(const pmv_state *v, const scene *s, ray r, double tmax, int med, rng *g, void *scratch,
+               rgb *tr);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_PM_VOLUME_H */
