@@ -78,7 +78,7 @@ static rgb walk(const scene *s, vec3 o, vec3 dir, double len, int med) {
         if (!got) return T;
         if (s->mats[h.mat].kind != MAT_NULL || v3_iszero(T)) return v3s(0);
         med = scene_medium_after(s, &h, dir);
-        vec3 no = v3_offset(h.p, h.ng, dir);
+        vec3 no = scene_offset(s, h.p, h.ng, dir);
         if (isfinite(len)) len -= v3_dot(v3_sub(no, o), dir);
         if (!(len > 0)) return T;
         o = no;
@@ -88,8 +88,8 @@ static rgb walk(const scene *s, vec3 o, vec3 dir, double len, int med) {
 
 rgb scene_transmittance(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq, int med) {
     vec3 d = v3_sub(q, p);
-    vec3 po = v3_iszero(np) ? p : v3_offset(p, np, d);
-    vec3 qo = v3_iszero(nq) ? q : v3_offset(q, nq, v3_neg(d));
+    vec3 po = v3_iszero(np) ? p : scene_offset(s, p, np, d);
+    vec3 qo = v3_iszero(nq) ? q : scene_offset(s, q, nq, v3_neg(d));
     vec3 e = v3_sub(qo, po);
     double len = v3_len(e);
     if (!(len > 0)) return v3s(1);
@@ -98,5 +98,5 @@ rgb scene_transmittance(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq, int me
 }
 
 rgb scene_transmittance_dir(const scene *s, vec3 p, vec3 np, vec3 d, int med) {
-    return walk(s, v3_iszero(np) ? p : v3_offset(p, np, d), d, INFINITY, med);
+    return walk(s, v3_iszero(np) ? p : scene_offset(s, p, np, d), d, INFINITY, med);
 }

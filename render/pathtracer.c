@@ -96,7 +96,7 @@ static int surface_event(const pt_state *st, const scene *s, const hit *h, ray *
     if (!alive) return 0;
     pp->beta = v3_mul(pp->beta, bs.weight);
     if (!roulette(st, depth, &pp->beta, g)) return 0;
-    r->o = v3_offset(h->p, h->ng, bs.wi);
+    r->o = scene_offset(s, h->p, h->ng, bs.wi);
     r->d = bs.wi;
     stat_inc(STAT_INDIRECT_RAYS);
     return 1;
@@ -138,7 +138,7 @@ static rgb pt_li_media(const pt_state *st, const scene *s, ray r, rng *g) {
         if (scene_material(s, &h)->kind == MAT_NULL) { /* invisible: only the medium changes */
             if (++crossings > 4 * st->max_depth + 1024) break;
             med = scene_medium_after(s, &h, r.d);
-            r.o = v3_offset(h.p, h.ng, r.d);
+            r.o = scene_offset(s, h.p, h.ng, r.d);
             depth--; /* not a bounce */
             continue;
         }

@@ -147,7 +147,7 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
     if (v3_iszero(P)) return 0;
     int from_area = s->lights[li].type == LIGHT_AREA;
     int first_spec_mat = -1, diffuse_mat = -1; /* the pilot's evidence: which surfaces */
-    ray r = {v3_offset(p, n, d), d};
+    ray r = {scene_offset(c->s, p, n, d), d};
     int all_specular = 1; /* no diffuse bounce yet */
     fphoton fp;
     int max_depth = c->o->max_depth;
@@ -187,7 +187,7 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
             hit h2 = h;
             int counted = 0; /* the pilot counts one occluded photon, not each shadow photon */
             for (int k = 0; k < 16; k++) {
-                ray r2 = {v3_offset(h2.p, h2.ng, d), d};
+                ray r2 = {scene_offset(c->s, h2.p, h2.ng, d), d};
                 if (!scene_intersect(s, r2, INFINITY, &h2)) break;
                 const material *m2 = scene_material(s, &h2);
                 if (!material_is_diffuse(m2)) continue;
@@ -227,7 +227,7 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
         }
         if (v3_iszero(P) || !v3_isfinite(P)) break;
         d = nd;
-        r.o = v3_offset(h.p, h.ng, d);
+        r.o = scene_offset(c->s, h.p, h.ng, d);
         r.d = d;
     }
     /* Still alive after the last bounce allowed: the path-length budget cut it. */

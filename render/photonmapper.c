@@ -229,7 +229,7 @@ static int to_diffuse(const mapper_state *st, const scene *s, ray r, int med, rn
             *beta = v3_mul(*beta, tr);
             if (got && scene_material(s, h)->kind == MAT_NULL && crossings++ < 1024) {
                 med = scene_medium_after(s, h, r.d);
-                r.o = v3_offset(h->p, h->ng, r.d);
+                r.o = scene_offset(s, h->p, h->ng, r.d);
                 b--;
                 continue;
             }
@@ -257,7 +257,7 @@ static int to_diffuse(const mapper_state *st, const scene *s, ray r, int med, rn
         }
         if (v3_iszero(*beta)) return 0;
         if (st->vol.on) med = scene_medium_after(s, h, d);
-        r.o = v3_offset(h->p, h->ng, d);
+        r.o = scene_offset(s, h->p, h->ng, d);
         r.d = d;
         stat_inc(STAT_INDIRECT_RAYS);
     }
@@ -316,7 +316,7 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
         if (v3_iszero(f)) continue;
         stat_inc(level ? st->st_secondary : st->st_gather);
         stat_inc(STAT_INDIRECT_RAYS);
-        ray r = {v3_offset(h->p, h->ng, d), d};
+        ray r = {scene_offset(s, h->p, h->ng, d), d};
         hit y;
         rgb beta;
         vec3 din;
@@ -414,7 +414,7 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
             if (got && scene_material(s, &h)->kind == MAT_NULL) {
                 if (++crossings > 1024 || v3_iszero(beta)) break;
                 med = scene_medium_after(s, &h, r.d);
-                r.o = v3_offset(h.p, h.ng, r.d);
+                r.o = scene_offset(s, h.p, h.ng, r.d);
                 depth--; /* not a bounce */
                 continue;
             }
@@ -467,7 +467,7 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
         if (depth < st->cfg.split_depth && !v3_iszero(br) && !v3_iszero(bt)) {
             /* Split: the reflection branch recursively, the transmission branch here. */
             if (eye_roulette(st, depth, &br, g)) {
-                ray rr = {v3_offset(h.p, h.ng, dr), dr};
+                ray rr = {scene_offset(s, h.p, h.ng, dr), dr};
                 stat_inc(STAT_INDIRECT_RAYS);
                 L = v3_add(L, eye_radiance(st, s, rr, depth + 1, br, cw, what,
                                            st->vol.on ? scene_medium_after(s, &h, dr) : -1, g, sc));
@@ -487,7 +487,7 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
         }
         if (!eye_roulette(st, depth, &beta, g) || v3_iszero(beta)) break;
         if (st->vol.on) med = scene_medium_after(s, &h, d);
-        r.o = v3_offset(h.p, h.ng, d);
+        r.o = scene_offset(s, h.p, h.ng, d);
         r.d = d;
         stat_inc(STAT_INDIRECT_RAYS);
     }

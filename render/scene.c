@@ -35,6 +35,10 @@ int scene_prepare(scene *s, json_err *e) {
     s->bounds_hi = hi;
     s->bsphere_c = v3_scale(v3_add(lo, hi), 0.5);
     s->bsphere_r = 0.5 * v3_len(v3_sub(hi, lo));
+    /* A thousandth of the scene's size: 64e-9 of it is still about 1e5 times the rounding error of
+     * a hit point found by a ray from anywhere in the scene, and it shrinks with the scene (a
+     * fixed floor of 1 was 1% of a box 5e-6 wide: contact shadows went missing). */
+    s->offset_floor = 1e-3 * s->bsphere_r;
     /* One light per emissive primitive p (numbered as hit.prim): triangles, then spheres. */
     int nemit = 0;
     for (int p = 0; p < s->ntris + s->nspheres; p++)
@@ -151,8 +155,8 @@ int scene_intersect(const scene *s, ray r, double tmax, hit *h) {
 
 int scene_visible(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq) {
     vec3 d = v3_sub(q, p);
-    vec3 po = v3_iszero(np) ? p : v3_offset(p, np, d);
-    vec3 qo = v3_iszero(nq) ? q : v3_offset(q, nq, v3_neg(d));
+    vec3 po = v3_iszero(np) ? p : scene_offset(s, p, np, d);
+    vec3 qo = v3_iszero(nq) ? q : scene_offset(s, q, nq, v3_neg(d));
     ray r = {po, v3_sub(qo, po)};
     /* Parametric in [0, 1]: stop just short of q when q is not on a surface. */
     double tmax = v3_iszero(nq) ? 1.0 - 1e-9 : 1.0;
@@ -160,6 +164,6 @@ int scene_visible(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq) {
 }
 
 int scene_visible_dir(const scene *s, vec3 p, vec3 np, vec3 d) {
-    ray r = {v3_iszero(np) ? p : v3_offset(p, np, d), d};
+    ray r = {v3_iszero(np) ? p : scene_offset(s, p, np, d), d};
     return !bvh_occluded(&s->accel, r, 0.0, INFINITY);
 }

@@ -75,6 +75,8 @@ typedef struct scene {
     vec3 bounds_lo, bounds_hi;
     vec3 bsphere_c; /* bounding sphere of all geometry */
     double bsphere_r;
+    double offset_floor; /* ray offsets (scene_offset) do not shrink below 64e-9 of this length:
+                          * 1e-3 of bsphere_r, so they scale with the scene */
     bvh accel;
     render_settings settings;
     cJSON *photon_mapping; /* a copy of "$.photon_mapping", or NULL */
@@ -111,6 +113,12 @@ int scene_intersect(const scene *s, ray r, double tmax, hit *h);
 int scene_visible(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq);
 /* Is the ray from surface point p (normal np) in direction d unblocked to infinity? */
 int scene_visible_dir(const scene *s, vec3 p, vec3 np, vec3 d);
+
+/* v3_offset with the scene's floor: the origin of a ray leaving surface point p (geometric
+ * normal n) in direction d. Every new ray origin on a surface should come from here. */
+static inline vec3 scene_offset(const scene *s, vec3 p, vec3 n, vec3 d) {
+    return v3_offset_floor(p, n, d, s->offset_floor);
+}
 
 static inline const material *scene_material(const scene *s, const hit *h) {
     return &s->mats[h->mat];

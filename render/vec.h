@@ -75,11 +75,16 @@ static inline void v3_basis(vec3 n, vec3 *s, vec3 *t) {
 /* Offset a surface point p along its geometric normal n (unit) to the side of direction d, so
  * that a ray leaving p does not hit the surface it starts on. The offset grows with the point's
  * magnitude because the rounding error of a computed hit point does (it is a few ulps of the
- * largest coordinate); a fixed epsilon would be too big in a unit scene and too small at 1e6. */
-static inline vec3 v3_offset(vec3 p, vec3 n, vec3 d) {
-    double eps = 1e-9 * (1.0 + v3_maxabs(p)) * 64.0;
+ * largest coordinate); a fixed epsilon would be too big in a unit scene and too small at 1e6.
+ * `floor` is the length the offset does not shrink below near the origin (where the point's
+ * own coordinates are small but the ray that found it may have come from afar): a scene's
+ * scene_offset (scene.h) passes a thousandth of the scene's size, so the offset scales with
+ * the scene. v3_offset uses a floor of 1 (a scene of unit size). */
+static inline vec3 v3_offset_floor(vec3 p, vec3 n, vec3 d, double floor_len) {
+    double eps = 1e-9 * (floor_len + v3_maxabs(p)) * 64.0;
     return v3_madd(p, n, v3_dot(d, n) >= 0 ? eps : -eps);
 }
+static inline vec3 v3_offset(vec3 p, vec3 n, vec3 d) { return v3_offset_floor(p, n, d, 1.0); }
 
 #ifdef __cplusplus
 }

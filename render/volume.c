@@ -97,7 +97,7 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
     light_sample_le(s, li, u, &p, &nl, &d);
     rgb power = v3_scale(s->lights[li].power, 1.0 / pl);
     if (v3_iszero(power)) return;
-    ray r = {v3_iszero(nl) ? p : v3_offset(p, nl, d), d};
+    ray r = {v3_iszero(nl) ? p : scene_offset(c->s, p, nl, d), d};
     /* specular: a specular bounce so far; scattered: a diffuse bounce or a scattering event;
      * in_medium_scatter: a scattering event so far. med -2: not known until the first hit. */
     int med = -2, specular = 0, scattered = 0, vscattered = 0, crossings = 0, spec_mat = -1;
@@ -134,7 +134,7 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
         if (m->kind == MAT_NULL) {
             if (++crossings > 4 * max_depth + 1024) return;
             med = scene_medium_after(s, &h, r.d);
-            r.o = v3_offset(h.p, h.ng, r.d);
+            r.o = scene_offset(c->s, h.p, h.ng, r.d);
             continue;
         }
         vec3 wo = v3_neg(r.d);
@@ -165,7 +165,7 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
         }
         if (!survive(&power, bs.weight, &g)) return;
         med = scene_medium_after(s, &h, bs.wi);
-        r.o = v3_offset(h.p, h.ng, bs.wi);
+        r.o = scene_offset(c->s, h.p, h.ng, bs.wi);
         r.d = bs.wi;
         depth++;
     }
