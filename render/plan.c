@@ -255,7 +255,8 @@ static void plan_media(const scene *s, render_plan *p) {
     char buf[300];
     int scatters = 0, nspec = 0;
     for (int m = 0; m < s->nmedia; m++) scatters += v3_maxc(s->media[m].sigma_s) > 0;
-    for (int i = 0; i < prim_count(s); i++) nspec += material_is_specular(prim_mat(s, i));
+    for (int i = 0; i < prim_count(s); i++) /* a null surface is no specular one */
+        nspec += prim_mat(s, i)->kind != MAT_NULL && material_is_specular(prim_mat(s, i));
     unsigned long long ev[VOL_PILOT_MEDIA] = {0}, total = 0, direct = 0;
     for (int m = 0; m < VOL_PILOT_MEDIA; m++) {
         for (int k = 0; k < 4; k++) ev[m] += pg.events[m][k];
