@@ -29,11 +29,23 @@ static vec3 v3f(const float f[3]) { return v3(f[0], f[1], f[2]); }
 
 double side_free_height(const scene *s, vec3 p, vec3 np, double cap) {
     if (!(cap > 0)) return 0;
-    ray r = {scene_offset(s, p, np, np), np};
+    ray r = {v3_offset(p, np, np), np};
     hit h;
     if (!isfinite(cap)) cap = 1e300;
     if (!scene_intersect(s, r, cap, &h)) return cap;
     return h.t;
+}
+
+void side_free_heights(const scene *s, const pm_photon *ph, size_t n, float max_dist2, float *h) {
+    double cap = 0.25 * sqrt((double)max_dist2);
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 256)
+#endif
+    for (size_t i = 0; i < n; i++) {
+        float nf[3];
+        pm_normal_decode(ph[i].normal, nf);
+        h[i] = (float)side_free_height(s, v3f(ph[i].pos), v3f(nf), cap);
+    }
 }
 
 int side_visible_h(const scene *s, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq) {
@@ -64,7 +76,7 @@ int side_visible(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq) {
  * would run into the surface itself within a few of its free heights. */
 static double visible_disc_fraction(const scene *s, vec3 p, vec3 n, double r) {
     if (!(r > 0) || !isfinite(r)) return 1.0;
-    double scale = s->offset_floor + v3_maxabs(p), delta = 1e-5 * scale;
+    double scale = 1.0 + v3_maxabs(p), delta = 1e-5 * scale;
     ray down = {v3_madd(p, n, delta), v3_neg(n)};
     hit h;
     vec3 base = p, ng = n;
@@ -133,15 +145,7 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
         free(which);
         goto nomem;
     }
-    double cap = 0.25 * sqrt((double)max_dist2);
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 256)
-#endif
-    for (size_t i = 0; i < n; i++) {
-        float nf[3];
-        pm_normal_decode(ph[i].normal, nf);
-        hfree[i] = (float)side_free_height(s, v3f(ph[i].pos), v3f(nf), cap);
-    }
+    side_free_heights(s, ph, n, max_dist2, hfree);
     unsigned long long rays1 = n, rays2 = 0;
     size_t again = 0;
     int fail = 0;
