@@ -1,0 +1,247 @@
+/* test_render_media_proof.c: the shipped media scenes against oracles that do not share the
+ * renderer's code.
+ *
+ * 1. The volumetric caustic (data/scenes/volumetric_caustic.json). A path-traced reference is
+ *    hopeless there (seen from the fog, the lamp lies behind glass), so the energy is checked
+ *    instead: the power that the focused beam deposits by first scattering in two boxes of
+ *    fog along the beam (one before the focus, one after it), against a brute-force integral
+ *    written here from the scene's numbers: lamp points and cosine-weighted directions, the
+ *    black tube around the lamp, Beer's law in the fog, the glass sphere intersected and
+ *    refracted exactly with unpolarized Fresnel weights (every reflected and refracted branch
+ *    followed to 8 internal bounces), and, for each ray leaving the glass, the expected power
+ *    of its first scattering event inside each box, Phi (sigma_s / sigma_t) (e^{-sigma_t t0} -
+ *    e^{-sigma_t t1}) for the part [t0, t1] of the ray in the box. The photon tracer's answer
+ *    is the sum of the powers of its volume-caustic photons (kind CAUSTIC: the first
+ *    scattering event after specular bounces only) in each box.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "test.h"
+#include "../render/scene.h"
+#include "../render/volume.h"
+
+/* ---- 1. the volumetric caustic --------------------------------------------------------------- */
+
+/* The scene's numbers (checked against the loaded scene in the test). */
+#define VC_LAMP_Y 1.95   /* lamp: the square |x-1|, |z-1| <= VC_LAMP_H at this height, facing -y */
+#define VC_LAMP_H 0.05
+#define VC_LE 1000.0     /* its radiance */
+#define VC_TUBE_Y0 1.65  /* the black tube: |x-1|, |z-1| <= VC_TUBE_H from here up to the lamp */
+#define VC_TUBE_H 0.06
+#define VC_SC_Y 1.2      /* glass sphere: centre (1, VC_SC_Y, 1), radius VC_SR, index VC_IOR */
+#define VC_SR 0.25
+#define VC_IOR 1.5
+#define VC_SIGMA_S 0.3   /* the fog (grey) */
+#define VC_SIGMA_A 0.02
+
+typedef struct vc_box {
+    double lo[3], hi[3];
+} vc_box;
+
+/* Two boxes on the beam: before the focus (about 0.45 above the floor) and after it. */
+static const vc_box vc_boxes[2] = {{{0.9, 0.5, 0.9}, {1.1, 0.85, 1.1}}, {{0.85, 0.08, 0.85}, {1.15, 0.38, 1.15}}};
+
+/* Unpolarized Fresnel reflectance from index n1 into n2 at incidence cosine ci (> 0); 1 under
+ * total internal reflection. */
+static double fresnel(double n1, double n2, double ci) {
+    double s2 = (n1 / n2) * (n1 / n2) * (1 - ci * ci);
+    if (s2 >= 1) return 1;
+    double ct = sqrt(1 - s2);
+    double rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct), rp = (n1 * ct - n2 * ci) / (n1 * ct + n2 * ci);
+    return 0.5 * (rs * rs + rp * rp);
+}
+
+/* The part [t0, t1] of the ray o + t d (t > 0) inside box b; 0 if none. */
+static int slab(const vc_box *b, const double o[3], const double d[3], double *t0, double *t1) {
+    double lo = 0, hi = INFINITY;
+    for (int k = 0; k < 3; k++) {
+        if (d[k] == 0) {
+            if (o[k] < b->lo[k] || o[k] > b->hi[k]) return 0;
+            continue;
+        }
+        double a = (b->lo[k] - o[k]) / d[k], c = (b->hi[k] - o[k]) / d[k];
+        if (a > c) {
+            double x = a;
+            a = c;
+            c = x;
+        }
+        lo = fmax(lo, a);
+        hi = fmin(hi, c);
+    }
+    *t0 = lo;
+    *t1 = hi;
+    return hi > lo;
+}
+
+/* Second (far) hit of the ray o + t d with the sphere when o is on or inside it, or the
+ * first hit from outside (0 when the ray misses). */
+static int sphere_hit(const double o[3], const double d[3], int inside, double *t) {
+    double oc[3] = {o[0] - 1, o[1] - VC_SC_Y, o[2] - 1};
+    double b = oc[0] * d[0] + oc[1] * d[1] + oc[2] * d[2];
+    double c = oc[0] * oc[0] + oc[1] * oc[1] + oc[2] * oc[2] - VC_SR * VC_SR;
+    double disc = b * b - c;
+    if (disc <= 0) return 0;
+    double q = sqrt(disc);
+    *t = inside ? -b + q : -b - q;
+    return *t > 1e-9;
+}
+
+/* Follow a ray that has just met the sphere at p (outside, direction d, power w), every branch
+ * weighted by Fresnel, and add each box's expected first-scattering power of every ray that
+ * leaves the glass. */
+static void vc_glass(const double p[3], const double d[3], double w, double acc[2]) {
+    double pos[3] = {p[0], p[1], p[2]}, dir[3] = {d[0], d[1], d[2]};
+    double n[3] = {(p[0] - 1) / VC_SR, (p[1] - VC_SC_Y) / VC_SR, (p[2] - 1) / VC_SR};
+    double ci = -(dir[0] * n[0] + dir[1] * n[1] + dir[2] * n[2]);
+    double R = fresnel(1, VC_IOR, ci);
+    /* the reflected branch leaves at once */
+    double rd[3];
+    for (int k = 0; k < 3; k++) rd[k] = dir[k] + 2 * ci * n[k];
+    for (int b = 0; b < 2; b++) {
+        double t0, t1;
+        if (slab(&vc_boxes[b], pos, rd, &t0, &t1))
+            acc[b] += w * R * VC_SIGMA_S / (VC_SIGMA_S + VC_SIGMA_A) *
+                      (exp(-(VC_SIGMA_S + VC_SIGMA_A) * t0) - exp(-(VC_SIGMA_S + VC_SIGMA_A) * t1));
+    }
+    /* the refracted branch, then internal bounces */
+    double eta = 1 / VC_IOR, ct = sqrt(1 - eta * eta * (1 - ci * ci));
+    for (int k = 0; k < 3; k++) dir[k] = eta * dir[k] + (eta * ci - ct) * n[k];
+    w *= 1 - R;
+    for (int bounce = 0; bounce < 8 && w > 0; bounce++) {
+        double t;
+        if (!sphere_hit(pos, dir, 1, &t)) return;
+        for (int k = 0; k < 3; k++) pos[k] += t * dir[k];
+        for (int k = 0; k < 3; k++) n[k] = (pos[k] - (k == 1 ? VC_SC_Y : 1)) / VC_SR;
+        double c = dir[0] * n[0] + dir[1] * n[1] + dir[2] * n[2]; /* > 0: leaving */
+        double Ri = fresnel(VC_IOR, 1, c);
+        if (Ri < 1) {
+            double e2 = VC_IOR, ctt = sqrt(1 - e2 * e2 * (1 - c * c)), od[3];
+            for (int k = 0; k < 3; k++) od[k] = e2 * dir[k] + (ctt - e2 * c) * n[k];
+            for (int b = 0; b < 2; b++) {
+                double t0, t1;
+                if (slab(&vc_boxes[b], pos, od, &t0, &t1))
+                    acc[b] += w * (1 - Ri) * VC_SIGMA_S / (VC_SIGMA_S + VC_SIGMA_A) *
+                              (exp(-(VC_SIGMA_S + VC_SIGMA_A) * t0) - exp(-(VC_SIGMA_S + VC_SIGMA_A) * t1));
+        }
+        }
+        for (int k = 0; k < 3; k++) dir[k] -= 2 * c * n[k];
+        w *= Ri;
+    }
+}
+
+/* A small generator of its own (splitmix64), so the oracle shares nothing with render/. */
+static double vc_rand(uint64_t *s) {
+    uint64_t z = (*s += 0x9e3779b97f4a7c15ULL);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+    z ^= z >> 31;
+    return (double)(z >> 11) * 0x1.0p-53;
+}
+
+/* The brute-force integral: n stratified rays (lamp point and direction), the power of each
+ * box and its standard error. */
+static void vc_oracle(long n_side, double mean[2], double se[2]) {
+    double phi = VC_LE * M_PI * (2 * VC_LAMP_H) * (2 * VC_LAMP_H), st = VC_SIGMA_S + VC_SIGMA_A;
+    double s1[2] = {0, 0}, s2[2] = {0, 0};
+    long n = n_side * n_side;
+    uint64_t seed = 12345;
+    for (long i = 0; i < n; i++) {
+        /* strata over the direction (the sharp part: tube and sphere), the point at random */
+        double u1 = ((double)(i / n_side) + vc_rand(&seed)) / (double)n_side;
+        double u2 = ((double)(i % n_side) + vc_rand(&seed)) / (double)n_side;
+        double o[3] = {1 - VC_LAMP_H + 2 * VC_LAMP_H * vc_rand(&seed), VC_LAMP_Y,
+                       1 - VC_LAMP_H + 2 * VC_LAMP_H * vc_rand(&seed)};
+        double r = sqrt(u1), a = 2 * M_PI * u2;
+        double d[3] = {r * cos(a), -sqrt(fmax(0, 1 - u1)), r * sin(a)};
+        double acc[2] = {0, 0};
+        double tb = (VC_LAMP_Y - VC_TUBE_Y0) / -d[1];
+        double xb = o[0] + tb * d[0], zb = o[2] + tb * d[2];
+        double t;
+        if (fabs(xb - 1) <= VC_TUBE_H && fabs(zb - 1) <= VC_TUBE_H && sphere_hit(o, d, 0, &t)) {
+            double p[3] = {o[0] + t * d[0], o[1] + t * d[1], o[2] + t * d[2]};
+            vc_glass(p, d, phi * exp(-st * t), acc);
+        }
+        for (int b = 0; b < 2; b++) {
+            s1[b] += acc[b];
+            s2[b] += acc[b] * acc[b];
+        }
+    }
+    for (int b = 0; b < 2; b++) {
+        mean[b] = s1[b] / (double)n;
+        se[b] = sqrt(fmax(0, s2[b] / (double)n - mean[b] * mean[b]) / (double)n);
+    }
+}
+
+static int in_box(const vc_box *b, const float p[3]) {
+    for (int k = 0; k < 3; k++)
+        if (p[k] < b->lo[k] || p[k] > b->hi[k]) return 0;
+    return 1;
+}
+
+/* Oracle: the brute-force integral above. vol_trace's volume-caustic photons in each box must
+ * sum to its power within 4 combined standard errors plus 0.5% (the RGBE photon power rounds
+ * each photon by up to 0.4%). Each path stores at most one CAUSTIC photon, so the photon sum's
+ * variance is sum p_i^2 - (sum p_i)^2 / N, exactly. The scene's numbers used by the oracle
+ * are checked against the loaded scene first. */
+TEST(media_volumetric_caustic_energy) {
+    char path[2048];
+    snprintf(path, sizeof path, "%s/data/scenes/volumetric_caustic.json", pm_test_source_dir());
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load(&s, path, &e) == 0, "%s", e.msg);
+    /* the oracle's constants are the scene's */
+    ASSERT_EQ_INT(s.nspheres, 1);
+    EXPECT_NEAR(s.spheres[0].r, VC_SR, 1e-12);
+    EXPECT_NEAR(s.spheres[0].c.y, VC_SC_Y, 1e-12);
+    EXPECT_NEAR(s.mats[s.spheres[0].mat].ior, VC_IOR, 1e-12);
+    ASSERT_EQ_INT(s.nmedia, 1);
+    EXPECT_NEAR(s.media[0].sigma_s.y, VC_SIGMA_S, 1e-12);
+    EXPECT_NEAR(s.media[0].sigma_a.y, VC_SIGMA_A, 1e-12);
+    double phi = 0;
+    for (int i = 0; i < s.nlights; i++) phi += s.lights[i].power.y;
+    EXPECT_NEAR(phi, VC_LE * M_PI * 4 * VC_LAMP_H * VC_LAMP_H, 1e-9);
+    if (pm_test_failed()) {
+        scene_free(&s);
+        return;
+    }
+
+    double om[2], ose[2];
+    vc_oracle(PM_TEST_SANITIZED ? 600 : 2000, om, ose);
+
+    uint64_t n = PM_TEST_SANITIZED ? 500000 : 4000000;
+    vol_photons vp;
+    ASSERT_EQ_INT(vol_trace(&s, n, 21, 100, &vp), 0);
+    double sum[2] = {0, 0}, sq[2] = {0, 0};
+    long cnt[2] = {0, 0}, other = 0;
+    for (size_t i = 0; i < vp.count; i++) {
+        const pm_photon *p = &vp.photons[i];
+        float pw[3];
+        pm_rgbe_decode(p->power, pw);
+        for (int b = 0; b < 2; b++) {
+            if (!in_box(&vc_boxes[b], p->pos)) continue;
+            if (pm_photon_kind(p) != PM_KIND_CAUSTIC) {
+                other++;
+                continue;
+            }
+            sum[b] += pw[1];
+            sq[b] += (double)pw[1] * pw[1];
+            cnt[b]++;
+        }
+    }
+    free(vp.photons);
+    scene_free(&s);
+    for (int b = 0; b < 2; b++) {
+        double se = sqrt(fmax(0, sq[b] - sum[b] * sum[b] / (double)n));
+        double tol = 4 * sqrt(se * se + ose[b] * ose[b]) + 0.005 * om[b];
+        printf("    box %d (%s the focus): oracle %.5g W (+-%.2f%%), photons %.5g W (%ld photons, +-%.2f%%): %+.2f%%, "
+               "tolerance %.2f%%\n", b, b ? "after" : "before", om[b], 100 * ose[b] / om[b], sum[b], cnt[b],
+               100 * se / om[b], 100 * (sum[b] / om[b] - 1), 100 * tol / om[b]);
+        EXPECT_MSG(om[b] > 0 && cnt[b] > 1000, "box %d: oracle %g, %ld photons", b, om[b], cnt[b]);
+        EXPECT_MSG(fabs(sum[b] - om[b]) <= tol, "box %d: photons %g W against the integral %g W (%+.2f%%, tolerance %.2f%%)",
+                   b, sum[b], om[b], 100 * (sum[b] / om[b] - 1), 100 * tol / om[b]);
+    }
+    printf("    (%ld non-caustic photons in the boxes: multiple scattering, not counted)\n", other);
+}
