@@ -1,28 +1,60 @@
 #!/bin/sh
-# gen-import-md.sh: measure scene import and write docs/IMPORT.md from what was measured.
+# gen-import-md.sh: write docs/IMPORT.md from the scene-import measurements in docs/import/.
 #
-#   scripts/gen-import-md.sh [BUILD_DIR]      (default build/release; needs BUILD_DIR/render)
+#   scripts/gen-import-md.sh [--out FILE] [RESULTS_DIR]
+#   scripts/gen-import-md.sh --run BUILD_DIR
 #
-# Everything in docs/IMPORT.md comes from this run: the renders and comparisons of the import
-# proofs at 64x64 (the tests run the same comparisons at 32x32), and the time to load a
-# 1M-triangle OBJ and build its BVH (three runs; wall-clock from render's statistics, CPU time
-# from /usr/bin/time, and the machine's load average, since the machine may be shared).
-# Work files go to a temporary directory that is removed at the end. Takes 10-20 minutes.
+# RESULTS_DIR (default docs/import) holds what a measurement found: comparisons.csv (section,
+# region, series, rel_mean_pct, pixels: the relative difference of mean radiance of two renders
+# over the pixels of a region, empty with 0 pixels when the region is not in view), load.csv
+# (the medians of three loads of a 1M-triangle OBJ) and measurement.txt (commit, date, build
+# directory, load average and CPUs of the run). Every figure and stamp in the document comes
+# from those files, never from the checkout or the clock at generation time, so the same files
+# always give the same document (tests/test_docs.c regenerates it from the committed files and
+# compares). --out FILE writes FILE instead of docs/IMPORT.md (- for standard output).
+#
+# --run BUILD_DIR measures first, with BUILD_DIR/render, into docs/import: the renders and
+# comparisons of the import proofs at 64x64 (the tests run the same comparisons at 32x32), and
+# the time to load a 1M-triangle OBJ and build its BVH (three runs; wall-clock from render's
+# statistics, CPU time from /usr/bin/time, and the machine's load average, since the machine
+# may be shared). Work files go to a temporary directory that is removed at the end. Takes
+# 10-20 minutes.
 set -eu
-BUILD=${1:-build/release}
+here=$(cd "$(dirname "$0")/.." && pwd)
+doc="$here/docs/IMPORT.md"
+res="$here/docs/import"
+run=""
+while [ $# -gt 0 ]; do
+  case "$1" in
+    -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
+    --out) [ $# -ge 2 ] || { echo "gen-import-md: --out needs a file" >&2; exit 2; }
+           doc=$2; shift 2 ;;
+    --run) [ $# -ge 2 ] || { echo "gen-import-md: --run needs a build directory" >&2; exit 2; }
+           run=$2; shift 2 ;;
+    -*) echo "gen-import-md: unknown option '$1' (see --help)" >&2; exit 2 ;;
+    *) res=$1; shift ;;
+  esac
+done
+
+if [ -n "$run" ]; then
+BUILD=$run
 R="$BUILD/render"
-[ -x "$R" ] || { echo "gen-import-md.sh: $R not found (make BUILD=$BUILD render)" >&2; exit 2; }
+[ -x "$R" ] || { echo "gen-import-md: $R not found (make BUILD=$BUILD render)" >&2; exit 2; }
 T=$(mktemp -d)
 trap 'rm -rf "$T"' EXIT
-OUT=docs/IMPORT.md
-S=data/scenes
+S="$here/data/scenes"
 SIZE="--width 64 --height 64 --quiet"
+cd "$here"
 
-# rel_mean of A against B, optionally over a mask id and a rectangle, in percent
-# ("no pixel" when the region is not in view)
-relmean() {
-    "$R" --compare "$@" 2>/dev/null | awk '$1 == "rel_mean" { r = sprintf("%+.2f%%", 100 * $2) } $1 == "pixels" { n = $2 }
-                                           END { if (r == "") print "no pixel"; else printf "%s (%d px)", r, n }'
+# One row of comparisons.csv: section, region, series, then rel_mean of A against B (percent)
+# and the pixel count, optionally over a mask id and a rectangle (empty and 0 when the region
+# is not in view).
+row() {
+    sec=$1 reg=$2 ser=$3
+    shift 3
+    "$R" --compare "$@" 2>/dev/null | awk -v s="$sec" -v r="$reg" -v t="$ser" '
+        $1 == "rel_mean" { m = sprintf("%.6f", 100 * $2) } $1 == "pixels" { n = $2 }
+        END { if (m == "") { m = ""; n = 0 } printf "%s,%s,%s,%s,%d\n", s, r, t, m, n }' >> "$T/comparisons.csv"
 }
 
 echo "rendering the Cornell boxes..." >&2
@@ -57,6 +89,27 @@ echo "rendering the water caustic..." >&2
 "$R" $S/water_caustic.json $SIZE --mode pm --spp 256 --seed 9 --hdr "$T/w_pm.pfm" >/dev/null
 "$R" $S/water_caustic.json $SIZE --mode objects --spp 16 --hdr "$T/ids_w.pfm" >/dev/null
 
+echo "section,region,series,rel_mean_pct,pixels" > "$T/comparisons.csv"
+row tungsten image path "$T/ct_path.pfm" "$T/cr_path.pfm"
+row tungsten image pm "$T/ct_pm.pfm" "$T/cr_pm.pfm"
+for id in 1 2 3 4 5 7 8; do
+    case $id in 1) n=floor;; 2) n=ceiling;; 3) n="back wall";; 4) n="red wall";; 5) n="green wall";;
+                7) n="short block";; 8) n="tall block";; esac
+    row tungsten "$n" path "$T/ct_path.pfm" "$T/cr_path.pfm" --mask "$T/ids_c.pfm" --id $id
+    row tungsten "$n" pm "$T/ct_pm.pfm" "$T/cr_pm.pfm" --mask "$T/ids_c.pfm" --id $id
+done
+row sphere image obj "$T/mesh.pfm" "$T/analytic.pfm"
+for id in 1 2 3 4 6; do
+    case $id in 1) n=floor;; 2) n="back wall";; 3) n="red wall";; 4) n=ceiling;; 6) n=sphere;; esac
+    row sphere "$n" obj "$T/mesh.pfm" "$T/analytic.pfm" --mask "$T/ids_s.pfm" --id $id
+done
+row water image pm "$T/w_pm.pfm" "$T/w_path.pfm"
+for id in 1 2 3 4 5 7; do
+    case $id in 1) n=floor;; 2) n=ceiling;; 3) n="back wall";; 4) n="red wall";; 5) n="blue wall";; 7) n=water;; esac
+    row water "$n" pm "$T/w_pm.pfm" "$T/w_path.pfm" --mask "$T/ids_w.pfm" --id $id
+done
+row water "caustic (floor below the slab)" pm "$T/w_pm.pfm" "$T/w_path.pfm" --mask "$T/ids_w.pfm" --id 1 --rect 20 36 24 16
+
 echo "timing a 1M-triangle OBJ..." >&2
 sh scripts/gen-mesh.sh sphere 1002 500 100 278 150 300 > "$T/big.obj"
 sed 's|OBJECT|{"type": "mesh", "file": "big.obj", "smooth": true, "material": "w"}|' "$T/sphere_scene.in" > "$T/big.json"
@@ -79,15 +132,46 @@ MLC=$(cut -d' ' -f4 "$T/times.txt" | med)
 BVHC=$(cut -d' ' -f5 "$T/times.txt" | med)
 CPU=$(cut -d' ' -f6 "$T/times.txt" | med)
 BYTES=$(wc -c < "$T/big.obj")
+mkdir -p "$res"
+cp "$T/comparisons.csv" "$res/comparisons.csv"
+{
+    echo "triangles,obj_bytes,mesh_loading_cpu_s,bvh_build_cpu_s,process_cpu_s,mesh_loading_wall_s,bvh_build_wall_s"
+    echo "$NTRI,$BYTES,$MLC,$BVHC,$CPU,$ML,$BVH"
+} > "$res/load.csv"
+{
+    echo "commit $(git -C "$here" rev-parse --short HEAD 2>/dev/null || echo unknown)$(git -C "$here" diff --quiet HEAD -- render 2>/dev/null || echo ' (with uncommitted changes to render/)')"
+    echo "date $(date -u '+%Y-%m-%d %H:%M UTC')"
+    echo "build $BUILD"
+    echo "load $LOAD"
+    echo "cpus $NCPU"
+} > "$res/measurement.txt"
+fi
 
+for f in comparisons.csv load.csv measurement.txt; do
+  [ -f "$res/$f" ] || { echo "gen-import-md: $res/$f missing: run scripts/gen-import-md.sh --run BUILD_DIR" >&2; exit 2; }
+done
+m() { awk -v k="$1" '$1 == k { sub(/^[^ ]+ /, ""); print; exit }' "$res/measurement.txt"; }
+C="$res/comparisons.csv"
+# The cell of section $1, region $2, series $3: "+0.12% (302 px)", or "no pixel".
+cell() {
+  awk -F, -v s="$1" -v r="$2" -v t="$3" '
+    $1 == s && $2 == r && $3 == t { found = 1; if ($5 + 0 == 0) print "no pixel"; else printf "%+.2f%% (%d px)\n", $4, $5 }
+    END { if (!found) print "–" }' "$C"
+}
+# The regions of section $1 in file order, one per line.
+regions() { awk -F, -v s="$1" 'NR > 1 && $1 == s && !seen[$2]++ { print $2 }' "$C"; }
+load() { awk -F, -v k="$1" 'NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next } NR == 2 { print $col[k] }' "$res/load.csv"; }
+
+out=$doc
+[ "$doc" = - ] || out="$doc.tmp"
 {
 echo "# Scene import: measurements"
 echo
-echo "Generated by \`scripts/gen-import-md.sh $BUILD\` on $(date -u '+%Y-%m-%d %H:%M UTC') at $(git rev-parse --short HEAD 2>/dev/null || echo '?');"
-echo "do not edit by hand. The tests in \`tests/test_render_import.c\` check the same comparisons"
-echo "at 32x32 with fewer samples; here they run at 64x64. A figure is the relative difference"
-echo "of mean radiance, first image against the second (the reference), over the pixels that see"
-echo "the object (from \`render --mode objects\`)."
+echo "Measured by \`scripts/gen-import-md.sh --run $(m build)\` on $(m date) at $(m commit);"
+echo "generated from \`docs/import/\` by \`scripts/gen-import-md.sh\`: do not edit by hand. The tests"
+echo "in \`tests/test_render_import.c\` check the same comparisons at 32x32 with fewer samples; here"
+echo "they run at 64x64. A figure is the relative difference of mean radiance, first image against"
+echo "the second (the reference), over the pixels that see the object (from \`render --mode objects\`)."
 echo
 echo "## The Tungsten Cornell box against the same box in our format"
 echo
@@ -96,11 +180,8 @@ echo "(written by hand), different seeds, so the differences are the two renders
 echo
 echo "| region | path tracing, 1024 spp | photon mapping, 256 spp |"
 echo "|---|---|---|"
-echo "| image | $(relmean "$T/ct_path.pfm" "$T/cr_path.pfm") | $(relmean "$T/ct_pm.pfm" "$T/cr_pm.pfm") |"
-for id in 1 2 3 4 5 7 8; do
-    case $id in 1) n=floor;; 2) n=ceiling;; 3) n="back wall";; 4) n="red wall";; 5) n="green wall";;
-                7) n="short block";; 8) n="tall block";; esac
-    echo "| $n | $(relmean "$T/ct_path.pfm" "$T/cr_path.pfm" --mask "$T/ids_c.pfm" --id $id) | $(relmean "$T/ct_pm.pfm" "$T/cr_pm.pfm" --mask "$T/ids_c.pfm" --id $id) |"
+regions tungsten | while IFS= read -r n; do
+    echo "| $n | $(cell tungsten "$n" path) | $(cell tungsten "$n" pm) |"
 done
 echo
 echo "## A tessellated OBJ sphere against the analytic sphere"
@@ -110,11 +191,7 @@ echo "sphere of the same radius; path tracing, 1024 spp, different seeds."
 echo
 echo "| region | OBJ against analytic |"
 echo "|---|---|"
-echo "| image | $(relmean "$T/mesh.pfm" "$T/analytic.pfm") |"
-for id in 1 2 3 4 6; do
-    case $id in 1) n=floor;; 2) n="back wall";; 3) n="red wall";; 4) n=ceiling;; 6) n=sphere;; esac
-    echo "| $n | $(relmean "$T/mesh.pfm" "$T/analytic.pfm" --mask "$T/ids_s.pfm" --id $id) |"
-done
+regions sphere | while IFS= read -r n; do echo "| $n | $(cell sphere "$n" obj) |"; done
 echo
 echo "## Water caustic: photon mapping against path tracing"
 echo
@@ -125,27 +202,24 @@ echo "of the floor's pixels)."
 echo
 echo "| region | pm against path |"
 echo "|---|---|"
-echo "| image | $(relmean "$T/w_pm.pfm" "$T/w_path.pfm") |"
-for id in 1 2 3 4 5 7; do
-    case $id in 1) n=floor;; 2) n=ceiling;; 3) n="back wall";; 4) n="red wall";; 5) n="blue wall";; 7) n=water;; esac
-    echo "| $n | $(relmean "$T/w_pm.pfm" "$T/w_path.pfm" --mask "$T/ids_w.pfm" --id $id) |"
-done
-echo "| caustic (floor below the slab) | $(relmean "$T/w_pm.pfm" "$T/w_path.pfm" --mask "$T/ids_w.pfm" --id 1 --rect 20 36 24 16) |"
+regions water | while IFS= read -r n; do echo "| $n | $(cell water "$n" pm) |"; done
 echo
 echo "## Loading 1M triangles"
 echo
-echo "A scene of $NTRI triangles, all but 10 of them a UV sphere OBJ ($BYTES bytes, with a"
+echo "A scene of $(load triangles) triangles, all but 10 of them a UV sphere OBJ ($(load obj_bytes) bytes, with a"
 echo "normal per vertex, smooth), loaded by \`render\` (one thread) three times; medians. The times"
 echo "are render's statistics: \`Time/Mesh loading\` (reading and parsing the file, transforming it,"
 echo "making its smooth normals) and \`Time/BVH build\`, each as wall-clock and as CPU time; and the"
 echo "whole process's CPU time (user + system, with scene setup and an 8x8 1-spp render), from"
-echo "/usr/bin/time. Load average during the runs: $LOAD on $NCPU CPUs; on a busy machine the"
+echo "/usr/bin/time. Load average during the runs: $(m load) on $(m cpus) CPUs; on a busy machine the"
 echo "wall clock runs ahead of the CPU time, which is the figure to compare."
 echo
 echo "| | mesh loading | BVH build | whole process |"
 echo "|---|---|---|---|"
-echo "| CPU time | $MLC s | $BVHC s | $CPU s |"
-echo "| wall clock | $ML s | $BVH s | |"
-} > "$OUT.tmp"
-mv "$OUT.tmp" "$OUT"
-echo "wrote $OUT" >&2
+echo "| CPU time | $(load mesh_loading_cpu_s) s | $(load bvh_build_cpu_s) s | $(load process_cpu_s) s |"
+echo "| wall clock | $(load mesh_loading_wall_s) s | $(load bvh_build_wall_s) s | |"
+} > "$out"
+if [ "$doc" != - ]; then
+  mv "$out" "$doc"
+  echo "wrote $doc" >&2
+fi

@@ -7,9 +7,8 @@
  * something other than its files (the clock, the checkout's commit, the machine) shows up.
  * Oracle: the committed document itself, byte for byte.
  *
- * docs/MPI.md is checked the same way in tests/test_mpi.c. docs/IMPORT.md is not here: its
- * generator (scripts/gen-import-md.sh) measures by rendering, it keeps no results files to
- * regenerate from.
+ * docs/MPI.md is checked the same way in tests/test_mpi.c. docs/IMPORT.md is formatted from
+ * docs/import/ (scripts/gen-import-md.sh, whose --run renders and measures into that folder).
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -46,6 +45,36 @@ TEST(docs_benchmarks_md_regenerates_exactly) {
     snprintf(cmd, sizeof cmd, "cd '%s' && sh scripts/gen-benchmarks-md.sh bench/results bench > '%s'",
              pm_test_source_dir(), got);
     expect_regenerates(cmd, got, "docs/BENCHMARKS.md");
+}
+
+/* docs/IMPORT.md from docs/import/ (scripts/gen-import-md.sh, formatting only). */
+TEST(docs_import_md_regenerates_exactly) {
+    char cmd[4096], got[2048];
+    snprintf(got, sizeof got, "%s/IMPORT.md", pm_test_tmpdir());
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-import-md.sh' --out '%s'", pm_test_source_dir(), got);
+    expect_regenerates(cmd, got, "docs/IMPORT.md");
+}
+
+/* Oracle: the script's documented usage. --help prints it and writes nothing (run in an empty
+ * directory, which stays empty, and docs/IMPORT.md regenerates as before: checked above); an
+ * unknown option and a missing results folder exit 2 with a message naming the problem. */
+TEST(docs_import_generator_help_and_errors) {
+    char cmd[4096], out[8192];
+    snprintf(cmd, sizeof cmd, "cd '%s' && sh '%s/scripts/gen-import-md.sh' --help", pm_test_tmpdir(),
+             pm_test_source_dir());
+    EXPECT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "gen-import-md.sh [--out FILE] [RESULTS_DIR]") && strstr(out, "--run BUILD_DIR"),
+               "--help printed: %s", out);
+    snprintf(cmd, sizeof cmd, "ls -A '%s' | wc -l", pm_test_tmpdir());
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strtol(out, NULL, 10) == 0, "--help left files: %s", out);
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-import-md.sh' --bogus", pm_test_source_dir());
+    EXPECT_EQ_INT(pm_test_run(cmd, out, sizeof out), 2);
+    EXPECT_MSG(strstr(out, "--bogus") != NULL, "%s", out);
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-import-md.sh' --out '%s/x.md' '%s/none'", pm_test_source_dir(),
+             pm_test_tmpdir(), pm_test_tmpdir());
+    EXPECT_EQ_INT(pm_test_run(cmd, out, sizeof out), 2);
+    EXPECT_MSG(strstr(out, "comparisons.csv missing") != NULL, "%s", out);
 }
 
 /* docs/ACCURACY.md from docs/accuracy/ (scripts/gen-accuracy-md.sh). */
