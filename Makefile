@@ -6,14 +6,13 @@
 #                        and shared library), run the whole test suite
 #                        (last line: N passed, N failed, N skipped)
 #   make check           the quick tests only, for the edit-test loop (under 20 s on an idle
-#                        machine): it leaves out the tests that took more than 0.5 CPU-second or
+#                        machine): it leaves out the tests that took more than 1 CPU-second or
 #                        3 s in the last `make test` (BUILD/test-times.txt) and those in
 #                        CHECK_SKIP (slow renders, the quick benchmark, the staged install)
 #   make run             render the default Cornell box to out/
 #   make bench           run the full benchmarks, write bench/results/*.csv, plots and docs
 #   make bench-quick     a small benchmark subset (also run by the test suite)
-#   make results         path-traced references (if missing, ~45 min) and docs/RESULTS.md (~20 min;
-#                        its media section from the committed data/reference-media/, ~3 min)
+#   make results         path-traced references (if missing, ~45 min) and docs/RESULTS.md (~20 min)
 #   make deps            install the missing Debian packages (scripts/install-deps.sh)
 #   make install PREFIX=/usr/local DESTDIR=
 #                        headers, libphotonmap.a, libphotonmap.so.1, photonmap.pc, bin/render
@@ -219,7 +218,7 @@ test: all example
 	$(TEST_ENV) PM_BUILD_DIR=$(abspath $(BUILD)) PM_SOURCE_DIR=$(CURDIR) $(TEST_BIN) \
 	    --times $(BUILD)/test-times.txt $(TESTS)
 
-# `make check` leaves out the tests that took more than 0.5 CPU-second or 3 s in the last
+# `make check` leaves out the tests that took more than 1 CPU-second or 3 s in the last
 # recorded run (runner --quick), and always those that need the staged install or are known
 # to be slow (CHECK_SKIP: a pattern leaves out every test whose name or file contains it).
 CHECK_SKIP := bench_quick_run agrees_with_path_tracing matches_path example_ packaging_ docs_ \
@@ -285,7 +284,6 @@ results: $(RENDER_BIN)
 	@for s in cornell_spheres cornell_diffuse; do [ -f data/reference/$$s.pfm ] || \
 	    PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-reference.sh $$s || exit 1; done
 	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-results.sh
-	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/media-results.sh
 
 # ---- install -------------------------------------------------------------------------------
 # photonmap.pc: -lphotonmap in Libs; what a static link also needs (libm, the OpenMP runtime

@@ -28,6 +28,7 @@
 #include "scene.h"
 #include "stats.h"
 #include "tools.h"
+#include "delta_lit.h"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -331,6 +332,8 @@ int main(int argc, char **argv) {
         for (int i = 0; i < s.nmats; i++) any_emit |= material_is_emissive(&s.mats[i]);
         if (!any_emit) fprintf(stderr, "render: warning: the scene has no light; the image will be black\n");
     }
+    /* The path tracer cannot show caustics of point and directional lights: say where. */
+    if (strcmp(s.settings.mode, "path") == 0) delta_lit_warn(&s, scene_path, stderr);
 
     /* Checkpoints and resume (checkpoint.h): what must match, and where the photon maps are. */
     static ckpt_session cs;

@@ -24,6 +24,10 @@
 #     is subtracted from every run, and the path tracer's time for the error photon mapping
 #     reaches in 60 s follows from c and its measured time per sample.
 #
+#     A scene whose path-traced reference cannot show some light (specular objects that a
+#     point or directional light sees: `render --mode path` warns and names them, with the
+#     objects their caustics fall on) is refused before anything is measured; the two scenes
+#     here have area lights only.
 #  3. measurement.txt: the commit (with -dirty for uncommitted changes), the date at the end of
 #     the run, the machine, the settings and each reference's .info, so that
 #     scripts/gen-results-md.sh stamps the document with the measurement, not with the checkout
@@ -69,6 +73,19 @@ for name in cornell_spheres cornell_diffuse; do
     echo "make-results: no reference for $name: run scripts/make-reference.sh first" >&2; exit 2; }
   if [ "$(info $name scene_sha256)" != "$(sha256sum "$scene" | cut -d' ' -f1)" ]; then
     echo "make-results: $scene changed since its reference was rendered; run scripts/make-reference.sh $name" >&2
+    exit 2
+  fi
+  # A path-traced reference lacks the caustics of point and directional lights (light they
+  # send through specular surfaces onto diffuse ones; render/delta_lit.h). `render --mode
+  # path` names the specular objects such a light sees and the objects those caustics fall
+  # on; the regions below would include them, so such a scene is refused, not compared.
+  "$bin" "$scene" --mode path --width 8 --height 8 --spp 1 --quiet -o "$work/check.png" \
+      > /dev/null 2> "$work/check.err" || { cat "$work/check.err" >&2; exit 2; }
+  if grep -q "path tracing cannot render" "$work/check.err"; then
+    cat "$work/check.err" >&2
+    echo "make-results: $name: its path-traced reference lacks light that photon mapping renders" \
+         "(above); leave those objects out of its regions (render --compare --mask IDS.pfm --id N," \
+         "N the other objects) before comparing it" >&2
     exit 2
   fi
 done
