@@ -237,7 +237,7 @@ static const char *medium_name(const scene *s, int m) {
 }
 
 /* Every decision of a scene with media, from volume.h's pilot (the tracer of its maps). */
-static void plan_media(const scene *s, render_plan *p) {
+static void plan_media(const scene *s, const photon_settings *cfg, render_plan *p) {
     vol_pilot pg, pc;
     memset(&pg, 0, sizeof pg);
     memset(&pc, 0, sizeof pc);
@@ -250,6 +250,7 @@ static void plan_media(const scene *s, render_plan *p) {
     o.pilot = &pg;
     if (emitting_lights(s)) vol_trace_pass(s, &o, &(vol_pass_result){0});
     o.caustic_pass = 1;
+    o.projection_cells = cfg->projection ? cfg->projection_cells : 0; /* aimed, as the pass is */
     o.pilot = &pc;
     if (emitting_lights(s)) vol_trace_pass(s, &o, &(vol_pass_result){0});
     char buf[300];
@@ -292,15 +293,15 @@ static void plan_media(const scene *s, render_plan *p) {
         set(&p->volume_caustics, 0, "no specular surface%s", "");
     else if (vc == 0) {
         snprintf(buf, sizeof buf,
-                 "no specular surface sends light into a medium: 0 of %llu pilot photons scatter in a "
-                 "medium after specular bounces only",
+                 "no specular surface sends light into a medium: 0 of %llu pilot photons aimed at "
+                 "specular surfaces scatter in a medium after specular bounces only",
                  pc.emitted);
         set(&p->volume_caustics, 0, "%s", buf);
     } else {
         int tm = argmax(vcm, VOL_PILOT_MEDIA, 1), ts = argmax(pc.caustic_by_mat, VOL_PILOT_MATS, 1);
         snprintf(buf, sizeof buf,
-                 "\"%s\" sends light into a medium: %llu of %llu pilot photons scatter in \"%s\" after "
-                 "specular bounces only (L S+ V)",
+                 "\"%s\" sends light into a medium: %llu of %llu pilot photons aimed at specular "
+                 "surfaces scatter in \"%s\" after specular bounces only (L S+ V)",
                  ts >= 0 && ts < s->nmats && ts < VOL_PILOT_MATS - 1 ? s->mats[ts].name : "(others)", vc,
                  pc.emitted, medium_name(s, tm));
         set(&p->volume_caustics, 1, "%s", buf);
@@ -310,14 +311,14 @@ static void plan_media(const scene *s, render_plan *p) {
         set(&p->caustics, 0, "no specular surface%s", "");
     else if (pc.surf_caustic == 0) {
         snprintf(buf, sizeof buf,
-                 "no L S+ D path: 0 of %llu pilot photons reach a diffuse surface through specular "
-                 "surfaces only (through media, unaimed)",
+                 "no L S+ D path: 0 of %llu pilot photons aimed at specular surfaces reach a diffuse "
+                 "surface through specular surfaces only",
                  pc.emitted);
         set(&p->caustics, 0, "%s", buf);
     } else {
         snprintf(buf, sizeof buf,
-                 "L S+ D paths: %llu of %llu pilot photons reach a diffuse surface through specular "
-                 "surfaces only (through media, unaimed)",
+                 "L S+ D paths: %llu of %llu pilot photons aimed at specular surfaces reach a diffuse "
+                 "surface through them only",
                  pc.surf_caustic, pc.emitted);
         set(&p->caustics, 1, "%s", buf);
     }
@@ -347,7 +348,7 @@ static void force(plan_item *it, int f, const char *key) {
 void plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p) {
     memset(p, 0, sizeof *p);
     if (scene_has_media(s)) {
-        plan_media(s, p);
+        plan_media(s, c, p);
         force(&p->volume, c->force_volume, "volume");
         force(&p->volume_caustics, c->force_volume_caustics, "volume_caustics");
     } else {

@@ -18,6 +18,9 @@
 
 /* No segment is marched in more steps than this (a tiny step setting in a huge scene). */
 #define PMV_MAX_STEPS 4096
+/* The caustic pass's emission budget in a scene with media (pmv_trace). */
+#define PMV_CAUSTIC_EMIT_FACTOR 4.0
+#define PMV_CAUSTIC_EMIT_MIN 4194304.0
 
 int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
     memset(v, 0, sizeof *v);
@@ -113,10 +116,15 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
     if (p->caustics.on || p->volume_caustics.on) {
         vol_pass_opts o = {0};
         o.caustic_pass = 1;
+        o.projection_cells = c->projection ? c->projection_cells : 0;
         o.surface_target = p->caustics.on ? c->caustic_photons : 0;
         o.volume_target = p->volume_caustics.on ? c->volume_caustic_photons : 0;
         long tmax = o.surface_target > o.volume_target ? o.surface_target : o.volume_target;
         o.max_emitted = fmin(c->max_emitted, c->max_emitted_factor * (double)(tmax > 0 ? tmax : 1));
+        /* Light that reaches a wall through a smoke-filled glass is rare: do not let that map
+         * take more than PMV_CAUSTIC_EMIT_FACTOR times the global pass's photons (at least
+         * PMV_CAUSTIC_EMIT_MIN); it keeps what it stored, for the photons emitted. */
+        o.max_emitted = fmin(o.max_emitted, fmax(PMV_CAUSTIC_EMIT_MIN, PMV_CAUSTIC_EMIT_FACTOR * (double)g.emitted));
         o.max_depth = max_depth;
         o.seed = s->settings.seed;
         o.lo = v->lo;
@@ -171,9 +179,10 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
            (unsigned long long)m->caustic_emitted, v->n_all, (unsigned long long)g.volume_emitted,
            v->n_ms, sqrt((double)v->r2_ms), v->n_caus, (unsigned long long)k.volume_emitted,
            sqrt((double)v->r2_caus));
-    if (g.volume_short || k.volume_short)
-        fprintf(stderr, "render: a volume photon map stopped short of its target (the emission "
-                        "budget, photon_mapping.max_emitted_factor, ran out)\n");
+    if (g.volume_short || k.volume_short || g.surface_short || k.surface_short)
+        fprintf(stderr, "render: photon maps stopped short of their targets (global %d, caustic %d, "
+                        "volume %d, volume caustic %d: the emission budget ran out, see pm_volume.h)\n",
+                g.surface_short, k.surface_short, g.volume_short, k.volume_short);
     vol_pass_free(&g);
     vol_pass_free(&k);
     return 0;

@@ -6,8 +6,11 @@
  * photon_trace: its global pass gives the global map (diffuse-surface photons, attenuated and
  * scattered by the media on their way) and the volume map, its caustic pass the caustic map
  * (L S+ D) and the volume caustic map (L S+ V), each pass run only if the plan asks for one of
- * its maps. Shadow photons and projection maps are not used (shadow rays carry the media's
- * transmittance). The volume photons are split by kind into three kd-trees:
+ * its maps. The caustic pass is aimed by the projection maps (settings projection,
+ * projection_cells) and stops after max(4 x the global pass's photons, 4M) emitted, whichever
+ * target is missed (a wall lit through a smoke-filled glass gets few photons: the map keeps what
+ * it stored, with its emitted count, and a message says so). Shadow photons are not used
+ * (shadow rays carry the media's transmittance). The volume photons are split by kind into three kd-trees:
  *   multiple scattering  INDIRECT photons (and, without a volume caustic map, the global
  *                        pass's CAUSTIC ones): read while marching eye rays;
  *   volume caustics      the caustic pass's L S+ V photons, read at every march step of every

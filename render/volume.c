@@ -16,6 +16,7 @@
 
 #include "medium.h"
 #include "photonmap/common.h"
+#include "projmap.h"
 #include "rng.h"
 
 enum { WHERE_SURFACE, WHERE_VOLUME };
@@ -38,6 +39,9 @@ typedef struct vctx {
     const scene *s;
     const vol_pass_opts *o;
     int keep_surface, keep_volume, counting;
+    projmap *proj;    /* caustic pass with projection maps: one per light, else NULL */
+    distrib1d choose; /* with proj: lights by power times active fraction */
+    double wsum;      /* with proj: the sum of those weights (mean-channel power) */
 } vctx;
 
 static void to3(float f[3], vec3 v) {
@@ -89,13 +93,15 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
     const int caustic_pass = c->o->caustic_pass, max_depth = c->o->max_depth;
     rng g = rng_stream(c->o->seed, i, caustic_pass ? 8 : 7);
     double pl, u[4];
-    int li = distrib1d_sample(&s->light_distrib, rng_uniform(&g), &pl);
+    int li = distrib1d_sample(c->proj ? &c->choose : &s->light_distrib, rng_uniform(&g), &pl);
     for (int k = 0; k < 4; k++) u[k] = rng_uniform(&g);
     b->pilot.emitted++;
     if (!(pl > 0)) return;
+    /* Aimed: a point of an active cell, the power times the light's active fraction. */
+    if (c->proj) projmap_sample(&c->proj[li], &s->lights[li], rng_uniform(&g), &g, u);
     vec3 p, nl, d;
     light_sample_le(s, li, u, &p, &nl, &d);
-    rgb power = v3_scale(s->lights[li].power, 1.0 / pl);
+    rgb power = v3_scale(s->lights[li].power, (c->proj ? c->proj[li].fraction : 1.0) / pl);
     if (v3_iszero(power)) return;
     ray r = {v3_iszero(nl) ? p : scene_offset(c->s, p, nl, d), d};
     /* specular: a specular bounce so far; scattered: a diffuse bounce or a scattering event;
@@ -235,7 +241,27 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
     if (s->nlights == 0 || s->light_distrib.n == 0) return PM_EINVAL;
     if (!(o->max_emitted >= 1) || o->max_depth < 0 || o->surface_target < 0 || o->volume_target < 0)
         return PM_EINVAL;
-    vctx c = {s, o, o->surface_target > 0 && !o->pilot, o->volume_target > 0 && !o->pilot, o->pilot != NULL};
+    vctx c = {s, o, o->surface_target > 0 && !o->pilot, o->volume_target > 0 && !o->pilot, o->pilot != NULL,
+              NULL, {0}, 0};
+    if (o->caustic_pass && o->projection_cells > 0) {
+        double *w = malloc((size_t)s->nlights * sizeof *w);
+        if (!w || projmap_build_all(s, o->projection_cells, &c.proj) < 0) {
+            free(w);
+            return PM_ENOMEM;
+        }
+        for (int i = 0; i < s->nlights; i++) {
+            rgb pw = s->lights[i].power;
+            w[i] = (pw.x + pw.y + pw.z) / 3 * c.proj[i].fraction;
+            c.wsum += w[i];
+        }
+        int rc0 = c.wsum > 0 ? distrib1d_init(&c.choose, w, s->nlights) : PM_EINVAL;
+        free(w);
+        if (rc0 < 0) { /* no light faces a specular object: nothing to aim at */
+            projmap_free_all(c.proj, s->nlights);
+            c.proj = NULL;
+            return rc0 == PM_ENOMEM ? rc0 : 0; /* empty maps: nothing can reach a specular object */
+        }
+    }
     vmap ms = {c.keep_surface, o->surface_target, NULL, 0, 0, c.keep_surface ? UINT64_MAX : 0};
     vmap mv = {c.keep_volume, o->volume_target, NULL, 0, 0, c.keep_volume ? UINT64_MAX : 0};
     vbuf bufs[VOL_ROUND];
@@ -279,6 +305,10 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
         }
     }
     for (int b = 0; b < VOL_ROUND; b++) free(bufs[b].r);
+    if (c.proj) {
+        projmap_free_all(c.proj, s->nlights);
+        distrib1d_free(&c.choose);
+    }
     res->emitted = emitted;
     res->surface_short = ms.keep && ms.cut == UINT64_MAX;
     res->volume_short = mv.keep && mv.cut == UINT64_MAX;

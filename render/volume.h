@@ -27,7 +27,11 @@
  * (each path whole), scaled by 1/n_e, so a thin medium can take many more photons than the
  * surfaces without the surface map growing with it. A map that never reaches its target keeps
  * everything emitted, within max_emitted. A map that stores nothing in the first
- * VOL_EMPTY_PHOTONS emitted stops there (empty).
+ * VOL_EMPTY_PHOTONS emitted stops there (empty). With projection_cells > 0 the caustic pass
+ * emits only into the active cells of each light's projection map (projmap.h: directions
+ * that can meet a specular object, null surfaces included) and chooses lights in proportion
+ * to power times active fraction, with each photon's power scaled by that fraction (Jensen's
+ * eq. 2.2), as photon_trace does.
  *
  * DETERMINISM AND THREADS. Photon i of a pass uses only rng_stream(seed, i, stream); photons are
  * traced in batches of VOL_BATCH, VOL_ROUND batches at a time on all threads (OpenMP), each
@@ -85,6 +89,8 @@ typedef struct vol_pass_opts {
     uint64_t seed;
     int threads;       /* 0: OpenMP's default */
     vol_pilot *pilot;  /* non-NULL: count (summed into it), keep nothing */
+    int projection_cells; /* caustic pass: aim the photons through projection maps of this
+                             many cells per side (projmap.h); 0: emit in all directions */
     /* Volume photons outside [lo, hi] are traced on but not stored (where nothing reads them:
      * an unbounded medium around the scene); lo > hi: no limit. */
     vec3 lo, hi;
