@@ -3,7 +3,8 @@
 #
 #   scripts/gen-mpi-md.sh [--out FILE] [DIR]
 #
-# DIR (default docs/mpi) holds timing.csv, traffic.csv and measurement.txt. Every figure in
+# DIR (default docs/mpi) holds timing.csv, traffic.csv and measurement.txt, and partitioned.csv
+# with partitioned.txt (the partitioned maps' runs, measured by mpi-scaling.sh --partitioned). Every figure in
 # the document comes from those files (medians, ratios and the model's fitted constants are
 # computed here), so the same files always give the same document. --out FILE writes FILE
 # instead of docs/MPI.md (- for standard output).
@@ -20,10 +21,11 @@ while [ $# -gt 0 ]; do
     *) dir=$1; shift ;;
   esac
 done
-for f in timing.csv traffic.csv measurement.txt; do
+for f in timing.csv traffic.csv measurement.txt partitioned.csv partitioned.txt; do
   [ -f "$dir/$f" ] || { echo "gen-mpi-md: $dir/$f missing: run scripts/mpi-scaling.sh" >&2; exit 2; }
 done
 meas() { sed -n "s/^$1 //p" "$dir/measurement.txt"; }
+pmeas() { sed -n "s/^$1 //p" "$dir/partitioned.txt"; }
 
 # Medians per (mode, config): "mode config wall tracing trees irradiance rendering".
 medians=$(awk -F, 'NR > 1 { k = $1 " " $2; n[k]++; for (c = 4; c <= 8; c++) v[k, c, n[k]] = $c }
@@ -45,17 +47,20 @@ cat <<'EOF'
      Do not edit by hand: edit the generator, or measure again. -->
 
 `render-mpi` renders one image over several MPI processes (ranks), on one machine or on
-many, and gives the image of the one-process `render` bit for bit. It takes `render`'s
+many, and gives the image of the one-process `render` bit for bit (or, with partitioned photon
+maps, an image within 1% of it region by region). It takes `render`'s
 options (it is `render/main.c` compiled a second time; `render/mpi/dist.h` explains the
 seams) plus:
 
 | option | meaning |
 |---|---|
-| `--pm distributed=replicated` | every rank holds every photon (the default; the only mode available, see below) |
+| `--pm distributed=replicated` | every rank holds every photon (the default): the image of `render`, bit for bit |
+| `--pm distributed=partitioned` | every rank keeps 1/R of each photon map; estimates combine the R parts (see "Partitioned mode" below) |
 | `--threads N` | OpenMP threads per rank (default: the node's cores divided among the ranks on that node) |
 
 `--checkpoint`, `--resume` and `--snapshot-every` are refused (exit 2): a distributed render
-keeps no checkpoint.
+keeps no checkpoint (its state is spread over the ranks; saving it would need every rank's
+part gathered to one file and a restart on the same rank count).
 
 ## Build and run
 
@@ -117,8 +122,9 @@ The default build and `make test` never compile `render/mpi/` and need no MPI.
   copies them into one render state: the film is bit-identical whatever tile went where.
   Rank 0 adds the workers' pixel-pass statistics to its own and writes the outputs once,
   through the renderer's atomic output code.
-- **Replicated work.** Every rank builds the kd-trees and the precomputed irradiance of the
-  whole map itself. That is the serial part of a distributed pm render (see the model).
+- **Replicated work.** In replicated mode every rank builds the kd-trees and the precomputed
+  irradiance of the whole map itself. That is the serial part of a distributed pm render
+  (see the model); partitioned mode shares it out (below).
 
 Tests (`scripts/test-mpi.sh`, run by `.ci/run`): `-np 1, 2, 3, 4` give PFM files
 byte-identical to the 2-thread `render` in path and pm modes (caustics, final gathering,
@@ -127,7 +133,11 @@ the pixel-pass counters summed over ranks equal one process's; a rank made slow 
 tiles; a bad scene, a rank that cannot load its scene and a refused option exit 2 with the
 message and no output; a photon pass that stores nothing ends every rank with `render`'s
 status and message; a rank killed with SIGKILL mid-render ends the job with rank 0's
-message and no output.
+message and no output; partitioned maps give images whose four quarters' means are within
+1% of the one-process render (cornell_spheres in pm and preview modes at `-np 2` and `4`,
+water_caustic's caustic at `-np 4`; at `-np 4`, taking out either bias rule of the
+combination, the disc's single correction or the cone's rim factor, makes a quarter fail;
+see below).
 
 EOF
 
@@ -262,34 +272,142 @@ awk -v tr="$tr" -v tt="$tt" -v ti="$ti" -v tp="$tp" -v tw="$tw" -F, '
   }' "$dir/traffic.csv"
 
 cat <<'EOF'
-## Partitioned mode (`--pm distributed=partitioned`): not available yet
+## Partitioned mode (`--pm distributed=partitioned`)
 
-Asked for, render-mpi exits 2 and says so. What it needs, and what is missing:
+Every rank keeps only its part of the photon maps, for maps larger than one machine's memory,
+and each radiance estimate combines the parts of all R ranks with the combined-map rule of
+`photonmap/combined.h`: E = c (R/π) ΣP / Σr², the k/R nearest photons of each part, one bias
+correction c on the total (`pm_combine_add` on each rank, the sums added, `pm_combine_finish`).
+`render/mpi/lookup.h` explains it in full; in short:
 
-- Every rank would keep only the photons of its own batches (a map larger than one
-  machine's memory), while the pass bookkeeping still needs the global counts: the round
-  exchange would carry only each batch's counts (the head above) and keep the photons local.
-  Not done: today every rank receives every photon during the pass.
-- A radiance estimate would combine the M partial maps with `pm_estimate_combined`
-  (E = (M/π) ΣP / Σr², photonmap/combined.h). The lookup protocol designed for throughput is
-  batched per tile: a rank renders a tile in two phases, first tracing every camera sample to
-  its diffuse hit points and collecting their estimate queries (position, normal, k, radius),
-  then sending the tile's queries to every rank in one message per rank, each answering with
-  its partial sums (ΣP per channel, r², count) for all of them, and finally shading. Its
-  traffic is about 2 x (R - 1) x (32 B query + 24 B answer) per estimate, independent of the
-  map size. Not done: the photon mapper's integrator computes its estimates inside li() per
-  sample, so the two-phase tile needs a split of the integrator (hit points first, shading
-  after), and final gathering (an estimate at every gather ray's hit) multiplies the queries
-  by the gather rays per sample.
-- Accuracy against replicated mode (region means within 1% at M = 2 and 4) is therefore not
-  measured.
+- **Which photons.** After the photon pass (or `--load-photons`), with the search radii chosen
+  from the whole maps, rank r keeps the photons r n/R .. (r+1) n/R - 1 of each map, in photon
+  index order: a contiguous range of emitted photons, each with its own random stream and
+  Halton point, so each part is a map of the scene with 1/R of the photons and the parts'
+  union is the one-process map. The shadow-photon map is not used: every shadow ray is
+  traced (the exact visibility the map approximates).
+- **Precomputed irradiance** (final gathering reads it). Each rank chooses a quarter of its
+  own photons, as `photon_sides.c` does, and all-gathers them as queries (position, normal,
+  free height: 28 bytes). Every rank answers every query from its part with its k/R nearest
+  photons on the query's side (the same visibility test, widened past a wall), as partial
+  sums (32 bytes); an all-to-all returns the answers to the owners, which combine them
+  (divided by the visible part of the combined disc where a rank met a wall), and an
+  all-gather of the records (28 bytes each) gives every rank the whole precomputed
+  irradiance. Final-gather lookups then stay on their rank.
+- **Estimates in the pixel pass** (the caustic map, and the global map in preview mode) are
+  batched per chunk of tiles: the rank traces its tiles once, recording each estimate's query
+  (position, normal, map: 28 bytes) with a placeholder value; sends the chunk's queries to
+  every other rank in one message; answers its own from its part; gets each rank's partial
+  sums (32 bytes per query) while it answers the other ranks' queries; combines them; and
+  traces the tiles again, each estimate taking its combined value in order. The photon
+  mapper makes no decision on an estimate's value (no branch, no random number depends on
+  it: `render/photon_lookup.h`), so both traces make the same queries; the second trace
+  checks that they are the same, query by query, and a difference stops the job. The
+  recording trace's counters are taken off again, so the statistics count one trace.
+
+The hook that routes the photon mapper's lookups (`render/photon_lookup.h`) is a few lines in
+`render/photonmapper.c`; without it (`render`, replicated mode) the mapper reads its own maps.
+
+EOF
+
+echo "### Accuracy, traffic and time"
+echo
+echo "Measured by \`scripts/mpi-scaling.sh --partitioned\` at commit $(pmeas commit), $(pmeas date),"
+echo "on $(pmeas machine); load average before $(pmeas load_before), after $(pmeas load_after);"
+echo "$(pmeas reps) interleaved repetitions. The pm render of the measurements above"
+echo "(\`$(meas scene)\`, \`$(meas pm_args)\`), 1 thread per rank, replicated"
+echo "and partitioned at the same rank count. Accuracy: the partitioned image's mean over each"
+echo "32x32 quarter against the replicated image's (the same photons and camera samples, so what"
+echo "differs is the estimate alone), the largest over the repetitions. (test-mpi.sh prints,"
+echo "beside its own such figures, how far apart two renders of different seeds are: far more.)"
+echo
+awk -F, '
+  NR > 1 { k = $1 " " $2; n[k]++; for (c = 4; c <= 16; c++) v[k, c, n[k]] = $c; R[$1] = 1
+           if ($2 == "partitioned") {
+             w = $15 + 0; if (!($1 in worst) || w > worst[$1]) worst[$1] = w
+             x = $16 < 0 ? -$16 : $16 + 0; if (!($1 in whole) || x > whole[$1]) whole[$1] = x } }
+  function med(k, c,   m, i, j, t, a) {
+    m = n[k]; for (i = 1; i <= m; i++) a[i] = v[k, c, i] + 0
+    for (i = 2; i <= m; i++) { t = a[i]; for (j = i - 1; j >= 1 && a[j] > t; j--) a[j + 1] = a[j]; a[j + 1] = t }
+    return m % 2 ? a[(m + 1) / 2] : (a[m / 2] + a[m / 2 + 1]) / 2 }
+  END {
+    printf "| ranks | worst quarter, mean difference | whole image, mean difference |\n|---:|---:|---:|\n"
+    for (r = 2; r <= 4; r += 2) if (r in R) printf "| %d | %.2f%% | %.2f%% |\n", r, worst[r], whole[r]
+    printf "\nMedian seconds (rank 0 timers; the pixel pass of a partitioned run includes both traces\n"
+    printf "of each tile and the waits for answers):\n\n"
+    printf "| ranks | maps | wall | photon tracing | kd-trees | precomputed irradiance | pixel pass |\n"
+    printf "|---:|---|---:|---:|---:|---:|---:|\n"
+    for (r = 2; r <= 4; r += 2) if (r in R) for (m = 0; m < 2; m++) {
+      mode = m ? "partitioned" : "replicated"; k = r " " mode
+      printf "| %d | %s | %.2f | %.2f | %.2f | %.2f | %.2f |\n", r, mode, med(k, 4), med(k, 5), med(k, 6), med(k, 7), med(k, 8) }
+    printf "\n"
+    for (r = 2; r <= 4; r += 2) if (r in R) {
+      a = r " replicated"; b = r " partitioned"
+      printf "- %d ranks: partitioned / replicated: wall %.2f, precomputed irradiance %.2f, pixel pass %.2f.\n",
+        r, med(b, 4) / med(a, 4), med(b, 7) / med(a, 7), med(b, 8) / med(a, 8) }
+    printf "\nThe pixel pass of a partitioned run traces each tile twice and waits for answers, so\n"
+    printf "it is slower; its precomputed irradiance is faster, each rank computing its own share\n"
+    printf "of the estimates (a replicated rank computes all of them itself).\n"
+    printf "\nTraffic of the partitioned runs (bytes sent by all ranks; the photon exchange is the\n"
+    printf "replicated one, above):\n\n"
+    printf "| ranks | lookups | lookup bytes | per lookup | lookups per pixel | lookup bytes per pixel | irradiance estimates | their bytes | per estimate | tile queue bytes per pixel |\n"
+    printf "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n"
+    for (r = 2; r <= 4; r += 2) if (r in R) {
+      k = r " partitioned"; nl = med(k, 9); bl = med(k, 10); ns = med(k, 11); bs = med(k, 12); bx = med(k, 13); px = med(k, 14)
+      LPP[r] = nl / px
+      printf "| %d | %d | %d | %.1f | %.2f | %.1f | %d | %d | %.1f | %.2f |\n", r, nl, bl, bl / nl, nl / px, bl / px, ns, bs, bs / ns, bx / px }
+    lpp = (2 in LPP) ? LPP[2] : LPP[4]
+    printf "\n**Model.** A lookup sends its 28-byte query to each of the R - 1 other ranks and gets a\n"
+    printf "32-byte answer from each: 60 (R - 1) bytes, whatever the size of the map. A precomputed\n"
+    printf "estimate costs its query and answers plus its 28-byte record sent to every other rank:\n"
+    printf "88 (R - 1) bytes, for about a quarter of the global photons, once. Lookups per pixel are\n"
+    printf "a property of the scene and the settings (caustic estimates per sample times the\n"
+    printf "samples; here %.2f), so\n\n", lpp
+    printf "    lookup bytes per pixel = 60 (R - 1) x lookups per pixel\n"
+    printf "    precomputed irradiance bytes = 88 (R - 1) x N_global / 4\n\n"
+    printf "| ranks | lookup bytes per pixel, this scene (model) | at 16 caustic estimates per pixel (model) |\n|---:|---:|---:|\n"
+    for (r = 2; r <= 64; r *= 2) printf "| %d | %.0f | %.0f |\n", r, 60 * (r - 1) * lpp, 60 * (r - 1) * 16
+    printf "\nEvery query goes to every rank, so the bytes per lookup grow linearly with R: at 64\n"
+    printf "ranks a lookup costs %d bytes, and a pixel with 16 estimates %d bytes, %d times\n", 60 * 63, 60 * 63 * 16, 60 * 63 * 16 / 24
+    printf "the 24 bytes of its tile sum. That is the price of parts that each cover the whole\n"
+    printf "scene (ranges of emitted photons). Parts split by space instead (the first levels of a\n"
+    printf "kd-tree over the union, one region per rank) would send a query only to the ranks whose\n"
+    printf "region its search disc reaches, one or two whatever R: the next step for large R.\n\n"
+  }' "$dir/partitioned.csv"
+
+cat <<'EOF'
+What is not partitioned yet, and what differs from the replicated image:
+
+- **The photon pass is still the replicated one**: every rank receives every photon of each
+  round (the pass's bookkeeping, its stopping test and its cut at the target, uses them) and
+  drops the other ranks' parts after the pass. So the memory peak of the pass and the photon
+  exchange's traffic are those of replicated mode; what is partitioned is the maps held
+  while rendering (their kd-trees and the estimates' searches). A pass that exchanges only
+  each batch's counts, and the index of the photon that reaches the target, would remove
+  that peak.
+- **The precomputed irradiance is whole on every rank**: a record for about a quarter of the
+  global photons (position, normal, E, radius, free height), less than the map but not
+  divided by R. Looking it up remotely would put the final gather's lookups, the most
+  numerous, on the network.
+- **Filters.** A cone or Gaussian filter (the caustic estimate's; a cone by default) is
+  combined as f R ΣS_m / ΣA_m: each part's filtered power S_m and area A_m (π r_m² times
+  the filter's norm) measured against its own radius r_m. Each part has a rim photon, of the
+  filter's rim weight, where one map of the same photons has one: f puts the expected
+  weighted sum back to one map's ((n - 1)/(n - R) for the default cone, whose rim weight is
+  0; without it the caustics of R = 4 parts of k = 60 read 5% low). The hull and
+  differential filters have no combined form here and become the combined disc.
+- **No shadow-photon map**: every shadow ray is traced, which is exact, and slower where the
+  map would have decided.
+- **Each tile is traced twice** (recording, then with the values): the pixel pass's ray work
+  doubles, while its photon searches are spread over the ranks.
 
 ## Limitations
 
 - Each rank holds the full film state (24 bytes per pixel) and, in replicated mode, the whole
   photon map: the memory per rank is that of a one-process render, plus the round being
   exchanged (up to 16 R batches of 4096 photons, 64 bytes per stored photon; a round never
-  spans more batches than the pass still needs).
+  spans more batches than the pass still needs). In partitioned mode a rank holds 1/R of the
+  maps while rendering, and the whole precomputed irradiance (above).
 - No checkpoints; a failed rank ends the job (there is no recovery in OpenMPI 4.1 without
   ULFM), and the render must be started again.
 - Statistics: the pixel pass's counters are the sum over ranks; the preprocessing counters
