@@ -24,6 +24,8 @@
 #define SIDE_LOOKUP_CANDIDATES 8u
 /* A lookup's normal rule (irradiance.h): the photon's normal within about 45 degrees of y's. */
 #define SIDE_LOOKUP_COS 0.7f
+/* Fewest photons a partial estimate must hold to be looked up (photon_sides.h: sparse). */
+#define SIDE_MIN_PHOTONS 8u
 
 static vec3 v3f(const float f[3]) { return v3(f[0], f[1], f[2]); }
 
@@ -47,6 +49,8 @@ void side_free_heights(const scene *s, const pm_photon *ph, size_t n, float max_
         h[i] = (float)side_free_height(s, v3f(ph[i].pos), v3f(nf), cap);
     }
 }
+
+int side_estimate_readable(unsigned found, unsigned k) { return found >= k || found >= SIDE_MIN_PHOTONS; }
 
 int side_visible_h(const scene *s, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq) {
     vec3 d = v3_sub(q, p);
@@ -147,10 +151,10 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
     }
     side_free_heights(s, ph, n, max_dist2, hfree);
     unsigned long long rays1 = n, rays2 = 0;
-    size_t again = 0;
+    size_t again = 0, sparse = 0;
     int fail = 0;
 #ifdef _OPENMP
-#pragma omp parallel reduction(+ : rays1, rays2, again) reduction(| : fail)
+#pragma omp parallel reduction(+ : rays1, rays2, again, sparse) reduction(| : fail)
 #endif
     {
         /* SIDE_WIDEN x k candidates for the estimates that meet a wall. */
@@ -187,7 +191,8 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
                 /* The usual estimate: k photons, the k-th on the rim; or the whole disc. */
                 double r2 = (unsigned)found == k ? nb[found - 1].dist2 : (double)max_dist2;
                 disc_irradiance(ph, nb, found, r2, (unsigned)found == k, 1.0, e);
-                r2v[which[j]] = (float)r2;
+                r2v[which[j]] = side_estimate_readable((unsigned)found, k) ? (float)r2 : 0.0f;
+                sparse += !side_estimate_readable((unsigned)found, k);
             } else {
                 /* A wall: take SIDE_WIDEN x k candidates in order of distance and keep the
                  * visible ones until k are kept. Every photon closer than the last one tested
@@ -226,7 +231,8 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
                 rays2 += SIDE_AREA_DIRS + 1;
                 if (frac < 1.0 / SIDE_AREA_DIRS) frac = 1.0 / SIDE_AREA_DIRS;
                 disc_irradiance(ph, nb, kept, r2, rim, frac, e);
-                r2v[which[j]] = (float)r2;
+                r2v[which[j]] = side_estimate_readable((unsigned)kept, k) ? (float)r2 : 0.0f;
+                sparse += !side_estimate_readable((unsigned)kept, k);
             }
             memcpy(&val[3 * (size_t)which[j]], e, sizeof e);
         }
@@ -242,6 +248,7 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
     c->rays_first = rays1;
     c->rays_second = rays2;
     c->researched = again;
+    c->sparse = sparse;
     if (m) {
         /* The module keeps the values, the radii and the lookup (irradiance.h). */
         pm_irradiance_options io;
