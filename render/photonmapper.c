@@ -157,7 +157,7 @@ static int shadow_map_says(const mapper_state *st, vec3 x, vec3 ns, pm_neighbor 
 
 /* Of the samples whose shadow photons all say dark, the share that traces its shadow ray
  * anyway (and weighs a lit answer by its inverse). */
-#define SHADOW_DARK_TRACE (1.0 / 8)
+#define SHADOW_DARK_TRACE 0.5
 
 /* The shadow-photon map as direct_light_surface's shadow hint (direct.h): for area lights the
  * k_shadow nearest shadow-map photons decide when they agree; the counters say how often.
@@ -170,7 +170,11 @@ static int shadow_map_says(const mapper_state *st, vec3 x, vec3 ns, pm_neighbor 
  * So a dark answer is a Russian roulette decision: the ray is traced at SHADOW_DARK_TRACE of
  * those samples and a lit result weighs 1 / SHADOW_DARK_TRACE, the others count as dark.
  * The expected value is the traced visibility, whatever the map says: the map only decides
- * where rays are saved, never the mean. */
+ * where rays are saved, never the mean. Where the map is right (truly dark) skipping adds no
+ * noise; where it is wrong the variance grows by 1 / SHADOW_DARK_TRACE. One half: the dark
+ * answers save few rays (cornell_spheres: 2,616 of 56,258 shadow tests, the same render
+ * time with shadow photons off), and at 1/8 the pinhole's lit patch read -64%..+127% over
+ * four seeds (16x16, 64 spp) against -38%..+43% over eight when every ray is traced. */
 typedef struct shadow_hint_ctx {
     const mapper_state *st;
     mapper_scratch *sc;
