@@ -193,6 +193,37 @@ static int config_ok(const pm_kdtree_config *c, const void *records) {
     return 1;
 }
 
+/* The tightening code (kdtree_internal.h) that shrinks the cell [lo, hi] the most while
+ * keeping the subtree's bounding box [mn, mx] inside it, as pm__tighten computes it; 0 if none
+ * does. The gain is the distance the faces move. Extents too small for the products to stay
+ * exact (subnormal) are left alone. */
+static unsigned choose_code(const float lo[3], const float hi[3], const float mn[3],
+                            const float mx[3]) {
+    unsigned best = 0;
+    float best_gain = 0;
+    /* A quick filter first (most nodes of dense data have no gap of a quarter of their cell):
+     * the exact test below decides. */
+    int any = 0;
+    for (int b = 0; b < 3; b++) {
+        float q = 0.24f * (hi[b] - lo[b]);
+        any |= (mn[b] - lo[b] >= q) | (hi[b] - mx[b] >= q);
+    }
+    if (!any) return 0;
+    for (unsigned c = 1; c <= PM__CODE_MAX; c++) {
+        unsigned b = c <= 12 ? (c - 1) >> 2 : c - 13;
+        if (!(hi[b] - lo[b] >= 1e-30f)) continue;
+        float l[3] = {lo[0], lo[1], lo[2]}, h[3] = {hi[0], hi[1], hi[2]};
+        pm__tighten(l, h, c);
+        int ok = 1;
+        for (int x = 0; x < 3; x++)
+            ok &= isfinite(l[x]) && isfinite(h[x]) && l[x] <= mn[x] && h[x] >= mx[x];
+        if (!ok) continue;
+        float gain = (l[b] - lo[b]) + (hi[b] - h[b]);
+        if (gain > best_gain) best_gain = gain, best = c;
+    }
+    return best;
+}
+
 /* Subtree size of heap node p at the given level. */
 static uint64_t subtree_size(const pm_kdtree *t, uint64_t p, int level) {
     uint64_t span = (uint64_t)1 << (t->depth - (uint32_t)level);
@@ -235,6 +266,9 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
     t->pos_offset = cfg->pos_offset;
     t->axis_offset = cfg->axis_offset;
     t->bucket = cfg->bucket;
+    /* The tree owns bits 4-7 of the axis byte in its own array and in pm_photon's flag. */
+    t->tight = cfg->axis_offset < 0 ||
+               (cfg->stride == 20 && cfg->pos_offset == 0 && cfg->axis_offset == 18);
 
     /* Finite records to the work array; non-finite ones to the tail, in original order. */
     char *base = records;
@@ -281,12 +315,15 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
         size_t lo, hi;
         int level, paxis; /* paxis: the parent's split axis, -1 at the root */
         float pmed[3];    /* the parent's split record */
+        float clo[3], chi[3]; /* the node's cell before its own tightening code */
     } st[PM_KDTREE_MAX_DEPTH + 2];
     int sp = 0;
     uint64_t rng = 0x9E3779B97F4A7C15ull;
     if (m > 0) {
         memset(&st[0], 0, sizeof st[0]);
         st[0].p = 1, st[0].hi = m, st[0].paxis = -1;
+        memcpy(st[0].clo, t->lo, sizeof t->lo);
+        memcpy(st[0].chi, t->hi, sizeof t->hi);
         sp = 1;
     }
     while (sp > 0) {
@@ -295,6 +332,9 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
         size_t lo = st[sp].lo, hi = st[sp].hi;
         int level = st[sp].level, paxis = st[sp].paxis;
         const float pm0 = st[sp].pmed[0], pm1 = st[sp].pmed[1], pm2 = st[sp].pmed[2];
+        float clo[3], chi[3];
+        memcpy(clo, st[sp].clo, sizeof clo);
+        memcpy(chi, st[sp].chi, sizeof chi);
         if (p >= t->nleaves) { /* a bucket: its records in work order */
             place_subtree(t, order, ax, p, level, w + lo);
             continue;
@@ -311,9 +351,12 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
             dup |= (x == pm0) & (y == pm1) & (z == pm2);
         }
         float ext[3] = {mx[0] - mn[0], mx[1] - mn[1], mx[2] - mn[2]};
+        unsigned code = t->tight ? choose_code(clo, chi, mn, mx) : 0;
+        pm__tighten(clo, chi, code);
         /* Extents of huge coordinates may overflow to inf; that is still the largest. */
         if (!(ext[0] > 0) && !(ext[1] > 0) && !(ext[2] > 0)) {
             place_subtree(t, order, ax, p, level, w + lo);
+            ax[p - 1] = (uint8_t)(PM__AXIS_UNIFORM | code << PM__CODE_SHIFT);
             continue;
         }
         int a = 0;
@@ -326,13 +369,18 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
         select_rank(w + lo, hi - lo, r, a, &rng);
         const item *med = &w[lo + r];
         order[p - 1] = med->idx;
-        ax[p - 1] = (uint8_t)a;
+        ax[p - 1] = (uint8_t)((unsigned)a | code << PM__CODE_SHIFT);
         for (int c = 0; c < 2; c++) { /* right child first, so the left is built first */
             st[sp].p = 2 * p + 1 - (uint64_t)c;
             st[sp].lo = c ? lo : lo + r + 1;
             st[sp].hi = c ? lo + r : hi;
             st[sp].level = level + 1, st[sp].paxis = a;
             memcpy(st[sp].pmed, med->p, sizeof st[sp].pmed);
+            /* the children's cells: this node's (tightened) cell cut at the split */
+            memcpy(st[sp].clo, clo, sizeof clo);
+            memcpy(st[sp].chi, chi, sizeof chi);
+            if (c) st[sp].chi[a] = med->p[a];
+            else st[sp].clo[a] = med->p[a];
             sp++;
         }
     }
@@ -355,12 +403,14 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
     if (perm) memcpy(perm, order, n * sizeof *perm);
 
     if (cfg->axis_offset >= 0) {
-        /* Axis bits in the records: internal nodes get their axis (or 3, uniform); bucket
-         * records get 0. The other six bits of the byte are preserved. */
+        /* Axis bits in the records: internal nodes get their axis (or 3, uniform), and their
+         * tightening code when the tree owns bits 4-7 too; bucket records get 0 there. The
+         * byte's other bits are preserved. */
+        unsigned own = t->tight ? PM__AXIS_MASK | PM__CODE_MAX << PM__CODE_SHIFT : PM__AXIS_MASK;
         for (size_t i = 0; i < m; i++) {
             uint8_t *b = (uint8_t *)base + i * cfg->stride + cfg->axis_offset;
-            uint8_t v = i < t->ninternal ? ax[i] : 0;
-            *b = (uint8_t)((*b & ~PM__AXIS_MASK) | v);
+            unsigned v = i < t->ninternal ? ax[i] & own : 0;
+            *b = (uint8_t)((*b & ~own) | v);
         }
         free(ax);
         t->axes = NULL;

@@ -25,14 +25,20 @@
  * subtree, all of whose records have the same position: queries treat it as one distance, so
  * a million identical points cost O(k), not a full scan. Every record in the left subtree of a
  * node has coordinate <= the split value on its axis, and every record in the right subtree
- * has coordinate >= it.
+ * has coordinate >= it. When the tree owns bits 4-7 of the axis byte too (the tree-owned array,
+ * and the pm_photon layout of pm_kdtree_photon_config: stride 20, position at 0, axis byte 18,
+ * see photon.h), they hold a 4-bit code per internal node that shrinks the node's cell toward
+ * its records (one face moved in by 1/2 or 7/8 of the cell's extent, or both faces of one axis
+ * by 1/4), written only where every record of the subtree stays inside; any other layout keeps
+ * its bits 2-7 untouched and gets no codes.
  *
  * COST. The build is O(n log n) with no recursion (an explicit stack, linear-time selection)
  * and uses n * (max(16, stride) + 4) bytes of temporary memory. The tree itself owns
  * sizeof(struct) bytes (including the records' bounding box) plus, with axis_offset = -1, one
  * byte per internal node: photons + tree are 20 bytes per photon. A query prunes a subtree by
- * the distance from q to the subtree's cell (not just to one split plane), so queries off a
- * plane of photons or in the empty space between clusters stay cheap. Build times and
+ * the distance from q to the subtree's cell (not just to one split plane), the cell shrunk by
+ * those codes, so queries off a plane of photons, between the walls of a scene or in the empty
+ * space between clusters stay cheap. Build times and
  * queries/s against FLANN and an octree, on several workloads, worst case first: the
  * generated docs/BENCHMARKS.md.
  *

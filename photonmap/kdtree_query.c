@@ -1,22 +1,24 @@
 /* kdtree_query.c: k-nearest, radius and predicate queries on the heap kd-tree.
  *
  * TRAVERSAL. Christensen's "iteration instead of recursion": walk down to the bucket on the
- * query's side of every split, pushing (cell distance, far child) on a fixed stack of at most
- * D entries; scan the bucket; then pop entries until one has cell dist2 < r2, where r2 is the
- * current search radius. Only then is that node's own record tested (it lies on the far
- * cell's boundary plane, so its dist2 is at least the cell's: when the far side is pruned, so
- * is the record) and the walk continues down its far child. The recursive version makes the
- * same decisions in the same order, so both return identical arrays.
+ * query's side of every split, pushing (bounds, far child, far cell) on a fixed stack of at
+ * most D entries; scan the bucket; then pop entries until one has a bound < r2, where r2 is
+ * the current search radius. Only then is that node's own record tested, and the walk
+ * continues down its far child if the far cell is still within reach. The recursive version
+ * makes the same decisions in the same order, so both return identical arrays.
  *
- * CELL DISTANCE (Arya and Mount's incremental distance). A subtree is pruned by the squared
- * distance from q to its cell, not to one split plane: the query carries the per-axis offsets
- * from q to the current cell (the root cell is the tight bounding box of the records, kept in
- * the tree), the near child inherits them, and the far child replaces the one on the split
- * axis by |q[axis] - split|. Nothing is stored per node; the stack entry holds the three
- * offsets. The squared length is recomputed from the offsets, never updated by difference,
- * so it is a float lower bound of every record's dist2 in the cell (see cell_dist2) and the
- * pruning stays exact. It is what makes a query beside a plane of photons, or in the empty
- * space between clusters, cost about what a query among them costs.
+ * CELL DISTANCE (Arya and Mount's). A subtree is pruned by the squared distance from q to its
+ * cell, not to one split plane. The query carries the current cell as a box [lo, hi] (two
+ * SSE2 registers): the root cell is the tight bounding box of the records, kept in the tree;
+ * a child's cell is its parent's cut at the split, then shrunk by the child's tightening code
+ * (kdtree_internal.h: 4 bits of its record's axis byte, so still nothing stored beside the
+ * records). The squared distance is recomputed from the box each time, never updated by
+ * difference, so it is a float lower bound of every record's dist2 in the cell (see
+ * box_dist2) and the pruning stays exact. Since a code may move the far cell away from the
+ * split plane, the parent's record (which lies in that plane) keeps its own bound, the far
+ * cell's distance before the code. The near child is pruned too when its code moves its cell
+ * out of reach. This is what makes a query beside a plane of photons, between the walls of a
+ * scene, or in the empty space between clusters cost about what a query among them costs.
  * RADIUS. r2 = +INFINITY is stored internally as NaN, and every test is written as
  * !(x >= r2): against NaN that is always true, so an unlimited search also accepts records
  * whose float dist2 overflowed to +inf; against a finite r2 it is the strict x < r2. dist2 and
@@ -33,6 +35,11 @@
  */
 #include <math.h>
 #include <string.h>
+/* The pruning bounds assume one float rounding per operation, like the record distances they
+ * bound (GCC in ISO C mode contracts nothing; clang would fuse a * b + c). */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#endif
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
@@ -53,6 +60,7 @@ typedef struct {
     const uint8_t *axb; /* axis byte of record i at axb[i * axs] */
     size_t axs;
     uint64_t L;         /* leaf nodes start here */
+    int tight;          /* the axis bytes carry tightening codes */
     const struct pm_kdtree *t;
 } view;
 
@@ -71,6 +79,12 @@ PM__INLINE const float *PX(const view *v, uint64_t i, int ph) {
 PM__INLINE unsigned AXX(const view *v, uint64_t node, int ph) {
     return ph ? ((const uint8_t *)v->rec)[(node - 1) * 20 + 18] & PM__AXIS_MASK : AX(v, node);
 }
+/* The tightening code of internal node `node` (0 when the tree keeps none). The pm_photon
+ * layout always has them. */
+PM__INLINE unsigned CODEX(const view *v, uint64_t node, int ph) {
+    if (ph) return ((const uint8_t *)v->rec)[(node - 1) * 20 + 18] >> PM__CODE_SHIFT;
+    return v->tight ? (unsigned)v->axb[(node - 1) * v->axs] >> PM__CODE_SHIFT : 0u;
+}
 static int is_photon_layout(const pm_kdtree *t) {
     return t->stride == 20 && t->pos_offset == 0 && t->axis_offset == 18;
 }
@@ -88,6 +102,7 @@ static view make_view(const pm_kdtree *t) {
         v.axs = 1;
     }
     v.L = t->nleaves;
+    v.tight = t->tight;
     v.t = t;
     return v;
 }
@@ -107,20 +122,75 @@ static int check_query(const pm_kdtree *t, const float q[3], float r2) {
 
 /* ---- cell distance ----------------------------------------------------------------------- */
 
-/* The squared distance from q to a cell, from its per-axis offsets. Always this expression,
- * in this order: the offset on each axis is at most |q - p| there for every record p of the
- * cell (the float subtraction is monotonic), so, float rounding being monotonic, the sum is
- * never above the record's dist2 computed by knn_dist2, and pruning on it is exact. */
-PM__INLINE float cell_dist2(const float o[3]) { return o[0] * o[0] + o[1] * o[1] + o[2] * o[2]; }
-
-/* The root cell is the tight bounding box: per-axis offsets from q to it (0 inside). */
-static void root_offsets(const pm_kdtree *t, const float q[3], float off[3]) {
-    for (int a = 0; a < 3; a++) {
-        float o = 0;
-        if (q[a] < t->lo[a]) o = t->lo[a] - q[a];
-        else if (q[a] > t->hi[a]) o = q[a] - t->hi[a];
-        off[a] = o;
+/* A cell [lo, hi] is carried as two 4-lane vectors (lane 3 is 0 in q, lo and hi): SSE2
+ * registers in the default x86-64 build, a plain struct elsewhere. */
+#if defined(__SSE2__)
+typedef __m128 v4;
+PM__INLINE v4 v4_load3(const float *p) { return _mm_set_ps(0.0f, p[2], p[1], p[0]); }
+PM__INLINE void v4_store(float *p, v4 x) { _mm_storeu_ps(p, x); }
+PM__INLINE v4 v4_load(const float *p) { return _mm_loadu_ps(p); }
+/* x with lane a replaced by s */
+PM__INLINE v4 v4_set_lane(v4 x, unsigned a, float s) {
+    __m128 m = _mm_castsi128_ps(_mm_cmpeq_epi32(_mm_set1_epi32((int)a), _mm_set_epi32(3, 2, 1, 0)));
+    return _mm_or_ps(_mm_and_ps(m, _mm_set1_ps(s)), _mm_andnot_ps(m, x));
+}
+PM__INLINE float box_dist2(v4 q, v4 lo, v4 hi) {
+    v4 o = _mm_max_ps(_mm_max_ps(_mm_sub_ps(lo, q), _mm_sub_ps(q, hi)), _mm_setzero_ps());
+    v4 sq = _mm_mul_ps(o, o);
+    float s0 = _mm_cvtss_f32(sq), s1 = _mm_cvtss_f32(_mm_shuffle_ps(sq, sq, 1)),
+          s2 = _mm_cvtss_f32(_mm_shuffle_ps(sq, sq, 2));
+    return s0 + s1 + s2;
+}
+#else
+typedef struct {
+    float f[4];
+} v4;
+PM__INLINE v4 v4_load3(const float *p) {
+    v4 x = {{p[0], p[1], p[2], 0.0f}};
+    return x;
+}
+PM__INLINE void v4_store(float *p, v4 x) { memcpy(p, x.f, sizeof x.f); }
+PM__INLINE v4 v4_load(const float *p) {
+    v4 x;
+    memcpy(x.f, p, sizeof x.f);
+    return x;
+}
+PM__INLINE v4 v4_set_lane(v4 x, unsigned a, float s) {
+    x.f[a] = s;
+    return x;
+}
+PM__INLINE float box_dist2(v4 q, v4 lo, v4 hi) {
+    float o[3];
+    for (int b = 0; b < 3; b++) {
+        float u = lo.f[b] - q.f[b], w = q.f[b] - hi.f[b];
+        float x = u > w ? u : w;
+        o[b] = x > 0 ? x : 0;
     }
+    return o[0] * o[0] + o[1] * o[1] + o[2] * o[2];
+}
+#endif
+/* box_dist2 is the squared distance from q to the cell [lo, hi], always by this expression in
+ * this order: on each axis the offset max(lo - q, q - hi, 0) is at most |q - p| there for
+ * every record p of the cell (the float subtraction is monotonic and lo <= p <= hi), so, float
+ * rounding being monotonic, the sum (x, then y, then z, as in knn_dist2) is never above the
+ * record's dist2, and pruning on it is exact. */
+
+/* Shrink a cell by a tightening code (rare: through memory). */
+static void box_tighten(v4 *lo, v4 *hi, unsigned c) {
+    float l[4], h[4];
+    v4_store(l, *lo);
+    v4_store(h, *hi);
+    pm__tighten(l, h, c);
+    *lo = v4_load(l);
+    *hi = v4_load(h);
+}
+
+/* The root cell: the tight bounding box, shrunk by the root's own code (kdtree.c never
+ * writes one there today, but the rule is the same for every node). */
+static void root_box(const view *v, int ph, float lo[3], float hi[3]) {
+    const pm_kdtree *t = v->t;
+    for (int b = 0; b < 3; b++) lo[b] = t->lo[b], hi[b] = t->hi[b];
+    if (v->L > 1) pm__tighten(lo, hi, CODEX(v, 1, ph));
 }
 
 /* ---- k nearest --------------------------------------------------------------------------- */
@@ -135,8 +205,8 @@ typedef struct {
     pm_filter_fn filter;
     void *user;
     uint64_t nodes, evals;
-    float off[3];         /* offsets from q to the root cell (the bounding box) per axis */
-    float rd;             /* their squared length: dist2 from q to the root cell */
+    float lo[3], hi[3];   /* the root cell */
+    float rd;             /* dist2 from q to it */
 } knn_state;
 
 /* Precondition: !(d2 >= s->r2). */
@@ -263,16 +333,19 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
     /* Work on a local copy whose address never escapes, so the compiler keeps r2, found and
      * the query in registers; the rare uniform case goes through memory. */
     knn_state ls = *io, *s = &ls;
-    /* Far children still to search, with their cell's offsets and squared distance. */
+    /* Far children still to search: the bound of the parent's record (its dist2 from q is at
+     * least that of the far cell before the far child's own code shrinks it), the far cell's
+     * distance, and the far cell. */
     struct {
-        float rd;
+        v4 lo, hi;
+        float rr, rf;
         uint32_t node;
-        float off[3];
     } stack[PM_KDTREE_MAX_DEPTH];
     int sp = 0;
     uint64_t node = 1;
     const uint64_t L = v->L;
-    float off[3] = {s->off[0], s->off[1], s->off[2]};
+    const v4 qv = v4_load3(s->q);
+    v4 lo = v4_load3(s->lo), hi = v4_load3(s->hi);
     if (s->rd >= s->r2) return; /* the whole tree is out of reach */
     for (;;) {
         while (node < L) {
@@ -291,20 +364,40 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
                 }
                 goto pop;
             }
-            float d = s->q[a] - PX(v, node - 1, ph)[a];
+            float split = PX(v, node - 1, ph)[a];
+            float d = s->q[a] - split;
             uint64_t near = 2 * node + (d >= 0);
             prefetch_buckets(v, near);
-            /* The near child's cell has the same offsets as this one; the far child's is
-             * |d| away along the axis. r2 only shrinks: a far side already out of reach is
-             * never pushed. The recursive search makes the same decision later, when it
-             * returns. */
-            stack[sp].off[0] = off[0], stack[sp].off[1] = off[1], stack[sp].off[2] = off[2];
-            stack[sp].off[a] = d >= 0 ? d : -d;
-            float rd = cell_dist2(stack[sp].off);
-            stack[sp].rd = rd;
+            /* The far child's cell: r2 only shrinks, so an entry already out of reach is never
+             * pushed. The recursive search makes the same decisions later, when it returns. */
+            v4 flo = lo, fhi = hi;
+            if (near & 1) fhi = v4_set_lane(hi, a, split);
+            else flo = v4_set_lane(lo, a, split);
+            float rr = box_dist2(qv, flo, fhi), rf = rr;
+            if ((near ^ 1) < L) {
+                unsigned c = CODEX(v, near ^ 1, ph);
+                if (c) {
+                    box_tighten(&flo, &fhi, c);
+                    rf = box_dist2(qv, flo, fhi);
+                }
+            }
+            stack[sp].lo = flo, stack[sp].hi = fhi;
+            stack[sp].rr = rr;
+            stack[sp].rf = rf;
             stack[sp].node = (uint32_t)(near ^ 1);
-            sp += !(rd >= s->r2);
+            sp += !(rr >= s->r2);
+            /* The near child's cell: the same as this one on the split axis's near side, so
+             * only its own code can move it away from q. */
+            if (near & 1) lo = v4_set_lane(lo, a, split);
+            else hi = v4_set_lane(hi, a, split);
             node = near;
+            if (near < L) {
+                unsigned c = CODEX(v, near, ph);
+                if (c) {
+                    box_tighten(&lo, &hi, c);
+                    if (box_dist2(qv, lo, hi) >= s->r2) goto pop;
+                }
+            }
         }
         if (cnt) s->nodes++;
         knn_bucket(s, v, node, metric, filter, ph, cnt);
@@ -315,19 +408,20 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
                 return;
             }
             sp--;
-            if (!(stack[sp].rd >= s->r2)) {
-                node = stack[sp].node;
-                off[0] = stack[sp].off[0], off[1] = stack[sp].off[1], off[2] = stack[sp].off[2];
-                /* the node's record lies in the far cell's boundary plane: no closer */
-                knn_consider(s, v, (node >> 1) - 1, metric, filter, ph, cnt);
-                break;
-            }
+            if (stack[sp].rr >= s->r2) continue;
+            /* the parent's record lies in the far cell's boundary plane before the far
+             * child's code shrinks the cell: no closer than rr */
+            node = stack[sp].node;
+            knn_consider(s, v, (node >> 1) - 1, metric, filter, ph, cnt);
+            if (stack[sp].rf >= s->r2) continue;
+            lo = stack[sp].lo, hi = stack[sp].hi;
+            break;
         }
     }
 }
 
 #define PM__KNN_REC(name, metric, filter, ph, cnt)                                        \
-    static void name(knn_state *s, const view *v, uint64_t node, const float off[3]) {   \
+    static void name(knn_state *s, const view *v, uint64_t node, v4 lo, v4 hi) {         \
         if (cnt) s->nodes++;                                                             \
         if (node >= v->L) {                                                              \
             knn_bucket(s, v, node, metric, filter, ph, cnt);                             \
@@ -342,16 +436,31 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
                 knn_uniform(s, v, node, metric, filter);                                 \
             return;                                                                      \
         }                                                                                \
-        float d = s->q[a] - PX(v, node - 1, ph)[a];                                      \
+        float split = PX(v, node - 1, ph)[a];                                            \
+        float d = s->q[a] - split;                                                       \
         uint64_t near = 2 * node + (d >= 0);                                             \
         prefetch_buckets(v, near);                                                       \
-        float fo[3] = {off[0], off[1], off[2]};                                          \
-        fo[a] = d >= 0 ? d : -d;                                                         \
-        float rd = cell_dist2(fo);                                                       \
-        name(s, v, near, off);                                                           \
-        if (!(rd >= s->r2)) {                                                            \
+        const v4 qv = v4_load3(s->q);                                                    \
+        v4 flo = lo, fhi = hi;                                                           \
+        if (near & 1) fhi = v4_set_lane(hi, a, split);                                   \
+        else flo = v4_set_lane(lo, a, split);                                            \
+        float rr = box_dist2(qv, flo, fhi), rf = rr;                                     \
+        if ((near ^ 1) < v->L) {                                                         \
+            unsigned c = CODEX(v, near ^ 1, ph);                                         \
+            if (c) {                                                                     \
+                box_tighten(&flo, &fhi, c);                                              \
+                rf = box_dist2(qv, flo, fhi);                                            \
+            }                                                                            \
+        }                                                                                \
+        v4 nlo = lo, nhi = hi;                                                           \
+        if (near & 1) nlo = v4_set_lane(lo, a, split);                                   \
+        else nhi = v4_set_lane(hi, a, split);                                            \
+        unsigned nc = near < v->L ? CODEX(v, near, ph) : 0;                              \
+        if (nc) box_tighten(&nlo, &nhi, nc);                                             \
+        if (!nc || !(box_dist2(qv, nlo, nhi) >= s->r2)) name(s, v, near, nlo, nhi);      \
+        if (!(rr >= s->r2)) {                                                            \
             knn_consider(s, v, node - 1, metric, filter, ph, cnt);                       \
-            name(s, v, near ^ 1, fo);                                                    \
+            if (!(rf >= s->r2)) name(s, v, near ^ 1, flo, fhi);                          \
         }                                                                                \
     }
 /* The recursive search, one instance per layout and counting choice like the iterative one,
@@ -398,8 +507,9 @@ static int knn_setup(knn_state *s, const pm_kdtree *t, const float q[3], unsigne
     s->r2 = max_dist2 == INFINITY ? NAN : max_dist2;
     s->out = out;
     s->k = k;
-    root_offsets(t, s->q, s->off);
-    s->rd = cell_dist2(s->off);
+    view v = make_view(t);
+    root_box(&v, is_photon_layout(t), s->lo, s->hi);
+    s->rd = box_dist2(v4_load3(s->q), v4_load3(s->lo), v4_load3(s->hi));
     return 1;
 }
 
@@ -439,11 +549,11 @@ int pm_kdtree_knn_recursive(const pm_kdtree *tree, const float q[3], unsigned k,
     if (s.rd >= s.r2) return 0; /* the whole tree is out of reach */
     view v = make_view(tree);
     if (!is_photon_layout(tree))
-        knn_rec_gen(&s, &v, 1, s.off);
+        knn_rec_gen(&s, &v, 1, v4_load3(s.lo), v4_load3(s.hi));
     else if (stats)
-        knn_rec_ph_cnt(&s, &v, 1, s.off);
+        knn_rec_ph_cnt(&s, &v, 1, v4_load3(s.lo), v4_load3(s.hi));
     else
-        knn_rec_ph(&s, &v, 1, s.off);
+        knn_rec_ph(&s, &v, 1, v4_load3(s.lo), v4_load3(s.hi));
     return knn_finish(&s, flags, stats);
 }
 
@@ -499,7 +609,7 @@ typedef struct {
     void *user;
     int stop;
     uint64_t nodes, evals;
-    float off[3]; /* offsets from q to the root cell */
+    float lo[3], hi[3]; /* the root cell */
 } rad_state;
 
 PM__INLINE void rad_take(rad_state *s, uint64_t i, float d2) {
@@ -544,14 +654,16 @@ static void rad_uniform(rad_state *s, const view *v, uint64_t node) {
 
 static void rad_iter(rad_state *s, const view *v) {
     struct {
+        v4 lo, hi;
         uint32_t node;
-        float off[3];
+        float rf;
     } stack[PM_KDTREE_MAX_DEPTH];
     int sp = 0;
     uint64_t node = 1;
     const uint64_t L = v->L;
-    float off[3] = {s->off[0], s->off[1], s->off[2]};
-    if (cell_dist2(off) >= s->r2) return; /* the whole tree is out of reach */
+    const v4 qv = v4_load3(s->q);
+    v4 lo = v4_load3(s->lo), hi = v4_load3(s->hi);
+    if (box_dist2(qv, lo, hi) >= s->r2) return; /* the whole tree is out of reach */
     for (;;) {
         while (node < L) {
             unsigned a = AX(v, node);
@@ -560,15 +672,37 @@ static void rad_iter(rad_state *s, const view *v) {
                 rad_uniform(s, v, node);
                 goto pop;
             }
-            float d = s->q[a] - P(v, node - 1)[a];
+            float split = P(v, node - 1)[a];
+            float d = s->q[a] - split;
             uint64_t near = 2 * node + (d >= 0);
-            /* r2 is fixed: a far cell out of reach is dropped now, and so is the node's
-             * record, which lies in that cell's boundary plane. */
-            stack[sp].off[0] = off[0], stack[sp].off[1] = off[1], stack[sp].off[2] = off[2];
-            stack[sp].off[a] = d >= 0 ? d : -d;
+            /* r2 is fixed: when the far cell (before the far child's own code) is out of
+             * reach, so are the far child and the node's record, which lies in that cell's
+             * boundary plane, and the entry is dropped now. */
+            v4 flo = lo, fhi = hi;
+            if (near & 1) fhi = v4_set_lane(hi, a, split);
+            else flo = v4_set_lane(lo, a, split);
+            float rr = box_dist2(qv, flo, fhi), rf = rr;
+            if ((near ^ 1) < L) {
+                unsigned c = CODEX(v, near ^ 1, 0);
+                if (c) {
+                    box_tighten(&flo, &fhi, c);
+                    rf = box_dist2(qv, flo, fhi);
+                }
+            }
+            stack[sp].lo = flo, stack[sp].hi = fhi;
+            stack[sp].rf = rf;
             stack[sp].node = (uint32_t)(near ^ 1);
-            sp += !(cell_dist2(stack[sp].off) >= s->r2);
+            sp += !(rr >= s->r2);
+            if (near & 1) lo = v4_set_lane(lo, a, split);
+            else hi = v4_set_lane(hi, a, split);
             node = near;
+            if (near < L) {
+                unsigned c = CODEX(v, near, 0);
+                if (c) {
+                    box_tighten(&lo, &hi, c);
+                    if (box_dist2(qv, lo, hi) >= s->r2) goto pop;
+                }
+            }
         }
         s->nodes++;
         {
@@ -581,9 +715,10 @@ static void rad_iter(rad_state *s, const view *v) {
             if (sp == 0 || s->stop) return;
             sp--;
             node = stack[sp].node;
-            off[0] = stack[sp].off[0], off[1] = stack[sp].off[1], off[2] = stack[sp].off[2];
             rad_consider(s, v, (node >> 1) - 1);
             if (s->stop) return;
+            if (stack[sp].rf >= s->r2) continue;
+            lo = stack[sp].lo, hi = stack[sp].hi;
             break;
         }
     }
@@ -596,7 +731,8 @@ static int rad_setup(rad_state *s, const pm_kdtree *t, const float q[3], float r
     memset(s, 0, sizeof *s);
     s->q[0] = q[0], s->q[1] = q[1], s->q[2] = q[2];
     s->r2 = r2 == INFINITY ? NAN : r2;
-    root_offsets(t, s->q, s->off);
+    view v = make_view(t);
+    root_box(&v, is_photon_layout(t), s->lo, s->hi);
     return 1;
 }
 

@@ -7,9 +7,8 @@
  *   power[4]   RGBE        Ward's shared-exponent colour (see precision below)
  *   theta,phi  2 x uint8   incident direction (the direction the photon travelled), decoded
  *                          through constant tables: no trigonometry per lookup
- *   flag       uint8       bits 0-1 (PM_FLAG_TREE_MASK): the kd-tree's, see below;
- *                          bits 2-3 (PM_FLAG_KIND_MASK): photon kind (PM_KIND_*);
- *                          bits 4-7: reserved, written zero by the setters
+ *   flag       uint8       bits 0-1 and 4-7 (PM_FLAG_TREE_MASK): the kd-tree's, see below;
+ *                          bits 2-3 (PM_FLAG_KIND_MASK): photon kind (PM_KIND_*)
  *   normal     uint8       the surface normal where the photon was stored, quantized to one
  *                          of 256 directions (used by precomputed irradiance)
  *
@@ -32,15 +31,18 @@
  *     products; decoding is a table lookup.
  *
  * THE TREE'S BITS. A pm_kdtree built with pm_kdtree_photon_config() keeps the split axis of
- * each internal node in bits 0-1 of that record's flag byte (PM_FLAG_TREE_MASK), writes 0
- * there for bucket records, and reads them in every query. Exactly those two bits are the
- * tree's; while the tree exists nothing else may change them (or the position). Everything
+ * each internal node in bits 0-1 of that record's flag byte (PM_FLAG_AXIS_MASK) and a code
+ * that shrinks the node's cell toward its records in bits 4-7 (kdtree.h), writes 0 in all six
+ * for bucket records, and reads them in every query. Exactly those six bits
+ * (PM_FLAG_TREE_MASK) are the tree's; while the tree exists nothing else may change them (or
+ * the position). Everything
  * else may change: pm_photon_set, pm_photon_set_power and pm_photon_set_kind rewrite their
  * fields and keep the tree's bits, so updating powers after a build (e.g. rescaling for the
  * number of photons emitted) is safe with any of them. pm_photon_init is for fresh memory:
  * it also zeroes the tree's bits (pm_photon_set would keep whatever bytes were there, which a
  * later build overwrites anyway). Writing p->flag or a whole record by hand, or memcpy from
- * another record, does clobber the tree's bits.
+ * another record, does clobber the tree's bits (and a clobbered code can make queries miss
+ * records).
  *
  * Thread safety: all functions here are pure or read constant tables; no initialization call.
  */
@@ -60,8 +62,8 @@ enum {
     PM_KIND_SHADOW = 2,   /* later hit along the light's ray: marks a shadowed point */
     PM_KIND_CAUSTIC = 3   /* L S+ D path (kept in a caustic map) */
 };
-#define PM_FLAG_TREE_MASK 0x03u /* the kd-tree's bits (see THE TREE'S BITS above) */
-#define PM_FLAG_AXIS_MASK PM_FLAG_TREE_MASK
+#define PM_FLAG_TREE_MASK 0xF3u /* the kd-tree's bits (see THE TREE'S BITS above) */
+#define PM_FLAG_AXIS_MASK 0x03u /* of which the split axis */
 #define PM_FLAG_KIND_SHIFT 2
 #define PM_FLAG_KIND_MASK 0x0Cu
 
@@ -88,7 +90,7 @@ void pm_normal_decode(uint8_t code, float n[3]);
 
 /* Fill a photon from unpacked values (kind is a PM_KIND_*; normal may be NULL: code 0).
  * pm_photon_set keeps the tree's bits of p->flag as they are (safe on a record of a built
- * tree); pm_photon_init zeroes them (for fresh memory). Both zero the reserved bits. */
+ * tree); pm_photon_init zeroes them (for fresh memory). */
 void pm_photon_set(pm_photon *p, const float pos[3], const float power[3], const float dir[3],
                    const float normal[3], int kind);
 void pm_photon_init(pm_photon *p, const float pos[3], const float power[3], const float dir[3],

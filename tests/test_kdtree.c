@@ -169,7 +169,7 @@ TEST(kdtree_matches_brute_force_all_shapes) {
                 ASSERT_EQ_INT(pm_kdtree_dropped(t), 0);
                 for (size_t i = 0; i < n; i++) {
                     pm_photon x = ph[i], y = orig[perm[i]];
-                    x.flag &= (uint8_t)~3u, y.flag &= (uint8_t)~3u;
+                    x.flag &= (uint8_t)~PM_FLAG_TREE_MASK, y.flag &= (uint8_t)~PM_FLAG_TREE_MASK;
                     if (memcmp(&x, &y, sizeof x) != 0) {
                         EXPECT_MSG(0, "%s: record %zu is not original %u", what, i, perm[i]);
                         break;

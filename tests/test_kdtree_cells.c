@@ -261,3 +261,178 @@ TEST(kdtree_off_plane_query_work_is_bounded) {
     }
     free(ph);
 }
+
+/* ---- tightening codes ---------------------------------------------------------------------- */
+
+#include "kdtree_internal.h"
+
+/* The cell of every node, derived exactly as the queries derive it (the root's box and code,
+ * then each child cut at its parent's split and shrunk by its own code), must hold every
+ * record of the node's subtree. Checked against the records themselves, node by node.
+ * Returns the number of nodes whose code is not 0, or -1 after a failure. */
+static long c_check_cells(const pm_kdtree *t, const char *what) {
+    const char *rec = pm_kdtree_records(t);
+    uint64_t L = t->nleaves;
+    if (t->n == 0) return 0;
+    struct {
+        uint64_t p;
+        float lo[3], hi[3];
+    } st[2 * PM_KDTREE_MAX_DEPTH + 2];
+    int sp = 1;
+    long coded = 0;
+    st[0].p = 1;
+    memcpy(st[0].lo, t->lo, sizeof t->lo);
+    memcpy(st[0].hi, t->hi, sizeof t->hi);
+    while (sp > 0) {
+        sp--;
+        uint64_t p = st[sp].p;
+        float lo[3], hi[3];
+        memcpy(lo, st[sp].lo, sizeof lo);
+        memcpy(hi, st[sp].hi, sizeof hi);
+        unsigned byte = 0;
+        if (p < L) {
+            byte = t->axes ? t->axes[p - 1]
+                           : ((const uint8_t *)rec)[(p - 1) * t->stride + (size_t)t->axis_offset];
+            /* a byte the tree shares keeps the caller's bits there: not a code */
+            unsigned c = t->tight ? byte >> PM__CODE_SHIFT : 0;
+            coded += c != 0;
+            pm__tighten(lo, hi, c);
+        }
+        pm__range r[PM_KDTREE_MAX_DEPTH + 1];
+        int nr = pm__subtree_ranges(t, p, pm__ilog2(p), r);
+        for (int g = 0; g < nr; g++) {
+            for (uint64_t i = r[g].begin; i < r[g].end; i++) {
+                const float *x = (const float *)(rec + i * t->stride + t->pos_offset);
+                for (int a = 0; a < 3; a++) {
+                    if (!(lo[a] <= x[a] && x[a] <= hi[a])) {
+                        EXPECT_MSG(0, "%s: record %llu (%g on axis %d) outside node %llu's cell [%g, %g]",
+                                   what, (unsigned long long)i, (double)x[a], a,
+                                   (unsigned long long)p, (double)lo[a], (double)hi[a]);
+                        return -1;
+                    }
+                }
+            }
+        }
+        unsigned a = byte & PM__AXIS_MASK;
+        if (p >= L || a == PM__AXIS_UNIFORM) continue;
+        float split = ((const float *)(rec + (p - 1) * t->stride + t->pos_offset))[a];
+        for (int c = 0; c < 2; c++) {
+            st[sp].p = 2 * p + (uint64_t)c;
+            memcpy(st[sp].lo, lo, sizeof lo);
+            memcpy(st[sp].hi, hi, sizeof hi);
+            if (c) st[sp].lo[a] = split;
+            else st[sp].hi[a] = split;
+            sp++;
+        }
+    }
+    return coded;
+}
+
+/* Oracle: the records themselves (every one inside the decoded cell of every node above it).
+ * On the point sets above plus heavy duplicates, huge coordinates (around 1e30, and extents
+ * that overflow to inf near FLT_MAX), tiny spreads (1e-30 around 1) and subnormal spreads;
+ * B in {1, 2, 8, 32, 64}; pm_photon records (codes in the flag byte) and a tree-owned axis
+ * array (codes there). Also: codes are really written on clustered data and the planar caustic (else
+ * this test would check nothing), the queries on the odd sets match brute force, and a
+ * record layout whose axis byte the tree shares keeps bits 2-7 untouched and gets no codes. */
+TEST(kdtree_tightening_codes_are_conservative) {
+    const size_t n = PM_TEST_SANITIZED ? 1500 : 6000;
+    const unsigned Bs[] = {1, 2, 8, 32, 64};
+    enum { X_DUPS = C_N, X_HUGE, X_OVERFLOW, X_TINY, X_SUBNORMAL, X_N };
+    static const char *const xn[] = {"dups", "huge", "overflow", "tiny", "subnormal"};
+    float *orc = malloc(n * sizeof *orc), *mine = malloc(n * sizeof *mine);
+    pm_neighbor *res = malloc(n * sizeof *res);
+    typedef struct {
+        float pos[3];
+        uint8_t axis, other;
+        uint8_t pad[2];
+    } rec16;
+    rec16 *g = malloc(n * sizeof *g);
+    ASSERT(orc && mine && res && g);
+    for (int dist = 0; dist < X_N; dist++) {
+        const char *name = dist < C_N ? c_names[dist] : xn[dist - C_N];
+        pm_photon *base = c_photons(dist < C_N ? dist : C_CLUSTERS, n, 4242 + (uint64_t)dist);
+        kt_rng r = {99 + (uint64_t)dist};
+        for (size_t i = 0; i < n && dist >= C_N; i++) {
+            float *p = base[i].pos;
+            if (dist == X_DUPS && i % 3 != 0) p[0] = 0.25f, p[1] = 0.5f, p[2] = 0.75f;
+            if (dist == X_HUGE)
+                for (int a = 0; a < 3; a++) p[a] = p[a] * 1e30f - 5e29f;
+            if (dist == X_OVERFLOW)
+                for (int a = 0; a < 3; a++) p[a] = (kt_uniform(&r) < 0.5f ? -3e38f : 3e38f) * p[a];
+            if (dist == X_TINY)
+                for (int a = 0; a < 3; a++) p[a] = 1.0f + p[a] * 1e-6f;
+            if (dist == X_SUBNORMAL)
+                for (int a = 0; a < 3; a++) p[a] = p[a] * 1e-38f;
+        }
+        for (size_t bi = 0; bi < sizeof Bs / sizeof Bs[0]; bi++) {
+            char what[96];
+            snprintf(what, sizeof what, "%s B=%u", name, Bs[bi]);
+            pm_photon *ph = malloc(n * sizeof *ph);
+            memcpy(ph, base, n * sizeof *ph);
+            pm_kdtree *t = NULL;
+            pm_kdtree_config cfg = pm_kdtree_photon_config(Bs[bi]);
+            ASSERT_EQ_INT(pm_kdtree_build(&t, ph, n, &cfg, NULL), 0);
+            long coded = c_check_cells(t, what);
+            if (dist == C_CLUSTERS || dist == C_CAUSTIC)
+                EXPECT_MSG(coded > 0, "%s: no node has a code", what);
+            /* the searches on these sets against brute force */
+            for (int qi = 0; qi < 6 && !pm_test_failed(); qi++) {
+                float q[3];
+                const float *p = ph[kt_next(&r) % n].pos;
+                for (int a = 0; a < 3; a++)
+                    q[a] = qi & 1 ? p[a] * (1.0f + 0.01f * (kt_uniform(&r) - 0.5f))
+                                  : ph[kt_next(&r) % n].pos[a];
+                size_t m = c_brute(t, q, INFINITY, 0, 0, orc);
+                unsigned k = qi < 2 ? 1u : qi < 4 ? 10u : 50u;
+                int got = pm_kdtree_knn(t, q, k, INFINITY, res, PM_SORT, NULL);
+                ASSERT_EQ_INT(got, (int)(m < k ? m : k));
+                for (int j = 0; j < got; j++)
+                    EXPECT_MSG(res[j].dist2 == orc[j], "%s: k-NN %d-th dist2 %g, brute %g", what,
+                               j, (double)res[j].dist2, (double)orc[j]);
+                float r2 = orc[(m < k ? m : k) - 1];
+                size_t mr = c_brute(t, q, r2, 0, 0, orc);
+                long gr = pm_kdtree_radius(t, q, r2, res, n, PM_SORT, NULL);
+                ASSERT_EQ_INT(gr, (long)mr);
+                for (long j = 0; j < gr; j++) EXPECT(res[j].dist2 == orc[j]);
+            }
+            pm_kdtree_free(t);
+            free(ph);
+            /* a tree-owned axis array carries codes too; a shared byte outside pm_photon's
+             * layout does not, and keeps its other bits */
+            for (int owned = 0; owned < 2; owned++) {
+                for (size_t i = 0; i < n; i++) {
+                    memcpy(g[i].pos, base[i].pos, sizeof g[i].pos);
+                    g[i].axis = (uint8_t)(0xFCu & (i * 37u)), g[i].other = (uint8_t)i;
+                }
+                pm_kdtree_config gc = {sizeof(rec16), 0, owned ? -1 : (int)offsetof(rec16, axis),
+                                       Bs[bi]};
+                uint32_t *perm = malloc(n * sizeof *perm);
+                ASSERT_EQ_INT(pm_kdtree_build(&t, g, n, &gc, perm), 0);
+                char w2[128];
+                snprintf(w2, sizeof w2, "%s (%s)", what, owned ? "owned axes" : "shared byte");
+                long c2 = c_check_cells(t, w2);
+                if (owned && dist == C_CLUSTERS)
+                    EXPECT_MSG(c2 > 0, "%s: no node has a code", w2);
+                if (!owned) {
+                    EXPECT_MSG(!t->tight && c2 == 0, "%s: codes in a byte the tree shares", w2);
+                    for (size_t i = 0; i < n; i++) {
+                        if ((g[i].axis & 0xFCu) != (0xFCu & (perm[i] * 37u))) {
+                            EXPECT_MSG(0, "%s: bits 2-7 of record %zu changed", w2, i);
+                            break;
+                        }
+                    }
+                }
+                pm_kdtree_free(t);
+                free(perm);
+            }
+            if (pm_test_failed()) break;
+        }
+        free(base);
+        if (pm_test_failed()) break;
+    }
+    free(orc);
+    free(mine);
+    free(res);
+    free(g);
+}
