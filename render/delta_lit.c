@@ -46,7 +46,7 @@ static void follow(const scene *s, vec3 p, vec3 ng, const material *m, vec3 d, i
     }
     if (reflects) out[nout++] = v3_reflect(d, ng);
     for (int k = 0; k < nout; k++) {
-        ray r = {v3_offset(p, ng, out[k]), out[k]};
+        ray r = {scene_offset(s, p, ng, out[k]), out[k]};
         hit h;
         if (!scene_intersect(s, r, INFINITY, &h)) continue;
         const material *hm = &s->mats[h.mat];

@@ -230,8 +230,8 @@ TEST(normal_round_trip_is_nearest_and_bounded) {
 }
 
 /* Oracle: pm_photon_init and pm_photon_set store exactly what the separate encoders produce;
- * init zeroes the tree's bits, set and the single-field setters keep them and every other
- * field; the reserved bits end up zero. */
+ * init zeroes the tree's bits (PM_FLAG_TREE_MASK: bits 0-1 and 4-7, so the flag holds the
+ * kind alone), set and the single-field setters keep them and every other field. */
 TEST(photon_set_packs_all_fields) {
     pm_photon p;
     memset(&p, 0xFF, sizeof p);
