@@ -317,22 +317,22 @@ static void plan_media(const scene *s, const photon_settings *cfg, render_plan *
         set(&p->caustics, 0, "%s", buf);
     } else {
         snprintf(buf, sizeof buf,
-                 "L S+ D paths: %llu of %llu pilot photons aimed at specular surfaces reach a diffuse "
-                 "surface through them only",
+                 "L S+ D paths: %llu arrivals at diffuse surfaces through specular surfaces only, from "
+                 "%llu pilot photons aimed at them",
                  pc.surf_caustic, pc.emitted);
         set(&p->caustics, 1, "%s", buf);
     }
     if (pg.surf_indirect == 0) {
         snprintf(buf, sizeof buf,
-                 "no diffuse surface or medium sends light onto a diffuse surface: %llu of %llu pilot "
-                 "photons arrive after a bounce",
+                 "no diffuse surface or medium sends light onto a diffuse surface: %llu arrivals "
+                 "after a bounce, from %llu pilot photons",
                  pg.surf_indirect, pg.emitted);
         set(&p->global, 0, "%s", buf);
     } else {
         snprintf(buf, sizeof buf,
-                 "diffuse surfaces and media send light onto diffuse surfaces: %llu of %llu pilot "
-                 "photons arrive after a bounce (%llu of them after scattering in a medium)",
-                 pg.surf_indirect, pg.emitted, pg.surf_after_scatter);
+                 "diffuse surfaces and media send light onto diffuse surfaces: %llu arrivals after a "
+                 "bounce (%llu of them after scattering in a medium), from %llu pilot photons",
+                 pg.surf_indirect, pg.surf_after_scatter, pg.emitted);
         set(&p->global, 1, "%s", buf);
     }
     set(&p->shadow, 0, "a scene with media: shadow rays carry the transmittance, no shadow photons%s", "");

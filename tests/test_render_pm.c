@@ -142,6 +142,10 @@ static const expected_plan k_plans[] = {
     {"glass_hole", 1, 1, 1, 1, "", "", "", ""},
     {"mirror_cage", 0, 0, 0, 0, "leads to a diffuse one: 0 of 8192", "no surface the lights reach stores photons, 0 of 8192", "no area light", "no global map"},
     {"black_box", 0, 0, 0, 0, "no specular surface", "no surface the lights reach stores photons", "no surface the lights reach stores photons", "no global map"},
+    /* Media: shadow rays carry the transmittance there, so no shadow photons (plan.h). */
+    {"cornell_fog", 0, 1, 0, 1, "no specular surface", "", "shadow rays carry the transmittance", ""},
+    {"volumetric_caustic", 1, 1, 0, 1, "", "", "shadow rays carry the transmittance", ""},
+    {"glass_of_smoke", 1, 1, 0, 1, "", "", "shadow rays carry the transmittance", ""},
 };
 
 static void check_item(const char *scene_name, const char *what, const plan_item *it, int want,
