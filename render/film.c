@@ -27,6 +27,13 @@ int film_init(film *f, int width, int height) {
     return f->px ? 0 : PM_ENOMEM;
 }
 
+size_t film_count_nonfinite(const film *f) {
+    size_t n = 0, npx = (size_t)f->width * (size_t)f->height;
+    for (size_t i = 0; f->px && i < npx; i++)
+        n += !isfinite(f->px[3 * i]) || !isfinite(f->px[3 * i + 1]) || !isfinite(f->px[3 * i + 2]);
+    return n;
+}
+
 void film_free(film *f) {
     free(f->px);
     f->px = NULL;

@@ -40,6 +40,9 @@ typedef struct film {
 
 int film_init(film *f, int width, int height); /* zeroed pixels; 0 or PM_ENOMEM */
 void film_free(film *f);
+/* The pixels with a channel that is not finite (inf or NaN) as stored: a sample finite in
+ * double may still overflow a float. */
+size_t film_count_nonfinite(const film *f);
 static inline void film_set(film *f, int x, int y, rgb c) {
     float *p = f->px + 3 * ((long)y * f->width + x);
     p[0] = (float)c.x;

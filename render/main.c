@@ -339,6 +339,11 @@ int main(int argc, char **argv) {
     static ckpt_session cs;
     render_state rstate = {0, 0, 0, NULL, NULL};
     int uses_photons = strcmp(s.settings.mode, "pm") == 0 || strcmp(s.settings.mode, "preview") == 0;
+    if (uses_photons && scene_check_photon_range(&s, &e) < 0) { /* float photons: scene.h */
+        fprintf(stderr, "render: %s: %s\n", scene_path, e.msg);
+        scene_free(&s);
+        return 2;
+    }
     if ((rc = checkpoint_setup(&s, scene_path, argc, argv, ckpt_path, resume, uses_photons, &cs,
                                &rstate)) != 0) {
         scene_free(&s);
@@ -422,6 +427,11 @@ int main(int argc, char **argv) {
     }
     render_state_free(&rstate);
     int status = 0;
+    size_t nonfinite = film_count_nonfinite(&f);
+    if (nonfinite)
+        fprintf(stderr, "render: warning: %zu pixel%s of the image %s not finite (inf or NaN; "
+                "\"Film/Non-finite pixels\" below)\n", nonfinite, nonfinite == 1 ? "" : "s",
+                nonfinite == 1 ? "is" : "are");
     double used = 0;
     char werr[600];
     if (film_write_outputs(&f, pfm, png, s.settings.tone, s.settings.exposure, s.settings.clip_percent,

@@ -67,7 +67,8 @@ rgb material_diffuse_f(const material *m, vec3 n, vec3 wo, vec3 wi) {
     if (ci <= 0 || co <= 0) return v3s(0);
     if (m->sigma <= 0) return v3_scale(m->diffuse, 1.0 / M_PI);
     double s2 = m->sigma * m->sigma;
-    double A = 1.0 - 0.5 * s2 / (s2 + 0.33), B = 0.45 * s2 / (s2 + 0.09);
+    /* s2 / (s2 + c) as 1 / (1 + c / s2): finite for any sigma (the loader keeps it <= pi/2). */
+    double A = 1.0 - 0.5 / (1.0 + 0.33 / s2), B = 0.45 / (1.0 + 0.09 / s2);
     double si = sqrt(fmax(0.0, 1.0 - ci * ci)), so = sqrt(fmax(0.0, 1.0 - co * co));
     double cphi = 0;
     if (si > 1e-12 && so > 1e-12) {

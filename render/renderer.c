@@ -228,6 +228,8 @@ int render_image_ctl(const scene *s, const integrator *it, const render_job *job
         film_free(out);
     } else {
         render_state_to_film(st, out);
+        /* What lands in the film: a sum finite in double can still overflow the film's floats. */
+        stat_add(stats_register("Film/Non-finite pixels"), film_count_nonfinite(out));
         if (rc == 0) progress_end(&L.prog);
     }
     if (st == &own) render_state_free(&own);

@@ -35,10 +35,16 @@ int scene_prepare(scene *s, json_err *e) {
     s->bounds_hi = hi;
     s->bsphere_c = v3_scale(v3_add(lo, hi), 0.5);
     s->bsphere_r = 0.5 * v3_len(v3_sub(hi, lo));
+    if (!(s->bsphere_r >= SCENE_LENGTH_MIN))
+        return json_fail(e, PM_EINVAL, "$.objects: the scene's bounding radius %g is below the "
+                         "supported range of lengths, %g to %g", s->bsphere_r, SCENE_LENGTH_MIN,
+                         SCENE_LENGTH_MAX);
     /* A thousandth of the scene's size: 64e-9 of it is still about 1e5 times the rounding error of
      * a hit point found by a ray from anywhere in the scene, and it shrinks with the scene (a
-     * fixed floor of 1 was 1% of a box 5e-6 wide: contact shadows went missing). */
-    s->offset_floor = 1e-3 * s->bsphere_r;
+     * fixed floor of 1 was 1% of a box 5e-6 wide: contact shadows went missing). Not above 1,
+     * the old floor: in a large scene the point's own magnitude sets the offset anyway, and a
+     * huge sphere (a ground or sky) would otherwise push offsets past the small objects. */
+    s->offset_floor = fmin(1.0, 1e-3 * s->bsphere_r);
     /* One light per emissive primitive p (numbered as hit.prim): triangles, then spheres. */
     int nemit = 0;
     for (int p = 0; p < s->ntris + s->nspheres; p++)
@@ -80,8 +86,10 @@ int scene_prepare(scene *s, json_err *e) {
         if (!isfinite(w[i])) { /* finite inputs whose product overflows */
             free(w);
             if (l->type == LIGHT_AREA || l->type == LIGHT_SPHERE)
-                return json_fail(e, PM_EINVAL, "an emissive %s: its power (pi Le area) is too "
-                                 "large to represent", l->type == LIGHT_AREA ? "triangle" : "sphere");
+                return json_fail(e, PM_EINVAL, "$.objects[%d]: an emissive %s whose power (pi Le "
+                                 "area) is too large to represent (%g): make it smaller or dimmer",
+                                 l->type == LIGHT_AREA ? s->tri_obj[l->tri] : s->sphere_obj[l->sphere],
+                                 l->type == LIGHT_AREA ? "triangle" : "sphere", w[i]);
             return json_fail(e, PM_EINVAL, "$.lights[%d]: its power is too large to represent%s", i,
                              l->type == LIGHT_DIRECTIONAL ? " (irradiance times the scene's cross-section)" : "");
         }
@@ -106,6 +114,34 @@ int scene_prepare(scene *s, json_err *e) {
     stats_time_add("Time/BVH build", stats_now() - t_bvh);
     stats_time_add("Time/BVH build (CPU, all threads)", (double)(clock() - c_bvh) / CLOCKS_PER_SEC);
     if (rc < 0) return json_fail(e, rc, "building the BVH: %s", render_strerror(rc));
+    return 0;
+}
+
+int scene_check_photon_range(const scene *s, json_err *e) {
+    /* Photon positions are floats (photonmap/photon.h) and kd-tree distances are squared in
+     * float: a search radius r needs r^2 between 1.2e-38 and 3.4e38, and an estimate's radius
+     * runs from about 1e-4 of the scene to the scene's size. Far from the origin a float
+     * position is coarse: its rounding step is 6e-8 of the coordinate. */
+    double R = s->bsphere_r, far = fmax(v3_maxabs(s->bounds_lo), v3_maxabs(s->bounds_hi));
+    if (!(R >= SCENE_PM_SIZE_MIN && R <= SCENE_PM_SIZE_MAX))
+        return json_fail(e, PM_EINVAL, "$.objects: the scene's bounding radius %g is outside the "
+                         "range photon mapping supports, %g to %g (photon positions and squared "
+                         "distances are 32-bit floats); scale the scene, or use --mode path", R,
+                         SCENE_PM_SIZE_MIN, SCENE_PM_SIZE_MAX);
+    if (far > SCENE_PM_OFFSET_MAX * R)
+        return json_fail(e, PM_EINVAL, "$.objects: the scene reaches %g from the origin, more "
+                         "than %g times its bounding radius %g: photon mapping stores positions "
+                         "as 32-bit floats, too coarse there; move the scene to the origin, or "
+                         "use --mode path", far, SCENE_PM_OFFSET_MAX, R);
+    double total = 0;
+    for (int i = 0; i < s->nlights; i++)
+        total += (s->lights[i].power.x + s->lights[i].power.y + s->lights[i].power.z) / 3;
+    /* A photon carries total / n, n up to 1e8, in a float with a shared 8-bit exponent. */
+    if (total > SCENE_PM_POWER_MAX || (total > 0 && total < 1 / SCENE_PM_POWER_MAX))
+        return json_fail(e, PM_EINVAL, "$.lights: the scene's total light power %g is outside the "
+                         "range photon mapping supports, %g to %g (photon powers are 32-bit "
+                         "floats); change the lights' strength, or use --mode path", total,
+                         1 / SCENE_PM_POWER_MAX, SCENE_PM_POWER_MAX);
     return 0;
 }
 

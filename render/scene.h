@@ -12,7 +12,21 @@
  *
  * Extensions: the "photon_mapping" object of the file is not interpreted here; a copy is
  * kept in scene.photon_mapping (NULL when absent) for the photon-mapping code to read with
- * the json.h getters (its path is "$.photon_mapping"). Unknown top-level keys give a warning.
+ * the json.h getters (its path is "$.photon_mapping"). A key the format does not know is an
+ * error anywhere in the file (json_check_keys), with the nearest known key.
+ *
+ * Ranges: numbers that would break the arithmetic are refused with the supported range in
+ * the message. Lengths (every coordinate, radius, the scene's size) are within
+ * SCENE_LENGTH_MIN..SCENE_LENGTH_MAX: their squares and cubes (areas, light powers, the
+ * volume of a closed mesh) stay far inside a double. Emission and a directional light's
+ * irradiance are at most SCENE_RADIANCE_MAX: the image is stored in 32-bit floats (PFM, the
+ * film), whose largest value is 3.4e38, so that leaves 8 orders of magnitude for light
+ * concentrated by a lens. A point light's intensity gives I / d^2, which depends on the
+ * scene's units: only its power must be representable. A film pixel that still overflows is
+ * counted ("Film/Non-finite pixels") and `render` warns. Photon mapping stores positions and squared
+ * distances in 32-bit floats: scene_check_photon_range() says whether a loaded scene is
+ * within its narrower range (SCENE_PM_SIZE_MIN..SCENE_PM_SIZE_MAX, not too far from the
+ * origin for its size, and light powers a photon can carry).
  *
  * Ownership: the scene owns all its arrays and the photon_mapping copy; scene_free()
  * releases them. A zeroed scene may be freed.
@@ -36,6 +50,14 @@
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+#define SCENE_LENGTH_MAX 1e100  /* |coordinate|, radius */
+#define SCENE_LENGTH_MIN 1e-100 /* the scene's bounding radius; a triangle's longest edge */
+#define SCENE_RADIANCE_MAX 1e30 /* emission (W/m^2/sr), a directional light's irradiance */
+#define SCENE_PM_SIZE_MIN 1e-12 /* photon mapping: the scene's bounding radius */
+#define SCENE_PM_SIZE_MAX 1e12
+#define SCENE_PM_OFFSET_MAX 1e4 /* photon mapping: |coordinate| / bounding radius */
+#define SCENE_PM_POWER_MAX 1e30 /* photon mapping: the total light power (photons are floats) */
 
 enum { TONE_FILMIC, TONE_SRGB };
 
@@ -105,6 +127,10 @@ void scene_free(scene *s);
  * light's power and the light distribution, and the BVH. 0, or a negative code with a
  * message in e (no geometry, a power too large to represent, out of memory). */
 int scene_prepare(scene *s, json_err *e);
+/* Is the loaded scene within the range photon mapping supports (see Ranges above)? 0, or
+ * PM_EINVAL with a message that gives the range ("$.objects: the scene's bounding radius
+ * 4.8e+21 is outside the range photon mapping supports, 1e-12 to 1e+12 ..."). */
+int scene_check_photon_range(const scene *s, json_err *e);
 
 /* Nearest hit along r with 0 < t < tmax. */
 int scene_intersect(const scene *s, ray r, double tmax, hit *h);

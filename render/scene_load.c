@@ -17,6 +17,13 @@
 
 #define P_MAX 256
 
+#define TRY(x)                \
+    do {                      \
+        int rc__ = (x);       \
+        if (rc__ < 0) return rc__; \
+    } while (0)
+
+
 /* Append one element of size sz to *arr (count *n, capacity *cap). */
 static int push(void **arr, int *n, int *cap, size_t sz, const void *elem) {
     if (*n == *cap) {
@@ -51,11 +58,26 @@ static int check_nonneg_rgb(rgb c, const char *path, const char *key, json_err *
     return 0;
 }
 
-#define TRY(x)                \
-    do {                      \
-        int rc__ = (x);       \
-        if (rc__ < 0) return rc__; \
-    } while (0)
+/* Emission (a radiance) and a directional light's irradiance: in [0, SCENE_RADIANCE_MAX].
+ * Not a point light's intensity or power: the light they give scales with 1 / length^2, so
+ * their range depends on the scene's units (a film value that overflows is counted). */
+static int check_light_rgb(rgb c, const char *path, const char *key, json_err *e) {
+    TRY(check_nonneg_rgb(c, path, key, e));
+    if (v3_maxabs(c) > SCENE_RADIANCE_MAX)
+        return json_fail(e, PM_EINVAL, "%s.%s: %g is outside the supported range, 0 to %g (the "
+                         "image is stored in 32-bit floats)", path, key, v3_maxabs(c), SCENE_RADIANCE_MAX);
+    return 0;
+}
+
+/* A point (key NULL: path names it): every coordinate within SCENE_LENGTH_MAX. */
+static int check_point(vec3 v, const char *path, const char *key, json_err *e) {
+    if (!(v3_maxabs(v) <= SCENE_LENGTH_MAX))
+        return json_fail(e, PM_EINVAL, "%s%s%s: [%g, %g, %g] is outside the supported range of "
+                         "coordinates, -%g to %g", path, key ? "." : "", key ? key : "", v.x, v.y,
+                         v.z, SCENE_LENGTH_MAX, SCENE_LENGTH_MAX);
+    return 0;
+}
+
 
 /* The known keys of each object of the format (json_check_keys: any other key is an error
  * that suggests the nearest of these). "comment" is allowed everywhere, as free text. */
@@ -73,6 +95,7 @@ static int load_camera(scene *s, const cJSON *root, json_err *e) {
          "sensor_width_mm", "width", "height", "spp");
     vec3 eye, look, fwd, up = v3(0, 1, 0);
     TRY(json_vec3(c, P, "eye", 1, &eye, e));
+    TRY(check_point(eye, P, "eye", e));
     int has_look = json_get(c, "look_at") != NULL, has_fwd = json_get(c, "forward") != NULL;
     if (has_look && has_fwd)
         return json_fail(e, PM_EINVAL, "%s: give either look_at or forward, not both", P);
@@ -80,6 +103,7 @@ static int load_camera(scene *s, const cJSON *root, json_err *e) {
         return json_fail(e, PM_EINVAL, "%s.look_at: missing (required, or give forward)", P);
     if (has_look) {
         TRY(json_vec3(c, P, "look_at", 1, &look, e));
+        TRY(check_point(look, P, "look_at", e));
         fwd = v3_sub(look, eye);
     } else {
         TRY(json_vec3(c, P, "forward", 1, &fwd, e));
@@ -113,6 +137,15 @@ static int load_camera(scene *s, const cJSON *root, json_err *e) {
     return 0;
 }
 
+/* Oren-Nayar's sigma: the standard deviation of the facets' slope angle, in radians. */
+static int check_sigma(double sigma, const char *P, json_err *e) {
+    if (!(sigma >= 0 && sigma <= M_PI / 2))
+        return json_fail(e, PM_EINVAL, "%s.sigma: %g is outside the supported range, 0 to %.6g "
+                         "(radians: the spread of the facets' slope angle; pi/2 is a 90-degree "
+                         "spread)", P, sigma, M_PI / 2);
+    return 0;
+}
+
 static int load_material(material *m, const cJSON *it, const char *P, json_err *e) {
     memset(m, 0, sizeof *m);
     snprintf(m->name, sizeof m->name, "%s", it->string ? it->string : "?");
@@ -134,7 +167,7 @@ static int load_material(material *m, const cJSON *it, const char *P, json_err *
         TRY(json_rgb(it, P, "reflectance", 1, &m->diffuse, e));
         TRY(check_unit_rgb(m->diffuse, P, "reflectance", e));
         TRY(json_number(it, P, "sigma", 1, &m->sigma, e));
-        if (m->sigma < 0) return json_fail(e, PM_EINVAL, "%s.sigma: must be >= 0, got %g", P, m->sigma);
+        TRY(check_sigma(m->sigma, P, e));
     } else if (strcmp(type, "mirror") == 0) {
         KEYS(it, P, "a mirror material", "type", "reflectance", "emission", "two_sided");
         m->kind = MAT_MIRROR;
@@ -172,7 +205,7 @@ static int load_material(material *m, const cJSON *it, const char *P, json_err *
         TRY(json_rgb(it, P, "diffuse", 0, &m->diffuse, e));
         TRY(check_unit_rgb(m->diffuse, P, "diffuse", e));
         TRY(json_number(it, P, "sigma", 0, &m->sigma, e));
-        if (m->sigma < 0) return json_fail(e, PM_EINVAL, "%s.sigma: must be >= 0, got %g", P, m->sigma);
+        TRY(check_sigma(m->sigma, P, e));
         TRY(json_rgb(it, P, "specular_tint", 0, &m->specular_tint, e));
         TRY(check_unit_rgb(m->specular_tint, P, "specular_tint", e));
         TRY(json_rgb(it, P, "transmit_tint", 0, &m->transmit_tint, e));
@@ -190,7 +223,7 @@ static int load_material(material *m, const cJSON *it, const char *P, json_err *
     }
     if (!(m->ior > 0)) return json_fail(e, PM_EINVAL, "%s.ior: must be positive, got %g", P, m->ior);
     TRY(json_rgb(it, P, "emission", 0, &m->emission, e));
-    TRY(check_nonneg_rgb(m->emission, P, "emission", e));
+    TRY(check_light_rgb(m->emission, P, "emission", e));
     TRY(json_bool(it, P, "two_sided", 0, &m->two_sided, e));
     return 0;
 }
@@ -209,6 +242,13 @@ static int find_material(const scene *s, const cJSON *obj, const char *P, int *o
 static int add_tri(scene *s, caps *cp, vec3 a, vec3 b, vec3 c, int mat, const char *P,
                    json_err *e) {
     triangle t;
+    TRY(check_point(a, P, NULL, e));
+    TRY(check_point(b, P, NULL, e));
+    TRY(check_point(c, P, NULL, e));
+    double longest = fmax(v3_len(v3_sub(b, a)), fmax(v3_len(v3_sub(c, b)), v3_len(v3_sub(a, c))));
+    if (longest > 0 && longest < SCENE_LENGTH_MIN)
+        return json_fail(e, PM_EINVAL, "%s: a triangle %g across is below the supported range of "
+                         "lengths, %g to %g", P, longest, SCENE_LENGTH_MIN, SCENE_LENGTH_MAX);
     if (triangle_make(&t, a, b, c, mat) < 0)
         return json_fail(e, PM_EINVAL, "%s: degenerate triangle (zero area: repeated or collinear vertices)", P);
     int n = s->ntris;
@@ -286,9 +326,13 @@ static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_e
         KEYS(o, P, "a sphere", "type", "name", "center", "radius", "material", "interior_medium");
         sphere sp;
         TRY(json_vec3(o, P, "center", 1, &sp.c, e));
+        TRY(check_point(sp.c, P, "center", e));
         TRY(json_number(o, P, "radius", 1, &sp.r, e));
         if (!(sp.r > 0))
             return json_fail(e, PM_EINVAL, "%s.radius: must be positive, got %g", P, sp.r);
+        if (!(sp.r >= SCENE_LENGTH_MIN && sp.r <= SCENE_LENGTH_MAX))
+            return json_fail(e, PM_EINVAL, "%s.radius: %g is outside the supported range of "
+                             "lengths, %g to %g", P, sp.r, SCENE_LENGTH_MIN, SCENE_LENGTH_MAX);
         TRY(find_material(s, o, P, &mat, e));
         sp.mat = mat;
         sp.light = -1;
@@ -360,6 +404,7 @@ static int load_light(scene *s, caps *cp, const cJSON *o, const char *P, json_er
         KEYS(o, P, "a point light", "type", "position", "intensity", "power");
         l.type = LIGHT_POINT;
         TRY(json_vec3(o, P, "position", 1, &l.pos, e));
+        TRY(check_point(l.pos, P, "position", e));
         int has_i = json_get(o, "intensity") != NULL, has_p = json_get(o, "power") != NULL;
         if (has_i == has_p)
             return json_fail(e, PM_EINVAL, "%s: give exactly one of intensity (W/sr) or power (W)", P);
@@ -380,7 +425,7 @@ static int load_light(scene *s, caps *cp, const cJSON *o, const char *P, json_er
             return json_fail(e, PM_EINVAL, "%s.direction: must not be the zero vector", P);
         l.dir = v3_norm(l.dir);
         TRY(json_rgb(o, P, "irradiance", 1, &l.irradiance, e));
-        TRY(check_nonneg_rgb(l.irradiance, P, "irradiance", e));
+        TRY(check_light_rgb(l.irradiance, P, "irradiance", e));
     } else {
         return json_fail(e, PM_EINVAL,
                          "%s.type: unknown light type \"%s\" (point, directional; area lights are "

@@ -144,3 +144,189 @@ TEST(render_validate_shipped_scenes_load) {
     int rc = pm_test_run(cmd, out, sizeof out);
     EXPECT_MSG(rc == 0 && strstr(out, "done") && !strstr(out, "FAILED"), "%s", out);
 }
+
+/* Oracle: the ranges of data/scenes/README.md ("Ranges"), each at a value just outside it
+ * (or far outside: where the arithmetic broke before, with exit 0 and a wrong image: a
+ * sphere of radius 1.4e154 was invisible, sigma 1e300 gave NaN samples, emission 1e300 put
+ * inf pixels in the PFM). */
+TEST(render_validate_range_errors) {
+    expect_error(scene_text("\"radius\": 0.4", "\"radius\": 1.4e154", NULL), "",
+                 "$.objects[6].radius: 1.4e+154 is outside the supported range of lengths, 1e-100 to 1e+100");
+    expect_error(scene_text("\"radius\": 0.4", "\"radius\": 1e-101", NULL), "",
+                 "$.objects[6].radius: 1e-101 is outside the supported range of lengths, 1e-100 to 1e+100");
+    expect_error(scene_text("\"sigma\": 0.3", "\"sigma\": 1e300", NULL), "",
+                 "$.materials.rough.sigma: 1e+300 is outside the supported range, 0 to 1.5708");
+    expect_error(scene_text("\"sigma\": 0.3", "\"sigma\": 1.571", NULL), "",
+                 "$.materials.rough.sigma: 1.571 is outside the supported range, 0 to 1.5708");
+    expect_error(scene_text("\"emission\": 5", "\"emission\": 1e300", NULL), "",
+                 "$.materials.lamp.emission: 1e+300 is outside the supported range, 0 to 1e+30");
+    expect_error(scene_text("[0.3, 0.4, 0]", "[0.3, 1e101, 0]", NULL), "",
+                 "$.objects[6].center: [0.3, 1e+101, 0] is outside the supported range of coordinates, -1e+100 to 1e+100");
+    expect_error(scene_text("[-1,0,-1],[-1,0,1]", "[-1,0,-1],[-1,0,2e100]", NULL), "",
+                 "$.objects[0]: [-1, 0, 2e+100] is outside the supported range of coordinates, -1e+100 to 1e+100");
+    expect_error(scene_text("\"eye\": [0, 1, 3.5]", "\"eye\": [0, 1, -3e100]", NULL), "",
+                 "$.camera.eye: [0, 1, -3e+100] is outside the supported range of coordinates, -1e+100 to 1e+100");
+    /* Just inside: the largest sigma and emission render, finite. */
+    char out[16384];
+    int rc = render_text(scene_text("\"sigma\": 0.3", "\"sigma\": 1.5707", NULL), "", out, sizeof out);
+    EXPECT_MSG(rc == 0, "sigma 1.5707: exit %d: %s", rc, out);
+    rc = render_text(scene_text("\"emission\": 5", "\"emission\": 1e30", NULL), "", out, sizeof out);
+    EXPECT_MSG(rc == 0, "emission 1e30: exit %d: %s", rc, out);
+    film f;
+    char pfm[1024];
+    snprintf(pfm, sizeof pfm, "%s/o.pfm", pm_test_tmpdir());
+    ASSERT(film_read_pfm(&f, pfm) == 0);
+    double mx = 0;
+    for (size_t i = 0; i < (size_t)f.width * (size_t)f.height * 3; i++) mx = fmax(mx, f.px[i]);
+    EXPECT_MSG(film_count_nonfinite(&f) == 0 && mx > 1e28, "emission 1e30: %zu non-finite, max %g",
+               film_count_nonfinite(&f), mx);
+    film_free(&f);
+}
+
+/* Oracle: the float range (3.4e38). The base scene shrunk to 1e-5 (a box 2e-5 wide) with a
+ * point light of intensity 1e30 lights its walls with about 1e30 / (1e-5)^2 = 1e40: finite in
+ * double, infinite in the film's floats. Every such pixel is counted in "Film/Non-finite
+ * pixels" (the same number the PFM holds, counted here by reading it back) and a warning
+ * names the count. */
+static char *scaled_scene_i(double k, double intensity);
+TEST(render_validate_nonfinite_pixels_reported) {
+    char out[16384], pfm[1024];
+    char *text = scaled_scene_i(1e-5, 1e30);
+    ASSERT(text);
+    int rc = render_text(text, "--width 32 --height 32 --spp 4", out, sizeof out);
+    free(text);
+    ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
+    snprintf(pfm, sizeof pfm, "%s/o.pfm", pm_test_tmpdir());
+    film f;
+    ASSERT(film_read_pfm(&f, pfm) == 0);
+    size_t bad = 0;
+    for (size_t i = 0; i < (size_t)f.width * (size_t)f.height; i++)
+        bad += !isfinite(f.px[3 * i]) || !isfinite(f.px[3 * i + 1]) || !isfinite(f.px[3 * i + 2]);
+    film_free(&f);
+    const char *line = strstr(out, "    Non-finite pixels ");
+    long counted = line ? strtol(line + strlen("    Non-finite pixels "), NULL, 10) : -1;
+    printf("    %zu non-finite pixels in the PFM; the statistics say %ld\n", bad, counted);
+    EXPECT_MSG(bad > 0, "the light did not overflow the film (%zu)", bad);
+    EXPECT_MSG(counted == (long)bad, "statistics %ld, PFM %zu: %s", counted, bad, out);
+    char want[128];
+    snprintf(want, sizeof want, "warning: %zu pixels of the image are not finite", bad);
+    EXPECT_MSG(strstr(out, want) != NULL, "no warning '%s': %s", want, out);
+}
+
+/* ---- scaled scenes ------------------------------------------------------------------------- */
+
+static void scale_vec(cJSON *v, double k) {
+    for (cJSON *c = v ? v->child : NULL; c; c = c->next) cJSON_SetNumberValue(c, c->valuedouble * k);
+}
+
+/* The base scene with every length times k: the camera's eye and target, vertices, centres,
+ * radii and the point light's position; the point light's intensity times k^2, so that the
+ * irradiance it gives (I / d^2) and so the image stay the same. Radiances (emission) and the
+ * field of view do not change with scale. Caller frees. */
+static char *scaled_scene_i(double k, double intensity);
+static char *scaled_scene(double k) { return scaled_scene_i(k, -1); }
+/* The same with the point light's intensity set to `intensity` (unless negative). */
+static char *scaled_scene_i(double k, double intensity) {
+    cJSON *root = cJSON_Parse(scene_text(NULL, NULL, NULL));
+    if (!root) return NULL;
+    cJSON *cam = cJSON_GetObjectItem(root, "camera");
+    scale_vec(cJSON_GetObjectItem(cam, "eye"), k);
+    scale_vec(cJSON_GetObjectItem(cam, "look_at"), k);
+    for (cJSON *o = cJSON_GetObjectItem(root, "objects")->child; o; o = o->next) {
+        for (cJSON *v = cJSON_GetObjectItem(o, "vertices") ? cJSON_GetObjectItem(o, "vertices")->child : NULL;
+             v; v = v->next)
+            scale_vec(v, k);
+        scale_vec(cJSON_GetObjectItem(o, "center"), k);
+        cJSON *r = cJSON_GetObjectItem(o, "radius");
+        if (r) cJSON_SetNumberValue(r, r->valuedouble * k);
+    }
+    for (cJSON *l = cJSON_GetObjectItem(root, "lights")->child; l; l = l->next) {
+        scale_vec(cJSON_GetObjectItem(l, "position"), k);
+        cJSON *in = cJSON_GetObjectItem(l, "intensity");
+        cJSON_SetNumberValue(in, intensity >= 0 ? intensity : in->valuedouble * k * k);
+    }
+    char *text = cJSON_Print(root);
+    cJSON_Delete(root);
+    return text;
+}
+
+/* Means of the 4x4 blocks of a 16x16 image (mean of the three channels), in out[16]. */
+static int block_means(const char *name, double out[16]) {
+    char path[1024];
+    snprintf(path, sizeof path, "%s/%s", pm_test_tmpdir(), name);
+    film f;
+    if (film_read_pfm(&f, path) < 0 || f.width != 16 || f.height != 16) return -1;
+    for (int b = 0; b < 16; b++) {
+        double sum = 0;
+        for (int y = 4 * (b / 4); y < 4 * (b / 4) + 4; y++)
+            for (int x = 4 * (b % 4); x < 4 * (b % 4) + 4; x++)
+                for (int c = 0; c < 3; c++) sum += f.px[3 * ((size_t)y * 16 + (size_t)x) + (size_t)c];
+        out[b] = sum / 48;
+    }
+    film_free(&f);
+    return 0;
+}
+
+/* Render the base scene scaled by k in mode args into name (16x16); exit status, out. */
+static int render_scaled(double k, const char *args, const char *name, char *out, size_t cap) {
+    char *text = scaled_scene(k), full[1024];
+    if (!text) return -1;
+    snprintf(full, sizeof full, "--width 16 --height 16 --seed 3 %s && mv o.pfm %s", args, name);
+    int rc = render_text(text, full, out, cap);
+    free(text);
+    return rc;
+}
+
+/* The worst relative difference of the block means of b against the reference a. */
+static double worst_block(const double a[16], const double b[16]) {
+    double w = 0;
+    for (int i = 0; i < 16; i++) w = fmax(w, fabs(b[i] / a[i] - 1));
+    return w;
+}
+
+/* Oracle: the unit scene, rendered with the same seed. Scaling every length (and the point
+ * light's intensity by the square) leaves the image unchanged, so each 4x4 block's mean
+ * must match the unit scene's. Path tracing (64 spp): within 1% per block, at 1e-6, 1e-12,
+ * 1e19 and 1e39 (the same random numbers: only rounding differs; with a fixed ray offset
+ * the 1e-12 box lost its contact shadows: -28% at 1e-12 on the Cornell box). Photon mapping
+ * (20,000 global photons, 16 spp): within 3% per block at 1e-6 and 1e6, inside its range;
+ * at 1e19 and 1e39 (where it read 12x too bright, or exited 1) it refuses with the range
+ * message and exit 2. */
+TEST(render_validate_scaled_scenes) {
+    char out[16384];
+    double ref[16], got[16];
+    const double path_scales[] = {1e-6, 1e-12, 1e19, 1e39};
+    ASSERT_MSG(render_scaled(1, "--mode path --spp 64", "unit_path.pfm", out, sizeof out) == 0, "%s", out);
+    ASSERT(block_means("unit_path.pfm", ref) == 0);
+    for (int i = 0; i < 4; i++) {
+        char name[64];
+        snprintf(name, sizeof name, "path_%g.pfm", path_scales[i]);
+        int rc = render_scaled(path_scales[i], "--mode path --spp 64", name, out, sizeof out);
+        EXPECT_MSG(rc == 0, "path at %g: exit %d: %s", path_scales[i], rc, out);
+        if (rc != 0 || block_means(name, got) < 0) continue;
+        double w = worst_block(ref, got);
+        printf("    path, scale %g: worst block %+.4f%%\n", path_scales[i], 100 * w);
+        EXPECT_MSG(w < 0.01, "path at scale %g: a block differs by %.3f%%", path_scales[i], 100 * w);
+    }
+    const char *pm = "--mode pm --spp 16 --pm global_photons=20000";
+    ASSERT_MSG(render_scaled(1, pm, "unit_pm.pfm", out, sizeof out) == 0, "%s", out);
+    ASSERT(block_means("unit_pm.pfm", ref) == 0);
+    const double pm_scales[] = {1e-6, 1e6};
+    for (int i = 0; i < 2; i++) {
+        char name[64];
+        snprintf(name, sizeof name, "pm_%g.pfm", pm_scales[i]);
+        int rc = render_scaled(pm_scales[i], pm, name, out, sizeof out);
+        EXPECT_MSG(rc == 0, "pm at %g: exit %d: %s", pm_scales[i], rc, out);
+        if (rc != 0 || block_means(name, got) < 0) continue;
+        double w = worst_block(ref, got);
+        printf("    pm, scale %g: worst block %+.4f%%\n", pm_scales[i], 100 * w);
+        EXPECT_MSG(w < 0.03, "pm at scale %g: a block differs by %.3f%%", pm_scales[i], 100 * w);
+    }
+    const double refused[] = {1e19, 1e39, 1e-14};
+    for (int i = 0; i < 3; i++) {
+        int rc = render_scaled(refused[i], pm, "refused.pfm", out, sizeof out);
+        EXPECT_MSG(rc == 2 && strstr(out, "render: s.json: $.objects: the scene's bounding radius") &&
+                       strstr(out, "is outside the range photon mapping supports, 1e-12 to 1e+12"),
+                   "pm at %g: exit %d: %s", refused[i], rc, out);
+    }
+}
