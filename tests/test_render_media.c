@@ -733,7 +733,8 @@ TEST(render_media_pm_plan) {
 }
 
 /* Oracle: determinism. vol_trace_pass on the fog room gives the same photons, byte for byte,
- * on 1 and on 2 threads (both maps of the global pass, and the emitted counts). */
+ * on 1 and on 2 threads (both maps of the global pass, and the emitted counts), and so does a
+ * photon-mapping render of it (the PFMs of --threads 1 and 2 are the same bytes). */
 TEST(render_media_volume_pass_thread_independent) {
     static char txt[16384];
     fog_room(txt, sizeof txt, 0, "");
@@ -765,4 +766,34 @@ TEST(render_media_volume_pass_thread_independent) {
     vol_pass_free(&r[0]);
     vol_pass_free(&r[1]);
     scene_free(&s);
+    char scene_path[1024], cmd[8192], pfm[2][1024];
+    static char out[16384];
+    snprintf(scene_path, sizeof scene_path, "%s/fog_room_threads.json", pm_test_tmpdir());
+    FILE *f = fopen(scene_path, "w");
+    ASSERT(f != NULL);
+    fputs(txt, f);
+    fclose(f);
+    for (int t = 0; t < 2; t++) {
+        snprintf(pfm[t], sizeof pfm[t], "%s/threads%d.pfm", pm_test_tmpdir(), t + 1);
+        snprintf(cmd, sizeof cmd,
+                 "cd '%s' && %s/render '%s' --mode pm --spp 4 --threads %d --quiet --hdr '%s' -o t.png"
+                 " --pm global_photons=10000 --pm volume_photons=10000",
+                 pm_test_tmpdir(), pm_test_build_dir(), scene_path, t + 1, pfm[t]);
+        int rc = pm_test_run(cmd, out, sizeof out);
+        ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
+    }
+    size_t na = 0, nb = 0;
+    char *a = NULL, *b = NULL;
+    FILE *fa = fopen(pfm[0], "rb"), *fb = fopen(pfm[1], "rb");
+    if (fa && fb) {
+        static char ba[1 << 16], bb[1 << 16];
+        na = fread(ba, 1, sizeof ba, fa);
+        nb = fread(bb, 1, sizeof bb, fb);
+        a = ba;
+        b = bb;
+    }
+    if (fa) fclose(fa);
+    if (fb) fclose(fb);
+    ASSERT(a && b);
+    EXPECT_MSG(na > 0 && na == nb && memcmp(a, b, na) == 0, "the renders on 1 and 2 threads differ");
 }
