@@ -135,7 +135,8 @@ message and no output; a photon pass that stores nothing ends every rank with `r
 status and message; a rank killed with SIGKILL mid-render ends the job with rank 0's
 message and no output; partitioned maps give images whose four quarters' means are within
 1% of the one-process render (cornell_spheres in pm and preview modes at `-np 2` and `4`,
-water_caustic's caustic at `-np 4`; at `-np 4`, taking out either bias rule of the
+water_caustic's caustic at `-np 4`, and the same bytes with 2 threads per rank and loaded
+maps as with 1 thread and traced ones; at `-np 4`, taking out either bias rule of the
 combination, the disc's single correction or the cone's rim factor, makes a quarter fail;
 see below).
 
@@ -304,6 +305,10 @@ correction c on the total (`pm_combine_add` on each rank, the sums added, `pm_co
   it: `render/photon_lookup.h`), so both traces make the same queries; the second trace
   checks that they are the same, query by query, and a difference stops the job. The
   recording trace's counters are taken off again, so the statistics count one trace.
+- **Deterministic.** Each estimate adds the ranks' parts in rank order, and a part depends
+  only on the query and that rank's photons: the image depends on the number of ranks (which
+  splits the maps) and on nothing else, not the threads, which rank rendered which tile, nor
+  whether the maps were traced or loaded.
 
 The hook that routes the photon mapper's lookups (`render/photon_lookup.h`) is a few lines in
 `render/photonmapper.c`; without it (`render`, replicated mode) the mapper reads its own maps.

@@ -170,6 +170,27 @@ for case in "cornell_spheres pm 2 4" "cornell_spheres preview 2 4" "water_causti
   done
 done
 
+# A partitioned render is deterministic: each estimate adds the ranks' parts in rank order, and
+# a part depends only on the query and the rank's photons, not on which tiles went where nor
+# on the threads. Oracle: the partitioned render itself, at -np 3 (three parts: the order of
+# the sum matters): with 2 threads per rank and the maps loaded from files that render saved
+# (--load-photons: every rank loads them, then keeps its part), the PFM bytes must equal
+# those of a traced run with 1 thread per rank.
+# shellcheck disable=SC2086
+"$R" data/scenes/cornell_spheres.json $PARTS --mode pm --threads 2 --save-photons "$T/pmaps" \
+  --hdr "$T/pmaps.pfm" >"$T/pmaps.log" 2>&1
+# shellcheck disable=SC2086
+$MPIRUN -np 3 "$M" data/scenes/cornell_spheres.json $PARTS --mode pm --threads 1 \
+  --pm distributed=partitioned --hdr "$T/part.trace3.pfm" >"$T/part.trace3.log" 2>&1
+# shellcheck disable=SC2086
+$MPIRUN -np 3 "$M" data/scenes/cornell_spheres.json $PARTS --mode pm --threads 2 \
+  --pm distributed=partitioned --load-photons "$T/pmaps" --hdr "$T/part.load3.pfm" >"$T/part.load3.log" 2>&1
+if [ -s "$T/part.trace3.pfm" ] && cmp -s "$T/part.load3.pfm" "$T/part.trace3.pfm"; then
+  ok "partitioned -np 3: loaded maps and 2 threads per rank give the traced 1-thread run's bytes"
+else
+  bad "partitioned determinism" "the images differ (or a run failed): $(grep render "$T/part.load3.log" "$T/part.trace3.log" | tail -2)"
+fi
+
 # ---- failures ----------------------------------------------------------------------------
 # A scene error on every rank: exit 2, the loader's message (with the line) once from rank 0,
 # and no output file.

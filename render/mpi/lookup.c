@@ -285,14 +285,17 @@ void lk_finish(int (*also)(void *), void *arg) {
     }
 }
 
-/* Every other rank's parts of the n queries q, added into acc[0..n) (which holds this rank's). */
-static void exchange(const lk_query *q, size_t n, pm_combine_acc *acc, int (*also)(void *), void *arg) {
-    if (L.size == 1 || n == 0) return;
+/* The parts of every rank for the n queries q (this rank's are mine), added into acc[0..n)
+ * in rank order, so that a pixel's value does not depend on which answer came first. */
+static void exchange(const lk_query *q, size_t n, const lk_part *mine, pm_combine_acc *acc,
+                     int (*also)(void *), void *arg) {
+    if (n == 0) return;
     size_t bytes = n * sizeof *q;
     if (bytes > (size_t)INT32_MAX) dist_die("a lookup batch exceeds 2 GiB (MPI's int counts)");
     MPI_Request *req = malloc((size_t)L.size * sizeof *req);
-    lk_part *a = malloc(n * sizeof *a);
-    if (!req || !a) dist_die("out of memory in the photon lookups");
+    lk_part *all = malloc((size_t)L.size * n * sizeof *all);
+    if (!req || !all) dist_die("out of memory in the photon lookups");
+    memcpy(all + (size_t)L.rank * n, mine, n * sizeof *mine);
     int nreq = 0;
     for (int r = 0; r < L.size; r++)
         if (r != L.rank) {
@@ -307,9 +310,9 @@ static void exchange(const lk_query *q, size_t n, pm_combine_acc *acc, int (*als
         if (flag) {
             int nbytes;
             MPI_Get_count(&ms, MPI_BYTE, &nbytes);
-            if ((size_t)nbytes != n * sizeof *a) dist_die("a rank answered another number of lookups");
-            MPI_Recv(a, nbytes, MPI_BYTE, ms.MPI_SOURCE, TAG_ANSWER, L.comm, MPI_STATUS_IGNORE);
-            for (size_t i = 0; i < n; i++) add_part(&acc[i], &a[i]);
+            if ((size_t)nbytes != n * sizeof *all) dist_die("a rank answered another number of lookups");
+            MPI_Recv(all + (size_t)ms.MPI_SOURCE * n, nbytes, MPI_BYTE, ms.MPI_SOURCE, TAG_ANSWER,
+                     L.comm, MPI_STATUS_IGNORE);
             waiting--;
             continue;
         }
@@ -318,8 +321,10 @@ static void exchange(const lk_query *q, size_t n, pm_combine_acc *acc, int (*als
         if (!did) lk_idle();
     }
     MPI_Waitall(nreq, req, MPI_STATUSES_IGNORE);
+    for (int r = 0; r < L.size; r++)
+        for (size_t i = 0; i < n; i++) add_part(&acc[i], &all[(size_t)r * n + i]);
     free(req);
-    free(a);
+    free(all);
 }
 
 /* ---- the hook ----------------------------------------------------------------------------- */
@@ -681,13 +686,9 @@ int lk_render_tiles(const scene *s, const integrator *it, const render_job *job,
     }
     stat_add(L.st_queries, nq);
     answer_all(q, nq, mine);
-    for (size_t i = 0; i < nq; i++) {
-        const pm_estimate_options *o = &L.opts[q[i].map == PHOTON_LOOKUP_CAUSTIC];
-        acc[i].bias = o->bias;
-        add_part(&acc[i], &mine[i]);
-    }
+    for (size_t i = 0; i < nq; i++) acc[i].bias = L.opts[q[i].map == PHOTON_LOOKUP_CAUSTIC].bias;
+    exchange(q, nq, mine, acc, also, arg);
     free(mine);
-    exchange(q, nq, acc, also, arg);
     free(q);
     /* 3. Combine, and replay. */
     for (int i = 0, off = 0; i < n; i++) {

@@ -33,6 +33,10 @@
  * (photon_lookup.h), so the second trace makes the same queries, which is checked: a query
  * that differs stops the job. The recording trace's counters are taken off again.
  *
+ * DETERMINISM. Each estimate adds the ranks' parts in rank order, and a part depends only on
+ * the query and the rank's photons: the image depends on the rank count alone (not on the
+ * threads, the tile queue, or whether the maps were traced or loaded).
+ *
  * All MPI calls are on the main thread; the answers to a batch are computed on OpenMP threads.
  */
 #ifndef RENDER_MPI_LOOKUP_H
