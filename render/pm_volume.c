@@ -98,6 +98,9 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
               photon_maps *m, char *err, size_t errcap) {
     memset(m, 0, sizeof *m);
     int rc = 0;
+    if (c->load_dir[0])
+        printf("Photon maps of a scene with media are traced, not loaded: %s is not read (the maps "
+               "are the same for the same seed)\n", c->load_dir);
     int max_depth = s->settings.max_depth;
     if (c->max_bounces > 0 && c->max_bounces < max_depth) max_depth = c->max_bounces;
     vol_pass_result g = {0}, k = {0};
