@@ -13,6 +13,10 @@
  *    e^{-sigma_t t1}) for the part [t0, t1] of the ray in the box. The photon tracer's answer
  *    is the sum of the powers of its volume-caustic photons (kind CAUSTIC: the first
  *    scattering event after specular bounces only) in each box.
+ * 2. cornell_fog and glass_of_smoke: photon mapping against long path-traced references that
+ *    are committed (data/reference-media/: scripts/make-reference.sh at 64x64, copied; each
+ *    .info holds the samples, the CPU time and the scene file's SHA-256, and a reference of
+ *    another version of the scene is refused): region means within 5%, the image within 3%.
  */
 #include <math.h>
 #include <stdio.h>
@@ -20,6 +24,8 @@
 #include <string.h>
 
 #include "test.h"
+#include "../render/compare.h"
+#include "../render/film.h"
 #include "../render/scene.h"
 #include "../render/volume.h"
 
@@ -244,4 +250,83 @@ TEST(media_volumetric_caustic_energy) {
                    b, sum[b], om[b], 100 * (sum[b] / om[b] - 1), 100 * tol / om[b]);
     }
     printf("    (%ld non-caustic photons in the boxes: multiple scattering, not counted)\n", other);
+}
+
+/* ---- 2. photon mapping against long path-traced references --------------------------------- */
+
+/* The reference, averaged 2 x 2 down to the test's resolution (a pixel of the small image
+ * covers the same part of the film as the four it averages). */
+static int downsample2(const film *in, film *out) {
+    if (film_init(out, in->width / 2, in->height / 2) < 0) return -1;
+    for (int y = 0; y < out->height; y++)
+        for (int x = 0; x < out->width; x++)
+            for (int c = 0; c < 3; c++) {
+                double s = 0;
+                for (int k = 0; k < 4; k++)
+                    s += in->px[3 * ((long)(2 * y + k / 2) * in->width + 2 * x + k % 2) + c];
+                out->px[3 * ((long)y * out->width + x) + c] = (float)(s / 4);
+            }
+    return 0;
+}
+
+/* Render NAME (a shipped scene) at 32x32 with photon mapping (flags), and compare the image
+ * and the listed objects' pixels (ids: object index + 1, names) with the committed 64x64
+ * path-traced reference data/reference-media/NAME.pfm averaged down. */
+static void pm_against_reference(const char *name, const char *flags, const int *ids, const char *const *names,
+                                 int nids, double tol_image, double tol_region) {
+    static char out[65536];
+    char cmd[8192], scn[2048], ref[2048], pm[2048], mask[2048];
+    const char *dir = pm_test_tmpdir();
+    snprintf(scn, sizeof scn, "%s/data/scenes/%s.json", pm_test_source_dir(), name);
+    snprintf(ref, sizeof ref, "%s/data/reference-media/%s.pfm", pm_test_source_dir(), name);
+    snprintf(pm, sizeof pm, "%s/%s_pm.pfm", dir, name);
+    snprintf(mask, sizeof mask, "%s/%s_ids.pfm", dir, name);
+    snprintf(cmd, sizeof cmd, "%s/render '%s' --width 32 --height 32 --quiet --threads 2 --mode objects --spp 16 "
+             "--hdr '%s' -o '%s/ids.png'", pm_test_build_dir(), scn, mask, dir);
+    ASSERT_MSG(pm_test_run(cmd, out, sizeof out) == 0, "%s", out);
+    snprintf(cmd, sizeof cmd, "%s/render '%s' --width 32 --height 32 --quiet --threads 2 --mode pm --seed 5 %s "
+             "--hdr '%s' -o '%s/pm.png'", pm_test_build_dir(), scn, flags, pm, dir);
+    ASSERT_MSG(pm_test_run(cmd, out, sizeof out) == 0, "%s", out);
+    /* the reference must be of this scene file */
+    char want[256] = "", got[256] = "";
+    snprintf(cmd, sizeof cmd, "awk '$1 == \"scene_sha256\" { print $2 }' '%s/data/reference-media/%s.info'",
+             pm_test_source_dir(), name);
+    ASSERT_EQ_INT(pm_test_run(cmd, want, sizeof want), 0);
+    snprintf(cmd, sizeof cmd, "sha256sum '%s' | cut -d' ' -f1", scn);
+    ASSERT_EQ_INT(pm_test_run(cmd, got, sizeof got), 0);
+    ASSERT_MSG(want[0] && strcmp(want, got) == 0, "%s changed since its reference was rendered (%s, now %s)", scn, want, got);
+    film R64, R, P, M;
+    ASSERT_MSG(film_read_pfm(&R64, ref) == 0, "cannot read %s", ref);
+    ASSERT(R64.width == 64 && R64.height == 64);
+    ASSERT_EQ_INT(downsample2(&R64, &R), 0);
+    ASSERT_EQ_INT(film_read_pfm(&P, pm), 0);
+    ASSERT_EQ_INT(film_read_pfm(&M, mask), 0);
+    image_diff d;
+    ASSERT_EQ_INT(image_compare(&P, &R, 0, 0, 0, 0, &d), 0);
+    printf("    %s: image %+.2f%%", name, 100 * d.rel_mean);
+    EXPECT_MSG(fabs(d.rel_mean) <= tol_image, "%s: image mean %+.2f%% off the reference (tolerance %.0f%%)", name,
+               100 * d.rel_mean, 100 * tol_image);
+    for (int i = 0; i < nids; i++) {
+        image_region r = {0, 0, 0, 0, &M, &ids[i], 1};
+        ASSERT_EQ_INT(image_compare_region(&P, &R, &r, &d), 0);
+        printf(", %s %+.2f%% (%ld px)", names[i], 100 * d.rel_mean, d.npixels);
+        EXPECT_MSG(d.npixels >= 20, "%s: only %ld pixels see %s", name, d.npixels, names[i]);
+        EXPECT_MSG(fabs(d.rel_mean) <= tol_region, "%s: %s mean %+.2f%% off the reference (tolerance %.0f%%)", name,
+                   names[i], 100 * d.rel_mean, 100 * tol_region);
+    }
+    printf("\n");
+    film_free(&R64);
+    film_free(&R);
+    film_free(&P);
+    film_free(&M);
+}
+
+/* Oracle: the long path-traced reference of cornell_fog (data/reference-media/, its .info has
+ * the samples and the scene's hash; the test refuses a reference of another version of the
+ * scene). Photon mapping at 32x32 with its default plan: the image mean within 3%, and the
+ * pixels that see each wall, the floor and the ceiling (through the fog) within 5%. */
+TEST(media_cornell_fog_pm_matches_path) {
+    static const int ids[] = {1, 2, 3, 4, 5};
+    static const char *const names[] = {"floor", "ceiling", "back wall", "left wall", "right wall"};
+    pm_against_reference("cornell_fog", "--spp 4", ids, names, 5, 0.03, 0.05);
 }
