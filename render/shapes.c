@@ -45,11 +45,41 @@ int triangle_intersect(const triangle *tr, ray r, double tmin, double tmax, doub
     return 1;
 }
 
+/* x + y exactly as hi + lo (Knuth's two-sum). */
+static void two_sum(double x, double y, double *hi, double *lo) {
+    double sum = x + y, yv = sum - x;
+    *hi = sum;
+    *lo = (x - (sum - yv)) + (y - yv);
+}
+
+/* |o - c|^2 - r^2 for a sphere much larger than |o| whose surface passes near o: the direct
+ * form rounds o - c to an ulp of |c| (2048 at 1e19), so the height of o over the surface came
+ * out wrong by that much and a ground sphere of radius 1e19 under a unit scene lit it 15% too
+ * dark. Expanded as |o|^2 - 2 o.c + (|c|^2 - r^2), the last term summed from error-free
+ * products (fma) stays exact where |c| ~ r, and the others round at |o| |c|, not |c|^2. */
+static double big_sphere_c(vec3 o, vec3 c, double r) {
+    double p[4] = {c.x * c.x, c.y * c.y, c.z * c.z, -(r * r)};
+    double err = fma(c.x, c.x, -p[0]) + fma(c.y, c.y, -p[1]) + fma(c.z, c.z, -p[2]) - fma(r, r, p[3]);
+    double hi = p[0], lo = 0, h2, l2;
+    for (int k = 1; k < 4; k++) {
+        two_sum(hi, p[k], &h2, &l2);
+        hi = h2;
+        lo += l2;
+    }
+    double k = hi + (lo + err); /* |c|^2 - r^2 */
+    return (v3_dot(o, o) - 2.0 * v3_dot(o, c)) + k;
+}
+
 int sphere_intersect(const sphere *s, ray r, double tmin, double tmax, double *t) {
     vec3 f = v3_sub(r.o, s->c);
     double a = v3_dot(r.d, r.d);
     double b = v3_dot(f, r.d); /* half of the usual b */
     double c = v3_dot(f, f) - s->r * s->r;
+    /* The origin near the surface (relative to r) and much nearer the world's origin than the
+     * centre is: a huge sphere seen from a small scene (only then; the direct form is the
+     * better one when o and c are close). */
+    if (fabs(c) < 1e-3 * s->r * s->r && v3_maxabs(r.o) < 1e-3 * v3_maxabs(s->c))
+        c = big_sphere_c(r.o, s->c, s->r);
     /* disc = b^2 - a c, computed as a (r^2 - |f - (b/a) d|^2) to avoid cancellation. */
     vec3 l = v3_madd(f, r.d, -b / a);
     double disc = a * (s->r * s->r - v3_dot(l, l));

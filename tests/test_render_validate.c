@@ -330,3 +330,32 @@ TEST(render_validate_scaled_scenes) {
                    "pm at %g: exit %d: %s", refused[i], rc, out);
     }
 }
+
+/* Oracle: a ground sphere of radius 1e9 under the same small scene (its curvature over the
+ * box is 1e-9: a plane). The floor quad of the base scene becomes a sphere touching y = 0
+ * from below; at radius 1e19 and 1e40 each 4x4 block's mean must match radius 1e9 within 1%
+ * (path, 64 spp, same seed). With o - c rounded to an ulp of the centre (2048 at 1e19) the
+ * floor's height came out wrong by up to a thousand units: the Cornell box on such a floor
+ * read 14.5% dark. */
+TEST(render_validate_huge_ground_sphere) {
+    char out[16384];
+    double ref[16], got[16];
+    const double radii[] = {1e9, 1e19, 1e40};
+    for (int i = 0; i < 3; i++) {
+        char sph[256], name[64];
+        snprintf(sph, sizeof sph, "{\"type\": \"sphere\", \"center\": [0, %.17g, 0], \"radius\": %.17g, \"material\": \"wall\"}",
+                 -radii[i], radii[i]);
+        const char *text = scene_text("{\"type\": \"quad\", \"vertices\": [[-1,0,-1],[-1,0,1],[1,0,1],[1,0,-1]], \"material\": \"wall\"}",
+                                      sph, NULL);
+        snprintf(name, sizeof name, "ground_%g.pfm", radii[i]);
+        char args[256];
+        snprintf(args, sizeof args, "--mode path --spp 64 --width 16 --height 16 --seed 3 && mv o.pfm %s", name);
+        int rc = render_text(text, args, out, sizeof out);
+        ASSERT_MSG(rc == 0, "radius %g: exit %d: %s", radii[i], rc, out);
+        ASSERT(block_means(name, i == 0 ? ref : got) == 0);
+        if (i == 0) continue;
+        double w = worst_block(ref, got);
+        printf("    ground sphere of radius %g: worst block %+.4f%% against radius 1e9\n", radii[i], 100 * w);
+        EXPECT_MSG(w < 0.01, "radius %g: a block differs by %.3f%%", radii[i], 100 * w);
+    }
+}
