@@ -35,6 +35,14 @@
  * global map's radiance estimate (k_global photons) plus emission, and nothing else; without
  * a global map it gets direct light and caustics only.
  *
+ * Participating media (a scene with a medium or a null surface; pm_volume.h): the maps come
+ * from volume.h's tracer instead (pmv_trace), eye rays march each segment through its medium
+ * (pmv_march: single scattering by shadow rays, the volume maps' estimates, the segment's
+ * transmittance on what lies beyond) and pass null surfaces without a bounce, gather rays take
+ * one in-scatter sample per segment and its transmittance (pmv_gather), and direct light at
+ * surfaces carries the transmittance of the shadow segment. A scene without media runs none of
+ * this and renders the same image as before, bit for bit.
+ *
  * Threads: li only reads the maps; each thread has its own scratch (estimate buffers).
  */
 #include <stdlib.h>
