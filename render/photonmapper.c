@@ -344,6 +344,11 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
             Lo = secondary_radiance(st, s, &y, v3_neg(din), 1, g, sc);
         else {
             Lo = lookup_radiance(st, s, &y, v3_neg(din), &found);
+            /* The cache holds indirect irradiance only (photon_sides.h, "Direct light"): y's
+             * direct light comes from a light sample, so shadow edges stay sharp. */
+            if (found && st->sides.indirect_only)
+                Lo = v3_add(Lo, direct_light(st, s, scene_material(s, &y), &y,
+                                             v3_dot(din, y.ng) <= 0 ? y.ng : v3_neg(y.ng), v3_neg(din), g, sc));
             /* No precomputed value on y's side within reach: y is in a photon-starved
              * region (behind a wall from every nearby photon, or a room that light enters
              * through a pinhole, where a map of any practical size holds a handful of
