@@ -120,3 +120,56 @@ TEST(render_sides_cache_from_records_matches_brute_force) {
     free(recs);
     scene_free(&s);
 }
+
+/* Oracle: geometry. Inside a sphere of radius R, the ray from a point of the surface along its
+ * inward normal (the photon's 1-byte code, within 10 degrees) runs a chord of at least 1.9 R
+ * before it meets anything, so the free height capped at R / 10 is the cap; and two points of
+ * the surface see each other along a chord, so side_visible_h says visible. The points are
+ * photons' float positions (hit points of rays from inside, rounded, then one float step
+ * outward in each coordinate: the furnace's photons lay up to that far outside), off the true
+ * surface by more than a ray offset at |p| of 100 and more: a free height taken from there used to meet the photon's own
+ * surface at once (0), and hid the photon from every neighbour (the furnace at 10x its size
+ * read +42%). Spheres of radius 1, 10, 100 and 1000 off the origin; 500 photons each. */
+TEST(render_sides_free_height_past_float_rounding) {
+    const double radii[4] = {1, 10, 100, 1000};
+    for (int ri = 0; ri < 4; ri++) {
+        double R = radii[ri];
+        vec3 c = v3(0.3 * R, -0.2 * R, 0.1 * R);
+        char txt[1024];
+        snprintf(txt, sizeof txt,
+                 "{\"camera\": {\"eye\": [%g, %g, %g], \"look_at\": [%g, %g, %g], \"fov_deg\": 90, \"width\": 8, \"height\": 8},"
+                 " \"materials\": {\"white\": {\"type\": \"lambert\", \"reflectance\": 0.5}},"
+                 " \"objects\": [{\"type\": \"sphere\", \"center\": [%.17g, %.17g, %.17g], \"radius\": %g, \"material\": \"white\"}]}",
+                 c.x, c.y, c.z, c.x, c.y, c.z + 1, c.x, c.y, c.z, R);
+        scene s;
+        json_err e;
+        ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
+        srng r = {77 + (uint64_t)ri};
+        enum { N = 500 };
+        vec3 pos[N], nrm[N];
+        double h[N];
+        int short_h = 0, hidden = 0;
+        for (int i = 0; i < N; i++) {
+            /* where a photon lands: a ray from inside, its hit point as a float */
+            double z = 2 * srng_unit(&r) - 1, a = 2 * M_PI * srng_unit(&r), t = sqrt(1 - z * z);
+            ray ry = {v3_add(c, v3_scale(v3(srng_unit(&r) - 0.5, srng_unit(&r) - 0.5, srng_unit(&r) - 0.5), R)),
+                      v3(t * cos(a), t * sin(a), z)};
+            hit hh;
+            ASSERT(scene_intersect(&s, ry, INFINITY, &hh));
+            vec3 n = v3_dot(ry.d, hh.ng) < 0 ? hh.ng : v3_neg(hh.ng);
+            float pf[3] = {(float)hh.p.x, (float)hh.p.y, (float)hh.p.z}, in[3] = {(float)n.x, (float)n.y, (float)n.z}, nd[3];
+            /* the worst rounding: one float step outward in each coordinate */
+            for (int k = 0; k < 3; k++) pf[k] = nextafterf(pf[k], in[k] < 0 ? INFINITY : -INFINITY);
+            pm_normal_decode(pm_normal_encode(in), nd);
+            pos[i] = v3(pf[0], pf[1], pf[2]);
+            nrm[i] = v3(nd[0], nd[1], nd[2]);
+            h[i] = side_free_height(&s, pos[i], nrm[i], 0.1 * R);
+            short_h += !(h[i] == 0.1 * R);
+        }
+        for (int i = 0; i + 1 < N; i += 2)
+            hidden += !side_visible_h(&s, pos[i], nrm[i], h[i], pos[i + 1], nrm[i + 1], h[i + 1]);
+        EXPECT_MSG(short_h == 0 && hidden == 0, "radius %g: %d of %d free heights below the cap, %d of %d pairs hidden",
+                   R, short_h, N, hidden, N / 2);
+        scene_free(&s);
+    }
+}
