@@ -353,8 +353,11 @@ int main(int argc, char **argv) {
     integrator it;
     char err[512];
     rc = integrator_create(s.settings.mode, &s, &it, err, sizeof err);
-    if (rc < 0) {
-        fprintf(stderr, "render: %s\n", err);
+    if (rc < 0) { /* name where the mode came from: the option, or the file's render.mode */
+        if (mode)
+            fprintf(stderr, "render: --mode %s: %s\n", mode, err);
+        else
+            fprintf(stderr, "render: %s: $.render.mode: %s\n", scene_path, err);
         scene_free(&s);
         return 2;
     }

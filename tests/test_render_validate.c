@@ -99,6 +99,8 @@ TEST(render_validate_typo_everywhere) {
                  "$.camera.lookat: unknown key (did you mean \"look_at\"?)");
     expect_error(scene_text("\"max_depth\"", "\"max_dept\"", NULL), "",
                  "$.render.max_dept: unknown key (did you mean \"max_depth\"?)");
+    expect_error(scene_text("\"mode\": \"path\"", "\"mode\": \"paht\"", NULL), "",
+                 "$.render.mode: unknown mode \"paht\"");
     expect_error(scene_text("\"exposure\"", "\"exposre\"", NULL), "",
                  "$.image.exposre: unknown key (did you mean \"exposure\"?)");
     expect_error(scene_text("\"lights\"", "\"ligths\"", NULL), "",
