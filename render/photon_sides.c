@@ -116,12 +116,14 @@ double side_disc_fraction(const scene *s, vec3 p, vec3 n, double r) {
  * r2: with rim = 1 the farthest of them lies on the rim (a k-th nearest), and the area is
  * scaled by k / (k - 0.5) as pm_estimate's PM_BIAS_AREA does; with rim = 0 the whole disc
  * was searched and the area is used as it is. area_fraction: the part of the disc on this
- * side of every wall (1 without walls). */
+ * side of every wall (1 without walls). Direct photons count in the radius but not in the
+ * sum: the value is the indirect irradiance (see "Direct light" in photon_sides.h). */
 static void disc_irradiance(const pm_photon *ph, const pm_neighbor *nb, int count, double r2,
                             int rim, double area_fraction, float e[3]) {
     double sum[3] = {0, 0, 0};
     for (int j = 0; j < count; j++) {
         float pw[3];
+        if (pm_photon_kind(&ph[nb[j].index]) == PM_KIND_DIRECT) continue;
         pm_rgbe_decode(ph[nb[j].index].power, pw);
         for (int c = 0; c < 3; c++) sum[c] += pw[c];
     }
@@ -254,6 +256,7 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
     c->rays_second = rays2;
     c->researched = again;
     c->sparse = sparse;
+    c->indirect_only = 1;
     if (m) {
         /* The module keeps the values, the radii and the lookup (irradiance.h). */
         pm_irradiance_options io;
