@@ -156,17 +156,20 @@ awk -F, -v KQ="$KQ" -v KD="$KD" '
     if (worstb < 1e30) { split(wb, f, "|"); row("build: FLANN fastest leaf size / our slowest B", "every workload", sprintf("%.2fx (%s N=%s)", worstb, f[1], f[2]), ">= 1x", worstb >= 1) }
   }' "$KQ" "$KD" "$KB"
 echo
-echo "Why the worst cells are slow. The kd-tree's cells are bounded only by the split planes on
-the path (and the root's bounding box); it stores no box per node or bucket, to stay at 20
-bytes per photon. Where photons lie on planes inside a larger scene (the walls of a dumped
-Cornell-box map) and a query sits in the empty space between them, the planes' subtrees are
-never split across their thin axis, so their cells reach out to the query: the search then
-scans every photon of the wall whose projection falls within the current radius (the dist
-evals column of the table below). FLANN's single tree keeps per-node bounds and has a milder
-form of the same problem; the octree's cubic cells are bounded on every axis and do not have
-it, which is where it beats the kd-tree. Empty-space queries on the clustered set suffer the
-same way, less strongly. The planar caustic alone does not: its bounding box is flat, so the
-root cell already bounds every query above it.
+echo "Why the worst cells are slow. A kd-tree cell is the root's bounding box cut by the split
+planes on the path and shrunk by each node's 4-bit tightening code (one face moved in by 1/2
+or 7/8 of the cell's extent, or both faces of one axis by 1/4, written only where the
+subtree's records stay inside; the codes live in bits of the photons' flag byte, so photons
+and tree stay at 20 bytes per photon). Without the codes, a query in the empty space between
+the walls of a dumped Cornell-box map scanned every photon of the nearest wall whose
+projection fell within its radius, because the wall's subtrees are never split across their
+thin axis; with them, the wall's cells close onto the wall (the dist evals column of the
+table below). What remains is the clustered set: a median split cuts a cluster in its middle,
+so a node straddling two clusters keeps the gap between them inside its cell down to small
+subtrees, an axis-aligned box cannot express that gap, and one coarse code per node recovers
+only part of it. FLANN splits near the middle of the cell's spread, which often falls into
+such a gap; the octree's cubic cells are bounded on every axis. The planar caustic's
+bounding box is flat, so the root cell already bounds every query above it.
 
 Choosing B: how often each bucket size was the fastest (unsorted k-NN, over every cell), and the worst loss of always using it instead of the cell's fastest:"
 echo
