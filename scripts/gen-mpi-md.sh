@@ -133,7 +133,8 @@ the pixel-pass counters summed over ranks equal one process's; a rank made slow 
 tiles; a bad scene, a rank that cannot load its scene and a refused option exit 2 with the
 message and no output; a photon pass that stores nothing ends every rank with `render`'s
 status and message; a rank killed with SIGKILL mid-render ends the job with rank 0's
-message and no output; partitioned maps give images whose four quarters' means are within
+message and no output (also with partitioned maps, where ranks wait on each other's
+answers); partitioned maps give images whose four quarters' means are within
 1% of the one-process render (cornell_spheres in pm and preview modes at `-np 2` and `4`,
 water_caustic's caustic at `-np 4`, and the same bytes with 2 threads per rank and loaded
 maps as with 1 thread and traced ones; at `-np 4`, taking out either bias rule of the

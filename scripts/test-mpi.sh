@@ -251,32 +251,38 @@ else
   bad "--checkpoint" "rc $rc; $(grep render "$T/ck.log" | head -2)"
 fi
 # A rank killed (SIGKILL) in the middle of the pixel pass: the job ends with a non-zero
-# status, rank 0 says the job is being stopped, and no output (nor temporary) is left.
-id="h8-$$-$(date +%s)"
-mkdir -p "$T/kill"
-(PM_TEST_MPI_ID=$id $MPIRUN -np 2 "$M" data/scenes/cornell_box.json --mode path --width 64 \
-   --height 64 --spp 1024 --threads 1 --hdr "$T/kill/o.pfm" -o "$T/kill/o.png" \
-   >"$T/kill.log" 2>"$T/kill.err"; echo $? > "$T/kill.rc") &
-killed=""
-i=0
-while [ $i -lt 200 ] && [ -z "$killed" ]; do
-  sleep 0.2
-  i=$((i + 1))
-  grep -q "^Rendering:" "$T/kill.err" 2>/dev/null || continue
-  for p in $(pgrep -f "$M"); do
-    tr '\0' '\n' < /proc/$p/environ 2>/dev/null | grep -qx "PM_TEST_MPI_ID=$id" || continue
-    tr '\0' '\n' < /proc/$p/environ 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=1" || continue
-    kill -9 "$p" && killed=$p
+# status, rank 0 says the job is being stopped, and no output (nor temporary) is left. Also
+# with partitioned maps, where the ranks wait on each other's lookup answers.
+kill_test() { # name render-mpi-args...
+  kname=$1; shift
+  id="h8-$$-$(date +%s)-$kname"
+  mkdir -p "$T/kill.$kname"
+  (PM_TEST_MPI_ID=$id $MPIRUN -np 2 "$M" "$@" --threads 1 --hdr "$T/kill.$kname/o.pfm" \
+     -o "$T/kill.$kname/o.png" >"$T/kill.$kname.log" 2>"$T/kill.$kname.err"; echo $? > "$T/kill.$kname.rc") &
+  killed=""
+  i=0
+  while [ $i -lt 300 ] && [ -z "$killed" ]; do
+    sleep 0.2
+    i=$((i + 1))
+    grep -q "^Rendering:" "$T/kill.$kname.err" 2>/dev/null || continue
+    for p in $(pgrep -f "$M"); do
+      tr '\0' '\n' < /proc/$p/environ 2>/dev/null | grep -qx "PM_TEST_MPI_ID=$id" || continue
+      tr '\0' '\n' < /proc/$p/environ 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=1" || continue
+      kill -9 "$p" && killed=$p
+    done
   done
-done
-wait
-rc=$(cat "$T/kill.rc" 2>/dev/null || echo none)
-if [ -n "$killed" ] && [ "$rc" != 0 ] && [ -z "$(ls -A "$T/kill")" ] \
-   && grep -q "render-mpi: rank 0: the job is being stopped" "$T/kill.err"; then
-  ok "a rank killed mid-render: rank 0's message, status $rc, no output"
-else
-  bad "rank killed" "killed '$killed', rc $rc, left: $(ls -A "$T/kill" | tr '\n' ' '); $(grep render "$T/kill.err" | head -2)"
-fi
+  wait
+  rc=$(cat "$T/kill.$kname.rc" 2>/dev/null || echo none)
+  if [ -n "$killed" ] && [ "$rc" != 0 ] && [ -z "$(ls -A "$T/kill.$kname")" ] \
+     && grep -q "render-mpi: rank 0: the job is being stopped" "$T/kill.$kname.err"; then
+    ok "a rank killed mid-render ($kname): rank 0's message, status $rc, no output"
+  else
+    bad "rank killed ($kname)" "killed '$killed', rc $rc, left: $(ls -A "$T/kill.$kname" | tr '\n' ' '); $(grep render "$T/kill.$kname.err" | head -2)"
+  fi
+}
+kill_test path data/scenes/cornell_box.json --mode path --width 64 --height 64 --spp 1024
+kill_test partitioned data/scenes/cornell_spheres.json --mode pm --width 64 --height 64 --spp 1024 \
+  --pm global_photons=20000 --pm caustic_photons=20000 --pm distributed=partitioned
 
 echo "$pass passed, $fail failed"
 [ "$fail" = 0 ]
