@@ -583,6 +583,10 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     map_stamp stamp; /* what shapes this run's maps: checked on load, written on save */
     map_stamp_make(s, &st->cfg, st->plan.global.on, st->plan.caustics.on, st->plan.shadow.on, &stamp);
     if (st->vol.on) { /* a scene with media: its own tracer, surface and volume maps */
+        if (st->cfg.load_dir[0]) /* a resumed checkpoint sets it too: tracing again is exact */
+            fprintf(stderr, "render: warning: load_photons %s not used: a scene with participating "
+                    "media traces its maps (its volume maps are not saved); tracing them\n",
+                    st->cfg.load_dir);
         if ((rc = pmv_trace(&st->vol, s, &st->cfg, &st->plan, m, err, errcap)) < 0) return rc;
         m->stamp = stamp;
     } else if (st->cfg.load_dir[0]) {

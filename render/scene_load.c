@@ -17,7 +17,11 @@
 
 #define P_MAX 256
 
-#define TRY(x) JSON_TRY(x)
+#define TRY(x)                \
+    do {                      \
+        int rc__ = (x);       \
+        if (rc__ < 0) return rc__; \
+    } while (0)
 
 
 /* Append one element of size sz to *arr (count *n, capacity *cap). */

@@ -18,7 +18,11 @@
 
 #define P_MAX 256
 
-#define TRY(x) JSON_TRY(x)
+#define TRY(x)                     \
+    do {                           \
+        int rc__ = (x);            \
+        if (rc__ < 0) return rc__; \
+    } while (0)
 
 void tungsten_rotation(vec3 deg, double R[3][3]) {
     double x = deg.x * M_PI / 180, y = deg.y * M_PI / 180, z = deg.z * M_PI / 180;
