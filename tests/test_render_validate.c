@@ -228,8 +228,13 @@ static void scale_vec(cJSON *v, double k) {
 static char *scaled_scene_i(double k, double intensity);
 static char *scaled_scene(double k) { return scaled_scene_i(k, -1); }
 /* The same with the point light's intensity set to `intensity` (unless negative). */
+static char *scaled_text(const char *src, double k, double intensity);
 static char *scaled_scene_i(double k, double intensity) {
-    cJSON *root = cJSON_Parse(scene_text(NULL, NULL, NULL));
+    return scaled_text(scene_text(NULL, NULL, NULL), k, intensity);
+}
+/* The scene src (a JSON text) scaled so. */
+static char *scaled_text(const char *src, double k, double intensity) {
+    cJSON *root = cJSON_Parse(src);
     if (!root) return NULL;
     cJSON *cam = cJSON_GetObjectItem(root, "camera");
     scale_vec(cJSON_GetObjectItem(cam, "eye"), k);
@@ -242,7 +247,8 @@ static char *scaled_scene_i(double k, double intensity) {
         cJSON *r = cJSON_GetObjectItem(o, "radius");
         if (r) cJSON_SetNumberValue(r, r->valuedouble * k);
     }
-    for (cJSON *l = cJSON_GetObjectItem(root, "lights")->child; l; l = l->next) {
+    for (cJSON *l = cJSON_GetObjectItem(root, "lights") ? cJSON_GetObjectItem(root, "lights")->child : NULL;
+         l; l = l->next) {
         scale_vec(cJSON_GetObjectItem(l, "position"), k);
         cJSON *in = cJSON_GetObjectItem(l, "intensity");
         cJSON_SetNumberValue(in, intensity >= 0 ? intensity : in->valuedouble * k * k);
@@ -252,19 +258,24 @@ static char *scaled_scene_i(double k, double intensity) {
     return text;
 }
 
-/* Means of the 4x4 blocks of a 16x16 image (mean of the three channels), in out[16]. */
-static int block_means(const char *name, double out[16]) {
+/* Means of the 4x4 blocks of a 16x16 image (mean of the three channels), in out[16]; with
+ * quadrants, of its four 8x8 quadrants in out[0..3] (out[4..15] copies of them). */
+static int block_means_n(const char *name, int quadrants, double out[16]);
+static int block_means(const char *name, double out[16]) { return block_means_n(name, 0, out); }
+static int block_means_n(const char *name, int quadrants, double out[16]) {
     char path[1024];
     snprintf(path, sizeof path, "%s/%s", pm_test_tmpdir(), name);
     film f;
     if (film_read_pfm(&f, path) < 0 || f.width != 16 || f.height != 16) return -1;
-    for (int b = 0; b < 16; b++) {
+    int side = quadrants ? 8 : 4, per_row = 16 / side, nb = per_row * per_row;
+    for (int b = 0; b < nb; b++) {
         double sum = 0;
-        for (int y = 4 * (b / 4); y < 4 * (b / 4) + 4; y++)
-            for (int x = 4 * (b % 4); x < 4 * (b % 4) + 4; x++)
+        for (int y = side * (b / per_row); y < side * (b / per_row) + side; y++)
+            for (int x = side * (b % per_row); x < side * (b % per_row) + side; x++)
                 for (int c = 0; c < 3; c++) sum += f.px[3 * ((size_t)y * 16 + (size_t)x) + (size_t)c];
-        out[b] = sum / 48;
+        out[b] = sum / (3.0 * side * side);
     }
+    for (int b = nb; b < 16; b++) out[b] = out[b % nb];
     film_free(&f);
     return 0;
 }
@@ -291,7 +302,9 @@ static double worst_block(const double a[16], const double b[16]) {
  * must match the unit scene's. Path tracing (64 spp): within 1% per block, at 1e-6, 1e-12,
  * 1e19 and 1e39 (the same random numbers: only rounding differs; with a fixed ray offset
  * the 1e-12 box lost its contact shadows: -28% at 1e-12 on the Cornell box). Photon mapping
- * (20,000 global photons, 16 spp): within 3% per block at 1e-6 and 1e6, inside its range;
+ * (20,000 global photons, 16 spp): each 8x8 quadrant within 6% at 1e-6 and 1e6, inside its
+ * range (the same seed: only rounding differs, measured below 0.5%; the bound holds even
+ * for independent seeds, whose quadrants differ by up to 4% on the Cornell box);
  * at 1e19 and 1e39 (where it read 12x too bright, or exited 1) it refuses with the range
  * message and exit 2. */
 TEST(render_validate_scaled_scenes) {
@@ -312,17 +325,17 @@ TEST(render_validate_scaled_scenes) {
     }
     const char *pm = "--mode pm --spp 16 --pm global_photons=20000";
     ASSERT_MSG(render_scaled(1, pm, "unit_pm.pfm", out, sizeof out) == 0, "%s", out);
-    ASSERT(block_means("unit_pm.pfm", ref) == 0);
+    ASSERT(block_means_n("unit_pm.pfm", 1, ref) == 0);
     const double pm_scales[] = {1e-6, 1e6};
     for (int i = 0; i < 2; i++) {
         char name[64];
         snprintf(name, sizeof name, "pm_%g.pfm", pm_scales[i]);
         int rc = render_scaled(pm_scales[i], pm, name, out, sizeof out);
         EXPECT_MSG(rc == 0, "pm at %g: exit %d: %s", pm_scales[i], rc, out);
-        if (rc != 0 || block_means(name, got) < 0) continue;
+        if (rc != 0 || block_means_n(name, 1, got) < 0) continue;
         double w = worst_block(ref, got);
-        printf("    pm, scale %g: worst block %+.4f%%\n", pm_scales[i], 100 * w);
-        EXPECT_MSG(w < 0.03, "pm at scale %g: a block differs by %.3f%%", pm_scales[i], 100 * w);
+        printf("    pm, scale %g: worst quadrant %+.4f%%\n", pm_scales[i], 100 * w);
+        EXPECT_MSG(w < 0.06, "pm at scale %g: a quadrant differs by %.3f%%", pm_scales[i], 100 * w);
     }
     const double refused[] = {1e19, 1e39, 1e-14};
     for (int i = 0; i < 3; i++) {
@@ -360,4 +373,44 @@ TEST(render_validate_huge_ground_sphere) {
         printf("    ground sphere of radius %g: worst block %+.4f%% against radius 1e9\n", radii[i], 100 * w);
         EXPECT_MSG(w < 0.01, "radius %g: a block differs by %.3f%%", radii[i], 100 * w);
     }
+}
+
+/* Oracle: the unit Cornell box (data/scenes/cornell_box.json, millimetres), same seed. Every
+ * length times 1e-9 and 1e-12 (a box 0.5 um and 0.5 pm wide): 4x4 block means of a 16x16
+ * image within 1% in path tracing (64 spp; measured 0.0000%) and 8x8 quadrant means within
+ * 6% in photon mapping (20,000 global photons, 16 spp; measured below 1.5% with the same
+ * seed, and up to 4% between independent seeds). With the fixed ray offset of 64e-9 units the path tracer read +0.75% at
+ * 1e-9 (whole image) and -28% at 1e-12, photon mapping +4.9% and -27%. */
+TEST(render_validate_cornell_box_scaled) {
+    char path[1024], out[16384];
+    snprintf(path, sizeof path, "%s/data/scenes/cornell_box.json", pm_test_source_dir());
+    size_t n = 0;
+    char *src = NULL;
+    FILE *f = fopen(path, "rb");
+    ASSERT(f);
+    src = malloc(1 << 20);
+    if (src) n = fread(src, 1, (1 << 20) - 1, f);
+    fclose(f);
+    ASSERT(src && n > 0);
+    src[n] = 0;
+    const char *modes[2] = {"--mode path --spp 64", "--mode pm --spp 16 --pm global_photons=20000"};
+    const double tol[2] = {0.01, 0.06}, scales[3] = {1, 1e-9, 1e-12};
+    for (int m = 0; m < 2; m++) {
+        double ref[16], got[16];
+        for (int i = 0; i < 3; i++) {
+            char *text = scaled_text(src, scales[i], -1), args[256], name[64];
+            ASSERT(text);
+            snprintf(name, sizeof name, "cb_%d_%g.pfm", m, scales[i]);
+            snprintf(args, sizeof args, "%s --width 16 --height 16 --seed 3 && mv o.pfm %s", modes[m], name);
+            int rc = render_text(text, args, out, sizeof out);
+            free(text);
+            EXPECT_MSG(rc == 0, "%s at %g: exit %d: %s", modes[m], scales[i], rc, out);
+            if (rc != 0 || block_means_n(name, m, i == 0 ? ref : got) < 0) continue;
+            if (i == 0) continue;
+            double w = worst_block(ref, got);
+            printf("    cornell_box %s, scale %g: worst %s %+.4f%%\n", m ? "pm" : "path", scales[i], m ? "quadrant" : "block", 100 * w);
+            EXPECT_MSG(w < tol[m], "%s at %g: a block differs by %.3f%%", modes[m], scales[i], 100 * w);
+        }
+    }
+    free(src);
 }
