@@ -18,11 +18,7 @@
 #include "stats.h"
 #include "tungsten.h"
 
-#define TRY(x)                     \
-    do {                           \
-        int rc__ = (x);            \
-        if (rc__ < 0) return rc__; \
-    } while (0)
+#define TRY(x) JSON_TRY(x)
 
 /* The directory part of path ("" for a bare name). */
 static void dir_of(const char *path, char *dir, size_t cap) {

@@ -32,6 +32,15 @@ typedef struct json_err {
     char msg[512];
 } json_err;
 
+/* In a function that returns an int code: evaluate x, and return its value if it is an error
+ * (negative). The loaders' one way to pass an error up (scene_load.c, import.c, tungsten.c
+ * define TRY as it). */
+#define JSON_TRY(x)                \
+    do {                           \
+        int rc__ = (x);            \
+        if (rc__ < 0) return rc__; \
+    } while (0)
+
 /* printf into e->msg; returns code (so `return json_fail(e, PM_EINVAL, ...)` works). */
 int json_fail(json_err *e, int code, const char *fmt, ...) __attribute__((format(printf, 3, 4)));
 

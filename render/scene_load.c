@@ -17,11 +17,7 @@
 
 #define P_MAX 256
 
-#define TRY(x)                \
-    do {                      \
-        int rc__ = (x);       \
-        if (rc__ < 0) return rc__; \
-    } while (0)
+#define TRY(x) JSON_TRY(x)
 
 
 /* Append one element of size sz to *arr (count *n, capacity *cap). */

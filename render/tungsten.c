@@ -18,11 +18,7 @@
 
 #define P_MAX 256
 
-#define TRY(x)                     \
-    do {                           \
-        int rc__ = (x);            \
-        if (rc__ < 0) return rc__; \
-    } while (0)
+#define TRY(x) JSON_TRY(x)
 
 void tungsten_rotation(vec3 deg, double R[3][3]) {
     double x = deg.x * M_PI / 180, y = deg.y * M_PI / 180, z = deg.z * M_PI / 180;
