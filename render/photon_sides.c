@@ -33,10 +33,10 @@ static vec3 v3f(const float f[3]) { return v3(f[0], f[1], f[2]); }
 double side_free_height(const scene *s, vec3 p, vec3 np, double cap) {
     if (!(cap > 0)) return 0;
     /* p is a photon's float position: it may lie off its surface by its rounding, a float step
-     * in each coordinate, more than v3_offset's epsilon; start past that, or the photon's own
+     * in each coordinate, more than a ray offset's epsilon; start past that, or the photon's own
      * surface is taken for a ceiling right above it (a free height of 0 hides the photon from
      * its neighbours: the furnace at 10x its size read +42%). */
-    ray r = {v3_madd(p, np, 8 * FLT_EPSILON * (1 + v3_maxabs(p))), np};
+    ray r = {v3_madd(p, np, 8 * FLT_EPSILON * (s->offset_floor + v3_maxabs(p))), np};
     hit h;
     if (!isfinite(cap)) cap = 1e300;
     if (!scene_intersect(s, r, cap, &h)) return cap;
@@ -85,7 +85,7 @@ int side_visible(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq) {
  * would run into the surface itself within a few of its free heights. */
 static double visible_disc_fraction(const scene *s, vec3 p, vec3 n, double r) {
     if (!(r > 0) || !isfinite(r)) return 1.0;
-    double scale = 1.0 + v3_maxabs(p), delta = 1e-5 * scale;
+    double scale = s->offset_floor + v3_maxabs(p), delta = 1e-5 * scale;
     ray down = {v3_madd(p, n, delta), v3_neg(n)};
     hit h;
     vec3 base = p, ng = n;
