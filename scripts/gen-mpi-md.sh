@@ -405,7 +405,8 @@ What is not partitioned yet, and what differs from the replicated image:
 - **No shadow-photon map**: every shadow ray is traced, which is exact, and slower where the
   map would have decided.
 - **Each tile is traced twice** (recording, then with the values): the pixel pass's ray work
-  doubles, while its photon searches are spread over the ranks.
+  doubles, while its photon searches are spread over the ranks. A chunk of tiles whose
+  recording made no query (a scene without caustics in pm mode) is traced once.
 
 ## Limitations
 

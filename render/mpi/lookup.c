@@ -664,16 +664,23 @@ int lk_render_tiles(const scene *s, const integrator *it, const render_job *job,
     for (int id = 0; id < STATS_MAX; id++) before[id] = stats_name(id) ? stats_total(id) : 0;
     L.mode = 0;
     int rc = render_tiles(s, it, job, st, tiles, n);
-    for (int id = 0; id < STATS_MAX; id++)
-        if (stats_name(id)) stat_add(id, before[id] - stats_total(id)); /* mod 2^64 */
-    free(before);
-    if (rc < 0) return rc;
-    clear_tiles_state(s, st, tiles, n);
     size_t nq = 0;
     for (int i = 0; i < n; i++) {
         if (L.tiles[tiles[i]].bad) dist_die("out of memory recording photon lookups");
         nq += L.tiles[tiles[i]].n;
     }
+    if (rc == 0 && nq == 0) {
+        /* No estimate in these tiles (a scene without caustics, say): the recording trace
+         * used no placeholder, so it is the image; it keeps its counters, and there is
+         * nothing to exchange or trace again. */
+        free(before);
+        return 0;
+    }
+    for (int id = 0; id < STATS_MAX; id++)
+        if (stats_name(id)) stat_add(id, before[id] - stats_total(id)); /* mod 2^64 */
+    free(before);
+    if (rc < 0) return rc;
+    clear_tiles_state(s, st, tiles, n);
     /* 2. The chunk's queries in tile order; this rank's parts, then every other rank's. */
     lk_query *q = malloc((nq ? nq : 1) * sizeof *q);
     lk_part *mine = malloc((nq ? nq : 1) * sizeof *mine);

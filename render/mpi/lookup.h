@@ -31,7 +31,8 @@
  * (pi r_m^2 times the filter's norm) taken against its own radius; the hull and differential
  * filters fall back to the combined disc. li() makes no decision on an estimate's value
  * (photon_lookup.h), so the second trace makes the same queries, which is checked: a query
- * that differs stops the job. The recording trace's counters are taken off again.
+ * that differs stops the job. The recording trace's counters are taken off again. A chunk
+ * whose recording made no query (no caustic map, say) is done after the first trace.
  *
  * DETERMINISM. Each estimate adds the ranks' parts in rank order, and a part depends only on
  * the query and the rank's photons: the image depends on the rank count alone (not on the
