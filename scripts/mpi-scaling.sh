@@ -1,7 +1,7 @@
 #!/bin/sh
 # mpi-scaling.sh: measure render-mpi (time and traffic) and write docs/MPI.md from it.
 #
-#   PM_BUILD_DIR=build/release sh scripts/mpi-scaling.sh [--reps N] [OUT_DIR]
+#   PM_BUILD_DIR=build/release sh scripts/mpi-scaling.sh [--reps N] [--partitioned] [OUT_DIR]
 #
 # Needs $PM_BUILD_DIR/render and render-mpi (make MPI=1). Writes into OUT_DIR (default
 # docs/mpi): timing.csv (one row per run: the one-process render with 2 threads, render-mpi
@@ -11,14 +11,23 @@
 # tiles), measurement.txt (commit, date, machine, load, settings); then runs
 # scripts/gen-mpi-md.sh, which turns those files into docs/MPI.md. Renders go to a temporary
 # directory. Takes about 5 minutes on 2 idle cores.
+#
+# Partitioned maps: partitioned.csv (the same pm render with 1 thread per rank at 2 and 4
+# ranks, replicated and --pm distributed=partitioned, N repetitions interleaved: phase
+# timers, the bytes of the lookups, of the precomputed irradiance, of the pixel pass, and the
+# partitioned image's worst 32x32 quarter and whole-image mean against the replicated one)
+# and partitioned.txt (its own stamp). --partitioned measures only these two files (about
+# 3 minutes) and keeps the others.
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 B="${PM_BUILD_DIR:-$here/build/release}"
 reps=3
+only_part=0
 out="$here/docs/mpi"
 while [ $# -gt 0 ]; do
   case "$1" in
     -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
+    --partitioned) only_part=1; shift ;;
     --reps) [ $# -ge 2 ] || { echo "mpi-scaling: --reps needs a number" >&2; exit 2; }
             reps=$2; shift 2 ;;
     -*) echo "mpi-scaling: unknown option '$1' (see --help)" >&2; exit 2 ;;
@@ -56,6 +65,54 @@ run() { # config log mode-args
                --hdr "$T/o.pfm" >"$log" 2>&1 ;;
   esac
 }
+
+measure_partitioned() {
+  echo "ranks,mode,rep,wall_s,tracing_s,trees_s,irradiance_s,rendering_s,lookups,bytes_lookup,side_estimates,bytes_side,bytes_pixel,pixels,worst_quarter_pct,whole_pct" > "$out/partitioned.csv"
+  pload0=$(cut -d' ' -f1-3 /proc/loadavg)
+  q=$(( ${SIZE##* } / 2 ))
+  r=1
+  while [ "$r" -le "$reps" ]; do
+    for np in 2 4; do
+      for mode in replicated partitioned; do
+        log="$T/part.$np.$mode.$r.log"
+        # shellcheck disable=SC2086
+        $MPIRUN -np $np "$B/render-mpi" $SCENE $SIZE $PM --threads 1 --quiet --pm distributed=$mode \
+          --hdr "$T/part.$np.$mode.pfm" >"$log" 2>&1 \
+          || { echo "mpi-scaling: -np $np $mode failed" >&2; tail -5 "$log" >&2; exit 1; }
+        worst=0; whole=0
+        if [ $mode = partitioned ]; then
+          for rc_ in "0 0" "$q 0" "0 $q" "$q $q"; do
+            # shellcheck disable=SC2086
+            v=$("$B/render" --compare "$T/part.$np.$mode.pfm" "$T/part.$np.replicated.pfm" --rect $rc_ $q $q | sed -n 's/^rel_mean //p')
+            worst=$(awk -v a="$v" -v w="$worst" 'BEGIN { a = a < 0 ? -a : a; a *= 100; printf "%.4f", (a > w ? a : w) }')
+          done
+          whole=$("$B/render" --compare "$T/part.$np.$mode.pfm" "$T/part.$np.replicated.pfm" | sed -n 's/^rel_mean //p' | awk '{ printf "%.4f", 100 * $1 }')
+        fi
+        traffic=$(awk '
+          /^Rendering [0-9]+x[0-9]+/ { split($2, wh, "x"); px = wh[1] * wh[2] }
+          /^MPI: bytes sent:/ { bx = $9 }
+          /^MPI: partitioned maps: [0-9]+ lookups/ { nl = $4; bl = $6; ns = $(NF - 6); bs = $(NF - 4) }
+          END { printf "%d,%d,%d,%d,%d,%d", nl, bl, ns, bs, bx, px }' "$log")
+        echo "$np,$mode,$r,$(wall "$log"),$(timer "Photon tracing" "$log"),$(timer "Photon kd-trees" "$log"),$(timer "Precomputed irradiance" "$log"),$(timer "Rendering" "$log"),$traffic,$worst,$whole" >> "$out/partitioned.csv"
+        echo "mpi-scaling: partitioned table: $(tail -1 "$out/partitioned.csv")" >&2
+      done
+    done
+    r=$((r + 1))
+  done
+  {
+    echo "commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet 2>/dev/null || echo ' (with uncommitted changes)')"
+    echo "date $(date -u +%Y-%m-%dT%H:%MZ)"
+    echo "machine $(nproc) cores, $(uname -m), $(mpirun --version 2>/dev/null | head -1)"
+    echo "load_before $pload0"
+    echo "load_after $(cut -d' ' -f1-3 /proc/loadavg)"
+    echo "reps $reps"
+  } > "$out/partitioned.txt"
+}
+if [ "$only_part" = 1 ]; then
+  measure_partitioned
+  sh "$here/scripts/gen-mpi-md.sh" "$out"
+  exit 0
+fi
 
 echo "mode,config,rep,wall_s,tracing_s,trees_s,irradiance_s,rendering_s" > "$out/timing.csv"
 load0=$(cut -d' ' -f1-3 /proc/loadavg)
@@ -103,4 +160,5 @@ done
   echo "path_args $PATHM"
   echo "reps $reps"
 } > "$out/measurement.txt"
+measure_partitioned
 sh "$here/scripts/gen-mpi-md.sh" "$out"
