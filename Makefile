@@ -6,7 +6,7 @@
 #                        and shared library), run the whole test suite
 #                        (last line: N passed, N failed, N skipped)
 #   make check           the quick tests only, for the edit-test loop (under 20 s on an idle
-#                        machine): it leaves out the tests that took more than 1 CPU-second or
+#                        machine): it leaves out the tests that took more than 0.5 CPU-second or
 #                        3 s in the last `make test` (BUILD/test-times.txt) and those in
 #                        CHECK_SKIP (slow renders, the quick benchmark, the staged install)
 #   make run             render the default Cornell box to out/
@@ -218,7 +218,7 @@ test: all example
 	$(TEST_ENV) PM_BUILD_DIR=$(abspath $(BUILD)) PM_SOURCE_DIR=$(CURDIR) $(TEST_BIN) \
 	    --times $(BUILD)/test-times.txt $(TESTS)
 
-# `make check` leaves out the tests that took more than 1 CPU-second or 3 s in the last
+# `make check` leaves out the tests that took more than 0.5 CPU-second or 3 s in the last
 # recorded run (runner --quick), and always those that need the staged install or are known
 # to be slow (CHECK_SKIP: a pattern leaves out every test whose name or file contains it).
 CHECK_SKIP := bench_quick_run agrees_with_path_tracing matches_path example_ packaging_ docs_ \

@@ -379,6 +379,74 @@ static size_t three_planes(pm_photon *ph, size_t per, uint64_t seed) {
     return n;
 }
 
+/* What the oracles know of a built irr over tree (k = 16, the disc estimate, photons from
+ * behind rejected): done[i] whether photon i was precomputed, val[3 i..] its value and rad2[i]
+ * its radius^2, recomputed by pm_estimate when with_radius, else INFINITY. 0, or -1 after a
+ * failed check. */
+static int precomputed_truth(const pm_irradiance *irr, const pm_kdtree *tree, int with_radius,
+                             unsigned char *done, float *val, float *rad2) {
+    const pm_photon *tp = pm_kdtree_records(tree);
+    size_t n = pm_kdtree_size(tree);
+    void *scratch = malloc(pm_estimate_scratch_bytes(16));
+    pm_estimate_options eo;
+    pm_estimate_options_init(&eo, PM_EST_DISC, 16);
+    eo.reject_behind = 1;
+    int rc = 0;
+    for (uint32_t i = 0; i < n && rc == 0; i++) {
+        done[i] = (unsigned char)pm_irradiance_value(irr, i, &val[3 * i]);
+        rad2[i] = INFINITY;
+        if (done[i] && with_radius) {
+            float nrm[3];
+            pm_estimate_result er;
+            pm_normal_decode(tp[i].normal, nrm);
+            int e = pm_estimate(tree, tp[i].pos, nrm, &eo, scratch, &er, NULL);
+            EXPECT_EQ_INT(e, PM_OK);
+            if (e != PM_OK) rc = -1;
+            rad2[i] = (float)fmin(er.r2, 3e38);
+        }
+    }
+    free(scratch);
+    return rc;
+}
+
+/* Variant 0..3 of the brute-force lookup tests over ph[0..n): bucket 1 (variants 0, 1) or 8,
+ * all photons (even) or the quarter (odd), radii kept in variants 1 and 2; k = 16. 0, or -1
+ * after a failed check. */
+static int build_variant(pm_photon *ph, size_t n, int variant, int store_index, pm_kdtree **tree,
+                         pm_irradiance **irr, pm_irradiance_options *io) {
+    pm_kdtree_config cfg = pm_kdtree_photon_config(variant & 2 ? 8 : 1);
+    int rc = pm_kdtree_build(tree, ph, n, &cfg, NULL);
+    EXPECT_EQ_INT(rc, PM_OK);
+    if (rc != PM_OK) return -1;
+    pm_irradiance_options_init(io, 16);
+    io->fraction = variant & 1 ? PM_PRECOMP_QUARTER : PM_PRECOMP_ALL;
+    io->store_radius = variant == 1 || variant == 2;
+    io->store_index = store_index;
+    rc = pm_irradiance_build(irr, *tree, io);
+    EXPECT_EQ_INT(rc, PM_OK);
+    return rc == PM_OK ? 0 : -1;
+}
+
+/* Query qi of the brute-force lookup tests, from r: a point on the surfaces (one in five), in
+ * the unit cube, or in a cube of side spread around it; the normal of one of the three planes
+ * or a random one; cos_min from -1 to 0.95; the search radius^2 unlimited or 0.002 to 0.052. */
+static void lookup_query(rng_t *r, unsigned qi, double spread, float q[3], float nq[3], float *cmin,
+                         float *md2) {
+    int kind = (int)(qi % 5);
+    for (int a = 0; a < 3; a++) q[a] = (float)(kind == 4 ? spread * (rng_unit(r) - 0.5) : rng_unit(r));
+    if (kind == 0) q[2] = 0;
+    if (kind < 3) {
+        static const float ns[3][3] = {{0, 0, 1}, {1, 0, 0}, {-0.601815023f, 0, 0.798635510f}};
+        memcpy(nq, ns[qi % 3], 3 * sizeof *nq);
+    } else {
+        double z = 2 * rng_unit(r) - 1, a = 2 * PI * rng_unit(r), s = sqrt(1 - z * z);
+        nq[0] = (float)(s * cos(a)), nq[1] = (float)(s * sin(a)), nq[2] = (float)z;
+    }
+    static const float cosv[4] = {-1.0f, 0.0f, 0.7f, 0.95f};
+    *cmin = cosv[qi % 4];
+    *md2 = qi % 3 == 0 ? INFINITY : (float)(0.002 + 0.05 * rng_unit(r));
+}
+
 /* Oracle: a brute-force scan over the precomputed photons (pm_irradiance_value says which and
  * holds their values; pm_estimate at each gives the stored radius^2): the lookup returns the
  * value of a photon at the smallest dist2 among those with dot(decoded normal, n) >= cos_min,
@@ -393,49 +461,18 @@ TEST(irradiance_lookup_matches_brute_force) {
     for (int variant = 0; variant < 4; variant++) {
         size_t n = three_planes(ph, per, 40 + (uint64_t)variant);
         pm_kdtree *tree = NULL;
-        pm_kdtree_config cfg = pm_kdtree_photon_config(variant & 2 ? 8 : 1);
-        ASSERT_EQ_INT(pm_kdtree_build(&tree, ph, n, &cfg, NULL), PM_OK);
-        pm_irradiance_options io;
         pm_irradiance *irr = NULL;
-        pm_irradiance_options_init(&io, 16);
-        io.fraction = variant & 1 ? PM_PRECOMP_QUARTER : PM_PRECOMP_ALL;
-        io.store_radius = variant == 1 || variant == 2;
-        ASSERT_EQ_INT(pm_irradiance_build(&irr, tree, &io), PM_OK);
+        pm_irradiance_options io;
+        ASSERT(build_variant(ph, n, variant, 0, &tree, &irr, &io) == 0);
         const pm_photon *tp = pm_kdtree_records(tree);
         float *val = malloc(sizeof *val * 3 * n), *rad2 = malloc(sizeof *rad2 * n);
         unsigned char *done = malloc(n);
-        void *scratch = malloc(pm_estimate_scratch_bytes(16));
-        pm_estimate_options eo;
-        pm_estimate_options_init(&eo, PM_EST_DISC, 16);
-        eo.reject_behind = 1;
-        for (uint32_t i = 0; i < n; i++) {
-            done[i] = (unsigned char)pm_irradiance_value(irr, i, &val[3 * i]);
-            rad2[i] = INFINITY;
-            if (done[i] && io.store_radius) {
-                float nrm[3];
-                pm_estimate_result er;
-                pm_normal_decode(tp[i].normal, nrm);
-                ASSERT_EQ_INT(pm_estimate(tree, tp[i].pos, nrm, &eo, scratch, &er, NULL), PM_OK);
-                rad2[i] = (float)fmin(er.r2, 3e38);
-            }
-        }
+        ASSERT(precomputed_truth(irr, tree, io.store_radius, done, val, rad2) == 0);
         rng_t r = {77 + (uint64_t)variant};
         unsigned found = 0;
         for (unsigned qi = 0; qi < queries; qi++) {
-            float q[3], nq[3];
-            int kind = (int)(qi % 5);
-            for (int a = 0; a < 3; a++) q[a] = (float)(kind == 4 ? 10 * (rng_unit(&r) - 0.5) : rng_unit(&r));
-            if (kind == 0) q[2] = 0;
-            if (kind < 3) {
-                static const float ns[3][3] = {{0, 0, 1}, {1, 0, 0}, {-0.601815023f, 0, 0.798635510f}};
-                memcpy(nq, ns[qi % 3], sizeof nq);
-            } else {
-                double z = 2 * rng_unit(&r) - 1, a = 2 * PI * rng_unit(&r), s = sqrt(1 - z * z);
-                nq[0] = (float)(s * cos(a)), nq[1] = (float)(s * sin(a)), nq[2] = (float)z;
-            }
-            static const float cosv[4] = {-1.0f, 0.0f, 0.7f, 0.95f};
-            float cmin = cosv[qi % 4];
-            float md2 = qi % 3 == 0 ? INFINITY : (float)(0.002 + 0.05 * rng_unit(&r));
+            float q[3], nq[3], cmin, md2;
+            lookup_query(&r, qi, 10, q, nq, &cmin, &md2);
             float best = INFINITY;
             for (uint32_t i = 0; i < n; i++) {
                 if (!done[i]) continue;
@@ -465,7 +502,6 @@ TEST(irradiance_lookup_matches_brute_force) {
             EXPECT_MSG(match, "variant %d query %u: value %g is no photon's at the nearest dist2 %g", variant, qi, v[0], best);
         }
         EXPECT_MSG(found > queries / (io.store_radius ? 10 : 3), "variant %d: only %u of %u queries found a photon", variant, found, queries);
-        free(scratch);
         free(done);
         free(rad2);
         free(val);
@@ -547,51 +583,19 @@ TEST(irradiance_lookup_if_matches_brute_force) {
     for (int variant = 0; variant < 4; variant++) {
         size_t n = three_planes(ph, per, 90 + (uint64_t)variant);
         pm_kdtree *tree = NULL;
-        pm_kdtree_config cfg = pm_kdtree_photon_config(variant & 2 ? 8 : 1);
-        ASSERT_EQ_INT(pm_kdtree_build(&tree, ph, n, &cfg, NULL), PM_OK);
-        pm_irradiance_options io;
         pm_irradiance *irr = NULL;
-        pm_irradiance_options_init(&io, 16);
-        io.fraction = variant & 1 ? PM_PRECOMP_QUARTER : PM_PRECOMP_ALL;
-        io.store_radius = variant == 1 || variant == 2;
-        io.store_index = 1;
-        ASSERT_EQ_INT(pm_irradiance_build(&irr, tree, &io), PM_OK);
+        pm_irradiance_options io;
+        ASSERT(build_variant(ph, n, variant, 1, &tree, &irr, &io) == 0);
         const pm_photon *tp = pm_kdtree_records(tree);
         float *val = malloc(sizeof *val * 3 * n), *rad2 = malloc(sizeof *rad2 * n);
         unsigned char *done = malloc(n), *is_cand = calloc(n, 1);
         cand *cs = malloc(sizeof *cs * n);
-        void *scratch = malloc(pm_estimate_scratch_bytes(16));
-        pm_estimate_options eo;
-        pm_estimate_options_init(&eo, PM_EST_DISC, 16);
-        eo.reject_behind = 1;
-        for (uint32_t i = 0; i < n; i++) {
-            done[i] = (unsigned char)pm_irradiance_value(irr, i, &val[3 * i]);
-            rad2[i] = INFINITY;
-            if (done[i] && io.store_radius) {
-                float nrm[3];
-                pm_estimate_result er;
-                pm_normal_decode(tp[i].normal, nrm);
-                ASSERT_EQ_INT(pm_estimate(tree, tp[i].pos, nrm, &eo, scratch, &er, NULL), PM_OK);
-                rad2[i] = (float)fmin(er.r2, 3e38);
-            }
-        }
+        ASSERT(precomputed_truth(irr, tree, io.store_radius, done, val, rad2) == 0);
         rng_t r = {177 + (uint64_t)variant};
         for (unsigned qi = 0; qi < queries; qi++) {
-            float q[3], nq[3];
-            int kind = (int)(qi % 5);
-            for (int a = 0; a < 3; a++) q[a] = (float)(kind == 4 ? 3 * (rng_unit(&r) - 0.5) : rng_unit(&r));
-            if (kind == 0) q[2] = 0;
-            if (kind < 3) {
-                static const float ns[3][3] = {{0, 0, 1}, {1, 0, 0}, {-0.601815023f, 0, 0.798635510f}};
-                memcpy(nq, ns[qi % 3], sizeof nq);
-            } else {
-                double z = 2 * rng_unit(&r) - 1, a = 2 * PI * rng_unit(&r), s = sqrt(1 - z * z);
-                nq[0] = (float)(s * cos(a)), nq[1] = (float)(s * sin(a)), nq[2] = (float)z;
-            }
-            static const float cosv[4] = {-1.0f, 0.0f, 0.7f, 0.95f};
             static const unsigned mods[4] = {0, 3, 2, 1};
-            float cmin = cosv[qi % 4];
-            float md2 = qi % 3 == 0 ? INFINITY : (float)(0.002 + 0.05 * rng_unit(&r));
+            float q[3], nq[3], cmin, md2;
+            lookup_query(&r, qi, 3, q, nq, &cmin, &md2);
             unsigned tries = qi % 13 == 12 ? PM_IRRADIANCE_MAX_TRIES : 1 + qi % 12;
             rule_log lg = rule_init(tp, q, mods[(qi / 4) % 4]);
             size_t nc = 0;
@@ -648,7 +652,6 @@ TEST(irradiance_lookup_if_matches_brute_force) {
             }
             for (size_t t = 0; t < nc; t++) is_cand[cs[t].i] = 0;
         }
-        free(scratch);
         free(cs);
         free(is_cand);
         free(done);
@@ -732,7 +735,6 @@ TEST(irradiance_build_values_is_the_same_structure) {
     pm_kdtree *tree = NULL;
     pm_kdtree_config cfg = pm_kdtree_photon_config(1);
     ASSERT_EQ_INT(pm_kdtree_build(&tree, ph, n, &cfg, NULL), PM_OK);
-    const pm_photon *tp = pm_kdtree_records(tree);
     pm_irradiance_options io;
     pm_irradiance *irr = NULL, *mine = NULL;
     pm_irradiance_options_init(&io, 16);
@@ -740,22 +742,15 @@ TEST(irradiance_build_values_is_the_same_structure) {
     io.store_radius = 1;
     ASSERT_EQ_INT(pm_irradiance_build(&irr, tree, &io), PM_OK);
     float *val = malloc(sizeof *val * 3 * n), *rad2 = malloc(sizeof *rad2 * n);
-    void *scratch = malloc(pm_estimate_scratch_bytes(16));
-    pm_estimate_options eo;
-    pm_estimate_options_init(&eo, PM_EST_DISC, 16);
-    eo.reject_behind = 1;
+    unsigned char *done = malloc(n);
+    ASSERT(precomputed_truth(irr, tree, 1, done, val, rad2) == 0);
     size_t chosen = 0, first_chosen = n;
     for (uint32_t i = 0; i < n; i++) {
-        val[3 * i] = val[3 * i + 1] = val[3 * i + 2] = rad2[i] = NAN;
-        float v[3];
-        if (!pm_irradiance_value(irr, i, v)) continue;
+        if (!done[i]) { /* never read by the build */
+            val[3 * i] = val[3 * i + 1] = val[3 * i + 2] = rad2[i] = NAN;
+            continue;
+        }
         EXPECT(pm_kdtree_height(tree, i) >= 2);
-        memcpy(&val[3 * i], v, sizeof v);
-        float nrm[3];
-        pm_estimate_result er;
-        pm_normal_decode(tp[i].normal, nrm);
-        ASSERT_EQ_INT(pm_estimate(tree, tp[i].pos, nrm, &eo, scratch, &er, NULL), PM_OK);
-        rad2[i] = (float)fmin(er.r2, 3e38);
         chosen++;
         if (first_chosen == n) first_chosen = i;
     }
@@ -827,7 +822,7 @@ TEST(irradiance_build_values_is_the_same_structure) {
     ASSERT_EQ_INT(pm_irradiance_build_values(&all, tree, &vo, val, rad2), PM_OK);
     EXPECT(pm_irradiance_count(all) == n);
     pm_irradiance_free(all);
-    free(scratch);
+    free(done);
     free(rad2);
     free(val);
     pm_irradiance_free(mine);
