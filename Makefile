@@ -12,7 +12,8 @@
 #   make run             render the default Cornell box to out/
 #   make bench           run the full benchmarks, write bench/results/*.csv, plots and docs
 #   make bench-quick     a small benchmark subset (also run by the test suite)
-#   make results         path-traced references (if missing, ~45 min) and docs/RESULTS.md (~20 min)
+#   make results         path-traced references (if missing, ~45 min) and docs/RESULTS.md (~20 min;
+#                        its media section from the committed data/reference-media/, ~3 min)
 #   make deps            install the missing Debian packages (scripts/install-deps.sh)
 #   make install PREFIX=/usr/local DESTDIR=
 #                        headers, libphotonmap.a, libphotonmap.so.1, photonmap.pc, bin/render
@@ -284,6 +285,7 @@ results: $(RENDER_BIN)
 	@for s in cornell_spheres cornell_diffuse; do [ -f data/reference/$$s.pfm ] || \
 	    PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-reference.sh $$s || exit 1; done
 	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-results.sh
+	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/media-results.sh
 
 # ---- install -------------------------------------------------------------------------------
 # photonmap.pc: -lphotonmap in Libs; what a static link also needs (libm, the OpenMP runtime

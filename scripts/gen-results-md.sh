@@ -5,7 +5,8 @@
 #
 # RESULTS_DIR (default docs/results) holds regions.csv, time_error.csv,
 # time_error_summary.txt, the *.time and *_plan.txt files, the images, and measurement.txt:
-# the commit, date and machine of the measurement, its settings and the references' info.
+# the commit, date and machine of the measurement, its settings and the references' info; and,
+# if present, media/ from scripts/media-results.sh (the media section, with its own stamp).
 # Every figure and stamp in the document comes from those files, never from the checkout or
 # the clock at generation time, so the same files always give the same document (a test
 # regenerates it from the committed files and compares). --out FILE writes FILE instead of
@@ -142,6 +143,45 @@ camera sees comes from four extra emission-only rays per sample, so the edges of
 are antialiased cheaply; one final-gather ray per camera sample reads the precomputed
 irradiance of the global map (so a pixel of $pmspp samples gathers $pmspp rays).
 EOF
+# Participating media (scripts/media-results.sh): its own measurement, its own stamp.
+if [ -f "$res/media/regions.csv" ]; then
+  mm() { awk -v k="$1" '$1 == k { sub(/^[^ ]+ /, ""); print; exit }' "$res/media/measurement.txt"; }
+  cat <<EOF
+
+## 3. Participating media
+
+Measured by \`scripts/media-results.sh\` (files in \`docs/results/media/\`) at commit $(mm commit),
+$(mm date), on $(mm machine): a separate, later run than sections 1 and 2 (those were not
+re-run with it). Photon mapping with its default plan, $(mm pm_spp) spp, on one thread, at
+$(mm resolution)x$(mm resolution) pixels, against path-traced references in \`data/reference-media/\`
+(committed; each \`.info\` has the scene file's hash): cornell_fog $(mm ref_cornell_fog_spp) spp
+($(mm ref_cornell_fog_cpu_seconds) CPU-s), glass_of_smoke $(mm ref_glass_of_smoke_spp) spp ($(mm ref_glass_of_smoke_cpu_seconds) CPU-s), seed $(mm ref_cornell_fog_seed).
+A region is the pixels that see that object first (the medium in front of it included).
+EOF
+  for name in cornell_fog glass_of_smoke; do
+    echo
+    echo "### $name"
+    echo
+    echo "Photon mapping took $(cat "$res/media/${name}_pm.time" 2>/dev/null || echo ?) CPU-s. Its plan, as the renderer printed it:"
+    echo
+    echo '```'
+    cat "$res/media/${name}_plan.txt" 2>/dev/null
+    echo '```'
+    echo
+    echo "| region | pixels | reference | photon mapping | difference | tolerance | within |"
+    echo "|---|---:|---:|---:|---:|---:|---|"
+    awk -F, -v s="$name" '$1 == s { printf "| %s | %d | %.5g | %.5g | %+.2f%% | %.0f%% | %s |\n", $2, $3, $5, $4, 100 * $6, 100 * $7, $8 == "yes" ? "yes" : "NO" }' "$res/media/regions.csv"
+    echo
+    echo "| reference (path tracing) | photon mapping | difference |"
+    echo "|---|---|---|"
+    echo "| ![](results/media/${name}_ref.png) | ![](results/media/${name}_pm.png) | ![](results/media/${name}_diff.png) |"
+  done
+  echo
+  awk -F, 'NR > 1 { n++; if ($8 == "yes") ok++; d = $6 < 0 ? -$6 : $6; if (d > m) { m = d; w = $1 " " $2 } }
+    END { printf "%d of %d media region means are within their tolerance; the largest difference is %.2f%%, %s.\n", ok, n, 100 * m, w }' "$res/media/regions.csv"
+  echo "The volumetric caustic has no path-traced reference (path tracing hardly finds its beam: \`docs/MEDIA.md\`);"
+  echo "its deposited power is checked against a brute-force integral by the test media_volumetric_caustic_energy."
+fi
 } > "$tmp"
 if [ "$doc" = - ]; then
   cat "$tmp"

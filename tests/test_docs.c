@@ -7,7 +7,8 @@
  * something other than its files (the clock, the checkout's commit, the machine) shows up.
  * Oracle: the committed document itself, byte for byte.
  *
- * docs/MPI.md is checked the same way in tests/test_mpi.c. docs/IMPORT.md is formatted from
+ * docs/MEDIA.md (scripts/gen-media-md.sh from docs/media/) is checked here too. docs/MPI.md is
+ * checked the same way in tests/test_mpi.c. docs/IMPORT.md is formatted from
  * docs/import/ (scripts/gen-import-md.sh, whose --run renders and measures into that folder).
  */
 #include <stdio.h>
@@ -131,4 +132,32 @@ TEST(docs_results_generator_help_writes_nothing) {
     snprintf(cmd, sizeof cmd, "ls -A '%s' | wc -l", pm_test_tmpdir());
     ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
     EXPECT_MSG(strtol(out, NULL, 10) == 0, "--help left files: %s", out);
+}
+
+/* docs/MEDIA.md from docs/media/ (scripts/gen-media-md.sh). */
+TEST(docs_media_md_regenerates_exactly) {
+    char cmd[4096], got[2048];
+    snprintf(got, sizeof got, "%s/MEDIA.md", pm_test_tmpdir());
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-media-md.sh' --out '%s'", pm_test_source_dir(), got);
+    expect_regenerates(cmd, got, "docs/MEDIA.md");
+}
+
+/* Oracle: each section's measurement file is the only source of its stamp. With the commit
+ * and date of cornell_fog's measurement replaced by values no checkout or clock can have, the
+ * document carries exactly those; every script of the media proofs prints its usage. */
+TEST(docs_media_md_stamps_the_measurement) {
+    const char *dir = pm_test_tmpdir();
+    char cmd[8192], out[65536];
+    snprintf(cmd, sizeof cmd,
+             "cp -R '%s/docs/media' '%s/res' && cd '%s/res' && "
+             "sed -i -e 's/^commit .*/commit c0ffee0-test/' -e 's/^date .*/date 1999-12-31 23:59 UTC/' "
+             "measurement_cornell_fog.txt && sh '%s/scripts/gen-media-md.sh' --out '%s/M.md' '%s/res' && cat '%s/M.md'",
+             pm_test_source_dir(), dir, dir, pm_test_source_dir(), dir, dir, dir);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "Measured at commit c0ffee0-test, 1999-12-31 23:59 UTC"), "no measured stamp in:\n%.1500s", out);
+    static const char *const scripts[] = {"gen-media-md.sh", "media-time-error.sh", "media-results.sh", "media-cost.sh"};
+    for (int i = 0; i < 4; i++) {
+        snprintf(cmd, sizeof cmd, "cd '%s' && sh '%s/scripts/%s' --help", dir, pm_test_source_dir(), scripts[i]);
+        EXPECT_MSG(pm_test_run(cmd, out, sizeof out) == 0 && strstr(out, scripts[i]), "%s --help: %s", scripts[i], out);
+    }
 }

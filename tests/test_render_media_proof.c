@@ -323,10 +323,23 @@ static void pm_against_reference(const char *name, const char *flags, const int 
 
 /* Oracle: the long path-traced reference of cornell_fog (data/reference-media/, its .info has
  * the samples and the scene's hash; the test refuses a reference of another version of the
- * scene). Photon mapping at 32x32 with its default plan: the image mean within 3%, and the
+ * scene). Photon mapping at 32x32, 16 spp, with its default plan: the image mean within 3%, and the
  * pixels that see each wall, the floor and the ceiling (through the fog) within 5%. */
 TEST(media_cornell_fog_pm_matches_path) {
     static const int ids[] = {1, 2, 3, 4, 5};
     static const char *const names[] = {"floor", "ceiling", "back wall", "left wall", "right wall"};
-    pm_against_reference("cornell_fog", "--spp 4", ids, names, 5, 0.03, 0.05);
+    pm_against_reference("cornell_fog", "--spp 16", ids, names, 5, 0.03, 0.05);
+}
+
+/* Oracle: the same for glass_of_smoke: the image within 3%, the smoke-filled sphere's pixels,
+ * the floor and the back wall within 5%. Fewer surface caustic photons than the default (the
+ * pass would emit 32 M photons for 500,000 in the glass's small caustic); the volume maps keep
+ * their defaults. Measured when written: the smoke sphere +104% (photon mapping reads the
+ * dense smoke 2.2 times too bright; with the volume map off it reads 0.15 times the
+ * reference, so the volume map's estimate is the part that is off), floor +15%, image +8%:
+ * this test fails until that is fixed. */
+TEST(media_glass_of_smoke_pm_matches_path) {
+    static const int ids[] = {7, 1, 3};
+    static const char *const names[] = {"smoke sphere", "floor", "back wall"};
+    pm_against_reference("glass_of_smoke", "--spp 16 --pm caustic_photons=50000", ids, names, 3, 0.03, 0.05);
 }
