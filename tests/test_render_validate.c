@@ -414,3 +414,40 @@ TEST(render_validate_cornell_box_scaled) {
     }
     free(src);
 }
+
+/* Oracle: the furnace's analytic radiance (data/scenes/furnace.json: a closed sphere emitting
+ * Le = 1 with albedo 0.5, so L = Le / (1 - 0.5) = 2 everywhere). Scaled by 1, 10, 1e-6 and 1e6
+ * (radius 10 to 1e7 and 1e-5), photon mapping's image mean (8x8, 4 spp, 20,000 photons) must be
+ * 2 within 2% (measured within 0.08%). At 10x it read +42% while the free height of a photon
+ * started one float step of 1 unit off the surface, and at 1e19 12x too bright (now refused:
+ * outside photon mapping's range). */
+TEST(render_validate_furnace_scaled_pm) {
+    char path[1024], out[16384];
+    snprintf(path, sizeof path, "%s/data/scenes/furnace.json", pm_test_source_dir());
+    FILE *f = fopen(path, "rb");
+    ASSERT(f);
+    char *src = malloc(1 << 16);
+    size_t n = src ? fread(src, 1, (1 << 16) - 1, f) : 0;
+    fclose(f);
+    ASSERT(src && n > 0);
+    src[n] = 0;
+    const double scales[] = {1, 10, 1e-6, 1e6};
+    for (int i = 0; i < 4; i++) {
+        char *text = scaled_text(src, scales[i], -1), pfm[1024];
+        ASSERT(text);
+        int rc = render_text(text, "--mode pm --width 8 --height 8 --spp 4 --pm global_photons=20000", out,
+                             sizeof out);
+        free(text);
+        EXPECT_MSG(rc == 0, "scale %g: exit %d: %s", scales[i], rc, out);
+        snprintf(pfm, sizeof pfm, "%s/o.pfm", pm_test_tmpdir());
+        film im;
+        if (rc != 0 || film_read_pfm(&im, pfm) < 0) continue;
+        double sum = 0;
+        for (size_t k = 0; k < (size_t)im.width * (size_t)im.height * 3; k++) sum += im.px[k];
+        double mean = sum / ((double)im.width * im.height * 3);
+        film_free(&im);
+        printf("    furnace x %g: pm mean %.4f (exact 2)\n", scales[i], mean);
+        EXPECT_MSG(fabs(mean / 2 - 1) < 0.02, "scale %g: mean %.4f, exact 2", scales[i], mean);
+    }
+    free(src);
+}
