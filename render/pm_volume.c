@@ -54,13 +54,18 @@ int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
     return 0;
 }
 
+static void maps_free(pmv_map *m, int n) {
+    for (int i = 0; m && i < n; i++) {
+        pm_kdtree_free(m[i].t);
+        free(m[i].a);
+    }
+    free(m);
+}
+
 void pmv_free(pmv_state *v) {
-    pm_kdtree_free(v->t_ms);
-    pm_kdtree_free(v->t_caus);
-    pm_kdtree_free(v->t_all);
-    free(v->a_ms);
-    free(v->a_caus);
-    free(v->a_all);
+    maps_free(v->ms, v->nmedia);
+    maps_free(v->caus, v->nmedia);
+    maps_free(v->all, v->nmedia);
     free(v->step);
     memset(v, 0, sizeof *v);
 }
@@ -90,8 +95,30 @@ static float radius2_from_density(const pm_photon *ph, size_t n, unsigned k) {
     return (float)(r * r);
 }
 
-static int build(pm_kdtree **t, pm_photon *ph, size_t n, char *err, size_t errcap) {
-    return photon_tree_build(t, ph, n, 8, err, errcap);
+enum { USE_MS, USE_MS_AND_CAUSTIC, USE_ALL };
+
+/* Copy the photons of medium md that serve `use` (INDIRECT; INDIRECT and CAUSTIC; all) into
+ * map, choose its radius and build its tree. */
+static int split(const pmv_state *v, pmv_map *map, const pm_photon *ph, const short *med, size_t n, int md,
+                 unsigned k, int use, char *err, size_t errcap) {
+    (void)v;
+    size_t cnt = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        for (size_t i = 0; i < n; i++) {
+            int kind = pm_photon_kind(&ph[i]);
+            int want = med[i] == md && (use == USE_ALL || kind == PM_KIND_INDIRECT ||
+                                        (use == USE_MS_AND_CAUSTIC && kind == PM_KIND_CAUSTIC));
+            if (!want) continue;
+            if (pass == 1) map->a[map->n++] = ph[i];
+            else cnt++;
+        }
+        if (pass == 0) {
+            if (cnt == 0) return 0;
+            if (!(map->a = malloc(cnt * sizeof *map->a))) return PM_ENOMEM;
+        }
+    }
+    map->r2 = radius2_from_density(map->a, map->n, k);
+    return photon_tree_build(&map->t, map->a, map->n, 8, err, errcap);
 }
 
 int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const render_plan *p,
@@ -134,29 +161,27 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
         o.hi = v->hi;
         if ((rc = vol_trace_pass(s, &o, &k)) < 0) goto fail;
     }
-    /* Split the global pass's volume photons: multiple scattering, and all of them. */
-    size_t nms = 0;
-    for (size_t i = 0; i < g.nvolume; i++) {
-        int kind = pm_photon_kind(&g.volume[i]);
-        nms += kind == PM_KIND_INDIRECT || (kind == PM_KIND_CAUSTIC && !p->volume_caustics.on);
+    /* Split the volume photons by medium and by use (pm_volume.h), and build the trees. */
+    v->nmedia = s->nmedia;
+    int nm = s->nmedia > 0 ? s->nmedia : 1;
+    v->ms = calloc((size_t)nm, sizeof *v->ms);
+    v->caus = calloc((size_t)nm, sizeof *v->caus);
+    v->all = calloc((size_t)nm, sizeof *v->all);
+    if (!v->ms || !v->caus || !v->all) {
+        rc = PM_ENOMEM;
+        goto fail;
     }
-    if (nms) {
-        if (!(v->a_ms = malloc(nms * sizeof *v->a_ms))) {
-            rc = PM_ENOMEM;
-            goto fail;
-        }
-        for (size_t i = 0; i < g.nvolume; i++) {
-            int kind = pm_photon_kind(&g.volume[i]);
-            if (kind == PM_KIND_INDIRECT || (kind == PM_KIND_CAUSTIC && !p->volume_caustics.on))
-                v->a_ms[v->n_ms++] = g.volume[i];
-        }
+    for (int md = 0; md < s->nmedia && rc == 0; md++) {
+        rc = split(v, &v->ms[md], g.volume, g.volume_medium, g.nvolume, md, v->k_ms,
+                   p->volume_caustics.on ? USE_MS : USE_MS_AND_CAUSTIC, err, errcap);
+        if (rc == 0) rc = split(v, &v->all[md], g.volume, g.volume_medium, g.nvolume, md, v->k_ms, USE_ALL, err, errcap);
+        if (rc == 0)
+            rc = split(v, &v->caus[md], k.volume, k.volume_medium, k.nvolume, md, v->k_caus, USE_ALL, err, errcap);
+        v->n_ms += v->ms[md].n;
+        v->n_all += v->all[md].n;
+        v->n_caus += v->caus[md].n;
     }
-    v->a_all = g.volume;
-    v->n_all = g.nvolume;
-    g.volume = NULL;
-    v->a_caus = k.volume;
-    v->n_caus = k.nvolume;
-    k.volume = NULL;
+    if (rc < 0) goto fail;
     m->global = g.surface;
     m->nglobal = g.nsurface;
     m->global_emitted = g.surface_emitted;
@@ -168,20 +193,17 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
     m->caustic_runaway = k.surface_short;
     m->caustic_fraction = 1;
     k.surface = NULL;
-    v->r2_ms = radius2_from_density(v->a_ms, v->n_ms, v->k_ms);
-    v->r2_all = radius2_from_density(v->a_all, v->n_all, v->k_ms);
-    v->r2_caus = radius2_from_density(v->a_caus, v->n_caus, v->k_caus);
-    if ((rc = build(&v->t_ms, v->a_ms, v->n_ms, err, errcap)) < 0 ||
-        (rc = build(&v->t_all, v->a_all, v->n_all, err, errcap)) < 0 ||
-        (rc = build(&v->t_caus, v->a_caus, v->n_caus, err, errcap)) < 0)
-        goto fail;
+    double r_ms = 0, r_caus = 0; /* the largest radius over the media, for the message */
+    for (int md = 0; md < s->nmedia; md++) {
+        if (v->ms[md].n) r_ms = fmax(r_ms, sqrt((double)v->ms[md].r2));
+        if (v->caus[md].n) r_caus = fmax(r_caus, sqrt((double)v->caus[md].r2));
+    }
     printf("Photons (scene with media): %zu global (from %llu emitted), %zu caustic (from %llu "
            "emitted); volume: %zu (from %llu emitted), %zu of them for multiple scattering (radius "
            "%.4g), %zu volume-caustic (from %llu emitted, radius %.4g)\n",
            m->nglobal, (unsigned long long)m->global_emitted, m->ncaustic,
            (unsigned long long)m->caustic_emitted, v->n_all, (unsigned long long)g.volume_emitted,
-           v->n_ms, sqrt((double)v->r2_ms), v->n_caus, (unsigned long long)k.volume_emitted,
-           sqrt((double)v->r2_caus));
+           v->n_ms, r_ms, v->n_caus, (unsigned long long)k.volume_emitted, r_caus);
     if (g.volume_short || k.volume_short || g.surface_short || k.surface_short)
         fprintf(stderr, "render: photon maps stopped short of their targets (global %d, caustic %d, "
                         "volume %d, volume caustic %d: the emission budget ran out, see pm_volume.h)\n",
@@ -255,6 +277,8 @@ rgb pmv_march(const pmv_state *v, const scene *s, ray r, double tmax, int med, i
     double T = isfinite(tmax) ? tmax : bounds_exit(v, r);
     *tr = isfinite(tmax) ? medium_tr(md, tmax) : medium_tr(md, INFINITY);
     if (!inscatter || !(T > 0) || v3_iszero(md->sigma_s)) return v3s(0);
+    static const pmv_map none = {NULL, NULL, 0, 0};
+    const pmv_map *ms = v->ms ? &v->ms[med] : &none, *caus = v->caus ? &v->caus[med] : &none;
     double nf = ceil(T / v->step[med]);
     int n = nf > PMV_MAX_STEPS ? PMV_MAX_STEPS : nf < 1 ? 1 : (int)nf;
     double dt = T / n, u = rng_uniform(g);
@@ -263,12 +287,12 @@ rgb pmv_march(const pmv_state *v, const scene *s, ray r, double tmax, int med, i
         double t = (i + u) * dt;
         vec3 x = ray_at(r, t);
         rgb src = v3_mul(md->sigma_s, direct_light_medium(s, x, r.d, med, g));
-        if (v->t_ms) {
-            src = v3_add(src, volume_estimate(v->t_ms, v->k_ms, v->r2_ms, s, med, x, r.d, scratch));
+        if (ms->t) {
+            src = v3_add(src, volume_estimate(ms->t, v->k_ms, ms->r2, s, med, x, r.d, scratch));
             stat_inc(v->st_ms);
         }
-        if (v->t_caus) {
-            src = v3_add(src, volume_estimate(v->t_caus, v->k_caus, v->r2_caus, s, med, x, r.d, scratch));
+        if (caus->t) {
+            src = v3_add(src, volume_estimate(caus->t, v->k_caus, caus->r2, s, med, x, r.d, scratch));
             stat_inc(v->st_caus);
         }
         L = v3_add(L, v3_scale(v3_mul(medium_tr(md, t), src), dt));
@@ -284,7 +308,8 @@ rgb pmv_gather(const pmv_state *v, const scene *s, ray r, double tmax, int med, 
     const medium *md = &s->media[med];
     double T = isfinite(tmax) ? tmax : bounds_exit(v, r);
     *tr = medium_tr(md, tmax);
-    if (!v->t_all || !(T > 0) || v3_iszero(md->sigma_s)) return v3s(0);
+    const pmv_map *all = v->all ? &v->all[med] : NULL;
+    if (!all || !all->t || !(T > 0) || v3_iszero(md->sigma_s)) return v3s(0);
     /* t in [0, T] with density c e^{-k t}, k the mean sigma_t (uniform if k T is tiny). */
     double kk = (md->sigma_t.x + md->sigma_t.y + md->sigma_t.z) / 3, u = rng_uniform(g), t, pdf;
     if (kk * T < 1e-6) {
@@ -297,6 +322,6 @@ rgb pmv_gather(const pmv_state *v, const scene *s, ray r, double tmax, int med, 
     }
     vec3 x = ray_at(r, t);
     stat_inc(v->st_gather);
-    rgb src = volume_estimate(v->t_all, v->k_ms, v->r2_all, s, med, x, r.d, scratch);
+    rgb src = volume_estimate(all->t, v->k_ms, all->r2, s, med, x, r.d, scratch);
     return v3_scale(v3_mul(medium_tr(md, t), src), 1 / pdf);
 }

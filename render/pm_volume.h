@@ -18,7 +18,9 @@
  *   all                  every volume photon of the global pass, DIRECT included: read by
  *                        final-gather rays, which have no single-scattering term of their own.
  * DIRECT photons are left out of the eye march because single scattering is computed there
- * with shadow rays. The maps are always traced (deterministic for the seed), never loaded.
+ * with shadow rays. Each of the three is split by the medium the photons scattered in, and an
+ * estimate in medium m reads only m's photons (a smoke ball in fog does not borrow the fog's
+ * photons at its rim). The maps are always traced (deterministic for the seed), never loaded.
  *
  * EYE RAYS (pmv_march). A segment of an eye ray inside medium m, of length T (a surface, or
  * where the ray leaves the scene's bounds), is marched in n = ceil(T / step) equal steps of
@@ -30,9 +32,9 @@
  * transmittance (direct.h, direct_light_medium); S_ms and S_caustic are the volume radiance
  * estimates (pm_estimate_volume with sigma_s = 1, i.e. sum phase dPhi / (4/3 pi r^3): the light
  * scattered per unit length, HG phase per photon) of the two trees. The segment's
- * transmittance exp(-sigma_t T) multiplies what lies beyond it. Photons of another medium
- * within the search radius of x are counted too (a bias at medium boundaries of the order of
- * the radius).
+ * transmittance exp(-sigma_t T) multiplies what lies beyond it. Near the boundary of a medium
+ * (a wall, a glass) part of the search ball holds no photons and the estimate is low there (a
+ * bias over a shell of the order of the radius).
  *
  * GATHER RAYS (pmv_gather). A final-gather ray gets one point per segment, drawn in [0, T]
  * with a density proportional to the mean-channel exp(-sigma_t t): its in-scattered light is
@@ -70,13 +72,20 @@
 extern "C" {
 #endif
 
+/* One tree of volume photons of one medium, its records (owned) and its search radius^2. */
+typedef struct pmv_map {
+    pm_kdtree *t;
+    pm_photon *a;
+    size_t n;
+    float r2;
+} pmv_map;
+
 typedef struct pmv_state {
     int on;                      /* the scene has a medium or a null surface */
-    pm_kdtree *t_ms, *t_caus, *t_all;
-    pm_photon *a_ms, *a_caus, *a_all; /* the trees' records (owned here) */
-    size_t n_ms, n_caus, n_all;
+    int nmedia;
+    pmv_map *ms, *caus, *all;    /* per medium (nmedia each): the three trees above */
+    size_t n_ms, n_caus, n_all;  /* photons in all media */
     unsigned k_ms, k_caus;
-    float r2_ms, r2_caus, r2_all;
     double *step;                /* per medium */
     vec3 lo, hi;                 /* the scene's bounds, lights included */
     int st_steps, st_ms, st_caus, st_gather;

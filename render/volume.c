@@ -25,7 +25,7 @@ enum { WHERE_SURFACE, WHERE_VOLUME };
 typedef struct vrec {
     uint64_t index; /* photon index in the pass */
     float pos[3], power[3], dir[3], nrm[3];
-    int kind, where;
+    int kind, where, med;
 } vrec;
 
 typedef struct vbuf {
@@ -50,7 +50,7 @@ static void to3(float f[3], vec3 v) {
     f[2] = (float)v.z;
 }
 
-static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kind, int where) {
+static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kind, int where, int med) {
     if (b->fail) return;
     if (b->n == b->cap) {
         size_t nc = b->cap ? 2 * b->cap : 1024;
@@ -70,6 +70,7 @@ static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kin
     to3(v->nrm, n);
     v->kind = kind;
     v->where = where;
+    v->med = med;
 }
 
 /* Roulette on a throughput factor w: survive with q = min(1, max channel), power * w / q. */
@@ -121,7 +122,7 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
                 b->pilot.events[clampi(med, VOL_PILOT_MEDIA)][kind]++;
                 if (kind == PM_KIND_CAUSTIC) b->pilot.caustic_by_mat[clampi(spec_mat, VOL_PILOT_MATS)]++;
                 if (c->keep_volume && (!caustic_pass || kind == PM_KIND_CAUSTIC) && inside(c->o, x))
-                    push(b, i, x, v3_mul(power, w), r.d, v3s(0), kind, WHERE_VOLUME);
+                    push(b, i, x, v3_mul(power, w), r.d, v3s(0), kind, WHERE_VOLUME, med);
                 if (caustic_pass) return; /* not L S+ any more */
                 scattered = vscattered = 1;
                 if (!survive(&power, w, &g)) return;
@@ -155,9 +156,9 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
             vec3 ns = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
             /* The global map has no caustic kind (photon_trace.h): L S+ D counts as indirect. */
             if (c->keep_surface && !caustic_pass)
-                push(b, i, h.p, power, r.d, ns, kind == PM_KIND_DIRECT ? kind : PM_KIND_INDIRECT, WHERE_SURFACE);
+                push(b, i, h.p, power, r.d, ns, kind == PM_KIND_DIRECT ? kind : PM_KIND_INDIRECT, WHERE_SURFACE, -1);
             if (c->keep_surface && caustic_pass && kind == PM_KIND_CAUSTIC)
-                push(b, i, h.p, power, r.d, ns, kind, WHERE_SURFACE);
+                push(b, i, h.p, power, r.d, ns, kind, WHERE_SURFACE, -1);
         }
         bsdf_sample bs;
         double ul = rng_uniform(&g), u1 = rng_uniform(&g), u2 = rng_uniform(&g);
@@ -212,13 +213,20 @@ static int vmap_take(vmap *m, const vrec *v) {
 }
 
 /* The records as pm_photons with the power divided by the map's emitted count. */
-static int vmap_finish(vmap *m, uint64_t emitted, pm_photon **out, size_t *n, uint64_t *ne) {
+static int vmap_finish(vmap *m, uint64_t emitted, pm_photon **out, short **med, size_t *n, uint64_t *ne) {
     *out = NULL;
     *n = 0;
     *ne = m->cut == UINT64_MAX ? emitted : m->cut;
     if (!m->keep || m->n == 0) return 0;
     pm_photon *ph = malloc(m->n * sizeof *ph);
     if (!ph) return PM_ENOMEM;
+    if (med) {
+        if (!(*med = malloc(m->n * sizeof **med))) {
+            free(ph);
+            return PM_ENOMEM;
+        }
+        for (size_t k = 0; k < m->n; k++) (*med)[k] = (short)m->r[k].med;
+    }
     float sc = (float)(1.0 / (double)*ne);
     for (size_t k = 0; k < m->n; k++) {
         const vrec *v = &m->r[k];
@@ -233,6 +241,7 @@ static int vmap_finish(vmap *m, uint64_t emitted, pm_photon **out, size_t *n, ui
 void vol_pass_free(vol_pass_result *r) {
     free(r->surface);
     free(r->volume);
+    free(r->volume_medium);
     memset(r, 0, sizeof *r);
 }
 
@@ -312,8 +321,9 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
     res->emitted = emitted;
     res->surface_short = ms.keep && ms.cut == UINT64_MAX;
     res->volume_short = mv.keep && mv.cut == UINT64_MAX;
-    if (rc == 0) rc = vmap_finish(&ms, emitted, &res->surface, &res->nsurface, &res->surface_emitted);
-    if (rc == 0) rc = vmap_finish(&mv, emitted, &res->volume, &res->nvolume, &res->volume_emitted);
+    if (rc == 0) rc = vmap_finish(&ms, emitted, &res->surface, NULL, &res->nsurface, &res->surface_emitted);
+    if (rc == 0)
+        rc = vmap_finish(&mv, emitted, &res->volume, &res->volume_medium, &res->nvolume, &res->volume_emitted);
     free(ms.r);
     free(mv.r);
     if (rc < 0) vol_pass_free(res);

@@ -98,6 +98,7 @@ typedef struct vol_pass_opts {
 
 typedef struct vol_pass_result {
     pm_photon *surface, *volume;
+    short *volume_medium; /* the medium (index into scene.media) of each volume photon */
     size_t nsurface, nvolume;
     uint64_t surface_emitted, volume_emitted; /* each map's n_e */
     uint64_t emitted;                         /* photons traced by the pass */
