@@ -117,8 +117,9 @@ TEST(render_hard_shelf_glass_regions) {
 }
 
 /* Oracle: path tracing, 8x8 at 65536 spp. The room is lit only through a 10 x 10 hole: the
- * lit patch on the floor sees about 3% of the lamp (a light sample passes the hole 1 time in
- * 30, in both modes), everything else is lit by that patch. Photon mapping (default maps, 2048
+ * lit patch on the floor sees about 3% of the lamp (the hole, seen from the patch, covers a
+ * 33 x 33 square of the 200 x 200 lamp, so a light sample passes it about 1 time in 37, in
+ * both modes); everything else is lit by that patch. Photon mapping (default maps, 2048
  * spp, one gather and one secondary ray): 4 of 200,000 global photons get in, so the lookups
  * inside find nothing on their side and the gather computes the light itself; what this
  * checks is that nothing there is counted dark (the shadow photons' "all shadow" and the
