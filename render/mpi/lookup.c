@@ -448,6 +448,16 @@ static void answer_side(const scene *s, const pm_kdtree *t, const pm_photon *ph,
         }
     }
     pm_combine_add(&acc, t ? ph : NULL, nb, (unsigned)found, km, limit, PM_BIAS_AREA, q->x);
+    /* The value is the indirect irradiance, as side_cache_build's: direct photons count in
+     * the radius (and in the photons found) but not in the power. */
+    for (int i = 0; i < found; i++) {
+        if (pm_photon_kind(&ph[nb[i].index]) != PM_KIND_DIRECT) continue;
+        float pw[3];
+        pm_rgbe_decode(ph[nb[i].index].power, pw);
+        for (int c = 0; c < 3; c++) acc.power[c] -= pw[c];
+    }
+    for (int c = 0; c < 3; c++)
+        if (acc.power[c] < 0) acc.power[c] = 0;
     part_from_acc(&acc, out);
     out->wall = (uint8_t)wall;
 }
@@ -550,9 +560,9 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
     } side_rec;
     side_rec *recs = calloc(m ? m : 1, sizeof *recs);
     if (!recs) dist_die("out of memory precomputing irradiance");
-    size_t walls = 0;
+    size_t walls = 0, sparse = 0;
 #ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 64) reduction(+ : walls)
+#pragma omp parallel for schedule(dynamic, 64) reduction(+ : walls, sparse)
 #endif
     for (size_t j = 0; j < m; j++) {
         pm_combine_acc acc;
@@ -566,6 +576,8 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
         double E[3];
         pm_combine_finish(&acc, E, NULL);
         double r2 = acc.r2_sum / M;
+        /* Too few photons in all the parts: never looked up (photon_sides.h, sparse estimates). */
+        int readable = side_estimate_readable((unsigned)acc.found, k);
         if (wall) {
             double frac = side_disc_fraction(s, v3f(mine[j].x), v3f(mine[j].n), sqrt(r2));
             for (int ch = 0; ch < 3; ch++) E[ch] /= frac;
@@ -574,7 +586,8 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
         float ef[3] = {(float)E[0], (float)E[1], (float)E[2]};
         recs[j].p = ph[which[j]];
         pm_rgbe_encode(ef, recs[j].p.power);
-        recs[j].r2 = (float)r2;
+        recs[j].r2 = readable ? (float)r2 : 0.0f;
+        sparse += !readable;
         recs[j].h = hfree[which[j]];
     }
     free(back);
@@ -619,8 +632,11 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
     free(r2);
     free(hf);
     if (rc < 0) return rc;
-    unsigned long long w = walls, wsum = 0, b = bytes, bsum = 0;
+    unsigned long long w = walls, wsum = 0, b = bytes, bsum = 0, sp = sparse, spsum = 0;
     MPI_Reduce(&w, &wsum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
+    MPI_Reduce(&sp, &spsum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
+    c->sparse = (size_t)spsum;
+    c->indirect_only = 1; /* the mapper adds a gather hit's direct light itself */
     MPI_Reduce(&b, &bsum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
     c->researched = (size_t)wsum;
     if (L.rank == 0) {

@@ -16,7 +16,8 @@
  * widened past a wall as there), as the partial sums of a pm_combine_acc (power, farthest
  * power, r^2, count, rim, wall seen: 32 bytes). An all-to-all returns each rank the answers to
  * its queries; it combines them (pm_combine_finish, divided by the visible part of the mean
- * disc when a rank met a wall) and all-gathers the records (pm_photon with E, r^2, free height:
+ * disc when a rank met a wall; the indirect irradiance, as side_cache_build's: direct photons
+ * count in the radius, not in the power) and all-gathers the records (pm_photon with E, r^2, free height:
  * 28 bytes), so every rank holds the whole precomputed irradiance (about a quarter of the
  * global photons; see docs/MPI.md for its memory).
  *
