@@ -403,7 +403,11 @@ What is not partitioned yet, and what differs from the replicated image:
   0; without it the caustics of R = 4 parts of k = 60 read 5% low). The hull and
   differential filters have no combined form here and become the combined disc.
 - **No shadow-photon map**: every shadow ray is traced, which is exact, and slower where the
-  map would have decided.
+  map would have decided. The replicated image has the map's approximation where the map
+  decides, and since the photon mapper also samples the light at every gather hit that is
+  a visible difference of its own, larger than the partitioning's: so the test's oracle is
+  the one-process render with the map off (`--pm shadow=false`), and the measurement above
+  (at a commit before that change) compares with the replicated image itself.
 - **Each tile is traced twice** (recording, then with the values): the pixel pass's ray work
   doubles, while its photon searches are spread over the ranks. A chunk of tiles whose
   recording made no query (a scene without caustics in pm mode) is traced once.
