@@ -330,7 +330,7 @@ int main(int argc, char **argv) {
     if (s.nlights == 0) {
         int any_emit = 0;
         for (int i = 0; i < s.nmats; i++) any_emit |= material_is_emissive(&s.mats[i]);
-        if (!any_emit) fprintf(stderr, "render: warning: the scene has no light; the image will be black\n");
+        if (!any_emit) fprintf(stderr, "render: %s: warning: the scene has no light; the image will be black\n", scene_path);
     }
     /* The path tracer cannot show caustics of point and directional lights: say where. */
     if (strcmp(s.settings.mode, "path") == 0) delta_lit_warn(&s, scene_path, stderr);
