@@ -45,6 +45,19 @@ int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
         if (st > 0) auto_step = fmin(auto_step, 0.25 / st);
         v->step[m] = c->volume_step > 0 ? c->volume_step : auto_step;
     }
+    /* The index of refraction around each medium (RADIANCE INSIDE GLASS in pm_volume.h): that of
+     * a refractive object whose inside it fills, else the index between objects. */
+    v->n2_scale = malloc((size_t)(s->nmedia > 0 ? s->nmedia : 1) * sizeof *v->n2_scale);
+    if (!v->n2_scale) return PM_ENOMEM;
+    for (int m = 0; m < s->nmedia; m++) v->n2_scale[m] = 1;
+    for (int prim = 0; prim < s->ntris + s->nspheres && s->obj_medium; prim++) {
+        int obj = scene_prim_object(s, prim);
+        if (obj < 0 || obj >= s->nobj || s->obj_medium[obj] < 0) continue;
+        const material *mt = &s->mats[prim < s->ntris ? s->tris[prim].mat : s->spheres[prim - s->ntris].mat];
+        if (mt->kind == MAT_NULL || !(mt->transparency > 0) || !(mt->ior > 0)) continue;
+        double q = s->medium_ior / mt->ior;
+        v->n2_scale[s->obj_medium[obj]] = q * q;
+    }
     v->k_ms = (unsigned)c->k_volume;
     v->k_caus = (unsigned)c->k_volume_caustic;
     v->st_steps = stats_register("Photon mapping/Volume march steps");
@@ -67,6 +80,7 @@ void pmv_free(pmv_state *v) {
     maps_free(v->caus, v->nmedia);
     maps_free(v->all, v->nmedia);
     free(v->step);
+    free(v->n2_scale);
     memset(v, 0, sizeof *v);
 }
 
@@ -248,6 +262,13 @@ static rgb volume_estimate(const pm_kdtree *t, unsigned k, float r2, const scene
     return v3(res.rgb[0], res.rgb[1], res.rgb[2]);
 }
 
+/* The same in the renderer's radiance (RADIANCE INSIDE GLASS in pm_volume.h). */
+static rgb volume_estimate_in(const pmv_state *v, const pm_kdtree *t, unsigned k, float r2, const scene *s,
+                              int med, vec3 x, vec3 d, void *scratch) {
+    rgb e = volume_estimate(t, k, r2, s, med, x, d, scratch);
+    return v->n2_scale[med] == 1 ? e : v3_scale(e, v->n2_scale[med]);
+}
+
 /* Where r leaves the bounds (0 if it misses them). */
 static double bounds_exit(const pmv_state *v, ray r) {
     double t0 = 0, t1 = INFINITY;
@@ -288,11 +309,11 @@ rgb pmv_march(const pmv_state *v, const scene *s, ray r, double tmax, int med, i
         vec3 x = ray_at(r, t);
         rgb src = v3_mul(md->sigma_s, direct_light_medium(s, x, r.d, med, g));
         if (ms->t) {
-            src = v3_add(src, volume_estimate(ms->t, v->k_ms, ms->r2, s, med, x, r.d, scratch));
+            src = v3_add(src, volume_estimate_in(v, ms->t, v->k_ms, ms->r2, s, med, x, r.d, scratch));
             stat_inc(v->st_ms);
         }
         if (caus->t) {
-            src = v3_add(src, volume_estimate(caus->t, v->k_caus, caus->r2, s, med, x, r.d, scratch));
+            src = v3_add(src, volume_estimate_in(v, caus->t, v->k_caus, caus->r2, s, med, x, r.d, scratch));
             stat_inc(v->st_caus);
         }
         L = v3_add(L, v3_scale(v3_mul(medium_tr(md, t), src), dt));
@@ -322,6 +343,6 @@ rgb pmv_gather(const pmv_state *v, const scene *s, ray r, double tmax, int med, 
     }
     vec3 x = ray_at(r, t);
     stat_inc(v->st_gather);
-    rgb src = volume_estimate(all->t, v->k_ms, all->r2, s, med, x, r.d, scratch);
+    rgb src = volume_estimate_in(v, all->t, v->k_ms, all->r2, s, med, x, r.d, scratch);
     return v3_scale(v3_mul(medium_tr(md, t), src), 1 / pdf);
 }

@@ -41,6 +41,13 @@
  * the "all" tree's estimate times Tr / pdf (unbiased for the integral of that estimate); the
  * segment's transmittance multiplies what lies beyond.
  *
+ * RADIANCE INSIDE GLASS. The renderer's radiance does not change when a ray refracts (no n^2
+ * factor, material.h), so inside an object of index n it is the physical radiance times
+ * (n_0 / n)^2, n_0 the index around the lights (medium_ior). Photons carry physical power, so
+ * an estimate in a medium inside a dielectric (smoke in a glass) is multiplied by
+ * (n_0 / n)^2: 1 / 2.25 for glass of index 1.5 in air. Without it the smoke in a glass sphere
+ * read 2.2 times the path tracer's radiance. Media bounded by null surfaces have n = n_0.
+ *
  * STEP, k AND RADII, chosen from the densities:
  *   step   settings volume_step, else per medium min(1 / (4 max sigma_t), D / 64), D the
  *          diagonal of the scene's bounds (lights included): a quarter of the mean free path
@@ -87,6 +94,7 @@ typedef struct pmv_state {
     size_t n_ms, n_caus, n_all;  /* photons in all media */
     unsigned k_ms, k_caus;
     double *step;                /* per medium */
+    double *n2_scale;            /* per medium: (n_lights / n_medium)^2, see RADIANCE below */
     vec3 lo, hi;                 /* the scene's bounds, lights included */
     int st_steps, st_ms, st_caus, st_gather;
 } pmv_state;
