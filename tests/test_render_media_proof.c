@@ -340,10 +340,9 @@ TEST(media_cornell_fog_pm_matches_path) {
 /* Oracle: the same for glass_of_smoke: the image within 3%, the smoke-filled sphere's pixels,
  * the floor and the back wall within 5%. Fewer surface caustic photons than the default (the
  * pass would emit 32 M photons for 500,000 in the glass's small caustic); the volume maps keep
- * their defaults. Measured when written: the smoke sphere +104% (photon mapping reads the
- * dense smoke 2.2 times too bright; with the volume map off it reads 0.15 times the
- * reference, so the volume map's estimate is the part that is off), floor +15%, image +8%:
- * this test fails until that is fixed. */
+ * their defaults. This test found volume estimates inside glass 2.2 times too bright (smoke
+ * +104%, fixed in ac02625 by the (n_0/n)^2 scale); measured at 74cc17c: image -0.25%, smoke
+ * sphere -2.48%, floor -1.24%, back wall -0.13%. */
 TEST(media_glass_of_smoke_pm_matches_path) {
     static const int ids[] = {7, 1, 3};
     static const char *const names[] = {"smoke sphere", "floor", "back wall"};
