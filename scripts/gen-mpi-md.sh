@@ -323,8 +323,9 @@ echo "on $(pmeas machine); load average before $(pmeas load_before), after $(pme
 echo "$(pmeas reps) interleaved repetitions. The pm render of the measurements above"
 echo "(\`$(meas scene)\`, \`$(meas pm_args)\`), 1 thread per rank, replicated"
 echo "and partitioned at the same rank count. Accuracy: the partitioned image's mean over each"
-echo "32x32 quarter against the replicated image's (the same photons and camera samples, so what"
-echo "differs is the estimate alone), the largest over the repetitions. (test-mpi.sh prints,"
+echo "32x32 quarter against the one-process render's with the shadow-photon map off (the same"
+echo "photons and camera samples, and exact shadow rays in both, so what differs is the estimate"
+echo "alone), the largest over the repetitions. (test-mpi.sh prints,"
 echo "beside its own such figures, how far apart two renders of different seeds are: far more.)"
 echo
 awk -F, '
@@ -351,9 +352,10 @@ awk -F, '
       a = r " replicated"; b = r " partitioned"
       printf "- %d ranks: partitioned / replicated: wall %.2f, precomputed irradiance %.2f, pixel pass %.2f.\n",
         r, med(b, 4) / med(a, 4), med(b, 7) / med(a, 7), med(b, 8) / med(a, 8) }
-    printf "\nThe pixel pass of a partitioned run traces each tile twice and waits for answers, so\n"
-    printf "it is slower; its precomputed irradiance is faster, each rank computing its own share\n"
-    printf "of the estimates (a replicated rank computes all of them itself).\n"
+    printf "\nThe pixel pass of a partitioned run traces each tile twice and waits for answers, where\n"
+    printf "a replicated one traces once but reads whole maps (ratios above, on a shared machine);\n"
+    printf "the precomputed irradiance of a partitioned run is faster, each rank computing its own\n"
+    printf "share of the estimates (a replicated rank computes all of them itself).\n"
     printf "\nTraffic of the partitioned runs (bytes sent by all ranks; the photon exchange is the\n"
     printf "replicated one, above):\n\n"
     printf "| ranks | lookups | lookup bytes | per lookup | lookups per pixel | lookup bytes per pixel | irradiance estimates | their bytes | per estimate | tile queue bytes per pixel |\n"
@@ -405,9 +407,8 @@ What is not partitioned yet, and what differs from the replicated image:
 - **No shadow-photon map**: every shadow ray is traced, which is exact, and slower where the
   map would have decided. The replicated image has the map's approximation where the map
   decides, and since the photon mapper also samples the light at every gather hit that is
-  a visible difference of its own, larger than the partitioning's: so the test's oracle is
-  the one-process render with the map off (`--pm shadow=false`), and the measurement above
-  (at a commit before that change) compares with the replicated image itself.
+  a visible difference of its own, larger than the partitioning's: so the accuracy above and
+  the test's oracle are the one-process render with the map off (`--pm shadow=false`).
 - **Each tile is traced twice** (recording, then with the values): the pixel pass's ray work
   doubles, while its photon searches are spread over the ranks. A chunk of tiles whose
   recording made no query (a scene without caustics in pm mode) is traced once.
