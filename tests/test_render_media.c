@@ -20,6 +20,7 @@
 #include "../render/integrator.h"
 #include "../render/medium.h"
 #include "../render/plan.h"
+#include "../render/pm_volume.h"
 #include "../render/scene.h"
 #include "../render/volume.h"
 
@@ -796,4 +797,42 @@ TEST(render_media_volume_pass_thread_independent) {
     if (fb) fclose(fb);
     ASSERT(a && b);
     EXPECT_MSG(na > 0 && na == nb && memcmp(a, b, na) == 0, "the renders on 1 and 2 threads differ");
+}
+
+/* Oracle: the rule of pm_volume.h (RADIANCE INSIDE GLASS). The renderer's radiance is not
+ * scaled at refraction and photons carry physical power, so a volume estimate inside a
+ * refractive object of index n, with medium_ior n_0 around it, is scaled by (n_0 / n)^2:
+ * 1/2.25 for smoke in glass of index 1.5 in air, (1.33/1.5)^2 under water (medium_ior 1.33),
+ * 1 for a medium behind null surfaces and for the global medium. (Without the scale the smoke
+ * of glass_of_smoke read +103% against path tracing; with it -2%.) */
+TEST(render_media_pm_glass_scale) {
+    static char txt[8192];
+    const double nio[2] = {1.0, 1.33};
+    for (int k = 0; k < 2; k++) {
+        snprintf(txt, sizeof txt,
+                 "{\"camera\": {\"eye\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+                 " \"medium_ior\": %g, \"medium\": \"haze\","
+                 " \"media\": {\"smoke\": {\"sigma_s\": 2}, \"fog\": {\"sigma_s\": 1}, \"haze\": {\"sigma_s\": 0.01}},"
+                 " \"materials\": {\"glass\": {\"type\": \"dielectric\", \"ior\": 1.5}, \"air\": {\"type\": \"null\"}},"
+                 " \"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"glass\","
+                 " \"interior_medium\": \"smoke\"}, {\"type\": \"sphere\", \"center\": [3, 0, 0], \"radius\": 1,"
+                 " \"material\": \"air\", \"interior_medium\": \"fog\"}],"
+                 " \"lights\": [{\"type\": \"point\", \"position\": [0, 3, 0], \"power\": 10}]}",
+                 nio[k]);
+        scene s;
+        json_err e = {0};
+        ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
+        photon_settings cfg;
+        photon_settings_defaults(&cfg);
+        pmv_state v;
+        ASSERT_EQ_INT(pmv_init(&v, &s, &cfg), 0);
+        double q = nio[k] / 1.5;
+        EXPECT_NEAR(v.n2_scale[0], q * q, 1e-12); /* smoke, in the glass */
+        EXPECT_NEAR(v.n2_scale[1], 1.0, 0);       /* fog, behind null surfaces */
+        EXPECT_NEAR(v.n2_scale[2], 1.0, 0);       /* haze, the global medium */
+        printf("    medium_ior %.2f: smoke in glass %.6f ((n_0/1.5)^2 = %.6f), fog %.1f, haze %.1f\n", nio[k],
+               v.n2_scale[0], q * q, v.n2_scale[1], v.n2_scale[2]);
+        pmv_free(&v);
+        scene_free(&s);
+    }
 }
