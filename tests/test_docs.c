@@ -86,22 +86,30 @@ TEST(docs_accuracy_md_regenerates_exactly) {
     expect_regenerates(cmd, got, "docs/ACCURACY.md");
 }
 
-/* Oracle: measurement.txt is the only source of the stamp. With its commit and date replaced
- * by values no checkout or clock can have, the document carries exactly those, and neither
- * the checkout's commit nor today's date. */
+/* Oracle: measurement.txt is the only source of the stamp (media/measurement.txt of the media
+ * section's own). With their commits and dates replaced by values no checkout or clock can
+ * have, the document carries exactly those, and neither the checkout's commit nor today's
+ * date. */
 TEST(docs_results_md_stamps_the_measurement) {
     const char *dir = pm_test_tmpdir();
     char cmd[8192], out[65536], head[64] = "", today[64] = "";
     snprintf(cmd, sizeof cmd,
              "cp -R '%s/docs/results' '%s/res' && cd '%s/res' && "
              "sed -i -e 's/^commit .*/commit c0ffee0-test/' -e 's/^date .*/date 1999-12-31 23:59 UTC/' "
-             "measurement.txt && sh '%s/scripts/gen-results-md.sh' --out '%s/R.md' '%s/res'",
+             "measurement.txt && { [ ! -f media/measurement.txt ] || sed -i -e 's/^commit .*/commit c0ffee1-test/' "
+             "-e 's/^date .*/date 1999-12-30 23:59 UTC/' media/measurement.txt; } && "
+             "sh '%s/scripts/gen-results-md.sh' --out '%s/R.md' '%s/res'",
              pm_test_source_dir(), dir, dir, pm_test_source_dir(), dir, dir);
     ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
     snprintf(cmd, sizeof cmd, "cat '%s/R.md'", dir);
     ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
     EXPECT_MSG(strstr(out, "| commit | c0ffee0-test |"), "no measured commit in:\n%.2000s", out);
     EXPECT_MSG(strstr(out, "| date | 1999-12-31 23:59 UTC |"), "no measured date in:\n%.2000s", out);
+    snprintf(cmd, sizeof cmd, "%s/docs/results/media/measurement.txt", pm_test_source_dir());
+    struct stat media;
+    if (stat(cmd, &media) == 0)
+        EXPECT_MSG(strstr(out, "at commit c0ffee1-test,\n1999-12-30 23:59 UTC"), "no measured media stamp in:\n%.200s",
+                   strstr(out, "## 3.") ? strstr(out, "## 3.") : out);
     snprintf(cmd, sizeof cmd, "git -C '%s' rev-parse --short HEAD 2>/dev/null", pm_test_source_dir());
     if (pm_test_run(cmd, head, sizeof head) == 0 && head[0]) {
         head[strcspn(head, "\n")] = 0;
