@@ -480,15 +480,7 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
     float *hfree = malloc((n ? n : 1) * sizeof *hfree);
     uint32_t *which = malloc((n ? n : 1) * sizeof *which);
     if (!hfree || !which) dist_die("out of memory precomputing irradiance");
-    double cap = 0.25 * sqrt((double)max_dist2);
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 256)
-#endif
-    for (size_t i = 0; i < n; i++) {
-        float nf[3];
-        pm_normal_decode(ph[i].normal, nf);
-        hfree[i] = (float)side_free_height(s, v3f(ph[i].pos), v3f(nf), cap);
-    }
+    side_free_heights(s, ph, n, max_dist2, hfree);
     size_t m = 0;
     for (size_t i = 0; i < n; i++)
         if (pm_kdtree_height(global, (uint32_t)i) >= 2) which[m++] = (uint32_t)i;
