@@ -16,7 +16,7 @@
 #                        its media section from the committed data/reference-media/, ~3 min)
 #   make deps            install the missing Debian packages (scripts/install-deps.sh)
 #   make install PREFIX=/usr/local DESTDIR=
-#                        headers, libphotonmap.a, libphotonmap.so.1, photonmap.pc, bin/render
+#                        headers, libphotonmap.a, libphotonmap.so.2, photonmap.pc, bin/render
 #   make clean
 #
 # Options:

@@ -13,9 +13,11 @@ extern "C" {
 #endif
 
 /* The library's version. The shared library's soname carries the major version
- * (libphotonmap.so.1), which changes only when the API or ABI does; the Makefile and
- * photonmap.pc read these three lines. */
-#define PM_VERSION_MAJOR 1
+ * (libphotonmap.so.2), which changes only when the API or ABI does; the Makefile and
+ * photonmap.pc read these three lines. 2.0.0 changed the ABI: pm_map_header gained tag[2]
+ * (mapfile.h, file format version 2) and the kd-tree took the photon flag's bits 4-7
+ * (PM_FLAG_TREE_MASK, photon.h). */
+#define PM_VERSION_MAJOR 2
 #define PM_VERSION_MINOR 0
 #define PM_VERSION_PATCH 0
 #define PM__VERSION_STR(x) #x
