@@ -43,6 +43,12 @@ void material_indices(const material *m, vec3 wo, vec3 ng, double n_medium, doub
     }
 }
 
+double material_radiance_scale(double n_src, double n) {
+    if (!(n_src > 0) || !(n > 0) || n_src == n) return 1;
+    double q = n_src / n;
+    return q * q;
+}
+
 void material_weights(const material *m, vec3 wo, vec3 ng, double n_medium, double w[LOBE_COUNT]) {
     double R = m->specular;
     if (m->fresnel) {

@@ -26,8 +26,16 @@
  * (index ior); from the back side the indices swap. Opaque branches act on the side the ray
  * came from (two-sided shading).
  *
- * Refraction does not scale radiance by (n2/n1)^2: camera paths enter and leave closed
- * objects, so the factors cancel, and photon power is conserved through an interface anyway.
+ * Refraction does not scale radiance by (n2/n1)^2 (the path tracer's convention): the
+ * renderer's radiance is the physical radiance times (n_src / n)^2, n the index where it is
+ * and n_src the index around the light it came from (medium_ior for lights in the scene
+ * medium). Camera paths that enter and leave closed objects see the factors cancel, but a
+ * photon carries physical power, conserved through an interface, so an estimate made from
+ * photons inside a denser medium (a diffuse surface in glass or under water, smoke in a glass)
+ * must be scaled by material_radiance_scale(n_src, n) = (n_src / n)^2 to be the renderer's
+ * radiance: 1 / 2.25 in glass of index 1.5 lit from air. photon_trace.c and volume.c apply it
+ * to every surface photon when it is stored (so the caustic and global maps, precomputed
+ * irradiance and final gather all read it); pm_volume.c to volume estimates.
  *
  * Directions: wo points from the surface toward where the light goes (the viewer), wi toward
  * where it comes from; both unit length. All functions are pure and thread-safe.
@@ -76,6 +84,11 @@ int refract_dir(vec3 d, vec3 n, double eta, vec3 *out);
 
 /* The index of refraction on the side wo is on, and on the other side. */
 void material_indices(const material *m, vec3 wo, vec3 ng, double n_medium, double *n1, double *n2);
+
+/* (n_src / n)^2: the factor from physical radiance (or photon power density) in a medium of
+ * index n to the renderer's radiance, for light that left its source in a medium of index
+ * n_src (see "Refraction" above). Exactly 1 when n == n_src; 1 if either is not > 0. */
+double material_radiance_scale(double n_src, double n);
 
 /* Branch weights w[LOBE_*] (summing to 1) for light leaving toward wo. */
 void material_weights(const material *m, vec3 wo, vec3 ng, double n_medium, double w[LOBE_COUNT]);

@@ -149,6 +149,10 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
     int first_spec_mat = -1, diffuse_mat = -1; /* the pilot's evidence: which surfaces */
     ray r = {scene_offset(c->s, p, n, d), d};
     int all_specular = 1; /* no diffuse bounce yet */
+    /* The index around the light (known at the first refraction) and where the photon is: a
+     * surface photon is stored with P (n_src / n_here)^2, the renderer's radiance convention
+     * (material_radiance_scale, material.h); exactly P when it is back in n_src. */
+    double n_src = 0, n_here = 0;
     fphoton fp;
     int max_depth = c->o->max_depth;
     if (c->o->max_bounces > 0 && c->o->max_bounces < max_depth) max_depth = c->o->max_bounces;
@@ -167,16 +171,17 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
         if (depth == 0) first_spec_mat = h.mat; /* an L S+ D path's first surface is specular */
         if (pl && depth == 0) pilot_count(&pl->first_hits, h.mat);
         if (diffuse_here) {
+            rgb Ps = v3_scale(P, material_radiance_scale(n_src, n_here));
             if (c->caustic_pass) {
                 if (depth > 0 && all_specular) {
                     if (pl) pilot_count(&pl->caustic, first_spec_mat);
-                    make_fp(&fp, i, h.p, P, d, ns, PM_KIND_CAUSTIC);
+                    make_fp(&fp, i, h.p, Ps, d, ns, PM_KIND_CAUSTIC);
                     if (fbuf_push(gb, &fp) < 0) return PM_ENOMEM;
                 }
             } else {
                 int kind = depth == 0 ? PM_KIND_DIRECT : PM_KIND_INDIRECT;
                 if (pl && !all_specular) pilot_count(&pl->diffuse_bounce, diffuse_mat);
-                make_fp(&fp, i, h.p, P, d, ns, kind);
+                make_fp(&fp, i, h.p, Ps, d, ns, kind);
                 if (c->want_global && fbuf_push(gb, &fp) < 0) return PM_ENOMEM;
                 if (c->want_shadow && from_area && depth == 0 && fbuf_push(sb, &fp) < 0)
                     return PM_ENOMEM;
@@ -220,7 +225,12 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
         } else if (u < pd + pr + pt) {
             double n1, n2;
             material_indices(m, wo, h.ng, s->medium_ior, &n1, &n2);
-            if (!material_refract_shaded(d, ns, nsh, n1 / n2, &nd)) nd = material_reflect_shaded(d, ns, nsh);
+            if (!material_refract_shaded(d, ns, nsh, n1 / n2, &nd)) {
+                nd = material_reflect_shaded(d, ns, nsh);
+            } else {
+                if (!(n_src > 0)) n_src = n1;
+                n_here = n2;
+            }
             P = v3_scale(v3_mul(P, m->transmit_tint), w[LOBE_TRANSMIT] / pt);
         } else {
             break; /* absorbed */

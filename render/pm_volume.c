@@ -55,8 +55,7 @@ int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
         if (obj < 0 || obj >= s->nobj || s->obj_medium[obj] < 0) continue;
         const material *mt = &s->mats[prim < s->ntris ? s->tris[prim].mat : s->spheres[prim - s->ntris].mat];
         if (mt->kind == MAT_NULL || !(mt->transparency > 0) || !(mt->ior > 0)) continue;
-        double q = s->medium_ior / mt->ior;
-        v->n2_scale[s->obj_medium[obj]] = q * q;
+        v->n2_scale[s->obj_medium[obj]] = material_radiance_scale(s->medium_ior, mt->ior);
     }
     v->k_ms = (unsigned)c->k_volume;
     v->k_caus = (unsigned)c->k_volume_caustic;

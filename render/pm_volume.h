@@ -47,6 +47,11 @@
  * an estimate in a medium inside a dielectric (smoke in a glass) is multiplied by
  * (n_0 / n)^2: 1 / 2.25 for glass of index 1.5 in air. Without it the smoke in a glass sphere
  * read 2.2 times the path tracer's radiance. Media bounded by null surfaces have n = n_0.
+ * The factor is material_radiance_scale(n_0, n) (material.h, where the rule is written down);
+ * surface photons get the same factor when they are stored (photon_trace.c and volume.c keep
+ * the index around the light and the index the photon is in), so the caustic and global maps,
+ * precomputed irradiance and final gather read the renderer's radiance at a diffuse surface
+ * inside glass or under water too.
  *
  * STEP, k AND RADII, chosen from the densities:
  *   step   settings volume_step, else per medium min(1 / (4 max sigma_t), D / 64), D the

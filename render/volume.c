@@ -108,6 +108,10 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
     /* specular: a specular bounce so far; scattered: a diffuse bounce or a scattering event;
      * in_medium_scatter: a scattering event so far. med -2: not known until the first hit. */
     int med = -2, specular = 0, scattered = 0, vscattered = 0, crossings = 0, spec_mat = -1;
+    /* The index around the light and where the photon is (set at refractions): surface photons
+     * are stored with power (n_src / n_here)^2, material_radiance_scale in material.h; volume
+     * photons are not (pm_volume.c scales their estimates per medium). */
+    double n_src = 0, n_here = 0;
     for (int depth = 0; depth <= max_depth;) {
         hit h;
         int got = scene_intersect(s, r, INFINITY, &h);
@@ -155,14 +159,21 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
             if (vscattered) b->pilot.surf_after_scatter++;
             vec3 ns = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
             /* The global map has no caustic kind (photon_trace.h): L S+ D counts as indirect. */
+            rgb ps = v3_scale(power, material_radiance_scale(n_src, n_here));
             if (c->keep_surface && !caustic_pass)
-                push(b, i, h.p, power, r.d, ns, kind == PM_KIND_DIRECT ? kind : PM_KIND_INDIRECT, WHERE_SURFACE, -1);
+                push(b, i, h.p, ps, r.d, ns, kind == PM_KIND_DIRECT ? kind : PM_KIND_INDIRECT, WHERE_SURFACE, -1);
             if (c->keep_surface && caustic_pass && kind == PM_KIND_CAUSTIC)
-                push(b, i, h.p, power, r.d, ns, kind, WHERE_SURFACE, -1);
+                push(b, i, h.p, ps, r.d, ns, kind, WHERE_SURFACE, -1);
         }
         bsdf_sample bs;
         double ul = rng_uniform(&g), u1 = rng_uniform(&g), u2 = rng_uniform(&g);
         if (!material_sample_ns(m, wo, h.ng, h.ns, s->medium_ior, ul, u1, u2, &bs)) return;
+        if (bs.lobe == LOBE_TRANSMIT && !bs.tir && m->kind != MAT_NULL) {
+            double n1, n2;
+            material_indices(m, wo, h.ng, s->medium_ior, &n1, &n2);
+            if (!(n_src > 0)) n_src = n1;
+            n_here = n2;
+        }
         if (bs.lobe == LOBE_DIFFUSE) {
             if (caustic_pass) return;
             scattered = 1;
