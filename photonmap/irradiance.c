@@ -19,7 +19,14 @@
  * with the caller's rule takes the `tries` nearest that pass that predicate (a sorted k-nearest
  * search into a stack buffer) and asks the caller's rule about them in order.
  */
+/* The reach test compares a cell's distance with records' distances, both rounded once per
+ * operation (GCC in ISO C mode contracts nothing; clang would fuse a * b + c). */
+#if defined(__clang__)
+#pragma STDC FP_CONTRACT OFF
+#endif
 #include "irradiance.h"
+#include "internal.h"
+#include "kdtree_internal.h"
 
 #include <math.h>
 #include <stddef.h>
@@ -56,6 +63,7 @@ struct pm_irradiance {
     float *r2;           /* done radii^2, same order, or NULL */
     uint32_t *photon;    /* done map indices, same order, or NULL (opt.store_index) */
     pm_kdtree *tree;     /* over recs (NULL when done = 0) */
+    float *reach;        /* with r2: per heap node of tree, the largest r2 in its subtree */
     float normals[256][3];
 };
 
@@ -78,6 +86,7 @@ void pm_irradiance_free(pm_irradiance *irr) {
     free(irr->recs);
     free(irr->r2);
     free(irr->photon);
+    free(irr->reach);
     free(irr);
 }
 
@@ -238,6 +247,33 @@ static int irr_alloc(pm_irradiance **out, const pm_kdtree *tree, const pm_irradi
     return PM_OK;
 }
 
+/* REACH. With stored radii, reach[p] is the largest r2 of the records in heap node p's subtree
+ * (its own record, if internal, and all below; a leaf's bucket), for p = 1 .. 2 L - 1 (L leaf
+ * buckets). A lookup then skips a subtree whose cell is no closer to x than that: no record
+ * in it can pass the radius rule, so the search meets the same accepted records in the same
+ * order, and the answer is bit for bit the one of the plain search. Only for trees without
+ * tightening codes (this module's record layout never has them). */
+static int reach_build(pm_irradiance *irr) {
+    const struct pm_kdtree *t = irr->tree;
+    if (t->tight) return PM_OK; /* no reach: the plain search */
+    uint64_t L = t->nleaves;
+    irr->reach = malloc(2 * L * sizeof *irr->reach);
+    if (!irr->reach) return PM_ENOMEM;
+    irr->reach[0] = 0;
+    for (uint64_t j = 0; j < L; j++) {
+        uint64_t b = t->ninternal + pm__cum(t, j), e = b + t->leaf_q + (j < t->leaf_extra);
+        float m = -INFINITY;
+        for (uint64_t i = b; i < e; i++) m = irr->r2[i] > m ? irr->r2[i] : m;
+        irr->reach[L + j] = m;
+    }
+    for (uint64_t p = L; p-- > 1;) {
+        float m = irr->r2[p - 1], a = irr->reach[2 * p], b = irr->reach[2 * p + 1];
+        m = a > m ? a : m;
+        irr->reach[p] = b > m ? b : m;
+    }
+    return PM_OK;
+}
+
 /* Compact the precomputed photons (mask set, done counted) into records in map order with
  * their values rgbe[i] and radii^2 r2[i] (map-indexed), then build the lookup tree, which
  * reorders them. 0 or a negative code; irr is left for the caller to free on failure. */
@@ -280,6 +316,7 @@ static int irr_finish(pm_irradiance *irr, const pm_kdtree *tree, const pm_irradi
             if (irr->r2) irr->r2[t] = r2[src[perm[t]]];
             if (irr->photon) irr->photon[t] = src[perm[t]];
         }
+        if (irr->r2) rc = reach_build(irr);
     }
 done:
     free(perm);
@@ -361,7 +398,8 @@ size_t pm_irradiance_bytes(const pm_irradiance *irr) {
     return sizeof *irr + nwords * (sizeof *irr->mask + sizeof *irr->rank) +
            nd * (sizeof *irr->slot + sizeof *irr->recs + (irr->r2 ? sizeof *irr->r2 : 0) +
                  (irr->photon ? sizeof *irr->photon : 0)) +
-           pm_kdtree_index_bytes(irr->tree);
+           pm_kdtree_index_bytes(irr->tree) +
+           (irr->reach ? 2 * (size_t)irr->tree->nleaves * sizeof *irr->reach : 0);
 }
 
 double pm_irradiance_bytes_per_photon(const pm_irradiance *irr) {
@@ -399,6 +437,178 @@ static int accept_normal(void *user, const void *record, uint32_t index) {
     return 1;
 }
 
+/* ---- the search with reach -------------------------------------------------------------
+ * The k nearest records (dist2 < max_dist2) that accept_normal passes, by the same traversal
+ * as pm_kdtree_knn_ex on this tree (kdtree_query.c: near side first, then the node's record,
+ * then the far side; an array until k are found, then a max-heap whose top is the radius), so
+ * that the same records are offered to the predicate in the same order, plus one more cut: a
+ * subtree is skipped when its cell's distance from x is >= its reach (REACH above), as every
+ * record in it would fail the radius rule. The cell distance is the same float lower bound as
+ * kdtree_query.c's box_dist2 (offset max(lo - x, x - hi, 0) per axis, squares summed x, y, z),
+ * never above a record's own dist2 in accept_normal. */
+typedef struct reach_state {
+    const pm_irradiance *irr;
+    lookup_ctx *c;
+    float q[3];
+    float r2; /* current radius; NaN = unlimited (every test is !(d2 >= r2)) */
+    pm_neighbor *out;
+    unsigned k, found;
+    uint64_t nodes, evals;
+} reach_state;
+
+static float cell_dist2(const float q[3], const float lo[3], const float hi[3]) {
+    float o[3];
+    for (int b = 0; b < 3; b++) {
+        float u = lo[b] - q[b], w = q[b] - hi[b];
+        float x = u > w ? u : w;
+        o[b] = x > 0 ? x : 0;
+    }
+    return o[0] * o[0] + o[1] * o[1] + o[2] * o[2];
+}
+
+static void reach_push(reach_state *s, float d2, uint32_t idx) {
+    pm_neighbor nb;
+    nb.dist2 = d2;
+    nb.index = idx;
+    if (s->found < s->k) {
+        s->out[s->found++] = nb;
+        if (s->found == s->k) {
+            pm__heapify(s->out, s->k);
+            s->r2 = s->out[0].dist2;
+        }
+    } else {
+        pm__heap_replace_top(s->out, s->k, nb);
+        s->r2 = s->out[0].dist2;
+    }
+}
+
+static float rec_dist2(const reach_state *s, const float *p) {
+    float dx = s->q[0] - p[0], dy = s->q[1] - p[1], dz = s->q[2] - p[2];
+    return dx * dx + dy * dy + dz * dz;
+}
+
+static void reach_consider(reach_state *s, uint64_t i) {
+    const pm__irr_rec *r = &s->irr->recs[i];
+    float d2 = rec_dist2(s, r->pos);
+    s->evals++;
+    if (!(d2 >= s->r2) && accept_normal(s->c, r, (uint32_t)i)) reach_push(s, d2, (uint32_t)i);
+}
+
+/* A uniform subtree (all records at one position): one distance, records in range order. */
+static void reach_uniform(reach_state *s, uint64_t node) {
+    const struct pm_kdtree *t = s->irr->tree;
+    float d2 = rec_dist2(s, s->irr->recs[node - 1].pos);
+    s->evals++;
+    if (d2 >= s->r2) return;
+    pm__range r[PM_KDTREE_MAX_DEPTH + 1];
+    int nr = pm__subtree_ranges(t, node, pm__ilog2(node), r);
+    for (int g = 0; g < nr; g++)
+        for (uint64_t i = r[g].begin; i < r[g].end; i++) {
+            if (d2 >= s->r2) return;
+            if (!accept_normal(s->c, &s->irr->recs[i], (uint32_t)i)) continue;
+            reach_push(s, d2, (uint32_t)i);
+        }
+}
+
+static void reach_knn(reach_state *s) {
+    const struct pm_kdtree *t = s->irr->tree;
+    const pm__irr_rec *rec = s->irr->recs;
+    const float *reach = s->irr->reach;
+    const uint64_t L = t->nleaves;
+    struct {
+        float lo[3], hi[3], rr;
+        uint64_t node;
+    } stack[PM_KDTREE_MAX_DEPTH];
+    int sp = 0;
+    uint64_t node = 1;
+    float lo[3], hi[3];
+    memcpy(lo, t->lo, sizeof lo);
+    memcpy(hi, t->hi, sizeof hi);
+    float rd = cell_dist2(s->q, lo, hi);
+    if (rd >= s->r2 || rd >= reach[1]) return;
+    for (;;) {
+        while (node < L) {
+            s->nodes++;
+            unsigned a = rec[node - 1].axis & PM__AXIS_MASK;
+            if (a == PM__AXIS_UNIFORM) {
+                if (2 * node >= L && pm__cum(t, 2 * node + 2 - L) == pm__cum(t, 2 * node - L))
+                    reach_consider(s, node - 1); /* a single record above two empty buckets */
+                else
+                    reach_uniform(s, node);
+                goto pop;
+            }
+            float split = rec[node - 1].pos[a];
+            uint64_t near = 2 * node + (s->q[a] - split >= 0);
+            memcpy(stack[sp].lo, lo, sizeof lo);
+            memcpy(stack[sp].hi, hi, sizeof hi);
+            if (near & 1) stack[sp].hi[a] = split;
+            else stack[sp].lo[a] = split;
+            float rr = cell_dist2(s->q, stack[sp].lo, stack[sp].hi);
+            stack[sp].rr = rr;
+            stack[sp].node = near ^ 1;
+            sp += !(rr >= s->r2);
+            if (near & 1) lo[a] = split;
+            else hi[a] = split;
+            node = near;
+            if (cell_dist2(s->q, lo, hi) >= reach[node]) goto pop;
+        }
+        s->nodes++;
+        {
+            uint64_t j = node - L, b = t->ninternal + pm__cum(t, j);
+            uint64_t e = b + t->leaf_q + (j < t->leaf_extra);
+            for (uint64_t i = b; i < e; i++) reach_consider(s, i);
+        }
+    pop:
+        for (;;) {
+            if (sp == 0) return;
+            sp--;
+            if (stack[sp].rr >= s->r2) continue;
+            node = stack[sp].node;
+            reach_consider(s, (node >> 1) - 1); /* the parent's record, in the split plane */
+            if (stack[sp].rr >= s->r2 || stack[sp].rr >= reach[node]) continue;
+            memcpy(lo, stack[sp].lo, sizeof lo);
+            memcpy(hi, stack[sp].hi, sizeof hi);
+            break;
+        }
+    }
+}
+
+/* pm_kdtree_knn_ex (or nearest_if, k = 1) with filter accept_normal, through reach when the
+ * build has it. Same return values. */
+static int irr_knn(const pm_irradiance *irr, lookup_ctx *c, const float q[3], unsigned k,
+                   float max_dist2, unsigned flags, pm_neighbor *out, pm_query_stats *stats) {
+    if (!irr->reach) {
+        if (k == 1 && !(flags & PM_SORT))
+            return pm_kdtree_nearest_if(irr->tree, q, max_dist2, accept_normal, c, out, stats);
+        pm_knn_options ko = {0};
+        ko.filter = accept_normal;
+        ko.filter_user = c;
+        ko.flags = flags;
+        return pm_kdtree_knn_ex(irr->tree, q, k, max_dist2, &ko, out, stats);
+    }
+    if (isnan(max_dist2) || !isfinite(q[0]) || !isfinite(q[1]) || !isfinite(q[2]))
+        return PM_ENONFINITE;
+    if (k == 0 || !(max_dist2 > 0)) return 0;
+    reach_state s;
+    memset(&s, 0, sizeof s);
+    s.irr = irr;
+    s.c = c;
+    memcpy(s.q, q, sizeof s.q);
+    s.r2 = max_dist2 == INFINITY ? NAN : max_dist2;
+    s.out = out;
+    s.k = k;
+    reach_knn(&s);
+    if (stats) {
+        stats->nodes_visited += s.nodes;
+        stats->dist_evals += s.evals;
+    }
+    if (flags & PM_SORT) {
+        if (s.found <= PM__SORT_KEYS_MAX) pm__nb_sort_keys(s.out, s.found);
+        else pm__nb_sort(s.out, s.found);
+    }
+    return (int)s.found;
+}
+
 /* The argument checks both lookups share (rgb cleared first): a negative code, 0 when there is
  * nothing to search (no precomputed photon), 1 to search. */
 static int lookup_begin(const pm_irradiance *irr, const float x[3], const float n[3],
@@ -421,7 +631,7 @@ int pm_irradiance_lookup(const pm_irradiance *irr, const float x[3], const float
     int go = lookup_begin(irr, x, n, max_dist2, cos_min, rgb);
     if (go <= 0) return go;
     lookup_ctx c = {irr, n, x, cos_min};
-    int rc = pm_kdtree_nearest_if(irr->tree, x, max_dist2, accept_normal, &c, &nb, stats);
+    int rc = irr_knn(irr, &c, x, 1, max_dist2, 0, &nb, stats);
     if (rc <= 0) return rc;
     pm_rgbe_decode(irr->recs[nb.index].rgbe, rgb);
     return 1;
@@ -438,11 +648,7 @@ int pm_irradiance_lookup_if(const pm_irradiance *irr, const float x[3], const fl
     /* The `tries` nearest that pass the normal rule, sorted, then the caller's rule in order. */
     lookup_ctx c = {irr, n, x, cos_min};
     pm_neighbor nb[PM_IRRADIANCE_MAX_TRIES];
-    pm_knn_options ko = {0};
-    ko.filter = accept_normal;
-    ko.filter_user = &c;
-    ko.flags = PM_SORT;
-    int found = pm_kdtree_knn_ex(irr->tree, x, tries, max_dist2, &ko, nb, stats);
+    int found = irr_knn(irr, &c, x, tries, max_dist2, PM_SORT, nb, stats);
     if (found < 0) return found;
     for (int t = 0; t < found; t++) {
         const pm__irr_rec *p = &irr->recs[nb[t].index];

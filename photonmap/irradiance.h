@@ -25,7 +25,9 @@
  * value, normal code, the lookup tree's axis byte, 2 bytes of padding), its slot for
  * pm_irradiance_value (4 bytes) and, only if opt.store_radius, the float radius^2 of its own
  * estimate (4 bytes), and only if opt.store_index its index in the map (4 bytes): 24 bytes,
- * plus 4 for each of the two options. Per photon of the map: one bit (was it
+ * plus 4 for each of the two options. With radii, the lookup tree also keeps its REACH: per
+ * node the largest radius^2 in its subtree (4 bytes per node, 8/9 to 16/9 of a byte per
+ * precomputed photon). Per photon of the map: one bit (was it
  * precomputed) and a 4-byte rank per 64 photons (3/16 byte in all). pm_irradiance_bytes() adds
  * up what was actually allocated; irradiance_memory_measured checks it against the heap's
  * growth and against this layout, and docs/ACCURACY.md reports it per precomputed photon.
@@ -43,7 +45,12 @@
  * irradiance of the surface it lies on, and a surface turned away by more than acos(cos_min)
  * is another surface: the floor's value must not light the wall beside it). With stored radii
  * x must also lie within that photon's own estimate radius (dist2 < its r2): its value
- * describes the disc it was computed over, no farther.
+ * describes the disc it was computed over, no farther. The search skips every subtree of the
+ * lookup tree that is no nearer to x than its reach (so a lookup where no radius reaches x,
+ * as in a region photons barely reach, costs a few nodes instead of a scan of every record
+ * within max_dist2); it meets the remaining records in the same order, so answers, and the
+ * photons offered to the caller's rule, are bit for bit those of the search without it
+ * (irradiance_lookup_reach_matches_plain_search); only pm_query_stats counts less.
  *
  * LOOKUP WITH THE CALLER'S RULE. pm_irradiance_lookup_if adds a predicate of the caller's
  * (a renderer's visibility test: is the photon on x's side of every wall?) and returns the

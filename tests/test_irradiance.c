@@ -10,6 +10,8 @@
  */
 #define _GNU_SOURCE
 #include <malloc.h>
+#include <math.h>
+#include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -665,6 +667,140 @@ TEST(irradiance_lookup_if_matches_brute_force) {
     free(ph);
 }
 
+/* The lookup tree of pm_irradiance_build_values, rebuilt here from the same records in the same
+ * order (the 20-byte record of irradiance.c: position, RGBE, normal code, axis byte at 17;
+ * bucket 8), so that pm_kdtree_knn_ex with the plain normal-and-radius filter gives the search
+ * without reach pruning, ties and all. */
+typedef struct plain_rec {
+    float pos[3];
+    uint8_t rgbe[4];
+    uint8_t ncode, axis, pad[2];
+} plain_rec;
+typedef struct plain_ctx {
+    const float *q, *n, *r2; /* r2 in the plain tree's order */
+    float cos_min;
+} plain_ctx;
+static int plain_filter(void *user, const void *record, uint32_t index) {
+    const plain_ctx *c = user;
+    const plain_rec *p = record;
+    float pn[3];
+    pm_normal_decode(p->ncode, pn);
+    if (pn[0] * c->n[0] + pn[1] * c->n[1] + pn[2] * c->n[2] < c->cos_min) return 0;
+    return d2_to(p->pos, c->q) < c->r2[index];
+}
+
+/* Oracle: the search without pruning by radius (the plain k-nearest search of kdtree.h on a
+ * copy of the lookup tree, with the normal rule and the radius rule as its filter). Random
+ * photons (uniform in a box, a fifth of them on a few shared points, so ties and uniform
+ * subtrees occur), random normal codes, radii^2 spread over six decades (0 and +inf included),
+ * queries inside the cloud and far outside it, max_dist2 finite and unlimited, tries 1..12 and
+ * the maximum: the photons pm_irradiance_lookup_if offers its rule (a rule that rejects all
+ * logs every call) are exactly those of the plain search, in the same order; the answer of a
+ * rule that accepts all and of pm_irradiance_lookup are its first, with the same value. */
+TEST(irradiance_lookup_reach_matches_plain_search) {
+    const size_t n = PM_TEST_SANITIZED ? 3000 : 20000;
+    const unsigned queries = PM_TEST_SANITIZED ? 400 : 3000;
+    pm_photon *ph = malloc(sizeof *ph * n);
+    float *rgb = malloc(sizeof *rgb * 3 * n), *r2 = malloc(sizeof *r2 * n);
+    plain_rec *pr = malloc(sizeof *pr * n);
+    uint32_t *perm = malloc(sizeof *perm * n);
+    float *pr2 = malloc(sizeof *pr2 * n);
+    rng_t r = {4141};
+    for (size_t i = 0; i < n; i++) {
+        float pos[3], nrm[3];
+        if (i % 5 == 0) { /* a few shared points */
+            unsigned k = (unsigned)(rng_unit(&r) * 7);
+            pos[0] = 0.1f * (float)k, pos[1] = 0.5f, pos[2] = 0.25f;
+        } else {
+            for (int c = 0; c < 3; c++) pos[c] = (float)rng_unit(&r);
+        }
+        double z = 2 * rng_unit(&r) - 1, a = 6.283185307179586 * rng_unit(&r), s = sqrt(1 - z * z);
+        nrm[0] = (float)(s * cos(a)), nrm[1] = (float)(s * sin(a)), nrm[2] = (float)z;
+        float pw = (float)(1e-3 * rng_unit(&r));
+        pm_photon_init(&ph[i], pos, (float[3]){pw, pw, pw}, (float[3]){-nrm[0], -nrm[1], -nrm[2]}, nrm,
+                       PM_KIND_DIRECT);
+    }
+    pm_kdtree *tree = NULL;
+    pm_kdtree_config cfg = pm_kdtree_photon_config(1);
+    ASSERT_EQ_INT(pm_kdtree_build(&tree, ph, n, &cfg, NULL), PM_OK);
+    const pm_photon *tp = pm_kdtree_records(tree);
+    for (size_t i = 0; i < n; i++) {
+        for (int c = 0; c < 3; c++) rgb[3 * i + c] = (float)rng_unit(&r);
+        double u = rng_unit(&r);
+        r2[i] = u < 0.02 ? 0.0f : u > 0.99 ? INFINITY : (float)(1e-6 * pow(10.0, 6 * rng_unit(&r)));
+    }
+    pm_irradiance_options io;
+    pm_irradiance_options_init(&io, 8);
+    io.store_radius = 1;
+    io.store_index = 1;
+    pm_irradiance *irr = NULL;
+    ASSERT_EQ_INT(pm_irradiance_build_values(&irr, tree, &io, rgb, r2), PM_OK);
+    /* The plain tree: the same records in map order, as irr_finish compacts them. */
+    for (size_t i = 0; i < n; i++) {
+        memset(&pr[i], 0, sizeof pr[i]);
+        memcpy(pr[i].pos, tp[i].pos, sizeof pr[i].pos);
+        pm_rgbe_encode(&rgb[3 * i], pr[i].rgbe);
+        pr[i].ncode = tp[i].normal;
+    }
+    pm_kdtree *plain = NULL;
+    pm_kdtree_config pc = {sizeof(plain_rec), 0, (int)offsetof(plain_rec, axis), 8};
+    ASSERT_EQ_INT(pm_kdtree_build(&plain, pr, n, &pc, perm), PM_OK);
+    for (size_t t = 0; t < n; t++) pr2[t] = r2[perm[t]];
+    unsigned found = 0, empty = 0, far = 0;
+    for (unsigned qi = 0; qi < queries; qi++) {
+        float q[3], nq[3];
+        int outside = qi % 4 == 3;
+        for (int c = 0; c < 3; c++) q[c] = (float)(outside ? 1.5 + 3 * rng_unit(&r) : rng_unit(&r));
+        if (qi % 8 == 1) q[0] = 0.1f * (float)(qi % 7), q[1] = 0.5f, q[2] = 0.25f; /* on a shared point */
+        pm_normal_decode((uint8_t)(rng_unit(&r) * 256), nq);
+        float cmin = qi % 3 == 0 ? -2.0f : qi % 3 == 1 ? 0.0f : 0.7f;
+        float md2 = qi % 5 == 0 ? INFINITY : (float)(1e-4 * pow(10.0, 5 * rng_unit(&r)));
+        unsigned tries = qi % 13 == 12 ? PM_IRRADIANCE_MAX_TRIES : 1 + qi % 12;
+        far += (unsigned)outside;
+        plain_ctx pcx = {q, nq, pr2, cmin};
+        pm_knn_options ko = {0};
+        ko.filter = plain_filter;
+        ko.filter_user = &pcx;
+        ko.flags = PM_SORT;
+        pm_neighbor nb[PM_IRRADIANCE_MAX_TRIES];
+        int want = pm_kdtree_knn_ex(plain, q, tries, md2, &ko, nb, NULL);
+        ASSERT(want >= 0);
+        rule_log lg = rule_init(tp, q, 1);
+        float v[3];
+        uint32_t who = UINT32_MAX;
+        int rc = pm_irradiance_lookup_if(irr, q, nq, md2, cmin, tries, rule_accept, &lg, v, &who, NULL);
+        int same = rc == 0 && lg.calls == (unsigned)want && lg.bad_args == 0;
+        for (int t = 0; same && t < want; t++) same = lg.called[t] == perm[nb[t].index];
+        EXPECT_MSG(same, "query %u: rc %d, %u calls, plain search %d (tries %u)", qi, rc, lg.calls, want, tries);
+        lg = rule_init(tp, q, 0);
+        rc = pm_irradiance_lookup_if(irr, q, nq, md2, cmin, tries, rule_accept, &lg, v, &who, NULL);
+        float w[3] = {0, 0, 0}, v1[3];
+        if (want > 0) pm_rgbe_decode(pr[nb[0].index].rgbe, w);
+        EXPECT_MSG(rc == (want > 0) && (want == 0 || who == perm[nb[0].index]) && memcmp(v, w, sizeof v) == 0,
+                   "query %u: accept-all answer %d (photon %u), plain %d", qi, rc, who, want);
+        /* pm_irradiance_lookup: the nearest that passes, one try's worth of the plain search */
+        int rc1 = pm_irradiance_lookup(irr, q, nq, md2, cmin, v1, NULL);
+        pm_neighbor one;
+        int want1 = pm_kdtree_nearest_if(plain, q, md2, plain_filter, &pcx, &one, NULL);
+        float w1[3] = {0, 0, 0};
+        if (want1 > 0) pm_rgbe_decode(pr[one.index].rgbe, w1);
+        EXPECT_MSG(rc1 == want1 && memcmp(v1, w1, sizeof v1) == 0, "query %u: lookup %d, plain %d", qi, rc1, want1);
+        found += want > 0;
+        empty += want == 0;
+    }
+    printf("reach: %u queries (%u far outside): %u with candidates, %u without\n", queries, far, found, empty);
+    EXPECT_MSG(found > queries / 4 && empty > queries / 4, "too few of one kind: %u found, %u empty", found, empty);
+    pm_kdtree_free(plain);
+    pm_irradiance_free(irr);
+    pm_kdtree_free(tree);
+    free(pr2);
+    free(perm);
+    free(pr);
+    free(r2);
+    free(rgb);
+    free(ph);
+}
+
 /* Oracle: counting. Photons in pairs at the same points of an integer grid on z = 0, queries at
  * the centres of the cells, so 8 photons tie at the nearest dist2 0.5. Accepting all with one
  * try finds a photon a at dist2 0.5, the same one every time (a fixed function of the build);
@@ -869,7 +1005,10 @@ TEST(irradiance_memory_measured) {
         if (!PM_TEST_SANITIZED) /* ASan's allocator does not feed mallinfo2 */
             EXPECT_MSG(fabs(grown - bytes) <= 1024, "heap grew %.0f, reported %.0f", grown, bytes);
         double layout = done * (24 + 4 * (v & 1) + 4 * (v >> 1)) + (double)((n + 63) / 64) * 12;
-        EXPECT_MSG(bytes >= layout && bytes <= layout + 4096, "reported %.0f, layout %.0f", bytes, layout);
+        /* with radii, the reach: 4 bytes per node of the lookup tree, 8/9 to 16/9 per record */
+        double reach_lo = (v & 1) ? 8 * (done + 1) / 9 : 0, reach_hi = (v & 1) ? 16 * (done + 1) / 9 : 0;
+        EXPECT_MSG(bytes >= layout + reach_lo && bytes <= layout + reach_hi + 4096, "reported %.0f, layout %.0f",
+                   bytes, layout);
         pm_irradiance_free(irr);
     }
     pm_kdtree_free(tree);
