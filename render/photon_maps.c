@@ -190,23 +190,30 @@ void photon_maps_radii(const scene *s, const photon_maps *m, const photon_settin
     for (int i = 0; i < s->nlights; i++) phi += v3_maxc(s->lights[i].power);
     double Lt = area > 0 ? 0.005 * phi / (M_PI * area) : 0;
     double rg = cfg->max_radius_global, rc_ = cfg->max_radius_caustic;
+    /* The whole maps' figures (of all parts, for one part of a partitioned pass). */
+    size_t ng = m->part ? m->whole_global : m->nglobal, nc = m->part ? m->whole_caustic : m->ncaustic;
+    size_t ns = m->part ? m->whole_shadow : m->nshadow;
     if (rg <= 0)
-        rg = m->nglobal ? pm_auto_radius_surface((unsigned)cfg->k_global,
-                                                 pm_photons_max_power(m->global, m->nglobal), Lt)
-                        : INFINITY;
+        rg = ng ? pm_auto_radius_surface((unsigned)cfg->k_global,
+                                         m->part ? m->whole_max_power[0]
+                                                 : pm_photons_max_power(m->global, m->nglobal),
+                                         Lt)
+                : INFINITY;
     if (rc_ <= 0)
-        rc_ = m->ncaustic ? pm_auto_radius_surface((unsigned)cfg->k_caustic,
-                                                   pm_photons_max_power(m->caustic, m->ncaustic), Lt)
-                          : INFINITY;
+        rc_ = nc ? pm_auto_radius_surface((unsigned)cfg->k_caustic,
+                                          m->part ? m->whole_max_power[1]
+                                                  : pm_photons_max_power(m->caustic, m->ncaustic),
+                                          Lt)
+                 : INFINITY;
     r->global = rg;
     r->caustic = rc_;
     r->r2_global = (float)(rg * rg);
     r->r2_caustic = (float)(rc_ * rc_);
     /* The radius of a k-photon estimate at the mean density of the global map. */
-    double rtyp = m->nglobal ? sqrt(cfg->k_global * area / (M_PI * (double)m->nglobal)) : INFINITY;
+    double rtyp = ng ? sqrt(cfg->k_global * area / (M_PI * (double)ng)) : INFINITY;
     r->typical = rtyp;
     r->r2_lookup = (float)fmin(16 * rtyp * rtyp, (double)r->r2_global);
-    double rsh = m->nshadow ? sqrt(cfg->k_shadow * area / (M_PI * (double)m->nshadow)) : 0;
+    double rsh = ns ? sqrt(cfg->k_shadow * area / (M_PI * (double)ns)) : 0;
     r->shadow = 2 * rsh;
     r->r2_shadow = (float)(4 * rsh * rsh);
 }

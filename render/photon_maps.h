@@ -66,6 +66,12 @@ typedef struct photon_maps {
     int global_runaway, caustic_runaway; /* 1 if the pass stopped short of its target */
     map_stamp stamp; /* what shaped them: set by the caller after tracing; by a load, the
                       * global.pmap's */
+    /* part 1: the maps are this process's part of a partitioned distributed pass
+     * (photon_trace.h); the whole maps' counts and largest photon powers (global, caustic)
+     * are in whole_*, for the radius policy. part 0: the maps are whole (whole_* unused). */
+    int part;
+    size_t whole_global, whole_caustic, whole_shadow;
+    double whole_max_power[2];
 } photon_maps;
 
 void photon_maps_free(photon_maps *m);

@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "photonmap/common.h"
+#include "photonmap/estimate.h"
 #include "material.h"
 #include "progress.h"
 #include "projmap.h"
@@ -282,6 +283,10 @@ static const trace_dist *g_dist;
 
 void photon_trace_set_dist(const trace_dist *d) { g_dist = d; }
 
+/* A partitioned distributed pass (photon_trace.h); a pilot pass is always replicated (its
+ * evidence counts each photon traced once). */
+static int part_pass(const pass_ctx *c) { return g_dist && g_dist->partitioned && !c->o->pilot; }
+
 /* One batch as exchanged: this head in the room of one photon record, then nmain main-buffer
  * and nshadow shadow-buffer photons in index order. A process that failed sends only a head
  * with fail set. */
@@ -334,12 +339,24 @@ static int dist_round(const pass_ctx *c, round_buf *rb, uint64_t start, fbuf *tg
     rb->next = rb->nbatch = 0;
     rb->off = 0;
     fbuf out = {0}; /* this process's blocks: head, then its photons, per batch */
-    int fail = !sizes;
+    batch_head *heads = NULL; /* a partitioned pass: the heads alone */
+    int fail = !sizes, part = part_pass(c);
+    if (part && !(heads = calloc((size_t)per, sizeof *heads))) fail = 1;
     for (int j = 0; j < per && !fail; j++) {
         batch_head h = {0, 0, 0, 0};
         fbuf m = {0}, sh = {0};
         uint64_t first = start + ((uint64_t)d->part * (uint64_t)per + (uint64_t)j) * PT_BATCH;
         h.fail = (uint64_t)trace_batch(c, first, tg, ts, nthreads, &h.nfirst);
+        if (part) { /* counts only: the photons are traced again by the process keeping them */
+            for (int t = 0; t < nthreads; t++) {
+                h.nmain += tg[t].n;
+                h.nshadow += ts[t].n;
+                tg[t].n = ts[t].n = 0;
+            }
+            heads[j] = h;
+            fail = (int)h.fail;
+            continue;
+        }
         if (fbuf_merge(&m, tg, nthreads) < 0 || fbuf_merge(&sh, ts, nthreads) < 0) h.fail = 1;
         h.nmain = m.n;
         h.nshadow = sh.n;
@@ -358,8 +375,10 @@ static int dist_round(const pass_ctx *c, round_buf *rb, uint64_t start, fbuf *tg
     batch_head failed = {0, 0, 0, 1};
     int rc = !sizes ? -1
              : fail ? d->allgather(d->user, &failed, sizeof failed, (void **)&rb->all, sizes)
+             : part ? d->allgather(d->user, heads, (size_t)per * sizeof *heads, (void **)&rb->all, sizes)
                     : d->allgather(d->user, out.v, out.n * sizeof(fphoton), (void **)&rb->all, sizes);
     free(out.v);
+    free(heads);
     if (rc < 0) return 1;
     rb->start = start;
     rb->nbatch = d->nparts * per;
@@ -370,12 +389,20 @@ static int dist_round(const pass_ctx *c, round_buf *rb, uint64_t start, fbuf *tg
  * stay empty, so run_pass merges them as it merges its own), from the current round, or from
  * a new one when that is used up. 1 on failure anywhere. */
 static int dist_batch(const pass_ctx *c, round_buf *rb, uint64_t n_e, fbuf *tg, fbuf *ts,
-                      int nthreads, uint64_t *nfirst) {
+                      int nthreads, uint64_t *nfirst, uint64_t *counts) {
     if (!rb->all || rb->next == rb->nbatch || rb->start + (uint64_t)rb->next * PT_BATCH != n_e)
         if (dist_round(c, rb, n_e, tg, ts, nthreads)) return 1;
     batch_head h;
     memcpy(&h, rb->all + rb->off, sizeof h);
     if (h.fail) return 1;
+    if (counts) { /* a partitioned pass: the batch's counts, from its head alone */
+        counts[0] = h.nmain;
+        counts[1] = h.nshadow;
+        *nfirst += h.nfirst;
+        rb->off += sizeof h;
+        rb->next++;
+        return 0;
+    }
     const fphoton *p = (const fphoton *)(rb->all + rb->off) + 1; /* after the head's slot */
     for (uint64_t i = 0; i < h.nmain; i++)
         if (fbuf_push(&tg[0], &p[i]) < 0) return 1;
@@ -421,12 +448,87 @@ static uint64_t cut_at_target(fbuf *main_buf, fbuf *shadow_buf, long target, uin
     return last + 1;
 }
 
+/* A partitioned pass: the bookkeeping's counts stand for the buffers. vgrow adds k photons
+ * to a count-only buffer (v stays NULL) and grows its capacity as fbuf_merge would, so the
+ * memory budget stops the pass where one process would. */
+static void vgrow(fbuf *b, uint64_t k) {
+    if (b->n + k > b->cap) {
+        size_t nc = b->cap ? b->cap : 1024;
+        while (nc < b->n + k) nc *= 2;
+        b->cap = nc;
+    }
+    b->n += (size_t)k;
+}
+
+typedef struct batch_count {
+    uint64_t nmain, nshadow;
+} batch_count;
+
+/* The end of a partitioned pass whose nb batches stored bc[b] photons each (vm, vs: the
+ * counts of the main and shadow buffers). The cut of cut_at_target, found by tracing the
+ * batch that holds the target-th store again (every process does it: the same photons); then
+ * this process traces again the batches that hold its part of the main buffer's stores and
+ * keeps that part in `out`. Sets vm, vs and *n_e to the whole pass's figures. Every process
+ * returns the same: 0, or PM_ENOMEM if any failed (one all-gather of 8 bytes). */
+static int part_finish(const pass_ctx *c, batch_count *bc, size_t nb, long target, uint64_t *n_e,
+                       fbuf *vm, fbuf *vs, fbuf *out, fbuf *tg, fbuf *ts, int nthreads) {
+    const trace_dist *d = g_dist;
+    int fail = 0;
+    size_t ncut = nb;
+    uint64_t dummy = 0;
+    if (target > 0 && vm->n > (size_t)target) {
+        uint64_t before = 0, sbefore = 0;
+        size_t b = 0;
+        while (b < nb && before + bc[b].nmain < (uint64_t)target) {
+            before += bc[b].nmain;
+            sbefore += bc[b++].nshadow;
+        }
+        fbuf m = {0}, sh = {0};
+        fail = b == nb || trace_batch(c, (uint64_t)b * PT_BATCH, tg, ts, nthreads, &dummy) ||
+               fbuf_merge(&m, tg, nthreads) < 0 || fbuf_merge(&sh, ts, nthreads) < 0 ||
+               m.n != bc[b].nmain;
+        if (!fail) {
+            size_t k = (size_t)((uint64_t)target - before);
+            uint64_t last = m.v[k - 1].index;
+            while (k < m.n && m.v[k].index == last) k++;
+            size_t j = 0;
+            while (j < sh.n && sh.v[j].index <= last) j++;
+            bc[b].nmain = k;
+            vm->n = (size_t)(before + k);
+            if (vs) vs->n = (size_t)(sbefore + j);
+            *n_e = last + 1;
+            ncut = b + 1;
+        }
+        free(m.v);
+        free(sh.v);
+    }
+    uint64_t n = vm->n, lo = n * (uint64_t)d->part / (uint64_t)d->nparts,
+             hi = n * (uint64_t)(d->part + 1) / (uint64_t)d->nparts, at = 0;
+    for (size_t b = 0; b < ncut && !fail && at < hi; at += bc[b++].nmain) {
+        if (at + bc[b].nmain <= lo || bc[b].nmain == 0) continue;
+        fbuf m = {0};
+        fail = trace_batch(c, (uint64_t)b * PT_BATCH, tg, ts, nthreads, &dummy) ||
+               fbuf_merge(&m, tg, nthreads) < 0 || m.n < bc[b].nmain;
+        for (int t = 0; t < nthreads; t++) ts[t].n = 0;
+        uint64_t i0 = lo > at ? lo - at : 0, i1 = hi - at < bc[b].nmain ? hi - at : bc[b].nmain;
+        for (uint64_t i = i0; !fail && i < i1; i++) fail = fbuf_push(out, &m.v[i]) < 0;
+        free(m.v);
+    }
+    uint64_t f = (uint64_t)fail, *all = NULL;
+    size_t *sizes = calloc((size_t)d->nparts, sizeof *sizes);
+    if (!sizes || d->allgather(d->user, &f, sizeof f, (void **)&all, sizes) < 0) fail = 1;
+    for (int p = 0; all && p < d->nparts; p++) fail |= all[p] != 0;
+    free(all);
+    free(sizes);
+    return fail ? PM_ENOMEM : 0;
+}
+
 /* Run one pass until `target` photons are in main_buf, or until a budget stops it (see
  * PASS BUDGETS in photon_trace.h). Returns 0, PM_ENOMEM, or PM_EEMPTY (with the message in
  * err) when the pass stores nothing. */
 static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, uint64_t *emitted,
                     uint64_t *first_specular, int *runaway, const char *title, char *err,
-                    size_t errcap) {
+                    size_t errcap, size_t whole[2]) {
     const trace_opts *o = c->o;
     int nthreads = 1;
 #ifdef _OPENMP
@@ -454,6 +556,18 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
     progress prog;
     progress_begin(&prog, title, target, o->quiet);
     size_t reported = 0;
+    /* A partitioned pass keeps counts in vmain and vshadow, and each batch's in bc. */
+    int part = part_pass(c);
+    /* A partitioned render's pilot passes are traced whole by every process, exchanging
+     * nothing: the same evidence on every process, that of one process. */
+    int use_dist = g_dist && !(g_dist->partitioned && c->o->pilot);
+    fbuf vmain = {0}, vshadow = {0}, *out_main = main_buf;
+    batch_count *bc = NULL;
+    size_t nbc = 0, capbc = 0;
+    if (part) {
+        main_buf = &vmain;
+        if (shadow_buf) shadow_buf = &vshadow;
+    }
     round_buf rb = {0};
     rb.target = target;
     rb.stored = main_buf;
@@ -491,11 +605,33 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
             snprintf(why, sizeof why, "%zu MiB of photon buffers", bytes >> 20);
             break;
         }
-        int fail = g_dist ? dist_batch(c, &rb, n_e, tg, ts, nthreads, &nfirst)
+        int fail;
+        if (part) {
+            uint64_t cnt[2] = {0, 0};
+            fail = dist_batch(c, &rb, n_e, tg, ts, nthreads, &nfirst, cnt);
+            if (!fail && nbc == capbc) {
+                size_t nc = capbc ? 2 * capbc : 64;
+                batch_count *nv = realloc(bc, nc * sizeof *nv);
+                if (nv) {
+                    bc = nv;
+                    capbc = nc;
+                }
+            }
+            if (!fail && nbc < capbc) {
+                bc[nbc].nmain = cnt[0];
+                bc[nbc++].nshadow = cnt[1];
+                vgrow(main_buf, cnt[0]);
+                if (shadow_buf) vgrow(shadow_buf, cnt[1]);
+            } else {
+                fail = 1;
+            }
+        } else {
+            fail = use_dist ? dist_batch(c, &rb, n_e, tg, ts, nthreads, &nfirst, NULL)
                           : trace_batch(c, n_e, tg, ts, nthreads, &nfirst);
+        }
         n_e += PT_BATCH;
-        if (fail || fbuf_merge(main_buf, tg, nthreads) < 0 ||
-            (shadow_buf && fbuf_merge(shadow_buf, ts, nthreads) < 0)) {
+        if (fail || (!part && (fbuf_merge(main_buf, tg, nthreads) < 0 ||
+                               (shadow_buf && fbuf_merge(shadow_buf, ts, nthreads) < 0)))) {
             snprintf(err, errcap, "out of memory while tracing photons (%s)", title);
             rc = PM_ENOMEM;
         }
@@ -506,7 +642,13 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
     progress_end(&prog);
     free(rb.all);
     free(rb.sizes);
-    if (rc == 0) n_e = cut_at_target(main_buf, shadow_buf, target, n_e);
+    if (rc == 0 && part) {
+        rc = part_finish(c, bc, nbc, target, &n_e, main_buf, shadow_buf, out_main, tg, ts, nthreads);
+        if (rc < 0) snprintf(err, errcap, "out of memory while tracing photons (%s)", title);
+    } else if (rc == 0) {
+        n_e = cut_at_target(main_buf, shadow_buf, target, n_e);
+    }
+    free(bc);
     uint64_t cut = nfirst >> 32;
     nfirst &= 0xffffffffULL;
     if (rc == 0 && cut > 0 && !o->pilot)
@@ -529,6 +671,8 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
                 "the photon_mapping.%s budget (%s)\n",
                 title, main_buf->n, target, (unsigned long long)n_e, stop ? stop : "?", why);
     *emitted = n_e;
+    whole[0] = main_buf->n; /* the whole pass's counts (a partitioned pass keeps a part) */
+    whole[1] = shadow_buf ? shadow_buf->n : 0;
     if (first_specular) *first_specular = nfirst;
     for (int t = 0; t < nthreads; t++) {
         free(tg[t].v);
@@ -556,6 +700,29 @@ static void shifts(double *shift, uint64_t seed, uint64_t pass) {
     for (int d = 0; d < 6; d++) shift[d] = rng_uniform(&g);
 }
 
+/* After a partitioned pass: the whole maps' counts (wg: the global pass's main and shadow
+ * buffers, wc: the caustic pass's) and their largest photon powers, the largest of every
+ * part's (an all-gather of 16 bytes per process), so the radius policy reads the figures of
+ * the whole maps exactly. */
+static int part_whole(const trace_opts *o, photon_maps *m, const size_t wg[2], const size_t wc[2]) {
+    const trace_dist *d = g_dist;
+    m->part = 1;
+    m->whole_global = o->global ? wg[0] : 0;
+    m->whole_shadow = o->global ? wg[1] : wg[0];
+    m->whole_caustic = wc[0];
+    double mine[2] = {pm_photons_max_power(m->global, m->nglobal),
+                      pm_photons_max_power(m->caustic, m->ncaustic)},
+           *all = NULL;
+    size_t *sizes = calloc((size_t)d->nparts, sizeof *sizes);
+    int rc = !sizes || d->allgather(d->user, mine, sizeof mine, (void **)&all, sizes) < 0 ? PM_ENOMEM : 0;
+    for (int p = 0; rc == 0 && p < d->nparts; p++)
+        for (int k = 0; k < 2; k++)
+            if (p == 0 || all[2 * p + k] > m->whole_max_power[k]) m->whole_max_power[k] = all[2 * p + k];
+    free(all);
+    free(sizes);
+    return rc;
+}
+
 int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err, size_t errcap) {
     memset(m, 0, sizeof *m);
     if (errcap) err[0] = 0;
@@ -578,6 +745,7 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
         return PM_ENOMEM;
     }
     fbuf gbuf = {0}, sbuf = {0}, cbuf = {0};
+    size_t wg[2] = {0, 0}, wc[2] = {0, 0}; /* whole counts: global pass (main, shadow), caustic */
 
     /* Global pass (also carries the shadow photons). */
     if ((o->global || o->shadow) && o->global_target > 0) {
@@ -596,7 +764,8 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
         /* With the global map off, the shadow map's count is the target. */
         rc = run_pass(&c, o->global_target, o->global ? &gbuf : &sbuf, o->global ? &sbuf : NULL,
                       &m->global_emitted, NULL, &m->global_runaway,
-                      o->global ? "Tracing global photons" : "Tracing shadow photons", err, errcap);
+                      o->global ? "Tracing global photons" : "Tracing shadow photons", err, errcap,
+                      wg);
         if (!o->pilot) stat_add(st_emit_g, m->global_emitted);
     }
 
@@ -630,7 +799,7 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
             if (rc == 0)
                 rc = run_pass(&c, o->caustic_target, &cbuf, NULL, &m->caustic_emitted,
                               &m->caustic_first_specular, &m->caustic_runaway,
-                              "Tracing caustic photons", err, errcap);
+                              "Tracing caustic photons", err, errcap, wc);
             distrib1d_free(&c.choose);
             m->caustic_fraction = wsum / psum;
             if (m->caustic_fraction > 0)
@@ -651,10 +820,11 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
     }
     if (rc == 0 && m->caustic_emitted)
         rc = pack(&cbuf, 1.0 / (double)m->caustic_emitted, &m->caustic, &m->ncaustic);
+    if (rc == 0 && g_dist && g_dist->partitioned && !o->pilot) rc = part_whole(o, m, wg, wc);
     if (rc < 0 && !err[0]) snprintf(err, errcap, "%s", pm_strerror(rc));
-    if (!o->pilot) stat_add(st_glob, m->nglobal);
-    if (!o->pilot) stat_add(st_caus, m->ncaustic);
-    if (!o->pilot) stat_add(st_shadow, m->nshadow);
+    if (!o->pilot) stat_add(st_glob, m->part ? m->whole_global : m->nglobal);
+    if (!o->pilot) stat_add(st_caus, m->part ? m->whole_caustic : m->ncaustic);
+    if (!o->pilot) stat_add(st_shadow, m->part ? m->whole_shadow : m->nshadow);
     free(gbuf.v);
     free(sbuf.v);
     free(cbuf.v);

@@ -132,6 +132,17 @@ typedef struct trace_dist {
      * for part k). 0, or negative on failure (then every process must see the failure). */
     int (*allgather)(void *user, const void *mine, size_t nbytes, void **all, size_t *sizes);
     void *user;
+    /* 1: a partitioned pass. The rounds exchange only each batch's counts (stores in the main
+     * and shadow buffers, first-specular and cut paths: 32 bytes), never a photon, so every
+     * process runs the same bookkeeping and stops where one process would. Then every process
+     * traces the stopping batch again to find the cut (the emitted photon whose stores reach
+     * the target), and traces again only the batches holding its part of the stored photons:
+     * process p keeps the main map's stores p n / nparts .. (p + 1) n / nparts - 1 in index
+     * order (n: the whole map's count), no shadow-map photons, and the maps come back with
+     * part 1 and the whole maps' counts and largest powers (one more all-gather of 24 bytes
+     * per process) in whole_* (photon_maps.h). Each process traces about 2 / nparts of the
+     * photons; its memory holds its part and one round's counts. */
+    int partitioned;
 } trace_dist;
 /* Distribute every later pass as described above (NULL: back to one process). The caller
  * keeps d alive while passes run. */

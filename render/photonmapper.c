@@ -618,7 +618,8 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         printf("Photons: %zu global, %zu shadow-map (from %llu emitted); %zu caustic (from %llu "
                "emitted; projection maps cover %.2f%% of the light's power, saving %llu "
                "emissions)\n",
-               m->nglobal, m->nshadow, (unsigned long long)m->global_emitted, m->ncaustic,
+               m->part ? m->whole_global : m->nglobal, m->part ? m->whole_shadow : m->nshadow,
+               (unsigned long long)m->global_emitted, m->part ? m->whole_caustic : m->ncaustic,
                (unsigned long long)m->caustic_emitted, 100 * m->caustic_fraction,
                (unsigned long long)m->caustic_saved);
     }
@@ -633,8 +634,8 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     /* The radii of the whole maps, before a distributed render keeps only its part of them. */
     map_radii rad;
     photon_maps_radii(s, m, &st->cfg, &rad);
-    st->nglobal_all = m->nglobal;
-    st->ncaustic_all = m->ncaustic;
+    st->nglobal_all = m->part ? m->whole_global : m->nglobal;
+    st->ncaustic_all = m->part ? m->whole_caustic : m->ncaustic;
     if (g_lookup && (rc = g_lookup->partition(g_lookup->user, m, err, errcap)) < 0) return rc;
 
     t0 = stats_now();

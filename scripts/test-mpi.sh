@@ -194,6 +194,25 @@ if [ -s "$T/part.trace3.pfm" ] && cmp -s "$T/part.load3.pfm" "$T/part.trace3.pfm
 else
   bad "partitioned determinism" "the images differ (or a run failed): $(grep render "$T/part.load3.log" "$T/part.trace3.log" | tail -2)"
 fi
+# The partitioned photon pass exchanges counts, never photons. Oracle: the loaded run above,
+# which reads the whole maps on every rank and keeps rank 0's part (so the same image bytes
+# mean the same parts), and render's run that saved them: the traced run must report the same
+# whole-map counts ("Photons:" line, from its bookkeeping) and the same radii (from the whole
+# maps' counts and largest power), rank 0 must keep the same number of photons, and its photon
+# exchange must be under 1 byte per stored photon (a replicated exchange sends 64 per photon to
+# each other rank).
+pbytes=$(sed -n 's/^MPI: bytes sent: photon exchange \([0-9]*\),.*/\1/p' "$T/part.trace3.log")
+pstored=$(awk '/^Photons: / { g = $2; s = $4; c = $9; gsub(/[^0-9]/, "", g); gsub(/[^0-9]/, "", s)
+               gsub(/[^0-9]/, "", c); print g + s + c }' "$T/pmaps.log")
+if [ -n "$pbytes" ] && [ -n "$pstored" ] && [ "$pstored" -gt 0 ] && [ "$pbytes" -lt "$pstored" ] \
+   && [ "$(grep '^Photons: ' "$T/part.trace3.log")" = "$(grep '^Photons: ' "$T/pmaps.log")" ] \
+   && [ "$(grep '^Radii: ' "$T/part.trace3.log")" = "$(grep '^Radii: ' "$T/part.load3.log")" ] \
+   && [ "$(grep '^MPI: partitioned maps: rank 0 keeps' "$T/part.trace3.log")" = \
+        "$(grep '^MPI: partitioned maps: rank 0 keeps' "$T/part.load3.log")" ]; then
+  ok "partitioned photon pass -np 3: $pbytes bytes exchanged for $pstored photons stored; whole-map counts, radii and rank 0's part as with the whole maps"
+else
+  bad "partitioned photon pass" "exchange '$pbytes' bytes for '$pstored' photons; $(grep -h '^Photons: \|^Radii: ' "$T/part.trace3.log" "$T/pmaps.log" "$T/part.load3.log")"
+fi
 
 # ---- failures ----------------------------------------------------------------------------
 # A scene error on every rank: exit 2, the loader's message (with the line) once from rank 0,
@@ -253,6 +272,16 @@ if [ $rc = 2 ] && [ ! -e "$T/ck.pfm" ] && [ ! -e "$T/ck" ] \
   ok "--checkpoint refused with exit 2"
 else
   bad "--checkpoint" "rc $rc; $(grep render "$T/ck.log" | head -2)"
+fi
+# Partitioned maps cannot be saved (no rank holds them whole): exit 2 with the reason.
+$MPIRUN -np 2 "$M" data/scenes/furnace.json --mode pm --pm distributed=partitioned \
+  --save-photons "$T/psave" --hdr "$T/psave.pfm" >"$T/psave.log" 2>&1
+rc=$?
+if [ $rc = 2 ] && [ ! -e "$T/psave.pfm" ] && [ ! -e "$T/psave" ] \
+   && grep -q "render-mpi: --save-photons is not available with --pm distributed=partitioned" "$T/psave.log"; then
+  ok "--save-photons with partitioned maps refused with exit 2"
+else
+  bad "--save-photons partitioned" "rc $rc; $(grep render "$T/psave.log" | head -2)"
 fi
 # A rank killed (SIGKILL) in the middle of the pixel pass: the job ends with a non-zero
 # status, rank 0 says the job is being stopped, and no output (nor temporary) is left. Also

@@ -258,6 +258,7 @@ void dist_init(int mode) {
     g_td.part = g_rank;
     g_td.allgather = photon_allgather;
     g_td.user = NULL;
+    g_td.partitioned = mode == DIST_PARTITIONED;
     photon_trace_set_dist(&g_td);
     if (mode == DIST_PARTITIONED) lk_init(g_rank, g_size);
 }

@@ -11,7 +11,9 @@
  * PHOTON PASS. Every rank loads the scene and plans alike. Each pass runs in rounds: rank r
  * traces batch r of the round, an all-gather gives every rank all the batches, and every
  * rank keeps the one-process bookkeeping (photon_trace.h, DISTRIBUTED PASSES). So every
- * rank builds the same maps as a one-process run (replicated mode, the default).
+ * rank builds the same maps as a one-process run (replicated mode, the default). With
+ * --pm distributed=partitioned the rounds carry only each batch's counts, and each rank traces
+ * its own part of the maps again and keeps only that (trace_dist.partitioned, photon_trace.h).
  *
  * PIXEL PASS. Rank 0 keeps a queue of the image's 16x16 tiles. A worker rank asks for a
  * chunk of tiles (at most its thread count, fewer as the queue empties), renders it with

@@ -370,7 +370,11 @@ static int hook_partition(void *user, photon_maps *m, char *err, size_t errcap) 
     (void)errcap;
     pm_photon **arr[2] = {&m->global, &m->caustic};
     size_t *cnt[2] = {&m->nglobal, &m->ncaustic}, all[2] = {m->nglobal, m->ncaustic};
-    for (int k = 0; k < 2; k++) {
+    if (m->part) { /* traced by a partitioned pass: already this rank's part (photon_trace.h) */
+        all[0] = m->whole_global;
+        all[1] = m->whole_caustic;
+    }
+    for (int k = 0; k < 2 && !m->part; k++) {
         size_t n = *cnt[k];
         size_t lo = n * (size_t)L.rank / (size_t)L.size, hi = n * (size_t)(L.rank + 1) / (size_t)L.size;
         if (lo > 0 && hi > lo) memmove(*arr[k], *arr[k] + lo, (hi - lo) * sizeof **arr[k]);

@@ -7,7 +7,10 @@
  * index order: a contiguous range of emitted photons, each traced with its own random stream
  * and Halton point, so each part is a map of the scene with 1/M of the photons and the union
  * is the one-process map. The shadow-photon map is dropped: partitioned renders trace every
- * shadow ray (the exact visibility the shadow map approximates).
+ * shadow ray (the exact visibility the shadow map approximates). Traced maps arrive already
+ * cut to that part (photon_maps.part: the partitioned photon pass of photon_trace.h keeps
+ * only the rank's range, and gives the whole maps' counts and largest powers for the radii);
+ * loaded maps are whole on every rank and cut here.
  *
  * PRECOMPUTED IRRADIANCE (collective, once). Each rank chooses a quarter of its own photons as
  * photon_sides.c does in its tree (neither leaves nor parents of leaves) and all-gathers them

@@ -40,7 +40,7 @@ int main(int argc, char **argv) {
     int rank;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     char msg[512] = "";
-    int mode = DIST_REPLICATED, has_threads = 0, help = 0;
+    int mode = DIST_REPLICATED, has_threads = 0, help = 0, has_save = 0;
     char **av = calloc((size_t)argc + 4, sizeof *av);
     int ac = 0;
     if (!av) {
@@ -67,6 +67,7 @@ int main(int argc, char **argv) {
                      "(use render for checkpoints and snapshots)", a);
             break;
         }
+        if (i > 0 && strcmp(a, "--save-photons") == 0) has_save = 1;
         if (i > 0 && rank > 0 && strcmp(a, "--save-photons") == 0 && v) {
             i++;
             continue;
@@ -75,6 +76,10 @@ int main(int argc, char **argv) {
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) help = 1;
         av[ac++] = argv[i];
     }
+    if (!msg[0] && has_save && mode == DIST_PARTITIONED)
+        snprintf(msg, sizeof msg, "render-mpi: --save-photons is not available with --pm "
+                 "distributed=partitioned (no rank holds the whole maps; save them with the "
+                 "replicated mode or render)");
     dist_init(mode);
     if (msg[0]) dist_fail_early(2, msg);
     static char threads_arg[24];
