@@ -120,6 +120,8 @@ typedef struct expected_plan {
  *   pinhole_room     Lambertian rooms; the small room's roof occludes the light.
  *   glass_hole       a glass sphere lit straight from the light only through a 10 x 10 hole
  *                    in a wall: caustics (the pilot aims photons at it and finds the hole).
+ *   glass_enclosed   a white plate under water and a white sphere in a glass sphere, lit
+ *                    through them: caustics; the walls interreflect; the glass shadows.
  *   mirror_cage      a point light inside a closed mirror sphere: no photon ever reaches a
  *                    diffuse surface, so nothing is planned (and no pass is run).
  *   black_box        every surface but the lamp has reflectance 0: no surface stores photons;
@@ -140,6 +142,7 @@ static const expected_plan k_plans[] = {
     {"shelf_glass", 0, 1, 1, 1, "leads to a diffuse one: 0 of", "", "", ""},
     {"pinhole_room", 0, 1, 1, 1, "no specular surface", "", "", ""},
     {"glass_hole", 1, 1, 1, 1, "", "", "", ""},
+    {"glass_enclosed", 1, 1, 1, 1, "", "", "", ""},
     {"mirror_cage", 0, 0, 0, 0, "leads to a diffuse one: 0 of 8192", "no surface the lights reach stores photons, 0 of 8192", "no area light", "no global map"},
     {"black_box", 0, 0, 0, 0, "no specular surface", "no surface the lights reach stores photons", "no surface the lights reach stores photons", "no global map"},
     /* Media: shadow rays carry the transmittance there, so no shadow photons (plan.h). */
