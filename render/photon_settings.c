@@ -113,6 +113,9 @@ static const setting_def k_settings[] = {
     {"volume_step", ST_NUMBER, F(volume_step), 0, 0, INFINITY,
      "ray-marching step in media, in scene units; 0: a quarter of the mean free path, at most "
      "1/64 of the scene's diagonal"},
+    {"volume_boundary", ST_BOOL, F(volume_boundary), 1, NONE,
+     "volume estimates near a medium's boundary divide by the part of their search ball inside "
+     "the medium (pm_volume.h, BOUNDARIES); false: by the whole ball"},
     {"save_photons", ST_DIR, F(save_dir), 0, NONE,
      "a directory to save the maps to (global.pmap, caustic.pmap, shadow.pmap; the format of "
      "photonmap/mapfile.h), as traced"},

@@ -21,6 +21,8 @@
 /* The caustic pass's emission budget in a scene with media (pmv_trace). */
 #define PMV_CAUSTIC_EMIT_FACTOR 4.0
 #define PMV_CAUSTIC_EMIT_MIN 4194304.0
+/* The smallest part of a search ball taken to lie inside a medium (a ball at a box's corner). */
+#define PMV_MIN_BALL_FRACTION 0.125
 
 int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
     memset(v, 0, sizeof *v);
@@ -59,6 +61,7 @@ int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
     }
     v->k_ms = (unsigned)c->k_volume;
     v->k_caus = (unsigned)c->k_volume_caustic;
+    v->boundary = c->volume_boundary;
     v->st_steps = stats_register("Photon mapping/Volume march steps");
     v->st_ms = stats_register("Photon mapping/Volume estimates (multiple scattering)");
     v->st_caus = stats_register("Photon mapping/Volume caustic estimates");
@@ -244,9 +247,36 @@ static void phase_fn(void *user, const float wi[3], float f[3]) {
     f[0] = f[1] = f[2] = (float)hg_phase(c->g, cs);
 }
 
+/* The part of the ball of radius r at x that a plane at distance h (along one axis) leaves
+ * on x's side: 1 minus the cap beyond it, (1 - h/r)^2 (2 + h/r) / 4 of the ball. */
+static double cap_fraction(double h, double r) {
+    if (!(h < r)) return 0;
+    double q = h / r;
+    return (1 - q) * (1 - q) * (2 + q) / 4;
+}
+
+double pmv_ball_fraction(const scene *s, vec3 x, double r) {
+    if (!(r > 0) || !isfinite(r)) return 1;
+    double f = 1;
+    for (int a = 0; a < 3; a++) {
+        double cut = 0;
+        for (int sgn = -1; sgn <= 1; sgn += 2) {
+            vec3 d = v3s(0);
+            if (a == 0) d.x = sgn;
+            else if (a == 1) d.y = sgn;
+            else d.z = sgn;
+            hit h;
+            ray ry = {x, d};
+            if (scene_intersect(s, ry, r, &h)) cut += cap_fraction(h.t, r);
+        }
+        f *= fmax(0.0, 1 - cut);
+    }
+    return fmax(f, PMV_MIN_BALL_FRACTION);
+}
+
 /* sum phase dPhi / (4/3 pi r^3) from tree t at x, for an eye ray along d in medium med. */
-static rgb volume_estimate(const pm_kdtree *t, unsigned k, float r2, const scene *s, int med, vec3 x,
-                           vec3 d, void *scratch) {
+static rgb volume_estimate(const pmv_state *v, const pm_kdtree *t, unsigned k, float r2, const scene *s,
+                           int med, vec3 x, vec3 d, void *scratch) {
     pm_estimate_options o;
     pm_estimate_options_init(&o, PM_EST_DISC, k);
     o.max_dist2 = r2;
@@ -258,13 +288,16 @@ static rgb volume_estimate(const pm_kdtree *t, unsigned k, float r2, const scene
     float xf[3] = {(float)x.x, (float)x.y, (float)x.z};
     pm_estimate_result res;
     if (pm_estimate_volume(t, xf, 1.0, &o, scratch, &res, NULL) < 0) return v3s(0);
-    return v3(res.rgb[0], res.rgb[1], res.rgb[2]);
+    rgb e = v3(res.rgb[0], res.rgb[1], res.rgb[2]);
+    if (!v->boundary || res.found == 0 || v3_iszero(e)) return e;
+    /* BOUNDARIES (pm_volume.h): divide by the part of the ball inside the medium. */
+    return v3_scale(e, 1 / pmv_ball_fraction(s, x, sqrt(res.r2)));
 }
 
 /* The same in the renderer's radiance (RADIANCE INSIDE GLASS in pm_volume.h). */
 static rgb volume_estimate_in(const pmv_state *v, const pm_kdtree *t, unsigned k, float r2, const scene *s,
                               int med, vec3 x, vec3 d, void *scratch) {
-    rgb e = volume_estimate(t, k, r2, s, med, x, d, scratch);
+    rgb e = volume_estimate(v, t, k, r2, s, med, x, d, scratch);
     return v->n2_scale[med] == 1 ? e : v3_scale(e, v->n2_scale[med]);
 }
 

@@ -32,9 +32,23 @@
  * transmittance (direct.h, direct_light_medium); S_ms and S_caustic are the volume radiance
  * estimates (pm_estimate_volume with sigma_s = 1, i.e. sum phase dPhi / (4/3 pi r^3): the light
  * scattered per unit length, HG phase per photon) of the two trees. The segment's
- * transmittance exp(-sigma_t T) multiplies what lies beyond it. Near the boundary of a medium
- * (a wall, a glass) part of the search ball holds no photons and the estimate is low there (a
- * bias over a shell of the order of the radius).
+ * transmittance exp(-sigma_t T) multiplies what lies beyond it.
+ *
+ * BOUNDARIES. Near the boundary of a medium (a wall, a glass, a null surface, an object in a
+ * fog) part of the search ball lies outside the medium and holds no photons, so dividing by
+ * the whole ball's volume reads low there, over a shell as thick as the radius; in a dense
+ * medium seen from outside, all the light the camera gets comes from that shell. Each estimate
+ * is therefore divided by the part of its ball (the radius it used: the k-th neighbour's, or
+ * the search limit when fewer were found) that lies inside the medium, pmv_ball_fraction: six
+ * rays of length r along the axes find the nearest surfaces, each cuts a spherical cap off
+ * the ball, and the caps of the three axes combine as a product. The rule holds because the
+ * photons are a sample of the medium's in-scattered flux density only where the medium is: k
+ * photons in the part f of the ball estimate the density k / (f 4/3 pi r^3). It is exact for
+ * a plane perpendicular to an axis at any distance, and for axis-aligned edges and corners
+ * through x; a slanted plane at distance h is seen at h / |cos| along each axis, so the
+ * correction is then approximate (it errs toward too little correction, never below 1/8).
+ * Any surface counts as a boundary (a thin surface inside a medium is rare: the photons
+ * beyond it would be read with a slightly too large correction).
  *
  * GATHER RAYS (pmv_gather). A final-gather ray gets one point per segment, drawn in [0, T]
  * with a density proportional to the mean-channel exp(-sigma_t t): its in-scattered light is
@@ -98,6 +112,7 @@ typedef struct pmv_state {
     pmv_map *ms, *caus, *all;    /* per medium (nmedia each): the three trees above */
     size_t n_ms, n_caus, n_all;  /* photons in all media */
     unsigned k_ms, k_caus;
+    int boundary;                /* settings volume_boundary: BOUNDARIES below */
     double *step;                /* per medium */
     double *n2_scale;            /* per medium: (n_lights / n_medium)^2, see RADIANCE below */
     vec3 lo, hi;                 /* the scene's bounds, lights included */
@@ -120,6 +135,12 @@ size_t pmv_scratch_bytes(const pmv_state *v);
  * inscatter = 0 gives only *tr (no random numbers used). med < 0: 0 and *tr = 1. */
 rgb pmv_march(const pmv_state *v, const scene *s, ray r, double tmax, int med, int inscatter, rng *g,
               void *scratch, rgb *tr);
+/* The part of the ball of radius r at x that lies inside the medium at x (BOUNDARIES above):
+ * the product over the 3 axes of 1 minus the caps cut off by the nearest surfaces along +axis
+ * and -axis (cap_fraction(h) = (1 - h/r)^2 (2 + h/r) / 4 for a surface at h < r), at least
+ * 1/8. Exact for one plane perpendicular to an axis, and for an axis-aligned edge or corner
+ * through x. 1 if no surface is within r along the 6 axis directions, or r is not finite. */
+double pmv_ball_fraction(const scene *s, vec3 x, double r);
 /* The same for a final-gather ray: one point per segment from the "all" tree. */
 rgb pmv_gather(const pmv_state *v, const scene *s, ray r, double tmax, int med, rng *g, void *scratch,
                rgb *tr);
