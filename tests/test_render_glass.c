@@ -47,7 +47,7 @@ static double rect_mean(const film *f, int x0, int y0, int x1, int y1) {
     int n = 0;
     for (int y = y0; y < y1; y++)
         for (int x = x0; x < x1; x++) {
-            const float *p = &f->px[3 * ((size_t)y * f->width + x)];
+            const float *p = &f->px[3 * ((size_t)y * (size_t)f->width + (size_t)x)];
             sum += (p[0] + p[1] + p[2]) / 3.0;
             n++;
         }
