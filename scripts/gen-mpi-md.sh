@@ -3,8 +3,9 @@
 #
 #   scripts/gen-mpi-md.sh [--out FILE] [DIR]
 #
-# DIR (default docs/mpi) holds timing.csv, traffic.csv and measurement.txt, and partitioned.csv
-# with partitioned.txt (the partitioned maps' runs, measured by mpi-scaling.sh --partitioned). Every figure in
+# DIR (default docs/mpi) holds timing.csv, traffic.csv and measurement.txt, partitioned.csv
+# with partitioned.txt (the partitioned maps' runs, measured by mpi-scaling.sh --partitioned),
+# and memory.csv with memory.txt (peak memory per rank, mpi-scaling.sh --memory). Every figure in
 # the document comes from those files (medians, ratios and the model's fitted constants are
 # computed here), so the same files always give the same document. --out FILE writes FILE
 # instead of docs/MPI.md (- for standard output).
@@ -21,11 +22,12 @@ while [ $# -gt 0 ]; do
     *) dir=$1; shift ;;
   esac
 done
-for f in timing.csv traffic.csv measurement.txt partitioned.csv partitioned.txt; do
+for f in timing.csv traffic.csv measurement.txt partitioned.csv partitioned.txt memory.csv memory.txt; do
   [ -f "$dir/$f" ] || { echo "gen-mpi-md: $dir/$f missing: run scripts/mpi-scaling.sh" >&2; exit 2; }
 done
 meas() { sed -n "s/^$1 //p" "$dir/measurement.txt"; }
 pmeas() { sed -n "s/^$1 //p" "$dir/partitioned.txt"; }
+mmeas() { sed -n "s/^$1 //p" "$dir/memory.txt"; }
 
 # Medians per (mode, config): "mode config wall tracing trees irradiance rendering".
 medians=$(awk -F, 'NR > 1 { k = $1 " " $2; n[k]++; for (c = 4; c <= 8; c++) v[k, c, n[k]] = $c }
@@ -282,12 +284,26 @@ and each radiance estimate combines the parts of all R ranks with the combined-m
 correction c on the total (`pm_combine_add` on each rank, the sums added, `pm_combine_finish`).
 `render/mpi/lookup.h` explains it in full; in short:
 
-- **Which photons.** After the photon pass (or `--load-photons`), with the search radii chosen
-  from the whole maps, rank r keeps the photons r n/R .. (r+1) n/R - 1 of each map, in photon
-  index order: a contiguous range of emitted photons, each with its own random stream and
-  Halton point, so each part is a map of the scene with 1/R of the photons and the parts'
-  union is the one-process map. The shadow-photon map is not used: every shadow ray is
-  traced (the exact visibility the map approximates).
+- **Which photons.** Rank r keeps the photons r n/R .. (r+1) n/R - 1 of each map (n: the
+  whole map's count), in photon index order: a contiguous range of emitted photons, each
+  with its own random stream and Halton point, so each part is a map of the scene with 1/R
+  of the photons and the parts' union is the one-process map. The shadow-photon map is not
+  used: every shadow ray is traced (the exact visibility the map approximates).
+- **The photon pass exchanges counts, not photons.** The pass runs in the rounds of the
+  replicated mode, but a rank sends only each of its batches' counts (photons stored in the
+  map and in the shadow map, first-specular and cut paths: 32 bytes a batch), so every rank
+  runs the one-process bookkeeping (stored counts, the budgets, the stopping test) and stops
+  where one process would. Every rank then traces again the batch holding the target-th
+  photon, to find the photon path that reaches the target (the cut keeps whole paths), and
+  traces again only the batches holding its own range of stored photons, keeping those. The
+  radius policy reads the whole maps' counts and largest photon power: the counts come from
+  the bookkeeping, the largest power from one all-gather of each part's (a maximum of
+  maxima, so exact): the radii are the whole maps', and every rank holds exactly the photons
+  it held when it received the whole maps. A rank traces about 2/R of the photons (its
+  rounds, then its part), and never holds more than its part and a batch. The pilot photons
+  of the plan (8192) are traced whole by every rank. `--save-photons` is refused in this
+  mode (no rank holds the whole maps); `--load-photons` reads the whole maps on every rank
+  and keeps the part.
 - **Precomputed irradiance** (final gathering reads it). Each rank chooses a quarter of its
   own photons, as `photon_sides.c` does, and all-gathers them as queries (position, normal,
   free height: 28 bytes). Every rank answers every query from its part with its k/R nearest
@@ -356,8 +372,8 @@ awk -F, '
     printf "a replicated one traces once but reads whole maps (ratios above, on a shared machine);\n"
     printf "the precomputed irradiance of a partitioned run is faster, each rank computing its own\n"
     printf "share of the estimates (a replicated rank computes all of them itself).\n"
-    printf "\nTraffic of the partitioned runs (bytes sent by all ranks; the photon exchange is the\n"
-    printf "replicated one, above):\n\n"
+    printf "\nTraffic of the partitioned runs (bytes sent by all ranks; the photon exchange, which at\n"
+    printf "the commit above still sent every photon, is in the memory table below):\n\n"
     printf "| ranks | lookups | lookup bytes | per lookup | lookups per pixel | lookup bytes per pixel | irradiance estimates | their bytes | per estimate | tile queue bytes per pixel |\n"
     printf "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n"
     for (r = 2; r <= 4; r += 2) if (r in R) {
@@ -383,16 +399,51 @@ awk -F, '
     printf "region its search disc reaches, one or two whatever R: the next step for large R.\n\n"
   }' "$dir/partitioned.csv"
 
+echo "### Memory per rank and the photon exchange"
+echo
+echo "Measured by \`scripts/mpi-scaling.sh --memory\` at commit $(mmeas commit), $(mmeas date),"
+echo "on $(mmeas machine); load average before $(mmeas load_before), after $(mmeas load_after)."
+echo "Scene \`$(mmeas scene)\`, \`$(mmeas pm_args)\`, 1 thread per rank: a map"
+echo "large against the rest of the process. Peak memory: every rank's maximum resident set size"
+echo "(/usr/bin/time), the largest and the smallest over the ranks; photon exchange: the bytes"
+echo "sent by all ranks in the photon passes (each part counted once per receiving rank)."
+echo
+awk -F, 'NR > 1 { k = $1 " " $2; if (!(k in hi) || $4 > hi[k]) hi[k] = $4; if (!(k in lo) || $4 < lo[k]) lo[k] = $4
+    bp[k] = $5; st[k] = $6; seen[$1] = 1 }
+  END {
+    printf "| ranks | maps | peak memory per rank, MiB (largest) | (smallest) | photon exchange bytes | per stored photon |\n"
+    printf "|---:|---|---:|---:|---:|---:|\n"
+    for (r = 1; r <= 64; r++) if (r in seen) for (m = 0; m < 2; m++) {
+      mode = m ? "partitioned" : "replicated"; k = r " " mode
+      if (k in hi) printf "| %d | %s | %.1f | %.1f | %d | %.3f |\n", r, mode, hi[k] / 1024, lo[k] / 1024, bp[k], st[k] ? bp[k] / st[k] : 0 }
+    printf "\n"
+    for (r = 2; r <= 64; r++) if ((r " replicated") in hi && (r " partitioned") in hi) {
+      a = r " replicated"; b = r " partitioned"
+      printf "- %d ranks: partitioned / replicated: peak memory %.2f (largest rank), photon exchange %.5f.\n", r, hi[b] / hi[a], bp[a] ? bp[b] / bp[a] : 0 }
+  }' "$dir/memory.csv"
 cat <<'EOF'
+
+A replicated rank holds the whole maps through the pass (64 bytes per stored photon while
+tracing, then the 20-byte packed records and their kd-tree) plus the round being exchanged,
+so its peak does not fall with R (it grows: larger rounds). A partitioned rank holds its
+part (1/R of the photons, as 64-byte records while it traces its part, then packed) and
+one batch; the rest of its peak (the scene, the OpenMPI library and buffers, the film) does
+not depend on the map. The photon exchange of a partitioned render is, with B batches of
+4096 photons traced in all (about the batches the passes need, plus at most R - 1 per
+pass) and p passes (2 with caustics):
+
+    bytes(R) = (R - 1) x (32 B + R (8 p + 16))
+
+(a 32-byte head per batch to each other rank; per pass, every rank's 8-byte "did I fail";
+once, every rank's two largest powers): independent of the photons stored, where the
+replicated exchange sends about 64 bytes per stored photon to each other rank.
+
 What is not partitioned yet, and what differs from the replicated image:
 
-- **The photon pass is still the replicated one**: every rank receives every photon of each
-  round (the pass's bookkeeping, its stopping test and its cut at the target, uses them) and
-  drops the other ranks' parts after the pass. So the memory peak of the pass and the photon
-  exchange's traffic are those of replicated mode; what is partitioned is the maps held
-  while rendering (their kd-trees and the estimates' searches). A pass that exchanges only
-  each batch's counts, and the index of the photon that reaches the target, would remove
-  that peak.
+- **The photon pass traces a rank's photons twice**: once for the counts in its rounds, once
+  for its part (a rank that traced a batch in its rounds may not keep it). Tracing is a
+  small part of a pm render here (see the timers above), and each rank traces about
+  2/R of the photons, where a replicated rank traces 1/R and receives the rest.
 - **The precomputed irradiance is whole on every rank**: a record for about a quarter of the
   global photons (position, normal, E, radius, free height), less than the map but not
   divided by R. Looking it up remotely would put the final gather's lookups, the most
@@ -419,7 +470,7 @@ What is not partitioned yet, and what differs from the replicated image:
   photon map: the memory per rank is that of a one-process render, plus the round being
   exchanged (up to 16 R batches of 4096 photons, 64 bytes per stored photon; a round never
   spans more batches than the pass still needs). In partitioned mode a rank holds 1/R of the
-  maps while rendering, and the whole precomputed irradiance (above).
+  maps from the photon pass on, and the whole precomputed irradiance (above).
 - No checkpoints; a failed rank ends the job (there is no recovery in OpenMPI 4.1 without
   ULFM), and the render must be started again.
 - Statistics: the pixel pass's counters are the sum over ranks; the preprocessing counters

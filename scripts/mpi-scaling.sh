@@ -19,16 +19,23 @@
 # with the shadow-photon map off, which partitioned renders do not use either)
 # and partitioned.txt (its own stamp). --partitioned measures only these two files (about
 # 3 minutes) and keeps the others.
+#
+# Memory: memory.csv (a pm render of larger maps, 1 thread per rank, at 1, 2 and 4 ranks,
+# replicated and partitioned: every rank's peak resident memory, from /usr/bin/time's maximum
+# resident set size, and the bytes of the photon exchange) and memory.txt (its stamp).
+# --memory measures only these two files (about 1 minute) and keeps the others.
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 B="${PM_BUILD_DIR:-$here/build/release}"
 reps=3
 only_part=0
+only_mem=0
 out="$here/docs/mpi"
 while [ $# -gt 0 ]; do
   case "$1" in
     -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
     --partitioned) only_part=1; shift ;;
+    --memory) only_mem=1; shift ;;
     --reps) [ $# -ge 2 ] || { echo "mpi-scaling: --reps needs a number" >&2; exit 2; }
             reps=$2; shift 2 ;;
     -*) echo "mpi-scaling: unknown option '$1' (see --help)" >&2; exit 2 ;;
@@ -112,6 +119,52 @@ measure_partitioned() {
     echo "reps $reps"
   } > "$out/partitioned.txt"
 }
+MEMPM="--mode pm --spp 1 --pm global_photons=400000 --pm caustic_photons=200000"
+measure_memory() {
+  [ -x /usr/bin/time ] || { echo "mpi-scaling: /usr/bin/time not found (apt-get install time)" >&2; exit 2; }
+  # Each rank under /usr/bin/time, which writes its peak resident set size (KiB) per rank.
+  cat > "$T/rss.sh" <<'EOS'
+#!/bin/sh
+exec /usr/bin/time -f "%M" -o "$RSS_DIR/rss.$OMPI_COMM_WORLD_RANK" "$@"
+EOS
+  chmod +x "$T/rss.sh"
+  echo "ranks,mode,rank,max_rss_kib,bytes_photon,photons_stored" > "$out/memory.csv"
+  mload0=$(cut -d' ' -f1-3 /proc/loadavg)
+  for np in 1 2 4; do
+    for mode in replicated partitioned; do
+      [ $np = 1 ] && [ $mode = partitioned ] && continue
+      log="$T/mem.$np.$mode.log"
+      rm -rf "$T/rss"; mkdir "$T/rss"
+      # shellcheck disable=SC2086
+      RSS_DIR="$T/rss" $MPIRUN -np $np -x RSS_DIR "$T/rss.sh" "$B/render-mpi" $SCENE --width 16 --height 16 \
+        $MEMPM --pm distributed=$mode --threads 1 --quiet --hdr "$T/o.pfm" >"$log" 2>&1 ||
+        { echo "mpi-scaling: memory -np $np $mode failed" >&2; tail -5 "$log" >&2; exit 1; }
+      bp=$(sed -n 's/^MPI: bytes sent: photon exchange \([0-9]*\),.*/\1/p' "$log")
+      st=$(awk '/^Photons: / { g = $2; s = $4; c = $9; gsub(/[^0-9]/, "", g); gsub(/[^0-9]/, "", s)
+                gsub(/[^0-9]/, "", c); print g + s + c }' "$log")
+      k=0
+      while [ $k -lt $np ]; do
+        echo "$np,$mode,$k,$(cat "$T/rss/rss.$k"),${bp:-0},$st" >> "$out/memory.csv"
+        k=$((k + 1))
+      done
+      echo "mpi-scaling: memory -np $np $mode: $(tail -1 "$out/memory.csv")" >&2
+    done
+  done
+  {
+    echo "commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet 2>/dev/null || echo ' (with uncommitted changes)')"
+    echo "date $(date -u +%Y-%m-%dT%H:%MZ)"
+    echo "machine $(nproc) cores, $(uname -m), $(mpirun --version 2>/dev/null | head -1)"
+    echo "load_before $mload0"
+    echo "load_after $(cut -d' ' -f1-3 /proc/loadavg)"
+    echo "scene $SCENE, 16x16"
+    echo "pm_args $MEMPM"
+  } > "$out/memory.txt"
+}
+if [ "$only_mem" = 1 ]; then
+  measure_memory
+  sh "$here/scripts/gen-mpi-md.sh" "$out"
+  exit 0
+fi
 if [ "$only_part" = 1 ]; then
   measure_partitioned
   sh "$here/scripts/gen-mpi-md.sh" "$out"
@@ -165,4 +218,5 @@ done
   echo "reps $reps"
 } > "$out/measurement.txt"
 measure_partitioned
+measure_memory
 sh "$here/scripts/gen-mpi-md.sh" "$out"
