@@ -28,7 +28,7 @@
 #ifndef DENSE_PT_SPP
 #define DENSE_PT_SPP 4096
 #define DENSE_PM_SPP 16
-#define DENSE_VOLPH 400000
+#define DENSE_VOLPH 100000
 #endif
 
 /* ---- helpers ------------------------------------------------------------------------------ */
@@ -601,15 +601,15 @@ TEST(render_media_pm_matches_path_in_fog) {
 /* Oracle: path tracing. The fog room with a DENSE fog in a null cube [-0.5, 0.5]^3 seen from
  * outside (sigma_s [8, 10, 12], sigma_a 0.5, g 0.3: 8.5 to 12.5 mean free paths across, albedo
  * 0.94 to 0.96): nearly all the light the camera gets is scattered within a mean free path
- * (0.08 to 0.12) of the cube's faces, where a volume estimate's ball (radius about 0.05 with
- * 400,000 photons, k 50) reaches out of the fog. Path tracing 2 x 2048 spp at 16x16 (two seeds:
- * their quadrant means differ by about 1%, printed); photon mapping 16 spp. Each quadrant's
- * mean within 5% of path tracing and the image within 3% (measured: quadrants -2.2% .. +3.1%,
- * image -0.5%; with 100,000 photons, radius 0.1, quadrants +1..+7.5%: the ball then averages
- * the multiple scattering over a depth where it still grows, see pm_volume.h BOUNDARIES).
+ * (0.08 to 0.12) of the cube's faces, where a volume estimate's ball reaches out of the fog.
+ * Path tracing 2 x 2048 spp at 16x16 (two seeds: their quadrant means differ by at most 1%,
+ * printed); photon mapping 16 spp with 100,000 volume photons (k 24 by the density rule,
+ * pm_volume.h). Each quadrant's mean within 5% of path tracing and the image within 3%
+ * (measured: quadrants -1.7% .. +3.3%, image +0.8%; with 400,000 photons -4.1% .. +0.9%).
  * The same render with volume_boundary=false (dividing by the whole ball) must read at least
- * 3% low over the image (measured -6.5%, quadrants -10.0% .. -5.3%), so the scene does
- * exercise the boundary. */
+ * 3% low over the image (measured -6.3%, quadrants -8.2% .. -3.4%), so the scene does
+ * exercise the boundary. Before the boundary and density rules (k 50, whole ball): quadrants
+ * -7.0% .. -2.3% at 100,000 photons and -10.0% .. -5.3% at 400,000. */
 TEST(render_media_pm_matches_path_in_dense_fog) {
     static char txt[16384];
     fog_room_with(txt, sizeof txt, 0, "{\"sigma_a\": 0.5, \"sigma_s\": [8, 10, 12], \"g\": 0.3}",
@@ -709,6 +709,78 @@ TEST(render_media_pm_ball_fraction) {
         printf("    x (%g, %g, %g) r %g: %.6f (want %.6f)\n", c[i].x.x, c[i].x.y, c[i].x.z, c[i].r, got, c[i].want);
         EXPECT_MSG(fabs(got - c[i].want) < 1e-6, "case %zu: %.9f vs %.9f", i, got, c[i].want);
     }
+    scene_free(&s);
+}
+
+/* Oracle: the rule of pm_volume.h (STEP, k AND RADII), recomputed from each tree's photons.
+ * A thin fog (sigma_t 0.1: mean free path 10, much longer than any radius) over a floor and a
+ * denser smoke ball (sigma_t 3.3: mfp 0.3) in it, 20,000 volume photons: the fog's trees keep
+ * k_volume 50 and radius 2 r_typ(50); the smoke's trees, whose r_typ(50) exceeds mfp / 2, get
+ * k = max(16, floor(50 (mfp / 2 / r_typ(50))^3)) < 50 and radius 2 r_typ(k), which is at most
+ * mfp unless k hit 16. Checked for the multiple-scattering and "all" trees. */
+TEST(render_media_pm_k_follows_density) {
+    static char txt[8192];
+    snprintf(txt, sizeof txt,
+             "{\"camera\": {\"eye\": [0, 0, -2.5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+             " \"medium\": \"fog\", \"media\": {\"fog\": {\"sigma_s\": 0.1}, \"smoke\": {\"sigma_a\": 0.3, \"sigma_s\": 3}},"
+             " \"materials\": {\"air\": {\"type\": \"null\"}, \"wall\": {\"type\": \"lambert\", \"reflectance\": 0.5}},"
+             " \"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 0.5, \"material\": \"air\","
+             " \"interior_medium\": \"smoke\"}, {\"type\": \"quad\", \"vertices\": [[-3, -1, -3], [-3, -1, 3], [3, -1, 3], [3, -1, -3]],"
+             " \"material\": \"wall\"}],"
+             " \"lights\": [{\"type\": \"point\", \"position\": [0, 2, 0], \"power\": 10}]}");
+    scene s;
+    json_err e = {0};
+    ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
+    photon_settings cfg;
+    photon_settings_defaults(&cfg);
+    cfg.volume_photons = 20000;
+    cfg.global_photons = 2000;
+    cfg.progress = 0;
+    render_plan p;
+    plan_make(&s, &cfg, 0, &p);
+    ASSERT(p.volume.on);
+    pmv_state v;
+    photon_maps m;
+    char err[256] = "";
+    ASSERT_EQ_INT(pmv_init(&v, &s, &cfg), 0);
+    ASSERT_MSG(pmv_trace(&v, &s, &cfg, &p, &m, err, sizeof err) == 0, "%s", err);
+    int reduced = 0;
+    for (int md = 0; md < s.nmedia; md++)
+        for (int w = 0; w < 2; w++) {
+            const pmv_map *t = w ? &v.all[md] : &v.ms[md];
+            if (t->n == 0) continue;
+            float lo[3], hi[3];
+            for (int a = 0; a < 3; a++) lo[a] = hi[a] = t->a[0].pos[a];
+            for (size_t i = 1; i < t->n; i++)
+                for (int a = 0; a < 3; a++) {
+                    lo[a] = fminf(lo[a], t->a[i].pos[a]);
+                    hi[a] = fmaxf(hi[a], t->a[i].pos[a]);
+                }
+            double ext = 0, vol = 1;
+            for (int a = 0; a < 3; a++) ext = fmax(ext, (double)hi[a] - lo[a]);
+            for (int a = 0; a < 3; a++) vol *= fmax((double)hi[a] - lo[a], 1e-3 * ext);
+            double mfp = 1 / v3_maxc(s.media[md].sigma_t);
+            double rt50 = cbrt(3.0 * 50 * vol / (4 * M_PI * (double)t->n));
+            unsigned k = 50;
+            if (rt50 > mfp / 2) {
+                double kk = floor(50 * pow(mfp / 2 / rt50, 3));
+                k = kk < 16 ? 16 : (unsigned)kk;
+            }
+            double r = 2 * cbrt(3.0 * k * vol / (4 * M_PI * (double)t->n));
+            printf("    medium %s, %s tree: %zu photons, mfp %.4g, r_typ(50) %.4g: k %u (rule %u), radius %.4g "
+                   "(rule %.4g)\n", s.media[md].name, w ? "all" : "multiple-scattering", t->n, mfp, rt50, t->k, k,
+                   sqrt((double)t->r2), r);
+            EXPECT_EQ_INT((int)t->k, (int)k);
+            EXPECT_MSG(fabs(sqrt((double)t->r2) / r - 1) < 1e-5, "radius %.6g vs %.6g", sqrt((double)t->r2), r);
+            if (k < 50) {
+                reduced++;
+                EXPECT_MSG(k == 16 || r <= mfp * (1 + 1e-9), "radius %.4g > 2 mfp / 2", r);
+            }
+            if (mfp > 1) EXPECT_EQ_INT((int)t->k, 50);
+        }
+    EXPECT_MSG(reduced >= 1, "the smoke's trees should have a smaller k");
+    photon_maps_free(&m);
+    pmv_free(&v);
     scene_free(&s);
 }
 
