@@ -185,6 +185,36 @@ static void box_tighten(v4 *lo, v4 *hi, unsigned c) {
     *hi = v4_load(h);
 }
 
+/* One split of a descent, the same in every search: node's cell [lo, hi] is cut at 'split'
+ * on axis a, q's side being 'near'. Out: the far child's cell (flo, fhi) with its dist2 from
+ * q before (*rr) and after (*rf) the far child's own code; [lo, hi] becomes the near child's
+ * cell before its own code (near_code applies that one). */
+PM__INLINE void split_cell(const view *v, int ph, v4 qv, uint64_t near, unsigned a, float split,
+                           v4 *lo, v4 *hi, v4 *flo, v4 *fhi, float *rr, float *rf) {
+    *flo = *lo, *fhi = *hi;
+    if (near & 1) *fhi = v4_set_lane(*hi, a, split);
+    else *flo = v4_set_lane(*lo, a, split);
+    *rr = *rf = box_dist2(qv, *flo, *fhi);
+    if ((near ^ 1) < v->L) {
+        unsigned c = CODEX(v, near ^ 1, ph);
+        if (c) {
+            box_tighten(flo, fhi, c);
+            *rf = box_dist2(qv, *flo, *fhi);
+        }
+    }
+    if (near & 1) *lo = v4_set_lane(*lo, a, split);
+    else *hi = v4_set_lane(*hi, a, split);
+}
+
+/* The near child's own code: shrinks [lo, hi] and returns its dist2 from q, or -1 when the
+ * child has no code (its cell is the parent's on q's side: nothing new to prune on). */
+PM__INLINE float near_code(const view *v, int ph, v4 qv, uint64_t near, v4 *lo, v4 *hi) {
+    unsigned c = near < v->L ? CODEX(v, near, ph) : 0;
+    if (!c) return -1.0f;
+    box_tighten(lo, hi, c);
+    return box_dist2(qv, *lo, *hi);
+}
+
 /* The root cell: the tight bounding box, shrunk by the root's own code (kdtree.c never
  * writes one there today, but the rule is the same for every node). */
 static void root_box(const view *v, int ph, float lo[3], float hi[3]) {
@@ -370,17 +400,9 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
             prefetch_buckets(v, near);
             /* The far child's cell: r2 only shrinks, so an entry already out of reach is never
              * pushed. The recursive search makes the same decisions later, when it returns. */
-            v4 flo = lo, fhi = hi;
-            if (near & 1) fhi = v4_set_lane(hi, a, split);
-            else flo = v4_set_lane(lo, a, split);
-            float rr = box_dist2(qv, flo, fhi), rf = rr;
-            if ((near ^ 1) < L) {
-                unsigned c = CODEX(v, near ^ 1, ph);
-                if (c) {
-                    box_tighten(&flo, &fhi, c);
-                    rf = box_dist2(qv, flo, fhi);
-                }
-            }
+            v4 flo, fhi;
+            float rr, rf;
+            split_cell(v, ph, qv, near, a, split, &lo, &hi, &flo, &fhi, &rr, &rf);
             stack[sp].lo = flo, stack[sp].hi = fhi;
             stack[sp].rr = rr;
             stack[sp].rf = rf;
@@ -388,16 +410,8 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
             sp += !(rr >= s->r2);
             /* The near child's cell: the same as this one on the split axis's near side, so
              * only its own code can move it away from q. */
-            if (near & 1) lo = v4_set_lane(lo, a, split);
-            else hi = v4_set_lane(hi, a, split);
             node = near;
-            if (near < L) {
-                unsigned c = CODEX(v, near, ph);
-                if (c) {
-                    box_tighten(&lo, &hi, c);
-                    if (box_dist2(qv, lo, hi) >= s->r2) goto pop;
-                }
-            }
+            if (near_code(v, ph, qv, near, &lo, &hi) >= s->r2) goto pop;
         }
         if (cnt) s->nodes++;
         knn_bucket(s, v, node, metric, filter, ph, cnt);
@@ -441,23 +455,11 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
         uint64_t near = 2 * node + (d >= 0);                                             \
         prefetch_buckets(v, near);                                                       \
         const v4 qv = v4_load3(s->q);                                                    \
-        v4 flo = lo, fhi = hi;                                                           \
-        if (near & 1) fhi = v4_set_lane(hi, a, split);                                   \
-        else flo = v4_set_lane(lo, a, split);                                            \
-        float rr = box_dist2(qv, flo, fhi), rf = rr;                                     \
-        if ((near ^ 1) < v->L) {                                                         \
-            unsigned c = CODEX(v, near ^ 1, ph);                                         \
-            if (c) {                                                                     \
-                box_tighten(&flo, &fhi, c);                                              \
-                rf = box_dist2(qv, flo, fhi);                                            \
-            }                                                                            \
-        }                                                                                \
-        v4 nlo = lo, nhi = hi;                                                           \
-        if (near & 1) nlo = v4_set_lane(lo, a, split);                                   \
-        else nhi = v4_set_lane(hi, a, split);                                            \
-        unsigned nc = near < v->L ? CODEX(v, near, ph) : 0;                              \
-        if (nc) box_tighten(&nlo, &nhi, nc);                                             \
-        if (!nc || !(box_dist2(qv, nlo, nhi) >= s->r2)) name(s, v, near, nlo, nhi);      \
+        v4 flo, fhi, nlo = lo, nhi = hi;                                                 \
+        float rr, rf;                                                                    \
+        split_cell(v, ph, qv, near, a, split, &nlo, &nhi, &flo, &fhi, &rr, &rf);         \
+        if (!(near_code(v, ph, qv, near, &nlo, &nhi) >= s->r2))                          \
+            name(s, v, near, nlo, nhi);                                                  \
         if (!(rr >= s->r2)) {                                                            \
             knn_consider(s, v, node - 1, metric, filter, ph, cnt);                       \
             if (!(rf >= s->r2)) name(s, v, near ^ 1, flo, fhi);                          \
@@ -678,31 +680,15 @@ static void rad_iter(rad_state *s, const view *v) {
             /* r2 is fixed: when the far cell (before the far child's own code) is out of
              * reach, so are the far child and the node's record, which lies in that cell's
              * boundary plane, and the entry is dropped now. */
-            v4 flo = lo, fhi = hi;
-            if (near & 1) fhi = v4_set_lane(hi, a, split);
-            else flo = v4_set_lane(lo, a, split);
-            float rr = box_dist2(qv, flo, fhi), rf = rr;
-            if ((near ^ 1) < L) {
-                unsigned c = CODEX(v, near ^ 1, 0);
-                if (c) {
-                    box_tighten(&flo, &fhi, c);
-                    rf = box_dist2(qv, flo, fhi);
-                }
-            }
+            v4 flo, fhi;
+            float rr, rf;
+            split_cell(v, 0, qv, near, a, split, &lo, &hi, &flo, &fhi, &rr, &rf);
             stack[sp].lo = flo, stack[sp].hi = fhi;
             stack[sp].rf = rf;
             stack[sp].node = (uint32_t)(near ^ 1);
             sp += !(rr >= s->r2);
-            if (near & 1) lo = v4_set_lane(lo, a, split);
-            else hi = v4_set_lane(hi, a, split);
             node = near;
-            if (near < L) {
-                unsigned c = CODEX(v, near, 0);
-                if (c) {
-                    box_tighten(&lo, &hi, c);
-                    if (box_dist2(qv, lo, hi) >= s->r2) goto pop;
-                }
-            }
+            if (near_code(v, 0, qv, near, &lo, &hi) >= s->r2) goto pop;
         }
         s->nodes++;
         {
