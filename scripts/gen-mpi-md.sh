@@ -366,14 +366,17 @@ awk -F, '
     printf "\n"
     for (r = 2; r <= 4; r += 2) if (r in R) {
       a = r " replicated"; b = r " partitioned"
-      printf "- %d ranks: partitioned / replicated: wall %.2f, precomputed irradiance %.2f, pixel pass %.2f.\n",
-        r, med(b, 4) / med(a, 4), med(b, 7) / med(a, 7), med(b, 8) / med(a, 8) }
+      printf "- %d ranks: partitioned / replicated: wall %.2f, photon tracing %.2f, precomputed irradiance %.2f, pixel pass %.2f.\n",
+        r, med(b, 4) / med(a, 4), med(b, 5) / med(a, 5), med(b, 7) / med(a, 7), med(b, 8) / med(a, 8) }
+    printf "\nThe photon tracing of a partitioned run traces each rank'"'"'s photons twice (the counts of\n"
+    printf "its rounds, then its part) but exchanges and merges no photons; a replicated run traces\n"
+    printf "once and receives and merges every photon.\n"
     printf "\nThe pixel pass of a partitioned run traces each tile twice and waits for answers, where\n"
     printf "a replicated one traces once but reads whole maps (ratios above, on a shared machine);\n"
     printf "the precomputed irradiance of a partitioned run is faster, each rank computing its own\n"
     printf "share of the estimates (a replicated rank computes all of them itself).\n"
-    printf "\nTraffic of the partitioned runs (bytes sent by all ranks; the photon exchange, which at\n"
-    printf "the commit above still sent every photon, is in the memory table below):\n\n"
+    printf "\nTraffic of the partitioned runs (bytes sent by all ranks; the photon exchange is in the\n"
+    printf "memory table below):\n\n"
     printf "| ranks | lookups | lookup bytes | per lookup | lookups per pixel | lookup bytes per pixel | irradiance estimates | their bytes | per estimate | tile queue bytes per pixel |\n"
     printf "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n"
     for (r = 2; r <= 4; r += 2) if (r in R) {
