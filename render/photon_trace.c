@@ -152,7 +152,10 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
     int all_specular = 1; /* no diffuse bounce yet */
     /* The index around the light (known at the first refraction) and where the photon is: a
      * surface photon is stored with P (n_src / n_here)^2, the renderer's radiance convention
-     * (material_radiance_scale, material.h); exactly P when it is back in n_src. */
+     * (material_radiance_scale, material.h); exactly P when it is back in n_src. That is the
+     * product of (n1 / n2)^2 over its refractions when each starts in the index the last one
+     * ended in; open surfaces can break that chain (two single glass quads crossed front to
+     * back), and n_src takes the factor n1 / n_here of each such break. */
     double n_src = 0, n_here = 0;
     fphoton fp;
     int max_depth = c->o->max_depth;
@@ -230,6 +233,7 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
                 nd = material_reflect_shaded(d, ns, nsh);
             } else {
                 if (!(n_src > 0)) n_src = n1;
+                else if (n1 != n_here) n_src *= n1 / n_here;
                 n_here = n2;
             }
             P = v3_scale(v3_mul(P, m->transmit_tint), w[LOBE_TRANSMIT] / pt);

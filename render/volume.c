@@ -172,6 +172,7 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
             double n1, n2;
             material_indices(m, wo, h.ng, s->medium_ior, &n1, &n2);
             if (!(n_src > 0)) n_src = n1;
+            else if (n1 != n_here) n_src *= n1 / n_here; /* a broken chain (photon_trace.c) */
             n_here = n2;
         }
         if (bs.lobe == LOBE_DIFFUSE) {
