@@ -562,9 +562,10 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
     size_t reported = 0;
     /* A partitioned pass keeps counts in vmain and vshadow, and each batch's in bc. */
     int part = part_pass(c);
-    /* A partitioned render's pilot passes are traced whole by every process, exchanging
-     * nothing: the same evidence on every process, that of one process. */
-    int use_dist = g_dist && !(g_dist->partitioned && c->o->pilot);
+    /* A distributed render's pilot passes (replicated or partitioned) are traced whole by
+     * every process, exchanging nothing: every process plans from the evidence one process
+     * sees, so the plans agree with each other and with render's. */
+    int use_dist = g_dist && !c->o->pilot;
     fbuf vmain = {0}, vshadow = {0}, *out_main = main_buf;
     batch_count *bc = NULL;
     size_t nbc = 0, capbc = 0;

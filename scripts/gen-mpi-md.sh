@@ -301,7 +301,8 @@ correction c on the total (`pm_combine_add` on each rank, the sums added, `pm_co
   maxima, so exact): the radii are the whole maps', and every rank holds exactly the photons
   it held when it received the whole maps. A rank traces about 2/R of the photons (its
   rounds, then its part), and never holds more than its part and a batch. The pilot photons
-  of the plan (8192) are traced whole by every rank. `--save-photons` is refused in this
+  of the plan (8192) are traced whole by every rank, in both modes, so every rank plans as
+  one process does. `--save-photons` is refused in this
   mode (no rank holds the whole maps); `--load-photons` reads the whole maps on every rank
   and keeps the part.
 - **Precomputed irradiance** (final gathering reads it). Each rank chooses a quarter of its

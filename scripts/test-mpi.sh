@@ -62,6 +62,19 @@ identical path_box data/scenes/cornell_box.json --mode path --width 40 --height 
 identical pm_spheres data/scenes/cornell_spheres.json --mode pm --width 48 --height 24 --spp 4 $PMSMALL
 identical pm_diffuse data/scenes/cornell_diffuse.json --mode pm --width 32 --height 32 --spp 1 $PMSMALL
 
+# ---- the plan ----------------------------------------------------------------------------
+# Oracle: the one-process render's plan. Every rank traces the pilot pass whole (it is not
+# split over the ranks), so rank 0 prints the same plan, pilot counts included, at any -np.
+plan_of() { sed -n '/^Plan:/,/^Photons:/p' "$1" | grep -v '^Photons:'; }
+for np in 2 3; do
+  want=$(plan_of "$T/pm_spheres.ref.log"); got=$(plan_of "$T/pm_spheres.np$np.log")
+  if [ -n "$want" ] && [ "$got" = "$want" ]; then
+    ok "pm_spheres np=$np: the plan, its pilot counts included, is the one-process render's"
+  else
+    bad "pm_spheres np=$np plan" "rank 0 planned '$got', one process '$want'"
+  fi
+done
+
 # ---- the photon maps themselves -------------------------------------------------------------
 # Oracle: the maps the one-process render saves. render-mpi -np 3 saves them once, from rank
 # 0, after the distributed passes: the files must be byte-identical.
