@@ -529,6 +529,12 @@ static int find_medium(const scene *s, const cJSON *obj, const char *P, const ch
     return json_fail(e, PM_EINVAL, "%s.%s: unknown medium \"%s\" (not in $.media)", P, key, name);
 }
 
+/* x rounded to float (the closedness check's tolerance, below). */
+static double as_float(double x) {
+    float f = (float)x;
+    return (double)f;
+}
+
 /* Edge order for the closedness check: the 6 coordinates of a directed edge. */
 static int edge_cmp(const void *a, const void *b) {
     const double *x = a, *y = b;
@@ -539,7 +545,10 @@ static int edge_cmp(const void *a, const void *b) {
 
 /* Triangles first..s->ntris-1 bound a medium only if they form a closed, consistently wound
  * surface whose normals point out: each directed edge (by vertex position) appears once and
- * its reverse once, and the enclosed signed volume is positive. */
+ * its reverse once, and the enclosed signed volume is positive. A triangle keeps v0 and two
+ * edge vectors, so its other corners come back as v0 + e, which can miss the loaded vertex by
+ * a rounding of the double: positions are compared rounded to float (vertices closer than
+ * float precision count as one, which only makes the check more lenient). */
 static int check_closed(const scene *s, int first, const char *P, json_err *e) {
     int nt = s->ntris - first;
     if (nt < 4)
@@ -555,7 +564,8 @@ static int check_closed(const scene *s, int first, const char *P, json_err *e) {
         for (int k = 0; k < 3; k++) {
             vec3 a = v[k], b = v[(k + 1) % 3];
             double *d = ed[3 * t + k];
-            d[0] = a.x, d[1] = a.y, d[2] = a.z, d[3] = b.x, d[4] = b.y, d[5] = b.z;
+            const double c[6] = {a.x, a.y, a.z, b.x, b.y, b.z};
+            for (int j = 0; j < 6; j++) d[j] = as_float(c[j]);
         }
     }
     int n = 3 * nt, bad = 0;

@@ -73,6 +73,37 @@ static void box_mesh(char *buf, size_t cap, vec3 lo, vec3 hi, int skip_face, int
     snprintf(buf + n, cap - n, "]");
 }
 
+/* Oracle: a box is closed wherever it stands. The check compares edges by vertex position,
+ * and a triangle keeps v0 and two edge vectors, so v0 + (v1 - v0) may miss v1 by a rounding:
+ * boxes with arbitrary corners must still load, and each with one face left out must not. */
+TEST(render_media_closed_check_any_box) {
+    static const double corners[][6] = {
+        {-0.6, -0.98, -0.3, 0.6, 0.3, 0.9}, {-0.9, -0.95, -0.95, 0.95, 0.7, 0.95},
+        {0.1, 0.2, 0.3, 0.7, 1.9, 3.3},     {-1e3, 17.3, -0.001, 2e3 / 3, 41.7, 1e-3 / 3},
+        {1e-6, -2e-6, 3e-6, 7e-6, 5e-6, 1.1e-5}};
+    for (size_t i = 0; i < sizeof corners / sizeof corners[0]; i++) {
+        const double *c = corners[i];
+        for (int skip = -1; skip < 6; skip += 3) {
+            static char box[2048], objs[4096], txt[8192];
+            box_mesh(box, sizeof box, v3(c[0], c[1], c[2]), v3(c[3], c[4], c[5]), skip, 0);
+            snprintf(objs, sizeof objs,
+                     "{\"type\": \"mesh\", %s, \"material\": \"air\", \"interior_medium\": \"smoke\"}", box);
+            scene_text(txt, sizeof txt, "\"smoke\": {\"sigma_s\": [2, 2, 2]}", "",
+                       "\"air\": {\"type\": \"null\"}", objs);
+            scene s;
+            json_err e = {0};
+            int rc = scene_load_text(&s, txt, &e);
+            if (skip < 0) {
+                EXPECT_MSG(rc == 0, "box %zu: %s", i, e.msg);
+            } else {
+                EXPECT_MSG(rc != 0 && strstr(e.msg, "the mesh is open"), "box %zu without face %d: rc %d, '%s'",
+                           i, skip, rc, e.msg);
+            }
+            if (rc == 0) scene_free(&s);
+        }
+    }
+}
+
 /* ---- the scene format --------------------------------------------------------------------- */
 
 /* Oracle: the format's rules. A valid scene loads with the media, the global medium, each
