@@ -100,6 +100,26 @@ static inline void pm__heap_replace_top(pm_neighbor *h, unsigned n, pm_neighbor 
     pm__heap_sift_down(h, n, 0, v);
 }
 
+/* Offers (d2, idx) to a k-nearest search's max-heap out[0..*found) of capacity k: it fills,
+ * becomes a heap at k, then replaces its farthest entry. *r2, the search's bound, becomes the
+ * farthest kept dist2 once k are held. The caller has checked !(d2 >= *r2). */
+static inline void pm__knn_offer(pm_neighbor *out, unsigned k, unsigned *found, float *r2, float d2,
+                                 uint32_t idx) {
+    pm_neighbor nb;
+    nb.dist2 = d2;
+    nb.index = idx;
+    if (*found < k) {
+        out[(*found)++] = nb;
+        if (*found == k) {
+            pm__heapify(out, k);
+            *r2 = out[0].dist2;
+        }
+    } else {
+        pm__heap_replace_top(out, k, nb);
+        *r2 = out[0].dist2;
+    }
+}
+
 /* Up to this many results are sorted by pm__nb_sort_keys, on the stack (2 x 8 bytes each). */
 #define PM__SORT_KEYS_MAX 256u
 

@@ -467,19 +467,7 @@ static float cell_dist2(const float q[3], const float lo[3], const float hi[3]) 
 }
 
 static void reach_push(reach_state *s, float d2, uint32_t idx) {
-    pm_neighbor nb;
-    nb.dist2 = d2;
-    nb.index = idx;
-    if (s->found < s->k) {
-        s->out[s->found++] = nb;
-        if (s->found == s->k) {
-            pm__heapify(s->out, s->k);
-            s->r2 = s->out[0].dist2;
-        }
-    } else {
-        pm__heap_replace_top(s->out, s->k, nb);
-        s->r2 = s->out[0].dist2;
-    }
+    pm__knn_offer(s->out, s->k, &s->found, &s->r2, d2, idx);
 }
 
 static float rec_dist2(const reach_state *s, const float *p) {
