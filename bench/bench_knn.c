@@ -25,6 +25,10 @@
  * Every configuration is first VERIFIED on the first G queries against a brute-force scan
  * (same float dist2), then TIMED round-robin `runs` times over the same queries; medians.
  * Times are the CPU time of the one thread that runs the queries (see cpu_now), builds too.
+ * The cost of PM_SORT is measured PAIRED: at the cell's fastest unsorted B, the unsorted and
+ * the sorted search answer the same queries back to back, alternating which goes first, for 9
+ * rounds (3 in --quick); the median of the rounds' time ratios is reported (the ratio of two
+ * independent best-of medians, used before, swung from -28% to +34% on a loaded machine).
  *
  * OUTPUT (columns in bench/README.md): knn.csv (one row per configuration and cell),
  * knn_build.csv (build time and bytes per photon), knn_best.csv (per cell: the fastest of
@@ -66,6 +70,10 @@ static struct {
     const char *map_name[MAX_MAPS], *map_file[MAX_MAPS];
     int nmaps;
     const char *workloads;
+    unsigned ks[3];
+    int nks;        /* --k: the k to race (0: the defaults) */
+    int sets, modes; /* --queries, --modes: bit 0 near / unlimited, bit 1 empty / radius */
+    int sort_rounds; /* rounds of the paired PM_SORT measurement */
 } opt;
 
 static FILE *g_csv, *g_build, *g_best;
@@ -463,6 +471,32 @@ static void measure(config *cs, int nc, const dataset *d, const qset *qs, unsign
     free(qps);
 }
 
+/* The cost of PM_SORT, paired: the unsorted configuration u and the sorted one s on the same
+ * tree answer the same m queries in `rounds` rounds, back to back, the order alternating from
+ * round to round (so a drift of the machine's load hits both alike); each round gives the
+ * time ratio t(s) / t(u). Returns the median ratio minus 1 and the smallest and largest. */
+static void sort_cost_paired(const config *u, const config *s, const float *q, unsigned k,
+                             float r2, scratch *sc, int rounds, double *med, double *lo,
+                             double *hi) {
+    double ratio[64];
+    size_t m = u->m;
+    if (rounds > 64) rounds = 64;
+    for (int r = 0; r < rounds; r++) {
+        double t[2];
+        for (int j = 0; j < 2; j++) {
+            const config *c = (j ^ (r & 1)) ? s : u;
+            double t0 = cpu_now();
+            g_sink += run(c, q, m, k, r2, sc, NULL, NULL);
+            double dt = cpu_now() - t0;
+            t[c == s] = dt > 0 ? dt : 1e-9;
+        }
+        ratio[r] = t[1] / t[0];
+    }
+    *med = bench_median(ratio, rounds) - 1; /* sorts ratio[] */
+    *lo = ratio[0] - 1;
+    *hi = ratio[rounds - 1] - 1;
+}
+
 /* The fastest configuration of cs[0..nc) with the given structure type and op (op < 0: any
  * FLANN op); -1 if none. */
 static int best_of(const config *cs, int nc, int type, int op) {
@@ -481,8 +515,8 @@ static void run_dataset(dataset *d) {
     structure kd[NELEM(KD_B)], fl[NELEM(FL_LEAF)], oc[NELEM(OCT_CAP)];
     /* above 1.5M points only k = 50 (the 4M target), to keep the run within its time */
     const int small = opt.quick || d->n > 1500000;
-    const unsigned *ks = small ? KS_QUICK : KS_FULL;
-    const int nk = small ? (int)NELEM(KS_QUICK) : (int)NELEM(KS_FULL);
+    const unsigned *ks = opt.nks ? opt.ks : small ? KS_QUICK : KS_FULL;
+    const int nk = opt.nks ? opt.nks : small ? (int)NELEM(KS_QUICK) : (int)NELEM(KS_FULL);
     scratch *sc = malloc(sizeof *sc);
     bench_log("%s n=%zu: building", d->name, d->n);
     for (size_t i = 0; i < NELEM(KD_B); i++) structure_build(&kd[i], d, S_KD, (int)KD_B[i]);
@@ -490,10 +524,12 @@ static void run_dataset(dataset *d) {
     for (size_t i = 0; i < NELEM(OCT_CAP); i++) structure_build(&oc[i], d, S_OCT, (int)OCT_CAP[i]);
     for (int s = 0; s < 2; s++) {
         qset *qs = &d->qs[s];
+        if (!(opt.sets >> s & 1)) continue;
         for (int ki = 0; ki < nk; ki++) {
             unsigned k = ks[ki];
             for (int mode = 0; mode < 2; mode++) {
                 float r2 = INFINITY;
+                if (!(opt.modes >> mode & 1)) continue;
                 if (mode == 1) {
                     double *v = malloc(qs->truth.m * sizeof *v);
                     for (size_t i = 0; i < qs->truth.m; i++)
@@ -520,6 +556,13 @@ static void run_dataset(dataset *d) {
                           mname, nc);
                 measure(cs, nc, d, qs, k, mname, r2, sc);
                 int bk = best_of(cs, nc, S_KD, OP_KNN), bs = best_of(cs, nc, S_KD, OP_KNN_SORTED);
+                /* the sorted twin of the fastest unsorted B, for the paired cost of PM_SORT */
+                int bt = bk;
+                for (int i = 0; i < nc; i++)
+                    if (cs[i].s == cs[bk].s && cs[i].op == OP_KNN_SORTED) bt = i;
+                double scm, scl, sch;
+                sort_cost_paired(&cs[bk], &cs[bt], qs->q, k, r2, sc, opt.sort_rounds, &scm, &scl,
+                                 &sch);
                 int bf = best_of(cs, nc, S_FLANN, -1), bo = best_of(cs, nc, S_OCT, -1);
                 char lk[64], ls[64], lf[64], lo[64] = "";
                 label(lk, sizeof lk, &cs[bk]);
@@ -535,10 +578,11 @@ static void run_dataset(dataset *d) {
                 if (bo >= 0) fprintf(g_best, "%s,%.1f,", lo, cs[bo].qps);
                 else fprintf(g_best, ",,");
                 fprintf(g_best, "%.3f,%.3f,%.3f,", cs[bk].qps / cs[bf].qps, cs[bs].qps / cs[bf].qps,
-                        cs[bk].qps / cs[bs].qps - 1);
+                        scm);
                 if (bo >= 0) fprintf(g_best, "%.3f,", cs[bk].qps / cs[bo].qps);
                 else fprintf(g_best, ",");
-                fprintf(g_best, "%.2f,%.2f,%.4f\n", cs[bk].evals_pq, cs[bk].found_mean, exact);
+                fprintf(g_best, "%.2f,%.2f,%.4f,%.3f,%.3f,%d\n", cs[bk].evals_pq, cs[bk].found_mean,
+                        exact, scl, sch, opt.sort_rounds);
                 fflush(g_best);
             }
         }
@@ -552,7 +596,8 @@ static void run_dataset(dataset *d) {
 static void usage(FILE *f) {
     fprintf(f,
             "usage: bench_knn [--quick] [--out DIR] [--n LIST] [--runs R] [--seed S]\n"
-            "                 [--workloads LIST] [--map NAME=FILE]...\n"
+            "                 [--workloads LIST] [--map NAME=FILE]... [--k LIST]\n"
+            "                 [--queries near|empty] [--modes unlimited|radius]\n"
             "\n"
             "Races our kd-tree (B 16, 32; unsorted and PM_SORT) against FLANN's exact single\n"
             "kd-tree (leaf 16..64) and the octree on clustered, slab and planar-caustic points and\n"
@@ -567,7 +612,11 @@ static void usage(FILE *f) {
             "  --build-runs R    builds per structure, median reported (default 1)\n"
             "  --seed S          random seed (default 1)\n"
             "  --workloads LIST  comma list of cluster,slab,caustic (default all three)\n"
-            "  --map NAME=FILE   also race on a photon-map file (pm_map_save format); may repeat\n");
+            "  --map NAME=FILE   also race on a photon-map file (pm_map_save format); may repeat\n"
+            "  --k LIST          only these k (comma list of 10, 50, 200; default all three,\n"
+            "                    above 1.5M points 50)\n"
+            "  --queries SET     only the query set near or empty (default both)\n"
+            "  --modes MODE      only unlimited or radius (default both)\n");
 }
 
 int main(int argc, char **argv) {
@@ -578,6 +627,7 @@ int main(int argc, char **argv) {
     opt.build_runs = 1;
     opt.seed = 1;
     opt.workloads = "cluster,slab,caustic";
+    opt.sets = opt.modes = 3;
     for (int i = 1; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -600,6 +650,33 @@ int main(int argc, char **argv) {
             i++;
         } else if (v && !strcmp(a, "--workloads")) {
             opt.workloads = v, i++;
+        } else if (v && !strcmp(a, "--k")) {
+            const char *p = v;
+            for (;;) {
+                size_t n = strcspn(p, ",");
+                unsigned kv = n == 2 && !strncmp(p, "10", 2)    ? 10
+                              : n == 2 && !strncmp(p, "50", 2)  ? 50
+                              : n == 3 && !strncmp(p, "200", 3) ? 200
+                                                                : 0;
+                if (!kv || opt.nks == (int)NELEM(opt.ks)) {
+                    fprintf(stderr, "bench_knn: --k: expected a comma list of 10, 50, 200, got '%s'\n", v);
+                    return 2;
+                }
+                opt.ks[opt.nks++] = kv;
+                if (!p[n]) break;
+                p += n + 1;
+            }
+            i++;
+        } else if (v && (!strcmp(a, "--queries") || !strcmp(a, "--modes"))) {
+            int q = !strcmp(a, "--queries");
+            const char *w0 = q ? "near" : "unlimited", *w1 = q ? "empty" : "radius";
+            int bits = !strcmp(v, w0) ? 1 : !strcmp(v, w1) ? 2 : 0;
+            if (!bits) {
+                fprintf(stderr, "bench_knn: %s: expected %s or %s, got '%s'\n", a, w0, w1, v);
+                return 2;
+            }
+            *(q ? &opt.sets : &opt.modes) = bits;
+            i++;
         } else if (v && !strcmp(a, "--map")) {
             const char *eq = strchr(v, '=');
             if (!eq || eq == v || !eq[1] || opt.nmaps == MAX_MAPS) {
@@ -653,6 +730,7 @@ int main(int argc, char **argv) {
         opt.ns[opt.nn++] = 4000000;
     }
     opt.target = opt.quick ? 0.003 : 0.03;
+    opt.sort_rounds = opt.quick ? 3 : 9;
     opt.pool = opt.quick ? 2000 : 30000;
     opt.g = opt.quick ? 40 : 60;
 
@@ -666,7 +744,8 @@ int main(int argc, char **argv) {
                             "workload,n,queries,k,mode,r2,kdtree,kdtree_qps,kdtree_sorted,"
                             "kdtree_sorted_qps,flann,flann_qps,octree,octree_qps,ratio_flann,"
                             "ratio_sorted_flann,sort_cost,ratio_octree,kdtree_dist_evals,"
-                            "kdtree_mean_found,min_exact_frac");
+                            "kdtree_mean_found,min_exact_frac,sort_cost_min,sort_cost_max,"
+                            "sort_rounds");
     bench_log("bench_knn: %s, %d runs", opt.quick ? "quick" : "full", opt.runs);
 
     static const char *const W[] = {"cluster", "slab", "caustic"};

@@ -231,6 +231,14 @@ TEST(bench_quick_run_writes_checked_csvs) {
         EXPECT(atoi(at(&kq, r, "verified")) > 0 && atof(at(&kq, r, "qps")) > 0);
     }
     EXPECT(kq.nrows > 1 && kb.nrows > 1);
+    /* The paired cost of PM_SORT: a median of at least 3 rounds, inside their range. */
+    for (int r = 1; r < kb.nrows; r++) {
+        double c = atof(at(&kb, r, "sort_cost")), lo = atof(at(&kb, r, "sort_cost_min")),
+               hi = atof(at(&kb, r, "sort_cost_max"));
+        EXPECT_MSG(atoi(at(&kb, r, "sort_rounds")) >= 3 && lo <= c && c <= hi && lo > -1,
+                   "knn_best.csv row %d: sort_cost %g outside [%g, %g] or too few rounds", r, c,
+                   lo, hi);
+    }
     for (int r = 1; r < kd.nrows; r++)
         if (!strcmp(at(&kd, r, "index"), "kdtree")) {
             double bpp = atof(at(&kd, r, "bytes_per_photon"));
