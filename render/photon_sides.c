@@ -325,26 +325,41 @@ void side_cache_free(side_cache *c) {
 }
 
 /* The query's side of every wall, as pm_irradiance_lookup_if's rule: a photon answers only if
- * the lifted segment from y reaches it (its free height from the build). */
+ * the lifted segment from y reaches it (its free height from the build). The position of the
+ * last photon accepted (the answer: the search stops there) goes to pos. */
 typedef struct side_rule {
     const side_cache *c;
     const scene *s;
     vec3 y, n;
     double hy; /* y's free height */
+    float pos[3];
 } side_rule;
 
 static int side_accepts(void *user, uint32_t photon, const float pos[3], const float normal[3]) {
-    const side_rule *r = user;
-    return side_visible_h(r->s, r->y, r->n, r->hy, v3f(pos), v3f(normal), r->c->hfree[photon]);
+    side_rule *r = user;
+    int ok = side_visible_h(r->s, r->y, r->n, r->hy, v3f(pos), v3f(normal), r->c->hfree[photon]);
+    if (ok) memcpy(r->pos, pos, sizeof r->pos);
+    return ok;
+}
+
+int side_cache_lookup_local(const side_cache *c, const scene *s, vec3 y, vec3 n, double hy,
+                            float max_dist2, float e[3], float pos[3]) {
+    e[0] = e[1] = e[2] = 0;
+    if (!c->irr) return 0;
+    side_rule r = {c, s, y, n, hy, {0, 0, 0}};
+    float yf[3] = {(float)y.x, (float)y.y, (float)y.z}, nf[3] = {(float)n.x, (float)n.y, (float)n.z};
+    /* A bounded number of shadow rays per lookup, even beside a wall with many photons behind. */
+    int found = pm_irradiance_lookup_if(c->irr, yf, nf, max_dist2, SIDE_LOOKUP_COS, SIDE_LOOKUP_CANDIDATES,
+                                        side_accepts, &r, e, NULL, NULL) == 1;
+    if (found && pos) memcpy(pos, r.pos, sizeof r.pos);
+    return found;
 }
 
 int side_cache_lookup(const side_cache *c, const scene *s, vec3 y, vec3 n, float max_dist2,
                       float e[3]) {
+    if (c->remote) return c->remote(c->remote_user, s, y, n, max_dist2, e);
     e[0] = e[1] = e[2] = 0;
     if (!c->irr) return 0;
-    side_rule r = {c, s, y, n, side_free_height(s, y, n, 0.25 * sqrt((double)max_dist2))};
-    float yf[3] = {(float)y.x, (float)y.y, (float)y.z}, nf[3] = {(float)n.x, (float)n.y, (float)n.z};
-    /* A bounded number of shadow rays per lookup, even beside a wall with many photons behind. */
-    return pm_irradiance_lookup_if(c->irr, yf, nf, max_dist2, SIDE_LOOKUP_COS, SIDE_LOOKUP_CANDIDATES,
-                                   side_accepts, &r, e, NULL, NULL) == 1;
+    return side_cache_lookup_local(c, s, y, n, side_free_height(s, y, n, 0.25 * sqrt((double)max_dist2)),
+                                   max_dist2, e, NULL);
 }

@@ -102,6 +102,12 @@ typedef struct side_cache {
     size_t sparse; /* estimates of too few photons to be looked up (see "Sparse estimates" above) */
     int indirect_only; /* 1: the values leave out direct photons (side_cache_build; see "Direct
                         * light" above): the caller adds y's direct light itself */
+    /* A distributed render's lookups (render/mpi/lookup.c, partitioned maps: this process holds
+     * only its part of the records): when set, side_cache_lookup returns remote(remote_user,
+     * ...) instead of reading irr, which then holds this process's part alone (NULL: the
+     * cache is read here, as always in one process). Not freed by side_cache_free. */
+    int (*remote)(void *user, const scene *s, vec3 y, vec3 n, float max_dist2, float e[3]);
+    void *remote_user;
 } side_cache;
 
 /* Build over the global map's kd-tree (records in tree order, n of them): k photons per
@@ -120,6 +126,11 @@ int side_cache_from_records(side_cache *c, pm_photon *recs, const float *r2, con
  * from the cache within radius^2 max_dist2. Returns 1 and sets e, or 0 (none found: e = 0). */
 int side_cache_lookup(const side_cache *c, const scene *s, vec3 y, vec3 n, float max_dist2,
                       float e[3]);
+/* side_cache_lookup's search of this process's records (never remote), with y's free height hy
+ * (side_free_height(s, y, n, sqrt(max_dist2) / 4)) given: 1 and e, and the answer's position
+ * in pos (if not NULL), or 0 (none: e = 0). side_cache_lookup is this with hy computed. */
+int side_cache_lookup_local(const side_cache *c, const scene *s, vec3 y, vec3 n, double hy,
+                            float max_dist2, float e[3], float pos[3]);
 
 #ifdef __cplusplus
 }
