@@ -2,7 +2,7 @@
  *
  * Messages of the pixel pass, on a communicator of their own (so that rank 0's tile queue on
  * MPI_COMM_WORLD never sees them):
- *   QUERY   owner -> every other rank   n lk_query records (28 bytes each)
+ *   QUERY   owner -> every other rank   n lk_query records (36 bytes each)
  *   ANSWER  rank -> owner               n lk_part records (32 bytes each), in query order
  *   DONE    rank -> every other rank    empty: "I have no more tiles"
  * A rank waiting for answers or for its next tiles keeps serving QUERY messages, so no rank
@@ -17,10 +17,12 @@
 #include <string.h>
 #include <time.h>
 
+#include "camera.h"
 #include "dist.h"
 #include "photon_lookup.h"
 #include "photonmap/combined.h"
 #include "photonmap/common.h"
+#include "rng.h"
 #include "stats.h"
 
 #ifdef _OPENMP
@@ -31,10 +33,15 @@ enum { TAG_QUERY = 201, TAG_ANSWER, TAG_DONE };
 /* Candidates examined by an estimate that meets a wall, as a multiple of its k (photon_sides.c). */
 #define LK_WIDEN 4
 
+/* A query: an estimate of the global or caustic map at (x, n) (map PHOTON_LOOKUP_*), a lookup
+ * of the precomputed irradiance at y = x, normal n, within radius^2 d2, y's free height h (map
+ * LK_SIDE), or one of the build's estimates at a chosen photon (LK_BUILD, free height h). All
+ * 4-byte fields: no padding, so queries compare with memcmp. */
 typedef struct lk_query {
-    float x[3], n[3];
-    uint32_t map; /* PHOTON_LOOKUP_*; the precomputed irradiance: the free height's bits */
+    float x[3], n[3], h, d2;
+    uint32_t map;
 } lk_query;
+enum { LK_SIDE = 2, LK_BUILD = 3 };
 
 /* One rank's part of one estimate: the fields of a pm_combine_acc that one map adds. */
 typedef struct lk_part {
@@ -43,12 +50,26 @@ typedef struct lk_part {
     uint8_t rims, wall; /* wall: the precomputed irradiance's search met a wall */
 } lk_part;
 
-typedef struct lk_tile {
+/* The queries of one camera sample, in the order its trace makes them, with their answers once
+ * known (see lk_render_tiles). */
+enum { LK_HAVE = 1, LK_FOUND = 2, LK_MINE = 4 };
+typedef struct lk_rec {
     lk_query *q;
-    double (*e)[3];
-    size_t n, cap, cursor;
-    int bad; /* the replay asked for another query than the recording */
-} lk_tile;
+    lk_part *mine;    /* this rank's part, when computed during the trace (LK_MINE) */
+    double (*e)[3];   /* the combined answer (LK_HAVE) */
+    uint8_t *flags;
+    uint32_t n, cap, cursor;
+    uint32_t from; /* the first query this trace added (valid when fresh) */
+    int fresh;     /* this trace made a query whose answer was not known: trace it again */
+} lk_rec;
+
+/* A camera sample of the tiles being rendered. */
+typedef struct lk_smp {
+    uint64_t pixel;
+    int k;
+    lk_rec *rec; /* NULL: no query yet */
+    double L[3];
+} lk_smp;
 
 typedef struct lk_pending { /* an answer on its way */
     MPI_Request req;
@@ -60,17 +81,19 @@ typedef struct lk_state {
     MPI_Comm comm;
     const pm_kdtree *trees[2];
     pm_estimate_options opts[2];
-    int width, tiles_x, ntiles;
-    lk_tile *tiles;
-    int mode;  /* 0: record, 1: replay */
+    const scene *scene;
+    const side_cache *side; /* this rank's part of the precomputed irradiance (NULL: none) */
     int ready; /* the photon mapper handed over its trees (else: not a photon-mapping render) */
     int done_from; /* DONE notices received */
     lk_pending *pend;
     int npend, cappend;
-    int st_queries, st_bytes, st_side_bytes, st_side_queries;
+    int st_queries, st_bytes, st_side_bytes, st_side_queries, st_gather_queries, st_traced,
+        st_again, st_more, st_rounds, st_nonfinite;
 } lk_state;
 
 static lk_state L;
+/* The sample a render thread is tracing (lk_render_tiles): where its queries are kept. */
+static _Thread_local lk_smp *tl_smp;
 static photon_lookup_hook g_hook;
 
 int lk_on(void) { return L.on; }
@@ -194,6 +217,45 @@ static void combine_one(const pm_estimate_options *o, const pm_combine_acc *acc,
     }
 }
 
+static vec3 v3f(const float f[3]) { return v3(f[0], f[1], f[2]); }
+
+/* A lookup of the precomputed irradiance, this rank's part: the nearest of its records that
+ * side_cache_lookup would accept at q (the module's normal and own-radius rules, side_visible
+ * from y with y's free height q->h, the 8 nearest candidates of this part), as E in power,
+ * its dist2 to y in r2 and found = 1; or found = 0. */
+static void answer_lookup(const lk_query *q, lk_part *out) {
+    memset(out, 0, sizeof *out);
+    if (!L.side) return;
+    float e[3], pos[3];
+    if (!side_cache_lookup_local(L.side, L.scene, v3f(q->x), v3f(q->n), q->h, q->d2, e, pos)) return;
+    double d2 = 0;
+    for (int c = 0; c < 3; c++) {
+        out->power[c] = e[c];
+        d2 += ((double)pos[c] - q->x[c]) * ((double)pos[c] - q->x[c]);
+    }
+    out->r2 = (float)d2;
+    out->found = 1;
+}
+
+/* The answer to a lookup of the precomputed irradiance from every rank's part (parts[r *
+ * stride]): the nearest record found wins, the lowest rank on a tie. 1 (found) or 0. */
+static int combine_lookup(const lk_part *parts, size_t stride, double e[3]) {
+    int best = -1;
+    for (int r = 0; r < L.size; r++) {
+        const lk_part *p = &parts[(size_t)r * stride];
+        if (p->found && (best < 0 || p->r2 < parts[(size_t)best * stride].r2)) best = r;
+    }
+    for (int c = 0; c < 3; c++) e[c] = best < 0 ? 0.0 : parts[(size_t)best * stride].power[c];
+    return best >= 0;
+}
+
+static void answer_one(const lk_query *q, pm_neighbor *nb, lk_part *out) {
+    if (q->map == LK_SIDE)
+        answer_lookup(q, out);
+    else
+        answer_estimate(q, nb, out);
+}
+
 /* Answer n queries (OpenMP threads, each with its own neighbour buffer). */
 static void answer_all(const lk_query *q, size_t n, lk_part *out) {
     unsigned kmax = per_map(L.opts[0].k) > per_map(L.opts[1].k) ? per_map(L.opts[0].k)
@@ -209,7 +271,7 @@ static void answer_all(const lk_query *q, size_t n, lk_part *out) {
 #pragma omp for schedule(dynamic, 64)
 #endif
         for (size_t i = 0; i < n; i++)
-            if (nb) answer_estimate(&q[i], nb, &out[i]);
+            if (nb) answer_one(&q[i], nb, &out[i]);
         free(nb);
     }
     if (fail) dist_die("out of memory answering photon lookups");
@@ -285,11 +347,11 @@ void lk_finish(int (*also)(void *), void *arg) {
     }
 }
 
-/* The parts of every rank for the n queries q (this rank's are mine), added into acc[0..n)
- * in rank order, so that a pixel's value does not depend on which answer came first. */
-static void exchange(const lk_query *q, size_t n, const lk_part *mine, pm_combine_acc *acc,
-                     int (*also)(void *), void *arg) {
-    if (n == 0) return;
+/* The parts of every rank for the n queries q (this rank's are mine): rank r's part of query i
+ * at [r n + i] of the array returned (the caller frees it), so that the caller combines them
+ * in rank order and a pixel's value does not depend on which answer came first. */
+static lk_part *exchange(const lk_query *q, size_t n, const lk_part *mine, int (*also)(void *),
+                         void *arg) {
     size_t bytes = n * sizeof *q;
     if (bytes > (size_t)INT32_MAX) dist_die("a lookup batch exceeds 2 GiB (MPI's int counts)");
     MPI_Request *req = malloc((size_t)L.size * sizeof *req);
@@ -321,47 +383,89 @@ static void exchange(const lk_query *q, size_t n, const lk_part *mine, pm_combin
         if (!did) lk_idle();
     }
     MPI_Waitall(nreq, req, MPI_STATUSES_IGNORE);
-    for (int r = 0; r < L.size; r++)
-        for (size_t i = 0; i < n; i++) add_part(&acc[i], &all[(size_t)r * n + i]);
     free(req);
-    free(all);
+    return all;
 }
 
 /* ---- the hook ----------------------------------------------------------------------------- */
 
+static void rec_grow(lk_rec *r) {
+    uint32_t cap = r->cap ? 2 * r->cap : 4;
+    lk_query *q = realloc(r->q, cap * sizeof *q);
+    if (q) r->q = q;
+    lk_part *m = q ? realloc(r->mine, cap * sizeof *m) : NULL;
+    if (m) r->mine = m;
+    double(*e)[3] = m ? realloc(r->e, cap * sizeof *e) : NULL;
+    if (e) r->e = e;
+    uint8_t *f = e ? realloc(r->flags, cap) : NULL;
+    if (!f) dist_die("out of memory recording photon lookups");
+    r->flags = f;
+    r->cap = cap;
+}
+
+/* The answer to the sample's next query qq (lk_render_tiles): the combined one if this query
+ * was answered in an earlier trace of the sample at this place, else a guess (this rank's
+ * part of a lookup of the precomputed irradiance; 0 for an estimate), with the query kept to
+ * be answered. Returns 1 if a lookup found a record. */
+static int ask(const lk_query *qq, double e[3]) {
+    lk_smp *sm = tl_smp;
+    e[0] = e[1] = e[2] = 0;
+    if (!sm) {
+        dist_die("a photon lookup outside a camera sample of a partitioned render");
+        return 0;
+    }
+    if (!sm->rec && !(sm->rec = calloc(1, sizeof *sm->rec))) dist_die("out of memory recording photon lookups");
+    lk_rec *r = sm->rec;
+    uint32_t j = r->cursor++;
+    if (j < r->n && (r->flags[j] & LK_HAVE) && memcmp(&r->q[j], qq, sizeof *qq) == 0) {
+        memcpy(e, r->e[j], sizeof r->e[0]);
+        return (r->flags[j] & LK_FOUND) != 0;
+    }
+    /* Not answered yet, or the trace left the recorded one (an earlier guess was wrong):
+     * what was recorded from here on is another path's. */
+    if (!r->fresh) {
+        r->fresh = 1;
+        r->from = j;
+    }
+    r->n = j;
+    if (r->n == r->cap) rec_grow(r);
+    r->q[j] = *qq;
+    r->flags[j] = 0;
+    r->n = j + 1;
+    if (qq->map != LK_SIDE) return 0;
+    answer_lookup(qq, &r->mine[j]);
+    r->flags[j] = LK_MINE;
+    for (int c = 0; c < 3; c++) e[c] = r->mine[j].power[c];
+    return r->mine[j].found != 0;
+}
+
 static void hook_estimate(void *user, const sample_id *id, int map, vec3 x, vec3 n, double e[3]) {
     (void)user;
-    e[0] = e[1] = e[2] = 0;
-    if (!id || !L.tiles) {
-        dist_die("a photon estimate outside a tile of a partitioned render");
-        return;
-    }
-    int px = (int)(id->pixel % (uint64_t)L.width), py = (int)(id->pixel / (uint64_t)L.width);
-    lk_tile *t = &L.tiles[(py / RENDER_TILE) * L.tiles_x + px / RENDER_TILE];
+    (void)id;
     lk_query q;
     memset(&q, 0, sizeof q);
     q.x[0] = (float)x.x, q.x[1] = (float)x.y, q.x[2] = (float)x.z;
     q.n[0] = (float)n.x, q.n[1] = (float)n.y, q.n[2] = (float)n.z;
     q.map = (uint32_t)map;
-    if (L.mode == 0) {
-        if (t->n == t->cap) {
-            size_t cap = t->cap ? 2 * t->cap : 256;
-            lk_query *nq = realloc(t->q, cap * sizeof *nq);
-            if (!nq) {
-                t->bad = 2;
-                return;
-            }
-            t->q = nq;
-            t->cap = cap;
-        }
-        t->q[t->n++] = q;
-        return;
-    }
-    if (t->cursor >= t->n || memcmp(&t->q[t->cursor], &q, sizeof q) != 0) {
-        t->bad = 1;
-        return;
-    }
-    memcpy(e, t->e[t->cursor++], sizeof t->e[0]);
+    ask(&q, e);
+}
+
+/* side_cache's remote lookup (photon_sides.h): every rank answers from its part of the
+ * records, at y and n rounded to float (on every rank, the owner's part too, so the answer is
+ * the same whichever rank traced the sample), with y's free height computed once here. */
+static int side_remote(void *user, const scene *s, vec3 y, vec3 n, float max_dist2, float e[3]) {
+    (void)user;
+    lk_query q;
+    memset(&q, 0, sizeof q);
+    q.x[0] = (float)y.x, q.x[1] = (float)y.y, q.x[2] = (float)y.z;
+    q.n[0] = (float)n.x, q.n[1] = (float)n.y, q.n[2] = (float)n.z;
+    q.h = (float)side_free_height(s, v3f(q.x), v3f(q.n), 0.25 * sqrt((double)max_dist2));
+    q.d2 = max_dist2;
+    q.map = LK_SIDE;
+    double ed[3];
+    int found = ask(&q, ed);
+    for (int c = 0; c < 3; c++) e[c] = (float)ed[c];
+    return found;
 }
 
 static int hook_partition(void *user, photon_maps *m, char *err, size_t errcap) {
@@ -402,8 +506,6 @@ static void hook_ready(void *user, const pm_kdtree *const trees[2], const pm_est
 
 /* ---- precomputed irradiance ------------------------------------------------------------- */
 
-static vec3 v3f(const float f[3]) { return v3(f[0], f[1], f[2]); }
-
 /* This rank's part of the precomputed estimate at query q: its k/M nearest photons on q's side,
  * as side_cache_build takes them (widened past a wall, visible ones only). */
 static void answer_side(const scene *s, const pm_kdtree *t, const pm_photon *ph, const float *hfree,
@@ -411,8 +513,7 @@ static void answer_side(const scene *s, const pm_kdtree *t, const pm_photon *ph,
     unsigned km = per_map(k);
     pm_combine_acc acc;
     pm_combine_init(&acc);
-    float hq;
-    memcpy(&hq, &q->map, sizeof hq);
+    float hq = q->h;
     vec3 p = v3f(q->x), pn = v3f(q->n);
     int found = 0, wall = 0;
     float limit = max_dist2;
@@ -494,9 +595,11 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
     if (!mine || !cnt || !dsp || !cnt2) dist_die("out of memory precomputing irradiance");
     for (size_t j = 0; j < m; j++) {
         const pm_photon *p = &ph[which[j]];
+        memset(&mine[j], 0, sizeof mine[j]);
         memcpy(mine[j].x, p->pos, sizeof mine[j].x);
         pm_normal_decode(p->normal, mine[j].n);
-        memcpy(&mine[j].map, &hfree[which[j]], sizeof(float));
+        mine[j].h = hfree[which[j]];
+        mine[j].map = LK_BUILD;
     }
     /* 1. Every rank's queries to every rank. */
     int mq = (int)m;
@@ -590,44 +693,52 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
     free(mine);
     free(which);
     free(hfree);
-    /* 5. Every rank's records to every rank, in rank order: the same cache everywhere. */
-    for (int r = 0, off = 0; r < M; r++) {
-        cnt2[r] = cnt[r] * (int)sizeof(side_rec);
-        dsp[r] = off * (int)sizeof(side_rec);
-        off += cnt[r];
-    }
-    side_rec *allrec = malloc((size_t)(total ? total : 1) * sizeof *allrec);
-    if (!allrec) dist_die("out of memory precomputing irradiance");
-    MPI_Allgatherv(recs, mq * (int)sizeof(side_rec), MPI_BYTE, allrec, cnt2, dsp, MPI_BYTE,
-                   MPI_COMM_WORLD);
-    bytes += (uint64_t)m * sizeof(side_rec) * (uint64_t)(M - 1);
-    free(recs);
+    /* 5. This rank keeps its own records (lookups ask every rank: side_remote). A rank with
+     * none keeps one that no lookup accepts (radius 0), so that the mapper, which looks up
+     * only where a cache exists, asks the others too. */
     free(cnt);
     free(dsp);
     free(cnt2);
     free(rc_);
     free(rd);
-    size_t N = (size_t)total;
+    size_t N = m ? m : (total ? 1 : 0);
     pm_photon *rp = malloc((N ? N : 1) * sizeof *rp);
     float *r2 = malloc((N ? N : 1) * sizeof *r2), *hf = malloc((N ? N : 1) * sizeof *hf);
     if (!rp || !r2 || !hf) {
         free(rp);
         free(r2);
         free(hf);
-        free(allrec);
+        free(recs);
         return side_fail(c, err, errcap, "out of memory");
     }
-    for (size_t i = 0; i < N; i++) {
-        rp[i] = allrec[i].p;
-        r2[i] = allrec[i].r2;
-        hf[i] = allrec[i].h;
+    for (size_t i = 0; i < m; i++) {
+        rp[i] = recs[i].p;
+        r2[i] = recs[i].r2;
+        hf[i] = recs[i].h;
     }
-    free(allrec);
+    if (m == 0 && N) {
+        memset(rp, 0, sizeof *rp);
+        r2[0] = hf[0] = 0;
+    }
+    free(recs);
     int rc = side_cache_from_records(c, rp, r2, hf, N, err, errcap);
     free(rp);
     free(r2);
     free(hf);
     if (rc < 0) return rc;
+    c->n = (size_t)total; /* the records of all ranks, as side_cache_build's count */
+    c->remote = side_remote;
+    L.side = c;
+    L.scene = s;
+    if (total > 0) {
+        unsigned long long here = m, most = 0, least = 0;
+        MPI_Reduce(&here, &most, 1, MPI_UNSIGNED_LONG_LONG, MPI_MAX, 0, MPI_COMM_WORLD);
+        MPI_Reduce(&here, &least, 1, MPI_UNSIGNED_LONG_LONG, MPI_MIN, 0, MPI_COMM_WORLD);
+        if (L.rank == 0)
+            printf("MPI: partitioned precomputed irradiance: each rank keeps its own records, "
+                   "%llu to %llu of %lld (%.1f KiB on rank 0); lookups ask every rank\n",
+                   least, most, total, (double)pm_irradiance_bytes(c->irr) / 1024.0);
+    }
     unsigned long long w = walls, wsum = 0, b = bytes, bsum = 0, sp = sparse, spsum = 0;
     MPI_Reduce(&w, &wsum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
     MPI_Reduce(&sp, &spsum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
@@ -637,25 +748,169 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
     c->researched = (size_t)wsum;
     if (L.rank == 0) {
         stat_add(L.st_side_bytes, bsum);
-        stat_add(L.st_side_queries, (uint64_t)N);
+        stat_add(L.st_side_queries, (uint64_t)total);
     }
     return 0;
 }
 
 /* ---- the tiles ------------------------------------------------------------------------------ */
 
-static void clear_tiles_state(const scene *s, render_state *st, const int *tiles, int n) {
+static void rec_free(lk_rec *r) {
+    if (!r) return;
+    free(r->q);
+    free(r->mine);
+    free(r->e);
+    free(r->flags);
+    free(r);
+}
+
+/* Trace the camera samples smp[idx[0..n)] on the job's threads, each from its start, exactly as
+ * renderer.c's render_tile traces sample k of a pixel (its random stream, jitter, camera ray).
+ * A trace that made a query not answered before (rec->fresh) ran on guesses: its radiance is
+ * not kept and the counters it added on its thread are taken off again, so the statistics
+ * count the one trace of each sample that is kept. */
+static void trace_samples(const scene *s, const integrator *it, const render_job *job, lk_smp *smp,
+                          const uint32_t *idx, size_t n) {
     const camera *c = &s->cam;
-    for (int i = 0; i < n; i++) {
-        int x0 = (tiles[i] % L.tiles_x) * RENDER_TILE, y0 = (tiles[i] / L.tiles_x) * RENDER_TILE;
-        int x1 = x0 + RENDER_TILE < c->width ? x0 + RENDER_TILE : c->width;
-        int y1 = y0 + RENDER_TILE < c->height ? y0 + RENDER_TILE : c->height;
-        for (int y = y0; y < y1; y++)
-            for (int x = x0; x < x1; x++) {
-                size_t p = (size_t)y * (size_t)c->width + (size_t)x;
-                st->count[p] = 0;
-                st->sum[3 * p] = st->sum[3 * p + 1] = st->sum[3 * p + 2] = 0;
+    int strata = c->strata;
+#ifdef _OPENMP
+    int nthreads = job->threads > 0 ? job->threads : omp_get_max_threads();
+#pragma omp parallel num_threads(nthreads)
+#endif
+    {
+        void *scratch = it->thread_begin ? it->thread_begin(it) : NULL;
+        uint64_t *cnt = stats__local ? stats__local : stats__attach();
+        uint64_t snap[STATS_MAX];
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 16)
+#endif
+        for (size_t i = 0; i < n; i++) {
+            lk_smp *sm = &smp[idx[i]];
+            if (sm->rec) {
+                sm->rec->cursor = 0;
+                sm->rec->fresh = 0;
             }
+            memcpy(snap, cnt, sizeof snap);
+            int x = (int)(sm->pixel % (uint64_t)c->width), y = (int)(sm->pixel / (uint64_t)c->width);
+            rng g = rng_stream(job->seed, sm->pixel, (uint64_t)sm->k);
+            double jx = rng_uniform(&g), jy = rng_uniform(&g);
+            double px = x + ((sm->k % strata) + jx) / strata, py = y + ((sm->k / strata) + jy) / strata;
+            ray r = camera_ray(c, px, py);
+            sample_id id = {sm->pixel, job->seed, sm->k, c->spp, strata};
+            tl_smp = sm;
+            rgb Li = it->li(it, s, r, &g, &id, scratch);
+            tl_smp = NULL;
+            if (sm->rec && sm->rec->fresh) {
+                memcpy(cnt, snap, sizeof snap);
+            } else {
+                sm->L[0] = Li.x;
+                sm->L[1] = Li.y;
+                sm->L[2] = Li.z;
+            }
+        }
+        if (it->thread_end) it->thread_end(it, scratch);
+    }
+}
+
+/* This rank's parts of the n queries q whose part was not computed during the trace (have[i]
+ * == 0), on OpenMP threads. */
+static void answer_missing(const lk_query *q, const uint8_t *have, size_t n, lk_part *out) {
+    unsigned kmax = per_map(L.opts[0].k) > per_map(L.opts[1].k) ? per_map(L.opts[0].k)
+                                                                   : per_map(L.opts[1].k);
+    int fail = 0;
+#ifdef _OPENMP
+#pragma omp parallel reduction(| : fail)
+#endif
+    {
+        pm_neighbor *nb = malloc((size_t)kmax * sizeof *nb);
+        if (!nb) fail = 1;
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 64)
+#endif
+        for (size_t i = 0; i < n; i++)
+            if (nb && !have[i]) answer_one(&q[i], nb, &out[i]);
+        free(nb);
+    }
+    if (fail) dist_die("out of memory answering photon lookups");
+}
+
+typedef struct lk_count {
+    uint64_t traced, again, more, rounds, nest, nlook;
+} lk_count;
+
+/* Samples per block of lk_render_tiles. */
+#define LK_BLOCK 8192
+
+/* Render the ns samples smp[0..ns) to their radiance (idx: room for ns indices). */
+static void render_block(const scene *s, const integrator *it, const render_job *job, lk_smp *smp,
+                         size_t ns, uint32_t *idx, int (*also)(void *), void *arg, lk_count *cn) {
+    /* Trace; the samples that made queries not answered yet get them answered by every rank in
+     * one exchange, and are traced again; until every sample's trace read answers only. */
+    size_t np = ns;
+    for (size_t i = 0; i < ns; i++) idx[i] = (uint32_t)i;
+    uint64_t rounds = 0;
+    for (;;) {
+        trace_samples(s, it, job, smp, idx, np);
+        cn->traced += np;
+        if (rounds == 1) cn->again += np;
+        if (rounds >= 2) cn->more += np;
+        size_t keep = 0, nq = 0;
+        for (size_t i = 0; i < np; i++) {
+            lk_rec *r = smp[idx[i]].rec;
+            if (r && r->fresh) {
+                idx[keep++] = idx[i];
+                nq += r->n - r->from;
+            }
+        }
+        np = keep;
+        if (np == 0) break;
+        rounds++;
+        cn->rounds++;
+        lk_query *q = malloc(nq * sizeof *q);
+        lk_part *mine = malloc(nq * sizeof *mine);
+        uint8_t *have = malloc(nq);
+        if (!q || !mine || !have) dist_die("out of memory in the photon lookups");
+        size_t o = 0;
+        for (size_t i = 0; i < np; i++) {
+            lk_rec *r = smp[idx[i]].rec;
+            for (uint32_t j = r->from; j < r->n; j++, o++) {
+                q[o] = r->q[j];
+                have[o] = (r->flags[j] & LK_MINE) != 0;
+                if (have[o]) mine[o] = r->mine[j];
+                if (q[o].map == LK_SIDE)
+                    cn->nlook++;
+                else
+                    cn->nest++;
+            }
+        }
+        answer_missing(q, have, nq, mine);
+        lk_part *all = exchange(q, nq, mine, also, arg);
+        o = 0;
+        for (size_t i = 0; i < np; i++) {
+            lk_rec *r = smp[idx[i]].rec;
+            for (uint32_t j = r->from; j < r->n; j++, o++) {
+                int found = 0;
+                if (q[o].map == LK_SIDE) {
+                    found = combine_lookup(&all[o], nq, r->e[j]);
+                } else {
+                    const pm_estimate_options *opt = &L.opts[q[o].map == PHOTON_LOOKUP_CAUSTIC];
+                    pm_combine_acc acc;
+                    pm_combine_init(&acc);
+                    acc.bias = opt->bias;
+                    for (int rk = 0; rk < L.size; rk++) add_part(&acc, &all[(size_t)rk * nq + o]);
+                    combine_one(opt, &acc, r->e[j]);
+                }
+                r->flags[j] = (uint8_t)(LK_HAVE | (found ? LK_FOUND : 0));
+            }
+        }
+        free(all);
+        free(have);
+        free(mine);
+        free(q);
+    }
+    for (size_t i = 0; i < ns; i++) {
+        rec_free(smp[i].rec);
+        smp[i].rec = NULL;
     }
 }
 
@@ -663,77 +918,72 @@ int lk_render_tiles(const scene *s, const integrator *it, const render_job *job,
                     const int *tiles, int n, int (*also)(void *), void *arg) {
     const camera *c = &s->cam;
     if (!L.ready) return render_tiles(s, it, job, st, tiles, n); /* no photon maps to look up */
-    if (!L.tiles) {
-        L.width = c->width;
-        L.tiles_x = (c->width + RENDER_TILE - 1) / RENDER_TILE;
-        L.ntiles = L.tiles_x * ((c->height + RENDER_TILE - 1) / RENDER_TILE);
-        L.tiles = calloc((size_t)L.ntiles, sizeof *L.tiles);
-        if (!L.tiles) return PM_ENOMEM;
-    }
-    /* 1. Record: the counters of this trace are taken off again afterwards. */
-    uint64_t *before = malloc(STATS_MAX * sizeof *before);
-    if (!before) return PM_ENOMEM;
-    for (int id = 0; id < STATS_MAX; id++) before[id] = stats_name(id) ? stats_total(id) : 0;
-    L.mode = 0;
-    int rc = render_tiles(s, it, job, st, tiles, n);
-    size_t nq = 0;
-    for (int i = 0; i < n; i++) {
-        if (L.tiles[tiles[i]].bad) dist_die("out of memory recording photon lookups");
-        nq += L.tiles[tiles[i]].n;
-    }
-    if (rc == 0 && nq == 0) {
-        /* No estimate in these tiles (a scene without caustics, say): the recording trace
-         * used no placeholder, so it is the image; it keeps its counters, and there is
-         * nothing to exchange or trace again. */
-        free(before);
-        return 0;
-    }
-    for (int id = 0; id < STATS_MAX; id++)
-        if (stats_name(id)) stat_add(id, before[id] - stats_total(id)); /* mod 2^64 */
-    free(before);
-    if (rc < 0) return rc;
-    clear_tiles_state(s, st, tiles, n);
-    /* 2. The chunk's queries in tile order; this rank's parts, then every other rank's. */
-    lk_query *q = malloc((nq ? nq : 1) * sizeof *q);
-    lk_part *mine = malloc((nq ? nq : 1) * sizeof *mine);
-    pm_combine_acc *acc = calloc(nq ? nq : 1, sizeof *acc);
-    if (!q || !mine || !acc) dist_die("out of memory in the photon lookups");
-    for (int i = 0, off = 0; i < n; i++) {
-        lk_tile *t = &L.tiles[tiles[i]];
-        if (t->n) memcpy(q + off, t->q, t->n * sizeof *q);
-        off += (int)t->n;
-    }
-    stat_add(L.st_queries, nq);
-    answer_all(q, nq, mine);
-    for (size_t i = 0; i < nq; i++) acc[i].bias = L.opts[q[i].map == PHOTON_LOOKUP_CAUSTIC].bias;
-    exchange(q, nq, mine, acc, also, arg);
-    free(mine);
-    free(q);
-    /* 3. Combine, and replay. */
-    for (int i = 0, off = 0; i < n; i++) {
-        lk_tile *t = &L.tiles[tiles[i]];
-        t->e = malloc((t->n ? t->n : 1) * sizeof *t->e);
-        if (!t->e) dist_die("out of memory in the photon lookups");
-        for (size_t j = 0; j < t->n; j++) {
-            const lk_query *qq = &t->q[j];
-            combine_one(&L.opts[qq->map == PHOTON_LOOKUP_CAUSTIC], &acc[off + (int)j], t->e[j]);
+    if (st->width != c->width || st->height != c->height || st->spp != c->spp) return PM_EINVAL;
+    int tiles_x = (c->width + RENDER_TILE - 1) / RENDER_TILE;
+    int ntiles = tiles_x * ((c->height + RENDER_TILE - 1) / RENDER_TILE);
+    for (int i = 0; i < n; i++)
+        if (tiles[i] < 0 || tiles[i] >= ntiles) return PM_EINVAL;
+    /* The samples still to do, tile by tile, pixel by pixel, in sample order, a block at a
+     * time (the queries of a whole chunk at many samples per pixel would take gigabytes). */
+    lk_smp *smp = calloc(LK_BLOCK, sizeof *smp);
+    uint32_t *idx = malloc(LK_BLOCK * sizeof *idx);
+    if (!smp || !idx) dist_die("out of memory in the photon lookups");
+    lk_count cn = {0, 0, 0, 0, 0, 0};
+    uint64_t bad = 0, ns = 0;
+    int ti = 0, px = 0, k = -1; /* the next sample: tile ti, its pixel px, sample k (-1: start) */
+    for (;;) {
+        size_t m = 0;
+        while (m < LK_BLOCK && ti < n) {
+            int x0 = (tiles[ti] % tiles_x) * RENDER_TILE, y0 = (tiles[ti] / tiles_x) * RENDER_TILE;
+            int w = c->width - x0 < RENDER_TILE ? c->width - x0 : RENDER_TILE;
+            int h = c->height - y0 < RENDER_TILE ? c->height - y0 : RENDER_TILE;
+            if (px >= w * h) {
+                ti++;
+                px = 0;
+                k = -1;
+                continue;
+            }
+            uint64_t p = (uint64_t)(y0 + px / w) * (uint64_t)c->width + (uint64_t)(x0 + px % w);
+            if (k < 0) k = (int)st->count[p];
+            if (k >= c->spp) {
+                px++;
+                k = -1;
+                continue;
+            }
+            smp[m].pixel = p;
+            smp[m].k = k++;
+            smp[m].rec = NULL;
+            m++;
         }
-        off += (int)t->n;
-        t->cursor = 0;
+        if (m == 0) break;
+        render_block(s, it, job, smp, m, idx, also, arg, &cn);
+        /* Each pixel's samples in sample order, as render_tile adds them. */
+        for (size_t i = 0; i < m; i++) {
+            lk_smp *sm = &smp[i];
+            double *sum = st->sum + 3 * sm->pixel;
+            if (isfinite(sm->L[0]) && isfinite(sm->L[1]) && isfinite(sm->L[2])) {
+                sum[0] += sm->L[0];
+                sum[1] += sm->L[1];
+                sum[2] += sm->L[2];
+            } else {
+                bad++;
+            }
+            st->count[sm->pixel] = (uint32_t)sm->k + 1;
+        }
+        ns += m;
     }
-    free(acc);
-    L.mode = 1;
-    rc = render_tiles(s, it, job, st, tiles, n);
-    for (int i = 0; i < n; i++) {
-        lk_tile *t = &L.tiles[tiles[i]];
-        if (rc == 0 && (t->bad || t->cursor != t->n))
-            dist_die("a tile traced again asked for other photon lookups than when it was "
-                     "recorded (an estimate changed a decision of the integrator)");
-        free(t->q);
-        free(t->e);
-        memset(t, 0, sizeof *t);
-    }
-    return rc;
+    stat_add(STAT_CAMERA_RAYS, ns);
+    stat_add(STAT_SAMPLES, ns);
+    if (bad) stat_add(L.st_nonfinite, bad);
+    stat_add(L.st_queries, cn.nest + cn.nlook);
+    stat_add(L.st_gather_queries, cn.nlook);
+    stat_add(L.st_traced, cn.traced);
+    stat_add(L.st_again, cn.again);
+    stat_add(L.st_more, cn.more);
+    stat_add(L.st_rounds, cn.rounds);
+    free(idx);
+    free(smp);
+    return 0;
 }
 
 void lk_init(int rank, int size) {
@@ -746,6 +996,12 @@ void lk_init(int rank, int size) {
     L.st_bytes = stats_register("MPI/Partitioned: bytes sent in photon lookups (all ranks)");
     L.st_side_queries = stats_register("MPI/Partitioned: precomputed irradiance estimates");
     L.st_side_bytes = stats_register("MPI/Partitioned: bytes sent precomputing irradiance (all ranks)");
+    L.st_gather_queries = stats_register("MPI/Partitioned: precomputed irradiance lookups sent (all ranks)");
+    L.st_traced = stats_register("MPI/Partitioned: camera sample traces (all ranks)");
+    L.st_again = stats_register("MPI/Partitioned: camera samples traced twice or more (all ranks)");
+    L.st_more = stats_register("MPI/Partitioned: camera sample traces past the second (all ranks)");
+    L.st_rounds = stats_register("MPI/Partitioned: lookup exchanges of chunks (all ranks)");
+    L.st_nonfinite = stats_register("Film/Non-finite samples");
     g_hook.partition = hook_partition;
     g_hook.side_build = hook_side_build;
     g_hook.ready = hook_ready;

@@ -14,33 +14,54 @@
  *
  * PRECOMPUTED IRRADIANCE (collective, once). Each rank chooses a quarter of its own photons as
  * photon_sides.c does in its tree (neither leaves nor parents of leaves) and all-gathers them
- * as queries (position, normal, free height: 28 bytes). Every rank answers every query from
- * its part: its k/M nearest photons on the query's side (photon_sides.h's visibility test,
+ * as queries (position, normal, free height: 36-byte lk_query). Every rank answers every query
+ * from its part: its k/M nearest photons on the query's side (photon_sides.h's visibility test,
  * widened past a wall as there), as the partial sums of a pm_combine_acc (power, farthest
  * power, r^2, count, rim, wall seen: 32 bytes). An all-to-all returns each rank the answers to
  * its queries; it combines them (pm_combine_finish, divided by the visible part of the mean
  * disc when a rank met a wall; the indirect irradiance, as side_cache_build's: direct photons
- * count in the radius, not in the power) and all-gathers the records (pm_photon with E, r^2, free height:
- * 28 bytes), so every rank holds the whole precomputed irradiance (about a quarter of the
- * global photons; see docs/MPI.md for its memory).
+ * count in the radius, not in the power) and KEEPS ITS OWN RECORDS ONLY (pm_photon with E,
+ * r^2, free height): each rank holds about a quarter of its part's photons as records, 1/M of
+ * the whole precomputed irradiance. The cache it builds from them (side_cache_from_records)
+ * gets a remote lookup (side_cache.remote), so every final-gather lookup asks every rank.
  *
- * PIXEL PASS. Final-gather lookups read the precomputed irradiance and stay local. The global
- * map's estimates (preview) and the caustic map's go through the hook, batched per chunk of
- * tiles: the rank traces its tiles once recording each estimate's query (28 bytes) with a
- * placeholder value, sends the chunk's queries to every other rank in one message, answers
- * its own from its part, and waits for the answers (32 bytes per query and rank), serving
- * other ranks' queries meanwhile; then it combines them and traces the tiles again, each
- * estimate taking its combined value in order. A cone or Gaussian filter (the caustic map's)
- * is combined as sum_m S_m / sum_m A_m times M, each part's filtered power S_m and area A_m
- * (pi r_m^2 times the filter's norm) taken against its own radius; the hull and differential
- * filters fall back to the combined disc. li() makes no decision on an estimate's value
- * (photon_lookup.h), so the second trace makes the same queries, which is checked: a query
- * that differs stops the job. The recording trace's counters are taken off again. A chunk
- * whose recording made no query (no caustic map, say) is done after the first trace.
+ * LOOKUPS OF THE PRECOMPUTED IRRADIANCE (the final gather's). A lookup at y (normal n, radius^2
+ * d2) is answered by every rank from its records as side_cache_lookup does from all of them
+ * (side_cache_lookup_local: the module's normal and own-radius rules, the visibility test from
+ * y with y's free height, computed once by the asking rank, on the 8 nearest candidates of
+ * the part): the record it accepts, as its E and its distance^2 to y (32 bytes), or none. The
+ * nearest answer wins, the lowest rank on a tie. Whenever one process would answer with record
+ * R (the first of its 8 nearest candidates that passes), R's rank answers with R too and no
+ * rank has a nearer one; the ranks may also answer where one process found none (a candidate
+ * beyond the 8 nearest of the whole set, within the 8 nearest of its part).
  *
- * DETERMINISM. Each estimate adds the ranks' parts in rank order, and a part depends only on
- * the query and the rank's photons: the image depends on the rank count alone (not on the
- * threads, the tile queue, or whether the maps were traced or loaded).
+ * PIXEL PASS. Every estimate of the global map (preview) or the caustic map, and every lookup of
+ * the precomputed irradiance, goes to every rank. The rank traces the camera samples of its
+ * chunk of tiles itself (as renderer.c's render_tile: the same random stream, jitter and camera
+ * ray per sample), keeping each sample's queries in order. A query whose answer is not known
+ * yet gets a guess (an estimate: 0; a lookup: this rank's own part's answer, which decides
+ * whether the gather takes the record or computes the light at y) and is kept. After the trace,
+ * the chunk's kept queries go in one message to every other rank; each answers from its part
+ * (36 bytes a query out, 32 back), serving other ranks' queries while it waits; the answers are
+ * combined (estimates: the combined-map rule below; lookups: the nearest record). Then only the
+ * samples that made queries are traced again, each query taking its answer; a sample whose
+ * trace leaves its recorded queries (a guessed lookup found where no rank found, or the other
+ * way round: the gather then draws other random numbers) keeps its queries up to there, and
+ * its new ones are answered in a further exchange; until every sample's last trace read known
+ * answers only. That trace is the sample's radiance; the earlier traces of a sample are taken
+ * off the counters (per thread), so the statistics count one trace per sample. A sample
+ * without queries is traced once. Each pixel's samples are then added in sample order, as
+ * render_tile adds them. No decision of li() depends on an estimate's value (photon_lookup.h),
+ * and a lookup's value is only added: only whether a lookup found a record changes the path.
+ * A cone or Gaussian filter (the caustic map's) is combined as sum_m S_m / sum_m A_m times M,
+ * each part's filtered power S_m and area A_m (pi r_m^2 times the filter's norm) taken against
+ * its own radius; the hull and differential filters fall back to the combined disc.
+ *
+ * DETERMINISM. Each estimate adds the ranks' parts in rank order, a lookup takes the nearest
+ * answer (the lowest rank on a tie), and a part depends only on the query and the rank's
+ * photons or records; a sample's radiance is the trace that read answers only, whatever the
+ * guesses were. So the image depends on the rank count alone (not on the threads, the tile
+ * queue, or whether the maps were traced or loaded).
  *
  * All MPI calls are on the main thread; the answers to a batch are computed on OpenMP threads.
  */
@@ -59,7 +80,7 @@ extern "C" {
 void lk_init(int rank, int size);
 /* 1 after lk_init. */
 int lk_on(void);
-/* Render tiles[0..n) into st: record, exchange, replay (above). While waiting it serves other
+/* Render tiles[0..n) into st: trace, exchange, trace again (above). While waiting it serves other
  * ranks' queries and calls also(arg) (rank 0: the tile queue), which returns 1 if it did
  * something. 0 or a negative PM_E* code. */
 int lk_render_tiles(const scene *s, const integrator *it, const render_job *job, render_state *st,
