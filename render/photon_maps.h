@@ -5,27 +5,52 @@
  * MAP FILES. photon_maps_save writes DIR/global.pmap, caustic.pmap and shadow.pmap, all
  * three (an empty map too), in the format of photonmap/mapfile.h (tree_bucket 0: the photons
  * as traced, before a kd-tree reorders them, so loading them gives the same trees and the
- * same image bit for bit). Each header carries the map's kind and the maps' stamp in its two
- * tags: tag[0] the scene's transport hash (scene_hash.h: geometry, materials, lights, media;
- * not the camera), tag[1] the hash of the settings that shaped the photons
- * (map_stamp_make): which maps the plan traced, and for those maps the photon targets,
- * every pass budget (max_emitted_factor, max_emitted, max_memory_mb, max_bounces), the
- * projection maps (projection, projection_cells; caustic map only) and render.max_depth.
- * Left out, because they do not change which photons a pass stores: the seed (it picks
- * another sample of the same photon distribution, so loading one set of maps under several
- * seeds is how new camera noise is drawn over fixed photons), the thread count (the maps
- * do not depend on it), and everything the camera pass alone reads (image size, samples,
- * k_*, radii, filter, gather settings, tone).
+ * same image bit for bit). The maps of a scene with media (nmedia > 0, pm_volume.h) add
+ * DIR/volume-M.pmap and DIR/volume_caustic-M.pmap for each medium M (its index in $.media,
+ * 0..nmedia-1; all of them, an empty map too), both of kind PM_MAP_VOLUME: the volume
+ * photons of the global pass (every kind) and of the caustic pass (L S+ V) that scattered in
+ * medium M, in photon order (so the per-medium trees pm_volume.c builds from them are the
+ * traced run's, and so is the image). Each header carries the map's kind and the maps' stamp
+ * in its two tags: tag[0] the scene's transport hash (scene_hash.h: geometry, materials,
+ * lights, media; not the camera), tag[1] the tracer's version and the hash of the settings
+ * that shaped the photons (map_stamp_make): bits 48-63 PHOTON_TRACE_VERSION (below), bits
+ * 0-47 a hash of that version, which maps the plan traced, and for those maps the photon
+ * targets, every pass budget (max_emitted_factor, max_emitted, max_memory_mb, max_bounces),
+ * the projection maps (projection, projection_cells; caustic map only) and
+ * render.max_depth; in a scene with media (map_stamp_volume) also the volume maps the plan
+ * traced, their targets, and the camera's position (the volume passes keep only photons
+ * inside the box around the scene, the lights and the eye, pm_volume.h). A volume file's
+ * tag[1] has its role and medium mixed into bits 0-47 (map_stamp_file), so a volume map
+ * under the name of another medium's, or a volume-caustic map under a volume map's name, is
+ * a map of the wrong kind. Left out, because they do not change which photons a pass stores:
+ * the seed (it picks another sample of the same photon distribution, so loading one set of
+ * maps under several seeds is how new camera noise is drawn over fixed photons), the thread
+ * count (the maps do not depend on it), and everything the camera pass alone reads (image
+ * size, samples, k_*, radii, filter, gather settings, volume_step, volume_boundary, tone).
+ *
+ * TRACER VERSION. PHOTON_TRACE_VERSION names what photon tracing means: which photons a pass
+ * stores for given scene and settings, and with what power, position, direction and kind.
+ * Bump it in the same commit as any change to render/photon_trace.c, render/volume.c,
+ * render/projmap.c, or to what they call (light_sample_le and the light distribution,
+ * material_sample / material_weights / material_radiance_scale, medium_sample_distance,
+ * hg_sample, scene_offset, the rng streams) that changes a stored photon; a change that
+ * leaves every stored photon bit for bit as it was (speed, messages) needs no bump. Maps
+ * stamped with another version are refused like maps of other settings ("traced by photon
+ * tracer version N"), and so are maps saved before the version was stamped (their bits
+ * 48-63 are an arbitrary part of the old hash).
  *
  * photon_maps_load reads them back and refuses, with PM_EINVAL (render exits 2) and a
  * message that names the file: a directory that does not exist or is not one; a missing
- * file (a directory of saved maps holds all three); a file that is not a photon map, is
- * truncated or corrupt, or of another version; a file of the wrong kind (global.pmap must
- * hold a PM_MAP_GLOBAL map, and so on; forcing does not change this); and, unless forced,
- * a map whose stamp differs from the run's: traced from another scene (or the scene was
- * edited since), with other settings, or with no stamp (written by an older version, or by
- * another program with tag 0). Forced, a mismatched map is used and one warning per file on
- * stderr says what differs. Out of memory is PM_ENOMEM.
+ * file (a directory of saved maps holds all three, and for a scene with media the two volume
+ * files of each medium); a file that is not a photon map, is truncated or corrupt, or of
+ * another version; a file of the wrong kind (global.pmap must hold a PM_MAP_GLOBAL map,
+ * volume-1.pmap the volume map of medium 1, and so on; forcing does not change this); and,
+ * unless forced, a map whose stamp differs from the run's: traced from another scene (or the
+ * scene was edited since), by another version of the photon tracer, with other settings, or
+ * with no stamp (written by an older version, or by another program with tag 0). Forced, a
+ * mismatched map is used and one warning per file on stderr says what differs (a forced
+ * volume file whose stamp differs cannot be checked for its role: only its kind is). Out of
+ * memory is PM_ENOMEM.
  *
  * RADII. Maximum search radii are automatic unless the settings give them: Christensen's
  * radius beyond which k photons of the largest power would give less than a threshold
@@ -34,7 +59,7 @@
  * mean density; the precomputed-irradiance lookup searches within 4 of them (at most the
  * global radius), and the shadow-map query within 2 of its own typical radius.
  *
- * Ownership: a photon_maps owns its three arrays (photon_maps_free; a zeroed one may be freed).
+ * Ownership: a photon_maps owns its arrays (photon_maps_free; a zeroed one may be freed).
  */
 #ifndef RENDER_PHOTON_MAPS_H
 #define RENDER_PHOTON_MAPS_H
@@ -51,7 +76,12 @@
 extern "C" {
 #endif
 
-/* A map set's stamp: scene_transport_hash and the settings hash (map_stamp_make). */
+/* The version of photon tracing in every map's stamp: see TRACER VERSION above for when to
+ * bump it. */
+#define PHOTON_TRACE_VERSION 1
+
+/* A map set's stamp: scene_transport_hash and the tracer version + settings hash
+ * (map_stamp_make). */
 typedef struct map_stamp {
     uint64_t scene, settings;
 } map_stamp;
@@ -66,6 +96,15 @@ typedef struct photon_maps {
     int global_runaway, caustic_runaway; /* 1 if the pass stopped short of its target */
     map_stamp stamp; /* what shaped them: set by the caller after tracing; by a load, the
                       * global.pmap's */
+    /* A scene with media (pm_volume.h): nmedia > 0, and the volume photons of the global pass
+     * (every kind) and of the caustic pass (L S+ V), in photon order, with the medium (index
+     * in scene.media) of each, and each map's emitted count. loaded: the maps came from
+     * photon_maps_load (pm_volume.c then builds its trees from them instead of tracing). */
+    int nmedia, loaded;
+    pm_photon *volume, *volume_caustic;
+    short *volume_medium, *volume_caustic_medium;
+    size_t nvolume, nvolume_caustic;
+    uint64_t volume_emitted, volume_caustic_emitted;
     /* part 1: the maps are this process's part of a partitioned distributed pass
      * (photon_trace.h); the whole maps' counts and largest photon powers (global, caustic)
      * are in whole_*, for the radius policy. part 0: the maps are whole (whole_* unused). */
@@ -80,13 +119,23 @@ void photon_maps_free(photon_maps *m);
  * flag is set (see MAP FILES for what the settings hash covers). */
 void map_stamp_make(const scene *s, const photon_settings *cfg, int global_on, int caustic_on,
                     int shadow_on, map_stamp *st);
+/* For a scene with media: mix the volume maps the plan traces (volume_on, volume_caustic_on),
+ * their targets and the camera's position into st->settings (after map_stamp_make). */
+void map_stamp_volume(const scene *s, const photon_settings *cfg, int volume_on,
+                      int volume_caustic_on, map_stamp *st);
+/* The tag[1] a file of the set carries: st->settings itself for the surface maps (medium < 0),
+ * and for the volume map (caustic 0) or volume-caustic map (caustic 1) of a medium the same
+ * with the role mixed into bits 0-47 (MAP FILES). */
+uint64_t map_stamp_file(const map_stamp *st, int caustic, int md);
 
-/* Save the three maps into dir (created if missing), each header stamped with m->stamp.
- * 0, or a negative code with a message naming the file. */
+/* Save the maps into dir (created if missing): the three surface maps, and for nmedia > 0 the
+ * two volume files of each medium; each header stamped with m->stamp (map_stamp_file). 0, or a
+ * negative code with a message naming the file. */
 int photon_maps_save(const photon_maps *m, const char *dir, char *err, size_t errcap);
-/* Load the three maps of dir into a zeroed m, checking each file's kind and its stamp
- * against want (force: a stamp mismatch is a warning). 0, or a negative code with a message
- * naming the file (see MAP FILES); what was loaded stays in m for photon_maps_free. */
+/* Load the maps of dir into m, zeroed but for m->nmedia (the scene's count of media: its
+ * volume files are read too), checking each file's kind and its stamp against want (force: a
+ * stamp mismatch is a warning); sets m->loaded. 0, or a negative code with a message naming
+ * the file (see MAP FILES); what was loaded stays in m for photon_maps_free. */
 int photon_maps_load(photon_maps *m, const char *dir, const map_stamp *want, int force, char *err,
                      size_t errcap);
 

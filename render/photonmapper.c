@@ -36,7 +36,8 @@
  * a global map it gets direct light and caustics only.
  *
  * Participating media (a scene with a medium or a null surface; pm_volume.h): the maps come
- * from volume.h's tracer instead (pmv_trace), eye rays march each segment through its medium
+ * from volume.h's tracer instead (pmv_trace; or from load_photons, the volume maps of each
+ * medium with them, photon_maps.h), eye rays march each segment through its medium
  * (pmv_march: single scattering by shadow rays, the volume maps' estimates, the segment's
  * transmittance on what lies beyond) and pass null surfaces without a bounce, gather rays take
  * one in-scatter sample per segment and its transmittance (pmv_gather), and direct light at
@@ -583,12 +584,16 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     map_stamp stamp; /* what shapes this run's maps: checked on load, written on save */
     map_stamp_make(s, &st->cfg, st->plan.global.on, st->plan.caustics.on, st->plan.shadow.on, &stamp);
     if (st->vol.on) { /* a scene with media: its own tracer, surface and volume maps */
-        if (st->cfg.load_dir[0]) /* a resumed checkpoint sets it too: tracing again is exact */
-            fprintf(stderr, "render: warning: load_photons %s not used: a scene with participating "
-                    "media traces its maps (its volume maps are not saved); tracing them\n",
-                    st->cfg.load_dir);
+        /* Loaded maps (the volume files too, photon_maps.h) are checked here; pmv_trace then
+         * builds its trees from them instead of tracing. */
+        map_stamp_volume(s, &st->cfg, st->plan.volume.on, st->plan.volume_caustics.on, &stamp);
+        m->nmedia = s->nmedia;
+        if (st->cfg.load_dir[0] &&
+            (rc = photon_maps_load(m, st->cfg.load_dir, &stamp, st->cfg.force_load, err, errcap)) < 0)
+            return rc;
+        int loaded = m->loaded;
         if ((rc = pmv_trace(&st->vol, s, &st->cfg, &st->plan, m, err, errcap)) < 0) return rc;
-        m->stamp = stamp;
+        if (!loaded) m->stamp = stamp;
     } else if (st->cfg.load_dir[0]) {
         if ((rc = photon_maps_load(m, st->cfg.load_dir, &stamp, st->cfg.force_load, err, errcap)) < 0)
             return rc;

@@ -7,6 +7,8 @@
  */
 #include "volume.h"
 
+#include <stdint.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -28,11 +30,16 @@ typedef struct vrec {
     int kind, where, med;
 } vrec;
 
+_Static_assert(sizeof(vrec) == VOL_RECORD_BYTES, "VOL_RECORD_BYTES in volume.h");
+
 typedef struct vbuf {
     vrec *r;
     size_t n, cap;
+    size_t max_n;    /* the memory budget's share of this batch, in records */
     vol_pilot pilot; /* this batch's counts */
-    int fail;
+    int fail, over;  /* out of memory; over max_n (the photon being traced is not whole) */
+    uint64_t stop;   /* over: the first photon not traced whole; else UINT64_MAX */
+    uint64_t cut;    /* photons cut by the path-length budget */
 } vbuf;
 
 typedef struct vctx {
@@ -51,9 +58,14 @@ static void to3(float f[3], vec3 v) {
 }
 
 static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kind, int where, int med) {
-    if (b->fail) return;
+    if (b->fail || b->over) return;
+    if (b->n >= b->max_n) { /* the memory budget: this photon's path is not kept */
+        b->over = 1;
+        return;
+    }
     if (b->n == b->cap) {
         size_t nc = b->cap ? 2 * b->cap : 1024;
+        if (nc > b->max_n) nc = b->max_n;
         vrec *nr = realloc(b->r, nc * sizeof *nr);
         if (!nr) {
             b->fail = 1;
@@ -91,7 +103,9 @@ static int clampi(int v, int n) { return v < 0 || v >= n ? n - 1 : v; }
 
 static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
     const scene *s = c->s;
-    const int caustic_pass = c->o->caustic_pass, max_depth = c->o->max_depth;
+    const int caustic_pass = c->o->caustic_pass;
+    int max_depth = c->o->max_depth;
+    if (c->o->max_bounces > 0 && c->o->max_bounces < max_depth) max_depth = c->o->max_bounces;
     rng g = rng_stream(c->o->seed, i, caustic_pass ? 8 : 7);
     double pl, u[4];
     int li = distrib1d_sample(c->proj ? &c->choose : &s->light_distrib, rng_uniform(&g), &pl);
@@ -112,7 +126,8 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
      * are stored with power (n_src / n_here)^2, material_radiance_scale in material.h; volume
      * photons are not (pm_volume.c scales their estimates per medium). */
     double n_src = 0, n_here = 0;
-    for (int depth = 0; depth <= max_depth;) {
+    int depth = 0;
+    for (; depth <= max_depth && !b->over;) {
         hit h;
         int got = scene_intersect(s, r, INFINITY, &h);
         if (med == -2) med = got ? scene_medium_after(s, &h, v3_neg(r.d)) : s->global_medium;
@@ -188,6 +203,9 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
         r.d = bs.wi;
         depth++;
     }
+    /* Still alive after the last bounce allowed by max_bounces: the path-length budget cut it. */
+    if (depth > max_depth && !b->over && c->o->max_bounces > 0 && c->o->max_bounces < c->o->max_depth)
+        b->cut++;
 }
 
 static void pilot_add(vol_pilot *a, const vol_pilot *b) {
@@ -257,13 +275,25 @@ void vol_pass_free(vol_pass_result *r) {
     memset(r, 0, sizeof *r);
 }
 
+/* The message of a map that stopped short of its target (photon_trace.c's wording). */
+static void say_short(const char *title, const vmap *m, uint64_t n_e, const char *budget, const char *why) {
+    fprintf(stderr,
+            "photon tracing: %s: only %zu of %ld photons stored after %llu emitted; stopped by "
+            "the %s (%s)\n",
+            title, m->n, m->target, (unsigned long long)n_e, budget, why);
+}
+
 int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res) {
     memset(res, 0, sizeof *res);
     if (s->nlights == 0 || s->light_distrib.n == 0) return PM_EINVAL;
-    if (!(o->max_emitted >= 1) || o->max_depth < 0 || o->surface_target < 0 || o->volume_target < 0)
+    if (!(o->max_emitted >= 1) || o->max_depth < 0 || o->surface_target < 0 || o->volume_target < 0 ||
+        o->max_bounces < 0)
         return PM_EINVAL;
     vctx c = {s, o, o->surface_target > 0 && !o->pilot, o->volume_target > 0 && !o->pilot, o->pilot != NULL,
               NULL, {0}, 0};
+    const char *title_s = o->caustic_pass ? "Tracing caustic photons" : "Tracing global photons";
+    const char *title_v = o->caustic_pass ? "Tracing volume-caustic photons" : "Tracing volume photons";
+    const char *emit_budget = o->max_emitted_budget ? o->max_emitted_budget : "photon_mapping.max_emitted budget";
     if (o->caustic_pass && o->projection_cells > 0) {
         double *w = malloc((size_t)s->nlights * sizeof *w);
         if (!w || projmap_build_all(s, o->projection_cells, &c.proj) < 0) {
@@ -291,11 +321,27 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
 #ifdef _OPENMP
     nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
 #endif
-    uint64_t emitted = 0, max_emitted = (uint64_t)o->max_emitted;
+    uint64_t emitted = 0, max_emitted = (uint64_t)o->max_emitted, cut = 0;
     int rc = 0;
+    /* The budget that stopped the pass (NULL: none) and what it saw. */
+    const char *stop = NULL;
+    char why[160] = "";
     while (emitted < max_emitted && (c.counting || ms.cut == UINT64_MAX || mv.cut == UINT64_MAX)) {
         uint64_t start = emitted;
         int nb = VOL_ROUND;
+        /* The memory budget (max_memory_bytes): the maps' buffers between rounds, and within a
+         * round each batch's buffer at most its share of what the maps leave, so the stop is
+         * the same for any thread count. */
+        size_t held = (ms.cap + mv.cap) * sizeof(vrec), room = SIZE_MAX;
+        for (int b = 0; b < nb; b++) held += bufs[b].cap * sizeof(vrec);
+        if (o->max_memory_bytes > 0 && !c.counting) {
+            if (held > o->max_memory_bytes) {
+                stop = "photon_mapping.max_memory_mb budget";
+                snprintf(why, sizeof why, "%zu MiB of photon buffers", held >> 20);
+                break;
+            }
+            room = (o->max_memory_bytes - (ms.cap + mv.cap) * sizeof(vrec)) / VOL_ROUND / sizeof(vrec);
+        }
         (void)nthreads;
 #ifdef _OPENMP
 #pragma omp parallel for num_threads(nthreads) schedule(dynamic, 1)
@@ -303,22 +349,42 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
         for (int b = 0; b < nb; b++) {
             vbuf *bf = &bufs[b];
             bf->n = 0;
+            bf->over = 0;
+            bf->stop = UINT64_MAX;
+            bf->cut = 0;
+            bf->max_n = room;
             memset(&bf->pilot, 0, sizeof bf->pilot);
             uint64_t lo = start + (uint64_t)b * VOL_BATCH, hi = lo + VOL_BATCH;
             if (hi > max_emitted) hi = max_emitted;
-            for (uint64_t i = lo; i < hi; i++) trace_photon(&c, i, bf);
+            for (uint64_t i = lo; i < hi && !bf->over; i++) {
+                trace_photon(&c, i, bf);
+                if (bf->over) { /* photon i is not whole: drop its records, end the batch here */
+                    while (bf->n > 0 && bf->r[bf->n - 1].index == i) bf->n--;
+                    bf->stop = i;
+                }
+            }
         }
+        uint64_t end = start + (uint64_t)nb * VOL_BATCH;
         for (int b = 0; b < nb && rc == 0; b++) {
             if (bufs[b].fail) rc = PM_ENOMEM;
             if (o->pilot) pilot_add(o->pilot, &bufs[b].pilot);
+            cut += bufs[b].cut;
             for (size_t k = 0; k < bufs[b].n && rc == 0; k++) {
                 const vrec *v = &bufs[b].r[k];
                 rc = vmap_take(v->where == WHERE_SURFACE ? &ms : &mv, v);
             }
+            if (bufs[b].over) { /* the photons before it are whole; none after it counts */
+                end = bufs[b].stop;
+                stop = "photon_mapping.max_memory_mb budget";
+                snprintf(why, sizeof why, "a batch of photons outgrew its share of the budget, "
+                         "%zu MiB, at photon %llu", (room * sizeof(vrec)) >> 20,
+                         (unsigned long long)bufs[b].stop);
+                break;
+            }
         }
         if (rc < 0) break;
-        uint64_t end = start + (uint64_t)nb * VOL_BATCH;
         emitted = end < max_emitted ? end : max_emitted;
+        if (stop) break;
         /* A map that stored nothing in its first VOL_EMPTY_PHOTONS photons stays empty. */
         if (emitted >= VOL_EMPTY_PHOTONS) {
             if (ms.cut == UINT64_MAX && ms.n == 0) ms.cut = emitted;
@@ -331,14 +397,43 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
         distrib1d_free(&c.choose);
     }
     res->emitted = emitted;
+    res->cut = cut;
     res->surface_short = ms.keep && ms.cut == UINT64_MAX;
     res->volume_short = mv.keep && mv.cut == UINT64_MAX;
+    if (!stop && emitted >= max_emitted) {
+        stop = emit_budget;
+        snprintf(why, sizeof why, "%llu photons emitted", (unsigned long long)max_emitted);
+    }
+    if (rc == 0 && !o->pilot) {
+        if (cut > 0)
+            fprintf(stderr,
+                    "photon tracing: %s: %llu photon paths were cut by the path-length budget "
+                    "(photon_mapping.max_bounces = %d)\n",
+                    c.keep_volume ? title_v : title_s, (unsigned long long)cut, o->max_bounces);
+        if ((ms.keep || mv.keep) && ms.n == 0 && mv.n == 0) {
+            snprintf(res->msg, sizeof res->msg,
+                     "photon tracing: %s: no photon stored after %llu emitted: the lights reach no "
+                     "surface or medium that stores photons (do they face anything? are they "
+                     "enclosed by mirrors or glass only?)%s%s",
+                     mv.keep ? title_v : title_s, (unsigned long long)emitted,
+                     stop ? "; stopped by the " : "", stop ? stop : "");
+            rc = PM_EEMPTY;
+        } else {
+            if (res->surface_short) say_short(title_s, &ms, emitted, stop ? stop : "?", why);
+            if (res->volume_short) say_short(title_v, &mv, emitted, stop ? stop : "?", why);
+        }
+    }
     if (rc == 0) rc = vmap_finish(&ms, emitted, &res->surface, NULL, &res->nsurface, &res->surface_emitted);
     if (rc == 0)
         rc = vmap_finish(&mv, emitted, &res->volume, &res->volume_medium, &res->nvolume, &res->volume_emitted);
     free(ms.r);
     free(mv.r);
-    if (rc < 0) vol_pass_free(res);
+    if (rc < 0) {
+        char msg[sizeof res->msg];
+        memcpy(msg, res->msg, sizeof msg);
+        vol_pass_free(res);
+        memcpy(res->msg, msg, sizeof msg);
+    }
     return rc;
 }
 

@@ -33,6 +33,29 @@
  * to power times active fraction, with each photon's power scaled by that fraction (Jensen's
  * eq. 2.2), as photon_trace does.
  *
+ * BUDGETS, as photon_trace.h's PASS BUDGETS, with the same messages on stderr (none in a pilot):
+ *   emitted  max_emitted photons at most (the caller's min of max_emitted_factor x target and
+ *            max_emitted, named by max_emitted_budget); a map short of its target then says
+ *            "photon tracing: Tracing volume photons: only N of T photons stored after E
+ *            emitted; stopped by the photon_mapping.KEY budget (...)" (or another budget the
+ *            caller names). Unlike photon_trace, a
+ *            map is not stopped early from its storage rate: a pass has two maps, and a map
+ *            that cannot reach its target (the wall behind a smoke-filled glass) still takes
+ *            the whole budget, as before budgets were stamped;
+ *   memory   max_memory_bytes of records while tracing (VOL_RECORD_BYTES each): between
+ *            rounds the maps' and batches' buffers; within a round each batch may hold its
+ *            share, (budget - the maps' buffers) / VOL_ROUND, and a batch that outgrows it
+ *            ends at the photon that did: that photon's records are dropped, the pass ends
+ *            there with every earlier photon whole (its emitted count), so the stop does not
+ *            depend on the thread count;
+ *   path     max_bounces bounces per photon below max_depth; the paths cut are counted
+ *            ("N photon paths were cut by the path-length budget (photon_mapping.max_bounces
+ *            = B)");
+ *   stored   each map's target, as above.
+ * A pass that keeps a map and stores nothing in any (the lights reach no diffuse surface or
+ * scattering medium) fails with PM_EEMPTY and the message in the result's msg ("no photon
+ * stored after N emitted"); render then exits 1, as for photon_trace's empty pass.
+ *
  * DETERMINISM AND THREADS. Photon i of a pass uses only rng_stream(seed, i, stream); photons are
  * traced in batches of VOL_BATCH, VOL_ROUND batches at a time on all threads (OpenMP), each
  * batch into its own buffer, merged in photon order. The maps are bit-identical for any thread
@@ -61,6 +84,7 @@ extern "C" {
 #define VOL_EMPTY_PHOTONS 131072
 #define VOL_PILOT_MEDIA 16 /* media counted separately; the last slot collects any beyond */
 #define VOL_PILOT_MATS 64  /* materials counted separately; the last slot collects any beyond */
+#define VOL_RECORD_BYTES 72 /* a stored photon while tracing (the memory budget counts these) */
 
 typedef struct vol_photons {
     pm_photon *photons;
@@ -85,7 +109,11 @@ typedef struct vol_pass_opts {
     int caustic_pass;               /* 0: the global pass, 1: the caustic pass */
     long surface_target, volume_target; /* stores to reach; 0: that map is not kept */
     double max_emitted;             /* photons emitted at most */
-    int max_depth;                  /* bounces (surface and volume) per photon */
+    const char *max_emitted_budget; /* what max_emitted comes from, for messages ("stopped by
+                                       the ..."; NULL: "photon_mapping.max_emitted budget") */
+    size_t max_memory_bytes;        /* records while tracing (BUDGETS; 0: no cap) */
+    int max_depth;                  /* bounces (surface and volume) per photon: render.max_depth */
+    int max_bounces;                /* the path-length budget below max_depth (0: none) */
     uint64_t seed;
     int threads;       /* 0: OpenMP's default */
     vol_pilot *pilot;  /* non-NULL: count (summed into it), keep nothing */
@@ -103,9 +131,12 @@ typedef struct vol_pass_result {
     uint64_t surface_emitted, volume_emitted; /* each map's n_e */
     uint64_t emitted;                         /* photons traced by the pass */
     int surface_short, volume_short;          /* 1: the map stopped short of its target */
+    uint64_t cut;                             /* photon paths cut by max_bounces */
+    char msg[512];                            /* PM_EEMPTY: what happened (BUDGETS) */
 } vol_pass_result;
 
-/* Run a pass. 0, or PM_ENOMEM / PM_EINVAL (no light with power, bad options) with r empty. */
+/* Run a pass. 0, or PM_ENOMEM / PM_EINVAL (no light with power, bad options) / PM_EEMPTY
+ * (nothing stored, r->msg says so) with r empty but for msg. */
 int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *r);
 void vol_pass_free(vol_pass_result *r);
 

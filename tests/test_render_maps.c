@@ -438,21 +438,3 @@ TEST(render_map_stamp_covers_what_it_says) {
     EXPECT(a.settings == b.settings);
     scene_free(&s);
 }
-
-/* A scene with participating media traces its maps whatever load_photons says (its volume
- * maps are not saved): the run says so on stderr, names the directory, and traces. */
-TEST(render_maps_media_scene_says_it_traces) {
-    static char out[1 << 16];
-    char cmd[4096];
-    const char *flags = "--mode pm --width 8 --height 8 --spp 1 --quiet --pm global_photons=2000 "
-                        "--pm caustic_photons=1000 --pm volume_photons=2000 --pm volume_caustic_photons=1000";
-    snprintf(cmd, sizeof cmd, "timeout 120 '%s/render' '%s' %s --save-photons fog -o a.png",
-             pm_test_build_dir(), shipped("cornell_fog"), flags);
-    int rc = rt_run(cmd, out, sizeof out);
-    ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
-    snprintf(cmd, sizeof cmd, "timeout 120 '%s/render' '%s' %s --load-photons fog -o b.png",
-             pm_test_build_dir(), shipped("cornell_fog"), flags);
-    rc = rt_run(cmd, out, sizeof out);
-    EXPECT_MSG(rc == 0 && strstr(out, "warning: load_photons fog not used: a scene with participating media "
-                                      "traces its maps"), "exit %d: %s", rc, out);
-}
