@@ -6,6 +6,8 @@
 #include "light.h"
 #include "material.h"
 #include "medium.h"
+#include "sampling.h"
+#include "shapes.h"
 #include "stats.h"
 
 /* One light in proportion to power and one point on it, seen from p: 3 numbers. 0 if none. */
@@ -32,6 +34,66 @@ rgb direct_light_medium(const scene *s, vec3 p, vec3 d, int med, rng *g) {
     double f = hg_phase(s->media[med].g, v3_dot(d, ls.wi));
     rgb tr = shadow_tr(s, li, p, v3s(0), &ls, med);
     return v3_scale(v3_mul(tr, ls.L), f / pl);
+}
+
+/* The point that light_sample_li(s, li, any p, u1, u2) samples on light li (light.h: it does not
+ * depend on p); 0 for a directional light. */
+static int light_point(const scene *s, int li, double u1, double u2, vec3 *y) {
+    const light *l = &s->lights[li];
+    switch (l->type) {
+    case LIGHT_AREA: *y = triangle_sample(&s->tris[l->tri], u1, u2); return 1;
+    case LIGHT_SPHERE: {
+        const sphere *sp = &s->spheres[l->sphere];
+        *y = v3_madd(sp->c, sample_uniform_sphere(u1, u2), sp->r);
+        return 1;
+    }
+    case LIGHT_POINT: *y = l->pos; return 1;
+    default: return 0;
+    }
+}
+
+rgb direct_light_medium_mis(const scene *s, const direct_segment *seg, double t, double dens, rng *g) {
+    light_sample ls;
+    double pl;
+    int li;
+    vec3 p = ray_at(seg->r, t);
+    if (!pick_light(s, p, g, &ls, &pl, &li) || v3_iszero(ls.L)) return v3s(0);
+    double w = 1;
+    if (seg->m > 0 && s->lights[li].type != LIGHT_DIRECTIONAL) {
+        double pe = seg->m * medium_equiangular_pdf(seg->r.o, seg->r.d, 0, seg->t1, ls.p, t);
+        w = dens > 0 ? dens / (dens + pe) : 0;
+        if (!(w > 0)) return v3s(0);
+    }
+    double f = hg_phase(s->media[seg->med].g, v3_dot(seg->r.d, ls.wi));
+    rgb tr = shadow_tr(s, li, p, v3s(0), &ls, seg->med);
+    return v3_scale(v3_mul(tr, ls.L), w * f / pl);
+}
+
+rgb direct_light_equiangular(const scene *s, const direct_segment *seg, direct_density dens, const void *user, rng *g) {
+    rgb sum = v3s(0);
+    const medium *md = &s->media[seg->med];
+    double ut = seg->m > 0 ? rng_uniform(g) : 0;
+    for (int j = 0; j < seg->m; j++) {
+        double ulight = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
+        if (s->nlights == 0 || s->light_distrib.n == 0) continue;
+        double pl;
+        int li = distrib1d_sample(&s->light_distrib, ulight, &pl);
+        vec3 y;
+        if (!(pl > 0) || !light_point(s, li, u1, u2, &y)) continue;
+        /* stratum j of the angle: the pdf of t within it is m p_eq(t) */
+        double t, pe = medium_equiangular_sample(seg->r.o, seg->r.d, 0, seg->t1, y, (j + ut) / seg->m, &t);
+        if (!(pe > 0) || !isfinite(t)) continue;
+        rgb tr0 = medium_tr(md, t);
+        if (v3_iszero(tr0)) continue;
+        vec3 p = ray_at(seg->r, t);
+        light_sample ls;
+        if (!light_sample_li(s, li, p, u1, u2, &ls) || v3_iszero(ls.L)) continue;
+        double mpe = seg->m * pe, od = dens ? dens(user, t) : 0, w = mpe / (mpe + od);
+        double f = hg_phase(md->g, v3_dot(seg->r.d, ls.wi));
+        rgb tr = shadow_tr(s, li, p, v3s(0), &ls, seg->med);
+        sum = v3_add(sum, v3_scale(v3_mul(v3_mul(tr0, md->sigma_s), v3_mul(tr, ls.L)), w * f / (pl * mpe)));
+    }
+    return sum;
 }
 
 rgb direct_light_surface(const scene *s, const material *m, const hit *h, vec3 n, vec3 wo, rng *g,

@@ -64,6 +64,45 @@ rgb direct_light_surface(const scene *s, const material *m, const hit *h, vec3 n
  * Li * Tr / p_light, from one light sample: 3 numbers from g. */
 rgb direct_light_medium(const scene *s, vec3 p, vec3 d, int med, rng *g);
 
+/* EQUIANGULAR SAMPLING ALONG A SEGMENT. The single scattering of a segment [0, t1] of a ray r in
+ * a medium, the integral over t of Tr(t) sigma_s L_direct(r(t)), peaks as 1 / dist^2 where the
+ * segment passes close to a light: a point or uniform sampling of t puts few samples there and
+ * each carries a large value (fog just under a lamp). It is therefore estimated by two
+ * strategies combined by the balance heuristic (multi-sample MIS, Veach 1997):
+ *   - the caller's own samples of t (the march's stratified steps, the path tracer's free
+ *     flight), with density dens(t) counting all of its samples (n / T for n stratified steps),
+ *     each with one light sample (direct_light_medium_mis): weighted dens / (dens + m p_eq);
+ *   - m equiangular samples (direct_light_equiangular): one light and one point y on it are
+ *     drawn first, exactly as direct_light_medium draws them, then t by
+ *     medium_equiangular_sample toward y, stratified in angle with one offset u for all (sample j
+ *     at the fraction (j + u) / m of [theta0, theta1], as the march's steps are spaced); each
+ *     is weighted m p_eq / (m p_eq + dens) and divided by m p_eq (sample j alone has density
+ *     m p_eq on its m-th of the angle, and its light point is its own).
+ * The point drawn on a light depends only on its two numbers, not on the point it is seen from
+ * (light.h: uniform on the triangle or the sphere), so both strategies have the same density
+ * over the light and the weights compare only the densities of t; they sum to 1 for every (t,
+ * y), so the sum is unbiased for any m >= 0 (m = 0: the caller's strategy alone, weight 1).
+ * Directional lights have no point to aim at: the equiangular samples that choose one add
+ * nothing, and the caller's samples of them keep weight 1. */
+typedef struct direct_segment {
+    ray r;     /* origin and unit direction */
+    double t1; /* the segment is [0, t1] of r; t1 may be INFINITY (then Tr bounds it) */
+    int med;   /* the medium it runs in (>= 0) */
+    int m;     /* equiangular samples of the segment (>= 0) */
+} direct_segment;
+
+/* The density of the caller's samples at t (all of them counted). */
+typedef double (*direct_density)(const void *user, double t);
+
+/* direct_light_medium at r(t) of seg, times dens / (dens + m p_eq(t | y)) for the light point y
+ * it drew: 3 numbers from g. */
+rgb direct_light_medium_mis(const scene *s, const direct_segment *seg, double t, double dens, rng *g);
+
+/* The m equiangular samples of seg: the sum over them of w Tr(t) sigma_s phase Li Tr_shadow /
+ * (p_light m p_eq(t)), w = m p_eq / (m p_eq + dens(t)): 3 numbers from g per sample (light,
+ * point), plus 1 (the angle's offset) if m > 0, always drawn. Not multiplied by any throughput. */
+rgb direct_light_equiangular(const scene *s, const direct_segment *seg, direct_density dens, const void *user, rng *g);
+
 #ifdef __cplusplus
 }
 #endif

@@ -4,6 +4,7 @@
  */
 #include "medium.h"
 
+#include <float.h>
 #include <math.h>
 
 #include "photonmap/common.h"
@@ -56,6 +57,36 @@ int medium_sample_distance(const medium *m, double tmax, double uc, double u, do
     *t = tmax;
     *weight = p_reach > 0 ? v3_scale(tr, 1.0 / p_reach) : v3s(0);
     return 0;
+}
+
+/* The line's closest approach to y (*delta) and distance from it (*D, floored), and the angles
+ * of t0 and t1 seen from y. 0 if the interval is empty. */
+static int equiangular_setup(vec3 o, vec3 d, double t0, double t1, vec3 y, double *delta, double *D, double *th0,
+                             double *th1) {
+    if (!(t1 > t0)) return 0;
+    vec3 oy = v3_sub(y, o);
+    *delta = v3_dot(oy, d);
+    double dd = v3_len(v3_sub(oy, v3_scale(d, *delta))), floor_d = 1e-9 * v3_len(oy);
+    *D = dd > floor_d ? dd : floor_d > 0 ? floor_d : DBL_MIN;
+    *th0 = atan2(t0 - *delta, *D);
+    *th1 = isfinite(t1) ? atan2(t1 - *delta, *D) : M_PI / 2;
+    return *th1 > *th0;
+}
+
+double medium_equiangular_sample(vec3 o, vec3 d, double t0, double t1, vec3 y, double u, double *t) {
+    double delta, D, th0, th1;
+    if (!equiangular_setup(o, d, t0, t1, y, &delta, &D, &th0, &th1)) return 0;
+    double tt = delta + D * tan(th0 + u * (th1 - th0));
+    *t = fmin(fmax(tt, t0), t1); /* rounding at the ends */
+    double e = *t - delta;
+    return D / ((th1 - th0) * (D * D + e * e));
+}
+
+double medium_equiangular_pdf(vec3 o, vec3 d, double t0, double t1, vec3 y, double t) {
+    double delta, D, th0, th1;
+    if (!(t >= t0 && t <= t1) || !equiangular_setup(o, d, t0, t1, y, &delta, &D, &th0, &th1)) return 0;
+    double e = t - delta;
+    return D / ((th1 - th0) * (D * D + e * e));
 }
 
 int scene_has_media(const scene *s) { return s->nmedia > 0 || s->has_null; }

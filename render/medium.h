@@ -55,6 +55,20 @@ double hg_sample(double g, vec3 a, double u1, double u2, vec3 *b);
  * surface, with *weight = Tr(tmax) / P(reach); both are per channel and unbiased. */
 int medium_sample_distance(const medium *m, double tmax, double uc, double u, double *t, rgb *weight);
 
+/* Equiangular sampling (Kulla and Fajardo, "Importance sampling techniques for path tracing in
+ * participating media", 2012): a distance t in [t0, t1] (t1 may be INFINITY; t0 < t1) along
+ * the line o + t d (d a unit vector) with density proportional to 1 / |o + t d - y|^2, the
+ * inverse-square fall-off of light arriving from the point y. With delta = dot(y - o, d) (the
+ * closest approach) and D the distance from y to the line, the angle theta = atan((t - delta) /
+ * D) is uniform in [theta0, theta1], so
+ *     t = delta + D tan(theta0 + u (theta1 - theta0)),
+ *     pdf(t) = D / ((theta1 - theta0) (D^2 + (t - delta)^2)).
+ * D is at least 1e-9 |y - o| (a point on the line keeps a finite density). medium_equiangular_sample
+ * returns the pdf of the *t it draws (0 if the interval is empty); medium_equiangular_pdf the
+ * density of any t (0 outside [t0, t1]). Both pure. */
+double medium_equiangular_sample(vec3 o, vec3 d, double t0, double t1, vec3 y, double u, double *t);
+double medium_equiangular_pdf(vec3 o, vec3 d, double t0, double t1, vec3 y, double t);
+
 struct scene;
 struct hit;
 

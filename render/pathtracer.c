@@ -24,7 +24,12 @@
  * camera's, then the side of each surface it leaves by). In a medium, free-flight sampling
  * draws a distance (channel, distance: 2 numbers); a scattering event before the next surface
  * counts as a bounce: next-event estimation with the HG phase function and the transmittance
- * of the shadow segment, then an HG direction (2 numbers), then roulette. Otherwise the ray
+ * of the shadow segment, then an HG direction (2 numbers), then roulette. The single scattering
+ * of every segment in a medium (while the depth allows a bounce) has a second strategy: one
+ * equiangular sample toward a point on a light (direct.h: 4 numbers, drawn after the free-flight
+ * pair), combined with the free-flight event's next-event estimate by the balance heuristic
+ * against the free-flight density mean(sigma_t Tr(t)); near a light (1 / dist^2) the
+ * equiangular sample carries the light, and fog under a lamp no longer gives fireflies. Otherwise the ray
  * reaches the surface with weight Tr / P(reach). Null surfaces are crossed without a bounce
  * (the medium changes); shadow rays from surfaces and media carry the transmittance through
  * media and null surfaces and stop at anything else.
@@ -102,6 +107,14 @@ static int surface_event(const pt_state *st, const scene *s, const hit *h, ray *
     return 1;
 }
 
+/* The density of medium_sample_distance's scattering distance t (before the surface): the
+ * mean over the channels of sigma_t Tr(t). */
+static double free_flight_pdf(const void *user, double t) {
+    const medium *md = user;
+    rgb tr = medium_tr(md, t);
+    return (md->sigma_t.x * tr.x + md->sigma_t.y * tr.y + md->sigma_t.z * tr.z) / 3;
+}
+
 /* The path loop of a scene with media or null surfaces (the top of the file). */
 static rgb pt_li_media(const pt_state *st, const scene *s, ray r, rng *g) {
     pt_path pp = {v3s(0), v3s(1), 1};
@@ -110,9 +123,13 @@ static rgb pt_li_media(const pt_state *st, const scene *s, ray r, rng *g) {
         hit h;
         int got = scene_intersect(s, r, INFINITY, &h);
         if (med >= 0) {
+            const medium *md = &s->media[med];
+            direct_segment seg = {r, got ? h.t : INFINITY, med, depth < st->max_depth && !v3_iszero(md->sigma_s)};
             double uc = rng_uniform(g), ud = rng_uniform(g), t;
             rgb w;
-            int scatter = medium_sample_distance(&s->media[med], got ? h.t : INFINITY, uc, ud, &t, &w);
+            int scatter = medium_sample_distance(md, seg.t1, uc, ud, &t, &w);
+            /* The segment's equiangular sample (direct.h), weighted against free flight. */
+            if (seg.m) pp.L = v3_add(pp.L, v3_mul(pp.beta, direct_light_equiangular(s, &seg, free_flight_pdf, md, g)));
             pp.beta = v3_mul(pp.beta, w);
             if (v3_iszero(pp.beta)) break;
             if (scatter) {
@@ -122,7 +139,7 @@ static rgb pt_li_media(const pt_state *st, const scene *s, ray r, rng *g) {
                     break;
                 }
                 vec3 p = ray_at(r, t);
-                pp.L = v3_add(pp.L, v3_mul(pp.beta, direct_light_medium(s, p, r.d, med, g)));
+                pp.L = v3_add(pp.L, v3_mul(pp.beta, direct_light_medium_mis(s, &seg, t, free_flight_pdf(md, t), g)));
                 pp.count_emission = 0;
                 double u1 = rng_uniform(g), u2 = rng_uniform(g);
                 vec3 nd;

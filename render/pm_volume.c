@@ -27,6 +27,8 @@
  * PMV_K_MIN (STEP, k AND RADII in pm_volume.h). */
 #define PMV_RADIUS_MFP 0.5
 #define PMV_K_MIN 16u
+/* A segment marched in n steps gets ceil(n / PMV_EQUIANGULAR_DIV) equiangular light samples. */
+#define PMV_EQUIANGULAR_DIV 2
 
 int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
     memset(v, 0, sizeof *v);
@@ -343,6 +345,16 @@ static double bounds_exit(const pmv_state *v, ray r) {
     return t1 >= t0 ? t1 : 0;
 }
 
+/* The equiangular samples of a segment marched in n steps: ceil(n / PMV_EQUIANGULAR_DIV)
+ * (EYE RAYS in pm_volume.h). */
+static int pmv_equiangular_samples(int n) { return (n + PMV_EQUIANGULAR_DIV - 1) / PMV_EQUIANGULAR_DIV; }
+
+/* The stratified steps' density n / T, for the equiangular samples' weights. */
+static double const_density(const void *user, double t) {
+    (void)t;
+    return *(const double *)user;
+}
+
 rgb pmv_march(const pmv_state *v, const scene *s, ray r, double tmax, int med, int inscatter, rng *g,
               void *scratch, rgb *tr) {
     *tr = v3s(1);
@@ -357,10 +369,13 @@ rgb pmv_march(const pmv_state *v, const scene *s, ray r, double tmax, int med, i
     int n = nf > PMV_MAX_STEPS ? PMV_MAX_STEPS : nf < 1 ? 1 : (int)nf;
     double dt = T / n, u = rng_uniform(g);
     rgb L = v3s(0);
+    direct_segment seg = {r, T, med, pmv_equiangular_samples(n)};
+    double dens = n / T;
+    if (seg.m > 0) L = direct_light_equiangular(s, &seg, const_density, &dens, g);
     for (int i = 0; i < n; i++) {
         double t = (i + u) * dt;
         vec3 x = ray_at(r, t);
-        rgb src = v3_mul(md->sigma_s, direct_light_medium(s, x, r.d, med, g));
+        rgb src = v3_mul(md->sigma_s, direct_light_medium_mis(s, &seg, t, dens, g));
         if (ms->t) {
             src = v3_add(src, volume_estimate_in(v, ms->t, ms->k, ms->r2, s, med, x, r.d, scratch));
             stat_inc(v->st_ms);

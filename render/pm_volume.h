@@ -29,7 +29,13 @@
  * the segment's start):
  *   L += Tr dt [ sigma_s * single(x) + S_ms(x) + S_caustic(x) ]
  * single(x) is one light sample with the HG phase function and the shadow segment's
- * transmittance (direct.h, direct_light_medium); S_ms and S_caustic are the volume radiance
+ * transmittance (direct.h, direct_light_medium_mis), weighted by the balance heuristic against
+ * ceil(n / 2) equiangular samples of the segment (Kulla and Fajardo 2012; direct.h, EQUIANGULAR
+ * SAMPLING ALONG A SEGMENT), which are added to L: the stratified steps' density is n / T, and
+ * where the segment passes close to a light (fog just under a lamp: 1 / dist^2) the
+ * equiangular samples carry the light instead of a rare step that lands there. A ray 0.02 from
+ * a point light: the march's spread 1/11 of the steps' alone; 0.3 from it, 1.3 times (test
+ * media_single_scattering_march_matches_quadrature). S_ms and S_caustic are the volume radiance
  * estimates (pm_estimate_volume with sigma_s = 1, i.e. sum phase dPhi / (4/3 pi r^3): the light
  * scattered per unit length, HG phase per photon) of the two trees. The segment's
  * transmittance exp(-sigma_t T) multiplies what lies beyond it.
