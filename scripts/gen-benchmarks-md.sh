@@ -91,7 +91,7 @@ box) and `empty` (uniform in the bounding box).
 
 EOF
 if [ -f "$KM" ]; then
-  echo "Measured by \`bench_knn\` at commit $(kval commit) on $(kval date) (load average before / after: $(kval load_before) / $(kval load_after); $(kval bench_seconds) s for the race and its maps, including the renders). Times are the CPU time of the thread running the queries or the build, so that time slices the shared machine gave to other jobs do not count."
+  echo "Measured by \`bench_knn\` at commit $(kval commit) on $(kval date) (load average before / after: $(kval load_before) / $(kval load_after)$( [ -n "$(kval load_during)" ] && echo "; during the race, the 1-minute load average sampled every 15 s: $(kval load_during)"); $(kval bench_seconds) s for the race and its maps, including the renders). Times are the CPU time of the thread running the queries or the build, so that time slices the shared machine gave to other jobs do not count."
   echo
 fi
 cat <<'EOF'

@@ -12,6 +12,9 @@
 # A real photon map dumped by the renderer (data/scenes/cornell_spheres.json) is the third
 # workload of the search bench; PM_BENCH_MAP=file.pmap (pm_map_save format) replaces it.
 # Progress goes to stderr; every number in the document comes from the CSVs.
+# PM_BENCH_COMMIT=TEXT stamps the run with TEXT instead of this checkout's HEAD (and its
+# uncommitted changes): for binaries BUILD built from a clean export of a commit while other
+# people's uncommitted work sits in the checkout, e.g. PM_BENCH_COMMIT="cd87fe2 (clean export)".
 set -eu
 # Idle OpenMP threads must not spin on a core that a one-thread measurement needs.
 export OMP_WAIT_POLICY=${OMP_WAIT_POLICY:-PASSIVE}
@@ -51,7 +54,7 @@ MACH="$OUT/machine.csv"
   echo "flags,$(echo "${PM_BENCH_CFLAGS:-see Makefile (run-bench.sh run directly)}" | tr ',' ' ' | sed 's/  */ /g; s/ *$//')"
   echo "flann,$(dpkg-query -W -f='${Version}' libflann-dev 2>/dev/null || echo unknown)"
   echo "date,$(date -u '+%Y-%m-%d %H:%M UTC')"
-  echo "commit,$(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet HEAD -- photonmap/kdtree.c photonmap/kdtree.h photonmap/kdtree_internal.h photonmap/kdtree_query.c photonmap/internal.h photonmap/photon.h bench 2>/dev/null || echo ' plus uncommitted changes in the searches or bench/')"
+  echo "commit,${PM_BENCH_COMMIT:-$(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet HEAD -- photonmap/kdtree.c photonmap/kdtree.h photonmap/kdtree_internal.h photonmap/kdtree_query.c photonmap/internal.h photonmap/photon.h bench 2>/dev/null || echo ' plus uncommitted changes in the searches or bench/')}"
   echo "mode,$MODE"
   echo "load_before,$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo '?')"
 } > "$MACH"
@@ -114,8 +117,16 @@ if [ -x "$BUILD/render" ] && [ -z "${PM_BENCH_MAP:-}" ]; then
   fi
 fi
 log "k-NN workload race ($MODE)"
+# The machine's load during the race (other people's jobs share it): the 1-minute load average
+# every 15 s while bench_knn runs; the sampler stops by itself when this script has ended.
+( while kill -0 $$ 2>/dev/null && [ ! -f "$OUT/load.stop" ]; do
+    cut -d' ' -f1 /proc/loadavg 2>/dev/null; sleep 15; done ) > "$OUT/load.tmp" &
 # shellcheck disable=SC2086
 "$BUILD/bench_knn" $QFLAG --out "$OUT" $KNNMAPS
+: > "$OUT/load.stop"
+cut -d' ' -f1 /proc/loadavg 2>/dev/null >> "$OUT/load.tmp" || true
+echo "load_during,$(sort -n "$OUT/load.tmp" | awk '{ v[NR] = $1 } END { if (NR) printf "min %s median %s max %s (%d samples)", v[1], v[int((NR + 1) / 2)], v[NR], NR; else printf "?" }')" >> "$MACH"
+rm -f "$OUT/load.tmp"
 rm -rf "$OUT/map.tmp" "$OUT/map.tmp.log"
 if [ "$ONLY" = knn ]; then
   # the race's own stamp, complete; the other benchmarks are not rerun
@@ -195,4 +206,5 @@ if [ "$MODE" = full ] && [ -f "$OUT/knn_best.csv" ] && [ -f README.md ]; then
   rm -f README.md.headline.tmp
   mv README.md.tmp README.md
 fi
+rm -f "$OUT/load.stop" # the sampler also stops once this script has ended
 log "done"
