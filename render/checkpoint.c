@@ -236,6 +236,15 @@ out:
 
 /* ---- around a checkpointed render ----------------------------------------------------------- */
 
+static int g_writer = 1, g_retrace;
+static char g_extra[256];
+
+void ckpt_set_distributed(int writer, const char *extra, int retrace) {
+    g_writer = writer != 0;
+    snprintf(g_extra, sizeof g_extra, "%s", extra ? extra : "");
+    g_retrace = retrace != 0;
+}
+
 void ckpt_settings_text(const scene *s, const char *mode, char *buf, size_t cap) {
     char *pm = NULL;
     if (s->photon_mapping) {
@@ -248,9 +257,9 @@ void ckpt_settings_text(const scene *s, const char *mode, char *buf, size_t cap)
             cJSON_Delete(copy);
         }
     }
-    snprintf(buf, cap, "renderer %s; mode %s; %dx%d; spp %d; seed %llu; photon_mapping %s",
+    snprintf(buf, cap, "renderer %s; mode %s; %dx%d; spp %d; seed %llu; photon_mapping %s%s",
              PM_VERSION_STRING, mode, s->cam.width, s->cam.height, s->cam.spp,
-             (unsigned long long)s->settings.seed, pm ? pm : "{}");
+             (unsigned long long)s->settings.seed, pm ? pm : "{}", g_extra);
     free(pm);
 }
 
@@ -314,13 +323,28 @@ int ckpt_replay_args(int argc, char **argv, int *nargc, char ***nargv, char **st
 int ckpt_photon_hash(const char *dir, uint64_t *h, char *err, size_t errcap) {
     static const char *names[3] = {"global.pmap", "caustic.pmap", "shadow.pmap"};
     *h = CKPT_HASH_INIT;
+    char path[OUT_PATH_MAX], name[64];
     for (int k = 0; k < 3; k++) {
-        char path[OUT_PATH_MAX];
         snprintf(path, sizeof path, "%s/%s", dir, names[k]);
         *h = ckpt_hash(*h, names[k], strlen(names[k]) + 1);
         if (access(path, F_OK) != 0) continue;
         int rc = ckpt_hash_file(path, UINT64_MAX, h, err, errcap);
         if (rc < 0) return rc;
+    }
+    /* A scene with media: the volume maps of media 0, 1, ... (photon_maps.h), up to the
+     * first medium that has neither. */
+    for (int m = 0;; m++) {
+        int any = 0;
+        for (int k = 0; k < 2; k++) {
+            snprintf(name, sizeof name, "%s-%d.pmap", k ? "volume_caustic" : "volume", m);
+            snprintf(path, sizeof path, "%s/%s", dir, name);
+            if (access(path, F_OK) != 0) continue;
+            any = 1;
+            *h = ckpt_hash(*h, name, strlen(name) + 1);
+            int rc = ckpt_hash_file(path, UINT64_MAX, h, err, errcap);
+            if (rc < 0) return rc;
+        }
+        if (!any) break;
     }
     return 0;
 }
@@ -340,6 +364,7 @@ double ckpt_session_period(const ckpt_session *cs) {
 
 int ckpt_session_pause(void *user, const render_state *st, int why) {
     ckpt_session *cs = user;
+    if (!g_writer) return 0;
     double now = stats_now();
     if (cs->ckpt_path && (why == RENDER_PAUSE_SIGNAL || now >= cs->next_ckpt)) {
         int rc = ckpt_write(cs->ckpt_path, &cs->info, st, cs->err, sizeof cs->err);
@@ -378,18 +403,20 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
     memset(ci, 0, sizeof *ci);
     const char *load = uses_photons ? pm_dir_key(s, "load_photons") : NULL;
     const char *save = uses_photons ? pm_dir_key(s, "save_photons") : NULL;
-    if (ckpt_path && uses_photons && !resume) {
+    /* Maps that cannot be saved whole (ckpt_set_distributed's retrace) are traced again by a
+     * resumed render: the checkpoint names none. */
+    if (ckpt_path && uses_photons && !resume && !g_retrace) {
         if (load) {
             snprintf(ci->photons, sizeof ci->photons, "%s", load);
         } else {
             if (!save) {
                 snprintf(ci->photons, sizeof ci->photons, "%s.photons", ckpt_path);
-                if (plan_cli_set(&s->photon_mapping, "--save-photons", ci->photons, msg,
+                if (g_writer && plan_cli_set(&s->photon_mapping, "--save-photons", ci->photons, msg,
                                          sizeof msg) < 0) {
                     fprintf(stderr, "render: %s\n", msg);
                     return 2;
                 }
-                save = pm_dir_key(s, "save_photons");
+                save = g_writer ? pm_dir_key(s, "save_photons") : NULL;
             } else {
                 snprintf(ci->photons, sizeof ci->photons, "%s", save);
             }
@@ -438,7 +465,7 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
         fprintf(stderr, "render: --resume %s: the checkpoint has other settings\n  checkpoint: %s\n"
                 "  this run:   %s\n", resume, old->settings, ci->settings);
         status = 2;
-    } else if (uses_photons) {
+    } else if (uses_photons && !g_retrace) {
         uint64_t h;
         if (!old->photons[0] || ckpt_photon_hash(old->photons, &h, err, sizeof err) < 0 ||
             h != old->photon_hash) {
@@ -461,6 +488,10 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
 int checkpoint_begin(ckpt_session *cs, int uses_photons, render_state *st) {
     char err[1024];
     int fresh = render_state_done(st) == 0;
+    if (!g_writer) { /* another process writes (ckpt_set_distributed) */
+        ckpt_session_start(cs);
+        return 0;
+    }
     if (cs->ckpt_path && uses_photons && fresh && cs->info.photons[0] &&
         ckpt_photon_hash(cs->info.photons, &cs->info.photon_hash, err, sizeof err) < 0) {
         fprintf(stderr, "render: photon maps: %s\n", err);

@@ -65,12 +65,31 @@ uint64_t ckpt_hash(uint64_t h, const void *p, size_t n);
 /* Continue h over a file's bytes (at most max_bytes; more is an error). 0 or PM_EIO. */
 int ckpt_hash_file(const char *path, uint64_t max_bytes, uint64_t *h, char *err, size_t errcap);
 
+/* ---- a distributed render (render/mpi/) ---------------------------------------------------
+ *
+ * Every process of a distributed render runs main.c, so every process sets up the checkpoint
+ * session (it replays the arguments and checks the scene, the settings and the maps just as
+ * one process does); ckpt_set_distributed, called on every process before checkpoint_setup,
+ * says which one writes:
+ *   - writer 1 (rank 0): writes the checkpoints, the snapshots and the photon maps a
+ *     checkpoint keeps; writer 0: writes none of them (checkpoint_setup does not ask for the
+ *     maps to be saved, checkpoint_begin writes nothing, ckpt_session_pause does nothing);
+ *   - extra: appended to the settings text. "" for a render whose image is render's, bit for
+ *     bit: then its checkpoints are render's, and either program resumes the other's. A
+ *     render whose image depends on how it is distributed names that here, so that a resume
+ *     under another distribution is refused as "other settings";
+ *   - retrace 1: the photon maps cannot be saved whole (no process holds them): a checkpoint
+ *     keeps no maps, and a resumed render traces them again (deterministic for the same
+ *     extra text).
+ * The default (never called) is one process: writer 1, "", retrace 0. */
+void ckpt_set_distributed(int writer, const char *extra, int retrace);
+
 /* ---- what main.c needs around a checkpointed render ---------------------------------------
  *
  * Settings text: "renderer VERSION; mode M; WxH; spp N; seed S; photon_mapping {json}" with
  * the photon_mapping object as the run applies it, less the keys that do not change the image
- * (save_photons, load_photons, progress). Tone and exposure only change the PNG, so a resumed
- * run may change them. */
+ * (save_photons, load_photons, progress), then ckpt_set_distributed's extra text. Tone and
+ * exposure only change the PNG, so a resumed run may change them. */
 void ckpt_settings_text(const scene *s, const char *mode, char *buf, size_t cap);
 
 /* The arguments a resumed run replays: argv[1..] less the scene path, --resume FILE,
@@ -84,7 +103,8 @@ int ckpt_replay_args(int argc, char **argv, int *nargc, char ***nargv, char **st
                      size_t errcap);
 
 /* The hash of the photon-map files in dir (global, caustic, shadow; absent ones count as
- * absent). 0 or PM_EIO with a message. */
+ * absent; then the volume maps volume-M.pmap and volume_caustic-M.pmap of M = 0, 1, ... up to
+ * the first M with neither). 0 or PM_EIO with a message. */
 int ckpt_photon_hash(const char *dir, uint64_t *h, char *err, size_t errcap);
 
 /* Periodic checkpoints and snapshots during a render: a render_pause_fn (renderer.h) with

@@ -227,6 +227,10 @@ else
   bad "partitioned photon pass" "exchange '$pbytes' bytes for '$pstored' photons; $(grep -h '^Photons: \|^Radii: ' "$T/part.trace3.log" "$T/pmaps.log" "$T/part.load3.log")"
 fi
 
+# mpia's tests of the partitioned precomputed irradiance (sourced: they share ok/bad, $T, $M, $R).
+# shellcheck disable=SC1091
+[ -f scripts/test-mpi-partitioned.sh ] && . scripts/test-mpi-partitioned.sh
+
 # ---- failures ----------------------------------------------------------------------------
 # A scene error on every rank: exit 2, the loader's message (with the line) once from rank 0,
 # and no output file.
@@ -277,14 +281,118 @@ if [ "$rc3" = "$rc1" ] && { { [ "$rc1" != 0 ] && [ -n "$msg" ] && grep -qF "$msg
 else
   bad "pass storing nothing" "render $rc1, render-mpi $rc3; $(grep render "$T/cage3.log" | head -3)"
 fi
-# Options a distributed render does not have: exit 2 with the reason.
-$MPIRUN -np 2 "$M" data/scenes/furnace.json --checkpoint "$T/ck" --hdr "$T/ck.pfm" >"$T/ck.log" 2>&1
+# ---- checkpoints -----------------------------------------------------------------------------
+# Oracle: the one-process render, uninterrupted. Rank 0 writes the checkpoint (whole, through
+# a temporary and a rename) from the tiles it holds; a resumed job renders only the tiles not
+# complete in it, at any -np, and must give the PFM bytes of the uninterrupted render. The
+# test hook PM_RENDER_TEST_PAUSE=render:F makes rank 0 write a checkpoint once F of the
+# samples are done and then wait for a signal, so the job is stopped at a known point.
+# mpi_pid ID RANK: the pid of that rank of the job started with PM_TEST_MPI_ID=ID.
+mpi_pid() {
+  for p in $(pgrep -f "$M"); do
+    tr '\0' '\n' < /proc/$p/environ 2>/dev/null | grep -qx "PM_TEST_MPI_ID=$1" || continue
+    tr '\0' '\n' < /proc/$p/environ 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=$2" || continue
+    echo "$p"; return
+  done
+}
+# ckpt_stop NAME NP HOW FRACTION ARGS...: start the job with --checkpoint $T/NAME.ck, wait for
+# rank 0's test pause, then stop it: HOW = kill (SIGKILL to rank 0: nothing more is written)
+# or term (SIGTERM to mpirun, as a batch system does: rank 0 writes a last checkpoint). Sets
+# stop_ok to 1 when the job ended non-zero with a checkpoint and no image.
+ckpt_stop() {
+  cname=$1; cnp=$2; how=$3; frac=$4; shift 4
+  id="mpib-$$-$cname"
+  (PM_TEST_MPI_ID=$id PM_RENDER_TEST_PAUSE=render:$frac $MPIRUN -np "$cnp" -x PM_RENDER_TEST_PAUSE \
+     "$M" "$@" --threads 1 --checkpoint "$T/$cname.ck" --hdr "$T/$cname.pfm" \
+     >"$T/$cname.log" 2>"$T/$cname.err" & echo $! > "$T/$cname.mpirun"; wait $!; echo $? > "$T/$cname.rc") &
+  i=0
+  while [ $i -lt 600 ] && ! grep -q "test pause at render" "$T/$cname.err" 2>/dev/null; do
+    sleep 0.2; i=$((i + 1))
+  done
+  if [ "$how" = kill ]; then
+    p=$(mpi_pid "$id" 0); [ -n "$p" ] && kill -9 "$p"
+  else
+    kill -TERM "$(cat "$T/$cname.mpirun")"
+  fi
+  wait
+  stop_ok=0
+  [ "$(cat "$T/$cname.rc" 2>/dev/null)" != 0 ] && [ -s "$T/$cname.ck" ] && [ ! -e "$T/$cname.pfm" ] \
+    && grep -q "render: checkpoint .*$cname.ck (" "$T/$cname.err" && stop_ok=1
+}
+# resumed_ok NAME LOG REF: the resumed image equals REF, and the log says that some but not
+# all tiles came from the checkpoint.
+resumed_ok() {
+  rt=$(sed -n 's/^MPI: resumed: \([0-9]*\) of \([0-9]*\) tiles.*/\1 \2/p' "$2")
+  set -- "$1" "$2" "$3" $rt
+  [ $# = 5 ] && [ "$4" -gt 0 ] && [ "$4" -lt "$5" ] && cmp -s "$T/$1.pfm" "$3"
+}
+CKPATH="data/scenes/cornell_box.json --mode path --width 64 --height 48 --spp 16"
+# shellcheck disable=SC2086
+"$R" $CKPATH --threads 2 --quiet --hdr "$T/ckpath.ref.pfm" >/dev/null 2>&1
+# shellcheck disable=SC2086
+ckpt_stop ckkill 2 kill 0.5 $CKPATH
+$MPIRUN -np 3 "$M" data/scenes/cornell_box.json --resume "$T/ckkill.ck" --threads 1 \
+  >"$T/ckkill.res.log" 2>&1
 rc=$?
-if [ $rc = 2 ] && [ ! -e "$T/ck.pfm" ] && [ ! -e "$T/ck" ] \
-   && grep -q "render-mpi: --checkpoint is not available" "$T/ck.log"; then
-  ok "--checkpoint refused with exit 2"
+if [ "$stop_ok" = 1 ] && [ $rc = 0 ] && resumed_ok ckkill "$T/ckkill.res.log" "$T/ckpath.ref.pfm"; then
+  ok "checkpoint: rank 0 of -np 2 killed after a checkpoint, resumed at -np 3: $(sed -n 's/^MPI: resumed: //p' "$T/ckkill.res.log"); PFM bytes equal the one-process render"
 else
-  bad "--checkpoint" "rc $rc; $(grep render "$T/ck.log" | head -2)"
+  bad "checkpoint kill/resume" "stop_ok $stop_ok rc $rc; $(grep -h "render\|MPI: res" "$T/ckkill.err" "$T/ckkill.res.log" | tail -3)"
+fi
+# pm mode: rank 0 saves the maps with the checkpoint (CK.photons, as render does), the resumed
+# job loads them on every rank; SIGTERM to mpirun, and the resume at -np 2 with 2 threads.
+CKPM="data/scenes/cornell_spheres.json --mode pm --width 48 --height 32 --spp 4 $PMSMALL"
+# shellcheck disable=SC2086
+"$R" $CKPM --threads 2 --quiet --hdr "$T/ckpm.ref.pfm" >/dev/null 2>&1
+# shellcheck disable=SC2086
+ckpt_stop ckterm 3 term 0.4 $CKPM
+$MPIRUN -np 2 "$M" data/scenes/cornell_spheres.json --resume "$T/ckterm.ck" --threads 2 \
+  >"$T/ckterm.res.log" 2>&1
+rc=$?
+if [ "$stop_ok" = 1 ] && [ $rc = 0 ] && grep -q "render: interrupted; the render state is in" "$T/ckterm.err" \
+   && [ -s "$T/ckterm.ck.photons/global.pmap" ] && resumed_ok ckterm "$T/ckterm.res.log" "$T/ckpm.ref.pfm"; then
+  ok "checkpoint: pm -np 3 stopped by SIGTERM (rank 0 wrote the last checkpoint), resumed at -np 2 x 2 threads from the saved maps: PFM bytes equal the one-process render"
+else
+  bad "checkpoint term/resume pm" "stop_ok $stop_ok rc $rc; $(grep -h "render\|MPI: res" "$T/ckterm.err" "$T/ckterm.res.log" | tail -3)"
+fi
+# A replicated job's checkpoint is render's: render's own checkpoint (taken mid-tile: tiles
+# partly done start over on a rank) resumes under render-mpi -np 2 to the same bytes.
+id="mpib-$$-ckr"
+# shellcheck disable=SC2086
+(PM_RENDER_TEST_PAUSE=render:0.3 "$R" $CKPATH --threads 2 --checkpoint "$T/ckr.ck" --hdr "$T/ckr.pfm" \
+   >"$T/ckr.log" 2>"$T/ckr.err" & echo $! > "$T/ckr.pid"; wait) &
+i=0
+while [ $i -lt 300 ] && ! grep -q "test pause at render" "$T/ckr.err" 2>/dev/null; do sleep 0.2; i=$((i + 1)); done
+kill -INT "$(cat "$T/ckr.pid")"; wait
+$MPIRUN -np 2 "$M" data/scenes/cornell_box.json --resume "$T/ckr.ck" --threads 1 >"$T/ckr.res.log" 2>&1
+rc=$?
+if [ $rc = 0 ] && [ ! -e "$T/ckr.pfm.tmp" ] && resumed_ok ckr "$T/ckr.res.log" "$T/ckpath.ref.pfm"; then
+  ok "checkpoint: render's checkpoint resumed by render-mpi -np 2: PFM bytes equal the one-process render"
+else
+  bad "render checkpoint under render-mpi" "rc $rc; $(grep -h "render\|MPI: res" "$T/ckr.err" "$T/ckr.res.log" | tail -3)"
+fi
+# Partitioned maps: the image depends on the number of parts, so the checkpoint says it (its
+# settings text) and a resume at another -np is refused (exit 2, nothing written); at the
+# same -np, without repeating --pm distributed=partitioned, the maps are traced again and the
+# bytes equal the uninterrupted partitioned render's.
+CKPART="data/scenes/cornell_spheres.json --mode pm --width 64 --height 48 --spp 4 $PMSMALL"
+# shellcheck disable=SC2086
+$MPIRUN -np 2 "$M" $CKPART --threads 1 --quiet --pm distributed=partitioned --hdr "$T/ckpart.ref.pfm" \
+  >/dev/null 2>&1
+# shellcheck disable=SC2086
+ckpt_stop ckpart 2 term 0.3 $CKPART --pm distributed=partitioned
+$MPIRUN -np 3 "$M" data/scenes/cornell_spheres.json --resume "$T/ckpart.ck" --threads 1 \
+  >"$T/ckpart.np3.log" 2>&1
+rc3=$?
+[ -e "$T/ckpart.pfm" ] && rc3="$rc3 (and wrote an image)"
+$MPIRUN -np 2 "$M" data/scenes/cornell_spheres.json --resume "$T/ckpart.ck" --threads 1 \
+  >"$T/ckpart.res.log" 2>&1
+rc=$?
+if [ "$stop_ok" = 1 ] && [ $rc3 = 2 ] && grep -q "the checkpoint has other settings" "$T/ckpart.np3.log" \
+   && [ $rc = 0 ] && resumed_ok ckpart "$T/ckpart.res.log" "$T/ckpart.ref.pfm"; then
+  ok "checkpoint, partitioned: resume at -np 3 refused (exit 2), at -np 2 the bytes of the uninterrupted partitioned render"
+else
+  bad "checkpoint partitioned" "stop_ok $stop_ok rc3 $rc3 rc $rc; $(grep -h "render\|MPI: res" "$T/ckpart.err" "$T/ckpart.np3.log" "$T/ckpart.res.log" | tail -4)"
 fi
 # Partitioned maps cannot be saved (no rank holds them whole): exit 2 with the reason.
 $MPIRUN -np 2 "$M" data/scenes/furnace.json --mode pm --pm distributed=partitioned \
@@ -296,6 +404,43 @@ if [ $rc = 2 ] && [ ! -e "$T/psave.pfm" ] && [ ! -e "$T/psave" ] \
 else
   bad "--save-photons partitioned" "rc $rc; $(grep render "$T/psave.log" | head -2)"
 fi
+# An allocation that fails on one rank mid-render (test hook PM_RENDER_MPI_TEST_ENOMEM="RANK
+# PHASE N": the N-th allocation dist.c makes or asks for on that rank in that phase fails, as if
+# malloc returned NULL). Oracle: the failing rank and what failed, as the hook made them: rank 0
+# must name them ("rank K of N failed ...: <what>"), the job must end non-zero within 60 s
+# without the failing rank's own fallback (it stops the job itself only if rank 0 has not
+# within 30 s: a rank 0 that did not hear it), and leave no output. Cases: a worker's render
+# state (the error goes through render's own message), a worker's second chunk's result
+# buffer, rank 0's own message buffer, and the receive buffer of a later photon exchange of
+# rank 2 of 3 (where the other ranks wait in the exchange for it).
+enomem_test() { # name np "RANK PHASE N" expected-text render-mpi-args...
+  ename=$1; enp=$2; spec=$3; want=$4; shift 4
+  set -- "$@" --threads 1 --hdr "$T/enomem.$ename/o.pfm" -o "$T/enomem.$ename/o.png"
+  rank=${spec%% *}
+  mkdir -p "$T/enomem.$ename"
+  t0=$(date +%s)
+  PM_RENDER_MPI_TEST_ENOMEM="$spec" timeout 120 $MPIRUN -np "$enp" -x PM_RENDER_MPI_TEST_ENOMEM "$M" "$@" \
+    >"$T/enomem.$ename.log" 2>&1
+  rc=$?
+  dt=$(($(date +%s) - t0))
+  if [ $rc != 0 ] && [ $rc != 124 ] && [ $dt -lt 60 ] && [ -z "$(ls -A "$T/enomem.$ename")" ] \
+     && grep -q "^render-mpi: rank $rank of $enp failed.*$want" "$T/enomem.$ename.log" \
+     && ! grep -q "did not stop the job" "$T/enomem.$ename.log"; then
+    ok "allocation failure ($ename: rank $rank, $spec): rank 0's message, status $rc, ${dt} s, no output"
+  else
+    bad "allocation failure ($ename)" "rc $rc, ${dt} s, left: $(ls -A "$T/enomem.$ename" | tr '\n' ' '); $(grep render "$T/enomem.$ename.log" | head -3)"
+  fi
+}
+ENPATH="data/scenes/cornell_box.json --mode path --width 64 --height 64 --spp 64"
+# shellcheck disable=SC2086
+enomem_test state 2 "1 pixels 1" "render: rendering failed: out of memory" $ENPATH
+# shellcheck disable=SC2086
+enomem_test chunk 3 "2 pixels 5" "out of memory in the pixel pass" $ENPATH
+# shellcheck disable=SC2086
+enomem_test root 2 "0 pixels 6" "out of memory in the tile queue" $ENPATH
+# shellcheck disable=SC2086
+enomem_test photons 3 "2 photons 8" "out of memory in the photon exchange" \
+  data/scenes/cornell_spheres.json --mode pm --width 32 --height 32 --spp 4 $PMSMALL
 # A rank killed (SIGKILL) in the middle of the pixel pass: the job ends with a non-zero
 # status, rank 0 says the job is being stopped, and no output (nor temporary) is left. Also
 # with partitioned maps, where the ranks wait on each other's lookup answers.

@@ -327,3 +327,77 @@ TEST(render_checkpoint_cli_snapshot) {
     EXPECT_EQ_INT((b[20] << 24) | (b[21] << 16) | (b[22] << 8) | b[23], 24);
     EXPECT(rt_same_file("s.png", "ref.png"));
 }
+
+/* ckpt_set_distributed (checkpoint.h). Oracle: the one-process behaviour of the same calls. A
+ * process that is not the writer writes nothing: checkpoint_begin of a fresh render and a
+ * signal pause (which always writes for the writer) leave no file, while the writer's same
+ * calls write it; the extra text ends the settings text, and "" gives the one-process text
+ * exactly (so a replicated distributed render's checkpoints are render's). */
+TEST(render_checkpoint_distributed_writer_and_settings) {
+    scene s;
+    ASSERT(load_scene(&s, "cornell_box.json", 8, 8, 4) == 0);
+    char one[4096], dist[4096];
+    ckpt_settings_text(&s, "path", one, sizeof one);
+    ckpt_set_distributed(0, "; distributed partitioned over 3 ranks", 1);
+    ckpt_settings_text(&s, "path", dist, sizeof dist);
+    size_t n = strlen(one);
+    EXPECT(strncmp(one, dist, n) == 0 && strcmp(dist + n, "; distributed partitioned over 3 ranks") == 0);
+    render_state st;
+    ASSERT(render_state_init(&st, 8, 8, 4) == 0);
+    static ckpt_session cs;
+    memset(&cs, 0, sizeof cs);
+    char *p = strdup(rt_path("dist.ckpt"));
+    cs.ckpt_path = p;
+    cs.ckpt_every = 600;
+    cs.quiet = 1;
+    EXPECT(checkpoint_begin(&cs, 0, &st) == 0);
+    EXPECT(ckpt_session_pause(&cs, &st, RENDER_PAUSE_SIGNAL) == 0);
+    EXPECT_MSG(access(p, F_OK) != 0, "a process that is not the writer wrote %s", p);
+    ckpt_set_distributed(1, "", 0);
+    ckpt_settings_text(&s, "path", dist, sizeof dist);
+    EXPECT(strcmp(one, dist) == 0);
+    EXPECT(checkpoint_begin(&cs, 0, &st) == 0);
+    EXPECT_MSG(access(p, F_OK) == 0, "the writer's checkpoint_begin wrote no %s", p);
+    unlink(p);
+    EXPECT(ckpt_session_pause(&cs, &st, RENDER_PAUSE_SIGNAL) == 0);
+    EXPECT_MSG(access(p, F_OK) == 0, "the writer's signal pause wrote no %s", p);
+    free(p);
+    render_state_free(&st);
+    scene_free(&s);
+}
+
+static void put_file(const char *dir, const char *name, const char *text) {
+    char p[1100];
+    snprintf(p, sizeof p, "%s/%s", dir, name);
+    FILE *f = fopen(p, "wb");
+    if (f) {
+        fputs(text, f);
+        fclose(f);
+    }
+}
+
+/* ckpt_photon_hash covers the volume maps (checkpoint.h). Oracle: which files the header says
+ * it reads. Changing a byte of volume-0.pmap or of volume_caustic-1.pmap (medium 1 has only
+ * its caustic map) changes the hash; a volume-3.pmap after a medium with neither map (2) is
+ * not read, so changing it leaves the hash as it was. */
+TEST(render_checkpoint_photon_hash_volume_maps) {
+    char dir[1024];
+    snprintf(dir, sizeof dir, "%s", rt_path("maps"));
+    ASSERT(mkdir(dir, 0700) == 0);
+    put_file(dir, "global.pmap", "g");
+    put_file(dir, "volume-0.pmap", "v0");
+    put_file(dir, "volume_caustic-1.pmap", "c1");
+    put_file(dir, "volume-3.pmap", "v3");
+    char err[256];
+    uint64_t h0, h1, h2, h3;
+    ASSERT(ckpt_photon_hash(dir, &h0, err, sizeof err) == 0);
+    put_file(dir, "volume-0.pmap", "v0'");
+    ASSERT(ckpt_photon_hash(dir, &h1, err, sizeof err) == 0);
+    EXPECT(h1 != h0);
+    put_file(dir, "volume_caustic-1.pmap", "c1'");
+    ASSERT(ckpt_photon_hash(dir, &h2, err, sizeof err) == 0);
+    EXPECT(h2 != h1);
+    put_file(dir, "volume-3.pmap", "v3'");
+    ASSERT(ckpt_photon_hash(dir, &h3, err, sizeof err) == 0);
+    EXPECT(h3 == h2);
+}

@@ -22,8 +22,10 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <limits.h>
+#include <math.h>
 #include <mpi.h>
 #include <signal.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -31,6 +33,8 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "checkpoint.h"
+#include "output.h"
 #include "photonmap/common.h"
 #include "photon_trace.h"
 #include "progress.h"
@@ -67,18 +71,125 @@ static void captured_tail(char *out, size_t cap) {
     memmove(out, start, strlen(start) + 1);
 }
 
-/* A failure inside a collective step, where nobody can listen: say it on this rank's real
- * stderr and stop the job. */
-static void die_now(const char *what) {
-    char line[MSG_MAX + 64];
-    int n = snprintf(line, sizeof line, "render-mpi: rank %d of %d: %s; stopping every rank, "
-                     "nothing is written\n", g_rank, g_size, what);
-    if (write(g_real_err, line, (size_t)(n < (int)sizeof line ? n : (int)sizeof line - 1)) < 0) {
-        /* nothing more to do: the abort below still stops the job */
+/* ---- failures after the agreement --------------------------------------------------------
+ *
+ * A rank that fails once the ranks agreed to render (an allocation, or render_main's own
+ * error) does not stop the job itself: it sends its message to rank 0 (TAG_FAIL), and rank 0,
+ * which listens for it wherever it waits (the tile queue, the photon exchange, and
+ * dist_poll_fail in other waits), prints "rank K of N failed (status S): what" and stops every
+ * rank (MPI_Abort: non-zero exit; nothing is written, since rank 0 writes only at the end).
+ * The failing rank then waits; if the job is still running after FAIL_GRACE seconds (rank 0
+ * blocked where it does not listen), it says so on its own stderr and stops the job itself.
+ * Rank 0's own failures and failures before the agreement stop the job at once. */
+#define FAIL_GRACE 30
+
+static void say_real(const char *line) {
+    size_t n = strlen(line);
+    if (write(g_real_err, line, n) < 0) {
+        /* nothing more to do: the abort that follows still stops the job */
     }
-    MPI_Abort(MPI_COMM_WORLD, 1);
+}
+
+static void fail_to_root(int status, const char *what) {
+    char line[MSG_MAX + 160];
+    if (g_rank == 0 || g_stage == 0) {
+        snprintf(line, sizeof line, "render-mpi: rank %d of %d failed: %s; stopping every rank, "
+                 "nothing is written\n", g_rank, g_size, what);
+        fflush(stderr);
+        say_real(line);
+        MPI_Abort(MPI_COMM_WORLD, status > 0 ? status : 1);
+        _exit(1);
+    }
+    char buf[sizeof(int32_t) + MSG_MAX];
+    int32_t st = status > 0 ? status : 1;
+    memcpy(buf, &st, sizeof st);
+    snprintf(buf + sizeof st, MSG_MAX, "%s", what && what[0] ? what : "(no message)");
+    MPI_Request r;
+    MPI_Isend(buf, (int)(sizeof st + strlen(buf + sizeof st) + 1), MPI_BYTE, 0, TAG_FAIL,
+              MPI_COMM_WORLD, &r);
+    for (int i = 0; i < FAIL_GRACE * 20; i++) {
+        int done;
+        MPI_Test(&r, &done, MPI_STATUS_IGNORE);
+        struct timespec ts = {0, 50 * 1000 * 1000};
+        nanosleep(&ts, NULL);
+    }
+    snprintf(line, sizeof line, "render-mpi: rank %d of %d failed: %s; rank 0 did not stop the "
+             "job within %d s, stopping it from here; nothing is written\n", g_rank, g_size,
+             buf + sizeof st, FAIL_GRACE);
+    say_real(line);
+    MPI_Abort(MPI_COMM_WORLD, st);
     _exit(1);
 }
+
+static void die_now(const char *what) { fail_to_root(1, what); }
+
+/* Rank 0: a worker's TAG_FAIL message (status, then text): say it and stop the job. */
+static void root_report_fail(int src, char *buf, int nbytes) {
+    int32_t st = 1;
+    if (nbytes >= (int)sizeof st) memcpy(&st, buf, sizeof st);
+    if (nbytes > 0) buf[nbytes - 1] = 0;
+    fprintf(stderr, "render-mpi: rank %d of %d failed (status %d): %s\n", src, g_size, (int)st,
+            nbytes > (int)sizeof st ? buf + sizeof st : "(no message)");
+    fprintf(stderr, "render-mpi: stopping every rank; nothing was written\n");
+    fflush(stderr);
+    MPI_Abort(MPI_COMM_WORLD, st > 0 ? st : 1);
+    _exit(1);
+}
+
+void dist_poll_fail(void) {
+    if (g_rank != 0 || g_stage == 0) return;
+    int flag = 0;
+    MPI_Status ms;
+    MPI_Iprobe(MPI_ANY_SOURCE, TAG_FAIL, MPI_COMM_WORLD, &flag, &ms);
+    if (!flag) return;
+    int nbytes;
+    MPI_Get_count(&ms, MPI_BYTE, &nbytes);
+    char buf[sizeof(int32_t) + MSG_MAX];
+    if (nbytes > (int)sizeof buf) nbytes = (int)sizeof buf;
+    MPI_Recv(buf, (int)sizeof buf, MPI_BYTE, ms.MPI_SOURCE, TAG_FAIL, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    root_report_fail(ms.MPI_SOURCE, buf, nbytes);
+}
+
+/* Wait for a request; rank 0 listens for the others' failures meanwhile. */
+static void wait_listening(MPI_Request *r) {
+    if (g_rank != 0) {
+        MPI_Wait(r, MPI_STATUS_IGNORE);
+        return;
+    }
+    for (unsigned spins = 0;; spins++) {
+        int done = 0;
+        MPI_Test(r, &done, MPI_STATUS_IGNORE);
+        if (done) return;
+        dist_poll_fail();
+        if (spins > 1000) { /* a long wait: let the other ranks have the core */
+            struct timespec ts = {0, 100 * 1000};
+            nanosleep(&ts, NULL);
+        }
+    }
+}
+
+/* Test hook: PM_RENDER_MPI_TEST_ENOMEM="RANK PHASE N" (PHASE: photons or pixels) makes the N-th
+ * allocation that dist.c makes, or asks for, on that rank in that phase fail as if malloc
+ * returned NULL. Photons: per exchange, the sizes, counts, offsets, then the receive buffer;
+ * pixels: on a worker the render state, the counters' base, the tile list, then one result
+ * buffer per chunk, and the counters; on rank 0 the queue's three arrays, then one buffer
+ * per message received. */
+enum { PH_PHOTONS, PH_PIXELS };
+static int test_enomem(int phase) {
+    static int parsed, rank = -1, ph = -1;
+    static long nth, count[2];
+    if (!parsed) {
+        parsed = 1;
+        const char *v = getenv("PM_RENDER_MPI_TEST_ENOMEM");
+        char name[16];
+        if (v && sscanf(v, "%d %15s %ld", &rank, name, &nth) == 3)
+            ph = strcmp(name, "photons") == 0 ? PH_PHOTONS : strcmp(name, "pixels") == 0 ? PH_PIXELS : -1;
+    }
+    if (rank != g_rank || ph != phase) return 0;
+    return ++count[phase] == nth;
+}
+static void *dmalloc(size_t n, int phase) { return test_enomem(phase) ? NULL : malloc(n); }
+static void *dcalloc(size_t n, size_t m, int phase) { return test_enomem(phase) ? NULL : calloc(n, m); }
 
 /* Rank 0, when mpirun stops the job (a rank died or the job was cancelled) or the user
  * interrupts: say so, then let main.c's handler (output.h: remove temporaries) end us. */
@@ -188,15 +299,7 @@ int dist_finish(int rc) {
             fflush(stderr);
             MPI_Abort(MPI_COMM_WORLD, rc > 0 ? rc : 1);
         } else {
-            /* Rank 0 reads this in its tile loop and stops the job. */
-            char buf[sizeof(int32_t) + MSG_MAX];
-            int32_t st = rc > 0 ? rc : 1;
-            memcpy(buf, &st, sizeof st);
-            snprintf(buf + sizeof st, MSG_MAX, "%s", tail[0] ? tail : "(no message)");
-            MPI_Send(buf, (int)(sizeof st + strlen(buf + sizeof st) + 1), MPI_BYTE, 0, TAG_FAIL,
-                     MPI_COMM_WORLD);
-            for (int i = 0; i < 120; i++) sleep(1);
-            MPI_Abort(MPI_COMM_WORLD, st);
+            fail_to_root(rc > 0 ? rc : 1, tail); /* rank 0 says it and stops the job */
         }
     }
     MPI_Finalize();
@@ -208,10 +311,14 @@ int dist_finish(int rc) {
 static int photon_allgather(void *user, const void *mine, size_t nbytes, void **all, size_t *sizes) {
     (void)user;
     dist_start(0, NULL, NULL);
-    unsigned long long n = nbytes, *ns = malloc((size_t)g_size * sizeof *ns);
-    int *cnt = malloc((size_t)g_size * sizeof *cnt), *dsp = malloc((size_t)g_size * sizeof *dsp);
-    if (!ns || !cnt || !dsp) die_now("out of memory in the photon exchange");
-    MPI_Allgather(&n, 1, MPI_UNSIGNED_LONG_LONG, ns, 1, MPI_UNSIGNED_LONG_LONG, MPI_COMM_WORLD);
+    unsigned long long n = nbytes, *ns = dmalloc((size_t)g_size * sizeof *ns, PH_PHOTONS);
+    int *cnt = dmalloc((size_t)g_size * sizeof *cnt, PH_PHOTONS);
+    int *dsp = dmalloc((size_t)g_size * sizeof *dsp, PH_PHOTONS);
+    if (!ns || !cnt || !dsp) die_now("out of memory in the photon exchange (its counts)");
+    /* Non-blocking, so that rank 0 hears a rank that failed instead of waiting for it. */
+    MPI_Request r;
+    MPI_Iallgather(&n, 1, MPI_UNSIGNED_LONG_LONG, ns, 1, MPI_UNSIGNED_LONG_LONG, MPI_COMM_WORLD, &r);
+    wait_listening(&r);
     unsigned long long total = 0;
     for (int k = 0; k < g_size; k++) {
         if (total > (unsigned long long)INT_MAX) break;
@@ -221,9 +328,15 @@ static int photon_allgather(void *user, const void *mine, size_t nbytes, void **
     }
     if (total > (unsigned long long)INT_MAX)
         die_now("a photon round exceeds 2 GiB (MPI's int counts)");
-    char *buf = malloc(total ? (size_t)total : 1);
-    if (!buf) die_now("out of memory in the photon exchange");
-    MPI_Allgatherv(mine, (int)n, MPI_BYTE, buf, cnt, dsp, MPI_BYTE, MPI_COMM_WORLD);
+    char *buf = dmalloc(total ? (size_t)total : 1, PH_PHOTONS);
+    if (!buf) {
+        char what[128];
+        snprintf(what, sizeof what, "out of memory in the photon exchange (%llu bytes for a round)",
+                 total);
+        die_now(what);
+    }
+    MPI_Iallgatherv(mine, (int)n, MPI_BYTE, buf, cnt, dsp, MPI_BYTE, MPI_COMM_WORLD, &r);
+    wait_listening(&r);
     for (int k = 0; k < g_size; k++) sizes[k] = (size_t)ns[k];
     g_bytes_photon += total * (unsigned long long)(g_size - 1); /* each part goes to the others */
     *all = buf;
@@ -261,6 +374,13 @@ void dist_init(int mode) {
     g_td.partitioned = mode == DIST_PARTITIONED;
     photon_trace_set_dist(&g_td);
     if (mode == DIST_PARTITIONED) lk_init(g_rank, g_size);
+    /* Checkpoints: rank 0 writes them. A replicated render's image is render's, so are its
+     * checkpoints; a partitioned one depends on the number of parts, and its maps cannot be
+     * saved whole (they are traced again on resume). */
+    char extra[64] = "";
+    if (mode == DIST_PARTITIONED)
+        snprintf(extra, sizeof extra, "; distributed partitioned over %d ranks", g_size);
+    ckpt_set_distributed(g_rank == 0, extra, mode == DIST_PARTITIONED);
 }
 
 /* ---- pixel pass ----------------------------------------------------------------------- */
@@ -296,6 +416,7 @@ typedef struct queue {
     const scene *s;
     render_state *st;
     int ntiles, next, done;
+    int *todo, ntodo; /* the tiles to render (a resumed render skips those done), in order */
     int *per_rank; /* tiles rendered by each rank */
     progress prog;
 } queue;
@@ -312,8 +433,8 @@ static void add_tiles_done(queue *q, int rank, const int *tiles, int n) {
 static void serve(queue *q, MPI_Status *ms, int *finished) {
     int nbytes;
     MPI_Get_count(ms, MPI_BYTE, &nbytes);
-    char *buf = malloc(nbytes > 0 ? (size_t)nbytes : 1);
-    if (!buf) die_now("out of memory in the tile queue");
+    char *buf = dmalloc(nbytes > 0 ? (size_t)nbytes : 1, PH_PIXELS);
+    if (!buf) die_now("out of memory in the tile queue (a message from a rank)");
     MPI_Recv(buf, nbytes, MPI_BYTE, ms->MPI_SOURCE, ms->MPI_TAG, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
     g_bytes_pixel += (uint64_t)nbytes;
     int src = ms->MPI_SOURCE;
@@ -321,12 +442,12 @@ static void serve(queue *q, MPI_Status *ms, int *finished) {
     if (ms->MPI_TAG == TAG_REQ) {
         int32_t threads;
         memcpy(&threads, buf, sizeof threads);
-        int n = q->next < q->ntiles ? chunk_size(threads, q->ntiles - q->next) : 0;
-        if (n > q->ntiles - q->next) n = q->ntiles - q->next;
+        int n = q->next < q->ntodo ? chunk_size(threads, q->ntodo - q->next) : 0;
+        if (n > q->ntodo - q->next) n = q->ntodo - q->next;
         int32_t *reply = malloc((size_t)(n + 1) * sizeof *reply);
         if (!reply) die_now("out of memory in the tile queue");
         reply[0] = n;
-        for (int i = 0; i < n; i++) reply[1 + i] = q->next++;
+        for (int i = 0; i < n; i++) reply[1 + i] = q->todo[q->next++];
         MPI_Send(reply, (int)((size_t)(n + 1) * sizeof *reply), MPI_BYTE, src, TAG_ASSIGN,
                  MPI_COMM_WORLD);
         g_bytes_pixel += (uint64_t)(n + 1) * sizeof *reply;
@@ -368,14 +489,7 @@ static void serve(queue *q, MPI_Status *ms, int *finished) {
         }
         (*finished)++;
     } else if (ms->MPI_TAG == TAG_FAIL) {
-        int32_t st;
-        memcpy(&st, buf, sizeof st);
-        buf[nbytes - 1] = 0;
-        fprintf(stderr, "render-mpi: rank %d of %d failed (status %d): %s\n", src, g_size, (int)st,
-                buf + sizeof st);
-        fprintf(stderr, "render-mpi: stopping every rank; nothing was written\n");
-        fflush(stderr);
-        MPI_Abort(MPI_COMM_WORLD, st > 0 ? st : 1);
+        root_report_fail(src, buf, nbytes);
     }
     free(buf);
 }
@@ -398,8 +512,48 @@ static int root_also(void *arg) {
     }
 }
 
+/* Rank 0 of a checkpointed render, between two chunks: a checkpoint or snapshot when one is
+ * due, and on a signal (output.h defers it while a checkpoint is kept) the last checkpoint
+ * and RENDER_INTERRUPTED. The test pause (PM_RENDER_TEST_PAUSE=render:F, output.h) writes a
+ * checkpoint once F of the samples are done, then waits for a signal, so a test can stop the
+ * job at a known point after a checkpoint exists. 0, RENDER_INTERRUPTED or on_pause's code. */
+typedef struct pauses {
+    const render_control *ctl;
+    double due;       /* stats_now() time of the next periodic pause, or INFINITY */
+    int64_t pause_at; /* samples done at which the test pause happens, or -1 */
+} pauses;
+
+static int root_pause(pauses *p, queue *q) {
+    const render_control *ctl = p->ctl;
+    if (!ctl->on_pause) return 0;
+    int prc;
+    if (p->pause_at >= 0 && atomic_load(&q->prog.done) >= p->pause_at) {
+        p->pause_at = -1;
+        if ((prc = ctl->on_pause(ctl->user, q->st, RENDER_PAUSE_SIGNAL)) < 0) return prc;
+        out_test_pause("render");
+    }
+    if (ctl->stop_on_signal && out_pending_signal()) {
+        prc = ctl->on_pause(ctl->user, q->st, RENDER_PAUSE_SIGNAL);
+        return prc < 0 ? prc : RENDER_INTERRUPTED;
+    }
+    if (stats_now() >= p->due) {
+        if ((prc = ctl->on_pause(ctl->user, q->st, RENDER_PAUSE_PERIODIC)) < 0) return prc;
+        p->due = stats_now() + ctl->pause_every;
+    }
+    return 0;
+}
+
+/* A tile all of whose pixels have every sample. */
+static int tile_complete(const render_state *st, const camera *c, int tile) {
+    tile_box b = tile_of(c, tile);
+    for (int y = b.y0; y < b.y1; y++)
+        for (int x = b.x0; x < b.x1; x++)
+            if (st->count[(size_t)y * (size_t)c->width + (size_t)x] < (uint32_t)st->spp) return 0;
+    return 1;
+}
+
 static int render_root(const scene *s, const integrator *it, const render_job *job,
-                       render_state *st) {
+                       render_state *st, const render_control *ctl) {
     const camera *c = &s->cam;
     queue q;
     memset(&q, 0, sizeof q);
@@ -407,23 +561,49 @@ static int render_root(const scene *s, const integrator *it, const render_job *j
     q.st = st;
     int tx = (c->width + RENDER_TILE - 1) / RENDER_TILE;
     q.ntiles = tx * ((c->height + RENDER_TILE - 1) / RENDER_TILE);
-    q.per_rank = calloc((size_t)g_size, sizeof *q.per_rank);
+    q.per_rank = dcalloc((size_t)g_size, sizeof *q.per_rank, PH_PIXELS);
+    q.todo = dmalloc((size_t)q.ntiles * sizeof *q.todo, PH_PIXELS);
     int threads = job->threads > 0 ? job->threads : 1;
-    int *mine = malloc((size_t)threads * sizeof *mine);
-    if (!q.per_rank || !mine) die_now("out of memory in the tile queue");
-    progress_begin(&q.prog, "Rendering", (int64_t)c->width * c->height * c->spp, job->quiet);
+    int *mine = dmalloc((size_t)threads * sizeof *mine, PH_PIXELS);
+    if (!q.per_rank || !mine || !q.todo) die_now("out of memory in the tile queue");
+    /* A resumed state: a tile is rendered again unless it is complete; a partly done one
+     * (from render's checkpoint) starts over, which gives the same sums, since a pixel's
+     * samples are added in sample order from 0 on one rank. */
+    for (int t = 0; t < q.ntiles; t++) {
+        if (tile_complete(st, c, t)) continue;
+        q.todo[q.ntodo++] = t;
+        tile_box b = tile_of(c, t);
+        for (int y = b.y0; y < b.y1; y++) {
+            size_t p = (size_t)y * (size_t)c->width + (size_t)b.x0, w = (size_t)(b.x1 - b.x0);
+            memset(st->sum + 3 * p, 0, 3 * w * sizeof(double));
+            memset(st->count + p, 0, w * sizeof(uint32_t));
+        }
+    }
+    int64_t total = (int64_t)c->width * c->height * c->spp, done = (int64_t)render_state_done(st);
+    if (done > 0 && !job->quiet)
+        fprintf(stderr, "Resuming: %lld of %lld samples done (%.1f%%)\n", (long long)done,
+                (long long)total, 100.0 * (double)done / (double)total);
+    progress_begin(&q.prog, "Rendering", total, job->quiet);
+    if (done > 0) progress_resume(&q.prog, done);
+    pauses pz = {ctl, INFINITY, -1};
+    if (ctl && ctl->on_pause) {
+        double frac = out_test_pause_fraction();
+        if (frac >= 0 && done < (int64_t)(frac * (double)total)) pz.pause_at = (int64_t)(frac * (double)total);
+        if (ctl->pause_every > 0) pz.due = stats_now() + ctl->pause_every;
+    }
     int finished = 0, rc = 0, told = 0;
     root_ctx rctx = {&q, &finished};
-    while (q.done < q.ntiles || finished < g_size - 1) {
+    while (q.done < q.ntodo || finished < g_size - 1) {
         int flag = 1;
         MPI_Status ms;
         while (flag) {
             MPI_Iprobe(MPI_ANY_SOURCE, MPI_ANY_TAG, MPI_COMM_WORLD, &flag, &ms);
             if (flag) serve(&q, &ms, &finished);
         }
-        if (q.next < q.ntiles) {
-            int n = chunk_size(threads, q.ntiles - q.next);
-            for (int i = 0; i < n; i++) mine[i] = q.next++;
+        if (pz.ctl && (rc = root_pause(&pz, &q)) != 0) break;
+        if (q.next < q.ntodo) {
+            int n = chunk_size(threads, q.ntodo - q.next);
+            for (int i = 0; i < n; i++) mine[i] = q.todo[q.next++];
             rc = lk_on() ? lk_render_tiles(s, it, job, st, mine, n, root_also, &rctx)
                          : render_tiles(s, it, job, st, mine, n);
             if (rc < 0) break;
@@ -432,7 +612,7 @@ static int render_root(const scene *s, const integrator *it, const render_job *j
             /* No tiles left for rank 0: answer the others' lookups until they are done too. */
             lk_finish(root_also, &rctx);
             told = 1;
-        } else if (q.done < q.ntiles || finished < g_size - 1) {
+        } else if (q.done < q.ntodo || finished < g_size - 1) {
             if (lk_on()) {
                 if (!root_also(&rctx)) lk_idle();
                 continue;
@@ -443,10 +623,13 @@ static int render_root(const scene *s, const integrator *it, const render_job *j
     }
     if (rc == 0) {
         progress_end(&q.prog);
+        if (q.ntodo < q.ntiles)
+            printf("MPI: resumed: %d of %d tiles were complete in the checkpoint\n",
+                   q.ntiles - q.ntodo, q.ntiles);
         printf("MPI: %d rank%s x %d thread%s; tiles rendered per rank:", g_size,
                g_size == 1 ? "" : "s", threads, threads == 1 ? "" : "s");
         for (int k = 0; k < g_size; k++) printf(" %d", q.per_rank[k]);
-        printf(" (of %d)\n", q.ntiles);
+        printf(" (of %d)\n", q.ntodo);
         printf("MPI: bytes sent: photon exchange %llu, pixel pass %llu (%.2f per pixel)\n",
                (unsigned long long)g_bytes_photon, (unsigned long long)g_bytes_pixel,
                (double)g_bytes_pixel / ((double)c->width * c->height));
@@ -466,6 +649,7 @@ static int render_root(const scene *s, const integrator *it, const render_job *j
         }
     }
     free(q.per_rank);
+    free(q.todo);
     free(mine);
     return rc;
 }
@@ -495,11 +679,9 @@ static int render_worker(const scene *s, const integrator *it, const render_job 
     const camera *c = &s->cam;
     int32_t threads = job->threads > 0 ? job->threads : 1;
     int maxn = threads;
-    int32_t *assign = malloc((size_t)(maxn + 1) * sizeof *assign);
-    size_t cap = sizeof(int32_t) + (size_t)maxn * (2 * sizeof(int32_t) +
-                 (size_t)RENDER_TILE * RENDER_TILE * 3 * sizeof(double));
-    char *out = malloc(cap);
-    if (!assign || !out) die_now("out of memory in the tile queue");
+    int32_t *assign = dmalloc((size_t)(maxn + 1) * sizeof *assign, PH_PIXELS);
+    char *out = NULL; /* the results of a chunk, while they are being sent */
+    if (!assign) die_now("out of memory in the tile queue (the tile list)");
     MPI_Request sent = MPI_REQUEST_NULL;
     int outstanding = 0;
     /* Test hook: PM_RENDER_MPI_TEST_SLOW="RANK SECONDS" makes that rank wait before each
@@ -527,6 +709,15 @@ static int render_worker(const scene *s, const integrator *it, const render_job 
                          : render_tiles(s, it, job, st, assign + 1, n);
         if (rc < 0) return rc;
         MPI_Wait(&sent, MPI_STATUS_IGNORE); /* the previous results have left `out` */
+        free(out);
+        size_t cap = sizeof(int32_t) + (size_t)n * (2 * sizeof(int32_t) +
+                     (size_t)RENDER_TILE * RENDER_TILE * 3 * sizeof(double));
+        if (!(out = dmalloc(cap, PH_PIXELS))) {
+            char what[160];
+            snprintf(what, sizeof what, "out of memory in the pixel pass (%zu bytes for the "
+                     "results of %d tiles)", cap, n);
+            die_now(what);
+        }
         int32_t n32 = n;
         size_t off = 0;
         memcpy(out, &n32, sizeof n32);
@@ -548,8 +739,8 @@ static int render_worker(const scene *s, const integrator *it, const render_job 
     MPI_Wait(&sent, MPI_STATUS_IGNORE);
     if (lk_on()) lk_finish(NULL, NULL); /* the others may still need this rank's photons */
     /* The pixel pass's counters: what this rank added since the pass began. */
-    char *sbuf = malloc(sizeof(uint64_t) + STATS_MAX * (NAME_MAX_LEN + sizeof(uint64_t)));
-    if (!sbuf) die_now("out of memory");
+    char *sbuf = dmalloc(sizeof(uint64_t) + STATS_MAX * (NAME_MAX_LEN + sizeof(uint64_t)), PH_PIXELS);
+    if (!sbuf) die_now("out of memory in the pixel pass (the statistics)");
     uint64_t ns = 0;
     size_t off = sizeof ns;
     for (int id = 0; id < STATS_MAX; id++) {
@@ -572,28 +763,38 @@ static int render_worker(const scene *s, const integrator *it, const render_job 
 
 int dist_render_image_ctl(const scene *s, const integrator *it, const render_job *job,
                           const render_control *ctl, film *out) {
-    (void)ctl; /* render_mpi.c refuses checkpoints, snapshots and resumes */
     dist_start(0, NULL, NULL);
     const camera *c = &s->cam;
-    render_state st;
-    int rc = render_state_init(&st, c->width, c->height, c->spp);
-    if (rc < 0) return rc;
+    /* Rank 0 renders into the caller's state (a checkpointed or resumed render: checkpoints
+     * are written from it), the workers into their own. */
+    render_state own, *st = &own;
+    int rc;
+    if (g_rank == 0 && ctl && ctl->state) {
+        st = ctl->state;
+        if (st->width != c->width || st->height != c->height || st->spp != c->spp) return PM_EINVAL;
+    } else if ((rc = test_enomem(PH_PIXELS) ? PM_ENOMEM
+                                            : render_state_init(&own, c->width, c->height, c->spp)) < 0) {
+        return rc; /* main.c says it; dist_finish sends it to rank 0 */
+    }
     double t0 = stats_now();
     if (g_rank == 0) {
-        rc = render_root(s, it, job, &st);
-        if (rc == 0) rc = film_init(out, c->width, c->height);
-        if (rc == 0) render_state_to_film(&st, out);
-        render_state_free(&st);
+        rc = render_root(s, it, job, st, ctl);
+        if (rc >= 0 && film_init(out, c->width, c->height) < 0) rc = PM_ENOMEM;
+        if (rc >= 0) render_state_to_film(st, out);
+        if (st == &own) render_state_free(&own);
         stats_time_add("Time/Rendering", stats_now() - t0);
         if (rc == 0) g_stage = 2;
         return rc;
     }
-    uint64_t *base = calloc(STATS_MAX, sizeof *base);
-    if (!base) return PM_ENOMEM;
+    uint64_t *base = dcalloc(STATS_MAX, sizeof *base, PH_PIXELS);
+    if (!base) {
+        render_state_free(&own);
+        return PM_ENOMEM;
+    }
     for (int id = 0; id < STATS_MAX; id++) base[id] = stats_total(id);
-    rc = render_worker(s, it, job, &st, base);
+    rc = render_worker(s, it, job, &own, base);
     free(base);
-    render_state_free(&st);
+    render_state_free(&own);
     if (rc < 0) return rc;
     /* Done: rank 0 has this rank's tiles and statistics, and writes the image. */
     g_stage = 2;

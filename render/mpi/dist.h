@@ -28,11 +28,15 @@
  * FAILURES. Until the first collective step every rank runs alone; there (dist_start) the
  * ranks agree: if any failed (a scene it could not load, a bad option), rank 0 prints each
  * failing rank's message and every rank exits with the failing rank's status (2 for input
- * errors), nothing written. A rank failing later sends its message to rank 0, which prints
- * it and aborts the job (MPI_Abort) before anything is written. A rank that dies (killed, a
- * lost node) makes mpirun stop the job; rank 0 then says so on stderr from its SIGTERM
- * handler and, the output being written only at the very end through a temporary and a
- * rename, leaves no output file.
+ * errors), nothing written. A rank failing later (an allocation in dist.c, or render_main's
+ * own error, e.g. out of memory in the photon pass or the pixel pass) sends its message to
+ * rank 0, which listens for it wherever it waits (the tile queue, the photon exchange, and
+ * dist_poll_fail), prints "rank K of N failed (status S): what" and aborts the job
+ * (MPI_Abort, non-zero exit) before anything is written; rank 0's own failures abort at
+ * once. A rank that dies (killed, a lost node, the kernel's OOM killer) makes mpirun stop
+ * the job; rank 0 then says so on stderr from its SIGTERM handler and, the output being
+ * written only at the very end through a temporary and a rename, leaves no output file.
+ * Test hook: PM_RENDER_MPI_TEST_ENOMEM="RANK PHASE N" fails an allocation (dist.c).
  *
  * Ranks other than 0 print nothing: their stdout is discarded and their stderr kept in a
  * temporary file, whose last lines become their failure message.
@@ -59,13 +63,21 @@ int dist_size(void);
 void dist_fail_early(int rc, const char *msg);
 /* Before this rank's first collective call outside the photon exchange (dist.c's agreement). */
 void dist_collective_begin(void);
-/* A failure where no rank can listen: the message on this rank's stderr, and the job stops. */
+/* A failure of this rank after the agreement: rank 0 says "rank K of N failed: what" and
+ * stops the job (see FAILURES); does not return. */
 void dist_die(const char *what);
+/* Rank 0, while it waits for other ranks outside dist.c (a blocking collective would not
+ * hear a rank that failed and never joins it): if a rank sent its failure, say it and stop
+ * the job; else return at once. Other ranks: returns at once. */
+void dist_poll_fail(void);
 /* What render_main returned on this rank: finishes MPI and returns the exit status. */
 int dist_finish(int rc);
 /* The image loop of a distributed render (see above), called by main.c in place of
  * render_image_ctl. On ranks > 0 it does not return: they exit once their tiles are sent.
- * ctl must not carry a state or pauses (render-mpi refuses checkpoints). */
+ * With a control (a checkpointed, snapshotted or resumed render), rank 0 renders into
+ * ctl->state, skipping its complete tiles, and makes ctl's pauses between chunks (dist.c,
+ * root_pause); it returns RENDER_INTERRUPTED after the checkpoint of a signal, as
+ * render_image_ctl does. The other ranks ignore ctl: they write nothing. */
 int dist_render_image_ctl(const scene *s, const integrator *it, const render_job *job,
                           const render_control *ctl, film *out);
 

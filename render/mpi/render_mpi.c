@@ -2,12 +2,15 @@
  *
  *   mpirun -np N render-mpi SCENE.json [render's options] [--pm distributed=replicated]
  *
- * It starts MPI, takes the options that only a distributed render has (or refuses: a
- * distributed render keeps no checkpoint), and runs render's own main (render/main.c,
- * compiled as render_main) on every rank. What it changes in the arguments, per rank:
+ * It starts MPI, takes the options that only a distributed render has, and runs render's own
+ * main (render/main.c, compiled as render_main) on every rank. What it changes in the
+ * arguments, per rank:
  *   - --threads: when not given, the cores of the node divided among the ranks on it (OpenMP
  *     would otherwise start all cores' worth of threads in every rank);
  *   - ranks > 0 get --quiet and lose --save-photons (rank 0 saves the maps once).
+ * Checkpoints (--checkpoint, --resume, --snapshot-every) are render's: rank 0 writes them
+ * (checkpoint.h, ckpt_set_distributed; dist.h). A resumed render takes the distribution of
+ * its checkpoint when none is given: a partitioned checkpoint says so in its settings text.
  */
 #include <mpi.h>
 #include <stdio.h>
@@ -15,6 +18,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "checkpoint.h"
 #include "dist.h"
 
 int render_main(int argc, char **argv);
@@ -28,7 +32,9 @@ static void usage_mpi(void) {
            "                    combine the ranks' parts (docs/MPI.md: accuracy, traffic)\n"
            "  --threads N       OpenMP threads per rank (default: the node's cores divided\n"
            "                    among its ranks)\n"
-           "  Not available: --checkpoint, --resume, --snapshot-every.\n");
+           "  --checkpoint, --resume, --snapshot-every: as in render; rank 0 writes the files, and\n"
+           "                    a replicated render's checkpoint is render's (either resumes it,\n"
+           "                    at any -np); a partitioned one resumes at the same -np only\n");
 }
 
 int main(int argc, char **argv) {
@@ -40,7 +46,8 @@ int main(int argc, char **argv) {
     int rank;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     char msg[512] = "";
-    int mode = DIST_REPLICATED, has_threads = 0, help = 0, has_save = 0;
+    int mode = DIST_REPLICATED, has_threads = 0, help = 0, has_save = 0, has_mode = 0;
+    const char *resume = NULL;
     char **av = calloc((size_t)argc + 4, sizeof *av);
     int ac = 0;
     if (!av) {
@@ -50,6 +57,7 @@ int main(int argc, char **argv) {
     for (int i = 0; i < argc; i++) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (i > 0 && strcmp(a, "--pm") == 0 && v && strncmp(v, "distributed=", 12) == 0) {
+            has_mode = 1;
             if (strcmp(v + 12, "replicated") == 0) {
                 mode = DIST_REPLICATED;
             } else if (strcmp(v + 12, "partitioned") == 0) {
@@ -61,12 +69,7 @@ int main(int argc, char **argv) {
             i++;
             continue;
         }
-        if (i > 0 && (strcmp(a, "--checkpoint") == 0 || strcmp(a, "--checkpoint-every") == 0 ||
-                      strcmp(a, "--resume") == 0 || strcmp(a, "--snapshot-every") == 0)) {
-            snprintf(msg, sizeof msg, "render-mpi: %s is not available in a distributed render "
-                     "(use render for checkpoints and snapshots)", a);
-            break;
-        }
+        if (i > 0 && strcmp(a, "--resume") == 0 && v) resume = v;
         if (i > 0 && strcmp(a, "--save-photons") == 0) has_save = 1;
         if (i > 0 && rank > 0 && strcmp(a, "--save-photons") == 0 && v) {
             i++;
@@ -80,6 +83,16 @@ int main(int argc, char **argv) {
         snprintf(msg, sizeof msg, "render-mpi: --save-photons is not available with --pm "
                  "distributed=partitioned (no rank holds the whole maps; save them with the "
                  "replicated mode or render)");
+    /* A resumed render without --pm distributed=...: its checkpoint's (main.c reads the file
+     * again, and says why when it cannot). */
+    if (!msg[0] && resume && !has_mode) {
+        ckpt_info *ci = malloc(sizeof *ci);
+        char cerr[64];
+        if (ci && ckpt_read(resume, ci, NULL, cerr, sizeof cerr) == 0 &&
+            strstr(ci->settings, "; distributed partitioned over "))
+            mode = DIST_PARTITIONED;
+        free(ci);
+    }
     dist_init(mode);
     if (msg[0]) dist_fail_early(2, msg);
     static char threads_arg[24];
