@@ -27,6 +27,9 @@
  * PMV_K_MIN (STEP, k AND RADII in pm_volume.h). */
 #define PMV_RADIUS_MFP 0.5
 #define PMV_K_MIN 16u
+/* pmv_ball_fraction: the directions searched for boundaries, and the quadrature's directions. */
+#define PMV_BALL_DIRS 14
+#define PMV_BALL_QUAD 32
 /* A segment marched in n steps gets ceil(n / PMV_EQUIANGULAR_DIV) equiangular light samples. */
 #define PMV_EQUIANGULAR_DIV 2
 
@@ -274,22 +277,78 @@ static double cap_fraction(double h, double r) {
     return (1 - q) * (1 - q) * (2 + q) / 4;
 }
 
+/* The planes found near x (pmv_ball_fraction): unit normal n pointing away from x, distance h. */
+typedef struct pmv_plane {
+    vec3 n;
+    double h;
+} pmv_plane;
+
+/* The 14 search directions: the 6 axes and the 8 diagonals. */
+static vec3 ball_dir(int i) {
+    if (i < 6) {
+        vec3 d = v3s(0);
+        double sg = i & 1 ? -1 : 1;
+        if (i / 2 == 0) d.x = sg;
+        else if (i / 2 == 1) d.y = sg;
+        else d.z = sg;
+        return d;
+    }
+    double c = 1 / sqrt(3.0);
+    int k = i - 6;
+    return v3(k & 1 ? -c : c, k & 2 ? -c : c, k & 4 ? -c : c);
+}
+
+/* The part of the ball of radius r at x inside every plane's half-space (the side of x): the
+ * mean of (rho / r)^3 over the sphere of directions, rho the distance from x to the nearest
+ * plane along the direction, at most r (the region is convex and holds x, so its volume is the
+ * integral of rho^3 / 3 over the sphere). The mean is taken on a grid of PMV_BALL_QUAD^2
+ * equal-area cells (midpoints in z = cos theta and in phi), symmetric about the axis planes, so
+ * a plane, edge or corner through x along the axes gets exactly 1/2, 1/4, 1/8. */
+static double planes_fraction(const pmv_plane *pl, int np, double r) {
+    double cphi[PMV_BALL_QUAD], sphi[PMV_BALL_QUAD], acc = 0;
+    for (int j = 0; j < PMV_BALL_QUAD; j++) {
+        double ph = 2 * M_PI * (j + 0.5) / PMV_BALL_QUAD;
+        cphi[j] = cos(ph);
+        sphi[j] = sin(ph);
+    }
+    for (int i = 0; i < PMV_BALL_QUAD; i++) {
+        double z = -1 + (2 * i + 1.0) / PMV_BALL_QUAD, rad = sqrt(fmax(0.0, 1 - z * z));
+        for (int j = 0; j < PMV_BALL_QUAD; j++) {
+            vec3 w = v3(rad * cphi[j], rad * sphi[j], z);
+            double rho = r;
+            for (int k = 0; k < np; k++) {
+                double cs = v3_dot(pl[k].n, w);
+                if (cs > 0 && pl[k].h < rho * cs) rho = pl[k].h / cs;
+            }
+            double q = rho / r;
+            acc += q * q * q;
+        }
+    }
+    return acc / ((double)PMV_BALL_QUAD * PMV_BALL_QUAD);
+}
+
 double pmv_ball_fraction(const scene *s, vec3 x, double r) {
     if (!(r > 0) || !isfinite(r)) return 1;
-    double f = 1;
-    for (int a = 0; a < 3; a++) {
-        double cut = 0;
-        for (int sgn = -1; sgn <= 1; sgn += 2) {
-            vec3 d = v3s(0);
-            if (a == 0) d.x = sgn;
-            else if (a == 1) d.y = sgn;
-            else d.z = sgn;
-            hit h;
-            ray ry = {x, d};
-            if (scene_intersect(s, ry, r, &h)) cut += cap_fraction(h.t, r);
+    pmv_plane pl[PMV_BALL_DIRS];
+    int np = 0;
+    for (int i = 0; i < PMV_BALL_DIRS; i++) {
+        hit h;
+        ray ry = {x, ball_dir(i)};
+        if (!scene_intersect(s, ry, r, &h)) continue;
+        /* the surface's tangent plane at the hit: its distance from x along its normal */
+        vec3 n = h.ng;
+        double hd = v3_dot(n, v3_sub(h.p, x));
+        if (hd < 0) {
+            n = v3_neg(n);
+            hd = -hd;
         }
-        f *= fmax(0.0, 1 - cut);
+        if (!(hd < r)) continue; /* cuts nothing off the ball */
+        int same = 0;
+        for (int j = 0; j < np && !same; j++)
+            same = v3_dot(n, pl[j].n) > 1 - 1e-9 && fabs(hd - pl[j].h) <= 1e-9 * r;
+        if (!same) pl[np++] = (pmv_plane){n, hd};
     }
+    double f = np == 0 ? 1 : np == 1 ? 1 - cap_fraction(pl[0].h, r) : planes_fraction(pl, np, r);
     return fmax(f, PMV_MIN_BALL_FRACTION);
 }
 
