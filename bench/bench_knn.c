@@ -26,9 +26,10 @@
  * (same float dist2), then TIMED round-robin `runs` times over the same queries; medians.
  * Times are the CPU time of the one thread that runs the queries (see cpu_now), builds too.
  * The cost of PM_SORT is measured PAIRED: at the cell's fastest unsorted B, the unsorted and
- * the sorted search answer the same queries back to back, alternating which goes first, for 9
- * rounds (3 in --quick); the median of the rounds' time ratios is reported (the ratio of two
- * independent best-of medians, used before, swung from -28% to +34% on a loaded machine).
+ * the sorted search answer the same queries in chunks of 256, each chunk by both back to back
+ * (alternating which goes first), for 9 rounds (3 in --quick); the median of the rounds' time
+ * ratios is reported (the ratio of two independent best-of medians, used before, swung from
+ * -28% to +34% on a loaded machine; whole-run pairs still spread -7%..+34% within a cell).
  *
  * OUTPUT (columns in bench/README.md): knn.csv (one row per configuration and cell),
  * knn_build.csv (build time and bytes per photon), knn_best.csv (per cell: the fastest of
@@ -472,25 +473,29 @@ static void measure(config *cs, int nc, const dataset *d, const qset *qs, unsign
 }
 
 /* The cost of PM_SORT, paired: the unsorted configuration u and the sorted one s on the same
- * tree answer the same m queries in `rounds` rounds, back to back, the order alternating from
- * round to round (so a drift of the machine's load hits both alike); each round gives the
- * time ratio t(s) / t(u). Returns the median ratio minus 1 and the smallest and largest. */
+ * tree answer the same m queries in `rounds` rounds. Inside a round the queries go in chunks of
+ * 256, each chunk answered by both back to back, the order alternating from chunk to chunk, so
+ * that the load of the shared machine (which moves on a scale of milliseconds) hits both alike;
+ * a round gives the ratio of the two summed times, t(s) / t(u). Returns the median ratio minus
+ * 1 and the smallest and largest. */
 static void sort_cost_paired(const config *u, const config *s, const float *q, unsigned k,
                              float r2, scratch *sc, int rounds, double *med, double *lo,
                              double *hi) {
     double ratio[64];
-    size_t m = u->m;
+    const size_t m = u->m, chunk = 256;
     if (rounds > 64) rounds = 64;
     for (int r = 0; r < rounds; r++) {
-        double t[2];
-        for (int j = 0; j < 2; j++) {
-            const config *c = (j ^ (r & 1)) ? s : u;
-            double t0 = cpu_now();
-            g_sink += run(c, q, m, k, r2, sc, NULL, NULL);
-            double dt = cpu_now() - t0;
-            t[c == s] = dt > 0 ? dt : 1e-9;
+        double t[2] = {0, 0};
+        for (size_t b = 0, j = 0; b < m; b += chunk, j++) {
+            size_t len = m - b < chunk ? m - b : chunk;
+            for (int x = 0; x < 2; x++) {
+                int srt = x ^ (int)((j + (size_t)r) & 1);
+                double t0 = cpu_now();
+                g_sink += run(srt ? s : u, q + 3 * b, len, k, r2, sc, NULL, NULL);
+                t[srt] += cpu_now() - t0;
+            }
         }
-        ratio[r] = t[1] / t[0];
+        ratio[r] = t[1] / (t[0] > 0 ? t[0] : 1e-9);
     }
     *med = bench_median(ratio, rounds) - 1; /* sorts ratio[] */
     *lo = ratio[0] - 1;
