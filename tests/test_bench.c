@@ -349,7 +349,8 @@ TEST(bench_programs_have_help) {
         static const char *const bad[][2] = {
             {"--n", "-5"}, {"--n", "1e30"}, {"--n", "12x"}, {"--n", "1000.5"}, {"--runs", "0"},
             {"--runs", "abc"}, {"--seed", "-1"}, {"--threads", "0"}, {"--bucket", "0"},
-            {"--points", "-3"}, {"--dists", "photon,nope"}, {"--sweeps", "k,"}};
+            {"--points", "-3"}, {"--dists", "photon,nope"}, {"--sweeps", "k,"},
+            {"--k", "7"}, {"--k", "50,"}, {"--queries", "far"}, {"--modes", "both"}};
         for (size_t j = 0; j < sizeof bad / sizeof bad[0]; j++) {
             /* each program rejects the options it knows and calls the others unknown */
             snprintf(cmd, sizeof cmd, "%s --quick --out %s/missing %s '%s' 2>&1", bin,
@@ -362,6 +363,37 @@ TEST(bench_programs_have_help) {
                        progs[i], bad[j][0], bad[j][1], out);
         }
     }
+}
+
+/* Oracle: scripts/gen-benchmarks-md.sh --readme-headline on the committed results. README's
+ * `bench/` bullet carries the race's headline figures; run-bench.sh writes it from the results,
+ * and this checks it was never typed or left stale: the bullet must equal what the generator
+ * prints from bench/results now. */
+TEST(bench_readme_headline_is_generated) {
+    char cmd[4096], gen[8192], path[1024];
+    snprintf(cmd, sizeof cmd, "sh %s/scripts/gen-benchmarks-md.sh --readme-headline %s/bench/results",
+             pm_test_source_dir(), pm_test_source_dir());
+    ASSERT_EQ_INT(pm_test_run(cmd, gen, sizeof gen), 0);
+    ASSERT_MSG(strncmp(gen, "- `bench/`", 10) == 0, "generator printed: %s", gen);
+    snprintf(path, sizeof path, "%s/README.md", pm_test_source_dir());
+    FILE *f = fopen(path, "r");
+    ASSERT_MSG(f != NULL, "cannot open %s", path);
+    char line[2048], bullet[8192] = "";
+    size_t len = 0;
+    int in = 0;
+    while (fgets(line, sizeof line, f)) {
+        if (!in && strncmp(line, "- `bench/`", 10) == 0) in = 1;
+        else if (in && (line[0] != ' ' || strncmp(line, "- ", 2) == 0)) break;
+        if (in) {
+            size_t l = strlen(line);
+            if (len + l < sizeof bullet) memcpy(bullet + len, line, l + 1), len += l;
+        }
+    }
+    fclose(f);
+    EXPECT_MSG(strcmp(bullet, gen) == 0,
+               "README.md's bench/ bullet is not the generated one (run make bench, or "
+               "gen-benchmarks-md.sh --readme-headline):\n--- README:\n%s--- generated:\n%s",
+               bullet, gen);
 }
 
 /* Oracle: the documented usage of every script in scripts/: --help prints it with status 0
