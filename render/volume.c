@@ -17,6 +17,7 @@
 #endif
 
 #include "medium.h"
+#include "photon_trace.h"
 #include "photonmap/common.h"
 #include "projmap.h"
 #include "rng.h"
@@ -283,6 +284,98 @@ static void say_short(const char *title, const vmap *m, uint64_t n_e, const char
             title, m->n, m->target, (unsigned long long)n_e, budget, why);
 }
 
+/* ---- distributed passes (volume.h; render/mpi/) ---------------------------------------------- */
+
+/* Per thread: render-mpi sets it on the thread that runs the passes; a test runs several parts
+ * in threads of one process. */
+static _Thread_local const trace_dist *g_vdist;
+
+void vol_set_dist(const struct trace_dist *d) { g_vdist = d; }
+
+/* One batch as exchanged: this head, then n records. */
+typedef struct vbatch_head {
+    uint64_t n, cap, stop, cut;
+    int32_t fail, over, b, pad;
+    vol_pilot pilot;
+} vbatch_head;
+
+/* After this process traced its batches of the round (b % nparts == part): every process gets
+ * every batch of the round into bufs[0..nb-1], each buffer's capacity set to the tracing
+ * process's so the memory budget sees one process's buffers. 0, or PM_ENOMEM (a batch that
+ * failed anywhere is sent as failed, so that case is seen by every process). */
+static int vol_exchange(vbuf *bufs, int nb) {
+    const trace_dist *d = g_vdist;
+    size_t bytes = 0;
+    int mine = 0;
+    for (int b = d->part; b < nb; b += d->nparts) {
+        bytes += sizeof(vbatch_head) + bufs[b].n * sizeof(vrec);
+        mine++;
+    }
+    char *out = malloc(bytes ? bytes : 1);
+    vbatch_head failed[VOL_ROUND];
+    size_t off = 0;
+    for (int b = d->part, j = 0; b < nb; b += d->nparts, j++) {
+        vbuf *bf = &bufs[b];
+        vbatch_head h;
+        memset(&h, 0, sizeof h);
+        h.n = out ? bf->n : 0;
+        h.cap = bf->cap;
+        h.stop = bf->stop;
+        h.cut = bf->cut;
+        h.fail = bf->fail || !out;
+        h.over = bf->over;
+        h.b = b;
+        h.pilot = bf->pilot;
+        failed[j] = h;
+        if (!out) continue;
+        memcpy(out + off, &h, sizeof h);
+        off += sizeof h;
+        if (bf->n) memcpy(out + off, bf->r, bf->n * sizeof(vrec));
+        off += bf->n * sizeof(vrec);
+    }
+    size_t *sizes = calloc((size_t)d->nparts, sizeof *sizes);
+    char *all = NULL;
+    int rc = !sizes ? -1
+             : out ? d->allgather(d->user, out, off, (void **)&all, sizes)
+                   : d->allgather(d->user, failed, (size_t)mine * sizeof *failed, (void **)&all, sizes);
+    free(out);
+    if (rc < 0) {
+        free(sizes);
+        free(all);
+        return PM_ENOMEM;
+    }
+    off = 0;
+    rc = 0;
+    for (int p = 0; p < d->nparts; p++) {
+        size_t end = off + sizes[p];
+        while (off < end) {
+            vbatch_head h;
+            memcpy(&h, all + off, sizeof h);
+            off += sizeof h;
+            vbuf *bf = &bufs[h.b];
+            if (h.cap != bf->cap) { /* the tracing process's capacity */
+                vrec *nr = realloc(bf->r, (h.cap ? h.cap : 1) * sizeof *nr);
+                if (!nr) rc = PM_ENOMEM;
+                else {
+                    bf->r = nr;
+                    bf->cap = h.cap;
+                }
+            }
+            bf->n = rc == 0 ? h.n : 0;
+            if (bf->n) memcpy(bf->r, all + off, h.n * sizeof(vrec));
+            off += h.n * sizeof(vrec);
+            bf->stop = h.stop;
+            bf->cut = h.cut;
+            bf->fail = h.fail || rc < 0;
+            bf->over = h.over;
+            bf->pilot = h.pilot;
+        }
+    }
+    free(sizes);
+    free(all);
+    return rc;
+}
+
 int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res) {
     memset(res, 0, sizeof *res);
     if (s->nlights == 0 || s->light_distrib.n == 0) return PM_EINVAL;
@@ -323,6 +416,7 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
 #endif
     uint64_t emitted = 0, max_emitted = (uint64_t)o->max_emitted, cut = 0;
     int rc = 0;
+    const trace_dist *dist = g_vdist && !o->pilot ? g_vdist : NULL;
     /* The budget that stopped the pass (NULL: none) and what it saw. */
     const char *stop = NULL;
     char why[160] = "";
@@ -348,6 +442,8 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
 #endif
         for (int b = 0; b < nb; b++) {
             vbuf *bf = &bufs[b];
+            /* A distributed pass (vol_set_dist): another process traces this batch. */
+            if (dist && b % dist->nparts != dist->part) continue;
             bf->n = 0;
             bf->over = 0;
             bf->stop = UINT64_MAX;
@@ -363,6 +459,10 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
                     bf->stop = i;
                 }
             }
+        }
+        if (dist && vol_exchange(bufs, nb) < 0) {
+            rc = PM_ENOMEM;
+            break;
         }
         uint64_t end = start + (uint64_t)nb * VOL_BATCH;
         for (int b = 0; b < nb && rc == 0; b++) {

@@ -140,6 +140,16 @@ typedef struct vol_pass_result {
 int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *r);
 void vol_pass_free(vol_pass_result *r);
 
+/* DISTRIBUTED PASSES (render/mpi/; set by render-mpi, NULL by default). After vol_set_dist(d)
+ * every process runs every pass's rounds, but traces only the round's batches b with
+ * b % d->nparts == d->part; d->allgather then gives every process every batch (its records,
+ * counts, flags and buffer size), and the merge goes on as in one process: every process ends
+ * with the one-process maps bit for bit, the budgets' stops included. Pilot passes are traced
+ * whole by every process (each plans as one process does). The caller keeps d alive. The
+ * setting belongs to the calling thread (the one that runs the passes). */
+struct trace_dist;
+void vol_set_dist(const struct trace_dist *d);
+
 #ifdef __cplusplus
 }
 #endif

@@ -39,6 +39,7 @@
 #include "photon_trace.h"
 #include "progress.h"
 #include "stats.h"
+#include "volume.h"
 
 enum { TAG_REQ = 101, TAG_ASSIGN, TAG_RESULT, TAG_STATS, TAG_FAIL };
 #define MSG_MAX 1024
@@ -373,6 +374,7 @@ void dist_init(int mode) {
     g_td.user = NULL;
     g_td.partitioned = mode == DIST_PARTITIONED;
     photon_trace_set_dist(&g_td);
+    vol_set_dist(&g_td); /* the media passes too (volume.h), in both modes */
     if (mode == DIST_PARTITIONED) lk_init(g_rank, g_size);
     /* Checkpoints: rank 0 writes them. A replicated render's image is render's, so are its
      * checkpoints; a partitioned one depends on the number of parts, and its maps cannot be
