@@ -40,7 +40,7 @@ int scene_import(cJSON **root, const char *scene_path, json_err *e) {
     double t0 = stats_now();
     if (tungsten_is_scene(*root)) {
         cJSON *out;
-        TRY(tungsten_convert(*root, dir, &out, e));
+        TRY(tungsten_convert(*root, dir, scene_path, &out, e));
         cJSON_Delete(*root);
         *root = out;
         stats_time_add("Time/Mesh loading", stats_now() - t0);

@@ -22,7 +22,10 @@
  * irradiance are at most SCENE_RADIANCE_MAX: the image is stored in 32-bit floats (PFM, the
  * film), whose largest value is 3.4e38, so that leaves 8 orders of magnitude for light
  * concentrated by a lens. A point light's intensity gives I / d^2, which depends on the
- * scene's units: only its power must be representable. A film pixel that still overflows is
+ * scene's units, so its limit scales with the scene: the irradiance it gives at D, the larger
+ * of the scene's bounding radius and the light's distance from the scene's centre, is at most
+ * SCENE_RADIANCE_MAX (I <= 1e30 D^2, power <= 4 pi 1e30 D^2). A medium's sigma_a and sigma_s
+ * are at most 1 / SCENE_LENGTH_MIN per unit length. A film pixel that still overflows is
  * counted ("Film/Non-finite pixels") and `render` warns. Photon mapping stores positions and squared
  * distances in 32-bit floats: scene_check_photon_range() says whether a loaded scene is
  * within its narrower range (SCENE_PM_SIZE_MIN..SCENE_PM_SIZE_MAX, not too far from the

@@ -65,6 +65,44 @@ static int check_light_rgb(rgb c, const char *path, const char *key, json_err *e
     return 0;
 }
 
+/* A medium's coefficient (per unit length): in [0, 1 / SCENE_LENGTH_MIN], a mean free path no
+ * shorter than the shortest length the scene may have. */
+static int check_sigma_rgb(rgb c, const char *path, const char *key, json_err *e) {
+    TRY(check_nonneg_rgb(c, path, key, e));
+    if (v3_maxabs(c) > 1 / SCENE_LENGTH_MIN)
+        return json_fail(e, PM_EINVAL, "%s.%s: %g is outside the supported range, 0 to %g per unit "
+                         "length (a mean free path of at least %g, the shortest supported length)",
+                         path, key, v3_maxabs(c), 1 / SCENE_LENGTH_MIN, SCENE_LENGTH_MIN);
+    return 0;
+}
+
+/* A point light's intensity or power, once the scene's bounds are known: the irradiance it
+ * gives at D, the larger of the scene's bounding radius and the light's distance from the
+ * scene's centre, is at most SCENE_RADIANCE_MAX (a directional light's limit). Scaled with the
+ * scene (I / D^2 is what lights it), so a scene in other units keeps its lights. */
+static int check_point_lights(const scene *s, const cJSON *lights, json_err *e) {
+    int i = 0;
+    char P[P_MAX];
+    for (const cJSON *it = lights ? lights->child : NULL; it; it = it->next, i++) {
+        if (i >= s->nlights || s->lights[i].type != LIGHT_POINT) continue;
+        const light *l = &s->lights[i];
+        double D = fmax(s->bsphere_r, v3_len(v3_sub(l->pos, s->bsphere_c)));
+        double I = v3_maxabs(l->intensity);
+        if (I / (D * D) <= SCENE_RADIANCE_MAX) continue;
+        int power = json_get(it, "power") != NULL;
+        double f = power ? 4 * M_PI : 1;
+        json_path_index(P, sizeof P, "$.lights", i);
+        return json_fail(e, PM_EINVAL, "%s.%s: %g is outside the supported range for this scene, 0 "
+                         "to %g (a point light's %s at D = %g, the larger of the scene's bounding "
+                         "radius and the light's distance from its centre, must be at most %g, as "
+                         "a directional light's irradiance: the image is stored in 32-bit floats)",
+                         P, power ? "power" : "intensity", f * I, f * SCENE_RADIANCE_MAX * D * D,
+                         power ? "irradiance, power / (4 pi D^2)," : "irradiance, intensity / D^2,",
+                         D, SCENE_RADIANCE_MAX);
+    }
+    return 0;
+}
+
 /* A point (key NULL: path names it): every coordinate within SCENE_LENGTH_MAX. */
 static int check_point(vec3 v, const char *path, const char *key, json_err *e) {
     if (!(v3_maxabs(v) <= SCENE_LENGTH_MAX))
@@ -504,9 +542,9 @@ static int load_media(scene *s, const cJSON *root, json_err *e) {
         snprintf(m->name, sizeof m->name, "%s", it->string);
         KEYS(it, P, "a medium", "sigma_a", "sigma_s", "g");
         TRY(json_rgb(it, P, "sigma_a", 0, &m->sigma_a, e));
-        TRY(check_nonneg_rgb(m->sigma_a, P, "sigma_a", e));
+        TRY(check_sigma_rgb(m->sigma_a, P, "sigma_a", e));
         TRY(json_rgb(it, P, "sigma_s", 0, &m->sigma_s, e));
-        TRY(check_nonneg_rgb(m->sigma_s, P, "sigma_s", e));
+        TRY(check_sigma_rgb(m->sigma_s, P, "sigma_s", e));
         TRY(json_number(it, P, "g", 0, &m->g, e));
         if (!(m->g > -1 && m->g < 1))
             return json_fail(e, PM_EINVAL, "%s.g: must be in (-1, 1), got %g", P, m->g);
@@ -670,6 +708,7 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
         if (!s->photon_mapping) return json_fail(e, PM_ENOMEM, "out of memory");
     }
     TRY(scene_prepare(s, e));
+    TRY(check_point_lights(s, lights, e));
     find_camera_medium(s);
     return 0;
 }

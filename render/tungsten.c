@@ -8,6 +8,7 @@
  */
 #include "tungsten.h"
 
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -15,6 +16,7 @@
 #include "common.h"
 #include "mesh.h"
 #include "sampling.h"
+#include "scene.h"
 
 #define P_MAX 256
 
@@ -46,15 +48,26 @@ static int in_list(const char *key, const char *const *list) {
     return 0;
 }
 
-/* Check every key of obj: in `ok` (handled by the caller), in `warn` (ignored with a warning:
- * they do not change the image), else an error naming the key and `what`. */
-static int check_keys(const cJSON *obj, const char *P, const char *const *ok, const char *const *warn,
-                      const char *what, json_err *e) {
+/* A warning on stderr that names the scene file (NULL: a scene given as text), as render's
+ * own warnings do: "render: FILE: warning: ...". */
+static void twarn(const char *file, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "render: %s%swarning: ", file ? file : "", file ? ": " : "");
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+}
+
+/* Check every key of obj: in `ok` (handled by the caller), in `warn` (ignored with a warning
+ * naming the file: they do not change the image), else an error naming the key and `what`. */
+static int check_keys(const char *file, const cJSON *obj, const char *P, const char *const *ok,
+                      const char *const *warn, const char *what, json_err *e) {
     for (const cJSON *it = obj->child; it; it = it->next) {
         const char *k = it->string ? it->string : "?";
         if (in_list(k, ok)) continue;
         if (warn && in_list(k, warn)) {
-            fprintf(stderr, "warning: %s.%s: ignored (does not change the image)\n", P, k);
+            twarn(file, "%s.%s: ignored (does not change the image)", P, k);
             continue;
         }
         return json_fail(e, PM_EINVAL, "%s.%s: not supported (%s)", P, k, what);
@@ -99,7 +112,7 @@ static int read_bsdf(const cJSON *b, const char *P, tbsdf *o, json_err *e) {
     if (!in_list(o->type, (const char *const[]){"lambert", "dielectric", "mirror", "null", "forward", NULL}))
         return json_fail(e, PM_EINVAL, "%s.type: bsdf type \"%s\" is not supported (lambert, dielectric, mirror, "
                          "null, forward)", P, o->type);
-    TRY(check_keys(b, P, ok, NULL, "a bsdf key outside the supported subset", e));
+    TRY(check_keys(NULL, b, P, ok, NULL, "a bsdf key outside the supported subset", e));
     TRY(tcolor(b, P, "albedo", &o->albedo, e));
     if (o->albedo.x < 0 || o->albedo.y < 0 || o->albedo.z < 0 || o->albedo.x > 1 || o->albedo.y > 1 ||
         o->albedo.z > 1)
@@ -179,7 +192,7 @@ int tungsten_transform(const cJSON *t, const char *path, double M[3][4], json_er
     }
     if (!cJSON_IsObject(t)) return json_fail(e, PM_EINVAL, "%s: expected an object or 16 numbers, got %s", path, json_type_name(t));
     static const char *const ok[] = {"position", "scale", "rotation", NULL};
-    TRY(check_keys(t, path, ok, NULL, "a primitive's transform takes position, scale and rotation", e));
+    TRY(check_keys(NULL, t, path, ok, NULL, "a primitive's transform takes position, scale and rotation", e));
     vec3 pos = v3s(0), scale = v3s(1), rot = v3s(0);
     TRY(json_vec3(t, path, "position", 0, &pos, e));
     const cJSON *s = json_get(t, "scale");
@@ -215,6 +228,7 @@ typedef struct conv {
     int global;            /* the camera's medium: the one around every object (-1: none) */
     long max_depth;        /* integrator.max_bounces as converted (a medium's limit below it is an error) */
     const char *dir;
+    const char *file;      /* the scene file, for warnings (NULL: a text) */
     int nemit;
 } conv;
 
@@ -228,7 +242,7 @@ static int read_medium(conv *c, const cJSON *m, const char *P, const char *name,
     TRY(json_string(m, P, "type", 1, &type, e));
     if (strcmp(type, "homogeneous") != 0)
         return json_fail(e, PM_EINVAL, "%s.type: medium type \"%s\" is not supported (homogeneous)", P, type);
-    TRY(check_keys(m, P, ok, NULL, "a medium key outside the supported subset", e));
+    TRY(check_keys(NULL, m, P, ok, NULL, "a medium key outside the supported subset", e));
     if (c->nmedia == T_MEDIA) return json_fail(e, PM_EINVAL, "%s: more than %d media", P, T_MEDIA);
     if (strlen(name) >= sizeof c->mnames[0]) return json_fail(e, PM_EINVAL, "%s.name: too long (max 63 characters)", P);
     for (int i = 0; i < c->nmedia; i++)
@@ -241,6 +255,12 @@ static int read_medium(conv *c, const cJSON *m, const char *P, const char *name,
     if (sa.x < 0 || sa.y < 0 || sa.z < 0) return json_fail(e, PM_EINVAL, "%s.sigma_a: must not be negative", P);
     if (ss.x < 0 || ss.y < 0 || ss.z < 0) return json_fail(e, PM_EINVAL, "%s.sigma_s: must not be negative", P);
     if (!(density >= 0)) return json_fail(e, PM_EINVAL, "%s.density: must not be negative, got %g", P, density);
+    /* Our media's range (scene.h): a coefficient at most 1 / SCENE_LENGTH_MIN per unit length. */
+    double smax = fmax(v3_maxabs(sa), v3_maxabs(ss)) * density;
+    if (smax > 1 / SCENE_LENGTH_MIN)
+        return json_fail(e, PM_EINVAL, "%s: sigma_a or sigma_s times density is %g, outside the supported "
+                         "range, 0 to %g per unit length (a mean free path of at least %g)", P, smax,
+                         1 / SCENE_LENGTH_MIN, SCENE_LENGTH_MIN);
     const cJSON *ph = json_get(m, "phase_function");
     char pp[P_MAX];
     json_path_key(pp, sizeof pp, P, "phase_function");
@@ -251,7 +271,7 @@ static int read_medium(conv *c, const cJSON *m, const char *P, const char *name,
         } else if (cJSON_IsObject(ph)) {
             static const char *const pok[] = {"type", "g", NULL};
             TRY(json_string(ph, pp, "type", 1, &pt, e));
-            TRY(check_keys(ph, pp, pok, NULL, "a phase function takes type and g", e));
+            TRY(check_keys(NULL, ph, pp, pok, NULL, "a phase function takes type and g", e));
             TRY(json_number(ph, pp, "g", 0, &g, e));
         } else {
             return json_fail(e, PM_EINVAL, "%s: expected an object or a type name, got %s", pp, json_type_name(ph));
@@ -354,7 +374,7 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
     if (!is_mesh && strcmp(type, "quad") != 0 && strcmp(type, "cube") != 0 && strcmp(type, "sphere") != 0)
         return json_fail(e, PM_EINVAL, "%s.type: primitive type \"%s\" is not supported (quad, cube, sphere, mesh)",
                          P, type);
-    TRY(check_keys(p, P, common, NULL, "a primitive key outside the supported subset", e));
+    TRY(check_keys(NULL, p, P, common, NULL, "a primitive key outside the supported subset", e));
     if (!is_mesh)
         for (const char *const *k = (const char *const[]){"file", "smooth", "recompute_normals", "backface_culling", NULL}; *k; k++)
             if (json_get(p, *k)) return json_fail(e, PM_EINVAL, "%s.%s: only a mesh has this key", P, *k);
@@ -401,8 +421,8 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
         b.type = "boundary";
     }
     if (invisible && emits)
-        fprintf(stderr, "warning: %s.bsdf: a \"%s\" surface that emits becomes an opaque black emitter "
-                "(it blocks the light behind it; in Tungsten light passes through)\n", P, b.type);
+        twarn(c->file, "%s.bsdf: a \"%s\" surface that emits becomes an opaque black emitter "
+              "(it blocks the light behind it; in Tungsten light passes through)", P, b.type);
     int smooth = 0, recompute = 0, cull = 0;
     if (is_mesh) {
         TRY(json_bool(p, P, "smooth", 0, &smooth, e));
@@ -492,6 +512,16 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
     }
     if (!obj) return json_fail(e, PM_ENOMEM, "out of memory");
     if (has_p) Le = v3_scale(power, 1.0 / (M_PI * area));
+    /* Our emission's range (scene.h): a radiance at most SCENE_RADIANCE_MAX. */
+    if (!(v3_maxabs(Le) <= SCENE_RADIANCE_MAX)) {
+        cJSON_Delete(obj);
+        if (has_p)
+            return json_fail(e, PM_EINVAL, "%s.power: %g gives the radiance %g (power / (pi area), area "
+                             "%g), outside the supported range, 0 to %g (the image is stored in 32-bit "
+                             "floats)", P, v3_maxabs(power), v3_maxabs(Le), area, SCENE_RADIANCE_MAX);
+        return json_fail(e, PM_EINVAL, "%s.emission: %g is outside the supported range, 0 to %g (the "
+                         "image is stored in 32-bit floats)", P, v3_maxabs(Le), SCENE_RADIANCE_MAX);
+    }
     const char *pname = NULL;
     if (json_string(p, P, "name", 0, &pname, e) < 0) pname = NULL;
     if (pname) cJSON_AddStringToObject(obj, "name", pname);
@@ -505,13 +535,13 @@ int tungsten_is_scene(const cJSON *root) {
            !json_get(root, "materials") && !json_get(root, "objects");
 }
 
-static int convert_camera(const cJSON *root, cJSON *out, long spp, json_err *e) {
+static int convert_camera(const char *file, const cJSON *root, cJSON *out, long spp, json_err *e) {
     const cJSON *c;
     TRY(json_object(root, "$", "camera", 1, &c, e));
     const char *P = "$.camera";
     static const char *const ok[] = {"type", "resolution", "transform", "fov", "medium", NULL};
     static const char *const warn[] = {"tonemap", "reconstruction_filter", NULL};
-    TRY(check_keys(c, P, ok, warn, "a camera key outside the supported subset", e));
+    TRY(check_keys(file, c, P, ok, warn, "a camera key outside the supported subset", e));
     const char *type = "pinhole";
     TRY(json_string(c, P, "type", 0, &type, e));
     if (strcmp(type, "pinhole") != 0)
@@ -537,7 +567,7 @@ static int convert_camera(const cJSON *root, cJSON *out, long spp, json_err *e) 
     TRY(json_object(c, P, "transform", 1, &t, e));
     const char *TP = "$.camera.transform";
     static const char *const tok[] = {"position", "look_at", "up", NULL};
-    TRY(check_keys(t, TP, tok, NULL, "a camera transform takes position, look_at and up", e));
+    TRY(check_keys(NULL, t, TP, tok, NULL, "a camera transform takes position, look_at and up", e));
     vec3 pos = v3s(0), look = v3(0, 0, 1), up = v3(0, 1, 0);
     TRY(json_vec3(t, TP, "position", 0, &pos, e));
     TRY(json_vec3(t, TP, "look_at", 1, &look, e));
@@ -556,7 +586,8 @@ static int convert_camera(const cJSON *root, cJSON *out, long spp, json_err *e) 
     return 0;
 }
 
-static int convert_settings(const cJSON *root, cJSON *out, long *spp, long *max_depth, json_err *e) {
+static int convert_settings(const char *file, const cJSON *root, cJSON *out, long *spp, long *max_depth,
+                            json_err *e) {
     const cJSON *r, *in;
     TRY(json_object(root, "$", "renderer", 0, &r, e));
     *spp = 0;
@@ -566,7 +597,7 @@ static int convert_settings(const cJSON *root, cJSON *out, long *spp, long *max_
                                            "overwrite_output_files", "adaptive_sampling", "enable_resume_render",
                                            "stratified_sampler", "scene_bvh", "spp_step", "checkpoint_interval",
                                            "timeout", NULL};
-        TRY(check_keys(r, "$.renderer", ok, warn, "a renderer key outside the supported subset", e));
+        TRY(check_keys(file, r, "$.renderer", ok, warn, "a renderer key outside the supported subset", e));
         TRY(json_int(r, "$.renderer", "spp", 0, 1, 1 << 20, spp, e));
     }
     TRY(json_object(root, "$", "integrator", 0, &in, e));
@@ -581,7 +612,7 @@ static int convert_settings(const cJSON *root, cJSON *out, long *spp, long *max_
                                        "enable_volume_light_sampling", "photon_count", "volume_photon_count",
                                        "gather_photon_count", "gather_radius", "alpha", "fixed_volume_radius",
                                        "volume_gather_radius", "volume_photon_type", "include_surfaces", NULL};
-    TRY(check_keys(in, P, ok, warn, "an integrator key outside the supported subset", e));
+    TRY(check_keys(file, in, P, ok, warn, "an integrator key outside the supported subset", e));
     const char *type = "path_tracer";
     TRY(json_string(in, P, "type", 0, &type, e));
     if (strcmp(type, "path_tracer") == 0)
@@ -604,15 +635,16 @@ static int convert_settings(const cJSON *root, cJSON *out, long *spp, long *max_
     return 0;
 }
 
-static int convert(const cJSON *root, const char *dir, cJSON *out, json_err *e) {
+static int convert(const cJSON *root, const char *dir, const char *file, cJSON *out, json_err *e) {
     static const char *const ok[] = {"media", "bsdfs", "primitives", "camera", "integrator", "renderer", NULL};
-    TRY(check_keys(root, "$", ok, NULL, "a top-level key outside the supported subset", e));
+    TRY(check_keys(NULL, root, "$", ok, NULL, "a top-level key outside the supported subset", e));
     const cJSON *media, *bsdfs, *prims;
     TRY(json_array(root, "$", "media", 0, &media, e));
     TRY(json_array(root, "$", "bsdfs", 0, &bsdfs, e));
     TRY(json_array(root, "$", "primitives", 1, &prims, e));
     conv c = {0};
     c.dir = dir;
+    c.file = file;
     int rc = 0, i = 0;
     char p[P_MAX];
     c.bsdfs = calloc((size_t)(bsdfs ? cJSON_GetArraySize(bsdfs) : 0) + 1, sizeof *c.bsdfs);
@@ -629,8 +661,8 @@ static int convert(const cJSON *root, const char *dir, cJSON *out, json_err *e) 
     }
     long spp = 0;
     c.global = -1;
-    if (rc == 0) rc = convert_settings(root, out, &spp, &c.max_depth, e);
-    if (rc == 0) rc = convert_camera(root, out, spp, e);
+    if (rc == 0) rc = convert_settings(file, root, out, &spp, &c.max_depth, e);
+    if (rc == 0) rc = convert_camera(file, root, out, spp, e);
     i = 0;
     for (const cJSON *m = media ? media->child : NULL; m && rc == 0; m = m->next, i++) {
         int idx;
@@ -657,11 +689,11 @@ static int convert(const cJSON *root, const char *dir, cJSON *out, json_err *e) 
     return rc;
 }
 
-int tungsten_convert(const cJSON *root, const char *dir, cJSON **out, json_err *e) {
+int tungsten_convert(const cJSON *root, const char *dir, const char *file, cJSON **out, json_err *e) {
     *out = cJSON_CreateObject();
     if (!*out) return json_fail(e, PM_ENOMEM, "out of memory");
     cJSON_AddStringToObject(*out, "description", "converted from a Tungsten scene by render");
-    int rc = convert(root, dir, *out, e);
+    int rc = convert(root, dir, file, *out, e);
     if (rc < 0) {
         cJSON_Delete(*out);
         *out = NULL;

@@ -19,7 +19,9 @@
  * Anything that would change the image and is not supported is an error naming its JSON path
  * and the feature ("$.primitives[4].bump: bump maps are not supported"). Keys that change only the file output, the noise or the
  * display (camera.tonemap, camera.reconstruction_filter, renderer.output_file, the photon
- * counts of Tungsten's photon mappers, ...) give a warning on stderr. A "null" bsdf without
+ * counts of Tungsten's photon mappers, ...) give a warning on stderr that names the file.
+ * Emission (or power over the area) and a medium's sigma times density have our ranges
+ * (scene.h), checked here so the message names the Tungsten file's JSON path. A "null" bsdf without
  * emission and a "forward" bsdf without a medium are invisible and dropped; a "null" emitter
  * becomes a black emitter (it then blocks light behind it, which Tungsten's does not: a
  * warning says so).
@@ -54,9 +56,11 @@ extern "C" {
 int tungsten_is_scene(const cJSON *root);
 
 /* Convert. dir is the directory of the scene file (mesh files are relative to it), "" or NULL
- * for the current directory; it is used to read a mesh whose "power" needs its area. Mesh
- * paths in *out are as the file gave them (import.h makes them absolute). */
-int tungsten_convert(const cJSON *root, const char *dir, cJSON **out, json_err *e);
+ * for the current directory; it is used to read a mesh whose "power" needs its area. file is
+ * the scene file's path as the user gave it (NULL for a text): every warning on stderr names
+ * it ("render: FILE: warning: $.camera.tonemap: ignored ..."), as errors are named by the
+ * caller. Mesh paths in *out are as the file gave them (import.h makes them absolute). */
+int tungsten_convert(const cJSON *root, const char *dir, const char *file, cJSON **out, json_err *e);
 
 /* Tungsten's rotation matrix for Euler angles in degrees (see the top of this file). */
 void tungsten_rotation(vec3 deg, double R[3][3]);

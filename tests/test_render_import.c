@@ -650,6 +650,17 @@ TEST(tungsten_unsupported_is_an_error_naming_path) {
          "$.integrator.type: integrator \"bidirectional_path_tracer\""},
         {"{\"type\": \"quad\", \"bsdf\": \"w\"}", ", \"textures\": []", "$.textures: not supported"},
         {"{\"type\": \"quad\", \"bsdf\": \"w\", \"emission\": [1, -1, 1]}", "", "$.primitives[0].emission"},
+        /* our ranges (scene.h), named by the Tungsten file's paths */
+        {"{\"type\": \"quad\", \"bsdf\": \"w\", \"emission\": [1, 2e30, 1]}", "",
+         "$.primitives[0].emission: 2e+30 is outside the supported range, 0 to 1e+30"},
+        {"{\"type\": \"quad\", \"bsdf\": \"w\", \"power\": 1e31, \"transform\": {\"scale\": 1}}", "",
+         "$.primitives[0].power: 1e+31 gives the radiance 3.1831e+30 (power / (pi area), area 1), outside the "
+         "supported range, 0 to 1e+30"},
+        {"{\"type\": \"sphere\", \"bsdf\": \"w\", \"emission\": 1e300}", "",
+         "$.primitives[0].emission: 1e+300 is outside the supported range, 0 to 1e+30"},
+        {"{\"type\": \"quad\", \"bsdf\": \"w\"}",
+         ", \"media\": [{\"name\": \"f\", \"type\": \"homogeneous\", \"sigma_s\": 1e60, \"density\": 1e41}]",
+         "$.media[0]: sigma_a or sigma_s times density is 1e+101, outside the supported range, 0 to 1e+100 per unit length"},
     };
     for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
         char t[2048];
@@ -671,6 +682,49 @@ TEST(tungsten_unsupported_is_an_error_naming_path) {
            strstr(e.msg, "$.camera.type: camera type \"thinlens\""));
     EXPECT(scene_load_text(&s, "{\"primitives\": [], \"camera\": {\"medium\": \"fog\", \"transform\": {\"look_at\": [0, 0, 1]}}}", &e) < 0 &&
            strstr(e.msg, "$.camera.medium: unknown medium \"fog\""));
+}
+
+/* Oracle: tungsten.h: a key that does not change the image is skipped with a warning, and
+ * every warning (like every error) names the scene file, as render's own warnings do
+ * ("render: FILE: warning: ..."). The same scene given as text to the loader warns without a
+ * file name. */
+TEST(tungsten_warnings_name_the_file) {
+    char path[1024], cmd[4096], out[16384];
+    snprintf(path, sizeof path, "%s/tw.json", pm_test_tmpdir());
+    FILE *f = fopen(path, "w");
+    ASSERT(f);
+    fputs("{\"bsdfs\": [{\"name\": \"w\", \"type\": \"lambert\"}, {\"name\": \"n\", \"type\": \"null\"}],\n"
+          " \"primitives\": [{\"type\": \"quad\", \"bsdf\": \"w\"},\n"
+          "  {\"type\": \"quad\", \"bsdf\": \"n\", \"emission\": 1, \"transform\": {\"position\": [0, 2, 0]}}],\n"
+          " \"camera\": {\"tonemap\": \"filmic\", \"transform\": {\"position\": [0, 1, 5], \"look_at\": [0, 0, 0]}},\n"
+          " \"renderer\": {\"output_file\": \"x.png\", \"spp\": 1},\n"
+          " \"integrator\": {\"type\": \"path_tracer\", \"enable_light_sampling\": true}}\n", f);
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' tw.json --width 2 --height 2 --quiet --hdr tw.pfm 2>&1",
+             pm_test_tmpdir(), pm_test_build_dir());
+    int rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 0, "exit %d: %s", rc, out);
+    const char *want[] = {"render: tw.json: warning: $.camera.tonemap: ignored (does not change the image)",
+                          "render: tw.json: warning: $.renderer.output_file: ignored",
+                          "render: tw.json: warning: $.integrator.enable_light_sampling: ignored",
+                          "render: tw.json: warning: $.primitives[1].bsdf: a \"null\" surface that emits"};
+    for (size_t i = 0; i < sizeof want / sizeof *want; i++)
+        EXPECT_MSG(strstr(out, want[i]), "no \"%s\" in: %s", want[i], out);
+    /* No warning without the file's name. */
+    for (const char *q = out; (q = strstr(q, "warning: ")) != NULL; q++) {
+        const char *line = q;
+        while (line > out && line[-1] != '\n') line--;
+        EXPECT_MSG(strncmp(line, "render: tw.json: ", 17) == 0, "a warning without the file: %.120s", line);
+    }
+    /* An error names it too (render's prefix). */
+    f = fopen(path, "w");
+    ASSERT(f);
+    fputs("{\"primitives\": [{\"type\": \"quad\", \"bsdf\": {\"type\": \"lambert\"}, \"emission\": 1e31}],"
+          " \"camera\": {\"transform\": {\"look_at\": [0, 0, 1]}}}", f);
+    fclose(f);
+    rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 2 && strstr(out, "render: tw.json: $.primitives[0].emission: 1e+31 is outside the supported range"),
+               "exit %d: %s", rc, out);
 }
 
 /* ---- 5. renders --------------------------------------------------------------------------- */

@@ -168,6 +168,33 @@ TEST(render_validate_range_errors) {
                  "$.objects[0]: [-1, 0, 2e+100] is outside the supported range of coordinates, -1e+100 to 1e+100");
     expect_error(scene_text("\"eye\": [0, 1, 3.5]", "\"eye\": [0, 1, -3e100]", NULL), "",
                  "$.camera.eye: [0, 1, -3e+100] is outside the supported range of coordinates, -1e+100 to 1e+100");
+    /* A point light's limit scales with the scene: its irradiance at D = the bounding radius
+     * sqrt(3) (the light is 0.87 from the centre) at most 1e30, so intensity 3e30, power
+     * 4 pi 3e30; a medium's coefficients at most 1e100 per unit length. */
+    expect_error(scene_text("\"intensity\": 0.5", "\"intensity\": 1e31", NULL), "",
+                 "$.lights[0].intensity: 1e+31 is outside the supported range for this scene, 0 to 3e+30 "
+                 "(a point light's irradiance, intensity / D^2, at D = 1.73205");
+    expect_error(scene_text("\"intensity\": 0.5", "\"power\": 1e300", NULL), "",
+                 "$.lights[0].power: 1e+300 is outside the supported range for this scene, 0 to 3.76991e+31");
+    expect_error(scene_text(NULL, NULL, ", \"media\": {\"fog\": {\"sigma_s\": [0.1, 2e100, 0.1]}}"), "",
+                 "$.media.fog.sigma_s: 2e+100 is outside the supported range, 0 to 1e+100 per unit length");
+    expect_error(scene_text(NULL, NULL, ", \"media\": {\"fog\": {\"sigma_a\": 1e101}}"), "",
+                 "$.media.fog.sigma_a: 1e+101 is outside the supported range, 0 to 1e+100 per unit length");
+    /* A light far from a small scene may be brighter: D is its distance from the centre. */
+    char out0[16384];
+    int rc0 = render_text(scene_text("\"position\": [-0.5, 1.5, 0.5], \"intensity\": 0.5",
+                                     "\"position\": [0, 1, 100], \"intensity\": 9e33", NULL), "",
+                          out0, sizeof out0);
+    EXPECT_MSG(rc0 == 0, "a light 100 away of intensity 9e33 (limit 1e34): exit %d: %s", rc0, out0);
+    rc0 = render_text(scene_text("\"position\": [-0.5, 1.5, 0.5], \"intensity\": 0.5",
+                                 "\"position\": [0, 1, 100], \"intensity\": 1.1e34", NULL), "",
+                      out0, sizeof out0);
+    EXPECT_MSG(rc0 == 2 && strstr(out0, "$.lights[0].intensity: 1.1e+34 is outside the supported range for "
+                                        "this scene, 0 to 1e+34"), "exit %d: %s", rc0, out0);
+    /* A sigma of 1e100 itself loads (the range is inclusive). */
+    rc0 = render_text(scene_text(NULL, NULL, ", \"media\": {\"fog\": {\"sigma_a\": 1e100}}"),
+                      "--width 2 --height 2", out0, sizeof out0);
+    EXPECT_MSG(rc0 == 0, "sigma_a 1e100: exit %d: %s", rc0, out0);
     /* Just inside: the largest sigma and emission render, finite. */
     char out[16384];
     int rc = render_text(scene_text("\"sigma\": 0.3", "\"sigma\": 1.5707", NULL), "", out, sizeof out);
@@ -187,13 +214,24 @@ TEST(render_validate_range_errors) {
 
 /* Oracle: the float range (3.4e38). The base scene shrunk to 1e-5 (a box 2e-5 wide) with a
  * point light of intensity 1e30 lights its walls with about 1e30 / (1e-5)^2 = 1e40: finite in
- * double, infinite in the film's floats. Every such pixel is counted in "Film/Non-finite
- * pixels" (the same number the PFM holds, counted here by reading it back) and a warning
- * names the count. */
+ * double, infinite in the film's floats. The light is within its range only because a far
+ * sphere (at 1e5) makes the scene large: its irradiance at the scene's bounding radius is
+ * 4e-10. Every such pixel is counted in "Film/Non-finite pixels" (the same number the PFM
+ * holds, counted here by reading it back) and a warning names the count. */
 static char *scaled_scene_i(double k, double intensity);
 TEST(render_validate_nonfinite_pixels_reported) {
     char out[16384], pfm[1024];
-    char *text = scaled_scene_i(1e-5, 1e30);
+    char *small = scaled_scene_i(1e-5, 1e30);
+    ASSERT(small);
+    cJSON *root = cJSON_Parse(small);
+    free(small);
+    ASSERT(root);
+    cJSON *far = cJSON_Parse("{\"type\": \"sphere\", \"center\": [0, 0, -100000], \"radius\": 1, "
+                             "\"material\": \"wall\"}");
+    ASSERT(far);
+    cJSON_AddItemToArray(cJSON_GetObjectItem(root, "objects"), far);
+    char *text = cJSON_Print(root);
+    cJSON_Delete(root);
     ASSERT(text);
     int rc = render_text(text, "--width 32 --height 32 --spp 4", out, sizeof out);
     free(text);
