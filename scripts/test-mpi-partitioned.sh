@@ -56,20 +56,22 @@ PT="--width 32 --height 32 --spp 4 --pm global_photons=30000 --pm caustic_photon
 # part (about a quarter of its part), so at R ranks the largest rank holds about 1/R of all
 # records: its count times R must stay within 5% of the whole (parts differ by a photon or so,
 # and each part's tree chooses its quarter by the same rule), and the counts must add up to
-# the whole ("A to B of N": with R = 2, A + B = N). A rank holding the whole cache (as before
-# this change) fails: B = N.
+# the whole ("A to B of N": with R = 2, A + B = N); the largest rank's cache bytes (records,
+# lookup tree, free heights) times R within 10% of all ranks' together. A rank holding the
+# whole cache (as before this change) fails: B = N.
 for np in 2 4; do
   log="$T/pt.split.$np.log"
   # shellcheck disable=SC2086
   $MPIRUN -np $np "$M" data/scenes/cornell_spheres.json $PT --mode pm --threads 1 \
     --pm distributed=partitioned --hdr "$T/pt.split.$np.pfm" >"$log" 2>&1
   rc=$?
-  line=$(sed -n 's/^MPI: partitioned precomputed irradiance: each rank keeps its own records, \([0-9]*\) to \([0-9]*\) of \([0-9]*\) .*/\1 \2 \3/p' "$log")
+  line=$(sed -n 's/^MPI: partitioned precomputed irradiance: each rank keeps its own records, \([0-9]*\) to \([0-9]*\) of \([0-9]*\) (at most \([0-9]*\) bytes on a rank, \([0-9]*\) on all).*/\1 \2 \3 \4 \5/p' "$log")
   # shellcheck disable=SC2086
   set -- $line
-  if [ $rc = 0 ] && [ $# = 3 ] && [ "$3" -gt 0 ] && [ $(($2 * np * 100)) -le $(($3 * 105)) ] \
-     && [ $(($1 * np * 100)) -ge $(($3 * 95)) ] && { [ $np != 2 ] || [ $(($1 + $2)) = "$3" ]; }; then
-    ok "partitioned precomputed irradiance np=$np: ranks keep $1 to $2 of $3 records (1/$np each, within 5%)"
+  if [ $rc = 0 ] && [ $# = 5 ] && [ "$3" -gt 0 ] && [ $(($2 * np * 100)) -le $(($3 * 105)) ] \
+     && [ $(($1 * np * 100)) -ge $(($3 * 95)) ] && { [ $np != 2 ] || [ $(($1 + $2)) = "$3" ]; } \
+     && [ $(($4 * np * 100)) -le $(($5 * 110)) ]; then
+    ok "partitioned precomputed irradiance np=$np: ranks keep $1 to $2 of $3 records (1/$np each, within 5%), at most $4 of $5 bytes"
   else
     bad "partitioned precomputed irradiance np=$np" "rc $rc, records line '$line'"
   fi
@@ -126,6 +128,35 @@ if [ -s "$T/pt.wall.t1.pfm" ] && cmp -s "$T/pt.wall.t1.pfm" "$T/pt.wall.t2.pfm" 
   ok "partitioned shelf_glass np=3: $third traces past the second (wrong guesses); 1 and 2 threads give the same bytes; $cam camera rays"
 else
   bad "partitioned wrong guesses" "third traces '$third', camera rays '$cam', images $(cmp "$T/pt.wall.t1.pfm" "$T/pt.wall.t2.pfm" 2>&1 | head -1)"
+fi
+
+# ---- samples kept from their trace on guesses ------------------------------------------
+# A sample whose every guess was the answer (lookups its rank's own records answered as all
+# ranks do, found or not; estimates of 0) keeps that trace: its radiance and its counters
+# are those of the trace it would be traced again to. Oracle: the same render with
+# PM_MPI_TEST_TRACE_AGAIN=1, which traces every sample with queries again: the PFM bytes and
+# the pixel-pass counters must be equal, the default run must have kept samples (partition_thin:
+# lookups behind the thin wall that no rank's records answer), the other none. A check that
+# kept a sample with a wrong guess would change its pixels; not adding a kept trace's counters
+# back would lower the rays counted.
+for v in 0 1; do
+  # shellcheck disable=SC2086
+  PM_MPI_TEST_TRACE_AGAIN=$v $MPIRUN -np 3 -x PM_MPI_TEST_TRACE_AGAIN "$M" data/scenes/partition_thin.json $PW \
+    --mode pm --threads 1 --pm distributed=partitioned --hdr "$T/pt.keep.$v.pfm" >"$T/pt.keep.$v.log" 2>&1
+done
+kept0=$(pt_counter "MPI/Partitioned: samples kept from a trace on guesses (all ranks)" "$T/pt.keep.0.log")
+kept1=$(pt_counter "MPI/Partitioned: samples kept from a trace on guesses (all ranks)" "$T/pt.keep.1.log")
+same=1
+for k in "Integrator/Indirect rays" "Integrator/Shadow rays" "Integrator/Path vertices" \
+         "Photon mapping/Irradiance lookups" "Photon mapping/Final gather rays" "Film/Samples"; do
+  a=$(pt_counter "$k" "$T/pt.keep.1.log"); b=$(pt_counter "$k" "$T/pt.keep.0.log")
+  if [ -z "$a" ] || [ "$a" != "$b" ]; then same=0; echo "  $k: traced again '$a', kept '$b'"; fi
+done
+if [ -s "$T/pt.keep.0.pfm" ] && cmp -s "$T/pt.keep.0.pfm" "$T/pt.keep.1.pfm" && [ $same = 1 ] \
+   && [ "${kept0:-0}" -gt 0 ] && [ "${kept1:-x}" = 0 ]; then
+  ok "partitioned partition_thin np=3: $kept0 samples kept from their trace on guesses; the same bytes and counters as tracing them again"
+else
+  bad "partitioned samples kept on guesses" "kept '$kept0' / '$kept1', images $(cmp "$T/pt.keep.0.pfm" "$T/pt.keep.1.pfm" 2>&1 | head -1)"
 fi
 
 if [ "$pt_alone" = 1 ]; then

@@ -60,7 +60,10 @@ typedef struct lk_rec {
     uint8_t *flags;
     uint32_t n, cap, cursor;
     uint32_t from; /* the first query this trace added (valid when fresh) */
-    int fresh;     /* this trace made a query whose answer was not known: trace it again */
+    int fresh;     /* this trace made a query whose answer was not known: its radiance stands
+                    * only if every guess equals the answer, else it is traced again */
+    uint64_t *counted; /* what that trace added to its thread's counters (taken off meanwhile):
+                        * the count n, then n pairs (counter id, amount) */
 } lk_rec;
 
 /* A camera sample of the tiles being rendered. */
@@ -84,11 +87,12 @@ typedef struct lk_state {
     const scene *scene;
     const side_cache *side; /* this rank's part of the precomputed irradiance (NULL: none) */
     int ready; /* the photon mapper handed over its trees (else: not a photon-mapping render) */
+    int trace_again; /* PM_MPI_TEST_TRACE_AGAIN=1 (tests): keep no trace made on guesses */
     int done_from; /* DONE notices received */
     lk_pending *pend;
     int npend, cappend;
     int st_queries, st_bytes, st_side_bytes, st_side_queries, st_gather_queries, st_traced,
-        st_again, st_more, st_rounds, st_nonfinite;
+        st_again, st_more, st_exact, st_rounds, st_nonfinite;
 } lk_state;
 
 static lk_state L;
@@ -731,13 +735,20 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
     L.side = c;
     L.scene = s;
     if (total > 0) {
+        /* The cache's own bytes: the module's records, radii, indices and lookup tree, and a
+         * free height per record. All parts together are about what every rank held when
+         * each built the whole cache. */
         unsigned long long here = m, most = 0, least = 0;
+        unsigned long long cb = (unsigned long long)(pm_irradiance_bytes(c->irr) + N * sizeof(float));
+        unsigned long long cmax = 0, csum = 0;
         MPI_Reduce(&here, &most, 1, MPI_UNSIGNED_LONG_LONG, MPI_MAX, 0, MPI_COMM_WORLD);
         MPI_Reduce(&here, &least, 1, MPI_UNSIGNED_LONG_LONG, MPI_MIN, 0, MPI_COMM_WORLD);
+        MPI_Reduce(&cb, &cmax, 1, MPI_UNSIGNED_LONG_LONG, MPI_MAX, 0, MPI_COMM_WORLD);
+        MPI_Reduce(&cb, &csum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
         if (L.rank == 0)
             printf("MPI: partitioned precomputed irradiance: each rank keeps its own records, "
-                   "%llu to %llu of %lld (%.1f KiB on rank 0); lookups ask every rank\n",
-                   least, most, total, (double)pm_irradiance_bytes(c->irr) / 1024.0);
+                   "%llu to %llu of %lld (at most %llu bytes on a rank, %llu on all); lookups ask "
+                   "every rank\n", least, most, total, cmax, csum);
     }
     unsigned long long w = walls, wsum = 0, b = bytes, bsum = 0, sp = sparse, spsum = 0;
     MPI_Reduce(&w, &wsum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
@@ -761,14 +772,16 @@ static void rec_free(lk_rec *r) {
     free(r->mine);
     free(r->e);
     free(r->flags);
+    free(r->counted);
     free(r);
 }
 
 /* Trace the camera samples smp[idx[0..n)] on the job's threads, each from its start, exactly as
  * renderer.c's render_tile traces sample k of a pixel (its random stream, jitter, camera ray).
- * A trace that made a query not answered before (rec->fresh) ran on guesses: its radiance is
- * not kept and the counters it added on its thread are taken off again, so the statistics
- * count the one trace of each sample that is kept. */
+ * A trace that made a query not answered before (rec->fresh) ran on guesses: the counters it
+ * added on its thread are taken off and kept in rec->counted, to be added back if every guess
+ * turns out to be the answer (its radiance is then the sample's), so the statistics count
+ * the one trace of each sample that is kept. */
 static void trace_samples(const scene *s, const integrator *it, const render_job *job, lk_smp *smp,
                           const uint32_t *idx, size_t n) {
     const camera *c = &s->cam;
@@ -800,12 +813,23 @@ static void trace_samples(const scene *s, const integrator *it, const render_job
             tl_smp = sm;
             rgb Li = it->li(it, s, r, &g, &id, scratch);
             tl_smp = NULL;
+            sm->L[0] = Li.x;
+            sm->L[1] = Li.y;
+            sm->L[2] = Li.z;
             if (sm->rec && sm->rec->fresh) {
+                lk_rec *rec = sm->rec;
+                uint64_t nz = 0;
+                for (int c_ = 0; c_ < STATS_MAX; c_++) nz += cnt[c_] != snap[c_];
+                free(rec->counted);
+                if (!(rec->counted = malloc((1 + 2 * nz) * sizeof *rec->counted)))
+                    dist_die("out of memory recording photon lookups");
+                rec->counted[0] = nz;
+                for (int c_ = 0, o_ = 1; c_ < STATS_MAX; c_++)
+                    if (cnt[c_] != snap[c_]) {
+                        rec->counted[o_++] = (uint64_t)c_;
+                        rec->counted[o_++] = cnt[c_] - snap[c_];
+                    }
                 memcpy(cnt, snap, sizeof snap);
-            } else {
-                sm->L[0] = Li.x;
-                sm->L[1] = Li.y;
-                sm->L[2] = Li.z;
             }
         }
         if (it->thread_end) it->thread_end(it, scratch);
@@ -835,7 +859,7 @@ static void answer_missing(const lk_query *q, const uint8_t *have, size_t n, lk_
 }
 
 typedef struct lk_count {
-    uint64_t traced, again, more, rounds, nest, nlook;
+    uint64_t traced, again, more, rounds, nest, nlook, exact;
 } lk_count;
 
 /* Samples per block of lk_render_tiles. */
@@ -903,6 +927,33 @@ static void render_block(const scene *s, const integrator *it, const render_job 
                 r->flags[j] = (uint8_t)(LK_HAVE | (found ? LK_FOUND : 0));
             }
         }
+        /* A sample whose every guess was the answer (a lookup that this rank's own records
+         * answered as all ranks do, found or not; an estimate that is 0) was traced exactly as
+         * the next trace would trace it: keep that trace (its radiance and counters). */
+        size_t left = 0;
+        for (size_t i = 0; i < np; i++) {
+            lk_rec *r = smp[idx[i]].rec;
+            int exact = 1;
+            for (uint32_t j = r->from; j < r->n && exact; j++) {
+                const double *e = r->e[j];
+                if (r->q[j].map == LK_SIDE) {
+                    const lk_part *g = &r->mine[j];
+                    int found = (r->flags[j] & LK_FOUND) != 0;
+                    exact = found == (g->found != 0) &&
+                            (!found || (e[0] == g->power[0] && e[1] == g->power[1] && e[2] == g->power[2]));
+                } else {
+                    exact = e[0] == 0 && e[1] == 0 && e[2] == 0;
+                }
+            }
+            if (exact && !L.trace_again) {
+                for (uint64_t c_ = 0; c_ < r->counted[0]; c_++)
+                    stat_add((int)r->counted[1 + 2 * c_], r->counted[2 + 2 * c_]);
+                cn->exact++;
+            } else {
+                idx[left++] = idx[i];
+            }
+        }
+        np = left;
         free(all);
         free(have);
         free(mine);
@@ -928,7 +979,7 @@ int lk_render_tiles(const scene *s, const integrator *it, const render_job *job,
     lk_smp *smp = calloc(LK_BLOCK, sizeof *smp);
     uint32_t *idx = malloc(LK_BLOCK * sizeof *idx);
     if (!smp || !idx) dist_die("out of memory in the photon lookups");
-    lk_count cn = {0, 0, 0, 0, 0, 0};
+    lk_count cn = {0, 0, 0, 0, 0, 0, 0};
     uint64_t bad = 0, ns = 0;
     int ti = 0, px = 0, k = -1; /* the next sample: tile ti, its pixel px, sample k (-1: start) */
     for (;;) {
@@ -981,6 +1032,7 @@ int lk_render_tiles(const scene *s, const integrator *it, const render_job *job,
     stat_add(L.st_again, cn.again);
     stat_add(L.st_more, cn.more);
     stat_add(L.st_rounds, cn.rounds);
+    stat_add(L.st_exact, cn.exact);
     free(idx);
     free(smp);
     return 0;
@@ -991,6 +1043,8 @@ void lk_init(int rank, int size) {
     L.rank = rank;
     L.size = size;
     L.on = 1;
+    const char *ta = getenv("PM_MPI_TEST_TRACE_AGAIN");
+    L.trace_again = ta && strcmp(ta, "1") == 0;
     MPI_Comm_dup(MPI_COMM_WORLD, &L.comm);
     L.st_queries = stats_register("MPI/Partitioned: photon lookups sent (all ranks)");
     L.st_bytes = stats_register("MPI/Partitioned: bytes sent in photon lookups (all ranks)");
@@ -1001,6 +1055,7 @@ void lk_init(int rank, int size) {
     L.st_again = stats_register("MPI/Partitioned: camera samples traced twice or more (all ranks)");
     L.st_more = stats_register("MPI/Partitioned: camera sample traces past the second (all ranks)");
     L.st_rounds = stats_register("MPI/Partitioned: lookup exchanges of chunks (all ranks)");
+    L.st_exact = stats_register("MPI/Partitioned: samples kept from a trace on guesses (all ranks)");
     L.st_nonfinite = stats_register("Film/Non-finite samples");
     g_hook.partition = hook_partition;
     g_hook.side_build = hook_side_build;

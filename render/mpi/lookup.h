@@ -50,7 +50,11 @@
  * its new ones are answered in a further exchange; until every sample's last trace read known
  * answers only. That trace is the sample's radiance; the earlier traces of a sample are taken
  * off the counters (per thread), so the statistics count one trace per sample. A sample
- * without queries is traced once. Each pixel's samples are then added in sample order, as
+ * without queries is traced once, and so is a sample whose every guess turns out to be the
+ * answer (each lookup answered by this rank's records as by all ranks, found or not, and each
+ * estimate 0): that trace is exactly the one it would be traced again to, so its radiance and
+ * counters are kept (PM_MPI_TEST_TRACE_AGAIN=1 turns this off, for the test that compares
+ * the two). Each pixel's samples are then added in sample order, as
  * render_tile adds them. No decision of li() depends on an estimate's value (photon_lookup.h),
  * and a lookup's value is only added: only whether a lookup found a record changes the path.
  * A cone or Gaussian filter (the caustic map's) is combined as sum_m S_m / sum_m A_m times M,
@@ -59,8 +63,8 @@
  *
  * DETERMINISM. Each estimate adds the ranks' parts in rank order, a lookup takes the nearest
  * answer (the lowest rank on a tie), and a part depends only on the query and the rank's
- * photons or records; a sample's radiance is the trace that read answers only, whatever the
- * guesses were. So the image depends on the rank count alone (not on the threads, the tile
+ * photons or records; a sample's radiance is that of a trace that read answers only (or
+ * guesses equal to them), whatever the guesses were. So the image depends on the rank count alone (not on the threads, the tile
  * queue, or whether the maps were traced or loaded).
  *
  * All MPI calls are on the main thread; the answers to a batch are computed on OpenMP threads.
