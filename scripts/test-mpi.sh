@@ -389,6 +389,20 @@ if [ "$stop_ok" = 1 ] && [ $rc = 0 ] && grep -q "render: interrupted; the render
 else
   bad "checkpoint term/resume pm" "stop_ok $stop_ok rc $rc; $(grep -h "render\|MPI: res" "$T/ckterm.err" "$T/ckterm.res.log" | tail -3)"
 fi
+# Snapshots: rank 0 rewrites the PNG between chunks (--snapshot-every, here every 1 ms, so at
+# every chunk); the finished job's PFM must still equal the one-process render and the PNG
+# must be the final one (its bytes equal render's PNG of the same options).
+# shellcheck disable=SC2086
+"$R" $CKPATH --threads 2 --quiet -o "$T/snap.ref.png" >/dev/null 2>&1
+# shellcheck disable=SC2086
+$MPIRUN -np 2 "$M" $CKPATH --threads 1 --snapshot-every 0.001 -o "$T/snap.png" --hdr "$T/snap.pfm" \
+  >"$T/snap.log" 2>&1
+rc=$?
+if [ $rc = 0 ] && cmp -s "$T/snap.pfm" "$T/ckpath.ref.pfm" && cmp -s "$T/snap.png" "$T/snap.ref.png"; then
+  ok "snapshots every 1 ms at -np 2: the final PFM and PNG equal the one-process render's"
+else
+  bad "snapshots" "rc $rc; $(grep render "$T/snap.log" | tail -2)"
+fi
 # A replicated job's checkpoint is render's: render's own checkpoint (taken mid-tile: tiles
 # partly done start over on a rank) resumes under render-mpi -np 2 to the same bytes.
 id="mpib-$$-ckr"
