@@ -263,7 +263,7 @@ fi
 
 # mpia's tests of the partitioned precomputed irradiance (sourced: they share ok/bad, $T, $M, $R).
 # shellcheck disable=SC1091
-[ -f scripts/test-mpi-partitioned.sh ] && . scripts/test-mpi-partitioned.sh
+. "$here/scripts/test-mpi-partitioned.sh"
 
 # ---- failures ----------------------------------------------------------------------------
 # A scene error on every rank: exit 2, the loader's message (with the line) once from rank 0,
