@@ -94,6 +94,15 @@ static const setting_def k_settings[] = {
      "aim caustic photons at specular objects through a projection map"},
     {"projection_cells", ST_INT, F(projection_cells), 64, 1, 4096,
      "cells per side of a light's projection map"},
+    {"importance_paths", ST_LONG, F(importance_paths), 16384, 0, 100000000,
+     "camera paths that find which emissions of the lights reach what the camera sees "
+     "(importance.h); the global pass emits toward them, each photon's power divided "
+     "accordingly, when they cover at least 10% of the lights' power (the plan prints the "
+     "decision); 0: emission by power alone"},
+    {"importance_defensive", ST_NUMBER, F(importance_defensive), 0.2, 0.01, 1,
+     "share of the global photons emitted by power alone, the rest by importance: every "
+     "emission keeps a chance, so the map stays unbiased and a photon carries at most 1/share "
+     "of the uniform power"},
     {"progress", ST_BOOL, F(progress), 1, NONE,
      "progress lines while tracing photons (render --quiet sets it false)"},
     {"volume", ST_FORCE, F(force_volume), PLAN_AUTO, 0, 0,

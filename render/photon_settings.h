@@ -46,6 +46,8 @@ typedef struct photon_settings {
     int max_bounces;
     int projection_cells;
     int projection;
+    long importance_paths;       /* camera paths of importance-driven emission (0: uniform) */
+    double importance_defensive; /* share of global photons emitted uniformly */
     int progress; /* progress bars while tracing (render --quiet sets it false) */
     /* Participating media (volume.h, pm_volume.h). */
     int force_volume, force_volume_caustics; /* PLAN_* */

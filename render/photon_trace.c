@@ -14,6 +14,7 @@
 #include "photonmap/estimate.h"
 #include "material.h"
 #include "progress.h"
+#include "importance.h"
 #include "projmap.h"
 #include "rng.h"
 #include "sampling.h"
@@ -85,6 +86,7 @@ typedef struct pass_ctx {
     distrib1d choose; /* light choice for this pass */
     rgb *light_scale; /* per light: power / p_light (times the projection fraction) */
     projmap *proj;    /* caustic pass: one per light */
+    const importance *imp; /* global pass: importance-driven emission (importance.h), or NULL */
     double shift[6];
 } pass_ctx;
 
@@ -92,10 +94,17 @@ static void emit_photon(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *p,
                         rgb *power) {
     double u0 = sample_halton(i, 0, c->shift);
     double pl;
-    *li = distrib1d_sample(&c->choose, u0, &pl);
-    const light *l = &c->s->lights[*li];
     double u[4] = {sample_halton(i, 1, c->shift), sample_halton(i, 2, c->shift), sample_halton(i, 3, c->shift),
                    sample_halton(i, 4, c->shift)};
+    if (c->imp) { /* the defensive mixture of importance.h; the power divided by p / p_l */
+        double h[4] = {u[0], u[1], u[2], u[3]}, rel;
+        *li = importance_sample(c->imp, c->s, u0, h, u, &rel);
+        light_sample_le(c->s, *li, u, p, n, d);
+        *power = v3_scale(c->light_scale[*li], 1.0 / rel);
+        return;
+    }
+    *li = distrib1d_sample(&c->choose, u0, &pl);
+    const light *l = &c->s->lights[*li];
     if (c->caustic_pass && c->proj) {
         projmap_sample(&c->proj[*li], l, sample_halton(i, 5, c->shift), g, u);
     }
@@ -738,6 +747,9 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
     int st_shadow = stats_register("Photons/Shadow-map photons stored (direct + shadow)");
     int st_saved = stats_register("Photons/Caustic emissions saved by the projection map");
     int st_first = stats_register("Photons/Caustic-pass photons whose first hit is specular");
+    int st_imp_paths = stats_register("Photons/Importance: camera paths");
+    int st_imp_unocc = stats_register("Photons/Importance: light connections carrying light");
+    int st_imp_cells = stats_register("Photons/Importance: emission cells with importance (finest level)");
     int nl = s->nlights;
     if (nl == 0 || s->light_distrib.n == 0) return 0;
     int rc = 0;
@@ -766,6 +778,14 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
         }
         c.light_scale = scale;
         shifts(c.shift, o->seed, 1);
+        /* Importance-driven emission (importance.h): the plan's table of where the camera
+         * sees light; the pass emits toward it, its photons' powers divided by the steering. */
+        if (o->importance && o->importance->on && !o->pilot) {
+            c.imp = o->importance;
+            stat_add(st_imp_paths, (uint64_t)c.imp->paths);
+            stat_add(st_imp_unocc, c.imp->contributing);
+            stat_add(st_imp_cells, c.imp->lv[0].ncells);
+        }
         /* With the global map off, the shadow map's count is the target. */
         rc = run_pass(&c, o->global_target, o->global ? &gbuf : &sbuf, o->global ? &sbuf : NULL,
                       &m->global_emitted, NULL, &m->global_runaway,

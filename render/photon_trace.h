@@ -9,6 +9,11 @@
  * uniform direction; directional: a disc covering the scene). The power of every photon is
  * P_light / (p_light * n_e), n_e being the number emitted for the map.
  *
+ * IMPORTANCE. With o->importance (importance.h) the global pass emits by the table's defensive
+ * mixture instead: photon i's Halton dimension 0 picks uniform emission (light by power) or a
+ * level and cell of the table, dimensions 1-4 the point in the light's u-space or in the cell,
+ * and its power is the uniform photon's divided by rel = p(l, u) / p_l.
+ *
  * CAUSTIC PROJECTION MAP. The caustic pass emits only into the active cells of each light's
  * projection map (projmap.h), chooses a light in proportion to P_light * f_light with f_light
  * its fraction of active cells, and scales each photon's power by that fraction (Jensen's
@@ -114,6 +119,9 @@ typedef struct trace_opts {
     size_t max_memory_bytes;         /* photon buffers of a pass (0: no cap) */
     int max_bounces;                 /* photon path length cap below max_depth (0: none) */
     int projection, projection_cells;
+    /* The global pass (and its shadow photons) emits by this table (importance.h; the plan
+     * builds it) when non-NULL and on; NULL: by power alone. Not used by a pilot. */
+    const struct importance *importance;
     int max_depth;
     uint64_t seed;
     int threads; /* 0: OpenMP's default */
@@ -122,7 +130,8 @@ typedef struct trace_opts {
                            adds nothing to the statistics */
 } trace_opts;
 
-/* Fill the options from the scene's settings: seed, max_depth; the rest zero. */
+/* Fill the options from the scene's settings: seed, max_depth, the budgets' defaults; the
+ * rest zero. */
 void trace_opts_init(trace_opts *o, const scene *s);
 
 typedef struct trace_dist {

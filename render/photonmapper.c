@@ -567,6 +567,7 @@ static void mapper_destroy(integrator *self) {
     pm_kdtree_free(st->tc);
     pm_kdtree_free(st->ts);
     photon_maps_free(&st->maps);
+    plan_free(&st->plan);
     free(st);
 }
 
@@ -617,6 +618,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         o.max_bounces = st->cfg.max_bounces;
         o.projection = st->cfg.projection;
         o.projection_cells = st->cfg.projection_cells;
+        o.importance = st->plan.imp; /* importance-driven emission, when the plan chose it */
         o.quiet = !st->cfg.progress;
         if ((rc = photon_trace(s, &o, m, err, errcap)) < 0) return rc;
         m->stamp = stamp;
@@ -715,6 +717,7 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
     st->kmax = (unsigned)(st->cfg.k_global > st->cfg.k_caustic ? st->cfg.k_global : st->cfg.k_caustic);
     if ((rc = pmv_init(&st->vol, s, &st->cfg)) < 0) {
         snprintf(err, errcap, "out of memory");
+        plan_free(&st->plan);
         free(st);
         return rc;
     }

@@ -20,6 +20,7 @@
 #include <string.h>
 
 #include "photonmap/common.h"
+#include "importance.h"
 #include "photon_trace.h"
 #include "volume.h"
 #include "rng.h"
@@ -92,6 +93,7 @@ static void run_pilot(const scene *s, pilot_result *r) {
     o.quiet = 1;
     o.max_emitted = (double)PILOT_BATCHES * PT_BATCH;
     o.max_emitted_factor = 1e300;
+    o.importance = NULL; /* the pilot's evidence is that of uniform emission */
     photon_maps m;
     char err[256];
     o.pilot = &r->g;
@@ -246,6 +248,7 @@ static void plan_media(const scene *s, const photon_settings *cfg, render_plan *
     o.lo = v3s(1);
     o.hi = v3s(-1);
     o.max_depth = s->settings.max_depth;
+    o.max_bounces = cfg->max_bounces; /* the path-length budget, as the passes have it */
     o.seed = PLAN_SEED;
     o.pilot = &pg;
     if (emitting_lights(s)) vol_trace_pass(s, &o, &(vol_pass_result){0});
@@ -338,6 +341,64 @@ static void plan_media(const scene *s, const photon_settings *cfg, render_plan *
     set(&p->shadow, 0, "a scene with media: shadow rays carry the transmittance, no shadow photons%s", "");
 }
 
+/* Importance-driven emission of the global pass: the same table photon_trace builds (same
+ * settings, seed and streams), and its evidence. */
+static void plan_emission(const scene *s, const photon_settings *c, render_plan *p) {
+    if (scene_has_media(s)) {
+        set(&p->emission, 0, "a scene with media traces its maps with volume.h%s", "");
+        return;
+    }
+    if (!p->global.on && !p->shadow.on) {
+        set(&p->emission, 0, "no global pass%s", "");
+        return;
+    }
+    if (c->load_dir[0]) {
+        set(&p->emission, 0, "the maps are loaded (photon_mapping.load_photons), not traced%s", "");
+        return;
+    }
+    if (c->importance_paths <= 0) {
+        set(&p->emission, 0, "photon_mapping.importance_paths is 0%s", "");
+        return;
+    }
+    importance imp;
+    char buf[320];
+    if (importance_build(s, c->importance_paths, c->importance_defensive, s->settings.seed, 0, &imp) < 0) {
+        set(&p->emission, 0, "out of memory for the importance table%s", "");
+        return;
+    }
+    if (imp.contributing == 0)
+        snprintf(buf, sizeof buf,
+                 "none of %llu light connections from %ld camera paths carries light",
+                 imp.connections, imp.paths);
+    else if (!imp.on)
+        snprintf(buf, sizeof buf,
+                 "the camera sees light from cells of %.1f%% of the lights' power (%zu of "
+                 "%llu light connections from %ld camera paths carry light), below the %.0f%% "
+                 "emission can steer by (what enters a small opening after a bounce cannot be aimed "
+                 "at; importance.h, LIMITS)",
+                 100 * imp.coverage, imp.contributing, imp.connections, imp.paths, 100 * IMP_MIN_COVERAGE);
+    else
+        snprintf(buf, sizeof buf,
+                 "%zu of %llu light connections from %ld camera paths carry light, "
+                 "into %zu/%zu/%zu emission cells (finest to coarsest) covering %.1f%% of the lights' "
+                 "power; %.0f%% of the global photons by importance, %.0f%% by power",
+                 imp.contributing, imp.connections, imp.paths, imp.lv[0].ncells, imp.lv[1].ncells,
+                 imp.lv[IMP_LEVELS - 1].ncells, 100 * imp.coverage, 100 * (1 - imp.a), 100 * imp.a);
+    set(&p->emission, imp.on, "%s", buf);
+    if (imp.on && (p->imp = malloc(sizeof *p->imp)) != NULL) {
+        *p->imp = imp; /* kept for the global pass (trace_opts.importance) */
+        return;
+    }
+    if (imp.on) set(&p->emission, 0, "out of memory for the importance table%s", "");
+    importance_free(&imp);
+}
+
+void plan_free(render_plan *p) {
+    if (p->imp) importance_free(p->imp);
+    free(p->imp);
+    p->imp = NULL;
+}
+
 /* Apply a forced setting from the scene file (or --pm key=true|false). */
 static void force(plan_item *it, int f, const char *key) {
     if (f == PLAN_AUTO) return;
@@ -363,6 +424,7 @@ void plan_make(const scene *s, const photon_settings *c, int preview, render_pla
     force(&p->caustics, c->force_caustics, "caustics");
     force(&p->global, c->force_global, "global");
     force(&p->shadow, c->force_shadow, "shadow");
+    plan_emission(s, c, p);
     if (preview)
         set(&p->final_gather, 0, "preview mode: the global map is shown directly%s", "");
     else if (!p->global.on)
@@ -384,4 +446,5 @@ void plan_print(const render_plan *p, FILE *f) {
     fprintf(f, "  final gather: %s (%s)\n", p->final_gather.on ? "on" : "off", p->final_gather.reason);
     fprintf(f, "  volume: %s (%s)\n", p->volume.on ? "on" : "off", p->volume.reason);
     fprintf(f, "  volume caustics: %s (%s)\n", p->volume_caustics.on ? "on" : "off", p->volume_caustics.reason);
+    fprintf(f, "  photon emission: %s (%s)\n", p->emission.on ? "importance" : "by power", p->emission.reason);
 }

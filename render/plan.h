@@ -21,6 +21,12 @@
  *   volume caustics  a volume caustic map only when a specular surface sends light into a
  *                 medium (pilot photons that scatter in a medium after specular bounces only,
  *                 L S+ V, counted by the first specular surface).
+ *   photon emission  the global pass (and its shadow photons) emits toward what the camera
+ *                 sees (importance.h) when importance_paths > 0 and the camera paths' light
+ *                 connections cover at least IMP_MIN_COVERAGE of the lights' power; else by
+ *                 power alone. The line gives the camera paths, the connections that carry
+ *                 light, the cells and the coverage. photon_trace builds the same table from
+ *                 the same streams, so the pass does what the line says.
  * In a scene with media (or null surfaces) every decision comes from volume.h's pilot (the
  * tracer that builds those maps) instead of photon_trace's: caustics from its L S+ D stores,
  * the global map from stores after a diffuse bounce or a scattering event; shadow photons are
@@ -29,7 +35,8 @@
  * The scene's "photon_mapping" object may force any of them: "caustics": true/false, and the
  * same for "global", "shadow" and "final_gather"; the reason then says "forced".
  *
- * Everything here is plain data; nothing is shared between threads.
+ * Plain data, except the importance table (read-only once made, shared by the photon
+ * tracer's threads); plan_free frees it.
  */
 #ifndef RENDER_PLAN_H
 #define RENDER_PLAN_H
@@ -52,10 +59,14 @@ typedef struct plan_item {
 
 typedef struct render_plan {
     plan_item caustics, global, shadow, final_gather, volume, volume_caustics;
+    plan_item emission; /* on: importance-driven emission of the global pass (importance.h) */
+    struct importance *imp; /* emission on: the table for trace_opts.importance (owned) */
 } render_plan;
 
-/* Decide the plan for scene s under config c; preview = 1 turns final gathering off. */
+/* Decide the plan for scene s under config c; preview = 1 turns final gathering off. The
+ * plan may hold the importance table (imp): plan_free frees it. */
 void plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p);
+void plan_free(render_plan *p);
 /* "caustics: off (no specular surface reachable from a light)" and so on, one per line. */
 void plan_print(const render_plan *p, FILE *f);
 

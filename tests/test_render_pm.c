@@ -26,6 +26,7 @@
 #include "../photonmap/photon.h"
 #include "../render/compare.h"
 #include "../render/film.h"
+#include "../render/importance.h"
 #include "../render/photon_trace.h"
 #include "../render/photon_settings.h"
 #include "../render/plan.h"
@@ -206,7 +207,22 @@ TEST(render_pm_plan_shipped_scenes) {
         check_item(name, "global", &p.global, ex->global, ex->why_global);
         check_item(name, "shadow", &p.shadow, ex->shadow, ex->why_shadow);
         check_item(name, "final gather", &p.final_gather, ex->final_gather, ex->why_final_gather);
+        /* The importance tables are compared by content: the plans own different copies. */
+        EXPECT_MSG((p.imp == NULL) == (p2.imp == NULL) && (p.imp == NULL) == !p.emission.on,
+                   "%s: importance table %p/%p with emission %s", name, (void *)p.imp, (void *)p2.imp,
+                   p.emission.reason);
+        if (p.imp && p2.imp)
+            EXPECT_MSG(p.imp->lv[0].ncells == p2.imp->lv[0].ncells &&
+                           memcmp(p.imp->lv[0].cdf, p2.imp->lv[0].cdf,
+                                  (p.imp->lv[0].ncells + 1) * sizeof(double)) == 0,
+                       "%s: the importance table changed between two calls", name);
+        struct importance *keep[3] = {p.imp, p2.imp, pv.imp};
+        p.imp = p2.imp = pv.imp = NULL;
         EXPECT_MSG(memcmp(&p, &p2, sizeof p) == 0, "%s: the plan changed between two calls", name);
+        p.imp = keep[0], p2.imp = keep[1], pv.imp = keep[2];
+        plan_free(&p);
+        plan_free(&p2);
+        plan_free(&pv);
         EXPECT_MSG(!pv.final_gather.on && strstr(pv.final_gather.reason, "preview"),
                    "%s: preview final gather: %s", name, pv.final_gather.reason);
         EXPECT_MSG(pv.caustics.on == p.caustics.on && pv.global.on == p.global.on &&
@@ -374,9 +390,11 @@ TEST(render_pm_plan_forced) {
 
 /* ---- 2. thread independence ------------------------------------------------------------ */
 
-static int trace_spheres(const scene *s, int threads, uint64_t seed, long target, photon_maps *m) {
+static int trace_spheres_imp(const scene *s, int threads, uint64_t seed, long target, const importance *imp,
+                             photon_maps *m) {
     trace_opts o;
     trace_opts_init(&o, s);
+    o.importance = imp;
     o.global = o.caustic = o.shadow = 1;
     o.global_target = o.caustic_target = target;
     o.threads = threads;
@@ -384,6 +402,10 @@ static int trace_spheres(const scene *s, int threads, uint64_t seed, long target
     o.quiet = 1;
     char err[256];
     return photon_trace(s, &o, m, err, sizeof err);
+}
+
+static int trace_spheres(const scene *s, int threads, uint64_t seed, long target, photon_maps *m) {
+    return trace_spheres_imp(s, threads, seed, target, NULL, m);
 }
 
 #define SAME_MAP(a, b, arr, n)                                                              \
@@ -442,6 +464,163 @@ TEST(render_pm_maps_thread_independent) {
     photon_maps_free(&m1);
     photon_maps_free(&m2);
     photon_maps_free(&m3);
+    /* Importance-driven emission (importance.h): the table built on 1 and on 2 threads is
+     * the same, and so are the maps traced with it; and they differ from the maps by power. */
+    importance i1, i2;
+    ASSERT_EQ_INT(importance_build(&s, 4096, 0.2, 3, 1, &i1), 0);
+    ASSERT_EQ_INT(importance_build(&s, 4096, 0.2, 3, 2, &i2), 0);
+    EXPECT_MSG(i1.on && i1.lv[0].ncells == i2.lv[0].ncells && i1.contributing == i2.contributing,
+               "importance tables: on %d, cells %zu / %zu", i1.on, i1.lv[0].ncells, i2.lv[0].ncells);
+    for (int v = 0; v < IMP_LEVELS && i1.lv[v].ncells == i2.lv[v].ncells; v++)
+        EXPECT_MSG(memcmp(i1.lv[v].cell, i2.lv[v].cell, i1.lv[v].ncells * sizeof(uint64_t)) == 0 &&
+                       memcmp(i1.lv[v].cdf, i2.lv[v].cdf, (i1.lv[v].ncells + 1) * sizeof(double)) == 0,
+                   "importance level %d differs between 1 and 2 threads", v);
+    ASSERT_EQ_INT(trace_spheres_imp(&s, 1, 3, target, &i1, &m1), 0);
+    ASSERT_EQ_INT(trace_spheres_imp(&s, 2, 3, target, &i1, &m2), 0);
+    ASSERT_EQ_INT(trace_spheres(&s, 1, 3, target, &m3), 0);
+    SAME_MAP(m1, m2, global, nglobal);
+    SAME_MAP(m1, m2, shadow, nshadow);
+    EXPECT_EQ_INT(m1.global_emitted, m2.global_emitted);
+    n = m1.nglobal < m3.nglobal ? m1.nglobal : m3.nglobal;
+    EXPECT_MSG(memcmp(m1.global, m3.global, n * sizeof(pm_photon)) != 0,
+               "the importance table did not change the global map");
+    photon_maps_free(&m1);
+    photon_maps_free(&m2);
+    photon_maps_free(&m3);
+    importance_free(&i1);
+    importance_free(&i2);
+    scene_free(&s);
+}
+
+/* ---- importance-driven emission (importance.h) ----------------------------------------- */
+
+/* Oracle: light_sample_le itself. For random u, (p, d) = light_sample_le(u) and
+ * importance_invert_le(p, d) must give u back (to 1e-6; near the seams of the concentric map
+ * and at the triangle's apex only to the rounding of their trigonometry), for a one-sided and a
+ * two-sided area light, a sphere light, a point light and a directional light. */
+TEST(render_pm_importance_inverts_emission) {
+    const char *txt =
+        "{\"camera\": {\"eye\": [0,0,-8], \"look_at\": [0,0,0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+        " \"materials\": {\"w\": {\"type\": \"lambert\", \"reflectance\": 0.5},"
+        "  \"e\": {\"type\": \"lambert\", \"reflectance\": 0.5, \"emission\": 2},"
+        "  \"e2\": {\"type\": \"lambert\", \"reflectance\": 0.5, \"emission\": 1, \"two_sided\": true}},"
+        " \"objects\": [{\"type\": \"quad\", \"vertices\": [[-1,2,-1],[1,2,-1],[1,2,1],[-1,2,1]], \"material\": \"e\"},"
+        "  {\"type\": \"quad\", \"vertices\": [[-3,0,-1],[-3,0,1],[-3,1,1],[-3,1,-1]], \"material\": \"e2\"},"
+        "  {\"type\": \"sphere\", \"center\": [2,-1,0], \"radius\": 0.5, \"material\": \"e\"},"
+        "  {\"type\": \"sphere\", \"center\": [0,-3,0], \"radius\": 1, \"material\": \"w\"}],"
+        " \"lights\": [{\"type\": \"point\", \"position\": [0,1,0], \"intensity\": 1},"
+        "  {\"type\": \"directional\", \"direction\": [0.2,-1,0.1], \"irradiance\": 1}]}";
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
+    int kinds[4] = {0, 0, 0, 0}, two = 0;
+    rng g = rng_stream(7, 1, 2);
+    for (int li = 0; li < s.nlights; li++) {
+        const light *l = &s.lights[li];
+        kinds[l->type]++;
+        two += l->two_sided;
+        double worst = 0;
+        for (int k = 0; k < 2000; k++) {
+            double u[4], w[4];
+            for (int j = 0; j < 4; j++) u[j] = 0.001 + 0.998 * rng_uniform(&g);
+            vec3 p, n, d;
+            light_sample_le(&s, li, u, &p, &n, &d);
+            EXPECT(importance_invert_le(&s, li, p, d, w) == 1);
+            int dims = l->type == LIGHT_AREA || l->type == LIGHT_SPHERE ? 4 : 2;
+            for (int j = 0; j < dims; j++) worst = fmax(worst, fabs(w[j] - u[j]));
+            EXPECT(importance_cell(l, u) == importance_cell(l, w) || worst > 0);
+        }
+        EXPECT_MSG(worst < 1e-6, "light %d (type %d, two-sided %d): |u - invert(le(u))| up to %g", li, l->type,
+                   l->two_sided, worst);
+    }
+    EXPECT_MSG(kinds[LIGHT_AREA] >= 4 && kinds[LIGHT_SPHERE] == 1 && kinds[LIGHT_POINT] == 1 &&
+                   kinds[LIGHT_DIRECTIONAL] == 1 && two == 2,
+               "light kinds %d %d %d %d, two-sided %d", kinds[0], kinds[1], kinds[2], kinds[3], two);
+    scene_free(&s);
+}
+
+/* Oracle: what each scene's camera sees. shelf_glass and cornell_spheres see most of what
+ * their lamps light: importance-driven emission, its line naming the coverage. pinhole_room
+ * sees only light through a 10 x 10 hole (a few percent of the lamp's emission: by power,
+ * importance.h LIMITS); importance_paths = 0 turns it off; a scene with media never uses it.
+ * The table the plan keeps is the one it describes (coverage and on). */
+TEST(render_pm_plan_emission) {
+    const struct {
+        const char *scene, *set;
+        int on;
+        const char *why;
+    } cases[] = {{"shelf_glass", NULL, 1, "of the lights' power"},
+                 {"cornell_spheres", NULL, 1, "of the lights' power"},
+                 {"pinhole_room", NULL, 0, "below the 10% emission can steer by"},
+                 {"shelf_glass", "importance_paths=0", 0, "importance_paths is 0"},
+                 {"cornell_fog", NULL, 0, "a scene with media"}};
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        scene s;
+        json_err e;
+        ASSERT_MSG(load_shipped(&s, cases[k].scene, &e) == 0, "%s", e.msg);
+        char err[256];
+        if (cases[k].set) ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", cases[k].set, err, sizeof err), 0);
+        photon_settings c;
+        ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
+        render_plan p;
+        plan_make(&s, &c, 0, &p);
+        printf("    %s%s%s: %s (%s)\n", cases[k].scene, cases[k].set ? " --pm " : "", cases[k].set ? cases[k].set : "",
+               p.emission.on ? "importance" : "by power", p.emission.reason);
+        EXPECT_MSG(p.emission.on == cases[k].on && strstr(p.emission.reason, cases[k].why),
+                   "%s: emission %d: %s", cases[k].scene, p.emission.on, p.emission.reason);
+        EXPECT_MSG((p.imp != NULL) == p.emission.on, "%s: table %p", cases[k].scene, (void *)p.imp);
+        if (p.imp) EXPECT(p.imp->on && p.imp->coverage >= IMP_MIN_COVERAGE);
+        plan_free(&p);
+        scene_free(&s);
+    }
+}
+
+/* Oracle: the uniform emission's exact answers. The defensive mixture must be unbiased: for
+ * photons drawn by importance_sample, the mean of f(l, u) / rel equals the mean of f under
+ * uniform emission (light by power, u uniform), which for f = 1 on a box B of u-space of
+ * light l is p_l vol(B). Checked on cornell_spheres' table for boxes inside and outside the
+ * important cells (5 standard errors of the estimate, 400,000 draws), and rel >= a
+ * everywhere (no photon carries more than 1/a of the uniform power). Also, the table steers:
+ * the photons' share landing in the finest important cells is at least half the (1 - a)
+ * that is aimed there. */
+TEST(render_pm_importance_mixture_is_unbiased) {
+    scene s;
+    json_err e;
+    ASSERT_MSG(load_shipped(&s, "cornell_spheres", &e) == 0, "%s", e.msg);
+    importance imp;
+    ASSERT_EQ_INT(importance_build(&s, 4096, 0.2, 1, 0, &imp), 0);
+    ASSERT_MSG(imp.on, "no importance on cornell_spheres (coverage %g)", imp.coverage);
+    /* Boxes of light 0's u-space: [lo, hi) per dimension. */
+    const double box[3][2][4] = {{{0, 0, 0, 0}, {1, 1, 1, 1}},
+                                 {{0.1, 0.2, 0.3, 0.4}, {0.6, 0.5, 0.7, 0.9}},
+                                 {{0.0, 0.0, 0.9, 0.9}, {1, 1, 1, 1}}};
+    const long N = PM_TEST_SANITIZED ? 100000 : 400000;
+    for (int b = 0; b < 3; b++) {
+        double sum = 0, sum2 = 0, vol = 1, minrel = INFINITY, in_table = 0;
+        for (int j = 0; j < 4; j++) vol *= box[b][1][j] - box[b][0][j];
+        rng g = rng_stream(11, (uint64_t)b, 3);
+        for (long k = 0; k < N; k++) {
+            double h[4], u[4], rel;
+            for (int j = 0; j < 4; j++) h[j] = rng_uniform(&g);
+            int li = importance_sample(&imp, &s, rng_uniform(&g), h, u, &rel);
+            minrel = fmin(minrel, rel);
+            in_table += rel > 1;
+            int inside = li == 0;
+            for (int j = 0; j < 4; j++) inside &= u[j] >= box[b][0][j] && u[j] < box[b][1][j];
+            double f = inside ? 1 / rel : 0;
+            sum += f;
+            sum2 += f * f;
+            EXPECT(fabs(importance_rel(&imp, &s, li, u) - rel) <= 1e-12 * rel);
+        }
+        double mean = sum / N, se = sqrt(fmax(0, sum2 / N - mean * mean) / N);
+        double want = imp.pl[0] * vol;
+        printf("    box %d: mean f/rel %.5f, uniform %.5f (se %.5f); min rel %.3f; %.0f%% drawn where rel > 1\n", b,
+               mean, want, se, minrel, 100 * in_table / N);
+        EXPECT_MSG(fabs(mean - want) < 5 * se + 1e-12, "box %d: %g vs %g (se %g)", b, mean, want, se);
+        EXPECT_MSG(minrel >= 0.2 - 1e-12, "rel %g below the defensive fraction", minrel);
+        EXPECT_MSG(in_table / N > 0.4, "only %.1f%% of the photons are steered", 100 * in_table / N);
+    }
+    importance_free(&imp);
     scene_free(&s);
 }
 
