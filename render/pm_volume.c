@@ -158,39 +158,64 @@ static int split(const pmv_state *v, const scene *s, pmv_map *map, const pm_phot
 
 int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const render_plan *p,
               photon_maps *m, char *err, size_t errcap) {
-    memset(m, 0, sizeof *m);
+    /* Maps loaded by photon_maps_load (m->loaded): their photons, not traced ones. */
+    int loaded = m->loaded;
+    if (!loaded) memset(m, 0, sizeof *m);
+    m->nmedia = s->nmedia;
     int rc = 0;
-    if (c->load_dir[0])
-        printf("Photon maps of a scene with media are traced, not loaded: %s is not read (the maps "
-               "are the same for the same seed)\n", c->load_dir);
-    int max_depth = s->settings.max_depth;
-    if (c->max_bounces > 0 && c->max_bounces < max_depth) max_depth = c->max_bounces;
     vol_pass_result g = {0}, k = {0};
-    if (p->global.on || p->volume.on) {
+    if (loaded) {
+        /* The plan decides which loaded maps are used (as photonmapper.c does without media). */
+        if (!p->global.on) m->nglobal = 0;
+        if (!p->caustics.on) m->ncaustic = 0;
+        g.volume = m->volume, g.volume_medium = m->volume_medium;
+        g.nvolume = p->volume.on ? m->nvolume : 0, g.volume_emitted = m->volume_emitted;
+        k.volume = m->volume_caustic, k.volume_medium = m->volume_caustic_medium;
+        k.nvolume = p->volume_caustics.on ? m->nvolume_caustic : 0;
+        k.volume_emitted = m->volume_caustic_emitted;
+        m->volume = m->volume_caustic = NULL;
+        m->volume_medium = m->volume_caustic_medium = NULL;
+    }
+    if (!loaded && (p->global.on || p->volume.on)) {
         vol_pass_opts o = {0};
         o.surface_target = p->global.on ? c->global_photons : 0;
         o.volume_target = p->volume.on ? c->volume_photons : 0;
         long tmax = o.surface_target > o.volume_target ? o.surface_target : o.volume_target;
-        o.max_emitted = fmin(c->max_emitted, c->max_emitted_factor * (double)(tmax > 0 ? tmax : 1));
-        o.max_depth = max_depth;
+        double by_factor = c->max_emitted_factor * (double)(tmax > 0 ? tmax : 1);
+        o.max_emitted = fmin(c->max_emitted, by_factor);
+        o.max_emitted_budget = c->max_emitted < by_factor ? "photon_mapping.max_emitted budget"
+                                                          : "photon_mapping.max_emitted_factor budget";
+        o.max_memory_bytes = (size_t)c->max_memory_mb << 20;
+        o.max_depth = s->settings.max_depth;
+        o.max_bounces = c->max_bounces;
         o.seed = s->settings.seed;
         o.lo = v->lo;
         o.hi = v->hi;
         if ((rc = vol_trace_pass(s, &o, &g)) < 0) goto fail;
     }
-    if (p->caustics.on || p->volume_caustics.on) {
+    if (!loaded && (p->caustics.on || p->volume_caustics.on)) {
         vol_pass_opts o = {0};
         o.caustic_pass = 1;
         o.projection_cells = c->projection ? c->projection_cells : 0;
         o.surface_target = p->caustics.on ? c->caustic_photons : 0;
         o.volume_target = p->volume_caustics.on ? c->volume_caustic_photons : 0;
         long tmax = o.surface_target > o.volume_target ? o.surface_target : o.volume_target;
-        o.max_emitted = fmin(c->max_emitted, c->max_emitted_factor * (double)(tmax > 0 ? tmax : 1));
+        double by_factor = c->max_emitted_factor * (double)(tmax > 0 ? tmax : 1);
+        o.max_emitted = fmin(c->max_emitted, by_factor);
+        o.max_emitted_budget = c->max_emitted < by_factor ? "photon_mapping.max_emitted budget"
+                                                          : "photon_mapping.max_emitted_factor budget";
         /* Light that reaches a wall through a smoke-filled glass is rare: do not let that map
          * take more than PMV_CAUSTIC_EMIT_FACTOR times the global pass's photons (at least
          * PMV_CAUSTIC_EMIT_MIN); it keeps what it stored, for the photons emitted. */
-        o.max_emitted = fmin(o.max_emitted, fmax(PMV_CAUSTIC_EMIT_MIN, PMV_CAUSTIC_EMIT_FACTOR * (double)g.emitted));
-        o.max_depth = max_depth;
+        double cap = fmax(PMV_CAUSTIC_EMIT_MIN, PMV_CAUSTIC_EMIT_FACTOR * (double)g.emitted);
+        if (cap < o.max_emitted) {
+            o.max_emitted = cap;
+            o.max_emitted_budget = "caustic pass's cap in a scene with media (4 times the global "
+                                   "pass's photons emitted, at least 4194304; pm_volume.c)";
+        }
+        o.max_memory_bytes = (size_t)c->max_memory_mb << 20;
+        o.max_depth = s->settings.max_depth;
+        o.max_bounces = c->max_bounces;
         o.seed = s->settings.seed;
         o.lo = v->lo;
         o.hi = v->hi;
@@ -217,17 +242,26 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
         v->n_caus += v->caus[md].n;
     }
     if (rc < 0) goto fail;
-    m->global = g.surface;
-    m->nglobal = g.nsurface;
-    m->global_emitted = g.surface_emitted;
-    m->global_runaway = g.surface_short;
-    g.surface = NULL;
-    m->caustic = k.surface;
-    m->ncaustic = k.nsurface;
-    m->caustic_emitted = k.surface_emitted;
-    m->caustic_runaway = k.surface_short;
-    m->caustic_fraction = 1;
-    k.surface = NULL;
+    if (!loaded) {
+        m->global = g.surface;
+        m->nglobal = g.nsurface;
+        m->global_emitted = g.surface_emitted;
+        m->global_runaway = g.surface_short;
+        g.surface = NULL;
+        m->caustic = k.surface;
+        m->ncaustic = k.nsurface;
+        m->caustic_emitted = k.surface_emitted;
+        m->caustic_runaway = k.surface_short;
+        m->caustic_fraction = 1;
+        k.surface = NULL;
+    }
+    /* The volume photons stay in m, in photon order, for photon_maps_save. */
+    m->volume = g.volume, m->volume_medium = g.volume_medium, m->nvolume = g.nvolume;
+    m->volume_emitted = g.volume_emitted;
+    m->volume_caustic = k.volume, m->volume_caustic_medium = k.volume_medium;
+    m->nvolume_caustic = k.nvolume, m->volume_caustic_emitted = k.volume_emitted;
+    g.volume = k.volume = NULL;
+    g.volume_medium = k.volume_medium = NULL;
     double r_ms = 0, r_caus = 0; /* the largest radius and smallest k over the media, for the message */
     unsigned k_ms = v->k_ms, k_caus = v->k_caus;
     for (int md = 0; md < s->nmedia; md++) {
@@ -236,21 +270,20 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
         if (v->ms[md].n && v->ms[md].k < k_ms) k_ms = v->ms[md].k;
         if (v->caus[md].n && v->caus[md].k < k_caus) k_caus = v->caus[md].k;
     }
-    printf("Photons (scene with media): %zu global (from %llu emitted), %zu caustic (from %llu "
+    if (loaded) printf("Loaded photon maps from %s", c->load_dir);
+    else printf("Photons");
+    printf(" (scene with media): %zu global (from %llu emitted), %zu caustic (from %llu "
            "emitted); volume: %zu (from %llu emitted), %zu of them for multiple scattering (radius "
            "%.4g, k %u), %zu volume-caustic (from %llu emitted, radius %.4g, k %u)\n",
            m->nglobal, (unsigned long long)m->global_emitted, m->ncaustic,
-           (unsigned long long)m->caustic_emitted, v->n_all, (unsigned long long)g.volume_emitted,
-           v->n_ms, r_ms, k_ms, v->n_caus, (unsigned long long)k.volume_emitted, r_caus, k_caus);
-    if (g.volume_short || k.volume_short || g.surface_short || k.surface_short)
-        fprintf(stderr, "render: photon maps stopped short of their targets (global %d, caustic %d, "
-                        "volume %d, volume caustic %d: the emission budget ran out, see pm_volume.h)\n",
-                g.surface_short, k.surface_short, g.volume_short, k.volume_short);
+           (unsigned long long)m->caustic_emitted, v->n_all, (unsigned long long)m->volume_emitted,
+           v->n_ms, r_ms, k_ms, v->n_caus, (unsigned long long)m->volume_caustic_emitted, r_caus, k_caus);
     vol_pass_free(&g);
     vol_pass_free(&k);
     return 0;
 fail:
-    if (rc == PM_ENOMEM && !err[0]) snprintf(err, errcap, "out of memory tracing volume photons");
+    if (g.msg[0] || k.msg[0]) snprintf(err, errcap, "%s", g.msg[0] ? g.msg : k.msg);
+    else if (rc == PM_ENOMEM && !err[0]) snprintf(err, errcap, "out of memory tracing volume photons");
     else if (rc < 0 && !err[0]) snprintf(err, errcap, "tracing volume photons: %s", pm_strerror(rc));
     vol_pass_free(&g);
     vol_pass_free(&k);

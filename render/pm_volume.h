@@ -20,7 +20,8 @@
  * DIRECT photons are left out of the eye march because single scattering is computed there
  * with shadow rays. Each of the three is split by the medium the photons scattered in, and an
  * estimate in medium m reads only m's photons (a smoke ball in fog does not borrow the fog's
- * photons at its rim). The maps are always traced (deterministic for the seed), never loaded.
+ * photons at its rim). The maps are traced, or with load_photons loaded (the global, caustic
+ * and per-medium volume files of photon_maps.h; pmv_trace then builds the trees from them).
  *
  * EYE RAYS (pmv_march). A segment of an eye ray inside medium m, of length T (a surface, or
  * where the ray leaves the scene's bounds), is marched in n = ceil(T / step) equal steps of
