@@ -431,7 +431,7 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
         if (o->max_memory_bytes > 0 && !c.counting) {
             if (held > o->max_memory_bytes) {
                 stop = "photon_mapping.max_memory_mb budget";
-                snprintf(why, sizeof why, "%zu MiB of photon buffers", held >> 20);
+                snprintf(why, sizeof why, "%.2f MiB of photon buffers", (double)held / (1 << 20));
                 break;
             }
             room = (o->max_memory_bytes - (ms.cap + mv.cap) * sizeof(vrec)) / VOL_ROUND / sizeof(vrec);
@@ -477,7 +477,7 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
                 end = bufs[b].stop;
                 stop = "photon_mapping.max_memory_mb budget";
                 snprintf(why, sizeof why, "a batch of photons outgrew its share of the budget, "
-                         "%zu MiB, at photon %llu", (room * sizeof(vrec)) >> 20,
+                         "%.2f MiB, at photon %llu", (double)(room * sizeof(vrec)) / (1 << 20),
                          (unsigned long long)bufs[b].stop);
                 break;
             }

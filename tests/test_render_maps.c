@@ -6,7 +6,8 @@
  * the exit status and message render/main.c documents for bad input (2, naming the file);
  * and byte equality: the image rendered from loaded maps is the traced run's, and a refused
  * run leaves no output file. Renders are 16x16 with a few thousand photons (well under a
- * second each).
+ * second each). Scenes with media (cornell_fog, volumetric_caustic) save and load their
+ * volume maps too; maps stamped by another tracer version are refused like other settings.
  */
 #define _GNU_SOURCE
 #include <stdio.h>
@@ -437,4 +438,233 @@ TEST(render_map_stamp_covers_what_it_says) {
     map_stamp_make(&s, &c, 0, 1, 0, &b);
     EXPECT(a.settings == b.settings);
     scene_free(&s);
+}
+
+/* ---- the tracer's version (photon_maps.h TRACER VERSION) ---------------------------------- */
+
+/* Rewrite the stamp of map file `name` (in the test directory) with tag[1]'s bits 48-63 set
+ * to `version`, keeping everything else. */
+static int restamp_version(const char *name, unsigned version) {
+    pm_photon *ph = NULL;
+    pm_map_header h;
+    int rc = pm_map_load(rt_path(name), &ph, &h);
+    if (rc < 0) return rc;
+    h.tag[1] = (uint64_t)version << 48 | (h.tag[1] & 0xFFFFFFFFFFFFull);
+    rc = pm_map_save(rt_path(name), ph, &h);
+    free(ph);
+    return rc;
+}
+
+/* Oracle: photon_maps.h TRACER VERSION. Every saved file carries PHOTON_TRACE_VERSION in bits
+ * 48-63 of tag[1]; maps stamped with another version (each file in turn, everything else
+ * equal) are refused with exit 2 naming the file and both versions; forced, they load (one
+ * warning per file) and, being the same photons, give the traced image bit for bit. */
+TEST(render_maps_other_tracer_version_is_refused_unless_forced) {
+    save_maps();
+    const char *names[] = {"global.pmap", "caustic.pmap", "shadow.pmap"};
+    ASSERT_EQ_INT(mkdir(rt_path("old"), 0755), 0);
+    for (int i = 0; i < 3; i++) {
+        char from[64], to[64];
+        snprintf(from, sizeof from, "maps/%s", names[i]);
+        snprintf(to, sizeof to, "old/%s", names[i]);
+        pm_photon *ph = NULL;
+        pm_map_header h;
+        ASSERT_EQ_INT(pm_map_load(rt_path(from), &ph, &h), 0);
+        EXPECT_MSG((unsigned)(h.tag[1] >> 48) == PHOTON_TRACE_VERSION, "%s: version %u", from,
+                   (unsigned)(h.tag[1] >> 48));
+        ASSERT_EQ_INT(pm_map_save(rt_path(to), ph, &h), 0);
+        free(ph);
+    }
+    int rc = run_pm(shipped("cornell_spheres"), "--load-photons old -o same.png");
+    EXPECT_MSG(rc == 0 && !strstr(g_out, "warning"), "unchanged copy: exit %d: %s", rc, g_out);
+    for (int i = 0; i < 3; i++) {
+        char file[64], want[256];
+        snprintf(file, sizeof file, "old/%s", names[i]);
+        ASSERT_EQ_INT(restamp_version(file, PHOTON_TRACE_VERSION + 1), 0);
+        snprintf(want, sizeof want, "old/%s was traced by another version of the photon tracer (its "
+                 "stamp says tracer version %u, this renderer's is %u", names[i],
+                 PHOTON_TRACE_VERSION + 1, PHOTON_TRACE_VERSION);
+        const char *w[] = {"cannot load photon maps", want, "--force-load-photons", NULL};
+        expect_refused(shipped("cornell_spheres"), "--load-photons old", w);
+        if (i < 2) ASSERT_EQ_INT(restamp_version(file, PHOTON_TRACE_VERSION), 0);
+    }
+    for (int i = 0; i < 2; i++) {
+        char file[64];
+        snprintf(file, sizeof file, "old/%s", names[i]);
+        ASSERT_EQ_INT(restamp_version(file, PHOTON_TRACE_VERSION + 1), 0);
+    }
+    rc = run_pm(shipped("cornell_spheres"), "--load-photons old --force-load-photons --hdr forced.pfm");
+    EXPECT_MSG(rc == 0, "forced: exit %d: %s", rc, g_out);
+    for (int i = 0; i < 3; i++) {
+        char w[256];
+        snprintf(w, sizeof w, "warning: force_load_photons: old/%s was traced by another version", names[i]);
+        EXPECT_MSG(strstr(g_out, w), "no \"%s\" in %s", w, g_out);
+    }
+    EXPECT_MSG(rt_same_file("forced.pfm", "traced.pfm"), "the forced maps gave another image");
+}
+
+/* ---- scenes with media: the volume maps (photon_maps.h MAP FILES) ------------------------- */
+
+#define MEDIA_FLAGS "--pm volume_photons=3000 --pm volume_caustic_photons=1500"
+
+/* volumetric_caustic (a fog box, a glass sphere: all four maps but the shadow map) saved into
+ * DIR "vmaps" with its traced image vtraced.pfm. */
+static void save_media_maps(void) {
+    int rc = run_pm(shipped("volumetric_caustic"), MEDIA_FLAGS " --save-photons vmaps --hdr vtraced.pfm");
+    ASSERT_MSG(rc == 0, "exit %d: %s", rc, g_out);
+    ASSERT_MSG(strstr(g_out, "  volume: on") && strstr(g_out, "  volume caustics: on") &&
+                   strstr(g_out, "  caustics: on") && strstr(g_out, "  global: on"),
+               "the plan changed: %s", g_out);
+    const char *files[] = {"global.pmap", "caustic.pmap", "shadow.pmap", "volume-0.pmap",
+                           "volume_caustic-0.pmap"};
+    for (int i = 0; i < 5; i++) {
+        char f[64];
+        snprintf(f, sizeof f, "vmaps/%s", files[i]);
+        ASSERT_MSG(exists(f), "%s was not saved", f);
+    }
+}
+
+/* Oracle: byte equality and the files' own counts. The images rendered from loaded maps equal
+ * the traced runs' (cornell_fog: global and volume maps; volumetric_caustic: all four), the
+ * load prints the counts the trace printed, and each volume file holds the volume photons the
+ * trace reported (one medium: all of them), with its kind and the stamp of map_stamp_file.
+ * That the loaded photons are the ones used, not traced again: under another seed, the loaded
+ * maps (of seed 3) give an image that differs from that seed's own traced run. */
+TEST(render_maps_media_loaded_equals_traced) {
+    int rc = run_pm(shipped("cornell_fog"), MEDIA_FLAGS " --save-photons fog --hdr ft.pfm");
+    ASSERT_MSG(rc == 0, "exit %d: %s", rc, g_out);
+    ASSERT(exists("fog/volume-0.pmap") && exists("fog/volume_caustic-0.pmap"));
+    rc = run_pm(shipped("cornell_fog"), MEDIA_FLAGS " --load-photons fog --hdr fl.pfm");
+    EXPECT_MSG(rc == 0 && strstr(g_out, "Loaded photon maps from fog (scene with media)") &&
+                   !strstr(g_out, "warning") && !strstr(g_out, "\nPhotons"),
+               "exit %d: %s", rc, g_out);
+    EXPECT_MSG(rt_same_file("ft.pfm", "fl.pfm"), "cornell_fog: the image from the loaded maps differs");
+
+    save_media_maps();
+    const char *traced = strstr(g_out, "Photons (scene with media): ");
+    ASSERT_MSG(traced, "%s", g_out);
+    char counts[512];
+    snprintf(counts, sizeof counts, "%.*s", (int)strcspn(traced + strlen("Photons"), "\n"),
+             traced + strlen("Photons"));
+    long long ng, nc, nvol, nms, nvc;
+    ASSERT_MSG(sscanf(traced, "Photons (scene with media): %lld global (from %*u emitted), %lld caustic "
+                              "(from %*u emitted); volume: %lld (from %*u emitted), %lld of them for "
+                              "multiple scattering (radius %*g, k %*u), %lld volume-caustic",
+                      &ng, &nc, &nvol, &nms, &nvc) == 5,
+               "%s", traced);
+    rc = run_pm(shipped("volumetric_caustic"), MEDIA_FLAGS " --load-photons vmaps --hdr vloaded.pfm");
+    EXPECT_MSG(rc == 0 && !strstr(g_out, "warning"), "exit %d: %s", rc, g_out);
+    const char *loaded = strstr(g_out, "Loaded photon maps from vmaps");
+    EXPECT_MSG(loaded && strncmp(loaded + strlen("Loaded photon maps from vmaps"), counts, strlen(counts)) == 0,
+               "traced \"%s\", loaded: %s", counts, g_out);
+    EXPECT_MSG(rt_same_file("vtraced.pfm", "vloaded.pfm"), "volumetric_caustic: the image from the loaded maps differs");
+
+    /* The files: kind, stamp, and counts. */
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load(&s, shipped("volumetric_caustic"), &e) == 0, "%s", e.msg);
+    photon_settings cfg;
+    ASSERT(photon_settings_parse(&cfg, NULL, &e) == 0);
+    cfg.global_photons = 3000;
+    cfg.caustic_photons = 1500;
+    cfg.volume_photons = 3000;
+    cfg.volume_caustic_photons = 1500;
+    map_stamp want;
+    map_stamp_make(&s, &cfg, 1, 1, 0, &want);
+    map_stamp_volume(&s, &cfg, 1, 1, &want);
+    scene_free(&s);
+    const char *vnames[] = {"vmaps/volume-0.pmap", "vmaps/volume_caustic-0.pmap"};
+    long long vcounts[] = {nvol, nvc};
+    for (int c = 0; c < 2; c++) {
+        pm_photon *ph = NULL;
+        pm_map_header h;
+        ASSERT_EQ_INT(pm_map_load(rt_path(vnames[c]), &ph, &h), 0);
+        EXPECT_EQ_INT(h.kind, PM_MAP_VOLUME);
+        EXPECT_MSG((long long)h.count == vcounts[c] && h.count > 0, "%s: %llu photons, the trace said %lld",
+                   vnames[c], (unsigned long long)h.count, vcounts[c]);
+        EXPECT_MSG(h.tag[0] == want.scene && h.tag[1] == map_stamp_file(&want, c, 0),
+                   "%s: tags %016llx %016llx", vnames[c], (unsigned long long)h.tag[0],
+                   (unsigned long long)h.tag[1]);
+        EXPECT_MSG(h.tag[1] != want.settings && (unsigned)(h.tag[1] >> 48) == PHOTON_TRACE_VERSION,
+                   "%s: the role is not in tag[1]", vnames[c]);
+        free(ph);
+    }
+
+    /* Under seed 4: loaded (seed-3 photons) vs traced (seed-4 photons). */
+    rc = run_pm(shipped("volumetric_caustic"), MEDIA_FLAGS " --seed 4 --hdr s4traced.pfm");
+    ASSERT_MSG(rc == 0, "exit %d: %s", rc, g_out);
+    rc = run_pm(shipped("volumetric_caustic"), MEDIA_FLAGS " --seed 4 --load-photons vmaps --hdr s4loaded.pfm");
+    EXPECT_MSG(rc == 0 && strstr(g_out, "Loaded photon maps from vmaps"), "exit %d: %s", rc, g_out);
+    EXPECT_MSG(!rt_same_file("s4traced.pfm", "s4loaded.pfm"),
+               "under seed 4 the loaded seed-3 maps gave seed 4's traced image: they were traced again");
+}
+
+/* Oracle: photon_maps.h MAP FILES and render/main.c's exit status 2 for bad input. Each volume
+ * file missing, truncated or garbage; a surface map under a volume map's name; the two volume
+ * roles swapped (refused even forced: the wrong kind); the fog edited (another scene), the
+ * volume target or the camera's position changed (other settings): exit 2 naming the file, no
+ * output. Forced, the edited scene loads with a warning for every file, the volume files too. */
+TEST(render_maps_media_bad_files_exit_2) {
+    save_media_maps();
+    const char *sc = shipped("volumetric_caustic");
+    const char *all[] = {"global.pmap", "caustic.pmap", "shadow.pmap", "volume-0.pmap", "volume_caustic-0.pmap"};
+    ASSERT_EQ_INT(mkdir(rt_path("vbad"), 0755), 0);
+#define RESET_VBAD()                                                                     \
+    for (int j = 0; j < 5; j++) {                                                        \
+        char f_[64], t_[64];                                                             \
+        snprintf(f_, sizeof f_, "vmaps/%s", all[j]);                                     \
+        snprintf(t_, sizeof t_, "vbad/%s", all[j]);                                      \
+        ASSERT_EQ_INT(copy_file(f_, t_), 0);                                             \
+    }
+    for (int i = 3; i < 5; i++) {
+        char file[64], want[160];
+        RESET_VBAD();
+        snprintf(file, sizeof file, "vbad/%s", all[i]);
+        unlink(rt_path(file));
+        snprintf(want, sizeof want, "vbad/%s: No such file or directory", all[i]);
+        const char *w1[] = {want, "volume-M.pmap and volume_caustic-M.pmap for each medium M", NULL};
+        expect_refused(sc, MEDIA_FLAGS " --load-photons vbad --force-load-photons", w1);
+        RESET_VBAD();
+        struct stat sb;
+        ASSERT_EQ_INT(stat(rt_path(file), &sb), 0);
+        ASSERT_EQ_INT(truncate(rt_path(file), sb.st_size - 1), 0);
+        snprintf(want, sizeof want, "vbad/%s: not a photon-map file, or a truncated or corrupt one", all[i]);
+        const char *w2[] = {want, NULL};
+        expect_refused(sc, MEDIA_FLAGS " --load-photons vbad --force-load-photons", w2);
+        FILE *f = fopen(rt_path(file), "w");
+        ASSERT(f);
+        fputs("not a photon map\n", f);
+        fclose(f);
+        expect_refused(sc, MEDIA_FLAGS " --load-photons vbad", w2);
+    }
+    RESET_VBAD();
+    ASSERT_EQ_INT(copy_file("vmaps/global.pmap", "vbad/volume-0.pmap"), 0);
+    const char *w_kind[] = {"vbad/volume-0.pmap holds a global map, not a volume map", NULL};
+    expect_refused(sc, MEDIA_FLAGS " --load-photons vbad --force-load-photons", w_kind);
+    RESET_VBAD();
+    ASSERT_EQ_INT(copy_file("vmaps/volume_caustic-0.pmap", "vbad/volume-0.pmap"), 0);
+    ASSERT_EQ_INT(copy_file("vmaps/volume-0.pmap", "vbad/volume_caustic-0.pmap"), 0);
+    const char *w_role[] = {"vbad/volume-0.pmap holds the volume-caustic map of medium 0, not the "
+                            "volume map of medium 0", NULL};
+    expect_refused(sc, MEDIA_FLAGS " --load-photons vbad", w_role);
+    expect_refused(sc, MEDIA_FLAGS " --load-photons vbad --force-load-photons", w_role);
+
+    const char *fogged = edited_copy("volumetric_caustic", "thicker.json", "\"sigma_s\": 0.3", "\"sigma_s\": 0.31");
+    ASSERT(fogged);
+    const char *w_scene[] = {"vmaps/global.pmap was traced for another scene", NULL};
+    expect_refused(fogged, MEDIA_FLAGS " --load-photons vmaps", w_scene);
+    int rc = run_pm(fogged, MEDIA_FLAGS " --load-photons vmaps --force-load-photons -o forced.png");
+    EXPECT_MSG(rc == 0 && exists("forced.png"), "forced: exit %d: %s", rc, g_out);
+    for (int j = 0; j < 5; j++) {
+        char w[160];
+        snprintf(w, sizeof w, "warning: force_load_photons: vmaps/%s was traced for another scene", all[j]);
+        EXPECT_MSG(strstr(g_out, w), "no \"%s\" in %s", w, g_out);
+    }
+    const char *w_set[] = {"vmaps/global.pmap was traced with other photon settings", NULL};
+    expect_refused(sc, "--pm volume_photons=3001 --pm volume_caustic_photons=1500 --load-photons vmaps", w_set);
+    expect_refused(sc, "--pm volume_photons=3000 --pm volume_caustic_photons=1499 --load-photons vmaps", w_set);
+    const char *moved = edited_copy("volumetric_caustic", "eye.json", "\"eye\": [\n   1,", "\"eye\": [\n   1.01,");
+    ASSERT(moved);
+    expect_refused(moved, MEDIA_FLAGS " --load-photons vmaps", w_set);
+#undef RESET_VBAD
 }

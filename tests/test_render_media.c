@@ -14,6 +14,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "test.h"
 #include "../render/film.h"
@@ -1065,4 +1066,136 @@ TEST(render_media_pm_glass_scale) {
         pmv_free(&v);
         scene_free(&s);
     }
+}
+
+/* ---- pass budgets of the volume passes (volume.h BUDGETS) ---------------------------------- */
+
+/* A point light at the centre of a closed mirror cube [-1, 1]^3 filled with a global medium
+ * (sigma_a, sigma_s); the camera outside, looking away (its rays see only fog). With albedo 1
+ * no photon is ever absorbed or escapes: it scatters until the path-length budget ends it. */
+static void mirror_fog(char *buf, size_t cap, double sigma_a, double sigma_s, int max_depth) {
+    snprintf(buf, cap,
+             "{\"camera\": {\"eye\": [0, 0, -3], \"look_at\": [0, 0, -10], \"fov_deg\": 60, \"width\": 8, "
+             "\"height\": 8, \"spp\": 1}, \"materials\": {\"m\": {\"type\": \"mirror\"}}, \"objects\": ["
+             "{\"type\": \"quad\", \"vertices\": [[-1,-1,-1],[1,-1,-1],[1,1,-1],[-1,1,-1]], \"material\": \"m\"},"
+             "{\"type\": \"quad\", \"vertices\": [[-1,-1,1],[-1,1,1],[1,1,1],[1,-1,1]], \"material\": \"m\"},"
+             "{\"type\": \"quad\", \"vertices\": [[-1,-1,-1],[-1,1,-1],[-1,1,1],[-1,-1,1]], \"material\": \"m\"},"
+             "{\"type\": \"quad\", \"vertices\": [[1,-1,-1],[1,-1,1],[1,1,1],[1,1,-1]], \"material\": \"m\"},"
+             "{\"type\": \"quad\", \"vertices\": [[-1,-1,-1],[-1,-1,1],[1,-1,1],[1,-1,-1]], \"material\": \"m\"},"
+             "{\"type\": \"quad\", \"vertices\": [[-1,1,-1],[1,1,-1],[1,1,1],[-1,1,1]], \"material\": \"m\"}],"
+             " \"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": 1}],"
+             " \"media\": {\"fog\": {\"sigma_a\": %g, \"sigma_s\": %g}}, \"medium\": \"fog\","
+             " \"render\": {\"max_depth\": %d}}",
+             sigma_a, sigma_s, max_depth);
+}
+
+/* Oracle for the memory budget: its definition (volume.h BUDGETS). A pass stopped by it keeps
+ * the photons before the batch's stopping photon whole, so it equals, record for record, an
+ * unbudgeted pass of just that many emitted photons (a photon's records depend only on its
+ * index); it is the same on 1 and 2 threads; it holds at most its share of the budget per
+ * batch; and it says which map stopped short. Each photon here stores up to 2001 records
+ * (max_depth 2000), so a share of 2 MiB (16 MiB over 8 batches) holds about 14 photons. */
+TEST(render_media_volume_memory_budget) {
+    static char txt[8192];
+    mirror_fog(txt, sizeof txt, 0, 5, 2000);
+    scene s;
+    json_err e = {0};
+    ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
+    vol_pass_result r[2], ref;
+    vol_pass_opts o = {0};
+    o.volume_target = 100000000;
+    o.max_emitted = 1e9;
+    o.max_memory_bytes = (size_t)16 << 20;
+    o.max_depth = 2000;
+    o.seed = 3;
+    o.lo = v3s(1);
+    o.hi = v3s(-1);
+    for (int t = 0; t < 2; t++) {
+        o.threads = t + 1;
+        ASSERT_EQ_INT(vol_trace_pass(&s, &o, &r[t]), 0);
+    }
+    printf("    memory budget 16 MiB: %zu volume photons from %llu emitted\n", r[0].nvolume,
+           (unsigned long long)r[0].emitted);
+    EXPECT(r[0].volume_short && r[0].emitted > 0 && r[0].emitted < VOL_BATCH);
+    EXPECT(r[0].nvolume > 0 && r[0].nvolume * VOL_RECORD_BYTES <= ((size_t)16 << 20) / VOL_ROUND);
+    EXPECT(r[0].nvolume == r[1].nvolume && r[0].emitted == r[1].emitted &&
+           memcmp(r[0].volume, r[1].volume, r[0].nvolume * sizeof *r[0].volume) == 0);
+    o.threads = 0;
+    o.max_memory_bytes = 0;
+    o.max_emitted = (double)r[0].emitted;
+    ASSERT_EQ_INT(vol_trace_pass(&s, &o, &ref), 0);
+    EXPECT_MSG(ref.nvolume == r[0].nvolume && ref.volume_emitted == r[0].volume_emitted &&
+                   memcmp(ref.volume, r[0].volume, ref.nvolume * sizeof *ref.volume) == 0 &&
+                   memcmp(ref.volume_medium, r[0].volume_medium, ref.nvolume * sizeof *ref.volume_medium) == 0,
+               "budgeted %zu photons, unbudgeted pass of %llu emitted %zu", r[0].nvolume,
+               (unsigned long long)r[0].emitted, ref.nvolume);
+    vol_pass_free(&ref);
+    vol_pass_free(&r[0]);
+    vol_pass_free(&r[1]);
+    scene_free(&s);
+}
+
+/* Run render on scene text with flags in the test directory; exit status, output in out,
+ * wall seconds in *secs. */
+static int render_budget(const char *name, const char *text, const char *flags, char *out, size_t cap,
+                         double *secs) {
+    char path[1024], cmd[8192];
+    snprintf(path, sizeof path, "%s/%s.json", pm_test_tmpdir(), name);
+    FILE *f = fopen(path, "w");
+    if (!f) return -1;
+    fputs(text, f);
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "cd '%s' && timeout 600 '%s/render' '%s' --mode pm --quiet -o %s.png %s",
+             pm_test_tmpdir(), pm_test_build_dir(), path, name, flags);
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    int rc = pm_test_run(cmd, out, cap);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    *secs = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    return rc;
+}
+
+/* Runaway media passes end in bounded time with photon_trace's messages (volume.h BUDGETS):
+ * the albedo-1 fog in a mirror box, whose photons never die, (1) with the default
+ * max_bounces (256, below max_depth 2000): the path-length budget cuts the paths and says so,
+ * and the volume map stops within one path (2001 records at most) of its target; (2) with the
+ * path budget lifted and a target of 1e8 (7.2 GB of records while tracing): the memory budget
+ * of 16 MiB stops the pass (exit 0, the map keeps what it stored whole and says by which
+ * budget); (3) a purely absorbing fog forced to have a volume map stores nothing: exit 1 with
+ * "no photon stored". Each within 300 s (a few seconds idle; the machine is shared). */
+TEST(render_media_runaway_passes_end) {
+    static char txt[8192], out[65536];
+    double secs;
+    mirror_fog(txt, sizeof txt, 0, 5, 2000);
+    int rc = render_budget("mirrorfog1", txt, "--pm volume_caustics=false --pm volume_photons=20000", out,
+                           sizeof out, &secs);
+    EXPECT_MSG(rc == 0, "exit %d: %s", rc, out);
+    EXPECT_MSG(strstr(out, "photon tracing: Tracing volume photons: ") &&
+                   strstr(out, "photon paths were cut by the path-length budget (photon_mapping.max_bounces = 256)"),
+               "%s", out);
+    const char *v = strstr(out, "; volume: ");
+    long long nv = v ? strtoll(v + strlen("; volume: "), NULL, 10) : -1;
+    EXPECT_MSG(nv >= 20000 && nv <= 20000 + 257, "volume photons %lld: %s", nv, out);
+    EXPECT_MSG(secs < 300, "%.1f s", secs);
+    printf("    path budget: %lld volume photons, %.1f s\n", nv, secs);
+
+    rc = render_budget("mirrorfog2", txt,
+                       "--pm volume_caustics=false --pm max_bounces=1000000 --pm max_memory_mb=16 "
+                       "--pm volume_photons=100000000",
+                       out, sizeof out, &secs);
+    EXPECT_MSG(rc == 0, "exit %d: %s", rc, out);
+    const char *m = strstr(out, "photon tracing: Tracing volume photons: only ");
+    EXPECT_MSG(m && strstr(m, " of 100000000 photons stored after ") &&
+                   strstr(m, "stopped by the photon_mapping.max_memory_mb budget"),
+               "%s", out);
+    EXPECT_MSG(!strstr(out, "path-length budget"), "%s", out);
+    EXPECT_MSG(secs < 300, "%.1f s", secs);
+    printf("    memory budget: %.80s (%.1f s)\n", m ? m + strlen("photon tracing: ") : "?", secs);
+
+    mirror_fog(txt, sizeof txt, 1, 0, 20);
+    rc = render_budget("absorbing", txt, "--pm volume=true --pm volume_caustics=false", out, sizeof out, &secs);
+    EXPECT_MSG(rc == 1 && strstr(out, "photon tracing: Tracing volume photons: no photon stored after "
+                                      "131072 emitted"),
+               "exit %d: %s", rc, out);
+    EXPECT_MSG(secs < 300, "%.1f s", secs);
 }
