@@ -95,9 +95,44 @@ static inline void pm__heapify(pm_neighbor *h, unsigned n) {
     for (unsigned i = n / 2; i-- > 0;) pm__heap_sift_down(h, n, i, h[i]);
 }
 
-/* Replaces the farthest entry h[0] by v and restores the heap. */
+/* Replaces the farthest entry h[0] by v and restores the heap: exactly
+ * pm__heap_sift_down(h, n, 0, v), computed without a data-dependent branch. The sift-down
+ * follows the path of larger children from the root (which child is larger does not depend on
+ * v) and stops above the first path node that is not > v; along that path dist2 never grows,
+ * so "> v" holds for a prefix of it. Here the whole path is walked first (its length depends on
+ * n only, except for the last step), m = the number of path nodes > v is counted, the first m
+ * move up one place and v goes to the m-th. The k-nearest searches call this once per record
+ * that enters a full heap; the loop that stopped at a data-dependent level mispredicted its
+ * exit about once per call. */
 static inline void pm__heap_replace_top(pm_neighbor *h, unsigned n, pm_neighbor v) {
-    pm__heap_sift_down(h, n, 0, v);
+    if (n < 2) {
+        h[0] = v;
+        return;
+    }
+    unsigned path[33], D = 31u - (unsigned)__builtin_clz(n), i = 0, m = 0;
+    path[0] = 0;
+    /* levels 1 .. D-1 are complete: both children exist */
+    for (unsigned d = 1; d < D; d++) {
+        unsigned c = 2 * i + 1;
+        c += h[c + 1].dist2 > h[c].dist2;
+        m += h[c].dist2 > v.dist2;
+        path[d] = i = c;
+    }
+    /* level D: none, one or two children (l, r: i itself where a child is missing) */
+    {
+        unsigned c = 2 * i + 1;
+        unsigned has = c < n, has2 = c + 1 < n;
+        unsigned l = i + (has ? c - i : 0u), r = l + (has2 ? 1u : 0u);
+        unsigned cc = r + (h[r].dist2 > h[l].dist2 ? 0u : l - r);
+        m += has & (h[cc].dist2 > v.dist2);
+        path[D] = cc;
+    }
+    /* the first m path nodes move up: D steps, each a move or a rewrite of the same value */
+    for (unsigned d = 1; d <= D; d++) {
+        unsigned src = d <= m ? path[d] : path[d - 1];
+        h[path[d - 1]] = h[src];
+    }
+    h[path[m]] = v;
 }
 
 /* Offers (d2, idx) to a k-nearest search's max-heap out[0..*found) of capacity k: it fills,

@@ -40,7 +40,9 @@
 #if defined(__clang__)
 #pragma STDC FP_CONTRACT OFF
 #endif
-#if defined(__SSE2__)
+#if defined(__AVX2__)
+#include <immintrin.h>
+#elif defined(__SSE2__)
 #include <emmintrin.h>
 #endif
 
@@ -127,13 +129,6 @@ static int check_query(const pm_kdtree *t, const float q[3], float r2) {
 #if defined(__SSE2__)
 typedef __m128 v4;
 PM__INLINE v4 v4_load3(const float *p) { return _mm_set_ps(0.0f, p[2], p[1], p[0]); }
-PM__INLINE void v4_store(float *p, v4 x) { _mm_storeu_ps(p, x); }
-PM__INLINE v4 v4_load(const float *p) { return _mm_loadu_ps(p); }
-/* x with lane a replaced by s */
-PM__INLINE v4 v4_set_lane(v4 x, unsigned a, float s) {
-    __m128 m = _mm_castsi128_ps(_mm_cmpeq_epi32(_mm_set1_epi32((int)a), _mm_set_epi32(3, 2, 1, 0)));
-    return _mm_or_ps(_mm_and_ps(m, _mm_set1_ps(s)), _mm_andnot_ps(m, x));
-}
 PM__INLINE float box_dist2(v4 q, v4 lo, v4 hi) {
     v4 o = _mm_max_ps(_mm_max_ps(_mm_sub_ps(lo, q), _mm_sub_ps(q, hi)), _mm_setzero_ps());
     v4 sq = _mm_mul_ps(o, o);
@@ -175,7 +170,52 @@ PM__INLINE float box_dist2(v4 q, v4 lo, v4 hi) {
  * rounding being monotonic, the sum (x, then y, then z, as in knn_dist2) is never above the
  * record's dist2, and pruning on it is exact. */
 
-/* Shrink a cell by a tightening code (rare: through memory). */
+/* Shrink a cell by a tightening code c (1..15): pm__tighten's arithmetic. */
+#if defined(__SSE2__)
+/* In the registers (not through memory: four 4-byte stores read back as one 16-byte load),
+ * from a table per code: the amount m = ext * A - (ext / 8 where the code is a 7/8 one) on
+ * every lane, then lo += m on the code's low face lanes and hi -= m on its high face lanes
+ * (other lanes add or subtract 0). Per lane these are pm__tighten's own operations
+ * (ext * 0.5; ext - ext * 0.125, as ext * 1 is ext; ext * 0.25), so the bits are the same; a
+ * masked-out lane never sees its m (which an infinite extent could make NaN). Per code: the
+ * factor A per lane, then lane masks (M = all bits set): the 7/8 codes' ext / 8 to
+ * subtract, the low faces that move up, the high faces that move down. */
+typedef struct {
+    float a[4];
+    uint32_t e8[4], lo[4], hi[4];
+} tighten_row;
+#define M 0xFFFFFFFFu
+static const tighten_row TT[16] = {
+    {{0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 0}}, /* 0 */
+    {{0.5f, 0, 0, 0}, {0, 0, 0, 0}, {M, 0, 0, 0}, {0, 0, 0, 0}}, /* 1 */
+    {{1, 0, 0, 0}, {M, 0, 0, 0}, {M, 0, 0, 0}, {0, 0, 0, 0}}, /* 2 */
+    {{0.5f, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 0}, {M, 0, 0, 0}}, /* 3 */
+    {{1, 0, 0, 0}, {M, 0, 0, 0}, {0, 0, 0, 0}, {M, 0, 0, 0}}, /* 4 */
+    {{0, 0.5f, 0, 0}, {0, 0, 0, 0}, {0, M, 0, 0}, {0, 0, 0, 0}}, /* 5 */
+    {{0, 1, 0, 0}, {0, M, 0, 0}, {0, M, 0, 0}, {0, 0, 0, 0}}, /* 6 */
+    {{0, 0.5f, 0, 0}, {0, 0, 0, 0}, {0, 0, 0, 0}, {0, M, 0, 0}}, /* 7 */
+    {{0, 1, 0, 0}, {0, M, 0, 0}, {0, 0, 0, 0}, {0, M, 0, 0}}, /* 8 */
+    {{0, 0, 0.5f, 0}, {0, 0, 0, 0}, {0, 0, M, 0}, {0, 0, 0, 0}}, /* 9 */
+    {{0, 0, 1, 0}, {0, 0, M, 0}, {0, 0, M, 0}, {0, 0, 0, 0}}, /* 10 */
+    {{0, 0, 0.5f, 0}, {0, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, M, 0}}, /* 11 */
+    {{0, 0, 1, 0}, {0, 0, M, 0}, {0, 0, 0, 0}, {0, 0, M, 0}}, /* 12 */
+    {{0.25f, 0, 0, 0}, {0, 0, 0, 0}, {M, 0, 0, 0}, {M, 0, 0, 0}}, /* 13 */
+    {{0, 0.25f, 0, 0}, {0, 0, 0, 0}, {0, M, 0, 0}, {0, M, 0, 0}}, /* 14 */
+    {{0, 0, 0.25f, 0}, {0, 0, 0, 0}, {0, 0, M, 0}, {0, 0, M, 0}}, /* 15 */
+};
+#undef M
+PM__INLINE __m128 tt_mask(const uint32_t *m) {
+    return _mm_castsi128_ps(_mm_loadu_si128((const __m128i *)m));
+}
+PM__INLINE void box_tighten(v4 *lo, v4 *hi, unsigned c) {
+    const tighten_row *t = &TT[c];
+    __m128 ext = _mm_sub_ps(*hi, *lo);
+    __m128 e8 = _mm_and_ps(tt_mask(t->e8), _mm_mul_ps(ext, _mm_set1_ps(0.125f)));
+    __m128 m = _mm_sub_ps(_mm_mul_ps(ext, _mm_loadu_ps(t->a)), e8);
+    *lo = _mm_add_ps(*lo, _mm_and_ps(tt_mask(t->lo), m));
+    *hi = _mm_sub_ps(*hi, _mm_and_ps(tt_mask(t->hi), m));
+}
+#else
 static void box_tighten(v4 *lo, v4 *hi, unsigned c) {
     float l[4], h[4];
     v4_store(l, *lo);
@@ -184,6 +224,7 @@ static void box_tighten(v4 *lo, v4 *hi, unsigned c) {
     *lo = v4_load(l);
     *hi = v4_load(h);
 }
+#endif
 
 /* One split of a descent, the same in every search: node's cell [lo, hi] is cut at 'split'
  * on axis a, q's side being 'near'. Out: the far child's cell (flo, fhi) with its dist2 from
@@ -191,9 +232,26 @@ static void box_tighten(v4 *lo, v4 *hi, unsigned c) {
  * cell before its own code (near_code applies that one). */
 PM__INLINE void split_cell(const view *v, int ph, v4 qv, uint64_t near, unsigned a, float split,
                            v4 *lo, v4 *hi, v4 *flo, v4 *fhi, float *rr, float *rf) {
+#if defined(__SSE2__)
+    /* Without a branch on q's side (a coin toss at every node): lane a of the far cell's hi
+     * (near is the right child) or lo (near is the left one) becomes split, and of the near
+     * cell's lo or hi respectively. */
+    __m128 lane = _mm_castsi128_ps(
+        _mm_cmpeq_epi32(_mm_set1_epi32((int)a), _mm_set_epi32(3, 2, 1, 0)));
+    __m128 right = _mm_castsi128_ps(_mm_set1_epi32(-(int)(near & 1)));
+    __m128 m_hi = _mm_and_ps(lane, right), m_lo = _mm_andnot_ps(right, lane);
+    __m128 sp = _mm_set1_ps(split);
+#define PM__SEL(m, x, y) _mm_or_ps(_mm_and_ps((m), (x)), _mm_andnot_ps((m), (y)))
+    *flo = PM__SEL(m_lo, sp, *lo);
+    *fhi = PM__SEL(m_hi, sp, *hi);
+    *lo = PM__SEL(m_hi, sp, *lo);
+    *hi = PM__SEL(m_lo, sp, *hi);
+#undef PM__SEL
+#else
     *flo = *lo, *fhi = *hi;
-    if (near & 1) *fhi = v4_set_lane(*hi, a, split);
-    else *flo = v4_set_lane(*lo, a, split);
+    if (near & 1) *fhi = v4_set_lane(*hi, a, split), *lo = v4_set_lane(*lo, a, split);
+    else *flo = v4_set_lane(*lo, a, split), *hi = v4_set_lane(*hi, a, split);
+#endif
     *rr = *rf = box_dist2(qv, *flo, *fhi);
     if ((near ^ 1) < v->L) {
         unsigned c = CODEX(v, near ^ 1, ph);
@@ -202,8 +260,6 @@ PM__INLINE void split_cell(const view *v, int ph, v4 qv, uint64_t near, unsigned
             *rf = box_dist2(qv, *flo, *fhi);
         }
     }
-    if (near & 1) *lo = v4_set_lane(*lo, a, split);
-    else *hi = v4_set_lane(*hi, a, split);
 }
 
 /* The near child's own code: shrinks [lo, hi] and returns its dist2 from q, or -1 when the
@@ -285,6 +341,41 @@ PM__INLINE void knn_bucket(knn_state *s, const view *v, uint64_t node, int metri
     uint64_t b, e;
     bucket_range(v->t, node, &b, &e);
     uint64_t i = b;
+#if defined(__AVX2__)
+    if (ph && !metric) {
+        /* SIMD=avx2: eight photons at a time, the same way as the SSE2 loop below (records
+         * j and j + 4 share a 256-bit row, the 4x4 transpose works within each half). */
+        const __m256 qx = _mm256_set1_ps(s->q[0]), qy = _mm256_set1_ps(s->q[1]),
+                     qz = _mm256_set1_ps(s->q[2]);
+        for (; i + 8 <= e; i += 8) {
+            const float *p0 = PX(v, i, 1);
+#define PM__ROW(j) _mm256_insertf128_ps(_mm256_castps128_ps256(_mm_loadu_ps(p0 + 5 * (j))), \
+                                        _mm_loadu_ps(p0 + 5 * ((j) + 4)), 1)
+            __m256 r0 = PM__ROW(0), r1 = PM__ROW(1), r2v = PM__ROW(2), r3 = PM__ROW(3);
+#undef PM__ROW
+            __m256 t0 = _mm256_unpacklo_ps(r0, r1), t1 = _mm256_unpackhi_ps(r0, r1),
+                   t2 = _mm256_unpacklo_ps(r2v, r3), t3 = _mm256_unpackhi_ps(r2v, r3);
+            __m256 dx = _mm256_sub_ps(qx, _mm256_shuffle_ps(t0, t2, 0x44)),
+                   dy = _mm256_sub_ps(qy, _mm256_shuffle_ps(t0, t2, 0xEE)),
+                   dz = _mm256_sub_ps(qz, _mm256_shuffle_ps(t1, t3, 0x44));
+            __m256 d2 = _mm256_add_ps(_mm256_add_ps(_mm256_mul_ps(dx, dx), _mm256_mul_ps(dy, dy)),
+                                      _mm256_mul_ps(dz, dz));
+            int m = _mm256_movemask_ps(_mm256_cmp_ps(d2, _mm256_set1_ps(s->r2), _CMP_NGE_UQ));
+            if (cnt) s->evals += 8;
+            if (!m) continue;
+            float dv[8];
+            _mm256_storeu_ps(dv, d2);
+            do { /* lanes in order; a push shrinks r2, so m is narrowed again after it */
+                unsigned l = (unsigned)__builtin_ctz((unsigned)m);
+                m &= m - 1;
+                if (filter && !s->filter(s->user, v->rec + (i + l) * v->stride, (uint32_t)(i + l)))
+                    continue;
+                knn_push(s, dv[l], (uint32_t)(i + l));
+                m &= _mm256_movemask_ps(_mm256_cmp_ps(d2, _mm256_set1_ps(s->r2), _CMP_NGE_UQ));
+            } while (m);
+        }
+    }
+#endif
 #if defined(__SSE2__)
     if (ph && !metric) {
         /* Four photons at a time: a 16-byte load at each record start (x, y, z and the RGBE
@@ -308,14 +399,14 @@ PM__INLINE void knn_bucket(knn_state *s, const view *v, uint64_t node, int metri
             if (!m) continue;
             float dv[4];
             _mm_storeu_ps(dv, d2);
-            for (unsigned l = 0; l < 4; l++) {
-                if ((m >> l) & 1 && !(dv[l] >= s->r2)) {
-                    if (filter && !s->filter(s->user, v->rec + (i + l) * v->stride,
-                                             (uint32_t)(i + l)))
-                        continue;
-                    knn_push(s, dv[l], (uint32_t)(i + l));
-                }
-            }
+            do { /* lanes in order; a push shrinks r2, so m is narrowed again after it */
+                unsigned l = (unsigned)__builtin_ctz((unsigned)m);
+                m &= m - 1;
+                if (filter && !s->filter(s->user, v->rec + (i + l) * v->stride, (uint32_t)(i + l)))
+                    continue;
+                knn_push(s, dv[l], (uint32_t)(i + l));
+                m &= _mm_movemask_ps(_mm_cmpnge_ps(d2, _mm_set1_ps(s->r2)));
+            } while (m);
         }
     }
 #endif

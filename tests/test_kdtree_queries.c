@@ -5,6 +5,7 @@
  */
 #include <pthread.h>
 
+#include "internal.h"
 #include "test_kdtree_util.h"
 
 static pm_kdtree *kt_build(pm_photon *ph, size_t n, unsigned B) {
@@ -318,5 +319,68 @@ TEST(kdtree_degenerate_data_visits_bounded) {
         EXPECT(in <= 3 * un && ie <= 3 * ue);
         EXPECT(dn <= 3 * un && de <= 3 * ue);
         EXPECT(dn2 <= 3 * un && de2 <= 3 * ue);
+    }
+}
+
+/* ---- the k-nearest heap step -------------------------------------------------------------- */
+
+/* The textbook sift-down that internal.h documents for a max-heap on dist2 (the larger child
+ * moves up; ties between children go to the left one; a child equal to v stays below it),
+ * written out here as the oracle. */
+static void ref_replace_top(pm_neighbor *h, unsigned n, pm_neighbor v) {
+    unsigned i = 0;
+    for (;;) {
+        unsigned c = 2 * i + 1;
+        if (c >= n) break;
+        if (c + 1 < n && h[c + 1].dist2 > h[c].dist2) c++;
+        if (!(h[c].dist2 > v.dist2)) break;
+        h[i] = h[c];
+        i = c;
+    }
+    h[i] = v;
+}
+
+/* Oracle: the sift-down above. pm__heap_replace_top (which every k-nearest search calls for
+ * each record entering a full heap, and whose choices fix which tied record a search returns,
+ * kdtree.h TIES) must leave exactly the same array: heaps of 1..300 entries with few distinct
+ * distances (many ties), +inf and 0 among them, each replaced 8 times. */
+TEST(kdtree_heap_replace_top_matches_sift_down) {
+    kt_rng r = {12345};
+    pm_neighbor a[300], b[300];
+    int bad = 0, trials = PM_TEST_SANITIZED ? 5000 : 30000;
+    for (int it = 0; it < trials && !bad; it++) {
+        unsigned n = 1 + (unsigned)(kt_next(&r) % 300);
+        unsigned levels = 1 + (unsigned)(kt_next(&r) % 40);
+        for (unsigned i = 0; i < n; i++) {
+            uint64_t x = kt_next(&r);
+            a[i].dist2 = (x & 63) == 0 ? INFINITY : (float)((x >> 8) % levels);
+            a[i].index = i;
+        }
+        /* a max-heap by the oracle's own sift-down: insert one by one */
+        for (unsigned i = 1; i < n; i++) {
+            unsigned j = i;
+            pm_neighbor v = a[j];
+            while (j > 0 && a[(j - 1) / 2].dist2 < v.dist2) {
+                a[j] = a[(j - 1) / 2];
+                j = (j - 1) / 2;
+            }
+            a[j] = v;
+        }
+        memcpy(b, a, n * sizeof *a);
+        for (int rep = 0; rep < 8; rep++) {
+            uint64_t x = kt_next(&r);
+            pm_neighbor v;
+            v.dist2 = (x & 31) == 0 ? INFINITY : (float)((x >> 8) % (levels + 2));
+            v.index = 1000u + (unsigned)rep;
+            ref_replace_top(a, n, v);
+            pm__heap_replace_top(b, n, v);
+        }
+        for (unsigned i = 0; i < n; i++)
+            if (a[i].dist2 != b[i].dist2 || a[i].index != b[i].index) {
+                EXPECT_MSG(0, "n = %u: entry %u is (%g, %u), the sift-down gives (%g, %u)", n, i,
+                           (double)b[i].dist2, b[i].index, (double)a[i].dist2, a[i].index);
+                bad = 1;
+                break;
+            }
     }
 }
