@@ -60,9 +60,15 @@ seams) plus:
 | `--pm distributed=partitioned` | every rank keeps 1/R of each photon map; estimates combine the R parts (see "Partitioned mode" below) |
 | `--threads N` | OpenMP threads per rank (default: the node's cores divided among the ranks on that node) |
 
-`--checkpoint`, `--resume` and `--snapshot-every` are refused (exit 2): a distributed render
-keeps no checkpoint (its state is spread over the ranks; saving it would need every rank's
-part gathered to one file and a restart on the same rank count).
+`--checkpoint`, `--checkpoint-every`, `--resume` and `--snapshot-every` work as in `render`:
+rank 0 writes the checkpoint (the film of the complete tiles, the scene hash and the
+settings, written whole through a temporary and a rename) and, in pm mode, the photon maps
+beside it; a resumed job at any `-np` renders only the tiles the checkpoint does not hold
+complete and gives the uninterrupted image bit for bit. A replicated checkpoint is
+`render`'s: `render` resumes `render-mpi`'s and `render-mpi` resumes `render`'s. A
+partitioned image depends on the number of ranks, so its checkpoint says so in its settings,
+keeps no maps (they are traced again) and resumes at the same `-np` only (another `-np`:
+exit 2, other settings). The checkpoint file must be on storage every rank can read.
 
 ## Build and run
 
@@ -141,7 +147,13 @@ answers); partitioned maps give images whose four quarters' means are within
 water_caustic's caustic at `-np 4`, and the same bytes with 2 threads per rank and loaded
 maps as with 1 thread and traced ones; at `-np 4`, taking out either bias rule of the
 combination, the disc's single correction or the cone's rim factor, makes a quarter fail;
-see below).
+see below). `scripts/test-mpi-partitioned.sh` (sourced by test-mpi.sh, or run alone) checks
+that no rank holds the whole precomputed irradiance (each about 1/R of the records and of
+their bytes at `-np 2` and `4`), that the pixel-pass counters of a partitioned preview render
+equal one process's though most samples were traced twice, that samples traced a third time
+(wrong guesses, shelf_glass) give the same bytes with 1 and 2 threads per rank, and that
+samples kept from their trace on guesses give the same bytes and counters as tracing them
+again (partition_thin).
 
 EOF
 
@@ -305,28 +317,46 @@ correction c on the total (`pm_combine_add` on each rank, the sums added, `pm_co
   one process does. `--save-photons` is refused in this
   mode (no rank holds the whole maps); `--load-photons` reads the whole maps on every rank
   and keeps the part.
-- **Precomputed irradiance** (final gathering reads it). Each rank chooses a quarter of its
-  own photons, as `photon_sides.c` does, and all-gathers them as queries (position, normal,
-  free height: 28 bytes). Every rank answers every query from its part with its k/R nearest
-  photons on the query's side (the same visibility test, widened past a wall), as partial
-  sums (32 bytes); an all-to-all returns the answers to the owners, which combine them
-  (divided by the visible part of the combined disc where a rank met a wall), and an
-  all-gather of the records (28 bytes each) gives every rank the whole precomputed
-  irradiance. Final-gather lookups then stay on their rank.
-- **Estimates in the pixel pass** (the caustic map, and the global map in preview mode) are
-  batched per chunk of tiles: the rank traces its tiles once, recording each estimate's query
-  (position, normal, map: 28 bytes) with a placeholder value; sends the chunk's queries to
-  every other rank in one message; answers its own from its part; gets each rank's partial
-  sums (32 bytes per query) while it answers the other ranks' queries; combines them; and
-  traces the tiles again, each estimate taking its combined value in order. The photon
-  mapper makes no decision on an estimate's value (no branch, no random number depends on
-  it: `render/photon_lookup.h`), so both traces make the same queries; the second trace
-  checks that they are the same, query by query, and a difference stops the job. The
-  recording trace's counters are taken off again, so the statistics count one trace.
-- **Deterministic.** Each estimate adds the ranks' parts in rank order, and a part depends
-  only on the query and that rank's photons: the image depends on the number of ranks (which
-  splits the maps) and on nothing else, not the threads, which rank rendered which tile, nor
-  whether the maps were traced or loaded.
+- **Precomputed irradiance** (final gathering reads it) is split over the ranks too. Each
+  rank chooses a quarter of its own photons, as `photon_sides.c` does, and all-gathers them
+  as queries (position, normal, free height: 36 bytes). Every rank answers every query from
+  its part with its k/R nearest photons on the query's side (the same visibility test,
+  widened past a wall), as partial sums (32 bytes); an all-to-all returns the answers to
+  the owners, which combine them (divided by the visible part of the combined disc where a
+  rank met a wall) and keep the records: each rank holds the records of its own chosen
+  photons, 1/R of the whole precomputed irradiance.
+- **Lookups in the pixel pass.** Every estimate of the caustic map (and of the global map in
+  preview mode) and every lookup of the precomputed irradiance (the final gather's) goes to
+  every rank. For an estimate each rank returns its part's partial sums (32 bytes), added in
+  rank order. For a lookup each rank returns the record it would accept from its own (the
+  nearest of its 8 nearest candidates that passes the normal rule, its own radius and the
+  visibility test from the gather hit, as in one process) with its E and its distance (32
+  bytes); the nearest wins, the lowest rank on a tie. Where one process answers with a
+  record, that record's rank answers with it and no rank has a nearer one, so the answer is
+  the same; the ranks may also find one where one process, limited to its 8 nearest
+  candidates of all, found none.
+- **Batched per block of samples.** A rank traces the camera samples of its chunk of tiles
+  itself (as `render` does: the same random stream, jitter and camera ray per sample), up to
+  8192 at a time, keeping each sample's queries in order. A query not answered yet gets a
+  guess: 0 for an estimate, and for a lookup the rank's own records' answer, which decides
+  whether the gather takes a record or computes the light at the hit (the one decision of
+  the photon mapper that depends on a lookup; no decision depends on an estimate's value,
+  `render/photon_lookup.h`). The block's queries then go to every other rank in one message
+  (36 bytes each), answered (32 bytes each) while the rank serves the others' queries; and
+  the samples that made queries are traced again, each query taking its answer. A sample
+  whose guessed lookup was wrong leaves its recorded path there: its queries from that
+  point on are new, answered in a further exchange, and it is traced a third time (and so
+  on, until a trace reads known answers only). That last trace is the sample's radiance;
+  the earlier ones' counters are taken off (per thread), so the statistics count one trace
+  per sample. A sample without queries is traced once, and so is one whose every guess was
+  the answer (its trace is then exactly the one it would be traced again to: its radiance
+  and counters are kept).
+- **Deterministic.** Each estimate adds the ranks' parts in rank order, a lookup takes the
+  nearest answer, and a part depends only on the query and that rank's photons or records;
+  a sample's radiance is that of a trace that read answers only (or guesses equal to them),
+  whatever the guesses were. The
+  image depends on the number of ranks (which splits the maps) and on nothing else, not the
+  threads, which rank rendered which tile, nor whether the maps were traced or loaded.
 
 The hook that routes the photon mapper's lookups (`render/photon_lookup.h`) is a few lines in
 `render/photonmapper.c`; without it (`render`, replicated mode) the mapper reads its own maps.
@@ -344,63 +374,83 @@ echo "32x32 quarter against the one-process render's with the shadow-photon map 
 echo "photons and camera samples, and exact shadow rays in both, so what differs is the estimate"
 echo "alone), the largest over the repetitions. (test-mpi.sh prints,"
 echo "beside its own such figures, how far apart two renders of different seeds are: far more.)"
+pbefore=$(pmeas before)
+if [ -n "$pbefore" ]; then
+  echo "Rows \"before\": the partitioned mode of $pbefore, run beside it"
+  echo "(every rank held the whole precomputed irradiance and looked it up locally; each tile traced twice)."
+fi
 echo
-awk -F, '
-  NR > 1 { k = $1 " " $2; n[k]++; for (c = 4; c <= 16; c++) v[k, c, n[k]] = $c; R[$1] = 1
-           if ($2 == "partitioned") {
-             w = $15 + 0; if (!($1 in worst) || w > worst[$1]) worst[$1] = w
-             x = $16 < 0 ? -$16 : $16 + 0; if (!($1 in whole) || x > whole[$1]) whole[$1] = x } }
+awk -F, -v before="$pbefore" '
+  NR > 1 { k = $1 " " $2; n[k]++; for (c = 4; c <= 22; c++) v[k, c, n[k]] = $c; R[$1] = 1
+           if ($2 != "replicated") {
+             w = $15 + 0; if (!(k in worst) || w > worst[k]) worst[k] = w
+             x = $16 < 0 ? -$16 : $16 + 0; if (!(k in whole) || x > whole[k]) whole[k] = x } }
   function med(k, c,   m, i, j, t, a) {
     m = n[k]; for (i = 1; i <= m; i++) a[i] = v[k, c, i] + 0
     for (i = 2; i <= m; i++) { t = a[i]; for (j = i - 1; j >= 1 && a[j] > t; j--) a[j + 1] = a[j]; a[j + 1] = t }
     return m % 2 ? a[(m + 1) / 2] : (a[m / 2] + a[m / 2 + 1]) / 2 }
   END {
-    printf "| ranks | worst quarter, mean difference | whole image, mean difference |\n|---:|---:|---:|\n"
-    for (r = 2; r <= 4; r += 2) if (r in R) printf "| %d | %.2f%% | %.2f%% |\n", r, worst[r], whole[r]
-    printf "\nMedian seconds (rank 0 timers; the pixel pass of a partitioned run includes both traces\n"
-    printf "of each tile and the waits for answers):\n\n"
+    printf "| ranks | maps | worst quarter, mean difference | whole image, mean difference |\n|---|---|---:|---:|\n"
+    for (r = 2; r <= 4; r += 2) if (r in R) for (m = 1; m <= 2; m++) {
+      mode = m == 1 ? "partitioned" : "before"; k = r " " mode
+      if (k in n) printf "| %d | %s | %.2f%% | %.2f%% |\n", r, mode, worst[k], whole[k] }
+    printf "\nMedian seconds (rank 0 timers; the pixel pass of a partitioned run includes every trace\n"
+    printf "of a sample and the waits for answers):\n\n"
     printf "| ranks | maps | wall | photon tracing | kd-trees | precomputed irradiance | pixel pass |\n"
     printf "|---:|---|---:|---:|---:|---:|---:|\n"
-    for (r = 2; r <= 4; r += 2) if (r in R) for (m = 0; m < 2; m++) {
-      mode = m ? "partitioned" : "replicated"; k = r " " mode
-      printf "| %d | %s | %.2f | %.2f | %.2f | %.2f | %.2f |\n", r, mode, med(k, 4), med(k, 5), med(k, 6), med(k, 7), med(k, 8) }
+    for (r = 2; r <= 4; r += 2) if (r in R) for (m = 0; m < 3; m++) {
+      mode = m == 0 ? "replicated" : m == 1 ? "partitioned" : "before"; k = r " " mode
+      if (k in n) printf "| %d | %s | %.2f | %.2f | %.2f | %.2f | %.2f |\n", r, mode, med(k, 4), med(k, 5), med(k, 6), med(k, 7), med(k, 8) }
     printf "\n"
     for (r = 2; r <= 4; r += 2) if (r in R) {
-      a = r " replicated"; b = r " partitioned"
-      printf "- %d ranks: partitioned / replicated: wall %.2f, photon tracing %.2f, precomputed irradiance %.2f, pixel pass %.2f.\n",
-        r, med(b, 4) / med(a, 4), med(b, 5) / med(a, 5), med(b, 7) / med(a, 7), med(b, 8) / med(a, 8) }
+      a = r " replicated"; b = r " partitioned"; c = r " before"
+      printf "- %d ranks: partitioned / replicated: wall %.2f, photon tracing %.2f, precomputed irradiance %.2f, pixel pass %.2f", \
+        r, med(b, 4) / med(a, 4), med(b, 5) / med(a, 5), med(b, 7) / med(a, 7), med(b, 8) / med(a, 8)
+      if (c in n) printf "; partitioned / before: wall %.2f, precomputed irradiance %.2f, pixel pass %.2f", \
+        med(b, 4) / med(c, 4), med(b, 7) / med(c, 7), med(b, 8) / med(c, 8)
+      printf ".\n" }
     printf "\nThe photon tracing of a partitioned run traces each rank'"'"'s photons twice (the counts of\n"
     printf "its rounds, then its part) but exchanges and merges no photons; a replicated run traces\n"
-    printf "once and receives and merges every photon.\n"
-    printf "\nThe pixel pass of a partitioned run traces each tile twice and waits for answers, where\n"
-    printf "a replicated one traces once but reads whole maps (ratios above, on a shared machine);\n"
-    printf "the precomputed irradiance of a partitioned run is faster, each rank computing its own\n"
-    printf "share of the estimates (a replicated rank computes all of them itself).\n"
-    printf "\nTraffic of the partitioned runs (bytes sent by all ranks; the photon exchange is in the\n"
-    printf "memory table below):\n\n"
-    printf "| ranks | lookups | lookup bytes | per lookup | lookups per pixel | lookup bytes per pixel | irradiance estimates | their bytes | per estimate | tile queue bytes per pixel |\n"
-    printf "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n"
+    printf "once and receives and merges every photon. The precomputed irradiance of a partitioned\n"
+    printf "run is faster, each rank computing its own share of the estimates (a replicated rank\n"
+    printf "computes all of them itself). Its pixel pass traces most samples twice (below), sends\n"
+    printf "every lookup to every rank, and each rank answers every rank'"'"'s lookups (with their\n"
+    printf "visibility rays) from its own records.\n"
+    printf "\nTraces of the partitioned runs (all ranks; a sample that made a query is traced again\n"
+    printf "unless every guess was the answer; before, every tile was traced twice):\n\n"
+    printf "| ranks | camera samples | traces | per sample | samples traced twice or more | traces past the second | samples with queries kept from their trace on guesses |\n"
+    printf "|---:|---:|---:|---:|---:|---:|---:|\n"
     for (r = 2; r <= 4; r += 2) if (r in R) {
-      k = r " partitioned"; nl = med(k, 9); bl = med(k, 10); ns = med(k, 11); bs = med(k, 12); bx = med(k, 13); px = med(k, 14)
-      LPP[r] = nl / px
-      printf "| %d | %d | %d | %.1f | %.2f | %.1f | %d | %d | %.1f | %.2f |\n", r, nl, bl, bl / nl, nl / px, bl / px, ns, bs, bs / ns, bx / px }
-    lpp = (2 in LPP) ? LPP[2] : LPP[4]
-    printf "\n**Model.** A lookup sends its 28-byte query to each of the R - 1 other ranks and gets a\n"
-    printf "32-byte answer from each: 60 (R - 1) bytes, whatever the size of the map. A precomputed\n"
-    printf "estimate costs its query and answers plus its 28-byte record sent to every other rank:\n"
-    printf "88 (R - 1) bytes, for about a quarter of the global photons, once. Lookups per pixel are\n"
-    printf "a property of the scene and the settings (caustic estimates per sample times the\n"
-    printf "samples; here %.2f), so\n\n", lpp
-    printf "    lookup bytes per pixel = 60 (R - 1) x lookups per pixel\n"
-    printf "    precomputed irradiance bytes = 88 (R - 1) x N_global / 4\n\n"
-    printf "| ranks | lookup bytes per pixel, this scene (model) | at 16 caustic estimates per pixel (model) |\n|---:|---:|---:|\n"
-    for (r = 2; r <= 64; r *= 2) printf "| %d | %.0f | %.0f |\n", r, 60 * (r - 1) * lpp, 60 * (r - 1) * 16
-    printf "\nEvery query goes to every rank, so the bytes per lookup grow linearly with R: at 64\n"
-    printf "ranks a lookup costs %d bytes, and a pixel with 16 estimates %d bytes, %d times\n", 60 * 63, 60 * 63 * 16, 60 * 63 * 16 / 24
-    printf "the 24 bytes of its tile sum. That is the price of parts that each cover the whole\n"
-    printf "scene (ranges of emitted photons). Parts split by space instead (the first levels of a\n"
-    printf "kd-tree over the union, one region per rank) would send a query only to the ranks whose\n"
-    printf "region its search disc reaches, one or two whatever R: the next step for large R.\n\n"
+      k = r " partitioned"; sm = med(k, 18); tr = med(k, 19); kg = med(k, 22); tw = med(k, 20)
+      printf "| %d | %d | %d | %.3f | %d (%.1f%%) | %d | %d (%.1f%% of those with queries) |\n", r, sm, tr, sm ? tr / sm : 0, tw, sm ? 100 * tw / sm : 0, med(k, 21), kg, tw + kg ? 100 * kg / (tw + kg) : 0 }
+    printf "\nTraffic of the partitioned runs (bytes sent by all ranks; queries: the estimates of the\n"
+    printf "caustic map and the lookups of the precomputed irradiance; the photon exchange is in the\n"
+    printf "memory table below):\n\n"
+    printf "| ranks | estimates | irradiance lookups | query bytes | per query | queries per pixel | query bytes per pixel | irradiance records made | their bytes | per record | tile queue bytes per pixel |\n"
+    printf "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n"
+    for (r = 2; r <= 4; r += 2) if (r in R) {
+      k = r " partitioned"; nl = med(k, 9); bl = med(k, 10); ns = med(k, 11); bs = med(k, 12); bx = med(k, 13); px = med(k, 14); gl = med(k, 17)
+      QPP[r] = nl / px; GPP[r] = gl / px; ESTPP[r] = (nl - gl) / px
+      printf "| %d | %d | %d | %d | %.1f | %.2f | %.1f | %d | %d | %.1f | %.2f |\n", r, nl - gl, gl, bl, bl / nl, nl / px, bl / px, ns, bs, bs / ns, bx / px }
+    qpp = (2 in QPP) ? QPP[2] : QPP[4]; epp = (2 in QPP) ? ESTPP[2] : ESTPP[4]; gpp = (2 in QPP) ? GPP[2] : GPP[4]
+    printf "\n**Model.** A query sends its 36 bytes to each of the R - 1 other ranks and gets a\n"
+    printf "32-byte answer from each: 68 (R - 1) bytes, whatever the size of the map. A precomputed\n"
+    printf "record costs its query and answers, 68 (R - 1) bytes, once, for about a quarter of the\n"
+    printf "global photons: 17 (R - 1) bytes per global photon. Queries per pixel are a property of\n"
+    printf "the scene and the settings (caustic estimates plus final-gather lookups per sample, times\n"
+    printf "the samples; here %.2f estimates and %.2f lookups per pixel), so\n\n", epp, gpp
+    printf "    query bytes per pixel = 68 (R - 1) x queries per pixel\n"
+    printf "    precomputed irradiance bytes = 68 (R - 1) x N_global / 4\n\n"
+    printf "| ranks | query bytes per pixel, this scene (model) | per pixel at 16 spp x 16 gather rays + 16 estimates (model) |\n|---:|---:|---:|\n"
+    for (r = 2; r <= 64; r *= 2) printf "| %d | %.0f | %.0f |\n", r, 68 * (r - 1) * qpp, 68 * (r - 1) * (256 + 16)
+    printf "\nEvery query goes to every rank, so the bytes per query grow linearly with R: at 64 ranks\n"
+    printf "a query costs %d bytes, and a pixel of 16 samples with 16 gather rays each %d bytes,\n", 68 * 63, 68 * 63 * 272
+    printf "%d times the 24 bytes of its tile sum; every rank also answers every query (a k-NN search\n", 68 * 63 * 272 / 24
+    printf "or up to 8 visibility rays), so the answering work grows with R as well. That is the price\n"
+    printf "of parts that each cover the whole scene (ranges of emitted photons). Parts split by\n"
+    printf "space instead (the first levels of a kd-tree over the union, one region per rank) would\n"
+    printf "send a query only to the ranks whose region its search disc reaches, one or two whatever\n"
+    printf "R: the next step for large R.\n\n"
   }' "$dir/partitioned.csv"
 
 echo "### Memory per rank and the photon exchange"
@@ -411,28 +461,51 @@ echo "Scene \`$(mmeas scene)\`, \`$(mmeas pm_args)\`, 1 thread per rank: a map"
 echo "large against the rest of the process. Peak memory: every rank's maximum resident set size"
 echo "(/usr/bin/time), the largest and the smallest over the ranks; photon exchange: the bytes"
 echo "sent by all ranks in the photon passes (each part counted once per receiving rank)."
+mbefore=$(mmeas before)
+if [ -n "$mbefore" ]; then
+  echo "Rows \"before\": the partitioned mode of $mbefore, run beside it (every rank"
+  echo "held the whole precomputed irradiance)."
+fi
 echo
 awk -F, 'NR > 1 { k = $1 " " $2; if (!(k in hi) || $4 > hi[k]) hi[k] = $4; if (!(k in lo) || $4 < lo[k]) lo[k] = $4
-    bp[k] = $5; st[k] = $6; seen[$1] = 1 }
+    bp[k] = $5; st[k] = $6; seen[$1] = 1; cmax[k] = $7 + 0; call[k] = $8 + 0 }
   END {
     printf "| ranks | maps | peak memory per rank, MiB (largest) | (smallest) | photon exchange bytes | per stored photon |\n"
     printf "|---:|---|---:|---:|---:|---:|\n"
-    for (r = 1; r <= 64; r++) if (r in seen) for (m = 0; m < 2; m++) {
-      mode = m ? "partitioned" : "replicated"; k = r " " mode
+    for (r = 1; r <= 64; r++) if (r in seen) for (m = 0; m < 3; m++) {
+      mode = m == 0 ? "replicated" : m == 1 ? "partitioned" : "before"; k = r " " mode
       if (k in hi) printf "| %d | %s | %.1f | %.1f | %d | %.3f |\n", r, mode, hi[k] / 1024, lo[k] / 1024, bp[k], st[k] ? bp[k] / st[k] : 0 }
     printf "\n"
     for (r = 2; r <= 64; r++) if ((r " replicated") in hi && (r " partitioned") in hi) {
       a = r " replicated"; b = r " partitioned"
-      printf "- %d ranks: partitioned / replicated: peak memory %.2f (largest rank), photon exchange %.5f.\n", r, hi[b] / hi[a], bp[a] ? bp[b] / bp[a] : 0 }
+      printf "- %d ranks: partitioned / replicated: peak memory %.2f (largest rank), photon exchange %.5f", r, hi[b] / hi[a], bp[a] ? bp[b] / bp[a] : 0
+      c = r " before"
+      if (c in hi) printf "; partitioned / before: peak memory %.3f (largest rank)", hi[b] / hi[c]
+      printf ".\n" }
+    printf "\nThe precomputed irradiance itself (its records, radii, indices, lookup tree and free\n"
+    printf "heights, as the partitioned runs report them): each rank now keeps its own records; before,\n"
+    printf "every rank held the records of all ranks (about all parts together):\n\n"
+    printf "| ranks | records on the largest rank, KiB | on all ranks, KiB | largest rank / all |\n|---:|---:|---:|---:|\n"
+    for (r = 2; r <= 64; r++) if ((r " partitioned") in cmax && cmax[r " partitioned"] > 0) {
+      k = r " partitioned"; printf "| %d | %.1f | %.1f | %.3f |\n", r, cmax[k] / 1024, call[k] / 1024, cmax[k] / call[k] }
   }' "$dir/memory.csv"
 cat <<'EOF'
 
 A replicated rank holds the whole maps through the pass (64 bytes per stored photon while
 tracing, then the 20-byte packed records and their kd-tree) plus the round being exchanged,
 so its peak does not fall with R (it grows: larger rounds). A partitioned rank holds its
-part (1/R of the photons, as 64-byte records while it traces its part, then packed) and
-one batch; the rest of its peak (the scene, the OpenMPI library and buffers, the film) does
-not depend on the map. The photon exchange of a partitioned render is, with B batches of
+part (1/R of the photons, as 64-byte records while it traces its part, then packed), one
+batch, and its 1/R of the precomputed irradiance (a record for about a quarter of its
+photons: position, E, normal, radius, index and free height, about 37 bytes with the lookup
+tree); the rest of its peak (the scene, the OpenMPI library and buffers, the film) does not
+depend on the map. Before, every rank also received the whole precomputed irradiance (28
+bytes a record from every rank) and built its lookup structure over all of it. A partitioned
+rank's peak comes in its photon pass (its part as 64-byte records while it traces it), before
+the precomputed irradiance exists, so splitting the records barely moves the peak in this
+test (the "before" rows); it divides by R what a rank holds for the pixel pass (the table
+above), which is what matters where the maps themselves are too large for one machine.
+
+The photon exchange of a partitioned render is, with B batches of
 4096 photons traced in all (about the batches the passes need, plus at most R - 1 per
 pass) and p passes (2 with caustics):
 
@@ -448,10 +521,6 @@ What is not partitioned yet, and what differs from the replicated image:
   for its part (a rank that traced a batch in its rounds may not keep it). Tracing is a
   small part of a pm render here (see the timers above), and each rank traces about
   2/R of the photons, where a replicated rank traces 1/R and receives the rest.
-- **The precomputed irradiance is whole on every rank**: a record for about a quarter of the
-  global photons (position, normal, E, radius, free height), less than the map but not
-  divided by R. Looking it up remotely would put the final gather's lookups, the most
-  numerous, on the network.
 - **Filters.** A cone or Gaussian filter (the caustic estimate's; a cone by default) is
   combined as f R ΣS_m / ΣA_m: each part's filtered power S_m and area A_m (π r_m² times
   the filter's norm) measured against its own radius r_m. Each part has a rim photon, of the
@@ -464,9 +533,44 @@ What is not partitioned yet, and what differs from the replicated image:
   decides, and since the photon mapper also samples the light at every gather hit that is
   a visible difference of its own, larger than the partitioning's: so the accuracy above and
   the test's oracle are the one-process render with the map off (`--pm shadow=false`).
-- **Each tile is traced twice** (recording, then with the values): the pixel pass's ray work
-  doubles, while its photon searches are spread over the ranks. A chunk of tiles whose
-  recording made no query (a scene without caustics in pm mode) is traced once.
+- **Most samples are traced twice** (see the traces table): a sample that makes a query is
+  traced to find its queries (on guesses), then again with the answers, and a third time
+  where a guessed lookup was wrong. A sample without queries is traced once, and so is one
+  whose guesses all were the answers (its lookups' records on the tracing rank, or found
+  nowhere; its estimates 0): a share that falls with R (each lookup's record is on the
+  tracing rank with probability about 1/R) and is large where lookups find nothing (dark
+  regions behind walls). See "Tracing each sample once" below for what removing the first
+  trace of the others needs.
+
+### Tracing each sample once (built only where the guesses were the answers)
+
+The first trace of a sample exists only to find its queries: the photon mapper's `li()` is
+recursive C (an eye path, its final gather, secondary gathers where a lookup finds no record,
+each drawing from the sample's random stream), so its state at a query is the C stack and the
+thread's scratch, and after the answer it can only be traced again from the camera. To trace
+each sample once, that state must survive until the answer arrives, by one of:
+
+1. **Suspended samples** (coroutines: `makecontext`/`swapcontext`, or threads): each sample
+   in flight runs on a stack of its own, with its own integrator scratch (`thread_begin` per
+   sample, not per thread), and `ask()` in `render/mpi/lookup.c` suspends it at a query not
+   yet answered instead of guessing. The block's suspended samples' queries go out in one
+   exchange, the answers resume them, and each runs to its next query. No change to the
+   photon mapper; the cost is a stack per sample in flight (the deepest recursion, a few
+   tens of KiB touched) and one exchange per query *in sequence*: with Q queries per sample
+   (here about the final gather's rays plus the caustic estimates) a block needs about Q
+   exchanges, each waiting for the other ranks to reach their next exchange, so the block
+   must be split in two halves that alternate (one traced while the other's answers
+   travel) to keep the threads busy. A resumed sample must stay on the OS thread that
+   started it (the statistics and `tl_smp` are thread-local).
+2. **A wavefront photon mapper**: `li()` rewritten as explicit per-sample state (the eye
+   path's vertex, throughput, the gather's ray index and sum, the secondary gather's level)
+   advanced from query to query in arrays, as GPU renderers do. No stacks, but it is a
+   rewrite of `render/photonmapper.c`'s eye path, gather, secondary gather and direct light,
+   which the one-process renderer must keep bit for bit.
+
+Either removes every trace but one of the samples traced more than once (the traces table
+above: traces per sample minus one is the share of the pixel pass's own tracing saved), not
+the answering work of the other ranks or the waits.
 
 ## Limitations
 
@@ -474,9 +578,13 @@ What is not partitioned yet, and what differs from the replicated image:
   photon map: the memory per rank is that of a one-process render, plus the round being
   exchanged (up to 16 R batches of 4096 photons, 64 bytes per stored photon; a round never
   spans more batches than the pass still needs). In partitioned mode a rank holds 1/R of the
-  maps from the photon pass on, and the whole precomputed irradiance (above).
-- No checkpoints; a failed rank ends the job (there is no recovery in OpenMPI 4.1 without
-  ULFM), and the render must be started again.
+  maps from the photon pass on, and 1/R of the precomputed irradiance.
+- A failed rank ends the job (there is no recovery in OpenMPI 4.1 without ULFM); the render
+  must be started again, or resumed from its last checkpoint.
+- Media: the volume photon maps (and, in a scene with media, the whole surface photon pass,
+  which the volume tracer makes) are traced by every rank and held whole on every rank in
+  both modes; partitioned mode partitions only the surface maps (cornell_fog and
+  glass_of_smoke at -np 2: quarters within 0.04% of render, measured by mpib).
 - Statistics: the pixel pass's counters are the sum over ranks; the preprocessing counters
   (photons stored, their rays) are rank 0's, whose maps are every rank's.
 EOF

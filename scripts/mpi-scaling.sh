@@ -1,7 +1,8 @@
 #!/bin/sh
 # mpi-scaling.sh: measure render-mpi (time and traffic) and write docs/MPI.md from it.
 #
-#   PM_BUILD_DIR=build/release sh scripts/mpi-scaling.sh [--reps N] [--partitioned] [OUT_DIR]
+#   PM_BUILD_DIR=build/release sh scripts/mpi-scaling.sh [--reps N] [--partitioned] [--memory]
+#       [--before DIR LABEL] [OUT_DIR]
 #
 # Needs $PM_BUILD_DIR/render and render-mpi (make MPI=1). Writes into OUT_DIR (default
 # docs/mpi): timing.csv (one row per run: the one-process render with 2 threads, render-mpi
@@ -20,9 +21,19 @@
 # and partitioned.txt (its own stamp). --partitioned measures only these two files (about
 # 3 minutes) and keeps the others.
 #
+# Partitioned traffic and traces: partitioned.csv also has the lookups of the precomputed
+# irradiance (the final gather's), the camera samples, how many were traced twice and past
+# twice, and how many with queries kept their trace on guesses (render-mpi's
+# "MPI/Partitioned:" statistics).
+#
+# --before DIR LABEL: also run DIR/render-mpi (a build of an earlier commit, LABEL naming it)
+# in partitioned mode beside the current one, in the partitioned and memory tables (mode
+# "before"), for a before/after comparison measured under the same load.
+#
 # Memory: memory.csv (a pm render of larger maps, 1 thread per rank, at 1, 2 and 4 ranks,
 # replicated and partitioned: every rank's peak resident memory, from /usr/bin/time's maximum
-# resident set size, and the bytes of the photon exchange) and memory.txt (its stamp).
+# resident set size, the bytes of the photon exchange, and in partitioned mode the bytes of
+# the precomputed irradiance on the largest rank and on all) and memory.txt (its stamp).
 # --memory measures only these two files (about 1 minute) and keeps the others.
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
@@ -30,12 +41,17 @@ B="${PM_BUILD_DIR:-$here/build/release}"
 reps=3
 only_part=0
 only_mem=0
+before=""
+before_label=""
 out="$here/docs/mpi"
 while [ $# -gt 0 ]; do
   case "$1" in
     -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
     --partitioned) only_part=1; shift ;;
     --memory) only_mem=1; shift ;;
+    --before) [ $# -ge 3 ] || { echo "mpi-scaling: --before needs a build directory and a label" >&2; exit 2; }
+              before=$2; before_label=$3; shift 3
+              [ -x "$before/render-mpi" ] || { echo "mpi-scaling: $before/render-mpi not found" >&2; exit 2; } ;;
     --reps) [ $# -ge 2 ] || { echo "mpi-scaling: --reps needs a number" >&2; exit 2; }
             reps=$2; shift 2 ;;
     -*) echo "mpi-scaling: unknown option '$1' (see --help)" >&2; exit 2 ;;
@@ -75,7 +91,9 @@ run() { # config log mode-args
 }
 
 measure_partitioned() {
-  echo "ranks,mode,rep,wall_s,tracing_s,trees_s,irradiance_s,rendering_s,lookups,bytes_lookup,side_estimates,bytes_side,bytes_pixel,pixels,worst_quarter_pct,whole_pct" > "$out/partitioned.csv"
+  echo "ranks,mode,rep,wall_s,tracing_s,trees_s,irradiance_s,rendering_s,lookups,bytes_lookup,side_estimates,bytes_side,bytes_pixel,pixels,worst_quarter_pct,whole_pct,gather_lookups,samples,traces,traced_twice,traces_past_two,kept_on_guesses" > "$out/partitioned.csv"
+  modes="replicated partitioned"
+  [ -n "$before" ] && modes="$modes before"
   pload0=$(cut -d' ' -f1-3 /proc/loadavg)
   q=$(( ${SIZE##* } / 2 ))
   # shellcheck disable=SC2086
@@ -84,14 +102,16 @@ measure_partitioned() {
   r=1
   while [ "$r" -le "$reps" ]; do
     for np in 2 4; do
-      for mode in replicated partitioned; do
+      for mode in $modes; do
         log="$T/part.$np.$mode.$r.log"
+        bin="$B/render-mpi"; dm=$mode
+        [ $mode = before ] && { bin="$before/render-mpi"; dm=partitioned; }
         # shellcheck disable=SC2086
-        $MPIRUN -np $np "$B/render-mpi" $SCENE $SIZE $PM --threads 1 --quiet --pm distributed=$mode \
+        $MPIRUN -np $np "$bin" $SCENE $SIZE $PM --threads 1 --quiet --pm distributed=$dm \
           --hdr "$T/part.$np.$mode.pfm" >"$log" 2>&1 \
           || { echo "mpi-scaling: -np $np $mode failed" >&2; tail -5 "$log" >&2; exit 1; }
         worst=0; whole=0
-        if [ $mode = partitioned ]; then
+        if [ $mode != replicated ]; then
           for rc_ in "0 0" "$q 0" "0 $q" "$q $q"; do
             # shellcheck disable=SC2086
             v=$("$B/render" --compare "$T/part.$np.$mode.pfm" "$T/part.ref.pfm" --rect $rc_ $q $q | sed -n 's/^rel_mean //p')
@@ -104,7 +124,15 @@ measure_partitioned() {
           /^MPI: bytes sent:/ { bx = $9 }
           /^MPI: partitioned maps: [0-9]+ lookups/ { nl = $4; bl = $6; ns = $(NF - 6); bs = $(NF - 4) }
           END { printf "%d,%d,%d,%d,%d,%d", nl, bl, ns, bs, bx, px }' "$log")
-        echo "$np,$mode,$r,$(wall "$log"),$(timer "Photon tracing" "$log"),$(timer "Photon kd-trees" "$log"),$(timer "Precomputed irradiance" "$log"),$(timer "Rendering" "$log"),$traffic,$worst,$whole" >> "$out/partitioned.csv"
+        traces=$(awk '
+          /^    Partitioned: precomputed irradiance lookups sent/ { gl = $NF }
+          /^    Samples  / { sm = $NF }
+          /^    Partitioned: camera sample traces \(all/ { tr = $NF }
+          /^    Partitioned: camera samples traced (again|twice or more)/ { tw = $NF }
+          /^    Partitioned: camera sample traces past the second/ { t3 = $NF }
+          /^    Partitioned: samples kept from a trace on guesses/ { kg = $NF }
+          END { printf "%d,%d,%d,%d,%d,%d", gl, sm, tr, tw, t3, kg }' "$log")
+        echo "$np,$mode,$r,$(wall "$log"),$(timer "Photon tracing" "$log"),$(timer "Photon kd-trees" "$log"),$(timer "Precomputed irradiance" "$log"),$(timer "Rendering" "$log"),$traffic,$worst,$whole,$traces" >> "$out/partitioned.csv"
         echo "mpi-scaling: partitioned table: $(tail -1 "$out/partitioned.csv")" >&2
       done
     done
@@ -117,6 +145,7 @@ measure_partitioned() {
     echo "load_before $pload0"
     echo "load_after $(cut -d' ' -f1-3 /proc/loadavg)"
     echo "reps $reps"
+    [ -n "$before" ] && echo "before $before_label"
   } > "$out/partitioned.txt"
 }
 MEMPM="--mode pm --spp 1 --pm global_photons=400000 --pm caustic_photons=200000"
@@ -128,23 +157,30 @@ measure_memory() {
 exec /usr/bin/time -f "%M" -o "$RSS_DIR/rss.$OMPI_COMM_WORLD_RANK" "$@"
 EOS
   chmod +x "$T/rss.sh"
-  echo "ranks,mode,rank,max_rss_kib,bytes_photon,photons_stored" > "$out/memory.csv"
+  echo "ranks,mode,rank,max_rss_kib,bytes_photon,photons_stored,cache_max_bytes,cache_all_bytes" > "$out/memory.csv"
   mload0=$(cut -d' ' -f1-3 /proc/loadavg)
+  modes="replicated partitioned"
+  [ -n "$before" ] && modes="$modes before"
   for np in 1 2 4; do
-    for mode in replicated partitioned; do
-      [ $np = 1 ] && [ $mode = partitioned ] && continue
+    for mode in $modes; do
+      [ $np = 1 ] && [ $mode != replicated ] && continue
       log="$T/mem.$np.$mode.log"
+      bin="$B/render-mpi"; dm=$mode
+      [ $mode = before ] && { bin="$before/render-mpi"; dm=partitioned; }
       rm -rf "$T/rss"; mkdir "$T/rss"
       # shellcheck disable=SC2086
-      RSS_DIR="$T/rss" $MPIRUN -np $np -x RSS_DIR "$T/rss.sh" "$B/render-mpi" $SCENE --width 16 --height 16 \
-        $MEMPM --pm distributed=$mode --threads 1 --quiet --hdr "$T/o.pfm" >"$log" 2>&1 ||
+      RSS_DIR="$T/rss" $MPIRUN -np $np -x RSS_DIR "$T/rss.sh" "$bin" $SCENE --width 16 --height 16 \
+        $MEMPM --pm distributed=$dm --threads 1 --quiet --hdr "$T/o.pfm" >"$log" 2>&1 ||
         { echo "mpi-scaling: memory -np $np $mode failed" >&2; tail -5 "$log" >&2; exit 1; }
       bp=$(sed -n 's/^MPI: bytes sent: photon exchange \([0-9]*\),.*/\1/p' "$log")
       st=$(awk '/^Photons: / { g = $2; s = $4; c = $9; gsub(/[^0-9]/, "", g); gsub(/[^0-9]/, "", s)
                 gsub(/[^0-9]/, "", c); print g + s + c }' "$log")
+      # The precomputed irradiance's bytes (render-mpi's partitioned line): the largest rank's
+      # part and all parts together.
+      cache=$(sed -n 's/^MPI: partitioned precomputed irradiance: .*(at most \([0-9]*\) bytes on a rank, \([0-9]*\) on all).*/\1,\2/p' "$log")
       k=0
       while [ $k -lt $np ]; do
-        echo "$np,$mode,$k,$(cat "$T/rss/rss.$k"),${bp:-0},$st" >> "$out/memory.csv"
+        echo "$np,$mode,$k,$(cat "$T/rss/rss.$k"),${bp:-0},$st,${cache:-0,0}" >> "$out/memory.csv"
         k=$((k + 1))
       done
       echo "mpi-scaling: memory -np $np $mode: $(tail -1 "$out/memory.csv")" >&2
@@ -158,6 +194,7 @@ EOS
     echo "load_after $(cut -d' ' -f1-3 /proc/loadavg)"
     echo "scene $SCENE, 16x16"
     echo "pm_args $MEMPM"
+    [ -n "$before" ] && echo "before $before_label"
   } > "$out/memory.txt"
 }
 if [ "$only_mem" = 1 ]; then
