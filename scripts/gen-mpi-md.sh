@@ -331,10 +331,12 @@ correction c on the total (`pm_combine_add` on each rank, the sums added, `pm_co
   rank order. For a lookup each rank returns the record it would accept from its own (the
   nearest of its 8 nearest candidates that passes the normal rule, its own radius and the
   visibility test from the gather hit, as in one process) with its E and its distance (32
-  bytes); the nearest wins, the lowest rank on a tie. Where one process answers with a
-  record, that record's rank answers with it and no rank has a nearer one, so the answer is
-  the same; the ranks may also find one where one process, limited to its 8 nearest
-  candidates of all, found none.
+  bytes); the nearest wins, the lowest rank on a tie. Where one process holding all the
+  ranks' records would answer with a record, that record's rank answers with it and no rank
+  has a nearer one, so the answer is the same; the ranks may also find one where that
+  process, limited to its 8 nearest candidates of all, found none. (The records themselves
+  are not one process's: each rank chooses a quarter of its own part's photons, and their
+  values are the combined estimates above.)
 - **Batched per block of samples.** A rank traces the camera samples of its chunk of tiles
   itself (as `render` does: the same random stream, jitter and camera ray per sample), up to
   8192 at a time, keeping each sample's queries in order. A query not answered yet gets a

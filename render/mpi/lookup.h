@@ -30,10 +30,11 @@
  * (side_cache_lookup_local: the module's normal and own-radius rules, the visibility test from
  * y with y's free height, computed once by the asking rank, on the 8 nearest candidates of
  * the part): the record it accepts, as its E and its distance^2 to y (32 bytes), or none. The
- * nearest answer wins, the lowest rank on a tie. Whenever one process would answer with record
- * R (the first of its 8 nearest candidates that passes), R's rank answers with R too and no
- * rank has a nearer one; the ranks may also answer where one process found none (a candidate
- * beyond the 8 nearest of the whole set, within the 8 nearest of its part).
+ * nearest answer wins, the lowest rank on a tie. Whenever one process holding all the ranks'
+ * records would answer with record R (the first of its 8 nearest candidates that passes), R's
+ * rank answers with R too and no rank has a nearer one; the ranks may also answer where that
+ * process found none (a candidate beyond the 8 nearest of the whole set, within the 8 nearest
+ * of its part).
  *
  * PIXEL PASS. Every estimate of the global map (preview) or the caustic map, and every lookup of
  * the precomputed irradiance, goes to every rank. The rank traces the camera samples of its
