@@ -651,17 +651,22 @@ static void pm_against_reference(const char *name, const char *flags, const int 
 }
 
 /* Oracle: the long path-traced reference of cornell_fog (data/reference-media/, its .info has
- * the samples and the scene's hash; the test refuses a reference of another version of the
- * scene). Photon mapping at 32x32, 16 spp, with its default plan and emission_strata 8: the
- * image mean within 3%, and the pixels that see each wall, the floor and the ceiling (through
- * the fog) within 5%. The ceiling's pixels next to the lamp see part of the lamp, 17 times
- * brighter than the ceiling: with the default 2 x 2 emission-only rays per sample their
- * coverage of the lamp was most of the ceiling's spread between seeds, and fog under the lamp
- * (1 / dist^2 next-event estimation) the rest, which the march's equiangular samples now carry
- * (pm_volume.h). Ceiling mean over seeds 5..10 (reference of 2304 spp, old path tracer):
- * before the equiangular samples +2.7, -4.0, -1.5, +2.4, -0.4, -2.2% (sd 2.8%; the bound was
- * 8%); with them -1.9..+1.4% (sd 2.1%); with them and emission_strata 8, -1.1..+0.8% (sd
- * 0.7%). The reference's own noise on each region is in its .info. */
+ * the samples, the scene's hash and the reference's own noise per region: 0.08% (back wall) to
+ * 0.52% (right wall); the test refuses a reference of another version of the scene). Photon
+ * mapping at 32x32, 16 spp, with its default plan and emission_strata 8: the image mean within
+ * 3%, and the pixels that see each wall, the floor and the ceiling (through the fog) within 5%.
+ * The ceiling's pixels next to the lamp see part of the lamp, 17 times brighter than the
+ * ceiling: with the default 2 x 2 emission-only rays per sample their coverage of the lamp was
+ * most of the ceiling's spread between seeds, and fog under the lamp (1 / dist^2 next-event
+ * estimation) the rest, which the march's equiangular samples now carry (pm_volume.h). Ceiling
+ * over seeds 5..10 (the previous reference): before the equiangular samples +2.7, -4.0, -1.5,
+ * +2.4, -0.4, -2.2% (sd 2.8%; the bound was 8%); with them -1.9..+1.4% (sd 2.1%); with them and
+ * emission_strata 8, -1.1..+0.8% (sd 0.7%). Against the present reference (4096 spp, the path
+ * tracer with equiangular samples; the previous one, 2304 spp without them, held fireflies and
+ * read the back wall 1.9% high): seed 5 image -0.1%, regions -1.3..+1.4% (ceiling +1.4%);
+ * seeds 6-8 (a 32x32 mask of its own) every region within -1.4..+0.4%. A mutation that counts
+ * the fog's direct light twice near the lamp (MIS weight 1 in both strategies) reads ceiling
+ * +8.7%, back wall +13.1%, image +7.0%, and fails. */
 TEST(media_cornell_fog_pm_matches_path) {
     static const int ids[] = {1, 2, 3, 4, 5};
     static const char *const names[] = {"floor", "ceiling", "back wall", "left wall", "right wall"};
