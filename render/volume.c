@@ -4,6 +4,10 @@
  * surface store and a material bounce at each diffuse surface, a medium change at each null
  * surface) into its batch's buffer; vol_trace_pass runs rounds of batches on the threads and
  * merges them in photon order, cutting each map at its target by whole photon paths.
+ *
+ * A change here that changes any stored photon (which photons are stored, their power,
+ * position, direction or kind) must bump PHOTON_TRACE_VERSION in photon_maps.h in the same
+ * commit, so maps saved before it are refused (photon_maps.h TRACER VERSION).
  */
 #include "volume.h"
 
