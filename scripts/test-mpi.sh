@@ -94,6 +94,26 @@ for sc in cornell_fog glass_of_smoke volumetric_caustic; do
   done
 done
 
+# The maps of a media scene saved by -np 3 (rank 0, after the split media passes) are
+# byte-identical to the one-process render's, the volume and volume-caustic maps included.
+# shellcheck disable=SC2086
+"$R" data/scenes/volumetric_caustic.json $MEDIA --mode pm --threads 2 --quiet --save-photons "$T/mmaps1" \
+  --hdr "$T/mmaps1.pfm" >"$T/mmaps1.log" 2>&1
+# shellcheck disable=SC2086
+$MPIRUN -np 3 "$M" data/scenes/volumetric_caustic.json $MEDIA --mode pm --threads 1 --quiet \
+  --save-photons "$T/mmaps3" --hdr "$T/mmaps3.pfm" >"$T/mmaps3.log" 2>&1
+same=1; n=0
+for f in "$T"/mmaps1/*.pmap; do
+  [ -f "$f" ] || continue
+  n=$((n + 1)); cmp -s "$f" "$T/mmaps3/$(basename "$f")" || same=0
+done
+if [ "$same" = 1 ] && [ -f "$T/mmaps1/volume-0.pmap" ] && [ -f "$T/mmaps1/volume_caustic-0.pmap" ] \
+   && [ "$n" = "$(ls "$T"/mmaps3/*.pmap | wc -l)" ]; then
+  ok "media: the $n maps saved by -np 3 (volume maps included) are byte-identical to the one-process maps"
+else
+  bad "media maps -np 3" "the saved maps differ (or are missing): $(ls "$T/mmaps1" "$T/mmaps3" | tr '\n' ' ')"
+fi
+
 # ---- the plan ----------------------------------------------------------------------------
 # Oracle: the one-process render's plan. Every rank traces the pilot pass whole (it is not
 # split over the ranks), so rank 0 prints the same plan, pilot counts included, at any -np.
@@ -402,6 +422,29 @@ if [ $rc = 0 ] && cmp -s "$T/snap.pfm" "$T/ckpath.ref.pfm" && cmp -s "$T/snap.pn
   ok "snapshots every 1 ms at -np 2: the final PFM and PNG equal the one-process render's"
 else
   bad "snapshots" "rc $rc; $(grep render "$T/snap.log" | tail -2)"
+fi
+# A media scene in pm mode: rank 0 saves every map with the checkpoint (the volume maps too,
+# and the checkpoint hashes them); -np 2 stopped by SIGTERM, resumed at -np 3 from the maps.
+CKMED="data/scenes/cornell_fog.json --mode pm --width 64 --height 48 --spp 1 --pm global_photons=5000 --pm volume_photons=5000"
+# shellcheck disable=SC2086
+"$R" $CKMED --threads 2 --quiet --hdr "$T/ckmed.ref.pfm" >/dev/null 2>&1
+# shellcheck disable=SC2086
+ckpt_stop ckmed 2 term 0.3 $CKMED
+cp "$T/ckmed.ck" "$T/ckmed.ck.bak"
+$MPIRUN -np 3 "$M" data/scenes/cornell_fog.json --resume "$T/ckmed.ck" --threads 1 >"$T/ckmed.res.log" 2>&1
+rc=$?
+# The same checkpoint with a volume map changed since: refused (exit 2), nothing written.
+mv "$T/ckmed.pfm" "$T/ckmed.ok.pfm" 2>/dev/null
+printf x >> "$T/ckmed.ck.photons/volume-0.pmap"
+$MPIRUN -np 2 "$M" data/scenes/cornell_fog.json --resume "$T/ckmed.ck.bak" --threads 1 >"$T/ckmed.chg.log" 2>&1
+rcc=$?
+mv "$T/ckmed.ok.pfm" "$T/ckmed.pfm" 2>/dev/null
+if [ "$stop_ok" = 1 ] && [ $rc = 0 ] && [ -s "$T/ckmed.ck.photons/volume-0.pmap" ] \
+   && resumed_ok ckmed "$T/ckmed.res.log" "$T/ckmed.ref.pfm" && [ $rcc = 2 ] \
+   && grep -q "photon maps in .* are missing or changed" "$T/ckmed.chg.log"; then
+  ok "checkpoint: media pm -np 2 stopped by SIGTERM, resumed at -np 3 from the saved maps (volume maps included): PFM bytes equal the one-process render; a changed volume map is refused"
+else
+  bad "checkpoint media" "stop_ok $stop_ok rc $rc rc(changed map) $rcc; $(grep -h "render\|MPI: res" "$T/ckmed.err" "$T/ckmed.res.log" "$T/ckmed.chg.log" | tail -3)"
 fi
 # A replicated job's checkpoint is render's: render's own checkpoint (taken mid-tile: tiles
 # partly done start over on a rank) resumes under render-mpi -np 2 to the same bytes.
