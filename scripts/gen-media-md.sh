@@ -64,7 +64,9 @@ $(table cornell_fog)
 Photon mapping's best corrected RMSE, $(printf '%.5f' "$(sm cornell_fog pm_best_rmse)") at $(sm cornell_fog pm_best_spp) spp in $(printf '%.1f' "$(sm cornell_fog pm_best_cpu)") CPU-s, takes path
 tracing $(printf '%.0f' "$(sm cornell_fog pt_spp_for_equal_error)") spp by the fit, $(printf '%.1f' "$(sm cornell_fog pt_cpu_for_equal_error)") CPU-s at its measured $(printf '%.4f' "$(sm cornell_fog pt_cpu_per_spp)") CPU-s per sample:
 **$(printf '%.2f' "$(sm cornell_fog ratio)")x** the time of photon mapping. (Thin fog is where path tracing's next-event estimation
-works well: every point of the fog sees the lamp directly.)
+works well: every point of the fog sees the lamp directly. Since a842257 both methods add
+equiangular light samples along each segment in the fog (\`render/direct.h\`), so fog just under
+the lamp no longer gives fireflies; path tracing's samples cost about twice as much as before.)
 $(awk '$1 == "pm_cheapest_as_good_spp" && $2 > 0 { f = 1 } END { exit !f }' "$res/summary_cornell_fog.txt" &&
   echo "Measured without the fit: the longest path-traced run ($(sm cornell_fog pt_longest_spp) spp, $(printf '%.1f' "$(sm cornell_fog pt_longest_cpu)") CPU-s, RMSE $(printf '%.5f' "$(sm cornell_fog pt_longest_rmse)")) against the cheapest photon-mapping run at least as good ($(sm cornell_fog pm_cheapest_as_good_spp) spp, $(printf '%.1f' "$(sm cornell_fog pm_cheapest_as_good_cpu)") CPU-s): $(printf '%.2f' "$(sm cornell_fog measured_ratio_at_least)")x." ||
   echo "Measured without the fit: no photon-mapping run reached the longest path-traced run's RMSE ($(printf '%.5f' "$(sm cornell_fog pt_longest_rmse)"), $(sm cornell_fog pt_longest_spp) spp, $(printf '%.1f' "$(sm cornell_fog pt_longest_cpu)") CPU-s).")
@@ -99,7 +101,7 @@ if [ -f "$res/cost.csv" ]; then
 ## Cost: scenes without media
 
 Measured by \`scripts/media-cost.sh\` on $(cm date), $(cm machine), load average $(cm load): the renderer
-before and after the photon mapper learnt media, both built the same way, alternating run by
+before and after a change to the media code (named below), both built the same way, alternating run by
 run on one thread, 32x32 pixels; CPU time (user + system), median of the runs. Before: $(cm before).
 After: $(cm after). RMSE between their path-traced images: $(cm path_rmse_between_binaries).
 $(cm note)
