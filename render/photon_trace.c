@@ -30,12 +30,21 @@ typedef struct fphoton {
     uint64_t index; /* emitted photon it came from: the merge key */
     float pos[3], power[3], dir[3], normal[3];
     int kind;
+    float rel; /* p(l, u) / p_l of its emission under the pass's importance table (1: none) */
 } fphoton;
 
 typedef struct fbuf {
     fphoton *v;
     size_t n, cap;
 } fbuf;
+
+/* A pilot's global-pass photons, kept for the real pass (PILOT PHOTONS in photon_trace.h). */
+struct pilot_photons {
+    fbuf g, s;                /* its global and shadow stores, in photon order */
+    uint64_t emitted;         /* photons it emitted */
+    int max_depth, max_bounces, global, shadow; /* the rules it was traced by */
+    const importance *imp;    /* the table its rel were computed under (NULL: none) */
+};
 
 static int fbuf_push(fbuf *b, const fphoton *p) {
     if (b->n == b->cap) {
@@ -87,23 +96,29 @@ typedef struct pass_ctx {
     rgb *light_scale; /* per light: power / p_light (times the projection fraction) */
     projmap *proj;    /* caustic pass: one per light */
     const importance *imp; /* global pass: importance-driven emission (importance.h), or NULL */
+    int imp_rel_only;      /* a pilot: emit by power, and only record rel under imp */
+    const fbuf *tail;      /* pilot stores that follow the pass's own in the main map, or NULL */
     double shift[6];
 } pass_ctx;
 
+/* The photon's light, origin, normal, direction, and power before the pass's division (the
+ * per-photon denominator is applied at packing, see pack); *rel its p(l, u) / p_l. */
 static void emit_photon(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *p, vec3 *n, vec3 *d,
-                        rgb *power) {
+                        rgb *power, double *rel) {
     double u0 = sample_halton(i, 0, c->shift);
     double pl;
     double u[4] = {sample_halton(i, 1, c->shift), sample_halton(i, 2, c->shift), sample_halton(i, 3, c->shift),
                    sample_halton(i, 4, c->shift)};
-    if (c->imp) { /* the defensive mixture of importance.h; the power divided by p / p_l */
-        double h[4] = {u[0], u[1], u[2], u[3]}, rel;
-        *li = importance_sample(c->imp, c->s, u0, h, u, &rel);
+    *rel = 1;
+    if (c->imp && !c->imp_rel_only) { /* the defensive mixture of importance.h */
+        double h[4] = {u[0], u[1], u[2], u[3]};
+        *li = importance_sample(c->imp, c->s, u0, h, u, rel);
         light_sample_le(c->s, *li, u, p, n, d);
-        *power = v3_scale(c->light_scale[*li], 1.0 / rel);
+        *power = c->light_scale[*li];
         return;
     }
     *li = distrib1d_sample(&c->choose, u0, &pl);
+    if (c->imp) *rel = importance_rel(c->imp, c->s, *li, u); /* a pilot whose photons join */
     const light *l = &c->s->lights[*li];
     if (c->caustic_pass && c->proj) {
         projmap_sample(&c->proj[*li], l, sample_halton(i, 5, c->shift), g, u);
@@ -112,8 +127,9 @@ static void emit_photon(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *p,
     *power = c->light_scale[*li];
 }
 
-static void make_fp(fphoton *f, uint64_t idx, vec3 p, rgb power, vec3 d, vec3 n, int kind) {
+static void make_fp(fphoton *f, uint64_t idx, vec3 p, rgb power, vec3 d, vec3 n, int kind, double rel) {
     f->index = idx;
+    f->rel = (float)rel;
     f->pos[0] = (float)p.x, f->pos[1] = (float)p.y, f->pos[2] = (float)p.z;
     f->power[0] = (float)power.x, f->power[1] = (float)power.y, f->power[2] = (float)power.z;
     f->dir[0] = (float)d.x, f->dir[1] = (float)d.y, f->dir[2] = (float)d.z;
@@ -146,7 +162,8 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
     int li;
     vec3 p, n, d;
     rgb P;
-    emit_photon(c, i, &g, &li, &p, &n, &d, &P);
+    double rel;
+    emit_photon(c, i, &g, &li, &p, &n, &d, &P, &rel);
     trace_pilot *pl = c->o->pilot;
     if (pl) {
 #ifdef _OPENMP
@@ -188,13 +205,13 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
             if (c->caustic_pass) {
                 if (depth > 0 && all_specular) {
                     if (pl) pilot_count(&pl->caustic, first_spec_mat);
-                    make_fp(&fp, i, h.p, Ps, d, ns, PM_KIND_CAUSTIC);
+                    make_fp(&fp, i, h.p, Ps, d, ns, PM_KIND_CAUSTIC, rel);
                     if (fbuf_push(gb, &fp) < 0) return PM_ENOMEM;
                 }
             } else {
                 int kind = depth == 0 ? PM_KIND_DIRECT : PM_KIND_INDIRECT;
                 if (pl && !all_specular) pilot_count(&pl->diffuse_bounce, diffuse_mat);
-                make_fp(&fp, i, h.p, Ps, d, ns, kind);
+                make_fp(&fp, i, h.p, Ps, d, ns, kind, rel);
                 if (c->want_global && fbuf_push(gb, &fp) < 0) return PM_ENOMEM;
                 if (c->want_shadow && from_area && depth == 0 && fbuf_push(sb, &fp) < 0)
                     return PM_ENOMEM;
@@ -211,7 +228,7 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
                 if (!material_is_diffuse(m2)) continue;
                 vec3 ns2 = v3_dot(wo, h2.ng) >= 0 ? h2.ng : v3_neg(h2.ng);
                 if (pl && !counted++) pilot_count(&pl->occluder, h.mat);
-                make_fp(&fp, i, h2.p, v3s(0), d, ns2, PM_KIND_SHADOW);
+                make_fp(&fp, i, h2.p, v3s(0), d, ns2, PM_KIND_SHADOW, rel);
                 if (fbuf_push(sb, &fp) < 0) return PM_ENOMEM;
             }
         }
@@ -429,13 +446,17 @@ static int dist_batch(const pass_ctx *c, round_buf *rb, uint64_t n_e, fbuf *tg, 
 
 /* ---- passes ------------------------------------------------------------------------------- */
 
-static int pack(const fbuf *b, double scale, pm_photon **out, size_t *n) {
+/* Pack b's photons with power / (np + nm rel): photons from two emissions joined by the
+ * balance heuristic (Veach), np of them emitted by power (rel is their p / p_l under the
+ * other's table) and nm by the pass (rel: its own p / p_l). np = 0 and rel = 1: power / nm. */
+static int pack(const fbuf *b, double np, double nm, pm_photon **out, size_t *n) {
     *n = b->n;
     /* Zeroed: pm_photon_set keeps a record's kd-tree bits, which must start at 0. */
     *out = calloc(b->n ? b->n : 1, sizeof **out);
     if (!*out) return PM_ENOMEM;
     for (size_t k = 0; k < b->n; k++) {
         const fphoton *f = &b->v[k];
+        double scale = 1.0 / (np + nm * (double)f->rel);
         float pw[3] = {(float)(f->power[0] * scale), (float)(f->power[1] * scale),
                        (float)(f->power[2] * scale)};
         pm_photon_init(&(*out)[k], f->pos, pw, f->dir, f->normal, f->kind);
@@ -515,8 +536,10 @@ static int part_finish(const pass_ctx *c, batch_count *bc, size_t nb, long targe
         free(m.v);
         free(sh.v);
     }
-    uint64_t n = vm->n, lo = n * (uint64_t)d->part / (uint64_t)d->nparts,
-             hi = n * (uint64_t)(d->part + 1) / (uint64_t)d->nparts, at = 0;
+    /* The whole map is the pass's n stores, then the joining pilot's (c->tail, PILOT PHOTONS in
+     * photon_trace.h), as one process orders them. */
+    uint64_t n = vm->n, nall = n + (c->tail ? c->tail->n : 0), lo = nall * (uint64_t)d->part / (uint64_t)d->nparts,
+             hi = nall * (uint64_t)(d->part + 1) / (uint64_t)d->nparts, at = 0;
     for (size_t b = 0; b < ncut && !fail && at < hi; at += bc[b++].nmain) {
         if (at + bc[b].nmain <= lo || bc[b].nmain == 0) continue;
         fbuf m = {0};
@@ -527,6 +550,7 @@ static int part_finish(const pass_ctx *c, batch_count *bc, size_t nb, long targe
         for (uint64_t i = i0; !fail && i < i1; i++) fail = fbuf_push(out, &m.v[i]) < 0;
         free(m.v);
     }
+    for (uint64_t i = lo > n ? lo : n; !fail && i < hi; i++) fail = fbuf_push(out, &c->tail->v[i - n]) < 0;
     uint64_t f = (uint64_t)fail, *all = NULL;
     size_t *sizes = calloc((size_t)d->nparts, sizeof *sizes);
     if (!sizes || d->allgather(d->user, &f, sizeof f, (void **)&all, sizes) < 0) fail = 1;
@@ -737,6 +761,20 @@ static int part_whole(const trace_opts *o, photon_maps *m, const size_t wg[2], c
     return rc;
 }
 
+/* Append the kept pilot photons of from to b (after the pass's own, which were cut already). */
+static int join(fbuf *b, const fbuf *from) {
+    for (size_t k = 0; k < from->n; k++)
+        if (fbuf_push(b, &from->v[k]) < 0) return PM_ENOMEM;
+    return 0;
+}
+
+void pilot_photons_free(pilot_photons *k) {
+    if (!k) return;
+    free(k->g.v);
+    free(k->s.v);
+    free(k);
+}
+
 int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err, size_t errcap) {
     memset(m, 0, sizeof *m);
     if (errcap) err[0] = 0;
@@ -750,8 +788,19 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
     int st_imp_paths = stats_register("Photons/Importance: camera paths");
     int st_imp_unocc = stats_register("Photons/Importance: light connections carrying light");
     int st_imp_cells = stats_register("Photons/Importance: emission cells with importance (finest level)");
+    int st_reused = stats_register("Photons/Pilot photons reused in the global maps (emitted)");
     int nl = s->nlights;
     if (nl == 0 || s->light_distrib.n == 0) return 0;
+    /* The plan's pilot photons join this pass's maps when they were traced by the same rules
+     * (PILOT PHOTONS in photon_trace.h). */
+    const pilot_photons *rk = o->reuse;
+    if (rk && (o->pilot || rk->max_depth != o->max_depth ||
+               rk->max_bounces != o->max_bounces || rk->imp != o->importance || (o->global && !rk->global) ||
+               (o->shadow && !rk->shadow)))
+        rk = NULL;
+    /* A pilot that stored half the target or more does not join (a lossless furnace stores
+     * hundreds of records per photon): the pass keeps its stored-count bound. */
+    if (rk && 2 * (double)(o->global ? rk->g.n : rk->s.n) > (double)o->global_target) rk = NULL;
     int rc = 0;
     rgb *scale = calloc((size_t)nl, sizeof *scale);
     double *w = calloc((size_t)nl, sizeof *w);
@@ -780,14 +829,25 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
         shifts(c.shift, o->seed, 1);
         /* Importance-driven emission (importance.h): the plan's table of where the camera
          * sees light; the pass emits toward it, its photons' powers divided by the steering. */
+        if (o->importance && o->importance->on && o->pilot) { /* photons that may join: rel */
+            c.imp = o->importance;
+            c.imp_rel_only = 1;
+        }
         if (o->importance && o->importance->on && !o->pilot) {
             c.imp = o->importance;
             stat_add(st_imp_paths, (uint64_t)c.imp->paths);
             stat_add(st_imp_unocc, c.imp->contributing);
             stat_add(st_imp_cells, c.imp->lv[0].ncells);
         }
-        /* With the global map off, the shadow map's count is the target. */
-        rc = run_pass(&c, o->global_target, o->global ? &gbuf : &sbuf, o->global ? &sbuf : NULL,
+        /* With the global map off, the shadow map's count is the target. The pilot's stores,
+         * when they join, count toward it. */
+        long target = o->global_target;
+        c.tail = rk ? (o->global ? &rk->g : &rk->s) : NULL;
+        if (rk) {
+            size_t have = o->global ? rk->g.n : rk->s.n;
+            target = (long)have < target ? target - (long)have : 1;
+        }
+        rc = run_pass(&c, target, o->global ? &gbuf : &sbuf, o->global ? &sbuf : NULL,
                       &m->global_emitted, NULL, &m->global_runaway,
                       o->global ? "Tracing global photons" : "Tracing shadow photons", err, errcap,
                       wg);
@@ -839,12 +899,40 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
     }
 
     if (rc == 0 && m->global_emitted) {
-        double inv = 1.0 / (double)m->global_emitted;
-        if (o->global) rc = pack(&gbuf, inv, &m->global, &m->nglobal);
-        if (rc == 0 && o->shadow) rc = pack(&sbuf, inv, &m->shadow, &m->nshadow);
+        double nm = (double)m->global_emitted, np = 0;
+        if (rk) { /* the pilot's photons join the maps (PILOT PHOTONS in photon_trace.h); a
+                   * partitioned pass's part has its share already (part_finish) */
+            int part = g_dist && g_dist->partitioned;
+            if (!part) rc = join(o->global ? &gbuf : &sbuf, o->global ? &rk->g : &rk->s);
+            if (rc == 0 && !part && o->global && o->shadow) rc = join(&sbuf, &rk->s);
+            if (part) {
+                wg[0] += o->global ? rk->g.n : rk->s.n;
+                if (o->global) wg[1] += rk->s.n;
+            }
+            np = (double)rk->emitted;
+            m->global_emitted += rk->emitted;
+            stat_add(st_reused, rk->emitted);
+        }
+        if (rc == 0 && o->global) rc = pack(&gbuf, np, nm, &m->global, &m->nglobal);
+        if (rc == 0 && o->shadow) rc = pack(&sbuf, np, nm, &m->shadow, &m->nshadow);
+    }
+    if (rc == 0 && o->pilot && o->pilot->keep && m->global_emitted) { /* kept for the real pass */
+        pilot_photons *k = calloc(1, sizeof *k);
+        if (k) {
+            k->g = gbuf;
+            k->s = sbuf;
+            gbuf.v = sbuf.v = NULL;
+            k->emitted = m->global_emitted;
+            k->max_depth = o->max_depth;
+            k->max_bounces = o->max_bounces;
+            k->imp = o->importance;
+            k->global = o->global;
+            k->shadow = o->shadow;
+            o->pilot->kept = k;
+        }
     }
     if (rc == 0 && m->caustic_emitted)
-        rc = pack(&cbuf, 1.0 / (double)m->caustic_emitted, &m->caustic, &m->ncaustic);
+        rc = pack(&cbuf, 0, (double)m->caustic_emitted, &m->caustic, &m->ncaustic);
     if (rc == 0 && g_dist && g_dist->partitioned && !o->pilot) rc = part_whole(o, m, wg, wc);
     if (rc < 0 && !err[0]) snprintf(err, errcap, "%s", pm_strerror(rc));
     if (!o->pilot) stat_add(st_glob, m->part ? m->whole_global : m->nglobal);

@@ -14,6 +14,17 @@
  * level and cell of the table, dimensions 1-4 the point in the light's u-space or in the cell,
  * and its power is the uniform photon's divided by rel = p(l, u) / p_l.
  *
+ * PILOT PHOTONS. A pilot pass (plan.c: emission by power, its own streams) may keep its
+ * global-pass photons (trace_pilot.keep), with each photon's rel under the importance table
+ * the real pass will use; the real pass then joins them (trace_opts.reuse) when they were
+ * traced by its rules (the same max_depth, max_bounces, importance table, and the maps it
+ * builds) and stored less than half its target, counting their stores toward the target. The two emissions are combined by the
+ * balance heuristic: with n_p pilot photons (density p_l) and n_m of the pass's (density
+ * rel p_l), every photon's power is P_l / p_l / (n_p + n_m rel), which is unbiased and for
+ * rel = 1 the plain P_l / p_l / (n_p + n_m). The whole map is the pass's stores followed by
+ * the pilot's; a partitioned distributed pass keeps each process's part of that order, so
+ * its parts are those of the one-process maps. global_emitted counts both.
+ *
  * CAUSTIC PROJECTION MAP. The caustic pass emits only into the active cells of each light's
  * projection map (projmap.h), chooses a light in proportion to P_light * f_light with f_light
  * its fraction of active cells, and scales each photon's power by that fraction (Jensen's
@@ -96,6 +107,10 @@ extern "C" {
 /* A pass that stores nothing in this many batches stops with PM_EEMPTY. */
 #define PASS_EMPTY_BATCHES 16
 
+/* A pilot's photons kept for the real global pass (PILOT PHOTONS above); opaque. */
+typedef struct pilot_photons pilot_photons;
+void pilot_photons_free(pilot_photons *k);
+
 /* A pilot pass's evidence (plan.c): counts of pilot photons, in total and by the material
  * named (its index; PILOT_MAX_MATS - 1 collects any beyond). */
 #define PILOT_MAX_MATS 64
@@ -109,6 +124,8 @@ typedef struct trace_pilot {
     pilot_counts diffuse_bounce; /* stores after a diffuse bounce, by that bounce's surface */
     pilot_counts occluder;       /* photons from area lights that reach a diffuse surface behind
                                     their first hit (a shadow photon), by the first hit */
+    int keep;             /* 1: keep the global pass's photons in kept (the caller frees it) */
+    pilot_photons *kept;
 } trace_pilot;
 
 typedef struct trace_opts {
@@ -122,6 +139,7 @@ typedef struct trace_opts {
     /* The global pass (and its shadow photons) emits by this table (importance.h; the plan
      * builds it) when non-NULL and on; NULL: by power alone. Not used by a pilot. */
     const struct importance *importance;
+    const pilot_photons *reuse; /* the plan's pilot photons to join the global maps, or NULL */
     int max_depth;
     uint64_t seed;
     int threads; /* 0: OpenMP's default */

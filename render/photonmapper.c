@@ -619,6 +619,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         o.projection = st->cfg.projection;
         o.projection_cells = st->cfg.projection_cells;
         o.importance = st->plan.imp; /* importance-driven emission, when the plan chose it */
+        o.reuse = st->plan.pilot;     /* the plan's pilot photons join the global maps */
         o.quiet = !st->cfg.progress;
         if ((rc = photon_trace(s, &o, m, err, errcap)) < 0) return rc;
         m->stamp = stamp;

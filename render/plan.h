@@ -22,9 +22,10 @@
  *                 medium (pilot photons that scatter in a medium after specular bounces only,
  *                 L S+ V, counted by the first specular surface).
  *   photon emission  the global pass (and its shadow photons) emits toward what the camera
- *                 sees (importance.h) when importance_paths > 0 and the camera paths' light
- *                 connections cover at least IMP_MIN_COVERAGE of the lights' power; else by
- *                 power alone. The line gives the camera paths, the connections that carry
+ *                 sees (importance.h) when importance_paths > 0, the map is read through a
+ *                 final gather (shown directly, in preview mode, it keeps photons of even
+ *                 power) and the camera paths' light connections cover at least
+ *                 IMP_MIN_COVERAGE of the lights' power; else by power alone. The line gives the camera paths, the connections that carry
  *                 light, the cells and the coverage. photon_trace builds the same table from
  *                 the same streams, so the pass does what the line says.
  * In a scene with media (or null surfaces) every decision comes from volume.h's pilot (the
@@ -46,6 +47,7 @@
 
 #include "json.h"
 #include "photon_settings.h"
+#include "photon_trace.h"
 #include "scene.h"
 
 #ifdef __cplusplus
@@ -61,10 +63,12 @@ typedef struct render_plan {
     plan_item caustics, global, shadow, final_gather, volume, volume_caustics;
     plan_item emission; /* on: importance-driven emission of the global pass (importance.h) */
     struct importance *imp; /* emission on: the table for trace_opts.importance (owned) */
+    pilot_photons *pilot;   /* the global pilot's photons for trace_opts.reuse (owned), or NULL */
 } render_plan;
 
 /* Decide the plan for scene s under config c; preview = 1 turns final gathering off. The
- * plan may hold the importance table (imp): plan_free frees it. */
+ * plan may hold the importance table (imp) and the pilot's photons (pilot): plan_free frees
+ * them. */
 void plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p);
 void plan_free(render_plan *p);
 /* "caustics: off (no specular surface reachable from a light)" and so on, one per line. */

@@ -217,9 +217,12 @@ TEST(render_pm_plan_shipped_scenes) {
                                   (p.imp->lv[0].ncells + 1) * sizeof(double)) == 0,
                        "%s: the importance table changed between two calls", name);
         struct importance *keep[3] = {p.imp, p2.imp, pv.imp};
+        pilot_photons *kp[3] = {p.pilot, p2.pilot, pv.pilot};
         p.imp = p2.imp = pv.imp = NULL;
+        p.pilot = p2.pilot = pv.pilot = NULL;
         EXPECT_MSG(memcmp(&p, &p2, sizeof p) == 0, "%s: the plan changed between two calls", name);
         p.imp = keep[0], p2.imp = keep[1], pv.imp = keep[2];
+        p.pilot = kp[0], p2.pilot = kp[1], pv.pilot = kp[2];
         plan_free(&p);
         plan_free(&p2);
         plan_free(&pv);
@@ -539,10 +542,103 @@ TEST(render_pm_importance_inverts_emission) {
     scene_free(&s);
 }
 
+/* Sum of the three channels' power over n photons. */
+static void map_power(const pm_photon *ph, size_t n, double tot[3]) {
+    tot[0] = tot[1] = tot[2] = 0;
+    for (size_t i = 0; i < n; i++) {
+        float pw[3];
+        pm_rgbe_decode(ph[i].power, pw);
+        for (int c = 0; c < 3; c++) tot[c] += pw[c];
+    }
+}
+
+/* Oracle: energy conservation, exactly as in render_pm_energy_closed_box (a point light of
+ * power Phi in a closed box of albedo rho, max_depth 3: the stored power of channel c is
+ * Phi (1 - rho_c^4) / (1 - rho_c) in expectation), now for maps that the plan's pilot photons
+ * join (photon_trace.h, PILOT PHOTONS): their stores count toward the target, both emissions
+ * count as emitted, and the total stays within 1% (the estimate's standard error there is
+ * about 0.1%). Then cornell_spheres with importance-driven emission (rel != 1: the balance
+ * heuristic's denominators differ per photon): the global map's total power with the pilot's
+ * photons joined equals, within 2%, that of a pass of the same target without them, and the
+ * two emissions are both counted. */
+TEST(render_pm_pilot_photons_join) {
+    const double rho[3] = {0.5, 0.45, 0.4}, Phi = 100;
+    char txt[4096];
+    snprintf(txt, sizeof txt,
+             "{" CAM8 ", \"materials\": {\"wall\": {\"type\": \"lambert\", \"reflectance\": [%g, %g, %g]}},"
+             "\"objects\": [" CUBE_MESH("1", "wall") "],"
+             "\"lights\": [{\"type\": \"point\", \"position\": [0.2,-0.1,0.3], \"power\": %g}],"
+             "\"render\": {\"max_depth\": 3, \"seed\": 5}}",
+             rho[0], rho[1], rho[2], Phi);
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
+    photon_settings c;
+    ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
+    render_plan p;
+    plan_make(&s, &c, 0, &p);
+    ASSERT_MSG(p.global.on && p.pilot != NULL && p.imp == NULL, "global %d, pilot %p, table %p (%s)", p.global.on,
+               (void *)p.pilot, (void *)p.imp, p.emission.reason);
+    trace_opts o;
+    trace_opts_init(&o, &s);
+    o.global = 1;
+    o.global_target = 100000;
+    o.quiet = 1;
+    o.reuse = p.pilot;
+    photon_maps m;
+    char err[256];
+    ASSERT_MSG(photon_trace(&s, &o, &m, err, sizeof err) == 0, "%s", err);
+    double tot[3];
+    map_power(m.global, m.nglobal, tot);
+    EXPECT_MSG((long)m.nglobal >= o.global_target && (long)m.nglobal < o.global_target + 8,
+               "%zu photons stored for a target of %ld", m.nglobal, o.global_target);
+    long ndirect = 0;
+    for (size_t i = 0; i < m.nglobal; i++) ndirect += pm_photon_kind(&m.global[i]) == PM_KIND_DIRECT;
+    EXPECT_EQ_INT(ndirect, (long)m.global_emitted); /* every emitted photon, pilot's too, is stored once direct */
+    for (int ch = 0; ch < 3; ch++) {
+        double want = Phi * (1 - pow(rho[ch], 4)) / (1 - rho[ch]);
+        printf("    closed box, channel %d: stored %.4f, expected %.4f (%+.3f%%)\n", ch, tot[ch], want,
+               100 * (tot[ch] / want - 1));
+        EXPECT_MSG(fabs(tot[ch] / want - 1) < 0.01, "channel %d: %g vs %g", ch, tot[ch], want);
+    }
+    photon_maps_free(&m);
+    plan_free(&p);
+    scene_free(&s);
+
+    ASSERT_MSG(load_shipped(&s, "cornell_spheres", &e) == 0, "%s", e.msg);
+    ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
+    plan_make(&s, &c, 0, &p);
+    ASSERT_MSG(p.imp != NULL && p.pilot != NULL, "table %p, pilot %p", (void *)p.imp, (void *)p.pilot);
+    double t2[3];
+    photon_maps m2;
+    trace_opts_init(&o, &s);
+    o.global = o.shadow = 1;
+    o.global_target = 100000;
+    o.quiet = 1;
+    o.importance = p.imp;
+    ASSERT_MSG(photon_trace(&s, &o, &m2, err, sizeof err) == 0, "%s", err);
+    o.reuse = p.pilot;
+    ASSERT_MSG(photon_trace(&s, &o, &m, err, sizeof err) == 0, "%s", err);
+    map_power(m.global, m.nglobal, tot);
+    map_power(m2.global, m2.nglobal, t2);
+    EXPECT_MSG(m.global_emitted > m2.global_emitted - 8192 && m.nshadow > 0, "emitted %llu and %llu",
+               (unsigned long long)m.global_emitted, (unsigned long long)m2.global_emitted);
+    for (int ch = 0; ch < 3; ch++) {
+        printf("    cornell_spheres, channel %d: with the pilot's photons %.5g, without %.5g (%+.3f%%)\n", ch, tot[ch],
+               t2[ch], 100 * (tot[ch] / t2[ch] - 1));
+        EXPECT_MSG(fabs(tot[ch] / t2[ch] - 1) < 0.02, "channel %d: %g vs %g", ch, tot[ch], t2[ch]);
+    }
+    photon_maps_free(&m);
+    photon_maps_free(&m2);
+    plan_free(&p);
+    scene_free(&s);
+}
+
 /* Oracle: what each scene's camera sees. shelf_glass and cornell_spheres see most of what
  * their lamps light: importance-driven emission, its line naming the coverage. pinhole_room
  * sees only light through a 10 x 10 hole (a few percent of the lamp's emission: by power,
- * importance.h LIMITS); importance_paths = 0 turns it off; a scene with media never uses it.
+ * importance.h LIMITS); importance_paths = 0 turns it off, and so does a global map shown
+ * directly (no final gather); a scene with media never uses it.
  * The table the plan keeps is the one it describes (coverage and on). */
 TEST(render_pm_plan_emission) {
     const struct {
@@ -553,6 +649,7 @@ TEST(render_pm_plan_emission) {
                  {"cornell_spheres", NULL, 1, "of the lights' power"},
                  {"pinhole_room", NULL, 0, "below the 10% emission can steer by"},
                  {"shelf_glass", "importance_paths=0", 0, "importance_paths is 0"},
+                 {"shelf_glass", "final_gather=false", 0, "shown directly"},
                  {"cornell_fog", NULL, 0, "a scene with media"}};
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
         scene s;
@@ -967,20 +1064,30 @@ TEST(render_pm_save_load_round_trip) {
     ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
     EXPECT_MSG(strstr(out, "Saved photon maps to"), "%s", out);
 
-    /* The maps render traced (render_tiny's flags: 4000 global, 2000 caustic photons). */
+    /* The maps render traced (render_tiny's flags: 16 x 16, 4000 global, 2000 caustic
+     * photons), with its plan's importance table and pilot photons. */
     scene s;
     json_err e;
     ASSERT_MSG(load_shipped(&s, "cornell_spheres", &e) == 0, "%s", e.msg);
+    ASSERT_EQ_INT(camera_resize(&s.cam, 16, 16), 0);
+    s.settings.seed = 7;
+    photon_settings cfg;
+    ASSERT_MSG(photon_settings_parse(&cfg, s.photon_mapping, &e) == 0, "%s", e.msg);
+    render_plan plan;
+    plan_make(&s, &cfg, 0, &plan);
+    ASSERT_MSG(plan.imp && plan.pilot, "table %p, pilot photons %p", (void *)plan.imp, (void *)plan.pilot);
     trace_opts o;
     trace_opts_init(&o, &s);
     o.global = o.caustic = o.shadow = 1;
     o.global_target = 4000;
     o.caustic_target = 2000;
-    o.seed = 7;
     o.quiet = 1;
+    o.importance = plan.imp;
+    o.reuse = plan.pilot;
     photon_maps m;
     char err[256];
     ASSERT_MSG(photon_trace(&s, &o, &m, err, sizeof err) == 0, "%s", err);
+    plan_free(&plan);
     scene_free(&s);
     char want[512];
     snprintf(want, sizeof want,
