@@ -48,7 +48,12 @@ void map_stamp_make(const scene *s, const photon_settings *cfg, int global_on, i
     h = hash_int(h, cfg->max_memory_mb);
     h = hash_int(h, cfg->max_bounces);
     /* The shadow map is stored by the global pass, whose target is global_photons. */
-    if (global_on || shadow_on) h = hash_int(h, cfg->global_photons);
+    if (global_on || shadow_on) {
+        h = hash_int(h, cfg->global_photons);
+        /* Importance-driven emission (importance.h) changes which photons the global pass
+         * stores and their powers; see IMPORTANCE in photon_maps.h for what is left out. */
+        h = hash_double(hash_int(h, cfg->importance_paths), cfg->importance_defensive);
+    }
     if (caustic_on)
         h = hash_int(hash_int(hash_int(h, cfg->caustic_photons), cfg->projection),
                      cfg->projection_cells);

@@ -28,6 +28,12 @@
  * count (the maps do not depend on it), and everything the camera pass alone reads (image
  * size, samples, k_*, radii, filter, gather settings, volume_step, volume_boundary, tone).
  *
+ * IMPORTANCE. The global pass's importance-driven emission (importance.h) is steered by
+ * importance_paths and importance_defensive, which are stamped, and by the camera, the image
+ * size, the seed and final_gather (without it the plan emits by power), which are not: like
+ * the seed, they pick another sample whose expected power everywhere is the same (each photon's power is divided by its emission probability), so
+ * maps traced for one view render another view without bias, only with other noise.
+ *
  * TRACER VERSION. PHOTON_TRACE_VERSION names what photon tracing means: which photons a pass
  * stores for given scene and settings, and with what power, position, direction and kind.
  * Bump it in the same commit as any change to render/photon_trace.c, render/volume.c,
@@ -78,7 +84,7 @@ extern "C" {
 
 /* The version of photon tracing in every map's stamp: see TRACER VERSION above for when to
  * bump it. */
-#define PHOTON_TRACE_VERSION 1
+#define PHOTON_TRACE_VERSION 2 /* 2: importance-driven emission and the plan's pilot photons joined (global pass) */
 
 /* A map set's stamp: scene_transport_hash and the tracer version + settings hash
  * (map_stamp_make). */

@@ -155,15 +155,16 @@ TEST(render_maps_other_scene_is_refused_unless_forced) {
     EXPECT_MSG(rc == 0 && strstr(g_out, "used anyway"), "exit %d: %s", rc, g_out);
 }
 
-/* Settings that shape the photons (targets, budgets, projection, max_depth, the plan's
- * choice of maps) are refused; forced they load. */
+/* Settings that shape the photons (targets, budgets, projection, importance-driven emission,
+ * max_depth, the plan's choice of maps) are refused; forced they load. */
 TEST(render_maps_other_settings_are_refused) {
     save_maps();
     const char *shaping[] = {"--pm global_photons=3001", "--pm caustic_photons=1000",
                              "--pm max_bounces=7", "--pm max_emitted_factor=32",
                              "--pm max_memory_mb=512", "--pm max_emitted=1e9",
                              "--pm projection=false", "--pm projection_cells=32",
-                             "--pm caustics=false", "--pm shadow=false"};
+                             "--pm caustics=false", "--pm shadow=false",
+                             "--pm importance_paths=4096", "--pm importance_defensive=0.5"};
     for (size_t i = 0; i < sizeof shaping / sizeof *shaping; i++) {
         char args[512];
         snprintf(args, sizeof args, "--load-photons maps %s", shaping[i]);
@@ -414,6 +415,11 @@ TEST(render_map_stamp_covers_what_it_says) {
     DIFFERS(c.max_bounces--);
     DIFFERS(c.projection = 0);
     DIFFERS(c.projection_cells = 32);
+    DIFFERS(c.importance_paths = 0);
+    DIFFERS(c.importance_defensive = 0.5);
+    /* photon_maps.h IMPORTANCE: the camera and the seed steer the emission, unstamped. */
+    SAME(s.cam.width = 7);
+    SAME(c.force_final_gather = PLAN_OFF);
     int depth = s.settings.max_depth;
     DIFFERS(s.settings.max_depth = depth + 1);
     s.settings.max_depth = depth;
