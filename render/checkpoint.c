@@ -239,6 +239,14 @@ out:
 static int g_writer = 1, g_retrace;
 static char g_extra[256];
 
+static char g_resume_cmd[128] = "render";
+
+void ckpt_set_resume_command(const char *cmd) {
+    snprintf(g_resume_cmd, sizeof g_resume_cmd, "%s", cmd ? cmd : "render");
+}
+
+const char *ckpt_resume_command(void) { return g_resume_cmd; }
+
 void ckpt_set_distributed(int writer, const char *extra, int retrace) {
     g_writer = writer != 0;
     snprintf(g_extra, sizeof g_extra, "%s", extra ? extra : "");

@@ -84,6 +84,13 @@ int ckpt_hash_file(const char *path, uint64_t max_bytes, uint64_t *h, char *err,
  * The default (never called) is one process: writer 1, "", retrace 0. */
 void ckpt_set_distributed(int writer, const char *extra, int retrace);
 
+/* The command that continues an interrupted render, for the message that names it: "render"
+ * by default (a replicated render-mpi checkpoint is render's, so render resumes it); a render
+ * whose checkpoint only the same distribution resumes sets its own (render-mpi partitioned:
+ * "mpirun -np R render-mpi"). The text is copied; NULL restores the default. */
+void ckpt_set_resume_command(const char *cmd);
+const char *ckpt_resume_command(void);
+
 /* ---- what main.c needs around a checkpointed render ---------------------------------------
  *
  * Settings text: "renderer VERSION; mode M; WxH; spp N; seed S; photon_mapping {json}" with

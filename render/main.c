@@ -420,8 +420,8 @@ int main(int argc, char **argv) {
         if (rc == 0 && out_pending_signal()) rc = ckpt_session_pause(&cs, &rstate, RENDER_PAUSE_SIGNAL);
         if (rc == 0 && out_pending_signal()) rc = RENDER_INTERRUPTED;
         if (rc == RENDER_INTERRUPTED)
-            fprintf(stderr, "render: interrupted; the render state is in %s (continue with: render "
-                    "%s --resume %s)\n", ckpt_path, scene_path, ckpt_path);
+            fprintf(stderr, "render: interrupted; the render state is in %s (continue with: %s "
+                    "%s --resume %s)\n", ckpt_path, ckpt_resume_command(), scene_path, ckpt_path);
         out_defer_end();
         out_die_if_pending();
     }

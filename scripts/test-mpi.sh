@@ -463,7 +463,8 @@ else
   bad "render checkpoint under render-mpi" "rc $rc; $(grep -h "render\|MPI: res" "$T/ckr.err" "$T/ckr.res.log" | tail -3)"
 fi
 # Partitioned maps: the image depends on the number of parts, so the checkpoint says it (its
-# settings text) and a resume at another -np is refused (exit 2, nothing written); at the
+# settings text), the interrupted job's message names "mpirun -np 2 render-mpi" as the way to
+# continue, and a resume at another -np is refused (exit 2, nothing written); at the
 # same -np, without repeating --pm distributed=partitioned, the maps are traced again and the
 # bytes equal the uninterrupted partitioned render's.
 CKPART="data/scenes/cornell_spheres.json --mode pm --width 64 --height 48 --spp 4 $PMSMALL"
@@ -480,6 +481,7 @@ $MPIRUN -np 2 "$M" data/scenes/cornell_spheres.json --resume "$T/ckpart.ck" --th
   >"$T/ckpart.res.log" 2>&1
 rc=$?
 if [ "$stop_ok" = 1 ] && [ $rc3 = 2 ] && grep -q "the checkpoint has other settings" "$T/ckpart.np3.log" \
+   && grep -q "(continue with: mpirun -np 2 render-mpi data/scenes/cornell_spheres.json --resume" "$T/ckpart.err" \
    && [ $rc = 0 ] && resumed_ok ckpart "$T/ckpart.res.log" "$T/ckpart.ref.pfm"; then
   ok "checkpoint, partitioned: resume at -np 3 refused (exit 2), at -np 2 the bytes of the uninterrupted partitioned render"
 else

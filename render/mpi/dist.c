@@ -383,6 +383,11 @@ void dist_init(int mode) {
     if (mode == DIST_PARTITIONED)
         snprintf(extra, sizeof extra, "; distributed partitioned over %d ranks", g_size);
     ckpt_set_distributed(g_rank == 0, extra, mode == DIST_PARTITIONED);
+    if (mode == DIST_PARTITIONED) { /* only the same number of ranks resumes it */
+        char cmd[64];
+        snprintf(cmd, sizeof cmd, "mpirun -np %d render-mpi", g_size);
+        ckpt_set_resume_command(cmd);
+    }
 }
 
 /* ---- pixel pass ----------------------------------------------------------------------- */
