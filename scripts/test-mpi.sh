@@ -504,8 +504,13 @@ fi
 # without the failing rank's own fallback (it stops the job itself only if rank 0 has not
 # within 30 s: a rank 0 that did not hear it), and leave no output. Cases: a worker's render
 # state (the error goes through render's own message), a worker's second chunk's result
-# buffer, rank 0's own message buffer, and the receive buffer of a later photon exchange of
-# rank 2 of 3 (where the other ranks wait in the exchange for it).
+# buffer, rank 0's own message buffer, the receive buffer of a later photon exchange of
+# rank 2 of 3 (where the other ranks wait in the exchange for it), and two allocations of the
+# partitioned precomputed-irradiance build (lookup.c, phase irradiance): rank 1 of 2's query
+# buffer after the counts' all-gather (rank 0 waits in the queries' all-gather), and rank 2 of
+# 3's records after the all-to-all (the error goes through render's own message; rank 0 waits
+# in the statistics' reduce). Before lookup.c waited in those collectives with dist_wait, rank
+# 0 did not hear these and the job ended after the failing rank's 30 s fallback.
 enomem_test() { # name np "RANK PHASE N" expected-text render-mpi-args...
   ename=$1; enp=$2; spec=$3; want=$4; shift 4
   set -- "$@" --threads 1 --hdr "$T/enomem.$ename/o.pfm" -o "$T/enomem.$ename/o.png"
@@ -534,6 +539,13 @@ enomem_test root 2 "0 pixels 6" "out of memory in the tile queue" $ENPATH
 # shellcheck disable=SC2086
 enomem_test photons 3 "2 photons 8" "out of memory in the photon exchange" \
   data/scenes/cornell_spheres.json --mode pm --width 32 --height 32 --spp 4 $PMSMALL
+ENPART="data/scenes/cornell_spheres.json --mode pm --width 32 --height 32 --spp 4 $PMSMALL"
+ENPART="$ENPART --pm distributed=partitioned"
+# shellcheck disable=SC2086
+enomem_test irradiance.gather 2 "1 irradiance 7" "out of memory precomputing irradiance" $ENPART
+# shellcheck disable=SC2086
+enomem_test irradiance.reduce 3 "2 irradiance 13" \
+  "precomputing irradiance (partitioned maps): out of memory" $ENPART
 # A rank killed (SIGKILL) in the middle of the pixel pass: the job ends with a non-zero
 # status, rank 0 says the job is being stopped, and no output (nor temporary) is left. Also
 # with partitioned maps, where the ranks wait on each other's lookup answers.

@@ -168,29 +168,36 @@ static void wait_listening(MPI_Request *r) {
         }
     }
 }
+void dist_wait(MPI_Request *r) { wait_listening(r); }
 
-/* Test hook: PM_RENDER_MPI_TEST_ENOMEM="RANK PHASE N" (PHASE: photons or pixels) makes the N-th
- * allocation that dist.c makes, or asks for, on that rank in that phase fail as if malloc
- * returned NULL. Photons: per exchange, the sizes, counts, offsets, then the receive buffer;
- * pixels: on a worker the render state, the counters' base, the tile list, then one result
- * buffer per chunk, and the counters; on rank 0 the queue's three arrays, then one buffer
- * per message received. */
-enum { PH_PHOTONS, PH_PIXELS };
+/* Test hook: PM_RENDER_MPI_TEST_ENOMEM="RANK PHASE N" (PHASE: photons, pixels or irradiance)
+ * makes the N-th allocation that dist.c makes, or asks for, on that rank in that phase fail as
+ * if malloc returned NULL. Photons: per exchange, the sizes, counts, offsets, then the receive
+ * buffer; pixels: on a worker the render state, the counters' base, the tile list, then one
+ * result buffer per chunk, and the counters; on rank 0 the queue's three arrays, then one
+ * buffer per message received; irradiance: the allocations of lookup.c's partitioned
+ * precomputed-irradiance build, in its order (dist_irr_malloc: lookup.c's hook_side_build). */
+enum { PH_PHOTONS, PH_PIXELS, PH_IRRADIANCE };
 static int test_enomem(int phase) {
     static int parsed, rank = -1, ph = -1;
-    static long nth, count[2];
+    static long nth, count[3];
     if (!parsed) {
         parsed = 1;
         const char *v = getenv("PM_RENDER_MPI_TEST_ENOMEM");
         char name[16];
         if (v && sscanf(v, "%d %15s %ld", &rank, name, &nth) == 3)
-            ph = strcmp(name, "photons") == 0 ? PH_PHOTONS : strcmp(name, "pixels") == 0 ? PH_PIXELS : -1;
+            ph = strcmp(name, "photons") == 0      ? PH_PHOTONS
+                 : strcmp(name, "pixels") == 0     ? PH_PIXELS
+                 : strcmp(name, "irradiance") == 0 ? PH_IRRADIANCE
+                                                   : -1;
     }
     if (rank != g_rank || ph != phase) return 0;
     return ++count[phase] == nth;
 }
 static void *dmalloc(size_t n, int phase) { return test_enomem(phase) ? NULL : malloc(n); }
 static void *dcalloc(size_t n, size_t m, int phase) { return test_enomem(phase) ? NULL : calloc(n, m); }
+void *dist_irr_malloc(size_t n) { return dmalloc(n, PH_IRRADIANCE); }
+void *dist_irr_calloc(size_t n, size_t m) { return dcalloc(n, m, PH_IRRADIANCE); }
 
 /* Rank 0, when mpirun stops the job (a rank died or the job was cancelled) or the user
  * interrupts: say so, then let main.c's handler (output.h: remove temporaries) end us. */

@@ -30,8 +30,9 @@
  * failing rank's message and every rank exits with the failing rank's status (2 for input
  * errors), nothing written. A rank failing later (an allocation in dist.c, or render_main's
  * own error, e.g. out of memory in the photon pass or the pixel pass) sends its message to
- * rank 0, which listens for it wherever it waits (the tile queue, the photon exchange, and
- * dist_poll_fail), prints "rank K of N failed (status S): what" and aborts the job
+ * rank 0, which listens for it wherever it waits (the tile queue, the photon exchange,
+ * dist_poll_fail, and dist_wait in the collectives of lookup.c's partitioned precomputed
+ * irradiance), prints "rank K of N failed (status S): what" and aborts the job
  * (MPI_Abort, non-zero exit) before anything is written; rank 0's own failures abort at
  * once. A rank that dies (killed, a lost node, the kernel's OOM killer) makes mpirun stop
  * the job; rank 0 then says so on stderr from its SIGTERM handler and, the output being
@@ -44,6 +45,8 @@
 #ifndef RENDER_MPI_DIST_H
 #define RENDER_MPI_DIST_H
 
+#include <mpi.h>
+#include <stddef.h>
 #include <stdint.h>
 
 #include "renderer.h"
@@ -70,6 +73,15 @@ void dist_die(const char *what);
  * hear a rank that failed and never joins it): if a rank sent its failure, say it and stop
  * the job; else return at once. Other ranks: returns at once. */
 void dist_poll_fail(void);
+/* Wait for a request (a nonblocking collective's: every rank must call the same collective,
+ * so all ranks use the nonblocking form and wait here). Rank 0 listens meanwhile as in
+ * dist_poll_fail, so a rank that failed and never joins the collective stops the job at once
+ * (not after the failing rank's own FAIL_GRACE, dist.c). Other ranks: MPI_Wait. */
+void dist_wait(MPI_Request *r);
+/* malloc / calloc for lookup.c's partitioned precomputed-irradiance build, which the test
+ * hook PM_RENDER_MPI_TEST_ENOMEM="RANK irradiance N" can make fail (dist.c). */
+void *dist_irr_malloc(size_t n);
+void *dist_irr_calloc(size_t n, size_t m);
 /* What render_main returned on this rank: finishes MPI and returns the exit status. */
 int dist_finish(int rc);
 /* The image loop of a distributed render (see above), called by main.c in place of

@@ -577,6 +577,15 @@ static int side_fail(side_cache *c, char *err, size_t errcap, const char *what) 
     return PM_ENOMEM;
 }
 
+/* The build's collectives, nonblocking on every rank (nonblocking and blocking collectives do
+ * not match each other) and waited for with dist_wait: rank 0 hears a rank that failed here
+ * (an allocation, its own error) instead of waiting for it in the collective. */
+static void ireduce(const unsigned long long *in, unsigned long long *out, MPI_Op op) {
+    MPI_Request req;
+    MPI_Ireduce(in, out, 1, MPI_UNSIGNED_LONG_LONG, op, 0, MPI_COMM_WORLD, &req);
+    dist_wait(&req);
+}
+
 static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_kdtree *global,
                            const pm_photon *ph, size_t n, unsigned k, float max_dist2, char *err,
                            size_t errcap) {
@@ -586,16 +595,17 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
     int M = L.size;
     uint64_t bytes = 0;
     /* This rank's chosen photons and every photon's free height (photon_sides.c's rules). */
-    float *hfree = malloc((n ? n : 1) * sizeof *hfree);
-    uint32_t *which = malloc((n ? n : 1) * sizeof *which);
+    float *hfree = dist_irr_malloc((n ? n : 1) * sizeof *hfree);
+    uint32_t *which = dist_irr_malloc((n ? n : 1) * sizeof *which);
     if (!hfree || !which) dist_die("out of memory precomputing irradiance");
     side_free_heights(s, ph, n, max_dist2, hfree);
     size_t m = 0;
     for (size_t i = 0; i < n; i++)
         if (pm_kdtree_height(global, (uint32_t)i) >= 2) which[m++] = (uint32_t)i;
-    lk_query *mine = malloc((m ? m : 1) * sizeof *mine);
-    int *cnt = malloc((size_t)M * sizeof *cnt), *dsp = malloc((size_t)M * sizeof *dsp);
-    int *cnt2 = malloc((size_t)M * sizeof *cnt2);
+    lk_query *mine = dist_irr_malloc((m ? m : 1) * sizeof *mine);
+    int *cnt = dist_irr_malloc((size_t)M * sizeof *cnt);
+    int *dsp = dist_irr_malloc((size_t)M * sizeof *dsp);
+    int *cnt2 = dist_irr_malloc((size_t)M * sizeof *cnt2);
     if (!mine || !cnt || !dsp || !cnt2) dist_die("out of memory precomputing irradiance");
     for (size_t j = 0; j < m; j++) {
         const pm_photon *p = &ph[which[j]];
@@ -607,21 +617,25 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
     }
     /* 1. Every rank's queries to every rank. */
     int mq = (int)m;
-    MPI_Allgather(&mq, 1, MPI_INT, cnt, 1, MPI_INT, MPI_COMM_WORLD);
+    MPI_Request req;
+    MPI_Iallgather(&mq, 1, MPI_INT, cnt, 1, MPI_INT, MPI_COMM_WORLD, &req);
+    dist_wait(&req);
     long long total = 0;
     for (int r = 0; r < M; r++) total += cnt[r];
     if (total * (long long)sizeof(lk_part) > INT32_MAX)
         dist_die("precomputed irradiance: the queries exceed 2 GiB (MPI's int counts)");
-    lk_query *all = malloc((size_t)(total ? total : 1) * sizeof *all);
-    lk_part *ans = malloc((size_t)(total ? total : 1) * sizeof *ans);
-    lk_part *back = malloc((m ? m : 1) * (size_t)M * sizeof *back);
+    lk_query *all = dist_irr_malloc((size_t)(total ? total : 1) * sizeof *all);
+    lk_part *ans = dist_irr_malloc((size_t)(total ? total : 1) * sizeof *ans);
+    lk_part *back = dist_irr_malloc((m ? m : 1) * (size_t)M * sizeof *back);
     if (!all || !ans || !back) dist_die("out of memory precomputing irradiance");
     for (int r = 0, off = 0; r < M; r++) {
         dsp[r] = off * (int)sizeof(lk_query);
         off += cnt[r];
         cnt2[r] = cnt[r] * (int)sizeof(lk_query);
     }
-    MPI_Allgatherv(mine, mq * (int)sizeof(lk_query), MPI_BYTE, all, cnt2, dsp, MPI_BYTE, MPI_COMM_WORLD);
+    MPI_Iallgatherv(mine, mq * (int)sizeof(lk_query), MPI_BYTE, all, cnt2, dsp, MPI_BYTE,
+                    MPI_COMM_WORLD, &req);
+    dist_wait(&req);
     bytes += (uint64_t)m * sizeof(lk_query) * (uint64_t)(M - 1);
     /* 2. This rank's parts of every query. */
     unsigned want = LK_WIDEN * per_map(k);
@@ -646,13 +660,15 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
         dsp[r] = off * (int)sizeof(lk_part);
         off += cnt[r];
     }
-    int *rc_ = malloc((size_t)M * sizeof *rc_), *rd = malloc((size_t)M * sizeof *rd);
+    int *rc_ = dist_irr_malloc((size_t)M * sizeof *rc_);
+    int *rd = dist_irr_malloc((size_t)M * sizeof *rd);
     if (!rc_ || !rd) dist_die("out of memory precomputing irradiance");
     for (int r = 0; r < M; r++) {
         rc_[r] = mq * (int)sizeof(lk_part);
         rd[r] = r * mq * (int)sizeof(lk_part);
     }
-    MPI_Alltoallv(ans, cnt2, dsp, MPI_BYTE, back, rc_, rd, MPI_BYTE, MPI_COMM_WORLD);
+    MPI_Ialltoallv(ans, cnt2, dsp, MPI_BYTE, back, rc_, rd, MPI_BYTE, MPI_COMM_WORLD, &req);
+    dist_wait(&req);
     bytes += (uint64_t)(total - mq) * sizeof(lk_part);
     free(ans);
     free(all);
@@ -661,7 +677,7 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
         pm_photon p;
         float r2, h;
     } side_rec;
-    side_rec *recs = calloc(m ? m : 1, sizeof *recs);
+    side_rec *recs = dist_irr_calloc(m ? m : 1, sizeof *recs);
     if (!recs) dist_die("out of memory precomputing irradiance");
     size_t walls = 0, sparse = 0;
 #ifdef _OPENMP
@@ -706,8 +722,9 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
     free(rc_);
     free(rd);
     size_t N = m ? m : (total ? 1 : 0);
-    pm_photon *rp = malloc((N ? N : 1) * sizeof *rp);
-    float *r2 = malloc((N ? N : 1) * sizeof *r2), *hf = malloc((N ? N : 1) * sizeof *hf);
+    pm_photon *rp = dist_irr_malloc((N ? N : 1) * sizeof *rp);
+    float *r2 = dist_irr_malloc((N ? N : 1) * sizeof *r2);
+    float *hf = dist_irr_malloc((N ? N : 1) * sizeof *hf);
     if (!rp || !r2 || !hf) {
         free(rp);
         free(r2);
@@ -741,21 +758,21 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
         unsigned long long here = m, most = 0, least = 0;
         unsigned long long cb = (unsigned long long)(pm_irradiance_bytes(c->irr) + N * sizeof(float));
         unsigned long long cmax = 0, csum = 0;
-        MPI_Reduce(&here, &most, 1, MPI_UNSIGNED_LONG_LONG, MPI_MAX, 0, MPI_COMM_WORLD);
-        MPI_Reduce(&here, &least, 1, MPI_UNSIGNED_LONG_LONG, MPI_MIN, 0, MPI_COMM_WORLD);
-        MPI_Reduce(&cb, &cmax, 1, MPI_UNSIGNED_LONG_LONG, MPI_MAX, 0, MPI_COMM_WORLD);
-        MPI_Reduce(&cb, &csum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
+        ireduce(&here, &most, MPI_MAX);
+        ireduce(&here, &least, MPI_MIN);
+        ireduce(&cb, &cmax, MPI_MAX);
+        ireduce(&cb, &csum, MPI_SUM);
         if (L.rank == 0)
             printf("MPI: partitioned precomputed irradiance: each rank keeps its own records, "
                    "%llu to %llu of %lld (at most %llu bytes on a rank, %llu on all); lookups ask "
                    "every rank\n", least, most, total, cmax, csum);
     }
     unsigned long long w = walls, wsum = 0, b = bytes, bsum = 0, sp = sparse, spsum = 0;
-    MPI_Reduce(&w, &wsum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
-    MPI_Reduce(&sp, &spsum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
+    ireduce(&w, &wsum, MPI_SUM);
+    ireduce(&sp, &spsum, MPI_SUM);
     c->sparse = (size_t)spsum;
     c->indirect_only = 1; /* the mapper adds a gather hit's direct light itself */
-    MPI_Reduce(&b, &bsum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, MPI_COMM_WORLD);
+    ireduce(&b, &bsum, MPI_SUM);
     c->researched = (size_t)wsum;
     if (L.rank == 0) {
         stat_add(L.st_side_bytes, bsum);
