@@ -260,8 +260,9 @@ static void answer_one(const lk_query *q, pm_neighbor *nb, lk_part *out) {
         answer_estimate(q, nb, out);
 }
 
-/* Answer n queries (OpenMP threads, each with its own neighbour buffer). */
-static void answer_all(const lk_query *q, size_t n, lk_part *out) {
+/* Answer the n queries q whose have[i] is 0 (all of them when have is NULL), on OpenMP
+ * threads, each with its own neighbour buffer. */
+static void answer_queries(const lk_query *q, const uint8_t *have, size_t n, lk_part *out) {
     unsigned kmax = per_map(L.opts[0].k) > per_map(L.opts[1].k) ? per_map(L.opts[0].k)
                                                                    : per_map(L.opts[1].k);
     int fail = 0;
@@ -275,7 +276,7 @@ static void answer_all(const lk_query *q, size_t n, lk_part *out) {
 #pragma omp for schedule(dynamic, 64)
 #endif
         for (size_t i = 0; i < n; i++)
-            if (nb) answer_one(&q[i], nb, &out[i]);
+            if (nb && !(have && have[i])) answer_one(&q[i], nb, &out[i]);
         free(nb);
     }
     if (fail) dist_die("out of memory answering photon lookups");
@@ -323,7 +324,7 @@ int lk_poll(void) {
         lk_part *a = malloc(n ? n * sizeof *a : 1);
         if (!q || !a) dist_die("out of memory answering photon lookups");
         MPI_Recv(q, nbytes, MPI_BYTE, ms.MPI_SOURCE, TAG_QUERY, L.comm, MPI_STATUS_IGNORE);
-        answer_all(q, n, a);
+        answer_queries(q, NULL, n, a);
         free(q);
         send_owned(a, n * sizeof *a, ms.MPI_SOURCE, TAG_ANSWER);
         return 1;
@@ -853,27 +854,6 @@ static void trace_samples(const scene *s, const integrator *it, const render_job
     }
 }
 
-/* This rank's parts of the n queries q whose part was not computed during the trace (have[i]
- * == 0), on OpenMP threads. */
-static void answer_missing(const lk_query *q, const uint8_t *have, size_t n, lk_part *out) {
-    unsigned kmax = per_map(L.opts[0].k) > per_map(L.opts[1].k) ? per_map(L.opts[0].k)
-                                                                   : per_map(L.opts[1].k);
-    int fail = 0;
-#ifdef _OPENMP
-#pragma omp parallel reduction(| : fail)
-#endif
-    {
-        pm_neighbor *nb = malloc((size_t)kmax * sizeof *nb);
-        if (!nb) fail = 1;
-#ifdef _OPENMP
-#pragma omp for schedule(dynamic, 64)
-#endif
-        for (size_t i = 0; i < n; i++)
-            if (nb && !have[i]) answer_one(&q[i], nb, &out[i]);
-        free(nb);
-    }
-    if (fail) dist_die("out of memory answering photon lookups");
-}
 
 typedef struct lk_count {
     uint64_t traced, again, more, rounds, nest, nlook, exact;
@@ -924,7 +904,8 @@ static void render_block(const scene *s, const integrator *it, const render_job 
                     cn->nest++;
             }
         }
-        answer_missing(q, have, nq, mine);
+        /* this rank's parts not computed during the trace */
+        answer_queries(q, have, nq, mine);
         lk_part *all = exchange(q, nq, mine, also, arg);
         o = 0;
         for (size_t i = 0; i < np; i++) {
