@@ -12,13 +12,13 @@
 #include "test.h"
 
 /* Run `make ARGS` on the checkout with BUILD=<tmp>/b and the default flags (stated on the
- * command line: a `make OPENMP=0 test` exports its variables to the tests); later ARGS
- * override them. Returns make's exit status. */
+ * command line: a `make OPENMP=0 test` or `make MPI=1 test` exports its variables to the
+ * tests); later ARGS override them. Returns make's exit status. */
 static int make_in_tmp(const char *args, char *out, size_t cap) {
     char cmd[16384];
     snprintf(cmd, sizeof cmd,
              "env -u MAKEFLAGS -u MFLAGS -u MAKELEVEL -u MAKEOVERRIDES make -C '%s' "
-             "--no-print-directory BUILD='%s/b' OPT=-O0 CC=cc CXX=c++ OPENMP=1 SIMD= SANITIZE= "
+             "--no-print-directory BUILD='%s/b' OPT=-O0 CC=cc CXX=c++ OPENMP=1 SIMD= SANITIZE= MPI=0 "
              "CFLAGS= LDFLAGS= %s",
              pm_test_source_dir(), pm_test_tmpdir(), args);
     return pm_test_run(cmd, out, cap);
