@@ -122,7 +122,8 @@ static int lv_gb(int v) { return IMP_GB >> v; }
 static int lv_g2(int v) { return IMP_GA2 >> v; }
 
 static uint64_t ncells_at(const light *l, int v) {
-    return four_d(l) ? (uint64_t)lv_ga(v) * lv_ga(v) * lv_gb(v) * lv_gb(v) : (uint64_t)lv_g2(v) * lv_g2(v);
+    uint64_t ga = (uint64_t)lv_ga(v), gb = (uint64_t)lv_gb(v), g2 = (uint64_t)lv_g2(v);
+    return four_d(l) ? ga * ga * gb * gb : g2 * g2;
 }
 
 uint64_t importance_ncells(const light *l) { return ncells_at(l, 0); }
