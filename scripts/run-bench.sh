@@ -42,6 +42,9 @@ case "$ONLY" in all|knn) ;; *) echo "run-bench.sh: PM_BENCH_ONLY must be all or 
 MACH="$OUT/machine.csv"
 [ "$ONLY" = knn ] && MACH="$OUT/knn_machine.csv"
 
+# The commit, taken before anything is written: bench/results is the output (with
+# PM_BENCH_ONLY=knn the machine file below is in it), so it does not count as a change.
+COMMIT_STAMP=${PM_BENCH_COMMIT:-$(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet HEAD -- photonmap/kdtree.c photonmap/kdtree.h photonmap/kdtree_internal.h photonmap/kdtree_query.c photonmap/internal.h photonmap/photon.h bench ':(exclude)bench/results' 2>/dev/null || echo ' plus uncommitted changes in the searches or bench/')}
 # The machine, for the document.
 {
   echo "key,value"
@@ -54,7 +57,7 @@ MACH="$OUT/machine.csv"
   echo "flags,$(echo "${PM_BENCH_CFLAGS:-see Makefile (run-bench.sh run directly)}" | tr ',' ' ' | sed 's/  */ /g; s/ *$//')"
   echo "flann,$(dpkg-query -W -f='${Version}' libflann-dev 2>/dev/null || echo unknown)"
   echo "date,$(date -u '+%Y-%m-%d %H:%M UTC')"
-  echo "commit,${PM_BENCH_COMMIT:-$(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet HEAD -- photonmap/kdtree.c photonmap/kdtree.h photonmap/kdtree_internal.h photonmap/kdtree_query.c photonmap/internal.h photonmap/photon.h bench 2>/dev/null || echo ' plus uncommitted changes in the searches or bench/')}"
+  echo "commit,$COMMIT_STAMP"
   echo "mode,$MODE"
   echo "load_before,$(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo '?')"
 } > "$MACH"
