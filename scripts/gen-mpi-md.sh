@@ -147,7 +147,7 @@ answers); partitioned maps give images whose four quarters' means are within
 water_caustic's caustic at `-np 4`, and the same bytes with 2 threads per rank and loaded
 maps as with 1 thread and traced ones; at `-np 4`, taking out either bias rule of the
 combination, the disc's single correction or the cone's rim factor, makes a quarter fail;
-see below). `scripts/test-mpi-partitioned.sh` (sourced by test-mpi.sh, or run alone) checks
+see below). `scripts/test-mpi-partitioned.sh` (sourced by test-mpi.sh) checks
 that no rank holds the whole precomputed irradiance (each about 1/R of the records and of
 their bytes at `-np 2` and `4`), that the pixel-pass counters of a partitioned preview render
 equal one process's though most samples were traced twice, that samples traced a third time

@@ -5,39 +5,20 @@
 #   PM_BUILD_DIR=build/release sh scripts/test-mpi-partitioned.sh
 #
 # scripts/test-mpi.sh sources this file, and then its tests count with test-mpi's (the same
-# ok/bad, $T, $R, $M, $MPIRUN); run alone it sets those up itself and ends with its own
-# "N passed, N failed". The accuracy of partitioned renders against the one-process render
-# (quarters within 1% at 2 and 4 ranks) is test-mpi.sh's; these test what is new: that no
+# ok/bad, $T, $R, $M, $MPIRUN). The accuracy of partitioned renders against the one-process
+# render (quarters within 1% at 2 and 4 ranks) is test-mpi.sh's; these test what is new: that no
 # rank holds the whole precomputed irradiance, that the statistics count one trace per camera
 # sample, and that samples whose guessed lookups were wrong give the same image whatever the
 # threads.
+# Run alone, it runs scripts/test-mpi.sh, which sets up what these tests share and sources
+# this file (one copy of that set-up).
 if [ -z "${MPIRUN:-}" ]; then
-  set -u
   case "${1:-}" in
     -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
     "") ;;
     *) echo "test-mpi-partitioned: unknown option '$1' (see --help)" >&2; exit 2 ;;
   esac
-  here=$(cd "$(dirname "$0")/.." && pwd)
-  B="${PM_BUILD_DIR:-$here/build/release}"
-  R="$B/render"
-  M="$B/render-mpi"
-  for p in "$R" "$M"; do
-    [ -x "$p" ] || { echo "test-mpi-partitioned: $p not found (make MPI=1 first)" >&2; echo "0 passed, 1 failed"; exit 1; }
-  done
-  export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
-  export ASAN_OPTIONS="${ASAN_OPTIONS:-detect_leaks=0}"
-  MPIRUN="mpirun --oversubscribe"
-  T=$(mktemp -d "${TMPDIR:-/tmp}/test-mpi-partitioned.XXXXXX")
-  trap 'rm -rf "$T"' EXIT
-  cd "$here"
-  pass=0
-  fail=0
-  ok() { pass=$((pass + 1)); echo "PASS $1"; }
-  bad() { fail=$((fail + 1)); echo "FAIL $1: $2"; }
-  pt_alone=1
-else
-  pt_alone=0
+  exec sh "$(cd "$(dirname "$0")" && pwd)/test-mpi.sh"
 fi
 
 # A log's statistics as "Category/Counter value" lines.
@@ -159,7 +140,3 @@ else
   bad "partitioned samples kept on guesses" "kept '$kept0' / '$kept1', images $(cmp "$T/pt.keep.0.pfm" "$T/pt.keep.1.pfm" 2>&1 | head -1)"
 fi
 
-if [ "$pt_alone" = 1 ]; then
-  echo "$pass passed, $fail failed"
-  [ "$fail" = 0 ]
-fi
