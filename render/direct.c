@@ -3,6 +3,7 @@
  * drawn before anything can end the call, so every caller's stream advances by three. */
 #include "direct.h"
 
+#include "guide.h"
 #include "light.h"
 #include "material.h"
 #include "medium.h"
@@ -10,13 +11,32 @@
 #include "shapes.h"
 #include "stats.h"
 
-/* One light in proportion to power and one point on it, seen from p: 3 numbers. 0 if none. */
-static int pick_light(const scene *s, vec3 p, rng *g, light_sample *ls, double *pl, int *li) {
+/* One light in proportion to power and one point on it, seen from p: 3 numbers. 0 if none.
+ * With a guide (guide.h) the point's (u1, u2) are warped by the table of (p, n, light), if it
+ * has one: *d is the density of the warped pair over the unit square (1 without a table) and
+ * *guided says whether a table was found. */
+static int pick_light_guided(const scene *s, vec3 p, vec3 n, const guide *gd, rng *g, light_sample *ls, double *pl,
+                             int *li, double *d, int *guided) {
     double ulight = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
+    *d = 1;
+    *guided = 0;
     if (s->nlights == 0 || s->light_distrib.n == 0) return 0;
     *li = distrib1d_sample(&s->light_distrib, ulight, pl);
     if (!(*pl > 0)) return 0;
+    if (gd) {
+        const double *t = guide_find(gd, p, n, *li);
+        if (t) {
+            *guided = 1;
+            *d = guide_warp(gd, t, &u1, &u2);
+        }
+    }
     return light_sample_li(s, *li, p, u1, u2, ls);
+}
+
+static int pick_light(const scene *s, vec3 p, rng *g, light_sample *ls, double *pl, int *li) {
+    double d;
+    int guided;
+    return pick_light_guided(s, p, v3s(0), NULL, g, ls, pl, li, &d, &guided);
 }
 
 /* Transmittance from p (normal np) to the light sample, starting in medium med. */
@@ -98,11 +118,17 @@ rgb direct_light_equiangular(const scene *s, const direct_segment *seg, direct_d
 
 rgb direct_light_surface(const scene *s, const material *m, const hit *h, vec3 n, vec3 wo, rng *g,
                          const direct_options *o) {
+    return direct_light_surface_guided(s, m, h, n, wo, g, o, NULL);
+}
+
+rgb direct_light_surface_guided(const scene *s, const material *m, const hit *h, vec3 n, vec3 wo, rng *g,
+                                const direct_options *o, const guide *gd) {
     vec3 nsh = material_shading_side(wo, h->ng, h->ns); /* cosines; n (geometric) keeps the side */
     light_sample ls;
-    double pl;
-    int li;
-    if (!pick_light(s, h->p, g, &ls, &pl, &li)) return v3s(0);
+    double pl, d;
+    int li, guided;
+    if (!pick_light_guided(s, h->p, n, gd, g, &ls, &pl, &li, &d, &guided)) return v3s(0);
+    if (guided) pl *= d; /* the point's density: p_light d(u) (guide.h) */
     double cos_s = v3_dot(ls.wi, nsh);
     if (cos_s <= 0 || v3_dot(ls.wi, n) <= 0 || v3_iszero(ls.L)) return v3s(0);
     rgb f = o->bsdf == DIRECT_BSDF_FULL ? material_f(m, h->ng, s->medium_ior, wo, ls.wi)
@@ -112,7 +138,9 @@ rgb direct_light_surface(const scene *s, const material *m, const hit *h, vec3 n
         rgb tr = shadow_tr(s, li, h->p, h->ng, &ls, scene_medium_after(s, h, ls.wi));
         return v3_scale(v3_mul(v3_mul(f, ls.L), tr), cos_s / pl);
     }
-    int vis = o->hint ? o->hint(o->hint_user, s, li, h, n) : -1;
+    /* The hint answers for the point, not for this sample: where the guide aims the samples at
+     * the few that pass, "all shadow photons" says nothing about them (each ray is traced). */
+    int vis = o->hint && !guided ? o->hint(o->hint_user, s, li, h, n) : -1;
     if (vis < 0) {
         stat_inc(STAT_SHADOW_RAYS);
         if (s->lights[li].type == LIGHT_DIRECTIONAL)

@@ -23,6 +23,15 @@
  *     asked only with media = 0, and only for samples that would contribute.
  * Every traced shadow segment counts in STAT_SHADOW_RAYS.
  *
+ * Guided light sampling (direct_light_surface_guided, the photon mapper only): with a guide
+ * (guide.h) that holds a table for (h's cell, the side n, the chosen light), the point's two
+ * numbers are warped by it (the stratum chosen with the first number, whose remainder and the
+ * second number place the point in it: still three numbers per call) and the estimate is
+ * divided by the warped pair's density d(u) as well as p_light: unbiased for any table
+ * (guide.h). Such a sample never asks the hint (the hint answers for the point, not for the
+ * part of the light the guide aims at). With gd NULL, or no table there, it is
+ * direct_light_surface exactly: same numbers, same result (the path tracer passes no guide).
+ *
  * In a medium (direct_light_medium) the phase function replaces f * cos, and the shadow segment
  * always carries the transmittance.
  *
@@ -59,6 +68,11 @@ typedef struct direct_options {
  * the surface, f is 0 or the light is blocked. */
 rgb direct_light_surface(const scene *s, const material *m, const hit *h, vec3 n, vec3 wo, rng *g,
                          const direct_options *o);
+
+/* direct_light_surface with the light point guided by gd (NULL: none; see above). */
+struct guide;
+rgb direct_light_surface_guided(const scene *s, const material *m, const hit *h, vec3 n, vec3 wo, rng *g,
+                                const direct_options *o, const struct guide *gd);
 
 /* Direct light scattered at p, inside medium med, into a path travelling along d: phase *
  * Li * Tr / p_light, from one light sample: 3 numbers from g. */
