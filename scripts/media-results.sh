@@ -13,8 +13,12 @@
 # part of the pixel) are compared with the reference's: tolerances 3% (image) and 5% (objects).
 # Writes docs/results/media/: regions.csv, NAME_pm.time (CPU seconds), NAME_plan.txt (the plan
 # as printed), the images (NAME_ref.png, NAME_pm.png at the reference's exposure, NAME_diff.png)
-# and measurement.txt (commit with -dirty, date, machine, settings, each reference's info); then
-# runs scripts/gen-results-md.sh (unless --no-doc).
+# and measurement.txt (commit, date, machine, settings, each reference's info); then runs
+# scripts/gen-results-md.sh (unless --no-doc). The commit is the render binary's, found before
+# anything is written (scripts/commit-stamp.sh): HEAD, "plus uncommitted changes in the sources"
+# when git status lists any in photonmap/, render/ or the Makefile; refused (exit 2) when a
+# source file is newer than the binary; PM_BENCH_COMMIT=TEXT stamps TEXT instead (a binary
+# built from a clean export of a commit).
 #
 # Environment: PM_BUILD_DIR (where render is; default build/release).
 set -eu
@@ -30,6 +34,9 @@ case "${1:-}" in
   *) echo "media-results: unknown argument '$1' (see --help)" >&2; exit 2 ;;
 esac
 [ -x "$bin" ] || { echo "media-results: $bin not found; run make first (or set PM_BUILD_DIR)" >&2; exit 2; }
+# The binary's commit, before anything is written (scripts/commit-stamp.sh).
+. "$here/scripts/commit-stamp.sh"
+stamp=$(commit_stamp "$here" "$bin") || exit 2
 PM_SPP=4
 RES=64
 SCENES="cornell_fog glass_of_smoke"
@@ -72,7 +79,7 @@ for name in $SCENES; do
 done
 mv "$work/regions.csv" "$out/regions.csv"
 {
-  echo "commit $(git -C "$here" describe --always --dirty --abbrev=7 2>/dev/null || echo unknown)"
+  echo "commit $stamp"
   echo "date $(date -u '+%Y-%m-%d %H:%M UTC')"
   echo "machine $(nproc) cores, $(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1)"
   echo "resolution $RES"

@@ -30,8 +30,12 @@
 # Every render runs on one thread; the time is its CPU time (user + system, /usr/bin/time), so
 # the figures hold on a loaded machine. Writes docs/media/time_error_SCENE.csv (method, spp,
 # seed, cpu_s, rmse, mean, rmse_corrected), docs/media/summary_SCENE.txt and
-# docs/media/measurement_SCENE.txt (commit with -dirty, date, machine, settings, reference);
-# then scripts/gen-media-md.sh writes docs/MEDIA.md. --quick: fewer samples, into
+# docs/media/measurement_SCENE.txt (commit, date, machine, settings, reference); then
+# scripts/gen-media-md.sh writes docs/MEDIA.md. The commit is the render binary's, found before
+# anything is written (scripts/commit-stamp.sh): HEAD, "plus uncommitted changes in the
+# sources" when git status lists any in photonmap/, render/ or the Makefile; refused (exit 2)
+# when a source file is newer than the binary; PM_BENCH_COMMIT=TEXT stamps TEXT instead (a
+# binary built from a clean export of a commit). --quick: fewer samples, into
 # build/media-quick (not the published figures). --summarize: no renders; redo the analysis of
 # the named scenes from their CSV files (and the document).
 #
@@ -55,6 +59,9 @@ while [ $# -gt 0 ]; do
 done
 [ -n "$scenes" ] || { echo "media-time-error: name a scene: cornell_fog or volumetric_caustic (see --help)" >&2; exit 2; }
 [ $summ = 1 ] || [ -x "$bin" ] || { echo "media-time-error: $bin not found; run make first (or set PM_BUILD_DIR)" >&2; exit 2; }
+# The binary's commit, before anything is written (scripts/commit-stamp.sh).
+. "$here/scripts/commit-stamp.sh"
+if [ $summ = 0 ]; then commit=$(commit_stamp "$here" "$bin") || exit 2; fi
 
 RES=64
 PT_SPPS="16 64 256 1024"
@@ -87,7 +94,7 @@ cmp2() {
 }
 stamp() { # scene, extra lines on stdin
   {
-    echo "commit $(git -C "$here" describe --always --dirty --abbrev=7 2>/dev/null || echo unknown)"
+    echo "commit $commit"
     echo "date $(date -u '+%Y-%m-%d %H:%M UTC')"
     echo "machine $(nproc) cores, $(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1), load $(cut -d' ' -f1 /proc/loadavg)"
     echo "resolution $RES"

@@ -26,6 +26,12 @@
 # twice, and how many with queries kept their trace on guesses (render-mpi's
 # "MPI/Partitioned:" statistics).
 #
+# The stamps' commit is that of the binaries, found before anything is written
+# (scripts/commit-stamp.sh): the checkout's HEAD, "plus uncommitted changes in the sources"
+# when git status lists any in photonmap/, render/ or the Makefile; refused (exit 2) when a
+# source file is newer than render or render-mpi. PM_BENCH_COMMIT=TEXT stamps TEXT instead
+# (binaries built from a clean export of a commit).
+#
 # --before DIR LABEL: also run DIR/render-mpi (a build of an earlier commit, LABEL naming it)
 # in partitioned mode beside the current one, in the partitioned and memory tables (mode
 # "before"), for a before/after comparison measured under the same load.
@@ -61,6 +67,9 @@ done
 for p in "$B/render" "$B/render-mpi"; do
   [ -x "$p" ] || { echo "mpi-scaling: $p not found (make MPI=1 first)" >&2; exit 2; }
 done
+# The binaries' commit, before anything is written (scripts/commit-stamp.sh).
+. "$here/scripts/commit-stamp.sh"
+STAMP=$(commit_stamp "$here" "$B/render" "$B/render-mpi") || exit 2
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 T=$(mktemp -d "${TMPDIR:-/tmp}/mpi-scaling.XXXXXX")
 trap 'rm -rf "$T"' EXIT
@@ -139,7 +148,7 @@ measure_partitioned() {
     r=$((r + 1))
   done
   {
-    echo "commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet 2>/dev/null || echo ' (with uncommitted changes)')"
+    echo "commit $STAMP"
     echo "date $(date -u +%Y-%m-%dT%H:%MZ)"
     echo "machine $(nproc) cores, $(uname -m), $(mpirun --version 2>/dev/null | head -1)"
     echo "load_before $pload0"
@@ -187,7 +196,7 @@ EOS
     done
   done
   {
-    echo "commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet 2>/dev/null || echo ' (with uncommitted changes)')"
+    echo "commit $STAMP"
     echo "date $(date -u +%Y-%m-%dT%H:%MZ)"
     echo "machine $(nproc) cores, $(uname -m), $(mpirun --version 2>/dev/null | head -1)"
     echo "load_before $mload0"
@@ -244,7 +253,7 @@ for np in 1 2 3 4; do
 done
 
 {
-  echo "commit $(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet 2>/dev/null || echo ' (with uncommitted changes)')"
+  echo "commit $STAMP"
   echo "date $(date -u +%Y-%m-%dT%H:%MZ)"
   echo "machine $(nproc) cores, $(uname -m), $(mpirun --version 2>/dev/null | head -1)"
   echo "load_before $load0"

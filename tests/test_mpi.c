@@ -118,6 +118,99 @@ TEST(mpi_scripts_have_help) {
     EXPECT_MSG(strtol(out, NULL, 10) == 0, "--help left files: %s", out);
 }
 
+/* ---- the commit stamp of the measurement scripts (scripts/commit-stamp.sh) ---------------- */
+
+/* commit_stamp's output and status ("... rc=N") for a binary in the test's repository. */
+static int stamp_of(const char *env, char *out, size_t cap) {
+    char cmd[4096];
+    const char *d = pm_test_tmpdir();
+    snprintf(cmd, sizeof cmd, "src=$(cd '%s' && pwd) && cd '%s/repo' && PM_SRC=$src %s sh -c "
+             "'. \"$PM_SRC/scripts/commit-stamp.sh\"; commit_stamp \"%s/repo\" \"%s/bin/render\"; "
+             "echo \"rc=$?\"' 2>&1", pm_test_source_dir(), d, env, d, d);
+    return pm_test_run(cmd, out, cap);
+}
+
+/* Oracle: the binary's commit as the test made it. A repository with sources (photonmap/,
+ * render/, the Makefile) and a results file, all committed, and a "binary" whose time is after
+ * theirs: the stamp is HEAD exactly, also after the results file changes (results are not
+ * sources: the old stamp, taken after writing results, always read "uncommitted"). A source
+ * edited before the binary, or a new one: HEAD plus the uncommitted changes, counted. A
+ * source newer than the binary: refused (status 1) naming it. PM_BENCH_COMMIT: its text. */
+TEST(mpi_measurement_stamp_is_the_binarys_commit) {
+    char out[4096], cmd[4096], head[64];
+    const char *d = pm_test_tmpdir();
+    if (pm_test_run("command -v git", out, sizeof out) != 0) SKIP("git not found");
+    snprintf(cmd, sizeof cmd,
+             "cd '%s' && mkdir -p repo/photonmap repo/render repo/docs bin && cd repo && "
+             "echo a > photonmap/a.c && echo b > render/b.c && echo m > Makefile && echo r > docs/r.csv && "
+             "git init -q . && git add . && git -c user.name=t -c user.email=t@example.com commit -q -m x && "
+             "touch -d @1600000000 photonmap/a.c render/b.c Makefile docs/r.csv && "
+             "printf '#!/bin/sh\\n' > ../bin/render && touch -d @1600000100 ../bin/render && "
+             "git rev-parse --short HEAD", d);
+    ASSERT_EQ_INT(pm_test_run(cmd, head, sizeof head), 0);
+    head[strcspn(head, "\n")] = 0;
+    char want[256];
+    snprintf(want, sizeof want, "%s\nrc=0\n", head);
+    stamp_of("", out, sizeof out);
+    EXPECT_MSG(strcmp(out, want) == 0, "clean: got '%s', want '%s'", out, want);
+    snprintf(cmd, sizeof cmd, "cd '%s/repo' && echo new >> docs/r.csv", d); /* a result, now */
+    pm_test_run(cmd, out, sizeof out);
+    stamp_of("", out, sizeof out);
+    EXPECT_MSG(strcmp(out, want) == 0, "results changed: got '%s', want '%s'", out, want);
+    snprintf(cmd, sizeof cmd, "cd '%s/repo' && echo c >> render/b.c && touch -d @1600000050 render/b.c", d);
+    pm_test_run(cmd, out, sizeof out);
+    snprintf(want, sizeof want, "%s plus uncommitted changes in the sources (1 file in photonmap/, "
+             "render/ or the Makefile)\nrc=0\n", head);
+    stamp_of("", out, sizeof out);
+    EXPECT_MSG(strcmp(out, want) == 0, "edited source: got '%s', want '%s'", out, want);
+    snprintf(cmd, sizeof cmd, "cd '%s/repo' && echo h > render/c.h && touch -d @1600000050 render/c.h", d);
+    pm_test_run(cmd, out, sizeof out);
+    snprintf(want, sizeof want, "%s plus uncommitted changes in the sources (2 files in photonmap/, "
+             "render/ or the Makefile)\nrc=0\n", head);
+    stamp_of("", out, sizeof out);
+    EXPECT_MSG(strcmp(out, want) == 0, "new source: got '%s', want '%s'", out, want);
+    snprintf(cmd, sizeof cmd, "cd '%s/repo' && touch -d @1600000200 photonmap/a.c", d);
+    pm_test_run(cmd, out, sizeof out);
+    stamp_of("", out, sizeof out);
+    EXPECT_MSG(strstr(out, "is older than 1 source file(s) of the checkout (photonmap/a.c)") &&
+               strstr(out, "rc=1\n") && !strstr(out, head),
+               "a source newer than the binary: got '%s'", out);
+    stamp_of("PM_BENCH_COMMIT='c0ffee0 (clean export)'", out, sizeof out);
+    EXPECT_MSG(strcmp(out, "c0ffee0 (clean export)\nrc=0\n") == 0, "PM_BENCH_COMMIT: got '%s'", out);
+}
+
+/* Oracle: the scripts take the stamp before anything else. Binaries older than every source
+ * file of this checkout (a stale build) make mpi-scaling.sh, media-results.sh and
+ * media-time-error.sh exit 2 with commit-stamp's reason, before running a binary (these ones
+ * would fail) or creating mpi-scaling's output directory. */
+TEST(mpi_measurement_scripts_refuse_a_stale_binary) {
+    char out[8192], cmd[4096];
+    const char *d = pm_test_tmpdir();
+    if (pm_test_run("command -v git", out, sizeof out) != 0) SKIP("git not found");
+    snprintf(cmd, sizeof cmd, "git -C '%s' rev-parse --short HEAD", pm_test_source_dir());
+    if (pm_test_run(cmd, out, sizeof out) != 0) SKIP("the source tree is not a git checkout");
+    snprintf(cmd, sizeof cmd,
+             "mkdir '%s/old' && for b in render render-mpi; do printf '#!/bin/sh\\nexit 1\\n' > '%s/old/'$b && "
+             "chmod +x '%s/old/'$b && touch -d @946684800 '%s/old/'$b; done", d, d, d, d);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    static const char *const runs[] = {"mpi-scaling.sh --memory OUT", "media-results.sh --no-doc",
+                                       "media-time-error.sh cornell_fog"};
+    for (int i = 0; i < 3; i++) {
+        char args[256];
+        snprintf(args, sizeof args, "%s", runs[i]);
+        char *o = strstr(args, "OUT");
+        if (o) snprintf(o, sizeof args - (size_t)(o - args), "'%s/out'", d);
+        snprintf(cmd, sizeof cmd, "src=$(cd '%s' && pwd) && cd '%s' && PM_BENCH_COMMIT= "
+                 "PM_BUILD_DIR='%s/old' sh \"$src\"/scripts/%s 2>&1", pm_test_source_dir(), d, d, args);
+        int rc = pm_test_run(cmd, out, sizeof out);
+        EXPECT_MSG(rc == 2 && strstr(out, "commit-stamp: ") && strstr(out, "/old/render is older than"),
+                   "%s: status %d: %s", runs[i], rc, out);
+    }
+    struct stat sb;
+    snprintf(cmd, sizeof cmd, "%s/out", d);
+    EXPECT_MSG(stat(cmd, &sb) != 0, "mpi-scaling.sh created its output directory");
+}
+
 /* ---- the media passes split over processes, without MPI -------------------------------------
  * vol_set_dist (volume.h) runs in this process: each part is a thread with its own setting,
  * and the all-gather is a barrier over shared memory. */
