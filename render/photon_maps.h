@@ -84,7 +84,9 @@ extern "C" {
 
 /* The version of photon tracing in every map's stamp: see TRACER VERSION above for when to
  * bump it. */
-#define PHOTON_TRACE_VERSION 2 /* 2: importance-driven emission and the plan's pilot photons joined (global pass) */
+/* 2: importance-driven emission and the plan's pilot photons joined (global pass); 3: the
+ * caustic pilot's photons joined too (the caustic map). */
+#define PHOTON_TRACE_VERSION 3
 
 /* A map set's stamp: scene_transport_hash and the tracer version + settings hash
  * (map_stamp_make). */
@@ -100,6 +102,11 @@ typedef struct photon_maps {
     uint64_t caustic_saved;         /* emissions the projection map saved */
     uint64_t caustic_first_specular; /* caustic-pass photons whose first hit was specular */
     int global_runaway, caustic_runaway; /* 1 if the pass stopped short of its target */
+    /* The plan's pilot photons that joined ([0] the global pass's main map, [1] the caustic
+     * map; photon_trace.h, PILOT PHOTONS): emitted (counted in *_emitted too) and stored (the
+     * last pilot_stored[i] photons of the whole map). Set by photon_trace; 0 after a load. */
+    uint64_t pilot_emitted[2];
+    size_t pilot_stored[2];
     map_stamp stamp; /* what shaped them: set by the caller after tracing; by a load, the
                       * global.pmap's */
     /* A scene with media (pm_volume.h): nmedia > 0, and the volume photons of the global pass

@@ -38,12 +38,15 @@ typedef struct fbuf {
     size_t n, cap;
 } fbuf;
 
-/* A pilot's global-pass photons, kept for the real pass (PILOT PHOTONS in photon_trace.h). */
+/* A pilot's photons, kept for the real passes (PILOT PHOTONS in photon_trace.h). */
 struct pilot_photons {
-    fbuf g, s;                /* its global and shadow stores, in photon order */
-    uint64_t emitted;         /* photons it emitted */
-    int max_depth, max_bounces, global, shadow; /* the rules it was traced by */
+    fbuf g, s;                /* its global pass's global and shadow stores, in photon order */
+    uint64_t emitted;         /* photons its global pass emitted (0: it ran none) */
+    int max_depth, max_bounces, global, shadow; /* the rules its global pass was traced by */
     const importance *imp;    /* the table its rel were computed under (NULL: none) */
+    fbuf c;                   /* its caustic pass's L S+ D stores, in photon order */
+    uint64_t c_emitted, c_first_specular; /* that pass's photons (0: it ran none) */
+    int c_max_depth, c_max_bounces, c_cells; /* its rules; c_cells: projection cells per side */
 };
 
 static int fbuf_push(fbuf *b, const fphoton *p) {
@@ -98,6 +101,7 @@ typedef struct pass_ctx {
     const importance *imp; /* global pass: importance-driven emission (importance.h), or NULL */
     int imp_rel_only;      /* a pilot: emit by power, and only record rel under imp */
     const fbuf *tail;      /* pilot stores that follow the pass's own in the main map, or NULL */
+    uint64_t tail_emitted; /* the pilot photons those stores came from */
     double shift[6];
 } pass_ctx;
 
@@ -317,6 +321,21 @@ void photon_trace_set_dist(const trace_dist *d) { g_dist = d; }
  * evidence counts each photon traced once). */
 static int part_pass(const pass_ctx *c) { return g_dist && g_dist->partitioned && !c->o->pilot; }
 
+/* A distributed pass: trace a batch (trace_batch), through the test hook; and say this
+ * process's own failure before the exchange tells every process (trace_dist.failed). */
+static int dist_trace(const trace_dist *d, const pass_ctx *c, uint64_t start, fbuf *tg, fbuf *ts,
+                      int nthreads, uint64_t *nfirst) {
+    int fail = trace_batch(c, start, tg, ts, nthreads, nfirst);
+    return d->test_fail && d->test_fail(d->user) ? 1 : fail;
+}
+static void dist_failed(const trace_dist *d, const pass_ctx *c, int again) {
+    char what[128];
+    snprintf(what, sizeof what, "out of memory while tracing photons (the %s pass%s)",
+             c->caustic_pass ? "caustic" : c->want_global ? "global" : "shadow",
+             again ? ", tracing this process's part of the map again" : "");
+    if (d->failed) d->failed(d->user, what);
+}
+
 /* One batch as exchanged: this head in the room of one photon record, then nmain main-buffer
  * and nshadow shadow-buffer photons in index order. A process that failed sends only a head
  * with fail set. */
@@ -376,7 +395,7 @@ static int dist_round(const pass_ctx *c, round_buf *rb, uint64_t start, fbuf *tg
         batch_head h = {0, 0, 0, 0};
         fbuf m = {0}, sh = {0};
         uint64_t first = start + ((uint64_t)d->part * (uint64_t)per + (uint64_t)j) * PT_BATCH;
-        h.fail = (uint64_t)trace_batch(c, first, tg, ts, nthreads, &h.nfirst);
+        h.fail = (uint64_t)dist_trace(d, c, first, tg, ts, nthreads, &h.nfirst);
         if (part) { /* counts only: the photons are traced again by the process keeping them */
             for (int t = 0; t < nthreads; t++) {
                 h.nmain += tg[t].n;
@@ -403,6 +422,7 @@ static int dist_round(const pass_ctx *c, round_buf *rb, uint64_t start, fbuf *tg
         fail = (int)h.fail;
     }
     batch_head failed = {0, 0, 0, 1};
+    if (fail) dist_failed(d, c, 0);
     int rc = !sizes ? -1
              : fail ? d->allgather(d->user, &failed, sizeof failed, (void **)&rb->all, sizes)
              : part ? d->allgather(d->user, heads, (size_t)per * sizeof *heads, (void **)&rb->all, sizes)
@@ -518,7 +538,7 @@ static int part_finish(const pass_ctx *c, batch_count *bc, size_t nb, long targe
             sbefore += bc[b++].nshadow;
         }
         fbuf m = {0}, sh = {0};
-        fail = b == nb || trace_batch(c, (uint64_t)b * PT_BATCH, tg, ts, nthreads, &dummy) ||
+        fail = b == nb || dist_trace(d, c, (uint64_t)b * PT_BATCH, tg, ts, nthreads, &dummy) ||
                fbuf_merge(&m, tg, nthreads) < 0 || fbuf_merge(&sh, ts, nthreads) < 0 ||
                m.n != bc[b].nmain;
         if (!fail) {
@@ -543,7 +563,7 @@ static int part_finish(const pass_ctx *c, batch_count *bc, size_t nb, long targe
     for (size_t b = 0; b < ncut && !fail && at < hi; at += bc[b++].nmain) {
         if (at + bc[b].nmain <= lo || bc[b].nmain == 0) continue;
         fbuf m = {0};
-        fail = trace_batch(c, (uint64_t)b * PT_BATCH, tg, ts, nthreads, &dummy) ||
+        fail = dist_trace(d, c, (uint64_t)b * PT_BATCH, tg, ts, nthreads, &dummy) ||
                fbuf_merge(&m, tg, nthreads) < 0 || m.n < bc[b].nmain;
         for (int t = 0; t < nthreads; t++) ts[t].n = 0;
         uint64_t i0 = lo > at ? lo - at : 0, i1 = hi - at < bc[b].nmain ? hi - at : bc[b].nmain;
@@ -551,6 +571,7 @@ static int part_finish(const pass_ctx *c, batch_count *bc, size_t nb, long targe
         free(m.v);
     }
     for (uint64_t i = lo > n ? lo : n; !fail && i < hi; i++) fail = fbuf_push(out, &c->tail->v[i - n]) < 0;
+    if (fail) dist_failed(d, c, 1);
     uint64_t f = (uint64_t)fail, *all = NULL;
     size_t *sizes = calloc((size_t)d->nparts, sizeof *sizes);
     if (!sizes || d->allgather(d->user, &f, sizeof f, (void **)&all, sizes) < 0) fail = 1;
@@ -703,11 +724,19 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
                  title, (unsigned long long)n_e, why[0] ? "; stopped by " : "",
                  why[0] ? limit_name : "");
         rc = PM_EEMPTY;
-    } else if (*runaway && !o->pilot)
+    } else if (*runaway && !o->pilot) {
+        /* The figures of the whole map: with a joining pilot's stores and photons. */
+        size_t tn = c->tail ? c->tail->n : 0;
+        char with[96] = "";
+        if (c->tail)
+            snprintf(with, sizeof with, " (the pilot's %zu stores and %llu photons included)", tn,
+                     (unsigned long long)c->tail_emitted);
         fprintf(stderr,
-                "photon tracing: %s: only %zu of %ld photons stored after %llu emitted; stopped by "
+                "photon tracing: %s: only %zu of %ld photons stored after %llu emitted%s; stopped by "
                 "the photon_mapping.%s budget (%s)\n",
-                title, main_buf->n, target, (unsigned long long)n_e, stop ? stop : "?", why);
+                title, main_buf->n + tn, target + (long)tn, (unsigned long long)(n_e + c->tail_emitted), with,
+                stop ? stop : "?", why);
+    }
     *emitted = n_e;
     whole[0] = main_buf->n; /* the whole pass's counts (a partitioned pass keeps a part) */
     whole[1] = shadow_buf ? shadow_buf->n : 0;
@@ -719,6 +748,66 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
     free(tg);
     free(ts);
     return rc;
+}
+
+/* The projection cells per side a pass with options o aims its caustic photons by (0: none). */
+static int projection_cells(const trace_opts *o) {
+    return o->projection ? (o->projection_cells > 0 ? o->projection_cells : 64) : 0;
+}
+
+int pilot_photons_joining(const pilot_photons *k, const trace_opts *o, int caustic, size_t *stores,
+                          uint64_t *emitted, const char **why) {
+    const char *w = NULL;
+    size_t n = 0;
+    uint64_t ne = 0;
+    if (!k || !(caustic ? k->c_emitted : k->emitted))
+        w = "";
+    else if (o->pilot)
+        w = "a pilot pass joins no pilot";
+    else if (!caustic) {
+        n = o->global ? k->g.n : k->s.n;
+        ne = k->emitted;
+        if (!(o->global || o->shadow) || o->global_target <= 0)
+            w = "no global pass";
+        else if (k->max_depth != o->max_depth || k->max_bounces != o->max_bounces)
+            w = "the pilot was traced with another max_depth or max_bounces";
+        else if (k->imp != o->importance)
+            w = "the pilot's photons were weighed for another importance table";
+        else if ((o->global && !k->global) || (o->shadow && !k->shadow))
+            w = "the pilot did not trace the maps the pass builds";
+        /* A pilot that stored half the target or more does not join (a lossless furnace
+         * stores hundreds of records per photon): the pass keeps its stored-count bound. */
+        else if (2 * (double)n > (double)o->global_target)
+            w = "the pilot stored half the target or more";
+    } else {
+        n = k->c.n;
+        ne = k->c_emitted;
+        if (!o->caustic || o->caustic_target <= 0)
+            w = "no caustic pass";
+        else if (k->c_max_depth != o->max_depth || k->c_max_bounces != o->max_bounces)
+            w = "the pilot was traced with another max_depth or max_bounces";
+        else if (k->c_cells != projection_cells(o))
+            w = "the pass aims by other projection maps than the pilot (projection, projection_cells)";
+        else if (2 * (double)n > (double)o->caustic_target)
+            w = "the pilot stored half the target or more";
+    }
+    if (why) *why = w ? w : "";
+    if (stores) *stores = w ? 0 : n;
+    if (emitted) *emitted = w ? 0 : ne;
+    return !w;
+}
+
+void trace_opts_settings(trace_opts *o, const scene *s, const photon_settings *c) {
+    trace_opts_init(o, s);
+    o->global_target = c->global_photons;
+    o->caustic_target = c->caustic_photons;
+    o->max_emitted_factor = c->max_emitted_factor;
+    o->max_emitted = c->max_emitted;
+    o->max_memory_bytes = (size_t)c->max_memory_mb << 20;
+    o->max_bounces = c->max_bounces;
+    o->projection = c->projection;
+    o->projection_cells = c->projection_cells;
+    o->quiet = !c->progress;
 }
 
 void trace_opts_init(trace_opts *o, const scene *s) {
@@ -772,6 +861,7 @@ void pilot_photons_free(pilot_photons *k) {
     if (!k) return;
     free(k->g.v);
     free(k->s.v);
+    free(k->c.v);
     free(k);
 }
 
@@ -789,18 +879,15 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
     int st_imp_unocc = stats_register("Photons/Importance: light connections carrying light");
     int st_imp_cells = stats_register("Photons/Importance: emission cells with importance (finest level)");
     int st_reused = stats_register("Photons/Pilot photons reused in the global maps (emitted)");
+    int st_reused_c = stats_register("Photons/Pilot photons reused in the caustic map (emitted)");
+    int st_reused_cs = stats_register("Photons/Pilot photons reused in the caustic map (stored)");
     int nl = s->nlights;
     if (nl == 0 || s->light_distrib.n == 0) return 0;
     /* The plan's pilot photons join this pass's maps when they were traced by the same rules
-     * (PILOT PHOTONS in photon_trace.h). */
-    const pilot_photons *rk = o->reuse;
-    if (rk && (o->pilot || rk->max_depth != o->max_depth ||
-               rk->max_bounces != o->max_bounces || rk->imp != o->importance || (o->global && !rk->global) ||
-               (o->shadow && !rk->shadow)))
-        rk = NULL;
-    /* A pilot that stored half the target or more does not join (a lossless furnace stores
-     * hundreds of records per photon): the pass keeps its stored-count bound. */
-    if (rk && 2 * (double)(o->global ? rk->g.n : rk->s.n) > (double)o->global_target) rk = NULL;
+     * and stored less than half the target (PILOT PHOTONS in photon_trace.h): rk for the
+     * global pass, rkc for the caustic pass. */
+    const pilot_photons *rk = pilot_photons_joining(o->reuse, o, 0, NULL, NULL, NULL) ? o->reuse : NULL;
+    const pilot_photons *rkc = pilot_photons_joining(o->reuse, o, 1, NULL, NULL, NULL) ? o->reuse : NULL;
     int rc = 0;
     rgb *scale = calloc((size_t)nl, sizeof *scale);
     double *w = calloc((size_t)nl, sizeof *w);
@@ -843,6 +930,7 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
          * when they join, count toward it. */
         long target = o->global_target;
         c.tail = rk ? (o->global ? &rk->g : &rk->s) : NULL;
+        c.tail_emitted = rk ? rk->emitted : 0;
         if (rk) {
             size_t have = o->global ? rk->g.n : rk->s.n;
             target = (long)have < target ? target - (long)have : 1;
@@ -856,8 +944,9 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
 
     /* Caustic pass. */
     projmap *proj = NULL;
+    int G = projection_cells(o);
+    uint64_t c_own = 0; /* photons the caustic pass itself emitted (without a joining pilot's) */
     if (rc == 0 && o->caustic && o->caustic_target > 0) {
-        int G = o->projection ? (o->projection_cells > 0 ? o->projection_cells : 64) : 0;
         rc = projmap_build_all(s, G, &proj);
         double wsum = 0, psum = 0;
         for (int i = 0; rc == 0 && i < nl; i++) {
@@ -881,10 +970,20 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
             }
             c.light_scale = scale;
             shifts(c.shift, o->seed, 2);
+            /* The pilot's stores, when they join, count toward the target (as in the global
+             * pass); its photons count as emitted, and its first-specular ones too. */
+            long target = o->caustic_target;
+            c.tail = rkc ? &rkc->c : NULL;
+            c.tail_emitted = rkc ? rkc->c_emitted : 0;
+            if (rkc) target = (long)rkc->c.n < target ? target - (long)rkc->c.n : 1;
             if (rc == 0)
-                rc = run_pass(&c, o->caustic_target, &cbuf, NULL, &m->caustic_emitted,
-                              &m->caustic_first_specular, &m->caustic_runaway,
-                              "Tracing caustic photons", err, errcap, wc);
+                rc = run_pass(&c, target, &cbuf, NULL, &m->caustic_emitted, &m->caustic_first_specular,
+                              &m->caustic_runaway, "Tracing caustic photons", err, errcap, wc);
+            c_own = m->caustic_emitted;
+            if (rc == 0 && rkc) {
+                m->caustic_emitted += rkc->c_emitted;
+                m->caustic_first_specular += rkc->c_first_specular;
+            }
             distrib1d_free(&c.choose);
             m->caustic_fraction = wsum / psum;
             if (m->caustic_fraction > 0)
@@ -911,14 +1010,34 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
             }
             np = (double)rk->emitted;
             m->global_emitted += rk->emitted;
-            stat_add(st_reused, rk->emitted);
+            m->pilot_emitted[0] = rk->emitted;
+            m->pilot_stored[0] = o->global ? rk->g.n : rk->s.n;
+            if (!o->pilot) stat_add(st_reused, rk->emitted);
         }
         if (rc == 0 && o->global) rc = pack(&gbuf, np, nm, &m->global, &m->nglobal);
         if (rc == 0 && o->shadow) rc = pack(&sbuf, np, nm, &m->shadow, &m->nshadow);
     }
-    if (rc == 0 && o->pilot && o->pilot->keep && m->global_emitted) { /* kept for the real pass */
-        pilot_photons *k = calloc(1, sizeof *k);
-        if (k) {
+    if (rc == 0 && m->caustic_emitted) {
+        double np = 0;
+        if (rkc) { /* as the global pass's join above */
+            int part = g_dist && g_dist->partitioned;
+            if (!part) rc = join(&cbuf, &rkc->c);
+            else wc[0] += rkc->c.n;
+            np = (double)rkc->c_emitted;
+            m->pilot_emitted[1] = rkc->c_emitted;
+            m->pilot_stored[1] = rkc->c.n;
+            stat_add(st_reused_c, rkc->c_emitted);
+            stat_add(st_reused_cs, rkc->c.n);
+        }
+        if (rc == 0) rc = pack(&cbuf, np, (double)c_own, &m->caustic, &m->ncaustic);
+    }
+    /* A pilot keeping its stores for the real passes: its buffers, before packing (kept, or
+     * added to the kept photons of another pilot call). */
+    if (rc == 0 && o->pilot && o->pilot->keep && (m->global_emitted || m->caustic_emitted)) {
+        pilot_photons *k = o->pilot->kept ? o->pilot->kept : calloc(1, sizeof *k);
+        if (k && m->global_emitted) {
+            free(k->g.v);
+            free(k->s.v);
             k->g = gbuf;
             k->s = sbuf;
             gbuf.v = sbuf.v = NULL;
@@ -928,11 +1047,19 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
             k->imp = o->importance;
             k->global = o->global;
             k->shadow = o->shadow;
-            o->pilot->kept = k;
         }
+        if (k && m->caustic_emitted) {
+            free(k->c.v);
+            k->c = cbuf;
+            cbuf.v = NULL;
+            k->c_emitted = m->caustic_emitted;
+            k->c_first_specular = m->caustic_first_specular;
+            k->c_max_depth = o->max_depth;
+            k->c_max_bounces = o->max_bounces;
+            k->c_cells = G;
+        }
+        o->pilot->kept = k;
     }
-    if (rc == 0 && m->caustic_emitted)
-        rc = pack(&cbuf, 0, (double)m->caustic_emitted, &m->caustic, &m->ncaustic);
     if (rc == 0 && g_dist && g_dist->partitioned && !o->pilot) rc = part_whole(o, m, wg, wc);
     if (rc < 0 && !err[0]) snprintf(err, errcap, "%s", pm_strerror(rc));
     if (!o->pilot) stat_add(st_glob, m->part ? m->whole_global : m->nglobal);

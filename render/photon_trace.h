@@ -15,16 +15,33 @@
  * and its power is the uniform photon's divided by rel = p(l, u) / p_l.
  *
  * PILOT PHOTONS. A pilot pass (plan.c: emission by power, its own streams) may keep its
- * global-pass photons (trace_pilot.keep), with each photon's rel under the importance table
- * the real pass will use; the real pass then joins them (trace_opts.reuse) when they were
- * traced by its rules (the same max_depth, max_bounces, importance table, and the maps it
- * builds) and stored less than half its target, counting their stores toward the target. The two emissions are combined by the
- * balance heuristic: with n_p pilot photons (density p_l) and n_m of the pass's (density
- * rel p_l), every photon's power is P_l / p_l / (n_p + n_m rel), which is unbiased and for
- * rel = 1 the plain P_l / p_l / (n_p + n_m). The whole map is the pass's stores followed by
- * the pilot's; a partitioned distributed pass keeps each process's part of that order, so
- * its parts are those of the one-process maps. global_emitted counts both.
- *
+ * photons (trace_pilot.keep): the global pass's stores, with each photon's rel under the
+ * importance table the real pass will use, and the caustic pass's L S+ D stores. A real pass
+ * joins them (trace_opts.reuse; pilot_photons_joining says whether, and why not) when they
+ * were traced by its rules (the same max_depth and max_bounces; for the global pass the same
+ * importance table and the maps it builds; for the caustic pass the same projection maps:
+ * projection on with the same projection_cells) and stored less than half its target,
+ * counting their stores toward the target. The two emissions are combined by the balance
+ * heuristic: with n_p pilot photons (density p_l) and n_m of the pass's (density rel p_l),
+ * every photon's power is P_l / p_l / (n_p + n_m rel), which is unbiased and for rel = 1 the
+ * plain P_l / p_l / (n_p + n_m). The caustic pass never emits by importance, and the pilot's
+ * caustic pass aims through the same projection maps as the pass (light chosen by P_l f_l,
+ * a uniform point of an active cell): the two densities are the same, rel = 1, and the
+ * caustic map is the pooled estimate, every photon at P_l f_l / p_l / (n_p + n_m). The whole
+ * map is the pass's stores followed by the pilot's; a partitioned distributed pass keeps each
+ * process's part of that order, so its parts are those of the one-process maps.
+ * global_emitted and caustic_emitted count both emissions; pilot_emitted / pilot_stored (in
+ * photon_maps) the pilot's share. The stored count, and so the estimates' noise, stays what
+ * the target asks: the gain is the pass's emissions saved (n_p of them). The pilot's streams
+ * are fixed (PLAN_SEED), so across the scene's seeds its share of a map (n_p / (n_p + n_m) of
+ * the weight) is one fixed draw, unbiased over pilots but not redrawn with the seed.
+ *   Not joined: a caustic pass without the projection map (projection false) or with other
+ * cells: the pilot is always aimed (the plan needs it), so the two densities differ, and
+ * each photon would need its ratio of them (1 / F in the pilot's active cells and 0 outside,
+ * F the power-weighted active fraction, for projection false); not built, as a setting away
+ * from the default; maps loaded instead of traced; a scene with media, whose maps and pilot
+ * are volume.h's (that pilot keeps no photons: joining there is volume.c's to build).
+ * caustic_stride does not matter: it changes where the caustic map is read, not the map.
  * CAUSTIC PROJECTION MAP. The caustic pass emits only into the active cells of each light's
  * projection map (projmap.h), chooses a light in proportion to P_light * f_light with f_light
  * its fraction of active cells, and scales each photon's power by that fraction (Jensen's
@@ -107,7 +124,7 @@ extern "C" {
 /* A pass that stores nothing in this many batches stops with PM_EEMPTY. */
 #define PASS_EMPTY_BATCHES 16
 
-/* A pilot's photons kept for the real global pass (PILOT PHOTONS above); opaque. */
+/* A pilot's photons kept for the real passes (PILOT PHOTONS above); opaque. */
 typedef struct pilot_photons pilot_photons;
 void pilot_photons_free(pilot_photons *k);
 
@@ -124,7 +141,8 @@ typedef struct trace_pilot {
     pilot_counts diffuse_bounce; /* stores after a diffuse bounce, by that bounce's surface */
     pilot_counts occluder;       /* photons from area lights that reach a diffuse surface behind
                                     their first hit (a shadow photon), by the first hit */
-    int keep;             /* 1: keep the global pass's photons in kept (the caller frees it) */
+    int keep; /* 1: keep the passes' stores in kept (the caller frees it; when kept is set
+                 already, by another pilot's call, the passes run here are added to it) */
     pilot_photons *kept;
 } trace_pilot;
 
@@ -139,7 +157,7 @@ typedef struct trace_opts {
     /* The global pass (and its shadow photons) emits by this table (importance.h; the plan
      * builds it) when non-NULL and on; NULL: by power alone. Not used by a pilot. */
     const struct importance *importance;
-    const pilot_photons *reuse; /* the plan's pilot photons to join the global maps, or NULL */
+    const pilot_photons *reuse; /* the plan's pilot photons to join the maps, or NULL */
     int max_depth;
     uint64_t seed;
     int threads; /* 0: OpenMP's default */
@@ -151,6 +169,19 @@ typedef struct trace_opts {
 /* Fill the options from the scene's settings: seed, max_depth, the budgets' defaults; the
  * rest zero. */
 void trace_opts_init(trace_opts *o, const scene *s);
+/* trace_opts_init, then the photon settings c: the targets, budgets, projection and
+ * progress (quiet = !c->progress). Which maps, the importance table and reuse are the
+ * caller's. */
+void trace_opts_settings(trace_opts *o, const scene *s, const photon_settings *c);
+
+/* Whether a pass with options o joins the stores of k to its map (PILOT PHOTONS): caustic 0
+ * the global pass's main map (global, else shadow), 1 the caustic map. 1: they join, with
+ * *stores the pilot's stores that join that map and *emitted the pilot photons they count
+ * as emitted (either may be NULL); 0: not, with *why (if non-NULL) saying why (a static
+ * string; "" when k is NULL or holds no such pass). photon_trace decides by this function,
+ * so a plan can print what the pass will do. */
+int pilot_photons_joining(const pilot_photons *k, const trace_opts *o, int caustic, size_t *stores,
+                          uint64_t *emitted, const char **why);
 
 typedef struct trace_dist {
     int nparts, part; /* processes, and this one's place among them */
@@ -170,6 +201,14 @@ typedef struct trace_dist {
      * per process) in whole_* (photon_maps.h). Each process traces about 2 / nparts of the
      * photons; its memory holds its part and one round's counts. */
     int partitioned;
+    /* NULL, or called by a process whose own tracing failed (out of memory), with what
+     * failed, before the exchange that tells every process: render-mpi names the process
+     * there and stops the job (it need not return; if it does, the pass fails everywhere). */
+    void (*failed)(void *user, const char *what);
+    /* Test hook, NULL, or asked once for each batch a process traces in a distributed pass
+     * (also the batches a partitioned pass traces again): nonzero fails that batch as if an
+     * allocation of the tracer had failed. */
+    int (*test_fail)(void *user);
 } trace_dist;
 /* Distribute every later pass as described above (NULL: back to one process). The caller
  * keeps d alive while passes run. */

@@ -11,8 +11,11 @@
  * bounce (global), and photons that pass their first hit and reach a diffuse surface behind
  * it (shadow photons). Each reason prints those counts and the materials involved. The
  * pilot uses fixed streams (seed PLAN_SEED), so the plan is deterministic, and costs about
- * 16384 photon paths. The global pilot's photons are kept (render_plan.pilot) and join the
- * real global pass's maps (photon_trace.h, PILOT PHOTONS); the caustic pilot's are not.
+ * 16384 photon paths. Both pilots' stores are kept (render_plan.pilot) and join the real
+ * passes' maps (photon_trace.h, PILOT PHOTONS): the global pilot's the global and shadow
+ * maps, the caustic pilot's (aimed by the projection maps the caustic pass will use) the
+ * caustic map. The caustics and global lines say how many stores join, or why none do, by
+ * the rule photon_trace applies (pilot_photons_joining).
  */
 #include "plan.h"
 
@@ -111,7 +114,14 @@ static void run_pilot(const scene *s, const photon_settings *cfg, const importan
     o.global = o.shadow = 0;
     o.caustic = 1;
     o.caustic_target = 1L << 40;
+    /* Always aimed (the evidence needs it); by the pass's projection maps when it uses them,
+     * so the pilot's caustic stores can join the caustic map. */
+    o.projection = 1;
+    o.projection_cells = cfg->projection ? cfg->projection_cells : 64;
+    r->c.keep = 1;
+    r->c.kept = r->g.kept; /* its stores are added to the global pilot's kept photons */
     photon_trace(s, &o, &m, err, sizeof err);
+    r->g.kept = r->c.kept; /* created here if the global pilot kept none */
     r->c_emitted = r->c.emitted;
     photon_maps_free(&m);
 }
@@ -417,6 +427,46 @@ void plan_free(render_plan *p) {
     p->pilot = NULL;
 }
 
+/* Append to the caustics and global reasons (the shadow reason for a shadow map without a
+ * global map) how many of the pilot's stores join those maps,
+ * or why none do, by photon_trace's own rule for the options the pass will have
+ * (photonmapper.c: trace_opts_settings, the plan's maps and table). Keeps the pilot's photons
+ * only when some join. */
+static void plan_joins(const scene *s, const photon_settings *c, render_plan *p) {
+    if (!p->pilot) return;
+    trace_opts o;
+    trace_opts_settings(&o, s, c);
+    o.global = p->global.on;
+    o.shadow = p->shadow.on;
+    o.caustic = p->caustics.on;
+    o.importance = p->imp;
+    int any = 0;
+    for (int caustic = 0; caustic < 2; caustic++) {
+        plan_item *it = caustic ? &p->caustics : p->global.on ? &p->global : &p->shadow;
+        const char *map = caustic ? "caustic map" : o.global ? "global map" : "shadow map";
+        size_t n = 0;
+        uint64_t ne = 0;
+        const char *why = "";
+        int joins = !c->load_dir[0] && pilot_photons_joining(p->pilot, &o, caustic, &n, &ne, &why);
+        any |= joins;
+        size_t len = strlen(it->reason), cap = sizeof it->reason - len;
+        char *at = it->reason + len;
+        if (joins)
+            snprintf(at, cap, "; the pilot's %zu stores join the %s (its %llu photons counted as emitted)", n,
+                     map, (unsigned long long)ne);
+        else if (caustic ? !p->caustics.on : !(p->global.on || p->shadow.on))
+            continue;
+        else if (c->load_dir[0])
+            snprintf(at, cap, "; the maps are loaded: no pilot stores join");
+        else if (why[0])
+            snprintf(at, cap, "; the pilot's stores do not join the %s: %s", map, why);
+    }
+    if (!any) {
+        pilot_photons_free(p->pilot);
+        p->pilot = NULL;
+    }
+}
+
 /* Apply a forced setting from the scene file (or --pm key=true|false). */
 static void force(plan_item *it, int f, const char *key) {
     if (f == PLAN_AUTO) return;
@@ -435,7 +485,7 @@ void plan_make(const scene *s, const photon_settings *c, int preview, render_pla
         pilot_result r;
         tab = make_importance(s, c);
         run_pilot(s, c, tab && tab->on ? tab : NULL, &r);
-        p->pilot = r.g.kept;
+        p->pilot = r.g.kept; /* both pilots' stores */
         plan_caustics(s, &r, p);
         plan_global(s, &r, p);
         plan_shadow(s, &r, p);
@@ -457,10 +507,7 @@ void plan_make(const scene *s, const photon_settings *c, int preview, render_pla
         set(&p->final_gather, 1,
             "indirect diffuse by gather rays reading precomputed irradiance of the global map%s", "");
     plan_emission(s, c, p, tab);
-    if (p->pilot && !p->global.on && !p->shadow.on) { /* no global pass to join */
-        pilot_photons_free(p->pilot);
-        p->pilot = NULL;
-    }
+    plan_joins(s, c, p);
 }
 
 void plan_print(const render_plan *p, FILE *f) {

@@ -32,6 +32,11 @@
  * tracer that builds those maps) instead of photon_trace's: caustics from its L S+ D stores,
  * the global map from stores after a diffuse bounce or a scattering event; shadow photons are
  * off (shadow rays there carry the media's transmittance).
+ * The pilots' stores join the real passes' maps (photon_trace.h, PILOT PHOTONS): the caustics
+ * and global lines (the shadow photons' line when there is no global map) end with "the
+ * pilot's N stores join the caustic map (its M photons counted as emitted)", or with why they
+ * do not (pilot_photons_joining's reason, or loaded maps), by the rule photon_trace applies
+ * to the options the settings give (trace_opts_settings).
  * Every probe uses fixed random streams, so the plan of a scene never changes between runs.
  * The scene's "photon_mapping" object may force any of them: "caustics": true/false, and the
  * same for "global", "shadow" and "final_gather"; the reason then says "forced".
@@ -56,14 +61,15 @@ extern "C" {
 
 typedef struct plan_item {
     int on;
-    char reason[320];
+    char reason[480];
 } plan_item;
 
 typedef struct render_plan {
     plan_item caustics, global, shadow, final_gather, volume, volume_caustics;
     plan_item emission; /* on: importance-driven emission of the global pass (importance.h) */
     struct importance *imp; /* emission on: the table for trace_opts.importance (owned) */
-    pilot_photons *pilot;   /* the global pilot's photons for trace_opts.reuse (owned), or NULL */
+    pilot_photons *pilot;   /* the pilots' photons for trace_opts.reuse (owned; NULL when none
+                               join a map the plan traces) */
 } render_plan;
 
 /* Decide the plan for scene s under config c; preview = 1 turns final gathering off. The
