@@ -285,6 +285,66 @@ fi
 # shellcheck disable=SC1091
 . "$here/scripts/test-mpi-partitioned.sh"
 
+# ---- usage -------------------------------------------------------------------------------
+# --help documents every option render-mpi accepts. Oracle: render's own --help (render-mpi
+# passes render's options through, so its help must hold render's, line for line), and the
+# options render-mpi handles itself, read from its source (each strcmp/strncmp literal of
+# render_mpi.c that starts with -), each of which its own section (after "render-mpi (the
+# same options") must name. --help-settings: every key of render's table, plus distributed.
+"$R" --help >"$T/rhelp.txt" 2>&1
+$MPIRUN -np 2 "$M" --help >"$T/mhelp.txt" 2>&1
+rc=$?
+sed -n '/^render-mpi (the same options/,$p' "$T/mhelp.txt" > "$T/mhelp.own.txt"
+missing=""
+for o in $(grep -o 'strn\{0,1\}cmp([^,]*, "[^"]*"' render/mpi/render_mpi.c | sed 's/.*"\([^"]*\)"$/\1/' | sort -u); do
+  f="$T/mhelp.own.txt"
+  case $o in
+    --help*|-h) f="$T/mhelp.txt"; o=${o%%=*} ;; # render's own, in render's part
+    -*) ;;
+    distributed=) o="--pm distributed=" ;;
+    *) o="--pm distributed=$o" ;;      # the values compared after "distributed="
+  esac
+  grep -q -e "$o" "$f" || missing="$missing '$o'"
+done
+nopts=$(grep -o 'strn\{0,1\}cmp([^,]*, "[^"]*"' render/mpi/render_mpi.c | sed 's/.*"\([^"]*\)"$/\1/' | sort -u | wc -l)
+if [ $rc = 0 ] && [ "$nopts" -ge 8 ] && [ -z "$missing" ] && [ -s "$T/mhelp.own.txt" ] \
+   && [ "$(head -n "$(wc -l < "$T/rhelp.txt")" "$T/mhelp.txt" | cmp - "$T/rhelp.txt" && echo same)" = same ]; then
+  ok "--help: render's text, and each of render-mpi's own $nopts option strings in its section"
+else
+  bad "--help" "rc $rc, options not in render-mpi's section:$missing ($nopts found in render_mpi.c)"
+fi
+"$R" --help-settings=markdown >"$T/rset.md" 2>&1
+$MPIRUN -np 2 "$M" --help-settings=markdown >"$T/mset.md" 2>&1
+rc=$?
+$MPIRUN -np 2 "$M" --help-settings >"$T/mset.txt" 2>&1
+rc2=$?
+if [ $rc = 0 ] && [ $rc2 = 0 ] && [ "$(head -n "$(wc -l < "$T/rset.md")" "$T/mset.md" | cmp - "$T/rset.md" && echo same)" = same ] \
+   && [ "$(grep -c '^| `distributed` |' "$T/mset.md")" = 1 ] && grep -q '^  distributed  ' "$T/mset.txt" \
+   && [ "$(grep -c '^  [a-z_][a-z_]* ' "$T/mset.txt")" = "$(($(grep -c '^| `' "$T/rset.md") + 1))" ]; then
+  ok "--help-settings (both forms): render's settings, then distributed"
+else
+  bad "--help-settings" "rc $rc/$rc2; $(grep -c '^  [a-z_][a-z_]* ' "$T/mset.txt") keys listed, render's table has $(grep -c '^| `' "$T/rset.md")"
+fi
+# The arguments render-mpi adds (--threads, --quiet) do not change what render says: a last
+# option without its value gets render's message (it took --threads as its value, and the
+# thread count as a second scene). The tools run on rank 0 alone: --tonemap at -np 2 writes
+# render's bytes.
+"$R" data/scenes/cornell_box.json --width 8 --hdr >"$T/noval.r.log" 2>&1
+rc1=$?
+$MPIRUN -np 2 "$M" data/scenes/cornell_box.json --width 8 --hdr >"$T/noval.log" 2>&1
+rc=$?
+msg=$(grep "^render: " "$T/noval.r.log" | head -1)
+"$R" data/scenes/cornell_box.json --width 16 --spp 1 --quiet --hdr "$T/tm.pfm" >/dev/null 2>&1
+"$R" --tonemap "$T/tm.pfm" "$T/tm.r.png" >/dev/null 2>&1
+$MPIRUN -np 2 "$M" --tonemap "$T/tm.pfm" "$T/tm.m.png" >"$T/tm.log" 2>&1
+rc3=$?
+if [ $rc1 = 2 ] && [ $rc = 2 ] && [ -n "$msg" ] && [ "$(grep "^render: " "$T/noval.log")" = "$msg" ] \
+   && [ $rc3 = 0 ] && cmp -s "$T/tm.r.png" "$T/tm.m.png"; then
+  ok "a last option without its value: render's message ($msg), exit 2; --tonemap at -np 2: render's bytes"
+else
+  bad "option without value / tools" "render $rc1, render-mpi $rc ($(grep "^render" "$T/noval.log" | head -1)); tonemap $rc3"
+fi
+
 # ---- failures ----------------------------------------------------------------------------
 # A scene error on every rank: exit 2, the loader's message (with the line) once from rank 0,
 # and no output file.

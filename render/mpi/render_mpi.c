@@ -4,10 +4,13 @@
  *
  * It starts MPI, takes the options that only a distributed render has, and runs render's own
  * main (render/main.c, compiled as render_main) on every rank. What it changes in the
- * arguments, per rank:
+ * arguments, per rank (added ones go first, so that a last option missing its value gets
+ * render's own message):
  *   - --threads: when not given, the cores of the node divided among the ranks on it (OpenMP
  *     would otherwise start all cores' worth of threads in every rank);
  *   - ranks > 0 get --quiet and lose --save-photons (rank 0 saves the maps once).
+ * The tools (--compare, --tonemap, --dump-scene, --help-settings) run on rank 0 alone, as
+ * render runs them; --help and --help-settings add what only render-mpi has.
  * Checkpoints (--checkpoint, --resume, --snapshot-every) are render's: rank 0 writes them
  * (checkpoint.h, ckpt_set_distributed; dist.h). A resumed render takes the distribution of
  * its checkpoint when none is given: a partitioned checkpoint says so in its settings text.
@@ -29,12 +32,35 @@ static void usage_mpi(void) {
            "  --pm distributed=replicated   every rank holds all photons (the default): the\n"
            "                    image is bit-identical to render's\n"
            "  --pm distributed=partitioned  every rank keeps 1/N of the photon maps; estimates\n"
-           "                    combine the ranks' parts (docs/MPI.md: accuracy, traffic)\n"
+           "                    combine the ranks' parts (docs/MPI.md: accuracy, traffic);\n"
+           "                    a command-line setting only (not in the scene's photon_mapping)\n"
            "  --threads N       OpenMP threads per rank (default: the node's cores divided\n"
            "                    among its ranks)\n"
-           "  --checkpoint, --resume, --snapshot-every: as in render; rank 0 writes the files, and\n"
-           "                    a replicated render's checkpoint is render's (either resumes it,\n"
-           "                    at any -np); a partitioned one resumes at the same -np only\n");
+           "  --checkpoint, --checkpoint-every, --resume, --snapshot-every: as in render; rank 0\n"
+           "                    writes the files, and a replicated render's checkpoint is\n"
+           "                    render's (either resumes it, at any -np); a partitioned one\n"
+           "                    resumes at the same -np only\n"
+           "  --save-photons DIR  written by rank 0 alone; refused (exit 2) with\n"
+           "                    --pm distributed=partitioned (no rank holds the whole maps)\n"
+           "  --load-photons DIR  read by every rank (DIR on storage every rank can read)\n"
+           "  -o, --hdr         written by rank 0 alone, once, at the end; the directory\n"
+           "                    must exist on every rank's node\n"
+           "  --compare, --tonemap, --dump-scene, --help-settings: run by rank 0 alone\n"
+           "  exit status: as render's; a rank that fails stops every rank, and rank 0 names\n"
+           "                    it (\"rank K of N failed ...\"), nothing written\n");
+}
+
+/* --help-settings adds the one setting that render-mpi alone has, in the same form. */
+static void settings_mpi(int markdown) {
+    if (markdown)
+        printf("| `distributed` | string | \"replicated\" | replicated, partitioned | render-mpi "
+               "only, and only as --pm distributed=MODE: every rank holds the whole photon maps "
+               "(replicated) or 1/N of them (partitioned) |\n");
+    else
+        printf("  distributed          string, default \"replicated\", replicated, partitioned\n"
+               "                       render-mpi only, and only as --pm distributed=MODE:\n"
+               "                       every rank holds the whole photon maps (replicated) or\n"
+               "                       1/N of them (partitioned)\n");
 }
 
 int main(int argc, char **argv) {
@@ -96,8 +122,15 @@ int main(int argc, char **argv) {
     dist_init(mode);
     if (msg[0]) dist_fail_early(2, msg);
     static char threads_arg[24];
-    int tool = argc > 1 && (strcmp(argv[1], "--compare") == 0 || strcmp(argv[1], "--tonemap") == 0 ||
-                            strcmp(argv[1], "--dump-scene") == 0);
+    int settings = argc == 2 && (strcmp(argv[1], "--help-settings") == 0 ||
+                                 strcmp(argv[1], "--help-settings=markdown") == 0);
+    int tool = settings || (argc > 1 && (strcmp(argv[1], "--compare") == 0 ||
+                                         strcmp(argv[1], "--tonemap") == 0 ||
+                                         strcmp(argv[1], "--dump-scene") == 0));
+    /* The added arguments go right after the program's name. */
+    int at = ac > 0 ? 1 : 0;
+    char *added[3];
+    int nadd = 0;
     if (!has_threads && !tool && !help) {
         /* Ranks sharing this node share its cores. */
         MPI_Comm node;
@@ -110,14 +143,20 @@ int main(int argc, char **argv) {
         long cores = sysconf(_SC_NPROCESSORS_ONLN);
         long t = cores > 0 ? cores / local : 1;
         snprintf(threads_arg, sizeof threads_arg, "%ld", t > 0 ? t : 1);
-        av[ac++] = "--threads";
-        av[ac++] = threads_arg;
+        added[nadd++] = "--threads";
+        added[nadd++] = threads_arg;
     }
-    if (rank > 0 && !tool) av[ac++] = "--quiet";
+    if (rank > 0 && !tool) added[nadd++] = "--quiet";
+    memmove(av + at + nadd, av + at, (size_t)(ac - at) * sizeof *av);
+    for (int k = 0; k < nadd; k++) av[at + k] = added[k];
+    ac += nadd;
     av[ac] = NULL;
-    int rc = render_main(ac, av);
+    /* A tool's output is rank 0's (the others' stdout is discarded; two ranks would write
+     * --tonemap's file twice). */
+    int rc = tool && rank > 0 ? 0 : render_main(ac, av);
     free(av);
     if (help && rank == 0) usage_mpi();
+    if (settings && rank == 0 && rc == 0) settings_mpi(argv[1][15] == '=');
     fflush(stdout);
     return dist_finish(rc);
 }
