@@ -29,9 +29,6 @@
 #include "rng.h"
 #include "sampling.h"
 
-#define PLAN_SEED 0x706c616eULL /* "plan" */
-#define PILOT_BATCHES 2          /* photons per pilot: 2 x PT_BATCH = 8192 */
-
 /* ---- probes ------------------------------------------------------------------------------ */
 
 static int prim_count(const scene *s) { return s->ntris + s->nspheres; }
@@ -84,10 +81,11 @@ typedef struct pilot_result {
     size_t g_stored;                      /* photons the global pilot stored */
 } pilot_result;
 
-/* The pilot: PILOT_BATCHES batches of photons traced exactly as the real passes trace them
+/* The pilot: PLAN_PILOT_PHOTONS photons traced exactly as the real passes trace them
  * (same emission, scattering and storage rules; the caustic pilot aimed at the specular
  * objects by the projection maps, so a specular object lit only through a small opening still
- * receives its share of the aimed photons), counting what they do instead of keeping them. */
+ * receives its share of the aimed photons), counting what they do; their stores are kept for
+ * the real passes (PILOT PHOTONS in photon_trace.h). */
 static void run_pilot(const scene *s, const photon_settings *cfg, const importance *imp, pilot_result *r) {
     memset(r, 0, sizeof *r);
     trace_opts o;
@@ -95,7 +93,7 @@ static void run_pilot(const scene *s, const photon_settings *cfg, const importan
     o.seed = PLAN_SEED;
     o.max_bounces = cfg->max_bounces; /* the real passes' rules, so its photons can join them */
     o.quiet = 1;
-    o.max_emitted = (double)PILOT_BATCHES * PT_BATCH;
+    o.max_emitted = PLAN_PILOT_PHOTONS;
     o.max_emitted_factor = 1e300;
     /* Emission by power (the evidence of uniform emission); with the table the real pass will
      * use, each photon records its rel there, so the global photons can join that pass. */

@@ -59,6 +59,10 @@
 extern "C" {
 #endif
 
+/* The pilot passes' fixed streams and size (plan.c): seed, and photons per pilot pass. */
+#define PLAN_SEED 0x706c616eULL /* "plan" */
+#define PLAN_PILOT_PHOTONS (2 * PT_BATCH)
+
 typedef struct plan_item {
     int on;
     char reason[480];
