@@ -571,6 +571,12 @@ fi
 # 3's records after the all-to-all (the error goes through render's own message; rank 0 waits
 # in the statistics' reduce). Before lookup.c waited in those collectives with dist_wait, rank
 # 0 did not hear these and the job ended after the failing rank's 30 s fallback.
+# The photon tracer's own allocation (phase tracer: the N-th batch the rank traces in a
+# distributed pass fails as if its buffer could not grow; trace_dist.test_fail): rank 1 of 3's
+# first batch (the ranks' agreement is joined there), rank 2 of 3's third (the caustic pass,
+# a later round), and partitioned rank 1 of 2's first (the global pass's counting rounds) and
+# third (tracing its part of the global map again). Such a failure is sent to every rank in the
+# exchange, so before trace_dist.failed rank 0 failed too and said "rank 0 failed (see above)".
 enomem_test() { # name np "RANK PHASE N" expected-text render-mpi-args...
   ename=$1; enp=$2; spec=$3; want=$4; shift 4
   set -- "$@" --threads 1 --hdr "$T/enomem.$ename/o.pfm" -o "$T/enomem.$ename/o.png"
@@ -599,8 +605,17 @@ enomem_test root 2 "0 pixels 6" "out of memory in the tile queue" $ENPATH
 # shellcheck disable=SC2086
 enomem_test photons 3 "2 photons 8" "out of memory in the photon exchange" \
   data/scenes/cornell_spheres.json --mode pm --width 32 --height 32 --spp 4 $PMSMALL
-ENPART="data/scenes/cornell_spheres.json --mode pm --width 32 --height 32 --spp 4 $PMSMALL"
-ENPART="$ENPART --pm distributed=partitioned"
+ENPM="data/scenes/cornell_spheres.json --mode pm --width 32 --height 32 --spp 4 $PMSMALL"
+# shellcheck disable=SC2086
+enomem_test tracer.first 3 "1 tracer 1" "out of memory while tracing photons (the global pass)" $ENPM
+# shellcheck disable=SC2086
+enomem_test tracer.caustic 3 "2 tracer 3" "out of memory while tracing photons (the caustic pass)" $ENPM
+ENPART="$ENPM --pm distributed=partitioned"
+# shellcheck disable=SC2086
+enomem_test tracer.part.rounds 2 "1 tracer 1" "out of memory while tracing photons (the global pass)" $ENPART
+# shellcheck disable=SC2086
+enomem_test tracer.part.again 2 "1 tracer 3" \
+  "out of memory while tracing photons (the global pass, tracing this process's part of the map again)" $ENPART
 # shellcheck disable=SC2086
 enomem_test irradiance.gather 2 "1 irradiance 7" "out of memory precomputing irradiance" $ENPART
 # shellcheck disable=SC2086

@@ -170,17 +170,20 @@ static void wait_listening(MPI_Request *r) {
 }
 void dist_wait(MPI_Request *r) { wait_listening(r); }
 
-/* Test hook: PM_RENDER_MPI_TEST_ENOMEM="RANK PHASE N" (PHASE: photons, pixels or irradiance)
- * makes the N-th allocation that dist.c makes, or asks for, on that rank in that phase fail as
- * if malloc returned NULL. Photons: per exchange, the sizes, counts, offsets, then the receive
- * buffer; pixels: on a worker the render state, the counters' base, the tile list, then one
- * result buffer per chunk, and the counters; on rank 0 the queue's three arrays, then one
- * buffer per message received; irradiance: the allocations of lookup.c's partitioned
- * precomputed-irradiance build, in its order (dist_irr_malloc: lookup.c's hook_side_build). */
-enum { PH_PHOTONS, PH_PIXELS, PH_IRRADIANCE };
+/* Test hook: PM_RENDER_MPI_TEST_ENOMEM="RANK PHASE N" (PHASE: photons, pixels, irradiance or
+ * tracer) makes the N-th allocation that dist.c makes, or asks for, on that rank in that phase
+ * fail as if malloc returned NULL. Photons: per exchange, the sizes, counts, offsets, then the
+ * receive buffer; pixels: on a worker the render state, the counters' base, the tile list,
+ * then one result buffer per chunk, and the counters; on rank 0 the queue's three arrays, then
+ * one buffer per message received; irradiance: the allocations of lookup.c's partitioned
+ * precomputed-irradiance build, in its order (dist_irr_malloc: lookup.c's hook_side_build);
+ * tracer: the photon tracer's own, one per batch this rank traces in a distributed pass (the
+ * rounds' batches, then in a partitioned pass those traced again; trace_dist.test_fail in
+ * photon_trace.h), the batch failing as if the tracer's buffer could not grow. */
+enum { PH_PHOTONS, PH_PIXELS, PH_IRRADIANCE, PH_TRACER };
 static int test_enomem(int phase) {
     static int parsed, rank = -1, ph = -1;
-    static long nth, count[3];
+    static long nth, count[4];
     if (!parsed) {
         parsed = 1;
         const char *v = getenv("PM_RENDER_MPI_TEST_ENOMEM");
@@ -189,6 +192,7 @@ static int test_enomem(int phase) {
             ph = strcmp(name, "photons") == 0      ? PH_PHOTONS
                  : strcmp(name, "pixels") == 0     ? PH_PIXELS
                  : strcmp(name, "irradiance") == 0 ? PH_IRRADIANCE
+                 : strcmp(name, "tracer") == 0     ? PH_TRACER
                                                    : -1;
     }
     if (rank != g_rank || ph != phase) return 0;
@@ -354,6 +358,19 @@ static int photon_allgather(void *user, const void *mine, size_t nbytes, void **
     return 0;
 }
 
+/* The photon tracer failed on this rank (out of memory), before the exchange that would tell
+ * every rank: a failure after the agreement (joined here if this is the first exchange, where
+ * the other ranks wait in it), so rank 0 names this rank and the pass. */
+static void tracer_failed(void *user, const char *what) {
+    (void)user;
+    dist_start(0, NULL, NULL);
+    die_now(what);
+}
+static int tracer_test_fail(void *user) {
+    (void)user;
+    return test_enomem(PH_TRACER);
+}
+
 void dist_collective_begin(void) { dist_start(0, NULL, NULL); }
 void dist_die(const char *what) { die_now(what); }
 
@@ -380,6 +397,8 @@ void dist_init(int mode) {
     g_td.allgather = photon_allgather;
     g_td.user = NULL;
     g_td.partitioned = mode == DIST_PARTITIONED;
+    g_td.failed = tracer_failed;
+    g_td.test_fail = tracer_test_fail;
     photon_trace_set_dist(&g_td);
     vol_set_dist(&g_td); /* the media passes too (volume.h), in both modes */
     if (mode == DIST_PARTITIONED) lk_init(g_rank, g_size);
