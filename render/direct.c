@@ -12,31 +12,42 @@
 #include "stats.h"
 
 /* One light in proportion to power and one point on it, seen from p: 3 numbers. 0 if none.
- * With a guide (guide.h) the point's (u1, u2) are warped by the table of (p, n, light), if it
- * has one: *d is the density of the warped pair over the unit square (1 without a table) and
- * *guided says whether a table was found. */
+ * With a guide (guide.h) that knows the cell of (p, n): the light is chosen with probability
+ * p' = alpha p_power + (1 - alpha) w_l (with probability alpha by power, from ulight rescaled,
+ * else by the cell's weights w, from what is left of ulight), and the point's (u1, u2) are
+ * warped by the light's table there, if it has one; *pl is then p' times the warped pair's
+ * density over the unit square, and *guided is 1. p' > 0 for every light with power, and the
+ * density > 0 everywhere, so dividing by them keeps every estimate unbiased. */
 static int pick_light_guided(const scene *s, vec3 p, vec3 n, const guide *gd, rng *g, light_sample *ls, double *pl,
-                             int *li, double *d, int *guided) {
+                             int *li, int *guided) {
     double ulight = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
-    *d = 1;
     *guided = 0;
     if (s->nlights == 0 || s->light_distrib.n == 0) return 0;
-    *li = distrib1d_sample(&s->light_distrib, ulight, pl);
-    if (!(*pl > 0)) return 0;
-    if (gd) {
-        const double *t = guide_find(gd, p, n, *li);
-        if (t) {
-            *guided = 1;
-            *d = guide_warp(gd, t, &u1, &u2);
-        }
+    long c = gd ? guide_cell_index(gd, p, n) : -1;
+    if (c < 0) {
+        *li = distrib1d_sample(&s->light_distrib, ulight, pl);
+        if (!(*pl > 0)) return 0;
+        return light_sample_li(s, *li, p, u1, u2, ls);
     }
+    *guided = 1;
+    double a = gd->alpha, p0;
+    if (ulight < a) {
+        double v = ulight / a;
+        *li = distrib1d_sample(&s->light_distrib, v < 1 ? v : 0x1.fffffffffffffp-1, &p0);
+    } else {
+        double v = (ulight - a) / (1 - a);
+        *li = guide_pick_slot(gd, c, v < 1 ? v : 0x1.fffffffffffffp-1);
+        p0 = distrib1d_prob(&s->light_distrib, *li);
+    }
+    *pl = a * p0 + (1 - a) * guide_slot_weight(gd, c, *li);
+    if (!(*pl > 0)) return 0;
+    *pl *= guide_warp(gd, guide_cell_table(gd, c, *li), &u1, &u2);
     return light_sample_li(s, *li, p, u1, u2, ls);
 }
 
 static int pick_light(const scene *s, vec3 p, rng *g, light_sample *ls, double *pl, int *li) {
-    double d;
     int guided;
-    return pick_light_guided(s, p, v3s(0), NULL, g, ls, pl, li, &d, &guided);
+    return pick_light_guided(s, p, v3s(0), NULL, g, ls, pl, li, &guided);
 }
 
 /* Transmittance from p (normal np) to the light sample, starting in medium med. */
@@ -125,10 +136,9 @@ rgb direct_light_surface_guided(const scene *s, const material *m, const hit *h,
                                 const direct_options *o, const guide *gd) {
     vec3 nsh = material_shading_side(wo, h->ng, h->ns); /* cosines; n (geometric) keeps the side */
     light_sample ls;
-    double pl, d;
+    double pl;
     int li, guided;
-    if (!pick_light_guided(s, h->p, n, gd, g, &ls, &pl, &li, &d, &guided)) return v3s(0);
-    if (guided) pl *= d; /* the point's density: p_light d(u) (guide.h) */
+    if (!pick_light_guided(s, h->p, n, gd, g, &ls, &pl, &li, &guided)) return v3s(0);
     double cos_s = v3_dot(ls.wi, nsh);
     if (cos_s <= 0 || v3_dot(ls.wi, n) <= 0 || v3_iszero(ls.L)) return v3s(0);
     rgb f = o->bsdf == DIRECT_BSDF_FULL ? material_f(m, h->ng, s->medium_ior, wo, ls.wi)

@@ -7,6 +7,7 @@
  */
 #include "guide.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -26,6 +27,7 @@
 #define GUIDE_SPECULAR_MAX 8          /* specular bounces a pilot path passes */
 #define CELL_BITS 20
 #define CELL_MAX ((1 << CELL_BITS) - 1)
+#define CELL_SLOT INT_MAX /* the hash entry of a cell (its tables' choice) */
 
 static int nthreads_of(int threads) {
 #ifdef _OPENMP
@@ -88,7 +90,7 @@ int guide_build(guide *g, const guide_grid *grid, int G, double alpha, const gui
     g->alpha = alpha;
     size_t G2 = (size_t)G * (size_t)G;
     for (size_t k = 0; k < n; k++) {
-        if (rows[k].slot < 0) return PM_EINVAL;
+        if (rows[k].slot < 0 || rows[k].slot >= CELL_SLOT) return PM_EINVAL;
         for (size_t j = 0; j < G2; j++)
             if (!(rows[k].v[j] >= 0) || !isfinite(rows[k].v[j])) return PM_EINVAL;
     }
@@ -109,21 +111,26 @@ int guide_build(guide *g, const guide_grid *grid, int G, double alpha, const gui
             for (size_t j = 0; j < G2; j++) t += rows[r[b].k].v[j];
         ntab += t > 0;
     }
+    size_t ncell = 0;
+    uint64_t last = 0;
     size_t cap = 16;
-    while (cap < 2 * ntab) cap *= 2;
+    while (cap < 2 * (2 * ntab)) cap *= 2; /* a table and at most one cell entry each */
     g->cap = cap;
     g->hkey = malloc(cap * sizeof *g->hkey);
     g->hslot = malloc(cap * sizeof *g->hslot);
     g->hidx = malloc(cap * sizeof *g->hidx);
     g->cdf = malloc((ntab ? ntab : 1) * (G2 + 1) * sizeof *g->cdf);
-    if (!g->hkey || !g->hslot || !g->hidx || !g->cdf) {
+    g->tslot = malloc((ntab ? ntab : 1) * sizeof *g->tslot);
+    g->tw = malloc((ntab ? ntab : 1) * sizeof *g->tw);
+    g->tcum = malloc((ntab ? ntab : 1) * sizeof *g->tcum);
+    g->cfirst = malloc((ntab + 1) * sizeof *g->cfirst);
+    if (!g->hkey || !g->hslot || !g->hidx || !g->cdf || !g->tslot || !g->tw || !g->tcum || !g->cfirst) {
         free(r);
         free(sum);
         guide_free(g);
         return PM_ENOMEM;
     }
     for (size_t i = 0; i < cap; i++) g->hslot[i] = -1;
-    uint64_t last_cell = 0;
     for (size_t a = 0, b; a < n; a = b) {
         memset(sum, 0, G2 * sizeof *sum);
         double t = 0;
@@ -141,9 +148,30 @@ int guide_build(guide *g, const guide_grid *grid, int G, double alpha, const gui
         g->hkey[hsl] = r[a].cell;
         g->hslot[hsl] = r[a].slot;
         g->hidx[hsl] = g->ntables;
-        if (g->ntables == 0 || r[a].cell != last_cell) g->ncells++;
-        last_cell = r[a].cell;
+        if (g->ntables == 0 || r[a].cell != last) { /* a new cell: its entry */
+            g->cfirst[ncell] = g->ntables;
+            size_t hc = hash_of(r[a].cell, CELL_SLOT, cap - 1);
+            while (g->hslot[hc] >= 0) hc = (hc + 1) & (cap - 1);
+            g->hkey[hc] = r[a].cell;
+            g->hslot[hc] = CELL_SLOT;
+            g->hidx[hc] = ncell++;
+        }
+        last = r[a].cell;
+        g->tslot[g->ntables] = r[a].slot;
+        g->tw[g->ntables] = t; /* normalized below, per cell */
         g->ntables++;
+    }
+    g->ncells = ncell;
+    g->cfirst[ncell] = g->ntables;
+    for (size_t c = 0; c < ncell; c++) {
+        double t = 0, acc = 0;
+        for (size_t k = g->cfirst[c]; k < g->cfirst[c + 1]; k++) t += g->tw[k];
+        for (size_t k = g->cfirst[c]; k < g->cfirst[c + 1]; k++) {
+            g->tw[k] /= t;
+            acc += g->tw[k];
+            g->tcum[k] = acc;
+        }
+        g->tcum[g->cfirst[c + 1] - 1] = 1;
     }
     free(r);
     free(sum);
@@ -156,6 +184,10 @@ void guide_free(guide *g) {
     free(g->hslot);
     free(g->hidx);
     free(g->cdf);
+    free(g->tslot);
+    free(g->tw);
+    free(g->tcum);
+    free(g->cfirst);
     memset(g, 0, sizeof *g);
 }
 
@@ -174,6 +206,50 @@ const double *guide_find(const guide *g, vec3 p, vec3 n, int slot) {
         if (g->hkey[h] == cell && g->hslot[h] == slot)
             return &g->cdf[g->hidx[h] * ((size_t)g->G * (size_t)g->G + 1)];
     }
+}
+
+long guide_cell_index(const guide *g, vec3 p, vec3 n) {
+    if (!g || g->ntables == 0) return -1;
+    uint64_t cell = guide_cell(&g->grid, p, n);
+    for (size_t h = hash_of(cell, CELL_SLOT, g->cap - 1);; h = (h + 1) & (g->cap - 1)) {
+        if (g->hslot[h] < 0) return -1;
+        if (g->hkey[h] == cell && g->hslot[h] == CELL_SLOT) return (long)g->hidx[h];
+    }
+}
+
+/* The cell's table of slot (binary search: a cell's tables are in slot order), or -1. */
+static long cell_table(const guide *g, long c, int slot) {
+    size_t lo = g->cfirst[c], hi = g->cfirst[c + 1];
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (g->tslot[mid] < slot)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo < g->cfirst[c + 1] && g->tslot[lo] == slot ? (long)lo : -1;
+}
+
+const double *guide_cell_table(const guide *g, long c, int slot) {
+    long t = c >= 0 ? cell_table(g, c, slot) : -1;
+    return t >= 0 ? &g->cdf[(size_t)t * ((size_t)g->G * (size_t)g->G + 1)] : NULL;
+}
+
+double guide_slot_weight(const guide *g, long c, int slot) {
+    long t = c >= 0 ? cell_table(g, c, slot) : -1;
+    return t >= 0 ? g->tw[t] : 0;
+}
+
+int guide_pick_slot(const guide *g, long c, double u) {
+    size_t lo = g->cfirst[c], hi = g->cfirst[c + 1] - 1;
+    while (lo < hi) { /* the first table with tcum > u */
+        size_t mid = lo + (hi - lo) / 2;
+        if (g->tcum[mid] > u)
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    return g->tslot[lo];
 }
 
 /* The largest double below (i + 1) / G, for a point that rounding would push into the next
@@ -333,9 +409,37 @@ int guide_learn(guide *g, const scene *s, const guide_grid *grid, int G, double 
     return rc;
 }
 
+/* Each row's values become half themselves plus half the largest in their 3 x 3 neighbourhood:
+ * a table learned at a few points of a cell then also covers the strata next to what they
+ * saw, where the rest of the cell sees it (the window onto a lamp through a hole moves with
+ * the receiver). */
+static void spread_row(double *v, double *tmp, int G) {
+    for (int j = 0; j < G; j++)
+        for (int i = 0; i < G; i++) {
+            double m = 0;
+            for (int dj = -1; dj <= 1; dj++)
+                for (int di = -1; di <= 1; di++) {
+                    int x = i + di, y = j + dj;
+                    if (x >= 0 && x < G && y >= 0 && y < G) m = fmax(m, v[x + G * y]);
+                }
+            tmp[i + G * j] = 0.5 * v[i + G * j] + 0.5 * m;
+        }
+    memcpy(v, tmp, (size_t)G * (size_t)G * sizeof *v);
+}
+
+static int learn_jobs(guide *g, const scene *s, const guide_grid *grid, int G, double alpha, const guide_point *pts,
+                      const size_t *job_point, const int *job_slot, size_t njobs, guide_probe_fn fn, void *user,
+                      uint64_t seed, int threads, unsigned long long *probes, int spread);
+
 int guide_learn_jobs(guide *g, const scene *s, const guide_grid *grid, int G, double alpha, const guide_point *pts,
                      const size_t *job_point, const int *job_slot, size_t njobs, guide_probe_fn fn, void *user,
                      uint64_t seed, int threads, unsigned long long *probes) {
+    return learn_jobs(g, s, grid, G, alpha, pts, job_point, job_slot, njobs, fn, user, seed, threads, probes, 0);
+}
+
+static int learn_jobs(guide *g, const scene *s, const guide_grid *grid, int G, double alpha, const guide_point *pts,
+                      const size_t *job_point, const int *job_slot, size_t njobs, guide_probe_fn fn, void *user,
+                      uint64_t seed, int threads, unsigned long long *probes, int spread) {
     memset(g, 0, sizeof *g);
     if (probes) *probes = 0;
     if (G < 1 || G > 1024 || (G & (G - 1))) return PM_EINVAL;
@@ -371,6 +475,17 @@ int guide_learn_jobs(guide *g, const scene *s, const guide_grid *grid, int G, do
                     vk[(size_t)i + (size_t)G * (size_t)j] = x > 0 && isfinite(x) ? x : 0;
                 }
         }
+    }
+    if (spread) {
+        double *tmp = malloc(G2 * sizeof *tmp);
+        if (!tmp) {
+            free(v);
+            free(rows);
+            free(first);
+            return PM_ENOMEM;
+        }
+        for (size_t k = 0; k < njobs; k++) spread_row(&v[k * G2], tmp, G);
+        free(tmp);
     }
     for (size_t k = 0; k < njobs; k++) {
         const guide_point *pt = &pts[job_point[k]];
@@ -440,7 +555,161 @@ static int int_cmp(const void *a, const void *b) {
     return x < y ? -1 : x > y;
 }
 
+/* The coarse cell (GUIDE_COARSE fine cells per side) of a fine cell key, same side. */
+static uint64_t coarse_of(uint64_t key) {
+    uint64_t m = CELL_MAX, sh = 0;
+    while ((1u << sh) < (unsigned)GUIDE_COARSE) sh++;
+    return ((key & m) >> sh) | (((key >> CELL_BITS) & m) >> sh) << CELL_BITS |
+           (((key >> (2 * CELL_BITS)) & m) >> sh) << (2 * CELL_BITS) | (key >> (3 * CELL_BITS)) << (3 * CELL_BITS);
+}
+
 static void say(char *reason, size_t cap, const char *text) { snprintf(reason, cap, "%s", text); }
+
+/* Stage A: at every point, GUIDE_PROBES light samples drawn as next-event estimation draws
+ * them (light by power, a uniform point): what they would carry unshadowed and what passes. */
+static void stage_a(const scene *s, const guide_point *pts, size_t np, uint64_t seed, point_a *pa) {
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 256)
+#endif
+    for (long k = 0; k < (long)np; k++) {
+        rng g = rng_stream(seed, (uint64_t)k, GUIDE_STREAM + 2);
+        point_a *a = &pa[k];
+        for (int t = 0; t < GUIDE_PROBES; t++) {
+            double ul = rng_uniform(&g), u1 = rng_uniform(&g), u2 = rng_uniform(&g), pl;
+            a->li[t] = -1;
+            int li = distrib1d_sample(&s->light_distrib, ul, &pl);
+            if (!(pl > 0)) continue;
+            light_sample ls;
+            double x = light_value(s, &pts[k], li, pl, u1, u2, &ls);
+            if (!(x > 0)) continue;
+            a->U += x;
+            a->ns++;
+            if (guided_light(&s->lights[li])) a->li[t] = li;
+            if (light_visible(s, &pts[k], li, &ls)) {
+                a->V += x;
+                a->np++;
+            }
+        }
+    }
+}
+
+/* Stage B's jobs: in each coarse cell that stage A found blocked (something passes, less than
+ * GUIDE_PASS_MAX of the unshadowed light), the first GUIDE_CELL_POINTS points of every fine
+ * cell, each with the lights stage A saw contribute in the coarse cell. Jobs sorted by (point,
+ * light), as guide_learn_jobs wants. Evidence into e. 0 or PM_ENOMEM. */
+static int plan_jobs(const guide_grid *grid, const guide_point *pts, size_t np, const point_a *pa,
+                     guide_light_evidence *e, size_t **jp_out, int **js_out, size_t *nj_out) {
+    enum { MAXL = 64 };
+    cell_ref *cr = malloc((np ? np : 1) * sizeof *cr);
+    unsigned char *blocked = calloc(np ? np : 1, 1); /* per point: in a blocked coarse cell */
+    size_t *group = malloc((np ? np : 1) * sizeof *group); /* per point: its coarse group */
+    int *glights = NULL, *gn = NULL;
+    size_t *jp = NULL;
+    int *js = NULL;
+    int rc = PM_ENOMEM;
+    if (!cr || !blocked || !group) goto done;
+    for (size_t k = 0; k < np; k++) cr[k] = (cell_ref){coarse_of(guide_cell(grid, pts[k].h.p, pts[k].n)), k};
+    qsort(cr, np, sizeof *cr, cell_cmp);
+    size_t ngroups = 0;
+    for (size_t a = 0, b; a < np; a = b) {
+        for (b = a; b < np && cr[b].cell == cr[a].cell; b++) {}
+        ngroups++;
+    }
+    glights = malloc((ngroups ? ngroups : 1) * MAXL * sizeof *glights);
+    gn = calloc(ngroups ? ngroups : 1, sizeof *gn);
+    if (!glights || !gn) goto done;
+    double Vall = 0, Vb = 0, Ub = 0;
+    size_t gi = 0;
+    for (size_t a = 0, b; a < np; a = b, gi++) {
+        double U = 0, V = 0;
+        int nsamp = 0;
+        for (b = a; b < np && cr[b].cell == cr[a].cell; b++) {
+            const point_a *p = &pa[cr[b].k];
+            U += p->U;
+            V += p->V;
+            nsamp += p->ns;
+            e->samples += (unsigned long long)p->ns;
+            e->passed += (unsigned long long)p->np;
+            group[cr[b].k] = gi;
+        }
+        Vall += V;
+        if (nsamp == 0) continue;
+        e->cells++;
+        if (!(V > 0 && V < GUIDE_PASS_MAX * U)) continue;
+        e->blocked++;
+        Vb += V;
+        Ub += U;
+        int *L = &glights[gi * MAXL], nl = 0;
+        for (size_t c = a; c < b; c++) {
+            blocked[cr[c].k] = 1;
+            for (int t = 0; t < GUIDE_PROBES; t++) {
+                int li = pa[cr[c].k].li[t], dup = 0;
+                if (li < 0) continue;
+                for (int q = 0; q < nl; q++) dup |= L[q] == li;
+                if (!dup && nl < MAXL) L[nl++] = li;
+            }
+        }
+        qsort(L, (size_t)nl, sizeof *L, int_cmp);
+        gn[gi] = nl;
+    }
+    e->points = np;
+    e->blocked_share = Vall > 0 ? Vb / Vall : 0;
+    e->blocked_pass = Ub > 0 ? Vb / Ub : 0;
+    /* Fine cells of blocked coarse cells: their first points. */
+    size_t cnt = 0;
+    for (size_t k = 0; k < np; k++) cr[k] = (cell_ref){guide_cell(grid, pts[k].h.p, pts[k].n), k};
+    qsort(cr, np, sizeof *cr, cell_cmp);
+    for (int pass = 0; pass < 2; pass++) {
+        size_t nj = 0;
+        for (size_t a = 0, b; a < np; a = b) {
+            for (b = a; b < np && cr[b].cell == cr[a].cell; b++) {}
+            size_t used = 0;
+            for (size_t c = a; c < b && used < GUIDE_CELL_POINTS; c++) {
+                size_t k = cr[c].k;
+                if (!blocked[k]) continue;
+                used++;
+                for (int q = 0; q < gn[group[k]]; q++) {
+                    if (pass) {
+                        jp[nj] = k;
+                        js[nj] = glights[group[k] * MAXL + (size_t)q];
+                    }
+                    nj++;
+                }
+            }
+        }
+        if (!pass) {
+            cnt = nj;
+            jp = malloc((cnt ? cnt : 1) * sizeof *jp);
+            js = malloc((cnt ? cnt : 1) * sizeof *js);
+            if (!jp || !js) goto done;
+        }
+    }
+    /* Sort the jobs by (point, light). */
+    cell_ref *o = malloc((cnt ? cnt : 1) * sizeof *o);
+    if (!o) goto done;
+    for (size_t k = 0; k < cnt; k++) o[k] = (cell_ref){(uint64_t)jp[k] << 32 | (uint64_t)(unsigned)js[k], k};
+    qsort(o, cnt, sizeof *o, cell_cmp);
+    for (size_t k = 0; k < cnt; k++) {
+        jp[k] = (size_t)(o[k].cell >> 32);
+        js[k] = (int)(o[k].cell & 0xffffffffu);
+    }
+    free(o);
+    *jp_out = jp;
+    *js_out = js;
+    *nj_out = cnt;
+    jp = NULL;
+    js = NULL;
+    rc = 0;
+done:
+    free(cr);
+    free(blocked);
+    free(group);
+    free(glights);
+    free(gn);
+    free(jp);
+    free(js);
+    return rc;
+}
 
 guide *guide_light_plan(const scene *s, int force, int usable, int *on, char *reason, size_t cap,
                         guide_light_evidence *ev) {
@@ -468,135 +737,39 @@ guide *guide_light_plan(const scene *s, int force, int usable, int *on, char *re
     }
     uint64_t seed = s->settings.seed ^ 0x6c69676874ULL; /* "light" */
     guide_point *pts = NULL;
-    size_t np = 0;
-    if (guide_points(s, GUIDE_PATHS, seed, 0, &pts, &np) < 0) {
-        say(reason, cap, "out of memory for the pilot points");
-        return NULL;
-    }
-    point_a *pa = calloc(np ? np : 1, sizeof *pa);
-    cell_ref *cr = malloc((np ? np : 1) * sizeof *cr);
-    if (!pa || !cr) {
-        free(pts);
-        free(pa);
-        free(cr);
-        say(reason, cap, "out of memory for the pilot");
-        return NULL;
-    }
-    /* Stage A: light samples as next-event estimation draws them. */
-#ifdef _OPENMP
-#pragma omp parallel for schedule(dynamic, 256)
-#endif
-    for (long k = 0; k < (long)np; k++) {
-        rng g = rng_stream(seed, (uint64_t)k, GUIDE_STREAM + 2);
-        point_a *a = &pa[k];
-        for (int t = 0; t < GUIDE_PROBES; t++) {
-            double ul = rng_uniform(&g), u1 = rng_uniform(&g), u2 = rng_uniform(&g), pl;
-            a->li[t] = -1;
-            int li = distrib1d_sample(&s->light_distrib, ul, &pl);
-            if (!(pl > 0)) continue;
-            light_sample ls;
-            double x = light_value(s, &pts[k], li, pl, u1, u2, &ls);
-            if (!(x > 0)) continue;
-            a->U += x;
-            a->ns++;
-            if (guided_light(&s->lights[li])) a->li[t] = li;
-            if (light_visible(s, &pts[k], li, &ls)) {
-                a->V += x;
-                a->np++;
-            }
-        }
-    }
+    size_t np = 0, nj = 0;
+    size_t *jp = NULL;
+    int *js = NULL;
+    point_a *pa = NULL;
+    guide *gd = NULL;
     guide_grid grid;
     guide_grid_init(&grid, s, GUIDE_RES);
-    for (size_t k = 0; k < np; k++) cr[k] = (cell_ref){guide_cell(&grid, pts[k].h.p, pts[k].n), k};
-    qsort(cr, np, sizeof *cr, cell_cmp);
-    /* Per cell: blocked or not; stage B's jobs (first points of blocked cells, their lights). */
-    double Vall = 0, Vb = 0, Ub = 0;
-    size_t *jp = malloc((np * GUIDE_PROBES + 1) * sizeof *jp);
-    int *js = malloc((np * GUIDE_PROBES + 1) * sizeof *js);
-    int lights[64];
-    size_t nj = 0;
-    if (!jp || !js) {
+    if (guide_points(s, GUIDE_PATHS, seed, 0, &pts, &np) < 0 || !(pa = calloc(np ? np : 1, sizeof *pa))) {
         free(pts);
-        free(pa);
-        free(cr);
-        free(jp);
-        free(js);
         say(reason, cap, "out of memory for the pilot");
         return NULL;
     }
-    for (size_t a = 0, b; a < np; a = b) {
-        double U = 0, V = 0;
-        int nsamp = 0;
-        for (b = a; b < np && cr[b].cell == cr[a].cell; b++) {
-            const point_a *p = &pa[cr[b].k];
-            U += p->U;
-            V += p->V;
-            nsamp += p->ns;
-            e.samples += (unsigned long long)p->ns;
-            e.passed += (unsigned long long)p->np;
-        }
-        e.points += b - a;
-        Vall += V;
-        if (nsamp == 0) continue;
-        e.cells++;
-        if (!(V > 0 && V < GUIDE_PASS_MAX * U)) continue;
-        e.blocked++;
-        Vb += V;
-        Ub += U;
-        /* The cell's lights that stage A saw contribute (distinct, sorted; at most 64). */
-        int nl = 0;
-        for (size_t c = a; c < b; c++)
-            for (int t = 0; t < GUIDE_PROBES; t++) {
-                int li = pa[cr[c].k].li[t], dup = 0;
-                if (li < 0) continue;
-                for (int q = 0; q < nl; q++) dup |= lights[q] == li;
-                if (!dup && nl < 64) lights[nl++] = li;
-            }
-        qsort(lights, (size_t)nl, sizeof *lights, int_cmp);
-        size_t npt = b - a < GUIDE_CELL_POINTS ? b - a : GUIDE_CELL_POINTS;
-        for (size_t c = a; c < a + npt; c++)
-            for (int q = 0; q < nl && nj < np * GUIDE_PROBES; q++) {
-                jp[nj] = cr[c].k;
-                js[nj++] = lights[q];
-            }
-    }
-    e.blocked_share = Vall > 0 ? Vb / Vall : 0;
-    e.blocked_pass = Ub > 0 ? Vb / Ub : 0;
-    guide *gd = NULL;
+    stage_a(s, pts, np, seed, pa);
+    int rc = plan_jobs(&grid, pts, np, pa, &e, &jp, &js, &nj);
     int want = force == PLAN_ON || (e.blocked > 0 && e.blocked_share >= GUIDE_MIN_SHARE);
-    if (want && nj > 0) {
-        /* Stage B needs the jobs grouped by point: sort them by (point, light). */
-        cell_ref *o = malloc(nj * sizeof *o);
+    if (rc == 0 && want && nj > 0) {
         gd = malloc(sizeof *gd);
-        if (o && gd) {
-            for (size_t k = 0; k < nj; k++) o[k] = (cell_ref){(uint64_t)jp[k] << 32 | (uint64_t)js[k], k};
-            qsort(o, nj, sizeof *o, cell_cmp);
-            for (size_t k = 0; k < nj; k++) {
-                jp[k] = (size_t)(o[k].cell >> 32);
-                js[k] = (int)(o[k].cell & 0xffffffffu);
-            }
-            if (guide_learn_jobs(gd, s, &grid, GUIDE_G, GUIDE_ALPHA, pts, jp, js, nj, light_probe, NULL, seed, 0,
-                                 &e.probes) < 0) {
-                free(gd);
-                gd = NULL;
-            }
-        } else {
+        if (!gd || learn_jobs(gd, s, &grid, GUIDE_G, GUIDE_ALPHA, pts, jp, js, nj, light_probe, NULL, seed, 0,
+                              &e.probes, 1) < 0) {
             free(gd);
             gd = NULL;
+            rc = PM_ENOMEM;
         }
-        free(o);
         if (gd) e.tables = gd->ntables;
     }
     free(pts);
     free(pa);
-    free(cr);
     free(jp);
     free(js);
     if (ev) *ev = e;
     double rate = e.samples ? (double)e.passed / (double)e.samples : 0;
-    if (want && !gd && nj > 0) {
-        say(reason, cap, "out of memory for the guide's tables");
+    if (rc < 0) {
+        say(reason, cap, "out of memory for the pilot");
         return NULL;
     }
     if (want && (!gd || gd->ntables == 0)) {
@@ -611,17 +784,17 @@ guide *guide_light_plan(const scene *s, int force, int usable, int *on, char *re
     if (want) {
         *on = 1;
         snprintf(reason, cap,
-                 "%s: %zu of %zu lit receiver cells have their light samples mostly blocked (%.1f%% of the "
-                 "unshadowed light passes there) and carry %.0f%% of the light that passes; %llu probes "
-                 "made %zu tables in %zu cells (pilot: %zu points, %llu light samples, %.1f%% pass)",
+                 "%s: in %zu of %zu lit regions %.1f%% of the unshadowed light passes, and they carry "
+                 "%.0f%% of the light that passes; %llu probes made %zu tables in %zu cells (pilot: "
+                 "%zu points, %llu light samples, %.1f%% pass)",
                  force == PLAN_ON ? "forced by photon_mapping.light_guide" : "light samples are mostly blocked",
                  e.blocked, e.cells, 100 * e.blocked_pass, 100 * e.blocked_share, e.probes, gd->ntables, gd->ncells,
                  e.points, e.samples, 100 * rate);
         return gd;
     }
     snprintf(reason, cap,
-             "light samples mostly pass: the cells where they are mostly blocked (%zu of %zu) carry %.1f%% of "
-             "the light that passes, below %.0f%% (pilot: %zu points, %llu light samples, %.1f%% pass)",
+             "light samples mostly pass: the regions where they are mostly blocked (%zu of %zu) carry %.1f%% "
+             "of the light that passes, below %.0f%% (pilot: %zu points, %llu light samples, %.1f%% pass)",
              e.blocked, e.cells, 100 * e.blocked_share, 100 * GUIDE_MIN_SHARE, e.points, e.samples, 100 * rate);
     return NULL;
 }

@@ -80,7 +80,8 @@ extern "C" {
 #define GUIDE_RES 128          /* receiver cells along the scene's largest side */
 #define GUIDE_ALPHA 0.25       /* defensive share: d(u) >= alpha everywhere */
 #define GUIDE_PATHS 16384      /* light guide: camera paths of stage A */
-#define GUIDE_PROBES 8         /* light guide: light samples per point in stage A */
+#define GUIDE_PROBES 4         /* light guide: light samples per point in stage A */
+#define GUIDE_COARSE 8         /* light guide: fine cells per side of a stage-A region */
 #define GUIDE_PASS_MAX 0.5     /* light guide: a cell is blocked below this pass share */
 #define GUIDE_CELL_POINTS 2    /* light guide: stage-B points per blocked cell */
 #define GUIDE_MIN_SHARE 0.25   /* light guide: plan on when blocked cells carry this share */
@@ -109,9 +110,14 @@ typedef struct guide {
     size_t ntables, ncells; /* (cell, slot) tables; distinct cells among them */
     size_t cap;             /* hash slots (a power of 2), open addressing */
     uint64_t *hkey;         /* per hash slot: cell key */
-    int *hslot;             /* per hash slot: slot, -1 when empty */
-    size_t *hidx;           /* per hash slot: table number */
+    int *hslot;             /* per hash slot: slot (INT_MAX: the cell's entry), -1 when empty */
+    size_t *hidx;           /* per hash slot: table number (the cell's number for its entry) */
     double *cdf;            /* ntables x (G^2 + 1): cumulative q' per table */
+    /* Tables are in (cell, slot) order; a cell's are cfirst[c] .. cfirst[c + 1] - 1. */
+    int *tslot;             /* per table: its slot */
+    double *tw;             /* per table: its share of its cell's values (the slot's weight) */
+    double *tcum;           /* per table: cumulative tw within its cell */
+    size_t *cfirst;         /* ncells + 1 */
 } guide;
 
 /* Build from n rows (G strata per side, defensive share alpha in (0, 1]). 0, PM_EINVAL (G < 1,
@@ -131,6 +137,17 @@ double guide_pdf(const guide *g, const double *t, double u1, double u2);
 /* guide_find + guide_warp / guide_pdf. */
 double guide_sample(const guide *g, vec3 p, vec3 n, int slot, double *u1, double *u2);
 double guide_density(const guide *g, vec3 p, vec3 n, int slot, double u1, double u2);
+
+/* CHOOSING THE SLOT (the light guide's light choice). A cell's tables also carry each slot's
+ * share w_s of the cell's summed values (the pilot's estimate of what each light gives there).
+ * guide_cell_index finds the cell (-1: none), guide_pick_slot(g, c, u) chooses a slot with
+ * probability w_s, guide_slot_weight gives w_s (0 for a slot without a table there) and
+ * guide_cell_table the slot's table (NULL: none). A caller mixes it with its own choice,
+ * p'_s = alpha p_s + (1 - alpha) w_s, to stay unbiased (direct.c). */
+long guide_cell_index(const guide *g, vec3 p, vec3 n);
+int guide_pick_slot(const guide *g, long c, double u);
+double guide_slot_weight(const guide *g, long c, int slot);
+const double *guide_cell_table(const guide *g, long c, int slot);
 
 /* A pilot point: a diffuse hit of a camera ray (bounce 0) or of one cosine bounce from it
  * (bounce 1). */

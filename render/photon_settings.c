@@ -103,6 +103,10 @@ static const setting_def k_settings[] = {
      "share of the global photons emitted by power alone, the rest by importance: every "
      "emission keeps a chance, so the map stays unbiased and a photon carries at most 1/share "
      "of the uniform power"},
+    {"light_guide", ST_FORCE, F(force_light_guide), PLAN_AUTO, 0, 0,
+     "guide the direct light's samples toward the part of each area light that a pilot saw "
+     "pass (guide.h; unbiased for any table) or not; absent, the plan turns it on where light "
+     "samples are mostly blocked where the camera looks (light through an opening)"},
     {"progress", ST_BOOL, F(progress), 1, NONE,
      "progress lines while tracing photons (render --quiet sets it false)"},
     {"volume", ST_FORCE, F(force_volume), PLAN_AUTO, 0, 0,

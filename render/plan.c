@@ -23,6 +23,7 @@
 #include <string.h>
 
 #include "photonmap/common.h"
+#include "guide.h"
 #include "importance.h"
 #include "photon_trace.h"
 #include "volume.h"
@@ -423,6 +424,8 @@ void plan_free(render_plan *p) {
     p->imp = NULL;
     pilot_photons_free(p->pilot);
     p->pilot = NULL;
+    guide_destroy(p->guide);
+    p->guide = NULL;
 }
 
 /* Append to the caustics and global reasons (the shadow reason for a shadow map without a
@@ -505,6 +508,9 @@ void plan_make(const scene *s, const photon_settings *c, int preview, render_pla
         set(&p->final_gather, 1,
             "indirect diffuse by gather rays reading precomputed irradiance of the global map%s", "");
     plan_emission(s, c, p, tab);
+    /* usable: the photon mapper samples lights unless it shows the global map directly */
+    p->guide = guide_light_plan(s, c->force_light_guide, !((preview || !p->final_gather.on) && p->global.on),
+                                &p->light_guide.on, p->light_guide.reason, sizeof p->light_guide.reason, NULL);
     plan_joins(s, c, p);
 }
 
@@ -517,4 +523,5 @@ void plan_print(const render_plan *p, FILE *f) {
     fprintf(f, "  volume: %s (%s)\n", p->volume.on ? "on" : "off", p->volume.reason);
     fprintf(f, "  volume caustics: %s (%s)\n", p->volume_caustics.on ? "on" : "off", p->volume_caustics.reason);
     fprintf(f, "  photon emission: %s (%s)\n", p->emission.on ? "importance" : "by power", p->emission.reason);
+    fprintf(f, "  light guide: %s (%s)\n", p->light_guide.on ? "on" : "off", p->light_guide.reason);
 }

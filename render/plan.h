@@ -28,6 +28,10 @@
  *                 IMP_MIN_COVERAGE of the lights' power; else by power alone. The line gives the camera paths, the connections that carry
  *                 light, the cells and the coverage. photon_trace builds the same table from
  *                 the same streams, so the pass does what the line says.
+ *   light guide  the photon mapper's light samples are guided toward the part of each area
+ *                 light a pilot saw pass (guide.h, guide_light_plan) when light samples are
+ *                 mostly blocked where the camera looks (light through an opening); the line
+ *                 gives the pilot's points, pass rate, regions, probes and tables.
  * In a scene with media (or null surfaces) every decision comes from volume.h's pilot (the
  * tracer that builds those maps) instead of photon_trace's: caustics from its L S+ D stores,
  * the global map from stores after a diffuse bounce or a scattering event; shadow photons are
@@ -74,6 +78,8 @@ typedef struct render_plan {
     struct importance *imp; /* emission on: the table for trace_opts.importance (owned) */
     pilot_photons *pilot;   /* the pilots' photons for trace_opts.reuse (owned; NULL when none
                                join a map the plan traces) */
+    plan_item light_guide;  /* on: guided light samples in the photon mapper's direct light */
+    struct guide *guide;    /* light_guide on: its tables (guide.h; owned), else NULL */
 } render_plan;
 
 /* Decide the plan for scene s under config c; preview = 1 turns final gathering off. The
