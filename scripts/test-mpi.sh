@@ -602,6 +602,9 @@ enomem_test state 2 "1 pixels 1" "render: rendering failed: out of memory" $ENPA
 enomem_test chunk 3 "2 pixels 5" "out of memory in the pixel pass" $ENPATH
 # shellcheck disable=SC2086
 enomem_test root 2 "0 pixels 6" "out of memory in the tile queue" $ENPATH
+# Rank 0's own render state: render's message, then rank 0 names itself and the rank count.
+# shellcheck disable=SC2086
+enomem_test root.state 2 "0 pixels 1" "(status 1; its message is above)" $ENPATH
 # shellcheck disable=SC2086
 enomem_test photons 3 "2 photons 8" "out of memory in the photon exchange" \
   data/scenes/cornell_spheres.json --mode pm --width 32 --height 32 --spp 4 $PMSMALL

@@ -306,8 +306,8 @@ int dist_finish(int rc) {
     }
     if (g_stage == 1) {
         if (g_rank == 0) {
-            fprintf(stderr, "render-mpi: rank 0 failed (see above); stopping every rank; nothing "
-                    "was written\n");
+            fprintf(stderr, "render-mpi: rank 0 of %d failed (status %d; its message is above); "
+                    "stopping every rank; nothing was written\n", g_size, rc > 0 ? rc : 1);
             fflush(stderr);
             MPI_Abort(MPI_COMM_WORLD, rc > 0 ? rc : 1);
         } else {
