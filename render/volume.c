@@ -318,8 +318,11 @@ static int vol_exchange(vbuf *bufs, int nb) {
     char *out = malloc(bytes ? bytes : 1);
     vbatch_head failed[VOL_ROUND];
     size_t off = 0;
+    int own_fail = !out;
     for (int b = d->part, j = 0; b < nb; b += d->nparts, j++) {
         vbuf *bf = &bufs[b];
+        if (d->test_fail && d->test_fail(d->user)) bf->fail = 1; /* test hook (photon_trace.h) */
+        own_fail |= bf->fail;
         vbatch_head h;
         memset(&h, 0, sizeof h);
         h.n = out ? bf->n : 0;
@@ -337,6 +340,9 @@ static int vol_exchange(vbuf *bufs, int nb) {
         if (bf->n) memcpy(out + off, bf->r, bf->n * sizeof(vrec));
         off += bf->n * sizeof(vrec);
     }
+    /* This process's own failure: said before the exchange tells every process of it. */
+    if (own_fail && d->failed)
+        d->failed(d->user, "out of memory while tracing photons (a pass of the media)");
     size_t *sizes = calloc((size_t)d->nparts, sizeof *sizes);
     char *all = NULL;
     int rc = !sizes ? -1

@@ -145,8 +145,10 @@ void vol_pass_free(vol_pass_result *r);
  * b % d->nparts == d->part; d->allgather then gives every process every batch (its records,
  * counts, flags and buffer size), and the merge goes on as in one process: every process ends
  * with the one-process maps bit for bit, the budgets' stops included. Pilot passes are traced
- * whole by every process (each plans as one process does). The caller keeps d alive. The
- * setting belongs to the calling thread (the one that runs the passes). */
+ * whole by every process (each plans as one process does). A process whose own batch failed
+ * (out of memory) calls d->failed before that exchange, and d->test_fail is asked once per
+ * batch it traces (photon_trace.h). The caller keeps d alive. The setting belongs to the
+ * calling thread (the one that runs the passes). */
 struct trace_dist;
 void vol_set_dist(const struct trace_dist *d);
 

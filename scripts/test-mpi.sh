@@ -575,8 +575,9 @@ fi
 # distributed pass fails as if its buffer could not grow; trace_dist.test_fail): rank 1 of 3's
 # first batch (the ranks' agreement is joined there), rank 2 of 3's third (the caustic pass,
 # a later round), and partitioned rank 1 of 2's first (the global pass's counting rounds) and
-# third (tracing its part of the global map again). Such a failure is sent to every rank in the
-# exchange, so before trace_dist.failed rank 0 failed too and said "rank 0 failed (see above)".
+# third (tracing its part of the global map again); and a media pass's (volume.c) first batch.
+# Such a failure is sent to every rank in the exchange, so before trace_dist.failed rank 0
+# failed too and said "rank 0 failed (see above)".
 enomem_test() { # name np "RANK PHASE N" expected-text render-mpi-args...
   ename=$1; enp=$2; spec=$3; want=$4; shift 4
   set -- "$@" --threads 1 --hdr "$T/enomem.$ename/o.pfm" -o "$T/enomem.$ename/o.png"
@@ -613,6 +614,10 @@ ENPM="data/scenes/cornell_spheres.json --mode pm --width 32 --height 32 --spp 4 
 enomem_test tracer.first 3 "1 tracer 1" "out of memory while tracing photons (the global pass)" $ENPM
 # shellcheck disable=SC2086
 enomem_test tracer.caustic 3 "2 tracer 3" "out of memory while tracing photons (the caustic pass)" $ENPM
+# The media passes (volume.c's exchange, the same rule): rank 1 of 2's first batch, cornell_fog.
+# shellcheck disable=SC2086
+enomem_test tracer.media 2 "1 tracer 1" "out of memory while tracing photons (a pass of the media)" \
+  data/scenes/cornell_fog.json --mode pm $MEDIA
 ENPART="$ENPM --pm distributed=partitioned"
 # shellcheck disable=SC2086
 enomem_test tracer.part.rounds 2 "1 tracer 1" "out of memory while tracing photons (the global pass)" $ENPART
