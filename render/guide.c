@@ -116,9 +116,9 @@ int guide_build(guide *g, const guide_grid *grid, int G, double alpha, const gui
     size_t cap = 16;
     while (cap < 2 * (2 * ntab)) cap *= 2; /* a table and at most one cell entry each */
     g->cap = cap;
-    g->hkey = malloc(cap * sizeof *g->hkey);
+    g->hkey = calloc(cap, sizeof *g->hkey); /* zero in empty slots: two builds compare equal */
     g->hslot = malloc(cap * sizeof *g->hslot);
-    g->hidx = malloc(cap * sizeof *g->hidx);
+    g->hidx = calloc(cap, sizeof *g->hidx);
     g->cdf = malloc((ntab ? ntab : 1) * (G2 + 1) * sizeof *g->cdf);
     g->tslot = malloc((ntab ? ntab : 1) * sizeof *g->tslot);
     g->tw = malloc((ntab ? ntab : 1) * sizeof *g->tw);

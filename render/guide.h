@@ -38,26 +38,36 @@
  *
  * THE LIGHT GUIDE (guide_light_plan, used by the photon mapper's direct light, direct.h):
  * slots are lights (area and sphere lights; a point or directional light ignores (u1, u2)).
- * Stage A: GUIDE_PATHS camera paths give points; at each, GUIDE_PROBES light samples drawn as
- * next-event estimation draws them count, per cell, the light that would arrive unshadowed
- * and what passes the shadow test. Cells where something passes but less than half of the
- * unshadowed light does (GUIDE_PASS_MAX) are "blocked" cells. Stage B: in each blocked cell, at
- * up to GUIDE_CELL_POINTS of its points (the first ones, in point order), one probe per
- * stratum for each light that stage A saw contribute there: value = the unoccluded luminance
- * f Li cos (visibility times the unshadowed contribution). Only blocked cells get tables, so
- * where light samples mostly pass, sampling stays uniform.
- * The plan turns it on when the blocked cells carry at least GUIDE_MIN_SHARE of the light
- * that passed in stage A (the camera looks at light that comes through an opening), and
- * prints the evidence: the points, probes, pass rate in the blocked cells, cells and tables.
+ * Stage A: GUIDE_PATHS camera paths give points (guide_points); at each, GUIDE_PROBES light
+ * samples drawn as next-event estimation draws them (light by power, a uniform point) count
+ * what would arrive unshadowed (U) and what passes the shadow test (V), summed per REGION: a
+ * cube of GUIDE_COARSE^3 receiver cells, same side (a region gathers enough samples to see a
+ * pass rate of a few percent; a single cell would not). A region is blocked when V > 0 and
+ * V < GUIDE_PASS_MAX U. Stage B: in every receiver cell of a blocked region, at its first
+ * GUIDE_CELL_POINTS points (point order), one probe per stratum for each light stage A saw
+ * contribute in the region: value = the luminance f Li cos if the segment is unoccluded, else 0.
+ * Each probed row is spread (half itself plus half the largest value in its 3 x 3 strata):
+ * the part of a lamp seen through a hole moves with the receiver, and a few points of a cell
+ * otherwise miss strata the rest of the cell sees (on pinhole_room the spread took the direct
+ * light's variance gain on the lit patch from about 1x to about 5x). Only cells of blocked
+ * regions get tables: where light samples mostly pass, sampling stays as it was.
+ * The light is chosen per cell too (direct.c): p' = alpha p_power + (1 - alpha) w_l, w_l the
+ * cell's share of light l's probe values (guide_pick_slot / guide_slot_weight); a light the
+ * cell never saw keeps alpha p_power > 0.
+ * The plan turns it on when the blocked regions carry at least GUIDE_MIN_SHARE of the light
+ * that passed in stage A (the camera looks at light that comes through an opening) and prints
+ * the evidence: blocked and lit regions, the pass rate and light share in the blocked ones,
+ * probes, tables, cells, and stage A's points, samples and overall pass rate.
  * photon_mapping.light_guide true/false forces it.
  *
  * LIMITS. A cell's table is the sum over a few points in it: where what a light sample can
  * reach changes within a cell (the window onto a lamp through a hole moves with the receiver),
  * the table covers the union, so guided samples pass less often than at one point. Cells the
- * pilot did not visit, or visited without seeing light pass, sample uniformly (no gain, no
- * loss). Light choice is not guided (by power, as before): only the point on the chosen light.
- * Media: off (the probes test visibility, not transmittance). The pilot costs stage A's rays
- * (paths x 2 points x GUIDE_PROBES) and stage B's (blocked cells x points x lights x G^2).
+ * pilot did not visit, or in regions where no stage-A sample passed, sample uniformly (no gain,
+ * no loss). Media: off (the probes test visibility, not transmittance). Cost: stage A's rays
+ * (about 2 GUIDE_PATHS camera and bounce rays and up to 2 GUIDE_PATHS GUIDE_PROBES shadow rays,
+ * every pm render that samples lights) and stage B's (cells x points x lights x G^2 shadow
+ * rays, only when on; pinhole_room: 365,568).
  *
  * Ownership: a built guide owns its arrays (guide_free; guide_destroy for a guide_light_plan
  * result). Once built it is read-only: guide_sample and guide_density may be called from any
