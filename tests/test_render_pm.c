@@ -216,13 +216,20 @@ TEST(render_pm_plan_shipped_scenes) {
                            memcmp(p.imp->lv[0].cdf, p2.imp->lv[0].cdf,
                                   (p.imp->lv[0].ncells + 1) * sizeof(double)) == 0,
                        "%s: the importance table changed between two calls", name);
+        /* The owned tables (importance, pilot photons, light guide) are other copies. */
         struct importance *keep[3] = {p.imp, p2.imp, pv.imp};
         pilot_photons *kp[3] = {p.pilot, p2.pilot, pv.pilot};
+        struct guide *kg[3] = {p.guide, p2.guide, pv.guide};
+        EXPECT_MSG((p.pilot == NULL) == (p2.pilot == NULL) && (p.guide == NULL) == (p2.guide == NULL),
+                   "%s: pilot photons %p/%p, light guide %p/%p", name, (void *)p.pilot, (void *)p2.pilot,
+                   (void *)p.guide, (void *)p2.guide);
         p.imp = p2.imp = pv.imp = NULL;
         p.pilot = p2.pilot = pv.pilot = NULL;
+        p.guide = p2.guide = pv.guide = NULL;
         EXPECT_MSG(memcmp(&p, &p2, sizeof p) == 0, "%s: the plan changed between two calls", name);
         p.imp = keep[0], p2.imp = keep[1], pv.imp = keep[2];
         p.pilot = kp[0], p2.pilot = kp[1], pv.pilot = kp[2];
+        p.guide = kg[0], p2.guide = kg[1], pv.guide = kg[2];
         plan_free(&p);
         plan_free(&p2);
         plan_free(&pv);
@@ -630,6 +637,165 @@ TEST(render_pm_pilot_photons_join) {
     }
     photon_maps_free(&m);
     photon_maps_free(&m2);
+    plan_free(&p);
+    scene_free(&s);
+}
+
+/* Oracle: a caustic whose total power is exact. A point light of power Phi at distance d
+ * above the centre of a mirror sphere (radius r, reflectance R) inside a closed Lambertian
+ * box: the photons that hit the sphere (solid angle Omega = 2 pi (1 - sqrt(1 - (r/d)^2)))
+ * survive the mirror with probability R and then hit a wall (a convex mirror never sees
+ * itself), each stored once as an L S D photon; so the caustic map's power is
+ * Phi R Omega / (4 pi) in expectation, whatever the projection map does. The caustic
+ * pilot's stores joining the map (photon_trace.h, PILOT PHOTONS) must keep that: over 6
+ * seeds the mean total with the pilot joined, and without it, is within 4 standard errors
+ * (from the counts stored, a binomial) plus the RGBE rounding bound (0.4%) of the exact
+ * value. Counts: the plan's caustics line says how many pilot stores join; they are the
+ * pilot's L S+ D stores (its evidence counter), the last photons of the map (positions equal
+ * to a pilot traced here with the plan's seed and size, power scaled by n_p / (n_p + n_m)),
+ * counted in pilot_stored/pilot_emitted and the statistics; the pass stops at the target
+ * with them counted. The joined map is the same on 1 and 2 threads. Not joined (with the
+ * plan saying why): the pass without the projection map, and a target below twice the
+ * pilot's stores. */
+TEST(render_pm_caustic_pilot_joins) {
+    const double Phi = 100, R = 0.8, r = 0.3, d = 1.0;
+    const double want = Phi * R * 2 * M_PI * (1 - sqrt(1 - (r / d) * (r / d))) / (4 * M_PI);
+    const long target = PM_TEST_SANITIZED ? 12000 : 20000;
+    char txt[4096];
+    snprintf(txt, sizeof txt,
+             "{" CAM8 ", \"materials\": {\"wall\": {\"type\": \"lambert\", \"reflectance\": 0.5},"
+             "\"chrome\": {\"type\": \"mirror\", \"reflectance\": %g}},"
+             "\"objects\": [" CUBE_MESH("1", "wall") ", {\"type\": \"sphere\", \"center\": [0,-0.5,0], \"radius\": %g,"
+             "\"material\": \"chrome\"}],"
+             "\"lights\": [{\"type\": \"point\", \"position\": [0,%g,0], \"power\": %g}]}",
+             R, r, d - 0.5, Phi);
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
+    photon_settings c;
+    ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
+    c.caustic_photons = target;
+    render_plan p;
+    plan_make(&s, &c, 0, &p);
+    ASSERT_MSG(p.caustics.on && p.pilot, "caustics %d (%s), pilot %p", p.caustics.on, p.caustics.reason,
+               (void *)p.pilot);
+    printf("    plan: caustics: %s\n", p.caustics.reason);
+    const char *at = strstr(p.caustics.reason, "the pilot's ");
+    size_t nplan = 0;
+    unsigned long long eplan = 0;
+    ASSERT_MSG(at && sscanf(at, "the pilot's %zu stores join the caustic map (its %llu photons", &nplan, &eplan) == 2,
+               "%s", p.caustics.reason);
+    EXPECT_EQ_INT(eplan, PLAN_PILOT_PHOTONS);
+
+    /* The pilot, traced again as plan.c traces it: its L S+ D stores and evidence. */
+    trace_opts o;
+    trace_opts_settings(&o, &s, &c);
+    o.seed = PLAN_SEED;
+    o.caustic = 1;
+    o.caustic_target = 1L << 40;
+    o.max_emitted = PLAN_PILOT_PHOTONS;
+    o.max_emitted_factor = 1e300;
+    o.quiet = 1;
+    trace_pilot tp;
+    memset(&tp, 0, sizeof tp);
+    o.pilot = &tp;
+    photon_maps mp;
+    char err[256];
+    ASSERT_MSG(photon_trace(&s, &o, &mp, err, sizeof err) == 0, "%s", err);
+    EXPECT_EQ_INT(mp.ncaustic, nplan);
+    EXPECT_EQ_INT(tp.caustic.total, nplan);
+    EXPECT_EQ_INT(mp.caustic_emitted, PLAN_PILOT_PHOTONS);
+    ASSERT_MSG(nplan > 1000 && 2 * nplan <= (size_t)target, "%zu pilot stores", nplan);
+
+    int st_stored = stats_register("Photons/Pilot photons reused in the caustic map (stored)");
+    double sum[2] = {0, 0}, se2[2] = {0, 0};
+    const int nseeds = 6;
+    for (int join = 0; join < 2; join++)
+        for (int seed = 1; seed <= nseeds; seed++) {
+            trace_opts_settings(&o, &s, &c);
+            o.caustic = 1;
+            o.seed = (uint64_t)seed;
+            o.quiet = 1;
+            o.reuse = join ? p.pilot : NULL;
+            photon_maps m;
+            uint64_t st0 = stats_total(st_stored);
+            ASSERT_MSG(photon_trace(&s, &o, &m, err, sizeof err) == 0, "%s", err);
+            double tot[3];
+            map_power(m.caustic, m.ncaustic, tot);
+            double q = (double)m.ncaustic / (double)m.caustic_emitted;
+            sum[join] += tot[0];
+            se2[join] += want * want * (1 - q) / (double)m.ncaustic;
+            EXPECT_MSG((long)m.ncaustic >= target && (long)m.ncaustic < target + 4, "%zu stored for %ld",
+                       m.ncaustic, target);
+            if (!join) {
+                EXPECT(m.pilot_stored[1] == 0 && m.pilot_emitted[1] == 0);
+                photon_maps_free(&m);
+                continue;
+            }
+            EXPECT_EQ_INT(m.pilot_stored[1], nplan);
+            EXPECT_EQ_INT(m.pilot_emitted[1], PLAN_PILOT_PHOTONS);
+            EXPECT_EQ_INT(stats_total(st_stored) - st0, nplan);
+            /* The joined photons: the pilot's, last, at power n_p / (n_p + n_m) of the pilot's. */
+            double ratio = (double)PLAN_PILOT_PHOTONS / (double)m.caustic_emitted, worst = 0;
+            size_t same = 0;
+            for (size_t k = 0; k < nplan && m.ncaustic >= nplan; k++) {
+                const pm_photon *a = &m.caustic[m.ncaustic - nplan + k], *b = &mp.caustic[k];
+                same += memcmp(a->pos, b->pos, sizeof a->pos) == 0;
+                float pa[3], pb[3];
+                pm_rgbe_decode(a->power, pa);
+                pm_rgbe_decode(b->power, pb);
+                double dev = fabs(pa[0] / (pb[0] * ratio) - 1);
+                if (dev > worst) worst = dev;
+            }
+            EXPECT_MSG(same == nplan, "seed %d: %zu of %zu joined photons at the pilot's positions", seed, same, nplan);
+            EXPECT_MSG(worst < 0.01, "seed %d: a joined photon's power is off the pilot's x %g by %g", seed, ratio,
+                       worst);
+            if (seed == 1) { /* the same map on 2 threads */
+                photon_maps m2;
+                o.threads = 2;
+                ASSERT_MSG(photon_trace(&s, &o, &m2, err, sizeof err) == 0, "%s", err);
+                SAME_MAP(m, m2, caustic, ncaustic);
+                EXPECT_EQ_INT(m.caustic_emitted, m2.caustic_emitted);
+                photon_maps_free(&m2);
+            }
+            photon_maps_free(&m);
+        }
+    for (int join = 0; join < 2; join++) {
+        double mean = sum[join] / nseeds, se = sqrt(se2[join]) / nseeds, tol = 4 * se / want + 0.004;
+        printf("    caustic map power %s the pilot: %.5f, exact %.5f (%+.3f%%, tolerance %.2f%%, se %.3f%%)\n",
+               join ? "with" : "without", mean, want, 100 * (mean / want - 1), 100 * tol, 100 * se / want);
+        EXPECT_MSG(fabs(mean / want - 1) < tol, "%s the pilot: %g vs %g", join ? "with" : "without", mean, want);
+    }
+
+    /* Not joined: the pass without the projection map, and a target under twice the pilot's
+     * stores; the plan says why, and photon_trace agrees. */
+    photon_settings c2 = c;
+    c2.projection = 0;
+    render_plan p2;
+    plan_make(&s, &c2, 0, &p2);
+    EXPECT_MSG(strstr(p2.caustics.reason, "do not join the caustic map: the pass aims by other projection maps"),
+               "%s", p2.caustics.reason);
+    c2 = c;
+    c2.caustic_photons = (long)nplan;
+    render_plan p3;
+    plan_make(&s, &c2, 0, &p3);
+    EXPECT_MSG(strstr(p3.caustics.reason, "do not join the caustic map: the pilot stored half the target or more"),
+               "%s", p3.caustics.reason);
+    for (int k = 0; k < 2; k++) {
+        trace_opts_settings(&o, &s, k ? &c2 : &c);
+        o.caustic = 1;
+        o.quiet = 1;
+        o.projection = k; /* k 0: no projection map; k 1: the small target */
+        o.reuse = p.pilot;
+        photon_maps m;
+        ASSERT_MSG(photon_trace(&s, &o, &m, err, sizeof err) == 0, "%s", err);
+        EXPECT_MSG(m.pilot_stored[1] == 0 && m.pilot_emitted[1] == 0, "case %d: %zu pilot stores joined", k,
+                   m.pilot_stored[1]);
+        photon_maps_free(&m);
+    }
+    plan_free(&p3);
+    plan_free(&p2);
+    photon_maps_free(&mp);
     plan_free(&p);
     scene_free(&s);
 }
@@ -1050,7 +1216,9 @@ static void check_saved(const char *dir, const char *name, const pm_photon *want
  * right counts, kinds, emitted numbers and bucket sizes (0: saved before the trees).
  * Rendering from the saved maps is reproducible: two renders with the same seed give
  * bit-identical PFMs, and a different seed a different one. The image from the saved maps
- * equals the image of the run that traced them bit for bit. */
+ * equals the image of the run that traced them bit for bit. With 4000 caustic photons the
+ * caustic pilot's stores join the caustic map (photon_trace.h, PILOT PHOTONS; the plan's
+ * line says so): the saved caustic map holds them. */
 TEST(render_pm_save_load_round_trip) {
     static char out[65536];
     char dir[1024], extra[4096], a[1024], b[1024], c[1024], d[1024];
@@ -1059,13 +1227,13 @@ TEST(render_pm_save_load_round_trip) {
     snprintf(b, sizeof b, "%s/loaded.pfm", pm_test_tmpdir());
     snprintf(c, sizeof c, "%s/loaded_again.pfm", pm_test_tmpdir());
     snprintf(d, sizeof d, "%s/loaded_seed8.pfm", pm_test_tmpdir());
-    snprintf(extra, sizeof extra, "--seed 7 --hdr '%s' --save-photons '%s'", a, dir);
+    snprintf(extra, sizeof extra, "--seed 7 --pm caustic_photons=4000 --hdr '%s' --save-photons '%s'", a, dir);
     int rc = render_tiny("cornell_spheres", extra, out, sizeof out);
     ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
     EXPECT_MSG(strstr(out, "Saved photon maps to"), "%s", out);
 
-    /* The maps render traced (render_tiny's flags: 16 x 16, 4000 global, 2000 caustic
-     * photons), with its plan's importance table and pilot photons. */
+    /* The maps render traced (render_tiny's flags: 16 x 16, 4000 global photons; 4000
+     * caustic), with its plan's importance table and pilot photons. */
     scene s;
     json_err e;
     ASSERT_MSG(load_shipped(&s, "cornell_spheres", &e) == 0, "%s", e.msg);
@@ -1073,20 +1241,24 @@ TEST(render_pm_save_load_round_trip) {
     s.settings.seed = 7;
     photon_settings cfg;
     ASSERT_MSG(photon_settings_parse(&cfg, s.photon_mapping, &e) == 0, "%s", e.msg);
+    cfg.global_photons = cfg.caustic_photons = 4000;
+    cfg.gather_rays = 4;
     render_plan plan;
     plan_make(&s, &cfg, 0, &plan);
     ASSERT_MSG(plan.imp && plan.pilot, "table %p, pilot photons %p", (void *)plan.imp, (void *)plan.pilot);
     trace_opts o;
-    trace_opts_init(&o, &s);
+    trace_opts_settings(&o, &s, &cfg);
     o.global = o.caustic = o.shadow = 1;
-    o.global_target = 4000;
-    o.caustic_target = 2000;
     o.quiet = 1;
     o.importance = plan.imp;
     o.reuse = plan.pilot;
     photon_maps m;
     char err[256];
     ASSERT_MSG(photon_trace(&s, &o, &m, err, sizeof err) == 0, "%s", err);
+    char joined[160];
+    snprintf(joined, sizeof joined, "the pilot's %zu stores join the caustic map (its %llu photons", m.pilot_stored[1],
+             (unsigned long long)m.pilot_emitted[1]);
+    EXPECT_MSG(m.pilot_stored[1] > 0 && strstr(out, joined), "expected \"%s\" in %s", joined, out);
     plan_free(&plan);
     scene_free(&s);
     char want[512];
@@ -1099,7 +1271,7 @@ TEST(render_pm_save_load_round_trip) {
     check_saved(dir, "caustic.pmap", m.caustic, m.ncaustic, PM_MAP_CAUSTIC, m.caustic_emitted, 0);
     check_saved(dir, "shadow.pmap", m.shadow, m.nshadow, PM_MAP_SHADOW, m.global_emitted, 0);
 
-    snprintf(extra, sizeof extra, "--seed 7 --hdr '%s' --load-photons '%s'", b, dir);
+    snprintf(extra, sizeof extra, "--seed 7 --pm caustic_photons=4000 --hdr '%s' --load-photons '%s'", b, dir);
     rc = render_tiny("cornell_spheres", extra, out, sizeof out);
     ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
     snprintf(want, sizeof want, ": %zu global, %zu caustic, %zu shadow-map photons", m.nglobal,
@@ -1108,10 +1280,10 @@ TEST(render_pm_save_load_round_trip) {
                want, out);
     EXPECT_MSG(!strstr(out, "\nPhotons: "), "photons were traced, not loaded: %s", out);
     photon_maps_free(&m);
-    snprintf(extra, sizeof extra, "--seed 7 --hdr '%s' --load-photons '%s'", c, dir);
+    snprintf(extra, sizeof extra, "--seed 7 --pm caustic_photons=4000 --hdr '%s' --load-photons '%s'", c, dir);
     rc = render_tiny("cornell_spheres", extra, out, sizeof out);
     ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
-    snprintf(extra, sizeof extra, "--seed 8 --hdr '%s' --load-photons '%s'", d, dir);
+    snprintf(extra, sizeof extra, "--seed 8 --pm caustic_photons=4000 --hdr '%s' --load-photons '%s'", d, dir);
     rc = render_tiny("cornell_spheres", extra, out, sizeof out);
     ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
 
