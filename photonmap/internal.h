@@ -6,7 +6,8 @@
  * index. pm__nb_sort sorts by it in place without allocating (glibc's qsort may allocate, and
  * queries promise not to): insertion sort for short arrays, where it is fastest, heapsort
  * otherwise, so the worst case stays O(n log n). Indices are distinct, so every correct sort
- * gives the same array.
+ * gives the same array. PM_SORT's sort of up to 256 results is pm__nb_sort_keys below (SIMD
+ * ranks on 16-bit keys for 16..96 results, 16..128 under AVX2, else a 64-bit-key merge sort).
  *
  * HEAP. A binary max-heap on dist2 alone, in h[0..n): h[0] is the farthest, the current k-th
  * distance of a k-nearest search. pm__heap_sift_down places v at slot i and moves it down;
@@ -19,9 +20,15 @@
 #ifndef PM_INTERNAL_H
 #define PM_INTERNAL_H
 
+#include <float.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <string.h>
+#if defined(__AVX2__)
+#include <immintrin.h>
+#elif defined(__SSE2__)
+#include <emmintrin.h>
+#endif
 
 #include "common.h"
 
@@ -158,14 +165,150 @@ static inline void pm__knn_offer(pm_neighbor *out, unsigned k, unsigned *found, 
 /* Up to this many results are sorted by pm__nb_sort_keys, on the stack (2 x 8 bytes each). */
 #define PM__SORT_KEYS_MAX 256u
 
-/* Sorts a[0..n), n <= PM__SORT_KEYS_MAX, by (dist2, index) ascending. Each entry becomes one
- * 64-bit key, the bits of dist2 above the index: dist2 is never negative or NaN (a sum of
+#if defined(__SSE2__)
+/* pm__nb_sort_keys tries pm__nb_sort_rank first for PM__SORT_RANK_MIN <= n <= PM__SORT_RANK_MAX
+ * (below, the merge sort is as fast; above, the O(n^2) ranks cost more than it and their keys
+ * tie more often). Measured with the crossovers in bench/results/experiments.csv. */
+#define PM__SORT_RANK_MIN 16u
+#if defined(__AVX2__)
+#define PM__SORT_RANK_MAX 128u
+#define PM__SORT_RANK_LANES 64u /* keys per pass of the rank loop: 4 vectors of 16 */
+#else
+#define PM__SORT_RANK_MAX 96u
+#define PM__SORT_RANK_LANES 32u /* 4 vectors of 8 */
+#endif
+
+/* Sorts a[0..n), 2 <= n <= PM__SORT_RANK_MAX, by (dist2, index) ascending and returns 1, or
+ * returns 0 with a unchanged. Each dist2 becomes a 16-bit key, key = trunc((dist2 - lo) * s)
+ * - 32768 with [lo, hi] the range of the dist2 and s = 65535 / (hi - lo), then each entry's
+ * rank, the number of keys below its own, is counted by SIMD compares of every key against
+ * every other (n^2 / 8 compares with SSE2, n^2 / 16 with AVX2; no branch depends on the data),
+ * and the entry goes to out[rank]. The key is a non-decreasing function of dist2 (each float
+ * operation rounds monotonically, also when denormals flush to zero), so two entries with
+ * different keys are in the right order; and the ranks sum to n(n-1)/2 exactly when no two keys
+ * are equal (a tie lowers the later ranks of its group), in which case no two dist2 are equal
+ * either and the order by keys IS the order by (dist2, index). Otherwise (keys tied: about 2%
+ * of k = 50 results; all dist2 equal; a dist2 of +inf, which makes the range infinite) it
+ * returns 0 and the merge sort below decides. dist2 is never NaN or negative (see below). */
+static inline int pm__nb_sort_rank(pm_neighbor *a, unsigned n) {
+    enum { L = PM__SORT_RANK_LANES };
+    union {
+        int16_t k[PM__SORT_RANK_MAX + L];
+        __m128i v[(PM__SORT_RANK_MAX + L) / 8];
+    } key, rank;
+    pm_neighbor t[PM__SORT_RANK_MAX + L];
+    const unsigned nl = (n + L - 1) / L * L; /* n rounded up to whole passes */
+    unsigned i = 0;
+    memcpy(t, a, n * sizeof *t);
+    /* the range of dist2, 4 at a time (x: the dist2 of t[i..i+3]) */
+    __m128 lo = _mm_set1_ps(t[0].dist2), hi = lo;
+    for (; i + 4 <= n; i += 4) {
+        __m128 x = _mm_shuffle_ps(_mm_loadu_ps(&t[i].dist2), _mm_loadu_ps(&t[i + 2].dist2), 0x88);
+        lo = _mm_min_ps(lo, x);
+        hi = _mm_max_ps(hi, x);
+    }
+    for (; i < n; i++) {
+        __m128 x = _mm_set1_ps(t[i].dist2);
+        lo = _mm_min_ps(lo, x);
+        hi = _mm_max_ps(hi, x);
+    }
+    lo = _mm_min_ps(lo, _mm_shuffle_ps(lo, lo, 0x4e));
+    lo = _mm_min_ps(lo, _mm_shuffle_ps(lo, lo, 0xb1));
+    hi = _mm_max_ps(hi, _mm_shuffle_ps(hi, hi, 0x4e));
+    hi = _mm_max_ps(hi, _mm_shuffle_ps(hi, hi, 0xb1));
+    const float low = _mm_cvtss_f32(lo), span = _mm_cvtss_f32(hi) - low;
+    if (!(span > 0) || !(span <= FLT_MAX)) return 0;
+    const float scale = 65535.0f / span;
+    if (!(scale <= FLT_MAX)) return 0;
+    /* padding entries get the lowest key: rank 0, so they add nothing to the sum */
+    for (i = n; i < nl; i++) t[i].dist2 = low, t[i].index = 0;
+    {
+        const __m128 vlo = _mm_set1_ps(low), vs = _mm_set1_ps(scale);
+        const __m128i off = _mm_set1_epi32(32768);
+        for (unsigned b = 0; b < nl / 8; b++) {
+            const float *p = &t[8 * b].dist2;
+            __m128 x0 = _mm_shuffle_ps(_mm_loadu_ps(p), _mm_loadu_ps(p + 4), 0x88);
+            __m128 x1 = _mm_shuffle_ps(_mm_loadu_ps(p + 8), _mm_loadu_ps(p + 12), 0x88);
+            __m128i k0 = _mm_sub_epi32(_mm_cvttps_epi32(_mm_mul_ps(_mm_sub_ps(x0, vlo), vs)), off);
+            __m128i k1 = _mm_sub_epi32(_mm_cvttps_epi32(_mm_mul_ps(_mm_sub_ps(x1, vlo), vs)), off);
+            key.v[b] = _mm_packs_epi32(k0, k1);
+        }
+    }
+    /* rank.k[i] = -#{j < n: key[j] < key[i]}: a compare's true lane is -1; four independent
+     * counters per pass (one would be a chain of n dependent adds) */
+#if defined(__AVX2__)
+    __m256i tot = _mm256_setzero_si256();
+    for (unsigned g = 0; g < nl; g += L) {
+        const __m256i *kv = (const __m256i *)(const void *)&key.k[g];
+        __m256i *rv = (__m256i *)(void *)&rank.k[g];
+        const __m256i A0 = _mm256_loadu_si256(kv), A1 = _mm256_loadu_si256(kv + 1),
+                      A2 = _mm256_loadu_si256(kv + 2), A3 = _mm256_loadu_si256(kv + 3);
+        __m256i c0 = _mm256_setzero_si256(), c1 = c0, c2 = c0, c3 = c0;
+        for (unsigned j = 0; j < n; j++) {
+            const __m256i B = _mm256_set1_epi16(key.k[j]);
+            c0 = _mm256_add_epi16(c0, _mm256_cmpgt_epi16(A0, B));
+            c1 = _mm256_add_epi16(c1, _mm256_cmpgt_epi16(A1, B));
+            c2 = _mm256_add_epi16(c2, _mm256_cmpgt_epi16(A2, B));
+            c3 = _mm256_add_epi16(c3, _mm256_cmpgt_epi16(A3, B));
+        }
+        _mm256_storeu_si256(rv, c0);
+        _mm256_storeu_si256(rv + 1, c1);
+        _mm256_storeu_si256(rv + 2, c2);
+        _mm256_storeu_si256(rv + 3, c3);
+        const __m256i c = _mm256_add_epi16(_mm256_add_epi16(c0, c1), _mm256_add_epi16(c2, c3));
+        tot = _mm256_add_epi32(tot, _mm256_madd_epi16(c, _mm256_set1_epi16(-1)));
+    }
+    __m128i s = _mm_add_epi32(_mm256_castsi256_si128(tot), _mm256_extracti128_si256(tot, 1));
+#else
+    __m128i s = _mm_setzero_si128();
+    for (unsigned g = 0; g < nl / 8; g += 4) {
+        const __m128i A0 = key.v[g], A1 = key.v[g + 1], A2 = key.v[g + 2], A3 = key.v[g + 3];
+        __m128i c0 = _mm_setzero_si128(), c1 = c0, c2 = c0, c3 = c0;
+        unsigned j = 0;
+        for (; j + 2 <= n; j += 2) { /* two keys a step: gcc keeps the counters in place */
+            const __m128i B = _mm_set1_epi16(key.k[j]), C = _mm_set1_epi16(key.k[j + 1]);
+            c0 = _mm_add_epi16(c0, _mm_cmpgt_epi16(A0, B));
+            c1 = _mm_add_epi16(c1, _mm_cmpgt_epi16(A1, B));
+            c2 = _mm_add_epi16(c2, _mm_cmpgt_epi16(A2, B));
+            c3 = _mm_add_epi16(c3, _mm_cmpgt_epi16(A3, B));
+            c0 = _mm_add_epi16(c0, _mm_cmpgt_epi16(A0, C));
+            c1 = _mm_add_epi16(c1, _mm_cmpgt_epi16(A1, C));
+            c2 = _mm_add_epi16(c2, _mm_cmpgt_epi16(A2, C));
+            c3 = _mm_add_epi16(c3, _mm_cmpgt_epi16(A3, C));
+        }
+        if (j < n) {
+            const __m128i B = _mm_set1_epi16(key.k[j]);
+            c0 = _mm_add_epi16(c0, _mm_cmpgt_epi16(A0, B));
+            c1 = _mm_add_epi16(c1, _mm_cmpgt_epi16(A1, B));
+            c2 = _mm_add_epi16(c2, _mm_cmpgt_epi16(A2, B));
+            c3 = _mm_add_epi16(c3, _mm_cmpgt_epi16(A3, B));
+        }
+        rank.v[g] = c0, rank.v[g + 1] = c1, rank.v[g + 2] = c2, rank.v[g + 3] = c3;
+        const __m128i c = _mm_add_epi16(_mm_add_epi16(c0, c1), _mm_add_epi16(c2, c3));
+        s = _mm_add_epi32(s, _mm_madd_epi16(c, _mm_set1_epi16(-1)));
+    }
+#endif
+    s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0x4e));
+    s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0xb1));
+    if ((unsigned)_mm_cvtsi128_si32(s) != n * (n - 1) / 2) return 0; /* two keys are equal */
+    for (i = 0; i < n; i++) a[-rank.k[i]] = t[i];
+    return 1;
+}
+#endif /* __SSE2__ */
+
+/* Sorts a[0..n), n <= PM__SORT_KEYS_MAX, by (dist2, index) ascending. Between
+ * PM__SORT_RANK_MIN and PM__SORT_RANK_MAX entries pm__nb_sort_rank (above) does it when its keys
+ * do not tie (the same array: both sort by the one order), else (and for other n) each entry
+ * becomes one 64-bit key, the bits of dist2 above the index: dist2 is never negative or NaN (a sum of
  * squares of finite differences, possibly +inf), and the bits of such floats order as the
  * floats do, so comparing keys compares (dist2, index) in one integer test. The keys are then
  * merge-sorted bottom-up with a branch-free merge step (a data-dependent branch here
  * mispredicts about half the time, which is what makes a comparison sort of k results cost
  * as much as a tenth of the query). */
 static inline void pm__nb_sort_keys(pm_neighbor *a, unsigned n) {
+#if defined(__SSE2__)
+    if (n >= PM__SORT_RANK_MIN && n <= PM__SORT_RANK_MAX && pm__nb_sort_rank(a, n)) return;
+#endif
     uint64_t ka[PM__SORT_KEYS_MAX], kb[PM__SORT_KEYS_MAX], *src = ka, *dst = kb;
     for (unsigned i = 0; i < n; i++) {
         uint32_t b;
