@@ -107,6 +107,11 @@ static const setting_def k_settings[] = {
      "guide the direct light's samples toward the part of each area light that a pilot saw "
      "pass (guide.h; unbiased for any table) or not; absent, the plan turns it on where light "
      "samples are mostly blocked where the camera looks (light through an opening)"},
+    {"gather_guide", ST_FORCE, F(force_gather_guide), PLAN_AUTO, 0, 0,
+     "guide the final gather's directions toward what a pilot's probes saw bright (light "
+     "through an opening; guide.h, unbiased for any table) or not; absent, the photon mapper "
+     "turns it on where the probes find most of the gathered light in a small part of the "
+     "hemisphere"},
     {"progress", ST_BOOL, F(progress), 1, NONE,
      "progress lines while tracing photons (render --quiet sets it false)"},
     {"volume", ST_FORCE, F(force_volume), PLAN_AUTO, 0, 0,
