@@ -198,17 +198,21 @@ static inline int pm__nb_sort_rank(pm_neighbor *a, unsigned n) {
     } key, rank;
     pm_neighbor t[PM__SORT_RANK_MAX + L];
     const unsigned nl = (n + L - 1) / L * L; /* n rounded up to whole passes */
+    const unsigned n8 = (n + 7) & ~7u;       /* ... and to whole vectors of keys */
     unsigned i = 0;
-    memcpy(t, a, n * sizeof *t);
-    /* the range of dist2, 4 at a time (x: the dist2 of t[i..i+3]) */
-    __m128 lo = _mm_set1_ps(t[0].dist2), hi = lo;
+    /* copy a to t (the scatter below reads t) and find the range of dist2, 4 at a time */
+    __m128 lo = _mm_set1_ps(a[0].dist2), hi = lo;
     for (; i + 4 <= n; i += 4) {
-        __m128 x = _mm_shuffle_ps(_mm_loadu_ps(&t[i].dist2), _mm_loadu_ps(&t[i + 2].dist2), 0x88);
+        const __m128 y0 = _mm_loadu_ps(&a[i].dist2), y1 = _mm_loadu_ps(&a[i + 2].dist2);
+        _mm_storeu_ps(&t[i].dist2, y0);
+        _mm_storeu_ps(&t[i + 2].dist2, y1);
+        const __m128 x = _mm_shuffle_ps(y0, y1, 0x88); /* the dist2 of a[i..i+3] */
         lo = _mm_min_ps(lo, x);
         hi = _mm_max_ps(hi, x);
     }
     for (; i < n; i++) {
-        __m128 x = _mm_set1_ps(t[i].dist2);
+        const __m128 x = _mm_set1_ps(a[i].dist2);
+        t[i] = a[i];
         lo = _mm_min_ps(lo, x);
         hi = _mm_max_ps(hi, x);
     }
@@ -221,11 +225,12 @@ static inline int pm__nb_sort_rank(pm_neighbor *a, unsigned n) {
     const float scale = 65535.0f / span;
     if (!(scale <= FLT_MAX)) return 0;
     /* padding entries get the lowest key: rank 0, so they add nothing to the sum */
-    for (i = n; i < nl; i++) t[i].dist2 = low, t[i].index = 0;
+    for (i = n; i < n8; i++) t[i].dist2 = low, t[i].index = 0;
     {
         const __m128 vlo = _mm_set1_ps(low), vs = _mm_set1_ps(scale);
         const __m128i off = _mm_set1_epi32(32768);
-        for (unsigned b = 0; b < nl / 8; b++) {
+        unsigned b = 0;
+        for (; b < n8 / 8; b++) {
             const float *p = &t[8 * b].dist2;
             __m128 x0 = _mm_shuffle_ps(_mm_loadu_ps(p), _mm_loadu_ps(p + 4), 0x88);
             __m128 x1 = _mm_shuffle_ps(_mm_loadu_ps(p + 8), _mm_loadu_ps(p + 12), 0x88);
@@ -233,6 +238,7 @@ static inline int pm__nb_sort_rank(pm_neighbor *a, unsigned n) {
             __m128i k1 = _mm_sub_epi32(_mm_cvttps_epi32(_mm_mul_ps(_mm_sub_ps(x1, vlo), vs)), off);
             key.v[b] = _mm_packs_epi32(k0, k1);
         }
+        for (; b < nl / 8; b++) key.v[b] = _mm_set1_epi16(-32768);
     }
     /* rank.k[i] = -#{j < n: key[j] < key[i]}: a compare's true lane is -1; four independent
      * counters per pass (one would be a chain of n dependent adds) */
