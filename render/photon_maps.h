@@ -27,6 +27,12 @@
  * maps under several seeds is how new camera noise is drawn over fixed photons), the thread
  * count (the maps do not depend on it), and everything the camera pass alone reads (image
  * size, samples, k_*, radii, filter, gather settings, volume_step, volume_boundary, tone).
+ * The global and caustic maps hold the plan's pilot photons that joined them (photon_trace.h,
+ * PILOT PHOTONS), as traced (the saved caustic map is the pass's stores then the pilot's);
+ * whether they join and what they are depends only on what the stamp covers and on the
+ * seed (the pilot's streams, plan_pilot_seed in plan.h, left out like the passes' own seed;
+ * its rules are the passes' max_depth, max_bounces and projection maps; the targets decide
+ * the half-target rule).
  *
  * IMPORTANCE. The global pass's importance-driven emission (importance.h) is steered by
  * importance_paths and importance_defensive, which are stamped, and by the camera, the image

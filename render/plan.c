@@ -10,7 +10,8 @@
  * passes fewer than about 1 in 8192 of them can still be missed), stores after a diffuse
  * bounce (global), and photons that pass their first hit and reach a diffuse surface behind
  * it (shadow photons). Each reason prints those counts and the materials involved. The
- * pilot uses fixed streams (seed PLAN_SEED), so the plan is deterministic, and costs about
+ * pilot uses fixed streams (plan_pilot_seed: PLAN_SEED and the scene's seed), so the plan of a
+ * scene and seed is deterministic, and costs about
  * 16384 photon paths. Both pilots' stores are kept (render_plan.pilot) and join the real
  * passes' maps (photon_trace.h, PILOT PHOTONS): the global pilot's the global and shadow
  * maps, the caustic pilot's (aimed by the projection maps the caustic pass will use) the
@@ -91,7 +92,7 @@ static void run_pilot(const scene *s, const photon_settings *cfg, const importan
     memset(r, 0, sizeof *r);
     trace_opts o;
     trace_opts_init(&o, s);
-    o.seed = PLAN_SEED;
+    o.seed = plan_pilot_seed(s);
     o.max_bounces = cfg->max_bounces; /* the real passes' rules, so its photons can join them */
     o.quiet = 1;
     o.max_emitted = PLAN_PILOT_PHOTONS;
@@ -124,6 +125,8 @@ static void run_pilot(const scene *s, const photon_settings *cfg, const importan
     r->c_emitted = r->c.emitted;
     photon_maps_free(&m);
 }
+
+uint64_t plan_pilot_seed(const scene *s) { return rng_mix64(PLAN_SEED ^ rng_mix64(s->settings.seed)); }
 
 static void plan_caustics(const scene *s, const pilot_result *r, render_plan *p) {
     int nspec = 0;

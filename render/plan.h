@@ -41,7 +41,8 @@
  * pilot's N stores join the caustic map (its M photons counted as emitted)", or with why they
  * do not (pilot_photons_joining's reason, or loaded maps), by the rule photon_trace applies
  * to the options the settings give (trace_opts_settings).
- * Every probe uses fixed random streams, so the plan of a scene never changes between runs.
+ * Every probe uses fixed random streams (the photon pilot's drawn from the scene's seed,
+ * plan_pilot_seed), so the plan of a scene and seed never changes between runs.
  * The scene's "photon_mapping" object may force any of them: "caustics": true/false, and the
  * same for "global", "shadow" and "final_gather"; the reason then says "forced".
  *
@@ -63,9 +64,14 @@
 extern "C" {
 #endif
 
-/* The pilot passes' fixed streams and size (plan.c): seed, and photons per pilot pass. */
+/* The pilot passes' streams and size (plan.c): seed, and photons per pilot pass. */
 #define PLAN_SEED 0x706c616eULL /* "plan" */
 #define PLAN_PILOT_PHOTONS (2 * PT_BATCH)
+/* The seed of the pilot whose photons join the maps: PLAN_SEED mixed with the scene's seed,
+ * so the pilot is drawn anew with the seed (its share of the maps averages out over seeds,
+ * as the passes' own photons do) and fixed for a given one. volume.h's pilot (scenes with
+ * media; it keeps no photons) uses PLAN_SEED itself. */
+uint64_t plan_pilot_seed(const scene *s);
 
 typedef struct plan_item {
     int on;

@@ -654,9 +654,9 @@ TEST(render_pm_pilot_photons_join) {
  * pilot's L S+ D stores (its evidence counter), the last photons of the map (positions equal
  * to a pilot traced here with the plan's seed and size, power scaled by n_p / (n_p + n_m)),
  * counted in pilot_stored/pilot_emitted and the statistics; the pass stops at the target
- * with them counted. The joined map is the same on 1 and 2 threads. Not joined (with the
- * plan saying why): the pass without the projection map, and a target below twice the
- * pilot's stores. */
+ * with them counted. The scene's next seed draws another pilot. The joined map is the same
+ * on 1 and 2 threads. Not joined (with the plan saying why): the pass without the projection
+ * map, and a target below twice the pilot's stores. */
 TEST(render_pm_caustic_pilot_joins) {
     const double Phi = 100, R = 0.8, r = 0.3, d = 1.0;
     const double want = Phi * R * 2 * M_PI * (1 - sqrt(1 - (r / d) * (r / d))) / (4 * M_PI);
@@ -690,7 +690,7 @@ TEST(render_pm_caustic_pilot_joins) {
     /* The pilot, traced again as plan.c traces it: its L S+ D stores and evidence. */
     trace_opts o;
     trace_opts_settings(&o, &s, &c);
-    o.seed = PLAN_SEED;
+    o.seed = plan_pilot_seed(&s);
     o.caustic = 1;
     o.caustic_target = 1L << 40;
     o.max_emitted = PLAN_PILOT_PHOTONS;
@@ -706,6 +706,18 @@ TEST(render_pm_caustic_pilot_joins) {
     EXPECT_EQ_INT(tp.caustic.total, nplan);
     EXPECT_EQ_INT(mp.caustic_emitted, PLAN_PILOT_PHOTONS);
     ASSERT_MSG(nplan > 1000 && 2 * nplan <= (size_t)target, "%zu pilot stores", nplan);
+    { /* another seed, another pilot (plan_pilot_seed): its share averages out over seeds */
+        uint64_t seed0 = s.settings.seed;
+        s.settings.seed = seed0 + 1;
+        o.seed = plan_pilot_seed(&s);
+        s.settings.seed = seed0;
+        photon_maps mq;
+        ASSERT_MSG(photon_trace(&s, &o, &mq, err, sizeof err) == 0, "%s", err);
+        size_t n = mq.ncaustic < mp.ncaustic ? mq.ncaustic : mp.ncaustic;
+        EXPECT_MSG(n > 0 && memcmp(mq.caustic, mp.caustic, n * sizeof(pm_photon)) != 0,
+                   "the pilots of two seeds stored the same photons");
+        photon_maps_free(&mq);
+    }
 
     int st_stored = stats_register("Photons/Pilot photons reused in the caustic map (stored)");
     double sum[2] = {0, 0}, se2[2] = {0, 0};
