@@ -91,8 +91,9 @@ extern "C" {
 /* The version of photon tracing in every map's stamp: see TRACER VERSION above for when to
  * bump it. */
 /* 2: importance-driven emission and the plan's pilot photons joined (global pass); 3: the
- * caustic pilot's photons joined too (the caustic map). */
-#define PHOTON_TRACE_VERSION 3
+ * caustic pilot's photons joined too (the caustic map); 4: the joining pilot's streams
+ * follow the scene's seed (plan_pilot_seed). */
+#define PHOTON_TRACE_VERSION 4
 
 /* A map set's stamp: scene_transport_hash and the tracer version + settings hash
  * (map_stamp_make). */
