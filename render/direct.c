@@ -30,6 +30,7 @@ static int pick_light_guided(const scene *s, vec3 p, vec3 n, const guide *gd, rn
         return light_sample_li(s, *li, p, u1, u2, ls);
     }
     *guided = 1;
+    if (gd->stat_id >= 0) stat_inc(gd->stat_id);
     double a = gd->alpha, p0;
     if (ulight < a) {
         double v = ulight / a;

@@ -18,6 +18,7 @@
 #include "medium.h"
 #include "photon_settings.h"
 #include "sampling.h"
+#include "stats.h"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -86,6 +87,7 @@ int guide_build(guide *g, const guide_grid *grid, int G, double alpha, const gui
     memset(g, 0, sizeof *g);
     if (G < 1 || G > 1024 || (G & (G - 1)) || !(alpha > 0 && alpha <= 1)) return PM_EINVAL;
     g->grid = *grid;
+    g->stat_id = -1;
     g->G = G;
     g->alpha = alpha;
     size_t G2 = (size_t)G * (size_t)G;
@@ -760,7 +762,10 @@ guide *guide_light_plan(const scene *s, int force, int usable, int *on, char *re
             gd = NULL;
             rc = PM_ENOMEM;
         }
-        if (gd) e.tables = gd->ntables;
+        if (gd) {
+            e.tables = gd->ntables;
+            gd->stat_id = stats_register("Integrator/Light samples guided (light guide)");
+        }
     }
     free(pts);
     free(pa);

@@ -128,6 +128,7 @@ typedef struct guide {
     double *tw;             /* per table: its share of its cell's values (the slot's weight) */
     double *tcum;           /* per table: cumulative tw within its cell */
     size_t *cfirst;         /* ncells + 1 */
+    int stat_id;            /* a stats.h counter of the samples it guided, or -1 (none) */
 } guide;
 
 /* Build from n rows (G strata per side, defensive share alpha in (0, 1]). 0, PM_EINVAL (G < 1,
