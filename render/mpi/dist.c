@@ -219,6 +219,7 @@ static void on_stop(int sig) {
 
 typedef struct start_msg {
     int rc; /* 0 ready to render, > 0 failed with this status, -1 finished without rendering */
+    int mode; /* DIST_* */
     char msg[MSG_MAX];
 } start_msg;
 
@@ -230,6 +231,7 @@ static void dist_start(int rc, const char *msg, int *all_done) {
     start_msg m;
     memset(&m, 0, sizeof m);
     m.rc = rc;
+    m.mode = g_mode;
     snprintf(m.msg, sizeof m.msg, "%s", msg ? msg : "");
     start_msg *all = g_rank == 0 ? calloc((size_t)g_size, sizeof *all) : NULL;
     if (g_rank == 0 && !all) die_now("out of memory");
@@ -255,16 +257,37 @@ static void dist_start(int rc, const char *msg, int *all_done) {
             fprintf(stderr, " of %d could not start (status %d): %s\n", g_size, all[k].rc,
                     all[k].msg[0] ? all[k].msg : "(no message)");
         }
-        if (!verdict && finished && ready) {
-            fprintf(stderr, "render-mpi: the ranks were given different commands (some rendered, "
-                    "some did not)\n");
+        /* Ranks given different commands (mpirun's MPMD form): some rendered and some did not,
+         * or the modes differ. Rank 0 names the ranks that differ from rank 0. */
+        int partitioned = 0;
+        for (int k = 0; k < g_size; k++) partitioned += all[k].mode == DIST_PARTITIONED;
+        int odd_run = !verdict && finished && ready, odd_mode = !verdict && ready && partitioned &&
+                                                                partitioned < g_size;
+        if (odd_run || odd_mode) {
+            int nodd = 0, n = 0; /* the ranks that differ from rank 0 */
+            for (int pass = 0; pass < 2; pass++) {
+                if (pass) fprintf(stderr, "render-mpi: the ranks were given different commands: "
+                                  "rank%s", nodd > 1 ? "s" : "");
+                for (int k = 1; k < g_size; k++) {
+                    if (odd_run ? (all[k].rc < 0) == (all[0].rc < 0) : all[k].mode == all[0].mode)
+                        continue;
+                    if (pass) fprintf(stderr, "%s %d", n++ ? "," : "", k);
+                    else nodd++;
+                }
+            }
+            const char *what[2][2] = {{"rendered", "finished without rendering"},
+                                      {"replicated maps", "--pm distributed=partitioned"}};
+            int kind = odd_run ? 0 : 1, r0 = odd_run ? all[0].rc < 0 : all[0].mode == DIST_PARTITIONED;
+            fprintf(stderr, " of %d: %s; rank 0: %s\n", g_size, what[kind][!r0], what[kind][r0]);
             verdict = 2;
         } else if (!verdict && finished) {
             verdict = -1;
         }
-        if (verdict > 0)
+        if (verdict > 0 && failed)
             fprintf(stderr, "render-mpi: stopped before rendering: %d of %d rank%s could not start; "
-                    "nothing was written\n", failed ? failed : g_size, g_size, g_size == 1 ? "" : "s");
+                    "nothing was written\n", failed, g_size, g_size == 1 ? "" : "s");
+        else if (verdict > 0)
+            fprintf(stderr, "render-mpi: stopped before rendering; nothing was written\n");
         free(all);
     }
     MPI_Bcast(&verdict, 1, MPI_INT, 0, MPI_COMM_WORLD);
@@ -401,7 +424,13 @@ void dist_init(int mode) {
     g_td.test_fail = tracer_test_fail;
     photon_trace_set_dist(&g_td);
     vol_set_dist(&g_td); /* the media passes too (volume.h), in both modes */
-    if (mode == DIST_PARTITIONED) lk_init(g_rank, g_size);
+    /* Every rank makes the same collective calls before the agreement, whatever its mode or
+     * command (render_mpi.c: the node's ranks, MPI_Comm_split_type): ranks given different
+     * commands meet there and are told so instead of waiting for each other. */
+    MPI_Comm lk_comm;
+    MPI_Comm_dup(MPI_COMM_WORLD, &lk_comm);
+    if (mode == DIST_PARTITIONED) lk_init(g_rank, g_size, lk_comm);
+    else MPI_Comm_free(&lk_comm);
     /* Checkpoints: rank 0 writes them. A replicated render's image is render's, so are its
      * checkpoints; a partitioned one depends on the number of parts, and its maps cannot be
      * saved whole (they are traced again on resume). */

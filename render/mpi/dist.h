@@ -28,7 +28,9 @@
  * FAILURES. Until the first collective step every rank runs alone; there (dist_start) the
  * ranks agree: if any failed (a scene it could not load, a bad option), rank 0 prints each
  * failing rank's message and every rank exits with the failing rank's status (2 for input
- * errors), nothing written. A rank failing later (an allocation in dist.c, or render_main's
+ * errors), nothing written; ranks given different commands (mpirun's MPMD form: some render
+ * and some do not, or the --pm distributed modes differ) are named and exit 2. So that they
+ * meet there, every rank makes the same collective calls before it, whatever its command. A rank failing later (an allocation in dist.c, or render_main's
  * own error, e.g. out of memory in the photon pass or the pixel pass; the photon tracer's own
  * out of memory, which the exchange would tell every rank, is sent by the failing rank before
  * that exchange, through trace_dist.failed) sends its message to rank 0, which listens for it

@@ -377,7 +377,12 @@ static lk_part *exchange(const lk_query *q, size_t n, const lk_part *mine, int (
         if (flag) {
             int nbytes;
             MPI_Get_count(&ms, MPI_BYTE, &nbytes);
-            if ((size_t)nbytes != n * sizeof *all) dist_die("a rank answered another number of lookups");
+            if ((size_t)nbytes != n * sizeof *all) {
+                char what[160];
+                snprintf(what, sizeof what, "in the photon lookups, rank %d answered %zu lookups "
+                         "of %zu", ms.MPI_SOURCE, (size_t)nbytes / sizeof *all, n);
+                dist_die(what);
+            }
             MPI_Recv(all + (size_t)ms.MPI_SOURCE * n, nbytes, MPI_BYTE, ms.MPI_SOURCE, TAG_ANSWER,
                      L.comm, MPI_STATUS_IGNORE);
             waiting--;
@@ -1036,14 +1041,14 @@ int lk_render_tiles(const scene *s, const integrator *it, const render_job *job,
     return 0;
 }
 
-void lk_init(int rank, int size) {
+void lk_init(int rank, int size, MPI_Comm comm) {
     memset(&L, 0, sizeof L);
     L.rank = rank;
     L.size = size;
     L.on = 1;
     const char *ta = getenv("PM_MPI_TEST_TRACE_AGAIN");
     L.trace_again = ta && strcmp(ta, "1") == 0;
-    MPI_Comm_dup(MPI_COMM_WORLD, &L.comm);
+    L.comm = comm;
     L.st_queries = stats_register("MPI/Partitioned: photon lookups sent (all ranks)");
     L.st_bytes = stats_register("MPI/Partitioned: bytes sent in photon lookups (all ranks)");
     L.st_side_queries = stats_register("MPI/Partitioned: precomputed irradiance estimates");

@@ -81,8 +81,10 @@
 extern "C" {
 #endif
 
-/* Set the photon-lookup hook (photon_lookup.h) for a partitioned render on these ranks. */
-void lk_init(int rank, int size);
+/* Set the photon-lookup hook (photon_lookup.h) for a partitioned render on these ranks; comm:
+ * the lookups' own communicator (a duplicate of MPI_COMM_WORLD, made by every rank whatever
+ * its mode, so that ranks started with different modes meet in dist.c's agreement). */
+void lk_init(int rank, int size, MPI_Comm comm);
 /* 1 after lk_init. */
 int lk_on(void);
 /* Render tiles[0..n) into st: trace, exchange, trace again (above). While waiting it serves other

@@ -131,15 +131,16 @@ int main(int argc, char **argv) {
     int at = ac > 0 ? 1 : 0;
     char *added[3];
     int nadd = 0;
+    /* Ranks sharing this node share its cores. Every rank asks (a collective call), whatever
+     * its command: ranks given different commands must meet in dist.c's agreement. */
+    MPI_Comm node;
+    int local = 1;
+    if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) ==
+        MPI_SUCCESS) {
+        MPI_Comm_size(node, &local);
+        MPI_Comm_free(&node);
+    }
     if (!has_threads && !tool && !help) {
-        /* Ranks sharing this node share its cores. */
-        MPI_Comm node;
-        int local = 1;
-        if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) ==
-            MPI_SUCCESS) {
-            MPI_Comm_size(node, &local);
-            MPI_Comm_free(&node);
-        }
         long cores = sysconf(_SC_NPROCESSORS_ONLN);
         long t = cores > 0 ? cores / local : 1;
         snprintf(threads_arg, sizeof threads_arg, "%ld", t > 0 ? t : 1);
