@@ -583,10 +583,11 @@ the answering work of the other ranks or the waits.
   maps from the photon pass on, and 1/R of the precomputed irradiance.
 - A failed rank ends the job (there is no recovery in OpenMPI 4.1 without ULFM); the render
   must be started again, or resumed from its last checkpoint.
-- Media: the volume photon maps (and, in a scene with media, the whole surface photon pass,
-  which the volume tracer makes) are traced by every rank and held whole on every rank in
-  both modes; partitioned mode partitions only the surface maps (cornell_fog and
-  glass_of_smoke at -np 2: quarters within 0.04% of render, measured by mpib).
+- Media: the photon passes of a scene with media (`volume.c`, which makes its surface
+  photons too) are split over the ranks by batch and all-gathered in both modes, so every
+  rank holds the whole volume maps; partitioned mode then keeps 1/R of the surface maps only
+  (cornell_fog and glass_of_smoke at -np 2: quarters within 0.04% of render, measured by
+  mpib).
 - Statistics: the pixel pass's counters are the sum over ranks; the preprocessing counters
   (photons stored, their rays) are rank 0's, whose maps are every rank's.
 EOF
