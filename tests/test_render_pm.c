@@ -805,6 +805,23 @@ TEST(render_pm_caustic_pilot_joins) {
                    m.pilot_stored[1]);
         photon_maps_free(&m);
     }
+    /* The other reasons of pilot_photons_joining (photon_trace.h), each with its words. */
+    trace_opts_settings(&o, &s, &c);
+    o.caustic = 1;
+    const char *why = NULL;
+    EXPECT(pilot_photons_joining(p.pilot, &o, 1, NULL, NULL, &why) == 1 && why && !why[0]);
+    o.max_bounces = 7;
+    EXPECT(pilot_photons_joining(p.pilot, &o, 1, NULL, NULL, &why) == 0 && strstr(why, "max_bounces"));
+    trace_opts_settings(&o, &s, &c);
+    o.caustic = 1;
+    o.max_depth++;
+    EXPECT(pilot_photons_joining(p.pilot, &o, 1, NULL, NULL, &why) == 0 && strstr(why, "max_depth"));
+    trace_opts_settings(&o, &s, &c);
+    EXPECT(pilot_photons_joining(p.pilot, &o, 1, NULL, NULL, &why) == 0 && strstr(why, "no caustic pass"));
+    o.caustic = 1;
+    o.pilot = &tp;
+    EXPECT(pilot_photons_joining(p.pilot, &o, 1, NULL, NULL, &why) == 0 && strstr(why, "a pilot pass"));
+    EXPECT(pilot_photons_joining(NULL, &o, 1, NULL, NULL, &why) == 0 && why && !why[0]);
     plan_free(&p3);
     plan_free(&p2);
     photon_maps_free(&mp);
@@ -1194,6 +1211,35 @@ TEST(render_pm_render_skipped_caustics_zero) {
     EXPECT_EQ_INT(stat_in(out, "Emitted, caustic pass"), 0);
     EXPECT_EQ_INT(stat_in(out, "Caustic photons stored"), 0);
     EXPECT_EQ_INT(stat_in(out, "Caustic estimates"), 0);
+}
+
+/* Oracle: the render's own figures. glass_hole's caustic pass (a glass sphere lit only
+ * through a 10 x 10 hole) cannot store 2000 photons within its emission budget, and the
+ * pilot's few L S+ D stores join it: the budget message must give the whole map, pilot
+ * included, as the "Photons:" line counts it ("only N of 2000 photons stored after E emitted
+ * (the pilot's n stores and 8192 photons included)", N and E the line's caustic figures, n
+ * the plan's caustics line's joined stores). */
+TEST(render_pm_caustic_pilot_runaway_message) {
+    static char out[65536];
+    char extra[1024], want[512];
+    snprintf(extra, sizeof extra, "--hdr '%s/g.pfm'", pm_test_tmpdir());
+    int rc = render_tiny("glass_hole", extra, out, sizeof out);
+    ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
+    const char *line = strstr(out, "\n  caustics: on ("), *eol = line ? strchr(line + 1, '\n') : NULL;
+    const char *at = line ? strstr(line, "the pilot's ") : NULL;
+    size_t n = 0, nc = 0;
+    unsigned long long ne = 0, ce = 0;
+    ASSERT_MSG(at && eol && at < eol &&
+                   sscanf(at, "the pilot's %zu stores join the caustic map (its %llu photons", &n, &ne) == 2,
+               "%s", out);
+    const char *ph = strstr(out, "\nPhotons: ");
+    ASSERT_MSG(ph && (ph = strstr(ph, "; ")) && sscanf(ph, "; %zu caustic (from %llu emitted", &nc, &ce) == 2, "%s",
+               out);
+    snprintf(want, sizeof want,
+             "Tracing caustic photons: only %zu of 2000 photons stored after %llu emitted (the pilot's %zu stores "
+             "and %llu photons included); stopped by the photon_mapping.",
+             nc, ce, n, ne);
+    EXPECT_MSG(n > 0 && nc < 2000 && strstr(out, want), "expected \"%s\" in %s", want, out);
 }
 
 /* ---- 6. saved photon maps ------------------------------------------------------------------ */
