@@ -370,11 +370,11 @@ if [ $rc = 2 ] && [ ! -e "$T/one.pfm" ] \
 else
   bad "one rank without its scene" "rc $rc; $(grep render "$T/one.log" | head -3)"
 fi
-# Ranks given different commands (mpirun's MPMD form): rendering beside --help, and different
-# --pm distributed modes. Oracle: the commands as given: rank 0 names the ranks that differ and
-# how, exit 2 within 60 s, no output. Before every rank made the same collective calls ahead
-# of the agreement (the node's ranks; the partitioned lookups' communicator), both waited
-# forever.
+# Ranks given different commands (mpirun's MPMD form): rendering beside --help, different
+# --pm distributed modes, a bad render-mpi option on one rank only. Oracle: the commands as
+# given: rank 0 names the ranks that differ and how, exit 2 within 60 s, no output. Before
+# every rank made the same collective calls ahead of the agreement (the node's ranks; the
+# partitioned lookups' communicator), all three waited forever.
 mpmd_test() { # name expected-text mpirun-args...
   mname=$1; mwant=$2; shift 2
   mkdir -p "$T/mpmd.$mname"
@@ -383,7 +383,7 @@ mpmd_test() { # name expected-text mpirun-args...
   rc=$?
   dt=$(($(date +%s) - t0))
   if [ $rc = 2 ] && [ $dt -lt 60 ] && [ -z "$(ls -A "$T/mpmd.$mname")" ] \
-     && grep -qF "render-mpi: the ranks were given different commands: $mwant" "$T/mpmd.$mname.log"; then
+     && grep -qF "render-mpi: $mwant" "$T/mpmd.$mname.log"; then
     ok "different commands ($mname): rank 0 names them, exit 2, ${dt} s, no output"
   else
     bad "different commands ($mname)" "rc $rc, ${dt} s; $(grep render-mpi "$T/mpmd.$mname.log" | head -2)"
@@ -391,11 +391,14 @@ mpmd_test() { # name expected-text mpirun-args...
 }
 MPMD="data/scenes/cornell_box.json --mode pm --width 16 --height 16 --spp 1 --quiet --threads 1"
 # shellcheck disable=SC2086
-mpmd_test help "ranks 1, 2 of 3: finished without rendering; rank 0: rendered" \
+mpmd_test help "the ranks were given different commands: ranks 1, 2 of 3: finished without rendering; rank 0: rendered" \
   -np 1 "$M" $MPMD --hdr "$T/mpmd.help/o.pfm" : -np 2 "$M" --help
 # shellcheck disable=SC2086
-mpmd_test modes "rank 2 of 3: replicated maps; rank 0: --pm distributed=partitioned" \
+mpmd_test modes "the ranks were given different commands: rank 2 of 3: replicated maps; rank 0: --pm distributed=partitioned" \
   -np 2 "$M" $MPMD --pm distributed=partitioned --hdr "$T/mpmd.modes/o.pfm" : -np 1 "$M" $MPMD --hdr "$T/mpmd.modes/o.pfm"
+# shellcheck disable=SC2086
+mpmd_test option "rank 1 of 2 could not start (status 2): render-mpi: --pm distributed: expected replicated or partitioned, got 'bogus'" \
+  -np 1 "$M" $MPMD --hdr "$T/mpmd.option/o.pfm" : -np 1 "$M" $MPMD --pm distributed=bogus --hdr "$T/mpmd.option/o.pfm"
 # A photon pass that stores nothing (a point light in a closed mirror sphere above a diffuse
 # floor, caustics forced): every rank sees the same counts, so the pass ends on every rank at
 # once. Oracle: the one-process render: the same status, and its message (when it fails,

@@ -120,6 +120,16 @@ int main(int argc, char **argv) {
         free(ci);
     }
     dist_init(mode);
+    /* Ranks sharing this node share its cores. Every rank asks (a collective call) before
+     * anything else, whatever its command: ranks given different commands, or one with a bad
+     * option, must meet in dist.c's agreement. */
+    MPI_Comm node;
+    int local = 1;
+    if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) ==
+        MPI_SUCCESS) {
+        MPI_Comm_size(node, &local);
+        MPI_Comm_free(&node);
+    }
     if (msg[0]) dist_fail_early(2, msg);
     static char threads_arg[24];
     int settings = argc == 2 && (strcmp(argv[1], "--help-settings") == 0 ||
@@ -131,15 +141,6 @@ int main(int argc, char **argv) {
     int at = ac > 0 ? 1 : 0;
     char *added[3];
     int nadd = 0;
-    /* Ranks sharing this node share its cores. Every rank asks (a collective call), whatever
-     * its command: ranks given different commands must meet in dist.c's agreement. */
-    MPI_Comm node;
-    int local = 1;
-    if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) ==
-        MPI_SUCCESS) {
-        MPI_Comm_size(node, &local);
-        MPI_Comm_free(&node);
-    }
     if (!has_threads && !tool && !help) {
         long cores = sysconf(_SC_NPROCESSORS_ONLN);
         long t = cores > 0 ? cores / local : 1;
