@@ -88,7 +88,7 @@ extern "C" {
 
 #define GUIDE_G 16             /* strata per side of a table */
 #define GUIDE_RES 128          /* receiver cells along the scene's largest side */
-#define GUIDE_ALPHA 0.25       /* defensive share: d(u) >= alpha everywhere */
+#define GUIDE_ALPHA 0.4        /* defensive share: d(u) >= alpha everywhere */
 #define GUIDE_PATHS 16384      /* light guide: camera paths of stage A */
 #define GUIDE_PROBES 4         /* light guide: light samples per point in stage A */
 #define GUIDE_COARSE 8         /* light guide: fine cells per side of a stage-A region */
