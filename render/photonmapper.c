@@ -213,7 +213,7 @@ static rgb direct_light(const mapper_state *st, const scene *s, const material *
                         vec3 ns, vec3 wo, rng *g, mapper_scratch *sc) {
     shadow_hint_ctx c = {st, sc, g, 1.0};
     direct_options o = {DIRECT_BSDF_FULL, st->vol.on, shadow_hint, &c}; /* media: transmittance */
-    rgb L = direct_light_surface(s, m, h, ns, wo, g, &o);
+    rgb L = direct_light_surface_guided(s, m, h, ns, wo, g, &o, st->plan.guide); /* guide: plan.h */
     return c.weight == 1.0 ? L : v3_scale(L, c.weight);
 }
 
