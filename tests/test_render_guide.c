@@ -378,3 +378,81 @@ TEST(render_guide_pm_image_same_mean) {
     EXPECT(fabs(mean[1] / mean[0] - 1) < 0.03);
     EXPECT(var[1] < var[0]);
 }
+
+/* A probe that is 1 where u1 < 1/4 and u2 >= 1/2 (whole strata at G = 8), else 0; slot 1 is 2
+ * everywhere. */
+static double quarter_probe(void *user, const scene *s, const guide_point *pt, int slot, double u1, double u2,
+                            rng *g) {
+    (void)user, (void)s, (void)pt, (void)g;
+    if (slot == 1) return 2;
+    return u1 < 0.25 && u2 >= 0.5 ? 1 : 0;
+}
+
+/* Oracle: the probe's own values. guide_points gives the same points on 1 and 2 threads;
+ * guide_learn with a use mask makes tables only for the (point, slot) pairs asked for, and a
+ * table from that probe has q = 1/8 on each of its 8 lit strata (alpha / G^2 + (1 - alpha) / 8
+ * after the mixture) and alpha / G^2 elsewhere; a cell's slot weights are the slots' shares of
+ * the cell's sums (slot 0 sums 8 per point of the cell, slot 1 2 x 64 per even point), and
+ * guide_pick_slot chooses by them. */
+TEST(render_guide_learn_from_probes) {
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, k_hole_scene, &e) == 0, "%s", e.msg);
+    guide_point *p1 = NULL, *p2 = NULL;
+    size_t n1 = 0, n2 = 0;
+    ASSERT_EQ_INT(guide_points(&s, 500, 5, 1, &p1, &n1), 0);
+    ASSERT_EQ_INT(guide_points(&s, 500, 5, 2, &p2, &n2), 0);
+    ASSERT(n1 == n2 && n1 > 500);
+    EXPECT(memcmp(p1, p2, n1 * sizeof *p1) == 0);
+    guide_grid gr;
+    guide_grid_init(&gr, &s, GUIDE_RES);
+    size_t np = 40;
+    unsigned char *use = calloc(np * 2, 1);
+    ASSERT(use);
+    for (size_t k = 0; k < np; k++) use[2 * k] = 1, use[2 * k + 1] = k % 2 == 0; /* slot 1 at even points */
+    guide g;
+    unsigned long long probes = 0;
+    ASSERT_EQ_INT(guide_learn(&g, &s, &gr, 8, 0.3, p1, np, 2, use, quarter_probe, NULL, 9, 0, &probes), 0);
+    EXPECT_EQ_INT((int)probes, (int)(np + np / 2) * 64);
+    int checked = 0;
+    for (size_t k = 0; k < np; k++) {
+        const double *t0 = guide_find(&g, p1[k].h.p, p1[k].n, 0), *t1 = guide_find(&g, p1[k].h.p, p1[k].n, 1);
+        ASSERT(t0);
+        for (int j = 0; j < 8; j++)
+            for (int i = 0; i < 8; i++) {
+                double q = t0[i + 8 * j + 1] - t0[i + 8 * j], want = 0.3 / 64 + (i < 2 && j >= 4 ? 0.7 / 8 : 0);
+                EXPECT_NEAR(q, want, 1e-12);
+            }
+        /* slot 1 has a table where some point of this cell is even */
+        int even = 0;
+        for (size_t m = 0; m < np; m += 2)
+            even |= guide_cell(&gr, p1[m].h.p, p1[m].n) == guide_cell(&gr, p1[k].h.p, p1[k].n);
+        EXPECT((t1 != NULL) == even);
+        long c = guide_cell_index(&g, p1[k].h.p, p1[k].n);
+        ASSERT(c >= 0);
+        if (!t1) {
+            EXPECT_NEAR(guide_slot_weight(&g, c, 0), 1, 1e-12);
+            EXPECT_NEAR(guide_slot_weight(&g, c, 1), 0, 0);
+            EXPECT_EQ_INT(guide_pick_slot(&g, c, 0.99), 0);
+        } else {
+            double n_all = 0, n_even = 0;
+            for (size_t m = 0; m < np; m++)
+                if (guide_cell(&gr, p1[m].h.p, p1[m].n) == guide_cell(&gr, p1[k].h.p, p1[k].n)) {
+                    n_all++;
+                    n_even += m % 2 == 0;
+                }
+            double w0 = guide_slot_weight(&g, c, 0), w1 = guide_slot_weight(&g, c, 1);
+            EXPECT_NEAR(w1, 128 * n_even / (128 * n_even + 8 * n_all), 1e-12);
+            EXPECT_NEAR(w0 + w1, 1, 1e-12);
+            EXPECT_EQ_INT(guide_pick_slot(&g, c, 0.5 * w0), 0);
+            EXPECT_EQ_INT(guide_pick_slot(&g, c, w0 + 0.5 * w1), 1);
+            checked++;
+        }
+    }
+    EXPECT(checked > 0);
+    guide_free(&g);
+    free(use);
+    free(p1);
+    free(p2);
+    scene_free(&s);
+}
