@@ -25,6 +25,8 @@
 #define SIDE_LOOKUP_CANDIDATES 8u
 /* A lookup's normal rule (irradiance.h): the photon's normal within about 45 degrees of y's. */
 #define SIDE_LOOKUP_COS 0.7f
+/* Fewest photons a partial estimate must hold to be looked up (photon_sides.h: sparse). */
+#define SIDE_MIN_PHOTONS 8u
 
 static vec3 v3f(const float f[3]) { return v3(f[0], f[1], f[2]); }
 
@@ -53,7 +55,7 @@ void side_free_heights(const scene *s, const pm_photon *ph, size_t n, float max_
     }
 }
 
-int side_estimate_readable(unsigned found, unsigned k) { return found >= k; }
+int side_estimate_readable(unsigned found, unsigned k) { return found >= k || found >= SIDE_MIN_PHOTONS; }
 
 int side_visible_h(const scene *s, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq) {
     vec3 d = v3_sub(q, p);

@@ -32,19 +32,14 @@
  *                    own side (the radius then grows into the dark side, which holds none of
  *                    them: the same boundary bias as at any edge of a surface, low, never a
  *                    leak). Each precomputed photon keeps the radius^2 of its own estimate.
- *                    Sparse estimates: one that found fewer than k photons within the
- *                    largest radius keeps radius^2 0, so no lookup returns it (the module's
- *                    own-radius test, dist2 < r2, never holds) and the caller computes the
- *                    light there instead. Why: such an estimate stands alone over a disc as
- *                    wide as the largest radius, so its error is not averaged away by
- *                    neighbouring estimates, and its few photons come from fewer photon paths
- *                    still (a path stores at every diffuse bounce): in a room lit through a
+ *                    Sparse estimates: one that found fewer than k photons within the largest
+ *                    radius, and fewer than 8 in all, keeps radius^2 0, so no lookup returns
+ *                    it (the module's own-radius test, dist2 < r2, never holds) and the caller
+ *                    computes the light there instead. Why: such an estimate stands alone over
+ *                    a disc as wide as the largest radius, so its error (1/sqrt(n), above 35%)
+ *                    is not averaged away by neighbouring estimates: in a room lit through a
  *                    pinhole 4 photons of 200,000 got in, and one estimate of them lit the
- *                    whole room (its mean moved by +-60% from one photon seed to the next);
- *                    readable at 8 photons or more (the rule before), pinhole_room's walls
- *                    read +18% at one photon seed of six, +2.5% with the light computed.
- *                    LIMIT: an estimate that found its k photons is read however few paths
- *                    they came from (another seed of the same room: +18% either way).
+ *                    whole room (its mean moved by +-60% from one photon seed to the next).
  *                    Direct light: the values leave out the direct photons (first hits from
  *                    a light; they still count toward the k that set the radius), and the
  *                    caller computes y's direct light with a light sample instead. Why: direct
@@ -87,8 +82,8 @@ double side_free_height(const scene *s, vec3 p, vec3 np, double cap);
  * an estimate within radius^2 max_dist2 uses (a quarter of the radius), into h[0..n): one ray
  * each, on OpenMP threads. */
 void side_free_heights(const scene *s, const pm_photon *ph, size_t n, float max_dist2, float *h);
-/* 1 if an estimate of `found` photons (k wanted) may be looked up: found == k (see "Sparse
- * estimates" above); the build gives the others radius^2 0. */
+/* 1 if an estimate of `found` photons (k wanted) may be looked up: found == k, or at least 8
+ * photons (see "Sparse estimates" above); the build gives the others radius^2 0. */
 int side_estimate_readable(unsigned found, unsigned k);
 /* side_visible with the free heights hp, hq of both ends known: one ray. */
 int side_visible_h(const scene *s, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq);
