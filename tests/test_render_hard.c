@@ -119,31 +119,37 @@ TEST(render_hard_shelf_glass_regions) {
 }
 
 /* Oracle: a long path-traced reference, rendered once and stored (data/reference-hard/
- * pinhole_room.pfm, 8x8 at 1,048,576 spp; its .info has the command, the commit and the
- * scene file's SHA-256, and the test refuses a reference of another version of the scene). The room
- * is lit only through a 10 x 10 hole: the lit patch on the floor sees about 3% of the lamp
- * (the hole, seen from the patch, covers a 33 x 33 square of the 200 x 200 lamp, so a light
- * sample passes it about 1 time in 37, in both modes); everything else is lit by that patch.
- * Photon mapping (default maps, 16384 spp, one gather and one secondary ray): 4 of 200,000
- * global photons get in, so the lookups inside find nothing on their side and the gather
- * computes the light itself; what this checks is that nothing there is counted dark (the
- * shadow photons' "all shadow" and the lookups that miss) and no sparse estimate lights the
- * room: the image was -51% (and 25x before lookups kept to their side). The bounds are this
- * scene's noise at about 22 CPU-s, not the 5% of the other scenes: the light on the walls
- * and ceiling is heavy-tailed (a gather ray must hit the patch and its light sample pass the
- * hole), so four photon-mapping seeds read +2.1..+9.9% (whole image), +1.3..+3.6% (patch),
- * +0.1..+11.6% (walls and ceiling) against the reference, and three seeds at half the samples
- * read lower (-2.3..-0.7%, -4.4..-1.4%, +3.4..+3.7%): rare bright samples that fewer samples
- * miss. The reference's own noise is about 2% on the walls (scaled from three 65,536-spp
- * renders 7% apart). 5% per region would take about ten times the samples. The plan emits
- * by power here: the camera paths' light connections cover 3.6% of the lamp's power (the
- * hole), below what importance-driven emission steers by, and forced on it is worse, not
- * better (importance.h, LIMITS: a third of the light that enters the hole has bounced first,
- * and a handful of defensive photons carry it; images read -18..+83% at 1024 spp). */
+ * pinhole_room.pfm, 8x8, the mean of four 1,048,576-spp renders, seeds 1000-1003, whose region
+ * means span 0.3% (walls) to 1.0% (patch); its .info has the commands, the commit and the scene
+ * file's SHA-256, and the test refuses a reference of another version of the scene). The room
+ * is lit only through a 10 x 10 hole: the lit patch on the floor sees about 3% of the lamp (a
+ * light sample from it passes the hole about 1 time in 37); everything else is lit by that
+ * patch, by light that bounced in the big room first (a third of what enters), and, on the
+ * walls, by the camera's own view of the lit big room through the hole (a quarter of the walls'
+ * light, from a few hundredths of a pixel). Photon mapping (default maps, 16384 spp, one gather
+ * and one secondary ray; 19-23 CPU-s a render over six seeds, pilots included): about 4 of
+ * 200,000 global photons get in, so the lookups inside mostly find nothing and the gathers
+ * compute the light themselves; the plan's light guide aims the light samples at the part of
+ * the lamp the hole shows (guide.h) and its gather guide aims a share of the gather rays at the
+ * opening its pilot finds (photonmapper.c, GATHER GUIDE). What this checks: nothing there is
+ * counted dark (the shadow photons' "all shadow", the lookups that miss) and no sparse estimate
+ * lights the room (the image was -51%, and 25x before lookups kept to their side).
+ * Six photon-mapping seeds (1-6; photon maps and samples both vary) against this reference:
+ * whole image -0.2..+12.1%, patch -2.7..+3.9%, walls and ceiling +0.7..+18.0% (seed 1, the
+ * test's: +1.5%, +1.3%, +3.7%). The patch is within 5% at every seed. The whole image and the
+ * walls are not, and the missing part is photon noise, not sampling: at seeds 3 and 4 (walls
+ * +18.0%, +18.0%) and 5 (+7.0%) some photons that got in made precomputed-irradiance records
+ * inside the room readable (at least 8 photons; photon_sides.h, "Sparse estimates"), and their
+ * few photons come from a handful of photon paths, so they read the room's light high; seeds
+ * where no such record is read give +0.7..+3.7%. More samples do not change that; a rule that
+ * never reads such records (tried: readable only with all k photons) fixed seed 4 (walls
+ * +2.5%) but not seed 3 (its records have all k photons) and broke partitioned render-mpi
+ * (every rank's partial estimate became unreadable), so it was reverted. The bounds are the
+ * six seeds' worst case: whole 13%, patch 5%, walls 20%. */
 TEST(render_hard_pinhole_room_regions) {
-    const region r[] = {{"whole image", 0, 0, 8, 8, 0.12},
-                        {"lit patch", 2, 6, 6, 8, 0.06},
-                        {"walls and ceiling", 0, 0, 8, 5, 0.15}};
+    const region r[] = {{"whole image", 0, 0, 8, 8, 0.13},
+                        {"lit patch", 2, 6, 6, 8, 0.05},
+                        {"walls and ceiling", 0, 0, 8, 5, 0.20}};
     char scn[1024], ref[1024], pm[1024], cmd[4096], want[256] = "", got[256] = "";
     snprintf(scn, sizeof scn, "%s/data/scenes/pinhole_room.json", pm_test_source_dir());
     snprintf(ref, sizeof ref, "%s/data/reference-hard/pinhole_room.pfm", pm_test_source_dir());
