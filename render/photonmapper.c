@@ -28,6 +28,9 @@
  *     the radius of a global-map estimate), the global map is too coarse there (the corner
  *     artefact of the Kilauea notes), so a secondary gather computes y's outgoing light from
  *     its own direct light, caustics and secondary_rays gather rays instead.
+ *     Where the camera's points are photon-starved and a pilot finds an opening into a lit
+ *     region (a room lit through a hole), gathers at every level aim a share of their rays at
+ *     it, weighted by the mixture's density (see GATHER GUIDE; the plan's "gather guide:" line).
  * Emission seen by the camera (directly or through mirrors and glass) comes from
  * emission_strata^2 extra camera rays per sample that look for nothing else (mapper_li), so the
  * edges of lights are antialiased at a fraction of the cost of full samples.
