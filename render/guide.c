@@ -541,13 +541,8 @@ typedef struct point_a {
     int li[GUIDE_PROBES];  /* their lights (-1: none) */
 } point_a;
 
-typedef struct cell_ref {
-    uint64_t cell;
-    size_t k;
-} cell_ref;
-
-static int cell_cmp(const void *a, const void *b) {
-    const cell_ref *x = a, *y = b;
+int guide_cell_ref_cmp(const void *a, const void *b) {
+    const guide_cell_ref *x = a, *y = b;
     if (x->cell != y->cell) return x->cell < y->cell ? -1 : 1;
     return x->k < y->k ? -1 : x->k > y->k;
 }
@@ -602,7 +597,7 @@ static void stage_a(const scene *s, const guide_point *pts, size_t np, uint64_t 
 static int plan_jobs(const guide_grid *grid, const guide_point *pts, size_t np, const point_a *pa,
                      guide_light_evidence *e, size_t **jp_out, int **js_out, size_t *nj_out) {
     enum { MAXL = 64 };
-    cell_ref *cr = malloc((np ? np : 1) * sizeof *cr);
+    guide_cell_ref *cr = malloc((np ? np : 1) * sizeof *cr);
     unsigned char *blocked = calloc(np ? np : 1, 1); /* per point: in a blocked coarse cell */
     size_t *group = malloc((np ? np : 1) * sizeof *group); /* per point: its coarse group */
     int *glights = NULL, *gn = NULL;
@@ -610,8 +605,8 @@ static int plan_jobs(const guide_grid *grid, const guide_point *pts, size_t np, 
     int *js = NULL;
     int rc = PM_ENOMEM;
     if (!cr || !blocked || !group) goto done;
-    for (size_t k = 0; k < np; k++) cr[k] = (cell_ref){coarse_of(guide_cell(grid, pts[k].h.p, pts[k].n)), k};
-    qsort(cr, np, sizeof *cr, cell_cmp);
+    for (size_t k = 0; k < np; k++) cr[k] = (guide_cell_ref){coarse_of(guide_cell(grid, pts[k].h.p, pts[k].n)), k};
+    qsort(cr, np, sizeof *cr, guide_cell_ref_cmp);
     size_t ngroups = 0;
     for (size_t a = 0, b; a < np; a = b) {
         for (b = a; b < np && cr[b].cell == cr[a].cell; b++) {}
@@ -659,8 +654,8 @@ static int plan_jobs(const guide_grid *grid, const guide_point *pts, size_t np, 
     e->blocked_pass = Ub > 0 ? Vb / Ub : 0;
     /* Fine cells of blocked coarse cells: their first points. */
     size_t cnt = 0;
-    for (size_t k = 0; k < np; k++) cr[k] = (cell_ref){guide_cell(grid, pts[k].h.p, pts[k].n), k};
-    qsort(cr, np, sizeof *cr, cell_cmp);
+    for (size_t k = 0; k < np; k++) cr[k] = (guide_cell_ref){guide_cell(grid, pts[k].h.p, pts[k].n), k};
+    qsort(cr, np, sizeof *cr, guide_cell_ref_cmp);
     for (int pass = 0; pass < 2; pass++) {
         size_t nj = 0;
         for (size_t a = 0, b; a < np; a = b) {
@@ -687,10 +682,10 @@ static int plan_jobs(const guide_grid *grid, const guide_point *pts, size_t np, 
         }
     }
     /* Sort the jobs by (point, light). */
-    cell_ref *o = malloc((cnt ? cnt : 1) * sizeof *o);
+    guide_cell_ref *o = malloc((cnt ? cnt : 1) * sizeof *o);
     if (!o) goto done;
-    for (size_t k = 0; k < cnt; k++) o[k] = (cell_ref){(uint64_t)jp[k] << 32 | (uint64_t)(unsigned)js[k], k};
-    qsort(o, cnt, sizeof *o, cell_cmp);
+    for (size_t k = 0; k < cnt; k++) o[k] = (guide_cell_ref){(uint64_t)jp[k] << 32 | (uint64_t)(unsigned)js[k], k};
+    qsort(o, cnt, sizeof *o, guide_cell_ref_cmp);
     for (size_t k = 0; k < cnt; k++) {
         jp[k] = (size_t)(o[k].cell >> 32);
         js[k] = (int)(o[k].cell & 0xffffffffu);

@@ -116,6 +116,13 @@ typedef struct guide_grid {
 void guide_grid_init(guide_grid *gr, const scene *s, int res);
 /* The key of the cell holding p on the side of normal n (any length; the receiving side). */
 uint64_t guide_cell(const guide_grid *gr, vec3 p, vec3 n);
+/* A point's cell and its index, for grouping points by cell: qsort by guide_cell_ref_cmp orders
+ * by cell, then by index (so the order does not depend on qsort's). */
+typedef struct guide_cell_ref {
+    uint64_t cell;
+    size_t k;
+} guide_cell_ref;
+int guide_cell_ref_cmp(const void *a, const void *b);
 
 /* One learned row: G^2 values (stratum k = i + G j, i along u1) for (cell, slot). */
 typedef struct guide_row {

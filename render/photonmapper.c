@@ -517,17 +517,6 @@ typedef struct gg_probe {
     float y[3];  /* the hit */
 } gg_probe;
 
-typedef struct gg_key {
-    uint64_t cell;
-    size_t k;
-} gg_key;
-
-static int gg_key_cmp(const void *a, const void *b) {
-    const gg_key *x = a, *y = b;
-    if (x->cell != y->cell) return x->cell < y->cell ? -1 : 1;
-    return x->k < y->k ? -1 : x->k > y->k;
-}
-
 static int gg_size_cmp(const void *a, const void *b) {
     size_t x = *(const size_t *)a, y = *(const size_t *)b;
     return x < y ? -1 : x > y;
@@ -709,7 +698,7 @@ static int gather_guide_plan(mapper_state *st, const scene *s, char *err, size_t
     guide_grid_init(&grid, s, GG_RES);
     const size_t G2 = (size_t)GG_G * GG_G;
     size_t n1 = npts ? npts : 1, nj = 0, ncell = 0;
-    gg_key *pk = malloc(n1 * sizeof *pk);
+    guide_cell_ref *pk = malloc(n1 * sizeof *pk);
     uint64_t *ck = malloc(n1 * sizeof *ck);
     size_t *jp = malloc(n1 * sizeof *jp);
     int *jc = malloc(n1 * sizeof *jc);
@@ -717,8 +706,8 @@ static int gather_guide_plan(mapper_state *st, const scene *s, char *err, size_t
     double *v = NULL, *Lc = NULL, *Ln = NULL, *nc = NULL;
     if (!pk || !ck || !jp || !jc) goto oom;
     /* Cells; per cell its first GG_CELL_POINTS points; at most GG_MAX_JOBS, evenly in point order. */
-    for (size_t k = 0; k < npts; k++) pk[k] = (gg_key){guide_cell(&grid, pts[k].h.p, pts[k].n), k};
-    qsort(pk, npts, sizeof *pk, gg_key_cmp);
+    for (size_t k = 0; k < npts; k++) pk[k] = (guide_cell_ref){guide_cell(&grid, pts[k].h.p, pts[k].n), k};
+    qsort(pk, npts, sizeof *pk, guide_cell_ref_cmp);
     for (size_t a = 0, b; a < npts; a = b) {
         for (b = a; b < npts && pk[b].cell == pk[a].cell; b++)
             if (b - a < GG_CELL_POINTS) jp[nj++] = pk[b].k;
