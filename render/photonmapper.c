@@ -30,7 +30,7 @@
  *     its own direct light, caustics and secondary_rays gather rays instead.
  *     Where the camera's points are photon-starved and a pilot finds an opening into a lit
  *     region (a room lit through a hole), gathers at every level aim a share of their rays at
- *     it, weighted by the mixture's density (see GATHER GUIDE; the plan's "gather guide:" line).
+ *     it, weighted by the mixture's density (gather_guide.h; the plan's "gather guide:" line).
  * Emission seen by the camera (directly or through mirrors and glass) comes from
  * emission_strata^2 extra camera rays per sample that look for nothing else (mapper_li), so the
  * edges of lights are antialiased at a fraction of the cost of full samples.
@@ -55,6 +55,7 @@
 #include "photonmap/common.h"
 #include "photonmap/estimate.h"
 #include "direct.h"
+#include "gather_guide.h"
 #include "guide.h"
 #include "integrator.h"
 #include "photonmap/irradiance.h"
@@ -77,18 +78,13 @@ typedef struct mapper_state {
     pm_kdtree *tg, *tc, *ts; /* global, caustic, shadow trees (NULL when absent/empty) */
     pmv_state vol; /* participating media: volume maps and ray marching (pm_volume.h) */
     side_cache sides; /* precomputed irradiance that keeps to each query's side (photon_sides.h) */
-    /* The gather guide (see GATHER GUIDE): the opening the gathers aim a share of their rays at. */
-    int gg_ap;         /* 1: an opening was found (gg_apc, gg_apr) */
-    vec3 gg_apc;       /* its centre */
-    double gg_apr;     /* the radius of the disc aimed at */
-    int gg_pilot;      /* 1 while the pilot probes (its lookups are not counted) */
-    plan_item gg_item; /* the decision and its evidence */
+    gather_guide gg; /* the opening the gathers aim a share of their rays at (gather_guide.h) */
     float r2_global, r2_caustic, r2_shadow, r2_lookup;
     size_t nglobal_all, ncaustic_all; /* photons in the whole maps (all processes' parts) */
     double sec_dist;
     pm_estimate_options caus_opt, glob_opt;
     unsigned kmax;
-    int st_emission_rays, st_gg_aimed;
+    int st_emission_rays;
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
         st_global_est, st_lookup_miss, st_side_rays, st_side_again;
 } mapper_state;
@@ -291,14 +287,16 @@ static int to_diffuse(const mapper_state *st, const scene *s, ray r, int med, rn
 /* Outgoing diffuse radiance at y toward wo from the precomputed irradiance of the nearest
  * precomputed photon with a similar normal that is within its own estimate radius of y and
  * on y's side of every surface (side_cache_lookup: a photon behind a wall holds another
- * room's light). *found = 0 when there is none. */
-static rgb lookup_radiance(const mapper_state *st, const scene *s, const hit *h, vec3 wo, int *found) {
+ * room's light). *found = 0 when there is none. count = 0: not counted in the statistics (the
+ * gather guide's pilot). */
+static rgb lookup_radiance_ex(const mapper_state *st, const scene *s, const hit *h, vec3 wo, int *found,
+                              int count) {
     *found = 0;
     if (!st->sides.irr) return v3s(0);
     const material *m = scene_material(s, h);
     vec3 ns = v3_dot(wo, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
     float e[3];
-    if (!st->gg_pilot) stat_inc(st->st_lookup);
+    if (count) stat_inc(st->st_lookup);
     /* Within the lookup radius (photon_maps.h), and each candidate within its own estimate
      * radius. A wider search (the global radius) lets lookups beside a wall wade through every
      * photon behind it: 40x the render time on pinhole_room. */
@@ -308,112 +306,42 @@ static rgb lookup_radiance(const mapper_state *st, const scene *s, const hit *h,
     return v3(a.x * e[0] / M_PI, a.y * e[1] / M_PI, a.z * e[2] / M_PI);
 }
 
-/* GATHER GUIDE. In a room lit through an opening (pinhole_room: a 10 x 10 hole in the roof of a
- * closed room, the lit big room above it), about a third of the light the walls gather comes
- * through the hole, which covers 1e-4 to 3.5e-4 of their cosine-weighted hemisphere, and about 4
- * of 200,000 global photons get in, so the lookups inside find nothing and the gathers compute
- * the light themselves, level after level (gather: "Compute its light instead"): a cosine ray
- * finds the hole once in thousands and that light is carried by rare, bright samples. The guide
- * aims a share a = GG_AP_SHARE of the gather rays from every point that faces the opening at a
- * uniform point of a disc of radius gg_apr around its centre, facing the point; the others are
- * cosine-distributed as before.
- * Why the estimate stays unbiased: a direction d is weighted by (cos / pi) / p(d) relative to a
- * cosine sample, p being the mixture's density, what either branch would have drawn d with:
- *     p(d) = a p_disc(d) + (1 - a) cos / pi,
- * p_disc = distance^2 / (disc area x cos at the disc) on the disc, 0 off it. p > 0 wherever the
- * integrand is (the cosine branch keeps a share 1 - a of every direction), so the mean is the
- * same for any disc, right or wrong: a wrong one costs noise only, at most 1 / (1 - a) = 1.25
- * times a cosine ray's weight for the light that does not come through it. Every level of a
- * recursive gather is guided: the room's own light then weighs up to 1.25^level, a cost the
- * hole's light more than pays back (measured below).
- *
- * The pilot (after the precomputed irradiance; fixed streams, each point its own, so the same
- * for any thread count and on every process): guide_points' camera-path points (first diffuse
- * hits and one cosine bounce), at most GG_CELL_POINTS per cell of side (largest side / GG_RES),
- * at most GG_MAX_JOBS in all, one jittered probe per stratum of GG_G x GG_G over the cosine
- * sample's (u1, u2) (1e-3 of the cosine measure each): the value of a gather ray in that
- * direction, pi lum(f beta L(y)), L(y) read from the precomputed irradiance where a lookup finds
- * a record, plus y's light sample, as the gather does; where it finds none, y's light sample plus
- * the light y's own cell gathers (GG_BOUNCES rounds of the cells' mean probe values: a small
- * radiosity solve on the pilot's rays, so the room's own bounced light counts). Probes that read
- * the map and carry over 1/GG_OUTLIER of their point's light are rays through a narrow opening
- * into a lit region: the point nearest all their lines (least squares, then again without the
- * lines 3 spreads away) is its centre, gg_apr = GG_AP_SPREAD times their RMS distance from it.
- *
- * Decision: the camera points must be photon-starved first (at least GG_STARVED of them find
- * no precomputed irradiance on their side; elsewhere the gathers read the map, and the pilot,
- * a few CPU-seconds, is not run); then on when at least GG_MIN_LINES such rays meet within 2%
- * of the scene's size. Forced by photon_mapping.gather_guide.
- *
- * Measured on pinhole_room (8x8, 4096 spp, gather_rays 1, secondary_rays 1, light guide on; a
- * build that splits each sample's light by where it was scored, per-sample variance of the walls'
- * region mean): the light through the hole went from 2.9% (x's own ray) and 3.0% (deeper rays)
- * relative standard error to 0.3% and 0.3%, the room's own light from 1.3% and 1.4% to 2.0% and
- * 2.2%: the gathers' variance 2.4x lower. The camera's own view of the lit room through the
- * hole (a few hundredths of a pixel, a quarter of the walls' light) is not a gather's and is
- * untouched. Per-cell direction tables (guide.h's G x G warp of (u1, u2), learned from these
- * probes) were measured and are not used: one probe per stratum finds a 1e-4 hole a tenth to a
- * third of the time, a cell's table is the sum over points that see the hole in different
- * strata, and the defensive share's weights raised the room's own noise (walls 2.0% -> 2.6%
- * with tables at the first level, 5.0% at every level) more than they took from the hole's.
- *
- * LIMITS. One opening: rays through two are fitted as one, or, if they do not meet, none
- * (unbiased either way). The light samples at the gather hits are the light guide's (guide.h).
- * Off with media (the probes do not march), without a final gather, and in a partitioned
- * render-mpi (the probes would read one process's records). */
-#define GG_G 32
-#define GG_RES 16
-#define GG_PATHS 4096
-#define GG_CELL_POINTS 4
-#define GG_MAX_JOBS 768
-#define GG_BOUNCES 4
-#define GG_OUTLIER 16
-#define GG_MIN_LINES 16
-#define GG_AP_SPREAD 3.0
-#define GG_AP_SHARE 0.2
-#define GG_STARVED 0.75
-#define GG_SEED 0x676174686572ULL /* "gather" */
-
-/* The aimed branch's density per steradian of direction d from x (0 off the disc). */
-static double gg_disc_pdf(const mapper_state *st, vec3 x, vec3 d) {
-    vec3 toc = v3_sub(st->gg_apc, x);
-    double dc = v3_len(toc), cd = v3_dot(d, toc) / dc;
-    if (!(cd > 0)) return 0;
-    double t = dc / cd, R = st->gg_apr;
-    if (v3_len2(v3_sub(v3_add(x, v3_scale(d, t)), st->gg_apc)) > R * R) return 0;
-    return t * t / (M_PI * R * R * cd);
+static rgb lookup_radiance(const mapper_state *st, const scene *s, const hit *h, vec3 wo, int *found) {
+    return lookup_radiance_ex(st, s, h, wo, found, 1);
 }
 
-/* The share of x's gather rays aimed at the opening: GG_AP_SHARE when it is in front of x (side
- * normal ns) and farther than the disc's radius, else 0. */
-static double gg_aim_share(const mapper_state *st, vec3 x, vec3 ns) {
-    if (!st->gg_ap) return 0;
-    vec3 toc = v3_sub(st->gg_apc, x);
-    return v3_dot(toc, ns) > 0 && v3_len2(toc) > st->gg_apr * st->gg_apr ? GG_AP_SHARE : 0;
+/* The gather guide (gather_guide.h) reads the map through these, for its pilot: the lookup as the
+ * gather makes it (not counted), and a gather ray read as the gather reads it (one light sample). */
+static int gg_found(void *user, const scene *s, const hit *h, vec3 wo) {
+    int found;
+    lookup_radiance_ex(user, s, h, wo, &found, 0);
+    return found;
 }
 
-
-/* A guided gather direction from x (shading frame nsh) for the pair (u1, u2): aimed at the
- * opening with probability a, else cosine-distributed. *wk is its weight relative to a cosine
- * sample, (cos / pi) / p(d) (see GATHER GUIDE); 0 when d is below the shading hemisphere. One
- * more number from g. */
-static vec3 gg_direction(const mapper_state *st, double a, vec3 x, vec3 nsh, double u1, double u2, rng *g,
-                         double *wk) {
-    vec3 d;
-    if (rng_uniform(g) < a) {
-        vec3 toc = v3_sub(st->gg_apc, x), ds, dt;
-        double dx, dy;
-        v3_basis(v3_norm(toc), &ds, &dt);
-        sample_concentric_disc(u1, u2, &dx, &dy);
-        vec3 q = v3_add(st->gg_apc, v3_add(v3_scale(ds, st->gg_apr * dx), v3_scale(dt, st->gg_apr * dy)));
-        d = v3_norm(v3_sub(q, x));
-        stat_inc(st->st_gg_aimed);
-    } else
-        d = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
-    double c = v3_dot(d, nsh);
-    double p = (1 - a) * c / M_PI + a * gg_disc_pdf(st, x, d);
-    *wk = c > 0 && p > 0 ? c / M_PI / p : 0;
-    return d;
+static int gg_read(void *user, const scene *s, const guide_point *pt, vec3 d, rng *g, gather_guide_read *out) {
+    const mapper_state *st = user;
+    rgb f = material_f(scene_material(s, &pt->h), pt->h.ng, s->medium_ior, pt->wo, d);
+    if (v3_iszero(f)) return 0;
+    ray r = {scene_offset(s, pt->h.p, pt->h.ng, d), d};
+    hit y;
+    rgb beta, Lvol = v3s(0);
+    vec3 din;
+    if (!to_diffuse(st, s, r, -1, g, &y, &beta, &din, &Lvol, NULL)) return 0;
+    int found;
+    vec3 ny = v3_dot(din, y.ng) <= 0 ? y.ng : v3_neg(y.ng);
+    rgb Lo = lookup_radiance_ex(st, s, &y, v3_neg(din), &found, 0);
+    if (!found || st->sides.indirect_only) {
+        direct_options o = {DIRECT_BSDF_FULL, 0, NULL, NULL};
+        Lo = v3_add(Lo, direct_light_surface_guided(s, scene_material(s, &y), &y, ny, v3_neg(din), g, &o,
+                                                    st->plan.guide));
+    }
+    rgb fb = v3_scale(v3_mul(f, beta), M_PI);
+    out->value = rgb_lum(v3_mul(fb, Lo));
+    out->weight = rgb_lum(fb);
+    out->found = found;
+    out->y = y.p;
+    out->ny = ny;
+    return 1;
 }
 
 /* Indirect diffuse at a diffuse point by gathering n rays; level 0 for the gather of a camera
@@ -440,15 +368,15 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
     if (n <= 0 || !st->sides.irr) return v3s(0);
     rgb sum = v3s(0);
     vec3 nsh = material_shading_side(wo, h->ng, h->ns);
-    /* The gather guide (GATHER GUIDE): the share aimed at the opening; 0: cosine sampling, the
-     * same numbers drawn as without the guide. */
-    double aim = gg_aim_share(st, h->p, ns);
+    /* The gather guide (gather_guide.h): the share aimed at the opening; 0: cosine sampling,
+     * the same numbers drawn as without the guide. */
+    double aim = gather_guide_share(&st->gg, h->p, ns);
     for (int k = 0; k < n; k++) {
         /* Stratified over the hemisphere: n strata in the first coordinate. */
         double u1 = (k + rng_uniform(g)) / n, u2 = rng_uniform(g), wk = 1;
         vec3 d;
         if (aim > 0) {
-            d = gg_direction(st, aim, h->p, nsh, u1, u2, g, &wk);
+            d = gather_guide_direction(&st->gg, aim, h->p, nsh, u1, u2, g, &wk);
             if (!(wk > 0)) continue;
         } else
             d = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
@@ -504,300 +432,6 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
         sum = v3_add(sum, wk != 1 ? v3_scale(c, wk) : c);
     }
     return v3_scale(sum, M_PI / n);
-}
-
-/* ---- the gather guide's pilot (GATHER GUIDE) ----------------------------------------------- */
-
-/* One probe: its value as read at the hit (base) and, where the map had nothing there, the
- * weight w that the light gathered in y's cell (ycell, -1: none) is multiplied by. */
-typedef struct gg_probe {
-    float base, w;
-    int ycell;
-    int found;   /* the map answered at y */
-    float y[3];  /* the hit */
-} gg_probe;
-
-static int gg_size_cmp(const void *a, const void *b) {
-    size_t x = *(const size_t *)a, y = *(const size_t *)b;
-    return x < y ? -1 : x > y;
-}
-
-/* The index of key c among the sorted keys ck[0..n), or -1. */
-static int gg_cell_index(const uint64_t *ck, size_t n, uint64_t c) {
-    size_t lo = 0, hi = n;
-    while (lo < hi) {
-        size_t mid = lo + (hi - lo) / 2;
-        if (ck[mid] < c)
-            lo = mid + 1;
-        else
-            hi = mid;
-    }
-    return lo < n && ck[lo] == c ? (int)lo : -1;
-}
-
-/* The probe from pt at (u1, u2): a gather ray, read as the gather reads it (one light sample). */
-static gg_probe gg_probe_at(const mapper_state *st, const scene *s, const guide_grid *grid, const uint64_t *ck,
-                            size_t nck, const guide_point *pt, double u1, double u2, rng *g) {
-    gg_probe pr = {0, 0, -1, 0, {0, 0, 0}};
-    vec3 d = sampling_to_world(sample_cosine_hemisphere(u1, u2), material_shading_side(pt->wo, pt->h.ng, pt->h.ns));
-    if (!(v3_dot(d, pt->n) > 0)) return pr;
-    rgb f = material_f(scene_material(s, &pt->h), pt->h.ng, s->medium_ior, pt->wo, d);
-    if (v3_iszero(f)) return pr;
-    ray r = {scene_offset(s, pt->h.p, pt->h.ng, d), d};
-    hit y;
-    rgb beta, Lvol = v3s(0);
-    vec3 din;
-    if (!to_diffuse(st, s, r, -1, g, &y, &beta, &din, &Lvol, NULL)) return pr;
-    int found;
-    vec3 ny = v3_dot(din, y.ng) <= 0 ? y.ng : v3_neg(y.ng);
-    rgb Lo = lookup_radiance(st, s, &y, v3_neg(din), &found);
-    if (!found || st->sides.indirect_only) {
-        direct_options o = {DIRECT_BSDF_FULL, 0, NULL, NULL};
-        Lo = v3_add(Lo, direct_light_surface_guided(s, scene_material(s, &y), &y, ny, v3_neg(din), g, &o,
-                                                    st->plan.guide));
-    }
-    rgb fb = v3_scale(v3_mul(f, beta), M_PI);
-    double x = rgb_lum(v3_mul(fb, Lo)), w = rgb_lum(fb);
-    pr.base = x > 0 && isfinite(x) ? (float)x : 0;
-    pr.found = found;
-    to_f3(y.p, pr.y);
-    if (!found && w > 0 && isfinite(w)) {
-        pr.w = (float)w;
-        pr.ycell = gg_cell_index(ck, nck, guide_cell(grid, y.p, ny));
-    }
-    return pr;
-}
-
-/* The point nearest the n lines (x[i], unit d[i]) (least squares) into *c; 0 if they are
- * (nearly) parallel. *rms: the lines' RMS distance from it. use[i] = 0 leaves line i out. */
-static int gg_nearest_point(const vec3 *x, const vec3 *d, const unsigned char *use, size_t n, vec3 *c, double *rms) {
-    double A[9] = {0}, b[3] = {0};
-    size_t m = 0;
-    for (size_t i = 0; i < n; i++) {
-        if (!use[i]) continue;
-        double dd[3] = {d[i].x, d[i].y, d[i].z}, xx[3] = {x[i].x, x[i].y, x[i].z};
-        for (int r = 0; r < 3; r++)
-            for (int k = 0; k < 3; k++) {
-                double e = (r == k) - dd[r] * dd[k]; /* I - d d^T: the distance to the line */
-                A[3 * r + k] += e;
-                b[r] += e * xx[k];
-            }
-        m++;
-    }
-#define GG_DET(M) ((M)[0] * ((M)[4] * (M)[8] - (M)[5] * (M)[7]) - (M)[1] * ((M)[3] * (M)[8] - (M)[5] * (M)[6]) + \
-                   (M)[2] * ((M)[3] * (M)[7] - (M)[4] * (M)[6]))
-    double det = GG_DET(A);
-    if (!(m >= 2) || !(fabs(det) > 1e-9 * (double)m * (double)m * (double)m)) return 0;
-    double sol[3];
-    for (int k = 0; k < 3; k++) { /* Cramer's rule */
-        double M[9];
-        memcpy(M, A, sizeof M);
-        for (int r = 0; r < 3; r++) M[3 * r + k] = b[r];
-        sol[k] = GG_DET(M) / det;
-    }
-#undef GG_DET
-    *c = v3(sol[0], sol[1], sol[2]);
-    double s2 = 0;
-    for (size_t i = 0; i < n; i++)
-        if (use[i]) {
-            vec3 e = v3_sub(*c, x[i]);
-            s2 += v3_len2(v3_sub(e, v3_scale(d[i], v3_dot(e, d[i]))));
-        }
-    *rms = sqrt(s2 / (double)m);
-    return 1;
-}
-
-/* The opening from the pilot's probes (see GATHER GUIDE): 1 and its centre *c and the lines'
- * RMS distance *rms, 0 if none fits, PM_ENOMEM. *nline: the bright rays that read the map;
- * *all, *bright: the probed light in all, and in those rays. */
-static int gg_find_opening(const guide_point *pts, const size_t *jp, size_t nj, const gg_probe *pr, const double *v,
-                           size_t G2, size_t *nline, double *all, double *bright, vec3 *c, double *rms) {
-    size_t cap = (nj ? nj : 1) * 8, n = 0;
-    vec3 *lx = calloc(cap, sizeof *lx), *ld = calloc(cap, sizeof *ld);
-    unsigned char *use = calloc(cap, 1);
-    if (!lx || !ld || !use) {
-        free(lx);
-        free(ld);
-        free(use);
-        return PM_ENOMEM;
-    }
-    *all = *bright = 0;
-    for (size_t j = 0; j < nj; j++) {
-        double t = 0;
-        for (size_t i = 0; i < G2; i++) t += v[j * G2 + i];
-        *all += t;
-        for (size_t i = 0; i < G2 && t > 0; i++) {
-            const gg_probe *p = &pr[j * G2 + i];
-            if (!p->found || !(p->base > t / GG_OUTLIER) || n >= cap) continue;
-            vec3 x = pts[jp[j]].h.p;
-            lx[n] = x;
-            ld[n] = v3_norm(v3_sub(v3(p->y[0], p->y[1], p->y[2]), x));
-            use[n++] = 1;
-            *bright += p->base;
-        }
-    }
-    int fit = gg_nearest_point(lx, ld, use, n, c, rms);
-    if (fit) { /* again without the lines far from the first fit (another source of bright rays) */
-        for (size_t l = 0; l < n; l++) {
-            vec3 e = v3_sub(*c, lx[l]);
-            use[l] = v3_len(v3_sub(e, v3_scale(ld[l], v3_dot(e, ld[l])))) <= 3 * *rms;
-        }
-        fit = gg_nearest_point(lx, ld, use, n, c, rms);
-    }
-    *nline = n;
-    free(lx);
-    free(ld);
-    free(use);
-    return fit;
-}
-
-/* Decide the gather guide and find its opening (st->gg_ap, gg_apc, gg_apr, gg_item); see GATHER GUIDE. */
-static int gather_guide_plan(mapper_state *st, const scene *s, char *err, size_t errcap) {
-    plan_item *it = &st->gg_item;
-    int force = st->cfg.force_gather_guide;
-    it->on = 0;
-    if (force == PLAN_OFF) {
-        snprintf(it->reason, sizeof it->reason, "off (forced)");
-        return 0;
-    }
-    const char *why = !st->plan.final_gather.on || st->direct_vis ? "no final gather"
-                      : !st->sides.irr                             ? "no precomputed irradiance to probe"
-                      : st->vol.on                                 ? "participating media: its probes do not march"
-                      : g_lookup ? "partitioned render-mpi: its probes would read one process's records" : NULL;
-    if (why) {
-        snprintf(it->reason, sizeof it->reason, "off (%s%s)", why, force == PLAN_ON ? "; asked for" : "");
-        return 0;
-    }
-    guide_point *pts = NULL;
-    size_t npts = 0;
-    int rc = guide_points(s, GG_PATHS, GG_SEED, 0, &pts, &npts);
-    if (rc < 0) {
-        snprintf(err, errcap, "out of memory (gather guide pilot)");
-        return rc;
-    }
-    /* Photon-starved camera points: no precomputed irradiance on their side. */
-    size_t starved = 0, cam = 0;
-    st->gg_pilot = 1;
-    for (size_t k = 0; k < npts; k++) {
-        if (pts[k].bounce) continue;
-        int found;
-        lookup_radiance(st, s, &pts[k].h, pts[k].wo, &found);
-        cam++;
-        starved += !found;
-    }
-    st->gg_pilot = 0;
-    if (force != PLAN_ON && !((double)starved >= GG_STARVED * (double)cam && starved > 0)) {
-        snprintf(it->reason, sizeof it->reason,
-                 "off (%zu of %zu camera points find no precomputed irradiance on their side, under "
-                 "%.0f%%: the gathers read the photon map, no opening is looked for)",
-                 starved, cam, 100 * GG_STARVED);
-        free(pts);
-        return 0;
-    }
-    guide_grid grid;
-    guide_grid_init(&grid, s, GG_RES);
-    const size_t G2 = (size_t)GG_G * GG_G;
-    size_t n1 = npts ? npts : 1, nj = 0, ncell = 0;
-    guide_cell_ref *pk = malloc(n1 * sizeof *pk);
-    uint64_t *ck = malloc(n1 * sizeof *ck);
-    size_t *jp = malloc(n1 * sizeof *jp);
-    int *jc = malloc(n1 * sizeof *jc);
-    gg_probe *pr = NULL;
-    double *v = NULL, *Lc = NULL, *Ln = NULL, *nc = NULL;
-    if (!pk || !ck || !jp || !jc) goto oom;
-    /* Cells; per cell its first GG_CELL_POINTS points; at most GG_MAX_JOBS, evenly in point order. */
-    for (size_t k = 0; k < npts; k++) pk[k] = (guide_cell_ref){guide_cell(&grid, pts[k].h.p, pts[k].n), k};
-    qsort(pk, npts, sizeof *pk, guide_cell_ref_cmp);
-    for (size_t a = 0, b; a < npts; a = b) {
-        for (b = a; b < npts && pk[b].cell == pk[a].cell; b++)
-            if (b - a < GG_CELL_POINTS) jp[nj++] = pk[b].k;
-        ck[ncell++] = pk[a].cell;
-    }
-    qsort(jp, nj, sizeof *jp, gg_size_cmp);
-    if (nj > GG_MAX_JOBS) {
-        for (size_t j = 0; j < GG_MAX_JOBS; j++) jp[j] = jp[j * nj / GG_MAX_JOBS];
-        nj = GG_MAX_JOBS;
-    }
-    for (size_t j = 0; j < nj; j++) jc[j] = gg_cell_index(ck, ncell, guide_cell(&grid, pts[jp[j]].h.p, pts[jp[j]].n));
-    size_t nj1 = nj ? nj : 1, nc1 = ncell ? ncell : 1;
-    pr = malloc(nj1 * G2 * sizeof *pr);
-    v = malloc(nj1 * G2 * sizeof *v);
-    Lc = calloc(nc1, sizeof *Lc);
-    Ln = calloc(nc1, sizeof *Ln);
-    nc = calloc(nc1, sizeof *nc);
-    if (!pr || !v || !Lc || !Ln || !nc) goto oom;
-    /* One probe per stratum, jittered; each point on its own stream (thread-count free). */
-    st->gg_pilot = 1;
-#pragma omp parallel for schedule(dynamic, 4)
-    for (long j = 0; j < (long)nj; j++) {
-        rng g = rng_stream(GG_SEED, jp[j], 1);
-        for (int b = 0; b < GG_G; b++)
-            for (int a = 0; a < GG_G; a++)
-                pr[(size_t)j * G2 + (size_t)(a + GG_G * b)] = gg_probe_at(
-                    st, s, &grid, ck, ncell, &pts[jp[j]], (a + rng_uniform(&g)) / GG_G, (b + rng_uniform(&g)) / GG_G, &g);
-    }
-    st->gg_pilot = 0;
-    /* The light gathered where the map has nothing: each round gives every cell the mean of its
-     * points' probes, with the last round's cell values at the probes' hits (one more bounce). */
-    for (int round = 0; round <= GG_BOUNCES; round++) {
-        memset(Ln, 0, nc1 * sizeof *Ln);
-        memset(nc, 0, nc1 * sizeof *nc);
-        for (size_t j = 0; j < nj; j++) {
-            double t = 0;
-            for (size_t i = 0; i < G2; i++) {
-                const gg_probe *p = &pr[j * G2 + i];
-                v[j * G2 + i] = p->base + (p->ycell >= 0 ? p->w * Lc[p->ycell] : 0);
-                t += v[j * G2 + i];
-            }
-            Ln[jc[j]] += t / (double)G2;
-            nc[jc[j]] += 1;
-        }
-        for (size_t c = 0; c < ncell; c++) Lc[c] = nc[c] > 0 ? Ln[c] / nc[c] : 0;
-    }
-    /* The opening: rays that read the map and carry over 1/GG_OUTLIER of their point's light. */
-    size_t nline = 0;
-    double all = 0, bright = 0, rms = 0;
-    vec3 c = v3s(0);
-    int fit = gg_find_opening(pts, jp, nj, pr, v, G2, &nline, &all, &bright, &c, &rms);
-    if (fit < 0) goto oom;
-    double size = v3_maxc(v3_sub(s->bounds_hi, s->bounds_lo));
-    int opening = fit && nline >= GG_MIN_LINES && GG_AP_SPREAD * rms <= 0.02 * size && rms > 0;
-    st->gg_ap = opening;
-    st->gg_apc = c;
-    st->gg_apr = GG_AP_SPREAD * rms;
-    it->on = opening || force == PLAN_ON;
-    char what[256];
-    if (opening)
-        snprintf(what, sizeof what, "an opening at (%.4g, %.4g, %.4g), radius %.3g: %zu rays that read the photon map "
-                 "meet there, carrying %.1f%% of the probed light",
-                 c.x, c.y, c.z, st->gg_apr, nline, all > 0 ? 100 * bright / all : 0);
-    else
-        snprintf(what, sizeof what, "no opening (%zu bright rays that read the photon map, %s)", nline,
-                 nline < GG_MIN_LINES ? "too few" : "not meeting within 2% of the scene's size");
-    snprintf(it->reason, sizeof it->reason,
-             "%s (%zu of %zu camera points find no precomputed irradiance; the pilot probed %zu points in %zu "
-             "cells, %zu probes: %s)",
-             force == PLAN_ON && !opening ? "on (forced; no opening: gathers stay cosine)" : force == PLAN_ON ? "on (forced)"
-             : it->on ? "on" : "off",
-             starved, cam, nj, ncell, nj * G2, what);
-    rc = 0;
-    goto done;
-oom:
-    rc = PM_ENOMEM;
-    snprintf(err, errcap, "out of memory (gather guide pilot)");
-done:
-    if (rc < 0 || !it->on) st->gg_ap = 0;
-    free(pts);
-    free(pk);
-    free(ck);
-    free(jp);
-    free(jc);
-    free(pr);
-    free(v);
-    free(Lc);
-    free(Ln);
-    free(nc);
-    return rc;
 }
 
 /* ---- the integrator ----------------------------------------------------------------------- */
@@ -985,6 +619,7 @@ static void mapper_destroy(integrator *self) {
     mapper_state *st = self->data;
     if (!st) return;
     side_cache_free(&st->sides);
+    gather_guide_free(&st->gg);
     pmv_free(&st->vol);
     pm_kdtree_free(st->tg);
     pm_kdtree_free(st->tc);
@@ -1109,9 +744,18 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
                st->sides.n, st->nglobal_all, st->sides.researched, st->sides.sparse);
     }
     t0 = stats_now();
-    if ((rc = gather_guide_plan(st, s, err, errcap)) < 0) return rc;
+    {
+        const char *why = !st->plan.final_gather.on || st->direct_vis ? "no final gather"
+                          : !st->sides.irr                             ? "no precomputed irradiance to probe"
+                          : st->vol.on ? "participating media: its probes do not march"
+                          : g_lookup   ? "partitioned render-mpi: its probes would read one process's records"
+                                       : NULL;
+        gather_guide_probe probe = {st, gg_found, gg_read};
+        if ((rc = gather_guide_plan(&st->gg, s, st->cfg.force_gather_guide, why, &probe, err, errcap)) < 0)
+            return rc;
+    }
     stats_time_add("Time/Gather guide pilot", stats_now() - t0);
-    printf("  gather guide: %s\n", st->gg_item.reason);
+    printf("  gather guide: %s\n", st->gg.reason);
     if (g_lookup) {
         const pm_kdtree *trees[2] = {st->tg, st->tc};
         pm_estimate_options opts[2] = {st->glob_opt, st->caus_opt};
@@ -1165,7 +809,7 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
     st->st_side_again = stats_register("Photon mapping/Precomputed irradiance: searches again (hidden neighbour)");
     st->st_global_est = stats_register("Photon mapping/Global-map estimates (direct view)");
     st->st_emission_rays = stats_register("Photon mapping/Emission-only camera rays");
-    st->st_gg_aimed = stats_register("Photon mapping/Gather rays aimed at the opening (gather guide)");
+    gather_guide_init(&st->gg); /* its counter of aimed rays */
     it->data = st;
     it->preprocess = mapper_preprocess;
     it->thread_begin = mapper_thread_begin;
