@@ -663,22 +663,15 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         printf("Loaded photon maps from %s: %zu global, %zu caustic, %zu shadow-map photons\n",
                st->cfg.load_dir, m->nglobal, m->ncaustic, m->nshadow);
     } else {
+        /* The settings' targets, budgets and projection, as the plan read them (plan_joins);
+         * which maps, the importance table and the pilot's photons are the plan's. */
         trace_opts o;
-        trace_opts_init(&o, s);
+        trace_opts_settings(&o, s, &st->cfg);
         o.global = st->plan.global.on;
         o.caustic = st->plan.caustics.on;
         o.shadow = st->plan.shadow.on;
-        o.global_target = st->cfg.global_photons;
-        o.caustic_target = st->cfg.caustic_photons;
-        o.max_emitted_factor = st->cfg.max_emitted_factor;
-        o.max_emitted = st->cfg.max_emitted;
-        o.max_memory_bytes = (size_t)st->cfg.max_memory_mb << 20;
-        o.max_bounces = st->cfg.max_bounces;
-        o.projection = st->cfg.projection;
-        o.projection_cells = st->cfg.projection_cells;
         o.importance = st->plan.imp; /* importance-driven emission, when the plan chose it */
-        o.reuse = st->plan.pilot;     /* the plan's pilot photons join the global maps */
-        o.quiet = !st->cfg.progress;
+        o.reuse = st->plan.pilot;    /* the plan's pilot photons join the global maps */
         if ((rc = photon_trace(s, &o, m, err, errcap)) < 0) return rc;
         m->stamp = stamp;
         printf("Photons: %zu global, %zu shadow-map (from %llu emitted); %zu caustic (from %llu "
