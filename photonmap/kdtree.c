@@ -13,7 +13,9 @@
  * array (the records themselves may be large). An explicit stack walks the heap depth first;
  * each internal node takes the tight bounding box of its range, picks the axis of largest
  * extent (ties: lowest axis) and moves the record of the left subtree's size to its rank with
- * an introselect (random median-of-3 pivot, 3-way partition so runs of equal keys are linear,
+ * an introselect (pivots from a sample of about m^(2/3) keys placed just beyond the wanted
+ * rank, so a median costs about 1.5 passes; a block partition that collects the keys to move
+ * without branches; equal keys stop both scans, so runs of them are split down the middle;
  * a heapsort fallback when the pivots keep failing), which leaves every smaller-rank key <=
  * and every larger-rank key >= the median. Each level costs O(n), so the build is O(n log n)
  * with no recursion. The records are then gathered in tree order into the work array's
@@ -135,6 +137,64 @@ static inline uint64_t xorshift(uint64_t *s) {
     return x;
 }
 
+/* The key of rank r of f[0..n) (a quickselect on a small float array; f is reordered). */
+static float select_float(float *f, size_t n, size_t r) {
+    size_t lo = 0, hi = n;
+    while (hi - lo > 8) {
+        size_t mid = lo + (hi - lo) / 2;
+        float x = f[lo], y = f[mid], z = f[hi - 1];
+        float piv = x < y ? (y < z ? y : (x < z ? z : x)) : (x < z ? x : (y < z ? z : y));
+        size_t i = lo, j = hi - 1;
+        for (;;) {
+            while (f[i] < piv) i++;
+            while (f[j] > piv) j--;
+            if (i >= j) break;
+            float t = f[i];
+            f[i] = f[j], f[j] = t;
+            i++, j--;
+        }
+        if (i == j) {
+            if (r < i) hi = i;
+            else if (r > i) lo = i + 1;
+            else return f[r];
+        } else {
+            if (r <= j) hi = j + 1;
+            else if (r >= i) lo = i;
+            else return f[r];
+        }
+    }
+    for (size_t i = lo + 1; i < hi; i++) {
+        float v = f[i];
+        size_t j = i;
+        while (j > lo && f[j - 1] > v) f[j] = f[j - 1], j--;
+        f[j] = v;
+    }
+    return f[r];
+}
+
+/* Sampled pivots (Floyd and Rivest's idea) above this many keys; median of 3 below. */
+#define SAMPLE_MIN 256u
+#define SAMPLE_MAX 4096u
+/* Keys per block of the partition (offsets fit a byte). */
+#define BLK 64u
+
+/* A pivot for selecting rank k of a[0..m): the key of a random sample of s ~ m^(2/3) keys
+ * whose sample rank is k's scaled rank moved about sqrt(s) (two standard deviations of the
+ * sample rank) toward the far end. The part holding rank k after the partition is then, with
+ * high probability, only a little longer than the shorter of [0, k] and [k, m): a median costs
+ * one pass over m and one over m/2 whose pivot lies near its end, instead of about 2.75 passes
+ * of coin-toss compares with a median of 3. */
+static float sample_pivot(const item *a, size_t m, size_t k, int ax, uint64_t *rng) {
+    float f[SAMPLE_MAX];
+    size_t s = (size_t)1 << (2 * pm__ilog2(m) / 3);
+    if (s > SAMPLE_MAX) s = SAMPLE_MAX;
+    for (size_t i = 0; i < s; i++) f[i] = key(&a[xorshift(rng) % m], ax);
+    size_t t = (size_t)((double)k * (double)s / (double)m), g = 1;
+    while (g * g < s) g++;
+    size_t r = 2 * k < m ? (t + g < s ? t + g : s - 1) : (t > g ? t - g : 0);
+    return select_float(f, s, r);
+}
+
 /* Put the element of rank k of a[0..n) (by coordinate ax) at a[k], smaller-or-equal keys
  * before it and greater-or-equal after. Expected linear; worst case O(n log n). */
 static void select_rank(item *a, size_t n, size_t k, int ax, uint64_t *rng) {
@@ -146,35 +206,70 @@ static void select_rank(item *a, size_t n, size_t k, int ax, uint64_t *rng) {
             return;
         }
         size_t m = hi - lo;
-        float x = key(&a[lo + xorshift(rng) % m], ax);
-        float y = key(&a[lo + xorshift(rng) % m], ax);
-        float z = key(&a[lo + xorshift(rng) % m], ax);
-        float piv = x < y ? (y < z ? y : (x < z ? z : x)) : (x < z ? x : (y < z ? z : y));
+        float piv;
+        if (m >= SAMPLE_MIN) {
+            piv = sample_pivot(a + lo, m, k - lo, ax, rng);
+        } else {
+            float x = key(&a[lo + xorshift(rng) % m], ax);
+            float y = key(&a[lo + xorshift(rng) % m], ax);
+            float z = key(&a[lo + xorshift(rng) % m], ax);
+            piv = x < y ? (y < z ? y : (x < z ? z : x)) : (x < z ? x : (y < z ? z : y));
+        }
         /* Hoare's partition, stopping on keys equal to the pivot: runs of equal keys are
-         * split down the middle, so duplicates cost no more than distinct keys. Afterwards
-         * [lo, j] <= piv, [i, hi) >= piv, and anything between equals piv. */
-        size_t i = lo, j = hi - 1;
+         * split down the middle, so duplicates cost no more than distinct keys. Blocks of
+         * BLK keys at both ends first (BlockQuicksort, Edelkamp and Weiss): the offsets of
+         * the keys that must move are collected without a branch, then swapped in pairs, so
+         * the coin-toss compares near a median cost no mispredicted branches. Afterwards
+         * [lo, l) <= piv and [r, hi) >= piv; the scalar loop below partitions [l, r). */
+        size_t l = lo, r = hi;
+        {
+            unsigned char ol[BLK], orr[BLK];
+            unsigned nl = 0, nr = 0, sl = 0, sr = 0;
+            while (r - l >= 2 * BLK) {
+                if (nl == 0) {
+                    sl = 0;
+                    const item *b = a + l;
+                    for (unsigned t = 0; t < BLK; t++) {
+                        ol[nl] = (unsigned char)t;
+                        nl += !(key(&b[t], ax) < piv);
+                    }
+                }
+                if (nr == 0) {
+                    sr = 0;
+                    const item *b = a + r - 1;
+                    for (unsigned t = 0; t < BLK; t++) {
+                        orr[nr] = (unsigned char)t;
+                        nr += !(key(b - t, ax) > piv);
+                    }
+                }
+                unsigned c = nl < nr ? nl : nr;
+                for (unsigned t = 0; t < c; t++)
+                    swap_item(&a[l + ol[sl + t]], &a[r - 1 - orr[sr + t]]);
+                nl -= c, nr -= c, sl += c, sr += c;
+                if (nl == 0) l += BLK;
+                if (nr == 0) r -= BLK;
+            }
+        }
+        size_t i = l, j = r;
         for (;;) {
-            while (key(&a[i], ax) < piv) i++;
-            while (key(&a[j], ax) > piv) j--;
-            if (i >= j) break;
-            swap_item(&a[i], &a[j]);
+            while (i < j && key(&a[i], ax) < piv) i++;
+            while (i < j && key(&a[j - 1], ax) > piv) j--;
+            if (j - i <= 1) break;
+            swap_item(&a[i], &a[j - 1]);
             i++, j--;
         }
-        if (i == j) { /* both scans stopped on one key: it equals piv */
+        if (j == i + 1) { /* a[i] equals piv: [lo, i) <= piv <= [i + 1, hi) */
             if (k < i)
                 hi = i;
             else if (k > i)
                 lo = i + 1;
             else
                 return;
-        } else { /* crossed: [lo, j] <= piv <= [i, hi), and j < x < i equals piv */
-            if (k <= j)
-                hi = j + 1;
-            else if (k >= i)
-                lo = i;
+        } else { /* [lo, i) <= piv <= [i, hi) */
+            if (k < i)
+                hi = i;
             else
-                return;
+                lo = i;
         }
     }
     insertion_items(a + lo, hi - lo, ax);
