@@ -772,7 +772,10 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
         return rc;
     }
     st->preview = preview;
-    plan_make(s, &st->cfg, preview, &st->plan);
+    if ((rc = plan_make(s, &st->cfg, preview, &st->plan, err, errcap)) < 0) {
+        free(st);
+        return rc;
+    }
     /* The global map is shown directly in preview mode or with gathering forced off; with no
      * global map at all (the plan found no indirect diffuse light) the surfaces get direct
      * light and caustics, and no indirect term, rather than the estimate of an absent map. */

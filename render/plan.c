@@ -83,17 +83,38 @@ typedef struct pilot_result {
     size_t g_stored;                      /* photons the global pilot stored */
 } pilot_result;
 
+/* Test hook: PM_PLAN_TEST_ENOMEM=PILOT (global, caustic or volume) makes that pilot pass fail
+ * as if photon_trace (vol_trace_pass for volume) had run out of memory, so the tests see the
+ * error reach the command line. Read at every call (tests set it per process). */
+static int test_enomem(const char *pilot) {
+    const char *v = getenv("PM_PLAN_TEST_ENOMEM");
+    return v && strcmp(v, pilot) == 0;
+}
+
+/* A pilot pass's failure: anything but PM_EEMPTY (a pass that stores nothing, which is
+ * evidence: a light inside a closed mirror, lights that face nothing) ends the plan, since a
+ * pilot cut short by an error would be read as "nothing reaches there". */
+static int pilot_failed(int rc, const char *which, const char *why, char *err, size_t errcap) {
+    if (rc >= 0 || rc == PM_EEMPTY) return 0;
+    if (errcap)
+        snprintf(err, errcap, "plan: %s pilot: %s", which, why && why[0] ? why : pm_strerror(rc));
+    return rc;
+}
+
 /* The pilot: PLAN_PILOT_PHOTONS photons traced exactly as the real passes trace them
  * (same emission, scattering and storage rules; the caustic pilot aimed at the specular
  * objects by the projection maps, so a specular object lit only through a small opening still
  * receives its share of the aimed photons), counting what they do; their stores are kept for
- * the real passes (PILOT PHOTONS in photon_trace.h). */
-static void run_pilot(const scene *s, const photon_settings *cfg, const importance *imp, pilot_result *r) {
+ * the real passes (PILOT PHOTONS in photon_trace.h). 0, or a negative PM_E* code with a message
+ * naming the pilot (pilot_failed); then the kept photons are freed. */
+static int run_pilot(const scene *s, const photon_settings *cfg, const importance *imp, pilot_result *r,
+                     char *err, size_t errcap) {
     memset(r, 0, sizeof *r);
     trace_opts o;
     trace_opts_init(&o, s);
     o.seed = plan_pilot_seed(s);
     o.max_bounces = cfg->max_bounces; /* the real passes' rules, so its photons can join them */
+    o.max_memory_bytes = (size_t)cfg->max_memory_mb << 20; /* and the user's memory budget */
     o.quiet = 1;
     o.max_emitted = PLAN_PILOT_PHOTONS;
     o.max_emitted_factor = 1e300;
@@ -101,12 +122,17 @@ static void run_pilot(const scene *s, const photon_settings *cfg, const importan
      * use, each photon records its rel there, so the global photons can join that pass. */
     o.importance = imp;
     photon_maps m;
-    char err[256];
     o.pilot = &r->g;
     r->g.keep = 1;
     o.global = o.shadow = 1;
     o.global_target = 1L << 40; /* never reached: the emission budget ends the pilot */
-    photon_trace(s, &o, &m, err, sizeof err); /* PM_EEMPTY (nothing stored) is evidence too */
+    char why[256] = "";
+    int rc = test_enomem("global") ? PM_ENOMEM : photon_trace(s, &o, &m, why, sizeof why);
+    if ((rc = pilot_failed(rc, "global photon", why, err, errcap)) < 0) {
+        pilot_photons_free(r->g.kept);
+        r->g.kept = NULL;
+        return rc;
+    }
     r->g_emitted = r->g.emitted;
     r->g_stored = m.nglobal;
     photon_maps_free(&m);
@@ -120,10 +146,17 @@ static void run_pilot(const scene *s, const photon_settings *cfg, const importan
     o.projection_cells = cfg->projection ? cfg->projection_cells : 64;
     r->c.keep = 1;
     r->c.kept = r->g.kept; /* its stores are added to the global pilot's kept photons */
-    photon_trace(s, &o, &m, err, sizeof err);
+    why[0] = 0;
+    rc = test_enomem("caustic") ? PM_ENOMEM : photon_trace(s, &o, &m, why, sizeof why);
     r->g.kept = r->c.kept; /* created here if the global pilot kept none */
+    if ((rc = pilot_failed(rc, "caustic photon", why, err, errcap)) < 0) {
+        pilot_photons_free(r->g.kept);
+        r->g.kept = r->c.kept = NULL;
+        return rc;
+    }
     r->c_emitted = r->c.emitted;
     photon_maps_free(&m);
+    return 0;
 }
 
 uint64_t plan_pilot_seed(const scene *s) { return rng_mix64(PLAN_SEED ^ rng_mix64(s->settings.seed)); }
@@ -254,8 +287,9 @@ static const char *medium_name(const scene *s, int m) {
     return m >= 0 && m < s->nmedia && m < VOL_PILOT_MEDIA - 1 ? s->media[m].name : "(others)";
 }
 
-/* Every decision of a scene with media, from volume.h's pilot (the tracer of its maps). */
-static void plan_media(const scene *s, const photon_settings *cfg, render_plan *p) {
+/* Every decision of a scene with media, from volume.h's pilot (the tracer of its maps). 0, or
+ * a negative PM_E* code with a message (pilot_failed). */
+static int plan_media(const scene *s, const photon_settings *cfg, render_plan *p, char *err, size_t errcap) {
     vol_pilot pg, pc;
     memset(&pg, 0, sizeof pg);
     memset(&pc, 0, sizeof pc);
@@ -267,11 +301,14 @@ static void plan_media(const scene *s, const photon_settings *cfg, render_plan *
     o.max_bounces = cfg->max_bounces; /* the path-length budget, as the passes have it */
     o.seed = PLAN_SEED;
     o.pilot = &pg;
-    if (emitting_lights(s)) vol_trace_pass(s, &o, &(vol_pass_result){0});
+    int rc = 0;
+    if (emitting_lights(s)) rc = test_enomem("volume") ? PM_ENOMEM : vol_trace_pass(s, &o, &(vol_pass_result){0});
+    if ((rc = pilot_failed(rc, "volume photon", NULL, err, errcap)) < 0) return rc;
     o.caustic_pass = 1;
     o.projection_cells = cfg->projection ? cfg->projection_cells : 0; /* aimed, as the pass is */
     o.pilot = &pc;
-    if (emitting_lights(s)) vol_trace_pass(s, &o, &(vol_pass_result){0});
+    if (emitting_lights(s)) rc = vol_trace_pass(s, &o, &(vol_pass_result){0});
+    if ((rc = pilot_failed(rc, "volume caustic photon", NULL, err, errcap)) < 0) return rc;
     char buf[300];
     int scatters = 0, nspec = 0;
     for (int m = 0; m < s->nmedia; m++) scatters += v3_maxc(s->media[m].sigma_s) > 0;
@@ -355,6 +392,7 @@ static void plan_media(const scene *s, const photon_settings *cfg, render_plan *
         set(&p->global, 1, "%s", buf);
     }
     set(&p->shadow, 0, "a scene with media: shadow rays carry the transmittance, no shadow photons%s", "");
+    return 0;
 }
 
 /* The importance table of the scene's settings (importance.h), or NULL: none asked for, maps
@@ -478,17 +516,23 @@ static void force(plan_item *it, int f, const char *key) {
     snprintf(it->reason, sizeof it->reason, "forced by photon_mapping.%s", key);
 }
 
-void plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p) {
+int plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p, char *err, size_t errcap) {
     memset(p, 0, sizeof *p);
+    if (errcap) err[0] = 0;
     importance *tab = NULL;
+    int rc;
     if (scene_has_media(s)) {
-        plan_media(s, c, p);
+        if ((rc = plan_media(s, c, p, err, errcap)) < 0) return rc;
         force(&p->volume, c->force_volume, "volume");
         force(&p->volume_caustics, c->force_volume_caustics, "volume_caustics");
     } else {
         pilot_result r;
         tab = make_importance(s, c);
-        run_pilot(s, c, tab && tab->on ? tab : NULL, &r);
+        if ((rc = run_pilot(s, c, tab && tab->on ? tab : NULL, &r, err, errcap)) < 0) {
+            if (tab) importance_free(tab);
+            free(tab);
+            return rc;
+        }
         p->pilot = r.g.kept; /* both pilots' stores */
         plan_caustics(s, &r, p);
         plan_global(s, &r, p);
@@ -515,6 +559,7 @@ void plan_make(const scene *s, const photon_settings *c, int preview, render_pla
     p->guide = guide_light_plan(s, c->force_light_guide, !((preview || !p->final_gather.on) && p->global.on),
                                 &p->light_guide.on, p->light_guide.reason, sizeof p->light_guide.reason, NULL);
     plan_joins(s, c, p);
+    return 0;
 }
 
 void plan_print(const render_plan *p, FILE *f) {

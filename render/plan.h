@@ -90,8 +90,12 @@ typedef struct render_plan {
 
 /* Decide the plan for scene s under config c; preview = 1 turns final gathering off. The
  * plan may hold the importance table (imp) and the pilot's photons (pilot): plan_free frees
- * them. */
-void plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p);
+ * them. Returns 0, or a negative PM_E* code when a pilot pass fails (PM_ENOMEM: its evidence
+ * would be a pass cut short, so no plan is made from it) with a message in err that names the
+ * pilot ("plan: global photon pilot: out of memory"); then p holds nothing to free.
+ * A pilot that stores nothing (PM_EEMPTY) is evidence, not a failure. Test hook:
+ * PM_PLAN_TEST_ENOMEM=global|caustic|volume fails that pilot (plan.c). */
+int plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p, char *err, size_t errcap);
 void plan_free(render_plan *p);
 /* "caustics: off (no specular surface reachable from a light)" and so on, one per line. */
 void plan_print(const render_plan *p, FILE *f);

@@ -769,7 +769,7 @@ TEST(render_media_pm_k_follows_density) {
     cfg.global_photons = 2000;
     cfg.progress = 0;
     render_plan p;
-    plan_make(&s, &cfg, 0, &p);
+    plan_make(&s, &cfg, 0, &p, NULL, 0);
     ASSERT(p.volume.on);
     pmv_state v;
     photon_maps m;
@@ -866,7 +866,7 @@ TEST(render_media_pm_absorbing_exact) {
         photon_settings cfg;
         photon_settings_defaults(&cfg);
         render_plan p;
-        plan_make(&s, &cfg, 0, &p);
+        plan_make(&s, &cfg, 0, &p, NULL, 0);
         EXPECT_MSG(!p.volume.on && strstr(p.volume.reason, "sigma_s = 0"), "volume: %s", p.volume.reason);
         scene_free(&s);
     }
@@ -936,7 +936,7 @@ TEST(render_media_pm_plan) {
                "\"x\": {\"type\": \"lambert\", \"reflectance\": 0}",
                "{\"type\": \"sphere\", \"center\": [0, 0, 3], \"radius\": 1, \"material\": \"white\"}");
     ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
-    plan_make(&s, &cfg, 0, &p);
+    plan_make(&s, &cfg, 0, &p, NULL, 0);
     printf("    no medium: volume: %s\n", p.volume.reason);
     EXPECT_MSG(!p.volume.on && strstr(p.volume.reason, "no participating medium"), "%s", p.volume.reason);
     EXPECT(!p.volume_caustics.on);
@@ -944,7 +944,7 @@ TEST(render_media_pm_plan) {
 
     fog_room(txt, sizeof txt, 0, "");
     ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
-    plan_make(&s, &cfg, 0, &p);
+    plan_make(&s, &cfg, 0, &p, NULL, 0);
     printf("    fog room: volume: %s\n    volume caustics: %s\n", p.volume.reason, p.volume_caustics.reason);
     EXPECT_MSG(p.volume.on && strstr(p.volume.reason, "medium \"fog\" is lit by the lights: "), "%s",
                p.volume.reason);
@@ -957,7 +957,7 @@ TEST(render_media_pm_plan) {
     fog_room(txt, sizeof txt, 1,
              ", {\"type\": \"sphere\", \"center\": [0, 0.2, 0], \"radius\": 0.3, \"material\": \"glass\"}");
     ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
-    plan_make(&s, &cfg, 0, &p);
+    plan_make(&s, &cfg, 0, &p, NULL, 0);
     printf("    glass ball in the fog: volume caustics: %s\n", p.volume_caustics.reason);
     EXPECT_MSG(p.volume_caustics.on && strstr(p.volume_caustics.reason, "\"glass\" sends light into a medium"),
                "%s", p.volume_caustics.reason);

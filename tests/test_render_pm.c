@@ -200,9 +200,9 @@ TEST(render_pm_plan_shipped_scenes) {
         rc = photon_settings_parse(&c, s.photon_mapping, &e);
         EXPECT_MSG(rc == 0, "%s: %s", name, e.msg);
         render_plan p, p2, pv;
-        plan_make(&s, &c, 0, &p);
-        plan_make(&s, &c, 0, &p2);
-        plan_make(&s, &c, 1, &pv);
+        EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
+        EXPECT_EQ_INT(plan_make(&s, &c, 0, &p2, NULL, 0), 0);
+        EXPECT_EQ_INT(plan_make(&s, &c, 1, &pv, NULL, 0), 0);
         check_item(name, "caustics", &p.caustics, ex->caustics, ex->why_caustics);
         check_item(name, "global", &p.global, ex->global, ex->why_global);
         check_item(name, "shadow", &p.shadow, ex->shadow, ex->why_shadow);
@@ -323,7 +323,7 @@ TEST(render_pm_plan_physics_cases) {
         photon_settings c;
         photon_settings_defaults(&c);
         render_plan p;
-        plan_make(&s, &c, 0, &p);
+        EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
         check_item(pc->name, "caustics", &p.caustics, pc->caustics, "");
         check_item(pc->name, "global", &p.global, pc->global, "");
         check_item(pc->name, "shadow", &p.shadow, pc->shadow, "");
@@ -356,7 +356,7 @@ TEST(render_pm_plan_forced) {
     photon_settings c;
     ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
     render_plan p;
-    plan_make(&s, &c, 0, &p);
+    EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
     EXPECT(p.caustics.on);
     EXPECT_MSG(strcmp(p.caustics.reason, "forced by photon_mapping.caustics") == 0, "%s", p.caustics.reason);
     EXPECT(!p.shadow.on);
@@ -376,7 +376,7 @@ TEST(render_pm_plan_forced) {
     EXPECT_EQ_INT(c.global_photons, 5000);
     EXPECT_EQ_INT(c.force_caustics, PLAN_OFF);
     EXPECT_EQ_INT(c.force_global, PLAN_AUTO);
-    plan_make(&s, &c, 0, &p);
+    EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
     EXPECT(!p.caustics.on);
     EXPECT_MSG(strcmp(p.caustics.reason, "forced by photon_mapping.caustics") == 0, "%s", p.caustics.reason);
     EXPECT(p.global.on && p.shadow.on && p.final_gather.on);
@@ -384,7 +384,7 @@ TEST(render_pm_plan_forced) {
     ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "caustics=true", err, sizeof err), 0);
     ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "global=false", err, sizeof err), 0);
     ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
-    plan_make(&s, &c, 0, &p);
+    EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
     EXPECT(p.caustics.on && strstr(p.caustics.reason, "forced"));
     EXPECT(!p.global.on && strcmp(p.global.reason, "forced by photon_mapping.global") == 0);
     EXPECT_MSG(!p.final_gather.on && strstr(p.final_gather.reason, "no global map"), "%s",
@@ -583,7 +583,7 @@ TEST(render_pm_pilot_photons_join) {
     photon_settings c;
     ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
     render_plan p;
-    plan_make(&s, &c, 0, &p);
+    EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
     ASSERT_MSG(p.global.on && p.pilot != NULL && p.imp == NULL, "global %d, pilot %p, table %p (%s)", p.global.on,
                (void *)p.pilot, (void *)p.imp, p.emission.reason);
     trace_opts o;
@@ -614,7 +614,7 @@ TEST(render_pm_pilot_photons_join) {
 
     ASSERT_MSG(load_shipped(&s, "cornell_spheres", &e) == 0, "%s", e.msg);
     ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
-    plan_make(&s, &c, 0, &p);
+    EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
     ASSERT_MSG(p.imp != NULL && p.pilot != NULL, "table %p, pilot %p", (void *)p.imp, (void *)p.pilot);
     double t2[3];
     photon_maps m2;
@@ -676,7 +676,7 @@ TEST(render_pm_caustic_pilot_joins) {
     ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
     c.caustic_photons = target;
     render_plan p;
-    plan_make(&s, &c, 0, &p);
+    EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
     ASSERT_MSG(p.caustics.on && p.pilot, "caustics %d (%s), pilot %p", p.caustics.on, p.caustics.reason,
                (void *)p.pilot);
     printf("    plan: caustics: %s\n", p.caustics.reason);
@@ -784,13 +784,13 @@ TEST(render_pm_caustic_pilot_joins) {
     photon_settings c2 = c;
     c2.projection = 0;
     render_plan p2;
-    plan_make(&s, &c2, 0, &p2);
+    EXPECT_EQ_INT(plan_make(&s, &c2, 0, &p2, NULL, 0), 0);
     EXPECT_MSG(strstr(p2.caustics.reason, "do not join the caustic map: the pass aims by other projection maps"),
                "%s", p2.caustics.reason);
     c2 = c;
     c2.caustic_photons = (long)nplan;
     render_plan p3;
-    plan_make(&s, &c2, 0, &p3);
+    EXPECT_EQ_INT(plan_make(&s, &c2, 0, &p3, NULL, 0), 0);
     EXPECT_MSG(strstr(p3.caustics.reason, "do not join the caustic map: the pilot stored half the target or more"),
                "%s", p3.caustics.reason);
     for (int k = 0; k < 2; k++) {
@@ -855,7 +855,7 @@ TEST(render_pm_plan_emission) {
         photon_settings c;
         ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
         render_plan p;
-        plan_make(&s, &c, 0, &p);
+        EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
         printf("    %s%s%s: %s (%s)\n", cases[k].scene, cases[k].set ? " --pm " : "", cases[k].set ? cases[k].set : "",
                p.emission.on ? "importance" : "by power", p.emission.reason);
         EXPECT_MSG(p.emission.on == cases[k].on && strstr(p.emission.reason, cases[k].why),
@@ -1242,6 +1242,56 @@ TEST(render_pm_caustic_pilot_runaway_message) {
     EXPECT_MSG(n > 0 && nc < 2000 && strstr(out, want), "expected \"%s\" in %s", want, out);
 }
 
+/* Oracle: the fault-injection hook PM_PLAN_TEST_ENOMEM (plan.c) makes one pilot pass fail as
+ * if it had run out of memory. Before, run_pilot ignored photon_trace's code and the plan read
+ * a pass cut short as evidence ("nothing reaches there"). Now plan_make returns PM_ENOMEM with
+ * a message naming the pilot and leaves nothing to free (no pilot photons, no importance
+ * table), and `render` exits non-zero with that message and writes no image: the global and
+ * caustic pilots on cornell_spheres, the volume pilot on cornell_fog. Control: the same
+ * plan_make without the hook returns 0 and keeps the pilots' photons. */
+TEST(render_pm_plan_pilot_out_of_memory) {
+    scene s;
+    json_err e;
+    ASSERT_MSG(load_shipped(&s, "cornell_spheres", &e) == 0, "%s", e.msg);
+    photon_settings c;
+    ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
+    render_plan p;
+    char err[256];
+    const char *which[] = {"global", "caustic"};
+    for (int i = 0; i < 2; i++) {
+        char want[128];
+        snprintf(want, sizeof want, "plan: %s photon pilot: out of memory", which[i]);
+        setenv("PM_PLAN_TEST_ENOMEM", which[i], 1);
+        int rc = plan_make(&s, &c, 0, &p, err, sizeof err);
+        unsetenv("PM_PLAN_TEST_ENOMEM");
+        EXPECT_EQ_INT(rc, PM_ENOMEM);
+        EXPECT_MSG(strcmp(err, want) == 0, "%s: \"%s\"", which[i], err);
+        EXPECT_MSG(!p.pilot && !p.imp && !p.guide, "%s: the failed plan holds memory", which[i]);
+        if (rc == 0) plan_free(&p);
+    }
+    err[0] = 'x';
+    EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, err, sizeof err), 0);
+    EXPECT_MSG(err[0] == 0 && p.pilot, "control: err \"%s\", pilot photons %p", err, (void *)p.pilot);
+    plan_free(&p);
+    scene_free(&s);
+
+    static char out[65536];
+    const char *cases[][2] = {{"cornell_spheres", "global"}, {"cornell_spheres", "caustic"}, {"cornell_fog", "volume"}};
+    for (int i = 0; i < 3; i++) {
+        char cmd[4096], pfm[1024], want[128];
+        snprintf(pfm, sizeof pfm, "%s/oom_%d.pfm", pm_test_tmpdir(), i);
+        snprintf(cmd, sizeof cmd,
+                 "PM_PLAN_TEST_ENOMEM=%s %s/render '%s/data/scenes/%s.json' --mode pm --width 4 --height 4 --spp 1 "
+                 "--quiet --hdr '%s'",
+                 cases[i][1], pm_test_build_dir(), pm_test_source_dir(), cases[i][0], pfm);
+        int rc = pm_test_run(cmd, out, sizeof out);
+        snprintf(want, sizeof want, "plan: %s photon pilot: out of memory\n", cases[i][1]);
+        EXPECT_MSG(rc != 0 && rc != -1, "%s, %s pilot: exit %d", cases[i][0], cases[i][1], rc);
+        EXPECT_MSG(strstr(out, want), "%s: expected \"%s\" in: %s", cases[i][0], want, out);
+        EXPECT_MSG(access(pfm, F_OK) != 0, "%s: an image was written", cases[i][0]);
+    }
+}
+
 /* ---- 6. saved photon maps ------------------------------------------------------------------ */
 
 /* DIR/NAME must load with pm_map_load and hold exactly the photons of `want` (n of them, in
@@ -1302,7 +1352,7 @@ TEST(render_pm_save_load_round_trip) {
     cfg.global_photons = cfg.caustic_photons = 4000;
     cfg.gather_rays = 4;
     render_plan plan;
-    plan_make(&s, &cfg, 0, &plan);
+    EXPECT_EQ_INT(plan_make(&s, &cfg, 0, &plan, NULL, 0), 0);
     ASSERT_MSG(plan.imp && plan.pilot, "table %p, pilot photons %p", (void *)plan.imp, (void *)plan.pilot);
     trace_opts o;
     trace_opts_settings(&o, &s, &cfg);
