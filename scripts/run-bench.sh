@@ -29,6 +29,25 @@ case "$MODE" in
   quick) OUT=${3:-$BUILD/bench-quick}; DOCS=$OUT; IMG=$OUT/img; IMGREL=img; QFLAG=--quick ;;
   *) echo "run-bench.sh: mode must be full or quick" >&2; exit 2 ;;
 esac
+# The commit, taken before anything is written (bench/results is the output, so it never
+# counts as a change), by the rule of the other measuring scripts (scripts/commit-stamp.sh):
+# HEAD, "plus uncommitted changes in the sources (N files in photonmap/, render/, bench/ or
+# the Makefile)" when git status lists any there, or PM_BENCH_COMMIT's text. A full run
+# (results to commit) also refuses binaries older than a source file (exit 2: they were not
+# built from the checkout as it is); the quick run (the test suite's, into OUTDIR) does not,
+# since others may edit sources while it runs, and outside a git checkout it says "unknown".
+. ./scripts/commit-stamp.sh
+STAMP_BINS=
+if [ "$MODE" = full ]; then
+  for b in bench_search bench_knn bench_estimate render; do
+    if [ -x "$BUILD/$b" ]; then STAMP_BINS="$STAMP_BINS $BUILD/$b"; fi
+  done
+fi
+# shellcheck disable=SC2086 # a list of paths
+if ! COMMIT_STAMP=$(CS_SOURCES="photonmap render bench Makefile" CS_EXCLUDE=bench/results commit_stamp . $STAMP_BINS); then
+  [ "$MODE" = quick ] || exit 2
+  COMMIT_STAMP=unknown
+fi
 mkdir -p "$OUT" "$IMG" "$DOCS"
 start=$(date +%s)
 log() { echo "run-bench: [$(( $(date +%s) - start ))s] $*" >&2; }
@@ -42,9 +61,6 @@ case "$ONLY" in all|knn) ;; *) echo "run-bench.sh: PM_BENCH_ONLY must be all or 
 MACH="$OUT/machine.csv"
 [ "$ONLY" = knn ] && MACH="$OUT/knn_machine.csv"
 
-# The commit, taken before anything is written: bench/results is the output (with
-# PM_BENCH_ONLY=knn the machine file below is in it), so it does not count as a change.
-COMMIT_STAMP=${PM_BENCH_COMMIT:-$(git rev-parse --short HEAD 2>/dev/null || echo unknown)$(git diff --quiet HEAD -- photonmap/kdtree.c photonmap/kdtree.h photonmap/kdtree_internal.h photonmap/kdtree_query.c photonmap/internal.h photonmap/photon.h bench ':(exclude)bench/results' 2>/dev/null || echo ' plus uncommitted changes in the searches or bench/')}
 # The machine, for the document.
 {
   echo "key,value"
