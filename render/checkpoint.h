@@ -55,8 +55,9 @@ typedef struct ckpt_info {
 
 int ckpt_write(const char *path, const ckpt_info *ci, const render_state *st, char *err,
                size_t errcap);
-/* st == NULL reads the header and strings only (for the arguments to replay); else st gets
- * a new state (render_state_free it). */
+/* st == NULL reads the header and strings (for the arguments to replay) and checks the whole
+ * file's checksum without keeping the pixels; else st gets a new state (render_state_free
+ * it). A file whose checksum does not match is refused either way (PM_EFORMAT). */
 int ckpt_read(const char *path, ckpt_info *ci, render_state *st, char *err, size_t errcap);
 
 /* 64-bit FNV-1a, continued from h (start with CKPT_HASH_INIT). */

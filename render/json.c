@@ -43,6 +43,17 @@ const char *json_type_name(const cJSON *it) {
     return "an invalid value";
 }
 
+/* What a value of the wrong type was, for an error: its type, and for a string its text (a
+ * typed --pm value arrives as one: "--pm k_global: expected a number, got the string "1e"").
+ * Long strings are cut with "...". buf must hold at least 64 bytes. */
+static const char *type_desc(const cJSON *it, char *buf, size_t cap) {
+    if (!cJSON_IsString(it) || !it->valuestring) return json_type_name(it);
+    size_t n = strlen(it->valuestring);
+    if (n > 40) snprintf(buf, cap, "the string \"%.37s...\"", it->valuestring);
+    else snprintf(buf, cap, "the string \"%s\"", it->valuestring);
+    return buf;
+}
+
 static int cmp_key(const void *a, const void *b) {
     return strcmp(*(const char *const *)a, *(const char *const *)b);
 }
@@ -204,15 +215,19 @@ static int fetch_as(const cJSON *obj, const char *path, const char *key, int req
                     json_err *e) {
     int rc = fetch(obj, path, key, required, it, e);
     if (rc <= 0) return rc;
-    if (!is(*it))
+    if (!is(*it)) {
+        char d[64];
         return json_fail(e, PM_EINVAL, "%s.%s: expected %s, got %s", path, key, expected,
-                         json_type_name(*it));
+                         type_desc(*it, d, sizeof d));
+    }
     return 1;
 }
 
 static int check_number(const cJSON *it, const char *p1, const char *p2, double *out, json_err *e) {
-    if (!cJSON_IsNumber(it))
-        return json_fail(e, PM_EINVAL, "%s%s: expected a number, got %s", p1, p2, json_type_name(it));
+    if (!cJSON_IsNumber(it)) {
+        char d[64];
+        return json_fail(e, PM_EINVAL, "%s%s: expected a number, got %s", p1, p2, type_desc(it, d, sizeof d));
+    }
     if (!isfinite(it->valuedouble))
         return json_fail(e, PM_ENONFINITE, "%s%s: not a finite number", p1, p2);
     *out = it->valuedouble;

@@ -241,6 +241,13 @@ int photon_settings_parse(photon_settings *c, const cJSON *pm, json_err *e) {
     if (!pm) return 0;
     for (const cJSON *it = pm->child; it; it = it->next)
         if (!find(it->string)) {
+            /* render-mpi's one setting of its own, taken from its command line before render's
+             * code sees it (render/mpi/render_mpi.c): anywhere else, say whose it is. */
+            if (it->string && strcmp(it->string, "distributed") == 0)
+                return json_fail(e, PM_EINVAL, P ".distributed: a setting of render-mpi, the "
+                                 "distributed renderer, given only on its command line (mpirun -np N "
+                                 "render-mpi SCENE.json --pm distributed=replicated or partitioned); "
+                                 "render renders in one process and has no such setting");
             const char *names[NSETTINGS];
             for (size_t k = 0; k < NSETTINGS; k++) names[k] = k_settings[k].key;
             const char *near = json_nearest_key(it->string, names, NSETTINGS);

@@ -10,8 +10,9 @@
  * column of a syntax error, or the JSON path of a missing, mistyped or invalid field
  * ("$.objects[3].radius: must be positive, got -1"). main.c prints it and exits with 2.
  *
- * Extensions: the "photon_mapping" object of the file is not interpreted here; a copy is
- * kept in scene.photon_mapping (NULL when absent) for the photon-mapping code to read with
+ * Extensions: the "photon_mapping" object of the file is checked here against the settings
+ * table (photon_settings_parse: known keys, types, ranges), not otherwise interpreted; a copy
+ * is kept in scene.photon_mapping (NULL when absent) for the photon-mapping code to read with
  * the json.h getters (its path is "$.photon_mapping"). A key the format does not know is an
  * error anywhere in the file (json_check_keys), with the nearest known key.
  *

@@ -14,6 +14,7 @@
 
 #include "photonmap/common.h"
 #include "import.h"
+#include "photon_settings.h"
 
 #define P_MAX 256
 
@@ -704,6 +705,10 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
     }
     TRY(json_object(root, "$", "photon_mapping", 0, &pm, e));
     if (pm) {
+        /* Checked here, whatever will read it (any mode, render --dump-scene, render-mpi): a
+         * misspelt or out-of-range setting is an error of the file. */
+        photon_settings ps;
+        TRY(photon_settings_parse(&ps, pm, e));
         s->photon_mapping = cJSON_Duplicate(pm, 1);
         if (!s->photon_mapping) return json_fail(e, PM_ENOMEM, "out of memory");
     }

@@ -202,6 +202,22 @@ TEST(render_checkpoint_damaged_files_refused) {
     fclose(f);
     EXPECT_EQ_INT(ckpt_read(q, &back, &bs, err, sizeof err), PM_EFORMAT);
     EXPECT_MSG(strstr(err, "extra data"), "%s", err);
+    /* The arguments-only read (st NULL, what --resume replays) checks the checksum too: a
+     * flipped byte in the arguments, in the settings or in a pixel is refused, so a damaged
+     * file's arguments are never replayed; the intact file reads. */
+    size_t flips[] = {56 + 2, 56 + 9 + 3, 56 + 9 + 8 + 40, n - 12};
+    for (size_t k = 0; k < sizeof flips / sizeof flips[0]; k++) {
+        memcpy(v, buf, n);
+        v[flips[k]] ^= 0x20;
+        f = fopen(q, "wb");
+        fwrite(v, 1, n, f);
+        fclose(f);
+        err[0] = 0;
+        EXPECT_EQ_INT(ckpt_read(q, &back, NULL, err, sizeof err), PM_EFORMAT);
+        EXPECT_MSG(strstr(err, "corrupt (checksum mismatch)"), "byte %zu: %s", flips[k], err);
+    }
+    ASSERT_MSG(ckpt_read(p, &back, NULL, err, sizeof err) == 0, "%s", err);
+    EXPECT(back.args_len == 8 && memcmp(back.args, ci.args, 8) == 0);
     ASSERT_MSG(ckpt_read(p, &back, &bs, err, sizeof err) == 0, "%s", err);
     EXPECT(bs.width == 5 && bs.height == 3 && bs.spp == 4);
     EXPECT(memcmp(bs.sum, st.sum, sizeof(double) * 45) == 0);
@@ -297,6 +313,31 @@ TEST(render_checkpoint_cli_refusals) {
         EXPECT_MSG(rc == 2, "%s: status %d: %s", args, rc, out);
         EXPECT_MSG(strstr(out, cases[k].expect), "%s: expected \"%s\" in: %s", args, cases[k].expect, out);
         EXPECT_MSG(access(rt_path("c.pfm"), F_OK) != 0, "%s: an image was written", args);
+    }
+    /* A byte of the stored arguments changed ("global_photons" -> "glObal_photons"): refused
+     * as corrupt before anything is replayed (it once came back as "--pm glObal_photons:
+     * unknown key"). */
+    {
+        FILE *f = fopen(rt_path("c.ckpt"), "rb");
+        ASSERT(f);
+        static unsigned char ck[1 << 16];
+        size_t n = fread(ck, 1, sizeof ck, f);
+        fclose(f);
+        unsigned char *at = NULL;
+        for (size_t i = 0; i + 14 <= n && !at; i++)
+            if (memcmp(ck + i, "global_photons", 14) == 0 && i > 0 && ck[i - 1] == 0) at = ck + i;
+        ASSERT_MSG(at != NULL, "no stored argument global_photons=... in c.ckpt (%zu bytes)", n);
+        at[2] = 'O';
+        f = fopen(rt_path("flip.ckpt"), "wb");
+        ASSERT(f);
+        fwrite(ck, 1, n, f);
+        fclose(f);
+        snprintf(cmd, sizeof cmd, "timeout 5 '%s/render' '%s/data/scenes/cornell_spheres.json' --resume flip.ckpt",
+                 pm_test_build_dir(), pm_test_source_dir());
+        rc = rt_run(cmd, out, sizeof out);
+        EXPECT_MSG(rc == 2 && strstr(out, "render: --resume flip.ckpt: corrupt (checksum mismatch)") &&
+                       !strstr(out, "glObal"),
+                   "status %d: %s", rc, out);
     }
     /* changed photon maps */
     rt_run("cp c.ckpt.photons/caustic.pmap x && head -c 2000 x > c.ckpt.photons/caustic.pmap", out, sizeof out);

@@ -132,6 +132,51 @@ TEST(render_validate_photon_mapping_in_every_mode) {
                rc, out);
 }
 
+/* Oracle: the settings table and render-mpi's usage (render/mpi/render_mpi.c). The one
+ * setting render-mpi alone takes, `--pm distributed=MODE`, given to render (or put in a scene
+ * file) says whose it is instead of only "unknown key"; a --pm value of the wrong type shows
+ * the text typed; the file's own render.mode is checked also when --mode replaces it, and
+ * photon_mapping also by --dump-scene. All exit 2 and write nothing. */
+TEST(render_validate_option_and_mode_messages) {
+    char out[16384];
+    const char *mpi = "a setting of render-mpi, the distributed renderer, given only on its command "
+                      "line (mpirun -np N render-mpi SCENE.json --pm distributed=replicated or "
+                      "partitioned); render renders in one process and has no such setting";
+    char want[1024];
+    int rc = render_text(scene_text(NULL, NULL, NULL), "--pm distributed=partitioned", out, sizeof out);
+    snprintf(want, sizeof want, "render: --pm distributed: %s", mpi);
+    EXPECT_MSG(rc == 2 && strstr(out, want) && !strstr(out, "unknown key"), "exit %d: %s", rc, out);
+    snprintf(want, sizeof want, "$.photon_mapping.distributed: %s", mpi);
+    expect_error(scene_text(NULL, NULL, ", \"photon_mapping\": {\"distributed\": \"partitioned\"}"),
+                 "--mode path", want);
+    rc = render_text(scene_text(NULL, NULL, NULL), "--pm k_global=1e", out, sizeof out);
+    EXPECT_MSG(rc == 2 && strstr(out, "render: --pm k_global: expected a number, got the string \"1e\""),
+               "exit %d: %s", rc, out);
+    rc = render_text(scene_text(NULL, NULL, NULL), "--pm caustics=yes", out, sizeof out);
+    EXPECT_MSG(rc == 2 && strstr(out, "render: --pm caustics: expected true or false, got the string \"yes\""),
+               "exit %d: %s", rc, out);
+    const char *modes[] = {"--mode path", "--mode pm", "--mode objects"};
+    for (int k = 0; k < 3; k++)
+        expect_error(scene_text("\"mode\": \"path\"", "\"mode\": \"paht\"", NULL), modes[k],
+                     "$.render.mode: unknown mode \"paht\"; modes:");
+    /* a valid mode in the file, another on the command line: the option wins, as documented */
+    rc = render_text(scene_text("\"mode\": \"path\"", "\"mode\": \"pm\"", NULL), "--mode objects", out,
+                     sizeof out);
+    EXPECT_MSG(rc == 0, "exit %d: %s", rc, out);
+    char path[1024], cmd[4096];
+    snprintf(path, sizeof path, "%s/s.json", pm_test_tmpdir());
+    FILE *f = fopen(path, "w");
+    ASSERT(f);
+    fputs(scene_text(NULL, NULL, ", \"photon_mapping\": {\"k_globl\": 20}"), f);
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' --dump-scene s.json 2>&1 >/dev/null", pm_test_tmpdir(),
+             pm_test_build_dir());
+    rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 2 && strstr(out, "render: s.json: $.photon_mapping.k_globl: unknown key (did you mean "
+                                      "\"k_global\"?)"),
+               "--dump-scene: exit %d: %s", rc, out);
+}
+
 /* Oracle: the files themselves. Every shipped scene still loads under the one rule for
  * unknown keys (exit 0 at 2x2 pixels, 1 sample, path tracing); the Tungsten scene among them
  * is converted by render/tungsten.c, which skips Tungsten keys that do not change the image
