@@ -414,6 +414,14 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
     memset(ci, 0, sizeof *ci);
     const char *load = uses_photons ? pm_dir_key(s, "load_photons") : NULL;
     const char *save = uses_photons ? pm_dir_key(s, "save_photons") : NULL;
+    /* A mode without photons reads and writes no maps: say so rather than ignore the request. */
+    for (int k = 0; !uses_photons && k < 2; k++) {
+        const char *key = k ? "save_photons" : "load_photons", *dir = pm_dir_key(s, key);
+        if (dir)
+            fprintf(stderr, "render: %s: warning: mode %s traces no photons: %s %s (photon_mapping.%s) "
+                    "is not used\n", scene_path, s->settings.mode, k ? "--save-photons" : "--load-photons",
+                    dir, key);
+    }
     /* Maps that cannot be saved whole (ckpt_set_distributed's retrace) are traced again by a
      * resumed render: the checkpoint names none. */
     if (ckpt_path && uses_photons && !resume && !g_retrace) {
@@ -434,7 +442,8 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
         }
     }
     if (save && !resume && out_check_dir(save, msg, sizeof msg) < 0) {
-        fprintf(stderr, "render: photon maps: %s\n", msg);
+        fprintf(stderr, "render: %s: save_photons (--save-photons DIR or photon_mapping.save_photons): "
+                "%s\n", scene_path, msg);
         return 2;
     }
     /* pm_map_save replaces regular files only (a FIFO, device or symlink there is refused):
@@ -445,8 +454,8 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
         struct stat sb;
         snprintf(path, sizeof path, "%s/%s", save, names[k]);
         if (lstat(path, &sb) == 0 && !S_ISREG(sb.st_mode)) {
-            fprintf(stderr, "render: photon maps: %s is not a regular file; photon maps replace "
-                    "only regular files\n", path);
+            fprintf(stderr, "render: %s: save_photons: %s is not a regular file; photon maps replace "
+                    "only regular files\n", scene_path, path);
             return 2;
         }
     }

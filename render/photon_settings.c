@@ -226,6 +226,9 @@ static int parse_one(photon_settings *c, const setting_def *d, const cJSON *pm, 
     case ST_DIR: {
         const char *s = NULL;
         if ((rc = json_string(pm, P, d->key, 1, &s, e)) < 0) break;
+        if (!s[0]) /* was read as "no directory": the maps were traced (or not saved) silently */
+            return json_fail(e, PM_EINVAL, P ".%s: an empty directory name (leave the key out for "
+                             "none)", d->key);
         if (strlen(s) >= PHOTON_SETTINGS_PATH_MAX)
             return json_fail(e, PM_EINVAL, P ".%s: path too long", d->key);
         snprintf((char *)field, PHOTON_SETTINGS_PATH_MAX, "%s", s);

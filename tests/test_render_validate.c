@@ -10,6 +10,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include <cjson/cJSON.h>
 
@@ -175,6 +176,36 @@ TEST(render_validate_option_and_mode_messages) {
     EXPECT_MSG(rc == 2 && strstr(out, "render: s.json: $.photon_mapping.k_globl: unknown key (did you mean "
                                       "\"k_global\"?)"),
                "--dump-scene: exit %d: %s", rc, out);
+}
+
+/* Oracle: the settings table's "directory" keys (photon_settings.c) and checkpoint.c. An
+ * empty directory name is an error (it used to mean "none": --load-photons "" traced the maps,
+ * exit 0); a directory for saved maps that cannot be made names the scene file and the key; a
+ * mode that traces no photons says it uses neither map directory (exit 0, nothing made). */
+TEST(render_validate_photon_map_directories) {
+    char out[16384];
+    int rc = render_text(scene_text(NULL, NULL, NULL), "--mode pm --pm load_photons=", out, sizeof out);
+    EXPECT_MSG(rc == 2 && strstr(out, "render: --pm load_photons: an empty directory name (leave the key "
+                                      "out for none)"), "exit %d: %s", rc, out);
+    rc = render_text(scene_text(NULL, NULL, NULL), "--mode pm --load-photons ''", out, sizeof out);
+    EXPECT_MSG(rc == 2 && strstr(out, "render: --load-photons: an empty directory name"), "exit %d: %s", rc, out);
+    expect_error(scene_text(NULL, NULL, ", \"photon_mapping\": {\"save_photons\": \"\"}"), "--mode path",
+                 "$.photon_mapping.save_photons: an empty directory name (leave the key out for none)");
+    expect_error(scene_text(NULL, NULL, NULL), "--mode pm --save-photons no/such/dir",
+                 "save_photons (--save-photons DIR or photon_mapping.save_photons): no/such/dir: cannot be "
+                 "created");
+    EXPECT_MSG(!strstr(out, "Photons:"), "traced photons before failing: %s", out);
+    rc = render_text(scene_text(NULL, NULL, NULL), "--mode path --load-photons nomaps --save-photons newmaps",
+                     out, sizeof out);
+    EXPECT_MSG(rc == 0 &&
+                   strstr(out, "render: s.json: warning: mode path traces no photons: --load-photons nomaps "
+                               "(photon_mapping.load_photons) is not used") &&
+                   strstr(out, "render: s.json: warning: mode path traces no photons: --save-photons newmaps "
+                               "(photon_mapping.save_photons) is not used"),
+               "exit %d: %s", rc, out);
+    char p[1024];
+    snprintf(p, sizeof p, "%s/newmaps", pm_test_tmpdir());
+    EXPECT_MSG(access(p, F_OK) != 0, "mode path made the directory newmaps");
 }
 
 /* Oracle: the files themselves. Every shipped scene still loads under the one rule for
