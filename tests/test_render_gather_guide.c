@@ -240,7 +240,7 @@ TEST(render_gather_guide_mixture_closed_forms) {
     for (int i = 0; i < 5; i++) {
         gg.centre = c[i].gc;
         gg.radius = c[i].gr;
-        double se, a, m = gg_mixture_irradiance(&gg, &c[i].sky, N, 0x6767ULL + (uint64_t)i, &se, &a);
+        double se, a, m = gg_mixture_irradiance(&gg, &c[i].sky, N, (uint64_t)(0x6767 + i), &se, &a);
         double rel = m / c[i].want - 1;
         printf("    %-10s irradiance %.6g, closed form %.6g: %+.3f%% (se %.3f%%, share %.2f)\n", c[i].name, m,
                c[i].want, 100 * rel, 100 * se / c[i].want, a);
