@@ -171,9 +171,9 @@ static int gg_nearest_point(const vec3 *x, const vec3 *d, const unsigned char *u
     return 1;
 }
 
-/* The opening from the pilot's probes (see GATHER GUIDE): 1 and its centre *c and the lines'
- * RMS distance *rms, 0 if none fits, PM_ENOMEM. *nline: the bright rays that read the map;
- * *all, *bright: the probed light in all, and in those rays. */
+/* The opening from the pilot's probes (gather_guide.h, THE PILOT): 1 and its centre *c and
+ * the lines' RMS distance *rms, 0 if none fits, PM_ENOMEM. *nline: the bright rays that read
+ * the map; *all, *bright: the probed light in all, and in those rays. */
 static int gg_find_opening(const guide_point *pts, const size_t *jp, size_t nj, const gg_probe *pr, const double *v,
                            size_t G2, size_t *nline, double *all, double *bright, vec3 *c, double *rms) {
     size_t cap = (nj ? nj : 1) * 8, n = 0;

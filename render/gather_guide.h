@@ -36,7 +36,7 @@
  * bounced light counts). Probes that read the map and carry over 1/GG_OUTLIER of their point's
  * light are rays through a narrow opening into a lit region: the point nearest all their lines
  * (least squares, then again without the lines 3 spreads away) is its centre, r = GG_AP_SPREAD
- * times their RMS distance from it.
+ * times their RMS distance from it. (The GG_* constants are gather_guide.c's.)
  *
  * DECISION. The camera points must be photon-starved first (at least GG_STARVED of them find no
  * precomputed irradiance on their side, probe->found; elsewhere the gathers read the map, and
