@@ -19,6 +19,7 @@
 
 void photon_maps_free(photon_maps *m) {
     free(m->global);
+    free(m->global_path);
     free(m->caustic);
     free(m->shadow);
     free(m->volume);
@@ -235,6 +236,43 @@ int photon_tree_build(pm_kdtree **t, pm_photon *ph, size_t n, unsigned bucket, c
     int rc = pm_kdtree_build(t, ph, n, &kc, NULL);
     if (rc < 0) snprintf(err, errcap, "building a photon kd-tree: %s", pm_strerror(rc));
     return rc;
+}
+
+void photon_paths(const pm_photon *ph, size_t n, uint32_t *path) {
+    uint32_t id = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (i > 0 && pm_photon_kind(&ph[i]) == PM_KIND_DIRECT) id++;
+        path[i] = id;
+    }
+}
+
+int photon_tree_build_global(pm_kdtree **t, photon_maps *m, unsigned bucket, char *err, size_t errcap) {
+    *t = NULL;
+    free(m->global_path);
+    m->global_path = NULL;
+    size_t n = m->nglobal;
+    if (!m->global || n == 0) return 0;
+    uint32_t *path = malloc(n * sizeof *path), *perm = malloc(n * sizeof *perm);
+    if (!path || !perm) {
+        free(path);
+        free(perm);
+        snprintf(err, errcap, "building a photon kd-tree: %s", pm_strerror(PM_ENOMEM));
+        return PM_ENOMEM;
+    }
+    photon_paths(m->global, n, path); /* in map order, before the build reorders the records */
+    pm_kdtree_config kc = pm_kdtree_photon_config(bucket);
+    int rc = pm_kdtree_build(t, m->global, n, &kc, perm);
+    if (rc < 0) {
+        free(path);
+        free(perm);
+        snprintf(err, errcap, "building a photon kd-tree: %s", pm_strerror(rc));
+        return rc;
+    }
+    /* perm[i]: the map-order index of tree record i. */
+    for (size_t i = 0; i < n; i++) perm[i] = path[perm[i]];
+    free(path);
+    m->global_path = perm;
+    return 0;
 }
 
 int photon_maps_load(photon_maps *m, const char *dir, const map_stamp *want, int force, char *err,

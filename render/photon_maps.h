@@ -71,6 +71,20 @@
  * mean density; the precomputed-irradiance lookup searches within 4 of them (at most the
  * global radius), and the shadow-map query within 2 of its own typical radius.
  *
+ * PHOTON PATHS. The global map's photons are not independent samples: one emitted photon
+ * stores a record at every diffuse surface it bounces off (a path), and an estimate's error
+ * goes with the number of paths its photons come from, not with their number (photon_sides.h,
+ * "Sparse estimates"). photon_tree_build_global numbers the paths before the tree reorders
+ * the records, from the map as traced, saved and loaded: photon tracing merges each batch in
+ * emitted-photon order and keeps each photon's stores together, first hit first (photon_trace.h,
+ * DETERMINISM), and a path's first store is its only DIRECT one when its first hit is diffuse.
+ * So a new path begins at every DIRECT record, and path ids are recomputed from the records
+ * alone: no file, checkpoint or distributed exchange carries them, and traced, saved, loaded
+ * and partitioned maps (each process's part is a run of that order) number them alike. A
+ * path whose first hit is specular (a mirror, glass) has no DIRECT store and is counted with
+ * the path before it; so is the first path of a part that begins mid-path. Merging two paths
+ * only ever lowers a count of distinct paths, so an estimate is never read because of it.
+ *
  * Ownership: a photon_maps owns its arrays (photon_maps_free; a zeroed one may be freed).
  */
 #ifndef RENDER_PHOTON_MAPS_H
@@ -104,6 +118,9 @@ typedef struct map_stamp {
 typedef struct photon_maps {
     pm_photon *global, *caustic, *shadow;
     size_t nglobal, ncaustic, nshadow;
+    /* The path of every global photon (PHOTON PATHS above), in global's order: set by
+     * photon_tree_build_global (NULL before). */
+    uint32_t *global_path;
     uint64_t global_emitted, caustic_emitted; /* the shadow map shares the global pass */
     double caustic_fraction;        /* power-weighted active fraction of the projection maps */
     uint64_t caustic_saved;         /* emissions the projection map saved */
@@ -163,6 +180,13 @@ int photon_maps_load(photon_maps *m, const char *dir, const map_stamp *want, int
  * 0, or a negative code with a message. */
 int photon_tree_build(pm_kdtree **t, pm_photon *ph, size_t n, unsigned bucket, char *err,
                       size_t errcap);
+
+/* The paths of ph[0..n) in map order (PHOTON PATHS above): path[i] = the number of DIRECT
+ * records among ph[1..i] (so ph[0]'s path is 0). */
+void photon_paths(const pm_photon *ph, size_t n, uint32_t *path);
+/* photon_tree_build over m's global map, numbering its paths first: m->global_path (replaced
+ * if set) ends in the tree's order, beside m->global. 0, or a negative code with a message. */
+int photon_tree_build_global(pm_kdtree **t, photon_maps *m, unsigned bucket, char *err, size_t errcap);
 
 typedef struct map_radii {
     double global, caustic; /* maximum radius of a global / caustic estimate (INFINITY: none) */

@@ -25,8 +25,6 @@
 #define SIDE_LOOKUP_CANDIDATES 8u
 /* A lookup's normal rule (irradiance.h): the photon's normal within about 45 degrees of y's. */
 #define SIDE_LOOKUP_COS 0.7f
-/* Fewest photons a partial estimate must hold to be looked up (photon_sides.h: sparse). */
-#define SIDE_MIN_PHOTONS 8u
 
 static vec3 v3f(const float f[3]) { return v3(f[0], f[1], f[2]); }
 
@@ -55,7 +53,37 @@ void side_free_heights(const scene *s, const pm_photon *ph, size_t n, float max_
     }
 }
 
-int side_estimate_readable(unsigned found, unsigned k) { return found >= k || found >= SIDE_MIN_PHOTONS; }
+int side_estimate_readable(unsigned paths) { return paths >= SIDE_MIN_PATHS; }
+
+static int cmp_u32(const void *a, const void *b) {
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
+unsigned side_count_paths(const pm_photon *ph, const uint32_t *path, const pm_neighbor *nb, int count,
+                          uint32_t *scratch) {
+    unsigned m = 0;
+    for (int j = 0; j < count; j++) {
+        if (pm_photon_kind(&ph[nb[j].index]) == PM_KIND_DIRECT) continue;
+        /* Without paths every photon counts as its own path (photon_sides.h). */
+        scratch[m] = path ? path[nb[j].index] : m;
+        m++;
+    }
+    if (m < 2) return m;
+    qsort(scratch, m, sizeof *scratch, cmp_u32);
+    unsigned d = 1;
+    for (unsigned j = 1; j < m; j++) d += scratch[j] != scratch[j - 1];
+    return d;
+}
+
+int side_filter_shadow(void *user, const void *record, uint32_t index) {
+    const float *n = user;
+    const pm_photon *p = record;
+    if (!pm_filter_front(user, record, index)) return 0;
+    float pn[3];
+    pm_normal_decode(p->normal, pn);
+    return pn[0] * n[0] + pn[1] * n[1] + pn[2] * n[2] >= SIDE_LOOKUP_COS;
+}
 
 int side_visible_h(const scene *s, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq) {
     vec3 d = v3_sub(q, p);
@@ -133,7 +161,7 @@ static void disc_irradiance(const pm_photon *ph, const pm_neighbor *nb, int coun
 }
 
 int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
-                     size_t n, unsigned k, float max_dist2, char *err, size_t errcap) {
+                     const uint32_t *path, size_t n, unsigned k, float max_dist2, char *err, size_t errcap) {
     memset(c, 0, sizeof *c);
     if (!global || n == 0) return 0;
     /* Which photons: the quarter that pm_irradiance_build precomputes (neither leaves nor
@@ -166,12 +194,13 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
     {
         /* SIDE_WIDEN x k candidates for the estimates that meet a wall. */
         pm_neighbor *nb = malloc((size_t)SIDE_WIDEN * k * sizeof *nb);
-        if (!nb) fail = 1;
+        uint32_t *ids = malloc((size_t)k * sizeof *ids); /* side_count_paths's scratch */
+        if (!nb || !ids) fail = 1;
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 64)
 #endif
         for (size_t j = 0; j < m; j++) {
-            if (!nb) continue;
+            if (!nb || !ids) continue;
             const pm_photon *p = &ph[which[j]];
             float nf[3];
             pm_normal_decode(p->normal, nf);
@@ -198,8 +227,9 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
                 /* The usual estimate: k photons, the k-th on the rim; or the whole disc. */
                 double r2 = (unsigned)found == k ? nb[found - 1].dist2 : (double)max_dist2;
                 disc_irradiance(ph, nb, found, r2, (unsigned)found == k, 1.0, e);
-                r2v[which[j]] = side_estimate_readable((unsigned)found, k) ? (float)r2 : 0.0f;
-                sparse += !side_estimate_readable((unsigned)found, k);
+                int readable = side_estimate_readable(side_count_paths(ph, path, nb, found, ids));
+                r2v[which[j]] = readable ? (float)r2 : 0.0f;
+                sparse += !readable;
             } else {
                 /* A wall: take SIDE_WIDEN x k candidates in order of distance and keep the
                  * visible ones until k are kept. Every photon closer than the last one tested
@@ -238,12 +268,14 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
                 rays2 += SIDE_AREA_DIRS + 1;
                 if (frac < 1.0 / SIDE_AREA_DIRS) frac = 1.0 / SIDE_AREA_DIRS;
                 disc_irradiance(ph, nb, kept, r2, rim, frac, e);
-                r2v[which[j]] = side_estimate_readable((unsigned)kept, k) ? (float)r2 : 0.0f;
-                sparse += !side_estimate_readable((unsigned)kept, k);
+                int readable = side_estimate_readable(side_count_paths(ph, path, nb, kept, ids));
+                r2v[which[j]] = readable ? (float)r2 : 0.0f;
+                sparse += !readable;
             }
             memcpy(&val[3 * (size_t)which[j]], e, sizeof e);
         }
         free(nb);
+        free(ids);
     }
     free(which);
     if (fail) {

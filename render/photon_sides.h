@@ -32,14 +32,28 @@
  *                    own side (the radius then grows into the dark side, which holds none of
  *                    them: the same boundary bias as at any edge of a surface, low, never a
  *                    leak). Each precomputed photon keeps the radius^2 of its own estimate.
- *                    Sparse estimates: one that found fewer than k photons within the largest
- *                    radius, and fewer than 8 in all, keeps radius^2 0, so no lookup returns
- *                    it (the module's own-radius test, dist2 < r2, never holds) and the caller
- *                    computes the light there instead. Why: such an estimate stands alone over
- *                    a disc as wide as the largest radius, so its error (1/sqrt(n), above 35%)
- *                    is not averaged away by neighbouring estimates: in a room lit through a
- *                    pinhole 4 photons of 200,000 got in, and one estimate of them lit the
- *                    whole room (its mean moved by +-60% from one photon seed to the next).
+ *                    Sparse estimates: one whose indirect photons (those its value sums) come
+ *                    from fewer than SIDE_MIN_PATHS (8) distinct photon paths keeps radius^2 0,
+ *                    so no lookup returns it (the module's own-radius test, dist2 < r2, never
+ *                    holds) and the caller computes the light there instead. Why paths and not
+ *                    photons: the photons of one path (an emitted photon storing a record at
+ *                    each diffuse bounce, photon_maps.h PHOTON PATHS) are not independent; in
+ *                    a closed room they land all over the same few walls, so an estimate of n
+ *                    photons from p paths has the error of p samples (1/sqrt(p)), not of n.
+ *                    Why the rule holds: the value is the sum of each path's stores in the
+ *                    disc, so it is exactly as trustworthy as the number of paths adding to
+ *                    it; with at least 8 of them its error is at most about 35%, and where
+ *                    the expected count is much larger (every lit part of a scene) the rule
+ *                    rarely bites. Where few paths reach a region (a room lit through a
+ *                    pinhole: about 4 of 56,000 emitted get in), an estimate is read only
+ *                    when, by chance, many came near, and then it reads the region's light
+ *                    high over a disc as wide as the largest radius: counting photons let 8
+ *                    photons from 4 paths light pinhole_room's green wall (walls +12%, photon
+ *                    seed 4), counting paths computes that light instead (+0.6%). Paths with
+ *                    no indirect photon in the disc add nothing to the value and are not
+ *                    counted, so an estimate of direct photons alone is computed too. The
+ *                    rule needs no k: it holds as well for a distributed process's part of an
+ *                    estimate, whose paths add up over the parts (render/mpi/lookup.c).
  *                    Direct light: the values leave out the direct photons (first hits from
  *                    a light; they still count toward the k that set the radius), and the
  *                    caller computes y's direct light with a light sample instead. Why: direct
@@ -64,6 +78,7 @@
 #define RENDER_PHOTON_SIDES_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 #include "photonmap/irradiance.h"
 #include "photonmap/kdtree.h"
@@ -82,9 +97,31 @@ double side_free_height(const scene *s, vec3 p, vec3 np, double cap);
  * an estimate within radius^2 max_dist2 uses (a quarter of the radius), into h[0..n): one ray
  * each, on OpenMP threads. */
 void side_free_heights(const scene *s, const pm_photon *ph, size_t n, float max_dist2, float *h);
-/* 1 if an estimate of `found` photons (k wanted) may be looked up: found == k, or at least 8
- * photons (see "Sparse estimates" above); the build gives the others radius^2 0. */
-int side_estimate_readable(unsigned found, unsigned k);
+/* Fewest distinct photon paths an estimate's indirect photons come from for it to be read
+ * ("Sparse estimates" above). */
+#define SIDE_MIN_PATHS 8u
+/* 1 if an estimate whose indirect photons come from `paths` distinct photon paths may be
+ * looked up (see "Sparse estimates" above); the build gives the others radius^2 0. */
+int side_estimate_readable(unsigned paths);
+/* The distinct paths among the indirect photons nb[0..count) of the map ph, whose path ids
+ * are path (photon_maps.h, PHOTON PATHS; in ph's order). path NULL (not known): every photon
+ * counts as a path of its own, which reads the estimate as often as counting photons would.
+ * scratch: room for count ids. */
+unsigned side_count_paths(const pm_photon *ph, const uint32_t *path, const pm_neighbor *nb, int count,
+                          uint32_t *scratch);
+/* The shadow-photon map's search filter (the photon mapper's shadow hint; user: the query's
+ * unit normal, float[3]): pm_filter_front (the photon travelled toward the query's side),
+ * and the photon's surface normal within about 45 degrees of the query's (cos >= 0.7, as
+ * side_cache_lookup's normal rule). Why: the hint skips the shadow ray when all the nearest
+ * shadow-map photons are DIRECT, and photons on another surface close by, through a single
+ * quad, pass the direction test whenever they travel along the query's surface: on
+ * pinhole_room's red wall just under the ceiling the 16 nearest were DIRECT photons on the
+ * roof's top 2 to 15 units away, going down and toward the wall, so the inside of the wall
+ * was taken as lit by the lamp (walls +18%, photon seed 3; +5.5% with this filter). A surface
+ * that faces another way is another surface as far as its light is concerned; surfaces that
+ * face the same way, one behind the other, are told apart by the shadow photons themselves
+ * (every ray that lit the front one leaves one on the one behind). */
+int side_filter_shadow(void *user, const void *record, uint32_t index);
 /* side_visible with the free heights hp, hq of both ends known: one ray. */
 int side_visible_h(const scene *s, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq);
 
@@ -110,10 +147,11 @@ typedef struct side_cache {
     void *remote_user;
 } side_cache;
 
-/* Build over the global map's kd-tree (records in tree order, n of them): k photons per
- * estimate within radius^2 max_dist2. 0, or a negative PM_E* code with a message. */
+/* Build over the global map's kd-tree (records in tree order, n of them, with their path ids
+ * in path, or NULL: see side_count_paths): k photons per estimate within radius^2 max_dist2.
+ * 0, or a negative PM_E* code with a message. */
 int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
-                     size_t n, unsigned k, float max_dist2, char *err, size_t errcap);
+                     const uint32_t *path, size_t n, unsigned k, float max_dist2, char *err, size_t errcap);
 void side_cache_free(side_cache *c);
 /* A cache from m precomputed photons computed elsewhere (render-mpi gathers them from its
  * ranks): recs (power = E, RGBE; reordered in place into a kd-tree's order), their radii^2 r2

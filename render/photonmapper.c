@@ -154,7 +154,7 @@ static int shadow_map_says(const mapper_state *st, vec3 x, vec3 ns, pm_neighbor 
     to_f3(x, xf);
     to_f3(ns, nf);
     pm_knn_options ko = {0};
-    ko.filter = pm_filter_front;
+    ko.filter = side_filter_shadow; /* on the query's surface only (photon_sides.h) */
     ko.filter_user = nf;
     int n = pm_kdtree_knn_ex(st->ts, xf, (unsigned)st->cfg.k_shadow, st->r2_shadow, &ko, nb, NULL);
     if (n < st->cfg.k_shadow) return -1;
@@ -698,7 +698,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     if (g_lookup && (rc = g_lookup->partition(g_lookup->user, m, err, errcap)) < 0) return rc;
 
     t0 = stats_now();
-    if ((rc = photon_tree_build(&st->tg, m->global, m->nglobal, BUCKET_GLOBAL, err, errcap)) < 0 ||
+    if ((rc = photon_tree_build_global(&st->tg, m, BUCKET_GLOBAL, err, errcap)) < 0 ||
         (rc = photon_tree_build(&st->tc, m->caustic, m->ncaustic, BUCKET_CAUSTIC, err, errcap)) < 0 ||
         (rc = photon_tree_build(&st->ts, m->shadow, m->nshadow, BUCKET_SHADOW, err, errcap)) < 0)
         return rc;
@@ -725,8 +725,8 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         rc = g_lookup ? g_lookup->side_build(g_lookup->user, &st->sides, s, st->tg,
                                              st->tg ? pm_kdtree_records(st->tg) : NULL, m->nglobal,
                                              (unsigned)st->cfg.k_global, st->r2_global, err, errcap)
-                      : side_cache_build(&st->sides, s, st->tg, pm_kdtree_records(st->tg), m->nglobal,
-                                         (unsigned)st->cfg.k_global, st->r2_global, err, errcap);
+                      : side_cache_build(&st->sides, s, st->tg, pm_kdtree_records(st->tg), m->global_path,
+                                         m->nglobal, (unsigned)st->cfg.k_global, st->r2_global, err, errcap);
         if (rc < 0) return rc;
         stat_add(st->st_side_rays, st->sides.rays_first + st->sides.rays_second);
         stat_add(st->st_side_again, st->sides.researched);

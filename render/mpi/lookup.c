@@ -3,7 +3,7 @@
  * Messages of the pixel pass, on a communicator of their own (so that rank 0's tile queue on
  * MPI_COMM_WORLD never sees them):
  *   QUERY   owner -> every other rank   n lk_query records (36 bytes each)
- *   ANSWER  rank -> owner               n lk_part records (32 bytes each), in query order
+ *   ANSWER  rank -> owner               n lk_part records (36 bytes each), in query order
  *   DONE    rank -> every other rank    empty: "I have no more tiles"
  * A rank waiting for answers or for its next tiles keeps serving QUERY messages, so no rank
  * ever waits on one that waits on it. Answers go out with MPI_Isend; their buffers are freed
@@ -47,7 +47,10 @@ enum { LK_SIDE = 2, LK_BUILD = 3 };
 typedef struct lk_part {
     float power[3], far[3], r2;
     uint16_t found;
+    uint16_t paths;     /* the build's estimates: distinct paths among the part's indirect
+                         * photons (side_count_paths; the parts' counts add up, lookup.h) */
     uint8_t rims, wall; /* wall: the precomputed irradiance's search met a wall */
+    uint8_t spare[2];   /* zero: every byte sent is set */
 } lk_part;
 
 /* The queries of one camera sample, in the order its trace makes them, with their answers once
@@ -86,6 +89,7 @@ typedef struct lk_state {
     pm_estimate_options opts[2];
     const scene *scene;
     const side_cache *side; /* this rank's part of the precomputed irradiance (NULL: none) */
+    const photon_maps *maps; /* the photon mapper's maps (hook_partition): their global_path */
     int ready; /* the photon mapper handed over its trees (else: not a photon-mapping render) */
     int trace_again; /* PM_MPI_TEST_TRACE_AGAIN=1 (tests): keep no trace made on guesses */
     int done_from; /* DONE notices received */
@@ -110,6 +114,7 @@ void lk_idle(void) {
 /* ---- answering from this rank's part ---------------------------------------------------- */
 
 static void part_from_acc(const pm_combine_acc *a, lk_part *p) {
+    memset(p, 0, sizeof *p);
     for (int c = 0; c < 3; c++) {
         p->power[c] = (float)a->power[c];
         p->far[c] = (float)a->far_power[c];
@@ -482,6 +487,7 @@ static int hook_partition(void *user, photon_maps *m, char *err, size_t errcap) 
     (void)user;
     (void)err;
     (void)errcap;
+    L.maps = m; /* the mapper numbers the part's paths when it builds its tree (PHOTON PATHS) */
     pm_photon **arr[2] = {&m->global, &m->caustic};
     size_t *cnt[2] = {&m->nglobal, &m->ncaustic}, all[2] = {m->nglobal, m->ncaustic};
     if (m->part) { /* traced by a partitioned pass: already this rank's part (photon_trace.h) */
@@ -518,8 +524,9 @@ static void hook_ready(void *user, const pm_kdtree *const trees[2], const pm_est
 
 /* This rank's part of the precomputed estimate at query q: its k/M nearest photons on q's side,
  * as side_cache_build takes them (widened past a wall, visible ones only). */
-static void answer_side(const scene *s, const pm_kdtree *t, const pm_photon *ph, const float *hfree,
-                        unsigned k, float max_dist2, const lk_query *q, pm_neighbor *nb, lk_part *out) {
+static void answer_side(const scene *s, const pm_kdtree *t, const pm_photon *ph, const uint32_t *path,
+                        const float *hfree, unsigned k, float max_dist2, const lk_query *q, pm_neighbor *nb,
+                        uint32_t *ids, lk_part *out) {
     unsigned km = per_map(k);
     pm_combine_acc acc;
     pm_combine_init(&acc);
@@ -575,6 +582,12 @@ static void answer_side(const scene *s, const pm_kdtree *t, const pm_photon *ph,
         if (acc.power[c] < 0) acc.power[c] = 0;
     part_from_acc(&acc, out);
     out->wall = (uint8_t)wall;
+    /* The part's distinct photon paths: a part is a run of the whole map's order (photon_maps.h,
+     * PHOTON PATHS), so a path lies in one part, but for the at most M - 1 that straddle two
+     * parts' boundaries (counted in both: a few paths too many in a whole map, only near
+     * those paths' records). */
+    unsigned np = t ? side_count_paths(ph, path, nb, found, ids) : 0;
+    out->paths = (uint16_t)(np > 65535 ? 65535 : np);
 }
 
 static int side_fail(side_cache *c, char *err, size_t errcap, const char *what) {
@@ -605,6 +618,9 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
     uint32_t *which = dist_irr_malloc((n ? n : 1) * sizeof *which);
     if (!hfree || !which) dist_die("out of memory precomputing irradiance");
     side_free_heights(s, ph, n, max_dist2, hfree);
+    /* The part's path ids, in its tree's order (photon_tree_build_global; NULL if the mapper
+     * built the tree without them: every photon then counts as a path of its own). */
+    const uint32_t *path = L.maps && L.maps->global == ph ? L.maps->global_path : NULL;
     size_t m = 0;
     for (size_t i = 0; i < n; i++)
         if (pm_kdtree_height(global, (uint32_t)i) >= 2) which[m++] = (uint32_t)i;
@@ -651,13 +667,15 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
 #endif
     {
         pm_neighbor *nb = malloc((size_t)want * sizeof *nb);
-        if (!nb) fail = 1;
+        uint32_t *ids = malloc((size_t)want * sizeof *ids); /* side_count_paths's scratch */
+        if (!nb || !ids) fail = 1;
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 64)
 #endif
         for (long long i = 0; i < total; i++)
-            if (nb) answer_side(s, global, ph, hfree, k, max_dist2, &all[i], nb, &ans[i]);
+            if (nb && ids) answer_side(s, global, ph, path, hfree, k, max_dist2, &all[i], nb, ids, &ans[i]);
         free(nb);
+        free(ids);
     }
     if (fail) dist_die("out of memory precomputing irradiance");
     /* 3. Each owner gets every rank's parts of its queries: rank r's block of ans goes to r. */
@@ -694,15 +712,18 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
         pm_combine_init(&acc);
         acc.bias = PM_BIAS_AREA;
         int wall = 0;
+        unsigned paths = 0;
         for (int r = 0; r < M; r++) {
             add_part(&acc, &back[(size_t)r * m + j]);
             wall |= back[(size_t)r * m + j].wall;
+            paths += back[(size_t)r * m + j].paths;
         }
         double E[3];
         pm_combine_finish(&acc, E, NULL);
         double r2 = acc.r2_sum / M;
-        /* Too few photons in all the parts: never looked up (photon_sides.h, sparse estimates). */
-        int readable = side_estimate_readable((unsigned)acc.found, k);
+        /* Too few photon paths in all the parts: never looked up (photon_sides.h, sparse
+         * estimates). */
+        int readable = side_estimate_readable(paths);
         if (wall) {
             double frac = side_disc_fraction(s, v3f(mine[j].x), v3f(mine[j].n), sqrt(r2));
             for (int ch = 0; ch < 3; ch++) E[ch] /= frac;
