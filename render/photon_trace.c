@@ -103,7 +103,30 @@ typedef struct pass_ctx {
     const fbuf *tail;      /* pilot stores that follow the pass's own in the main map, or NULL */
     uint64_t tail_emitted; /* the pilot photons those stores came from */
     double shift[6];
+    /* The memory budget inside a batch (one process; PASS BUDGETS in photon_trace.h): the
+     * records the batch may store (0: no cap), and the count so far, shared by its threads. */
+    uint64_t batch_cap;
+    uint64_t *batch_records;
 } pass_ctx;
+
+/* trace_photon's result when the batch's records pass batch_cap. */
+#define TRACE_OVER_BUDGET 1
+
+/* Store a record of the batch: PM_ENOMEM, TRACE_OVER_BUDGET once the batch's records (all
+ * threads') pass its cap, or 0. Whether a batch passes the cap depends only on its photons
+ * (their records in all), not on which thread traced which, so a pass stops where it would
+ * on any number of threads. */
+static int store(const pass_ctx *c, fbuf *b, const fphoton *fp) {
+    if (c->batch_cap) {
+        uint64_t now;
+#ifdef _OPENMP
+#pragma omp atomic capture
+#endif
+        now = ++*c->batch_records;
+        if (now > c->batch_cap) return TRACE_OVER_BUDGET;
+    }
+    return fbuf_push(b, fp);
+}
 
 /* The photon's light, origin, normal, direction, and power before the pass's division (the
  * per-photon denominator is applied at packing, see pack); *rel its p(l, u) / p_l. */
@@ -159,7 +182,8 @@ static void pilot_count(pilot_counts *pc, int mat) {
 }
 
 /* Trace photon i; stores into gb (global or caustic) and sb (shadow), and sets *first_specular
- * to 1 if it is a caustic-pass photon whose first hit is specular. Returns 0 or ENOMEM. */
+ * to 1 if it is a caustic-pass photon whose first hit is specular. Returns 0, PM_ENOMEM or
+ * TRACE_OVER_BUDGET (store). */
 static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *first_specular) {
     const scene *s = c->s;
     rng g = rng_stream(c->o->seed, i, c->caustic_pass ? 2 : 1);
@@ -188,6 +212,7 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
      * back), and n_src takes the factor n1 / n_here of each such break. */
     double n_src = 0, n_here = 0;
     fphoton fp;
+    int rc;
     int max_depth = c->o->max_depth;
     if (c->o->max_bounces > 0 && c->o->max_bounces < max_depth) max_depth = c->o->max_bounces;
     int depth;
@@ -210,15 +235,14 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
                 if (depth > 0 && all_specular) {
                     if (pl) pilot_count(&pl->caustic, first_spec_mat);
                     make_fp(&fp, i, h.p, Ps, d, ns, PM_KIND_CAUSTIC, rel);
-                    if (fbuf_push(gb, &fp) < 0) return PM_ENOMEM;
+                    if ((rc = store(c, gb, &fp)) != 0) return rc;
                 }
             } else {
                 int kind = depth == 0 ? PM_KIND_DIRECT : PM_KIND_INDIRECT;
                 if (pl && !all_specular) pilot_count(&pl->diffuse_bounce, diffuse_mat);
                 make_fp(&fp, i, h.p, Ps, d, ns, kind, rel);
-                if (c->want_global && fbuf_push(gb, &fp) < 0) return PM_ENOMEM;
-                if (c->want_shadow && from_area && depth == 0 && fbuf_push(sb, &fp) < 0)
-                    return PM_ENOMEM;
+                if (c->want_global && (rc = store(c, gb, &fp)) != 0) return rc;
+                if (c->want_shadow && from_area && depth == 0 && (rc = store(c, sb, &fp)) != 0) return rc;
             }
         }
         if (c->want_shadow && from_area && depth == 0) {
@@ -233,7 +257,7 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
                 vec3 ns2 = v3_dot(wo, h2.ng) >= 0 ? h2.ng : v3_neg(h2.ng);
                 if (pl && !counted++) pilot_count(&pl->occluder, h.mat);
                 make_fp(&fp, i, h2.p, v3s(0), d, ns2, PM_KIND_SHADOW, rel);
-                if (fbuf_push(sb, &fp) < 0) return PM_ENOMEM;
+                if ((rc = store(c, sb, &fp)) != 0) return rc;
             }
         }
         /* Russian roulette over the branches (see the top of photon_trace.h). */
@@ -283,7 +307,8 @@ static int trace_photon(const pass_ctx *c, uint64_t i, fbuf *gb, fbuf *sb, int *
 /* ---- batches, and distributed rounds of batches ------------------------------------------- */
 
 /* Trace photons start .. start + PT_BATCH - 1 on nthreads threads into the per-thread buffers
- * (thread t: tg[t] and ts[t]). 1 on failure (out of memory). */
+ * (thread t: tg[t] and ts[t]). 0; bit 0 set on failure (out of memory), bit 1 when the batch's
+ * records passed c->batch_cap (the batch is then incomplete). */
 static int trace_batch(const pass_ctx *c, uint64_t start, fbuf *tg, fbuf *ts, int nthreads,
                        uint64_t *nfirst_out) {
     int fail = 0;
@@ -303,8 +328,9 @@ static int trace_batch(const pass_ctx *c, uint64_t start, fbuf *tg, fbuf *ts, in
         t = omp_get_thread_num();
 #endif
         /* Without a global map the shadow photons are the pass's main output. */
-        if (trace_photon(c, start + (uint64_t)k, &tg[t], c->want_global ? &ts[t] : &tg[t], &fs) < 0)
-            fail = 1;
+        int r = trace_photon(c, start + (uint64_t)k, &tg[t], c->want_global ? &ts[t] : &tg[t], &fs);
+        if (r < 0) fail |= 1;
+        if (r == TRACE_OVER_BUDGET) fail |= 2;
         /* fs bit 0: first hit specular (caustic pass); bit 1: cut by the path-length budget,
          * counted in the high half so that one word carries both through the exchange. */
         nfirst += (uint64_t)(fs & 1) + ((uint64_t)(fs >> 1) << 32);
@@ -684,9 +710,32 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
             } else {
                 fail = 1;
             }
+        } else if (use_dist) {
+            fail = dist_batch(c, &rb, n_e, tg, ts, nthreads, &nfirst, NULL);
         } else {
-            fail = use_dist ? dist_batch(c, &rb, n_e, tg, ts, nthreads, &nfirst, NULL)
-                          : trace_batch(c, n_e, tg, ts, nthreads, &nfirst);
+            /* The memory budget inside the batch too: one batch can store PT_BATCH times the
+             * path length (a lossless furnace: 4096 x 1e5 records, 19 GB), so the check between
+             * batches alone comes too late. A batch whose records would pass what is left of
+             * the budget is dropped whole (its photons are not counted as emitted: the map is
+             * then that of a pass that stopped before it, its powers unbiased). */
+            uint64_t in_batch = 0, budget = o->max_memory_bytes / sizeof(fphoton),
+                     held = (uint64_t)main_buf->n + (shadow_buf ? (uint64_t)shadow_buf->n : 0);
+            c->batch_cap = o->max_memory_bytes > 0 ? (budget > held ? budget - held : 1) : 0;
+            c->batch_records = &in_batch;
+            uint64_t nf = 0;
+            fail = trace_batch(c, n_e, tg, ts, nthreads, &nf);
+            c->batch_cap = 0;
+            c->batch_records = NULL;
+            if (fail == 2) { /* over the budget, and nothing failed */
+                for (int t = 0; t < nthreads; t++) tg[t].n = ts[t].n = 0;
+                stop = "max_memory_mb";
+                snprintf(why, sizeof why, "the next %d photons would store more than the %zu MiB left of %zu MiB",
+                         PT_BATCH, (size_t)((budget > held ? budget - held : 0) * sizeof(fphoton)) >> 20,
+                         o->max_memory_bytes >> 20);
+                break;
+            }
+            nfirst += nf;
+            fail &= 1;
         }
         n_e += PT_BATCH;
         if (fail || (!part && (fbuf_merge(main_buf, tg, nthreads) < 0 ||
@@ -716,7 +765,13 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
                 "(photon_mapping.max_bounces = %d)\n",
                 title, (unsigned long long)cut, o->max_bounces);
     *runaway = rc == 0 && (long)main_buf->n < target;
-    if (rc == 0 && stop && main_buf->n == 0) {
+    if (rc == 0 && stop && main_buf->n == 0 && strcmp(stop, "max_memory_mb") == 0) {
+        snprintf(err, errcap,
+                 "photon tracing: %s: no photon stored within the photon_mapping.max_memory_mb budget "
+                 "(%s): raise it, or lower photon_mapping.max_bounces or render.max_depth",
+                 title, why);
+        rc = PM_EEMPTY;
+    } else if (rc == 0 && stop && main_buf->n == 0) {
         snprintf(err, errcap,
                  "photon tracing: %s: no photon stored after %llu emitted: the lights reach no "
                  "surface that stores photons (do they face anything? are they enclosed by "

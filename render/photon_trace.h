@@ -81,7 +81,12 @@
  * ("stopped by the photon_mapping.KEY budget"):
  *   emitted    max_emitted_factor x target, and at most max_emitted photons; a pass whose
  *              storage rate (after 4 batches) needs more than twice that stops at once;
- *   memory     max_memory_mb of photon buffers (checked between batches);
+ *   memory     max_memory_mb of photon buffers: checked between batches, and inside a batch
+ *              (one process): a batch whose records, with those held, would pass the budget
+ *              is dropped whole and the pass stops before it (one batch can store PT_BATCH
+ *              times the path length: 19 GB in a lossless furnace with max_depth 1e5). A
+ *              pass stopped so before storing anything ends with PM_EEMPTY and a message
+ *              that names the budget;
  *   path       max_bounces bounces per photon (below the scene's max_depth), so one photon
  *              stores a bounded number of records (the furnace with reflectance 1 would
  *              bounce to max_depth); the paths cut are counted and reported;
