@@ -6,7 +6,8 @@
  * search radius, the 8 nearest such records, the first of them that side_visible_h sees from
  * the query. The scene is a floor with a tall wall (every segment across it is blocked) and a
  * low wall (a segment across it is blocked or not depending on how high its ends are lifted,
- * so each record's own free height matters).
+ * so each record's own free height matters). Also the photon paths (photon_maps.h) and the
+ * readable rule that counts them, and the shadow hint's filter, each against its definition.
  */
 #include <math.h>
 #include <stdio.h>
@@ -14,6 +15,7 @@
 #include <string.h>
 
 #include "test.h"
+#include "../render/photon_maps.h"
 #include "../render/photon_sides.h"
 #include "../render/scene.h"
 
@@ -172,4 +174,173 @@ TEST(render_sides_free_height_past_float_rounding) {
                    R, short_h, N, hidden, N / 2);
         scene_free(&s);
     }
+}
+
+/* Oracle: the definition (photon_maps.h, PHOTON PATHS): in map order a new path begins at every
+ * DIRECT record after the first record. Then the ids follow their records through the tree's
+ * reordering (photon_tree_build_global): each record is found again by its position, which
+ * holds its map index. */
+TEST(render_sides_paths_numbered_from_direct_records) {
+    static const int kinds[10] = {PM_KIND_INDIRECT, PM_KIND_INDIRECT, PM_KIND_DIRECT, PM_KIND_INDIRECT,
+                                  PM_KIND_DIRECT, PM_KIND_DIRECT, PM_KIND_INDIRECT, PM_KIND_INDIRECT,
+                                  PM_KIND_DIRECT, PM_KIND_INDIRECT};
+    static const uint32_t want[10] = {0, 0, 1, 1, 2, 3, 3, 3, 4, 4};
+    pm_photon ph[10];
+    uint32_t got[10];
+    float pw[3] = {1, 1, 1}, d[3] = {0, 0, -1}, up[3] = {0, 0, 1};
+    for (int i = 0; i < 10; i++) {
+        float pos[3] = {(float)i, 0, 0};
+        pm_photon_init(&ph[i], pos, pw, d, up, kinds[i]);
+    }
+    photon_paths(ph, 10, got);
+    for (int i = 0; i < 10; i++) EXPECT_MSG(got[i] == want[i], "record %d: path %u, want %u", i, got[i], want[i]);
+
+    const size_t n = PM_TEST_SANITIZED ? 2000 : 20000;
+    photon_maps m;
+    memset(&m, 0, sizeof m);
+    m.global = calloc(n, sizeof *m.global);
+    m.nglobal = n;
+    uint32_t *ref = malloc(n * sizeof *ref);
+    ASSERT(m.global && ref);
+    srng r = {99};
+    for (size_t i = 0; i < n; i++) {
+        float pos[3] = {(float)i, (float)srng_unit(&r), (float)srng_unit(&r)}; /* x: the map index */
+        pm_photon_init(&m.global[i], pos, pw, d, up, srng_unit(&r) < 0.3 ? PM_KIND_DIRECT : PM_KIND_INDIRECT);
+    }
+    photon_paths(m.global, n, ref);
+    pm_kdtree *t;
+    char err[256];
+    ASSERT_EQ_INT(photon_tree_build_global(&t, &m, 8, err, sizeof err), 0);
+    ASSERT(t && m.global_path);
+    size_t moved = 0, bad = 0;
+    for (size_t i = 0; i < n; i++) {
+        size_t at = (size_t)m.global[i].pos[0];
+        moved += at != i;
+        bad += m.global_path[i] != ref[at];
+    }
+    EXPECT_MSG(bad == 0 && moved > n / 2, "%zu of %zu ids wrong (%zu records moved)", bad, n, moved);
+    EXPECT(ref[n - 1] > n / 5); /* about 0.3 n paths */
+    pm_kdtree_free(t);
+    photon_maps_free(&m);
+    free(ref);
+}
+
+/* Oracle: a brute-force count of the distinct ids among the indirect photons (each id against
+ * every earlier one); without ids (NULL) every indirect photon is a path of its own. And the
+ * readable rule's threshold. */
+TEST(render_sides_count_paths_brute_force) {
+    enum { N = 300, K = 64 };
+    pm_photon ph[N];
+    uint32_t path[N], scratch[K];
+    float pw[3] = {1, 1, 1}, d[3] = {0, 0, -1}, up[3] = {0, 0, 1};
+    srng r = {5};
+    for (int i = 0; i < N; i++) {
+        float pos[3] = {(float)srng_unit(&r), (float)srng_unit(&r), 0};
+        pm_photon_init(&ph[i], pos, pw, d, up, srng_unit(&r) < 0.25 ? PM_KIND_DIRECT : PM_KIND_INDIRECT);
+        path[i] = (uint32_t)(srng_unit(&r) * (i % 3 ? 12 : 4000)); /* many repeats, some not */
+    }
+    for (int trial = 0; trial < 200; trial++) {
+        pm_neighbor nb[K];
+        int count = (int)(srng_unit(&r) * K);
+        for (int j = 0; j < count; j++) nb[j].index = (uint32_t)(srng_unit(&r) * N), nb[j].dist2 = 0;
+        unsigned want = 0, indirect = 0;
+        for (int j = 0; j < count; j++) {
+            if (pm_photon_kind(&ph[nb[j].index]) == PM_KIND_DIRECT) continue;
+            indirect++;
+            int seen = 0;
+            for (int q = 0; q < j && !seen; q++)
+                seen = pm_photon_kind(&ph[nb[q].index]) != PM_KIND_DIRECT && path[nb[q].index] == path[nb[j].index];
+            want += !seen;
+        }
+        EXPECT_EQ_INT(side_count_paths(ph, path, nb, count, scratch), want);
+        EXPECT_EQ_INT(side_count_paths(ph, NULL, nb, count, scratch), indirect);
+    }
+    EXPECT(!side_estimate_readable(SIDE_MIN_PATHS - 1) && side_estimate_readable(SIDE_MIN_PATHS));
+}
+
+/* Oracle: geometry of the shadow hint's filter (photon_sides.h, side_filter_shadow). The query
+ * is on a wall facing -z (pinhole_room's red wall from inside). A photon on the roof's top
+ * (normal +y) travelling down and toward the wall passes pm_filter_front but not this filter;
+ * photons on the wall itself, or on a surface tilted 30 degrees from it, pass; one tilted 60
+ * degrees does not; one travelling away from the wall (along -z) passes neither. */
+TEST(render_sides_shadow_filter_keeps_to_the_surface) {
+    float q[3] = {0, 0, -1}, pos[3] = {0, 0, 0}, pw[3] = {1, 1, 1};
+    float roof[3] = {0, 1, 0}, wall[3] = {0, 0, -1};
+    float t30[3] = {0, 0.5f, -0.8660254f}, t60[3] = {0, 0.8660254f, -0.5f};
+    float down_in[3] = {0.06f, -0.99f, 0.13f}, away[3] = {0, 0, -1};
+    pm_photon p;
+    pm_photon_init(&p, pos, pw, down_in, roof, PM_KIND_DIRECT);
+    EXPECT(pm_filter_front(q, &p, 0) && !side_filter_shadow(q, &p, 0));
+    pm_photon_init(&p, pos, pw, down_in, wall, PM_KIND_DIRECT);
+    EXPECT(side_filter_shadow(q, &p, 0));
+    pm_photon_init(&p, pos, pw, down_in, t30, PM_KIND_SHADOW);
+    EXPECT(side_filter_shadow(q, &p, 0));
+    pm_photon_init(&p, pos, pw, down_in, t60, PM_KIND_SHADOW);
+    EXPECT(!side_filter_shadow(q, &p, 0));
+    pm_photon_init(&p, pos, pw, away, wall, PM_KIND_DIRECT);
+    EXPECT(!pm_filter_front(q, &p, 0) && !side_filter_shadow(q, &p, 0));
+}
+
+/* Oracle: the readable rule's definition, end to end through side_cache_build and the lookup.
+ * The floor of SIDES_SCENE left of its tall wall holds 40 indirect photons from 4 paths (their
+ * DIRECT first records lie right of the wall); right of it, 300 paths of a DIRECT and an
+ * INDIRECT record each. With k = 40 every estimate left of the wall has 40 photons from 4
+ * paths: with the map's path ids none is readable (a lookup there finds nothing and
+ * side_cache.sparse counts them), without ids (NULL: each photon a path) they all are;
+ * right of the wall lookups find a record either way. */
+TEST(render_sides_sparse_by_distinct_paths) {
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, SIDES_SCENE, &e) == 0, "%s", e.msg);
+    const size_t n = 4 * 11 + 300 * 2;
+    float pw[3] = {1, 1, 1}, d[3] = {0, 0, -1}, up[3] = {0, 0, 1};
+    srng r = {31};
+    for (int use_paths = 1; use_paths >= 0; use_paths--) {
+        photon_maps m;
+        memset(&m, 0, sizeof m);
+        m.global = calloc(n, sizeof *m.global);
+        m.nglobal = n;
+        ASSERT(m.global);
+        size_t at = 0;
+        for (int p = 0; p < 4; p++) { /* left: 4 paths of 10 stores, first hits on the right */
+            float first[3] = {(float)(0.5 + srng_unit(&r)), (float)(-1.8 + 1.6 * srng_unit(&r)), 0};
+            pm_photon_init(&m.global[at++], first, pw, d, up, PM_KIND_DIRECT);
+            for (int j = 0; j < 10; j++) {
+                float pos[3] = {(float)(-1.8 + 1.6 * srng_unit(&r)), (float)(-1.8 + 1.6 * srng_unit(&r)), 0};
+                pm_photon_init(&m.global[at++], pos, pw, d, up, PM_KIND_INDIRECT);
+            }
+        }
+        for (int p = 0; p < 300; p++) /* right: 300 paths */
+            for (int j = 0; j < 2; j++) {
+                float pos[3] = {(float)(0.2 + 1.6 * srng_unit(&r)), (float)(-1.8 + 1.6 * srng_unit(&r)), 0};
+                pm_photon_init(&m.global[at++], pos, pw, d, up, j ? PM_KIND_INDIRECT : PM_KIND_DIRECT);
+            }
+        ASSERT(at == n);
+        pm_kdtree *t;
+        char err[256];
+        ASSERT_EQ_INT(photon_tree_build_global(&t, &m, 8, err, sizeof err), 0);
+        side_cache c;
+        ASSERT_EQ_INT(side_cache_build(&c, &s, t, pm_kdtree_records(t), use_paths ? m.global_path : NULL, n, 40,
+                                       16.0f, err, sizeof err),
+                      0);
+        int left = 0, right = 0;
+        for (int qi = 0; qi < 50; qi++) {
+            float e3[3];
+            vec3 yl = v3(-1.6 + 1.2 * srng_unit(&r), -1.6 + 1.2 * srng_unit(&r), 0);
+            vec3 yr = v3(0.4 + 1.2 * srng_unit(&r), -1.6 + 1.2 * srng_unit(&r), 0);
+            left += side_cache_lookup(&c, &s, yl, v3(0, 0, 1), 16.0f, e3);
+            right += side_cache_lookup(&c, &s, yr, v3(0, 0, 1), 16.0f, e3);
+        }
+        printf("    %s path ids: %zu of %zu estimates too sparse to read; lookups found left %d of 50, right %d of 50\n",
+               use_paths ? "with" : "without", c.sparse, c.n, left, right);
+        if (use_paths)
+            EXPECT_MSG(left == 0 && c.sparse > 0, "left of the wall %d lookups read estimates of 4 paths", left);
+        else
+            EXPECT_MSG(left == 50 && c.sparse == 0, "without ids: left %d, sparse %zu", left, c.sparse);
+        EXPECT_MSG(right == 50, "right of the wall: %d of 50", right);
+        side_cache_free(&c);
+        pm_kdtree_free(t);
+        photon_maps_free(&m);
+    }
+    scene_free(&s);
 }

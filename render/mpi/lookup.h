@@ -17,10 +17,14 @@
  * as queries (position, normal, free height: 36-byte lk_query). Every rank answers every query
  * from its part: its k/M nearest photons on the query's side (photon_sides.h's visibility test,
  * widened past a wall as there), as the partial sums of a pm_combine_acc (power, farthest
- * power, r^2, count, rim, wall seen: 32 bytes). An all-to-all returns each rank the answers to
- * its queries; it combines them (pm_combine_finish, divided by the visible part of the mean
- * disc when a rank met a wall; the indirect irradiance, as side_cache_build's: direct photons
- * count in the radius, not in the power) and KEEPS ITS OWN RECORDS ONLY (pm_photon with E,
+ * power, r^2, count, the distinct photon paths of its indirect photons, rim, wall seen: 36
+ * bytes). An all-to-all returns each rank the answers to its queries; it combines them
+ * (pm_combine_finish, divided by the visible part of the mean disc when a rank met a wall; the
+ * indirect irradiance, as side_cache_build's: direct photons count in the radius, not in the
+ * power), reads a record only if the parts' path counts add up to SIDE_MIN_PATHS
+ * (photon_sides.h, "Sparse estimates": each part is a run of the map's order, so its paths are
+ * its own but for the few that straddle two parts; the rule needs no k, which a part's k/M
+ * photons never reach) and KEEPS ITS OWN RECORDS ONLY (pm_photon with E,
  * r^2, free height): each rank holds about a quarter of its part's photons as records, 1/M of
  * the whole precomputed irradiance. The cache it builds from them (side_cache_from_records)
  * gets a remote lookup (side_cache.remote), so every final-gather lookup asks every rank.
@@ -29,7 +33,7 @@
  * d2) is answered by every rank from its records as side_cache_lookup does from all of them
  * (side_cache_lookup_local: the module's normal and own-radius rules, the visibility test from
  * y with y's free height, computed once by the asking rank, on the 8 nearest candidates of
- * the part): the record it accepts, as its E and its distance^2 to y (32 bytes), or none. The
+ * the part): the record it accepts, as its E and its distance^2 to y (36 bytes), or none. The
  * nearest answer wins, the lowest rank on a tie. Whenever one process holding all the ranks'
  * records would answer with record R (the first of its 8 nearest candidates that passes), R's
  * rank answers with R too and no rank has a nearer one; the ranks may also answer where that
@@ -43,7 +47,7 @@
  * yet gets a guess (an estimate: 0; a lookup: this rank's own part's answer, which decides
  * whether the gather takes the record or computes the light at y) and is kept. After the trace,
  * the chunk's kept queries go in one message to every other rank; each answers from its part
- * (36 bytes a query out, 32 back), serving other ranks' queries while it waits; the answers are
+ * (36 bytes a query out, 36 back), serving other ranks' queries while it waits; the answers are
  * combined (estimates: the combined-map rule below; lookups: the nearest record). Then only the
  * samples that made queries are traced again, each query taking its answer; a sample whose
  * trace leaves its recorded queries (a guessed lookup found where no rank found, or the other
