@@ -23,6 +23,9 @@
 #define SIDE_WIDEN 4
 /* Candidates a lookup tests for visibility, nearest first. */
 #define SIDE_LOOKUP_CANDIDATES 8u
+/* An estimate's neighbour within this fraction of its distance of the query's tangent plane
+ * lies on the query's own surface (side_estimate: no ray). */
+#define SIDE_PLANE_TOL 1e-3
 /* A lookup's normal rule (irradiance.h): the photon's normal within about 45 degrees of y's. */
 #define SIDE_LOOKUP_COS 0.7f
 
@@ -394,4 +397,96 @@ int side_cache_lookup(const side_cache *c, const scene *s, vec3 y, vec3 n, float
     if (!c->irr) return 0;
     return side_cache_lookup_local(c, s, y, n, side_free_height(s, y, n, 0.25 * sqrt((double)max_dist2)),
                                    max_dist2, e, NULL);
+}
+
+/* ---- estimates of a map that keep to the query's side --------------------------------------- */
+
+int side_map_init(side_map *sm, const scene *s, const pm_kdtree *t, size_t n, float max_dist2, char *err,
+                  size_t errcap) {
+    memset(sm, 0, sizeof *sm);
+    if (!t || n == 0) return 0;
+    sm->hfree = malloc(n * sizeof *sm->hfree);
+    if (!sm->hfree) {
+        snprintf(err, errcap, "side-keeping estimates: out of memory");
+        return PM_ENOMEM;
+    }
+    sm->s = s;
+    sm->t = t;
+    sm->n = n;
+    side_free_heights(s, pm_kdtree_records(t), n, max_dist2, sm->hfree);
+    return 0;
+}
+
+void side_map_free(side_map *sm) {
+    free(sm->hfree);
+    memset(sm, 0, sizeof *sm);
+}
+
+/* 1 if the neighbour at p (normal pn, free height hp) is on the query's side: with no ray when
+ * it lies in the query's tangent plane (within SIDE_PLANE_TOL of its distance, and a float
+ * step), else side_visible_h. *hx: the query's free height, computed at the first ray (< 0:
+ * not yet). */
+static int side_keeps(const scene *s, vec3 x, vec3 n, double *hx, double cap, vec3 p, vec3 pn, double hp) {
+    vec3 d = v3_sub(p, x);
+    double off = fabs(v3_dot(d, n)), len = v3_len(d);
+    if (off <= SIDE_PLANE_TOL * len + 1e-6 * (s->offset_floor + v3_maxabs(x))) return 1;
+    if (*hx < 0) *hx = side_free_height(s, x, n, cap);
+    return side_visible_h(s, x, n, *hx, p, pn, hp);
+}
+
+int side_estimate(const side_map *sm, const float x[3], const float n[3], const pm_estimate_options *o,
+                  void *scratch, pm_estimate_result *res) {
+    const scene *s = sm->s;
+    memset(res, 0, sizeof *res);
+    if (!sm->t) {
+        res->flags = PM_EST_F_EMPTY;
+        return PM_OK;
+    }
+    const pm_photon *ph = pm_kdtree_records(sm->t);
+    float nrm[3];
+    pm_knn_options ko;
+    pm_estimate_search_options(o, n, nrm, &ko);
+    ko.flags |= PM_SORT;
+    /* The wrapper's layout of scratch (estimate.h): k neighbours, then the core's part. */
+    pm_neighbor *nb = scratch;
+    void *core = (char *)scratch + (((size_t)o->k * sizeof *nb + 7u) & ~(size_t)7u);
+    int found = pm_kdtree_knn_ex(sm->t, x, o->k, o->max_dist2, &ko, nb, NULL);
+    if (found < 0) return found;
+    vec3 xv = v3f(x), nv = v3f(n);
+    double hx = -1, cap = 0.25 * sqrt((double)o->max_dist2);
+    int hidden = 0;
+    for (int i = 0; i < found && !hidden; i++) {
+        if (nb[i].dist2 == 0) continue;
+        const pm_photon *p = &ph[nb[i].index];
+        float pn[3];
+        pm_normal_decode(p->normal, pn);
+        hidden = !side_keeps(s, xv, nv, &hx, cap, v3f(p->pos), v3f(pn), sm->hfree[nb[i].index]);
+    }
+    if (!hidden) return pm_estimate_core(ph, nb, (unsigned)found, x, n, o, core, res);
+    /* A neighbour behind a surface: as side_cache_build, take SIDE_WIDEN x k candidates in order
+     * of distance and keep the ones on x's side until k are kept; the area is the disc up to
+     * the k-th kept, or, short of k, up to the last candidate examined (a wall that cuts the
+     * disc leaves it low there, as at any edge of a lit region; never a leak). */
+    unsigned want = (unsigned)SIDE_WIDEN * o->k;
+    pm_neighbor *wide = malloc((size_t)want * sizeof *wide);
+    if (!wide) return PM_ENOMEM;
+    int n2 = pm_kdtree_knn_ex(sm->t, x, want, o->max_dist2, &ko, wide, NULL);
+    if (n2 < 0) n2 = 0;
+    unsigned kept = 0;
+    for (int i = 0; i < n2 && kept < o->k; i++) {
+        int keep = 1;
+        if (wide[i].dist2 > 0) {
+            const pm_photon *p = &ph[wide[i].index];
+            float pn[3];
+            pm_normal_decode(p->normal, pn);
+            keep = side_keeps(s, xv, nv, &hx, cap, v3f(p->pos), v3f(pn), sm->hfree[wide[i].index]);
+        }
+        if (keep) wide[kept++] = wide[i];
+    }
+    pm_estimate_options oo = *o;
+    if (kept < o->k && (unsigned)n2 == want) oo.max_dist2 = wide[n2 - 1].dist2; /* examined up to there */
+    int rc = kept ? pm_estimate_core(ph, wide, kept, x, n, &oo, core, res) : PM_OK;
+    if (!kept) res->flags = PM_EST_F_EMPTY;
+    free(wide);
+    return rc;
 }

@@ -80,6 +80,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "photonmap/estimate.h"
 #include "photonmap/irradiance.h"
 #include "photonmap/kdtree.h"
 #include "photonmap/photon.h"
@@ -169,6 +170,39 @@ int side_cache_lookup(const side_cache *c, const scene *s, vec3 y, vec3 n, float
  * in pos (if not NULL), or 0 (none: e = 0). side_cache_lookup is this with hy computed. */
 int side_cache_lookup_local(const side_cache *c, const scene *s, vec3 y, vec3 n, double hy,
                             float max_dist2, float e[3], float pos[3]);
+
+/* Radiance estimates of a map read directly (the photon mapper's caustic map) that keep to the
+ * query's side: side_estimate is pm_estimate (the same search, pm_filter_front and squash as
+ * the options say, and the same core), but a neighbour that lies off the query's tangent plane
+ * (by more than 1e-3 of its distance) counts only if side_visible_h sees it from the query
+ * (the free heights of the map's photons are computed once, by side_map_init: one ray each).
+ * Why: a photon off the query's plane may lie on another surface across a wall, and its
+ * power reached that surface, not the query's: D's cage (a closed box of nearly-mirror walls
+ * with a point light inside, standing 0.5 above a floor) has caustic photons on its bottom's
+ * inner face, facing up like the floor below and travelling down, so the direction and normal
+ * rules pass them and the floor read 0.0196 where nothing reaches it. When one is hidden, the
+ * estimate takes SIDE_WIDEN x k candidates and keeps those on its side, as side_cache_build
+ * does. Photons in the query's own plane are taken without a ray, so a caustic on a flat floor
+ * costs nothing more; LIMIT: a wall standing on that plane between the query and a photon is
+ * not seen by this rule (the same floor on both sides of a wall), only by the distance. */
+typedef struct side_map {
+    const scene *s;
+    const pm_kdtree *t; /* the map's tree (records in tree order), or NULL: empty */
+    float *hfree;       /* the free height of each record (side_free_heights) */
+    size_t n;
+} side_map;
+/* For the tree t of n records in scene s (kept: it must outlive sm), estimates within radius^2
+ * max_dist2 (the lift's cap). 0, or PM_ENOMEM with a message. side_map_free frees it (a zeroed
+ * one too). */
+int side_map_init(side_map *sm, const scene *s, const pm_kdtree *t, size_t n, float max_dist2, char *err,
+                  size_t errcap);
+void side_map_free(side_map *sm);
+/* pm_estimate over sm's map at x (unit normal n, the side the viewer is on) keeping to x's side
+ * (above). scratch: pm_estimate_scratch_bytes(o->k) bytes. PM_OK (res set; an estimate whose
+ * every neighbour is hidden is 0, PM_EST_F_EMPTY), or a negative PM_E* code. Reentrant; it
+ * allocates only when a neighbour is hidden. */
+int side_estimate(const side_map *sm, const float x[3], const float n[3], const pm_estimate_options *o,
+                  void *scratch, pm_estimate_result *res);
 
 #ifdef __cplusplus
 }

@@ -78,6 +78,7 @@ typedef struct mapper_state {
     pm_kdtree *tg, *tc, *ts; /* global, caustic, shadow trees (NULL when absent/empty) */
     pmv_state vol; /* participating media: volume maps and ray marching (pm_volume.h) */
     side_cache sides; /* precomputed irradiance that keeps to each query's side (photon_sides.h) */
+    side_map caus_side; /* the caustic map's estimates keep to the query's side (photon_sides.h) */
     gather_guide gg; /* the opening the gathers aim a share of their rays at (gather_guide.h) */
     float r2_global, r2_caustic, r2_shadow, r2_lookup;
     size_t nglobal_all, ncaustic_all; /* photons in the whole maps (all processes' parts) */
@@ -121,9 +122,10 @@ static void to_f3(vec3 v, float f[3]) {
     f[2] = (float)v.z;
 }
 
-/* Radiance estimate from a map at x (normal ns, the side the viewer is on). */
-static rgb map_estimate(const pm_kdtree *t, const pm_estimate_options *base, vec3 x, vec3 ns,
-                        rgb albedo, void *scratch) {
+/* Radiance estimate from a map at x (normal ns, the side the viewer is on); through side_estimate
+ * when sm is given (photons beyond a surface left out, photon_sides.h). */
+static rgb map_estimate(const pm_kdtree *t, const side_map *sm, const pm_estimate_options *base, vec3 x,
+                        vec3 ns, rgb albedo, void *scratch) {
     pm_estimate_options o = *base;
     float xf[3], nf[3], df[3];
     to_f3(x, xf);
@@ -131,7 +133,8 @@ static rgb map_estimate(const pm_kdtree *t, const pm_estimate_options *base, vec
     to_f3(albedo, df);
     o.diffuse = df;
     pm_estimate_result res;
-    if (pm_estimate(t, xf, nf, &o, scratch, &res, NULL) < 0) return v3s(0);
+    if ((sm ? side_estimate(sm, xf, nf, &o, scratch, &res) : pm_estimate(t, xf, nf, &o, scratch, &res, NULL)) < 0)
+        return v3s(0);
     return v3(res.rgb[0], res.rgb[1], res.rgb[2]);
 }
 
@@ -140,8 +143,9 @@ static rgb map_estimate(const pm_kdtree *t, const pm_estimate_options *base, vec
 static rgb estimate_at(const mapper_state *st, int which, vec3 x, vec3 ns, rgb albedo,
                        mapper_scratch *sc) {
     if (!g_lookup)
-        return which == PHOTON_LOOKUP_CAUSTIC ? map_estimate(st->tc, &st->caus_opt, x, ns, albedo, sc->est)
-                                              : map_estimate(st->tg, &st->glob_opt, x, ns, albedo, sc->est);
+        return which == PHOTON_LOOKUP_CAUSTIC
+                   ? map_estimate(st->tc, &st->caus_side, &st->caus_opt, x, ns, albedo, sc->est)
+                   : map_estimate(st->tg, NULL, &st->glob_opt, x, ns, albedo, sc->est);
     double e[3];
     g_lookup->estimate(g_lookup->user, sc->id, which, x, ns, e);
     return v3(albedo.x * e[0] / M_PI, albedo.y * e[1] / M_PI, albedo.z * e[2] / M_PI);
@@ -619,6 +623,7 @@ static void mapper_destroy(integrator *self) {
     mapper_state *st = self->data;
     if (!st) return;
     side_cache_free(&st->sides);
+    side_map_free(&st->caus_side);
     gather_guide_free(&st->gg);
     pmv_free(&st->vol);
     pm_kdtree_free(st->tg);
@@ -702,6 +707,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         (rc = photon_tree_build(&st->tc, m->caustic, m->ncaustic, BUCKET_CAUSTIC, err, errcap)) < 0 ||
         (rc = photon_tree_build(&st->ts, m->shadow, m->nshadow, BUCKET_SHADOW, err, errcap)) < 0)
         return rc;
+    if ((rc = side_map_init(&st->caus_side, s, st->tc, m->ncaustic, rad.r2_caustic, err, errcap)) < 0) return rc;
     stats_time_add("Time/Photon kd-trees", stats_now() - t0);
     st->r2_global = rad.r2_global;
     st->r2_caustic = rad.r2_caustic;
