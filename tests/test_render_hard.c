@@ -9,7 +9,8 @@
  * data/scenes/shelf_glass.json (a glass sphere under a shelf: the region under it is lit only
  * by light bounced in past the shelf's edge) and pinhole_room.json (a closed room lit through
  * a 10 x 10 hole: a handful of photons get in, and the lit patch under the hole sees a few
- * percent of the light): region means against path tracing.
+ * percent of the light): region means against path tracing. A caustic cage (scene text in the
+ * test): nothing leaves it, and photon mapping must read 0 outside.
  */
 #include <math.h>
 #include <stdio.h>
@@ -172,6 +173,54 @@ TEST(render_hard_pinhole_room_regions) {
                100 * r[i].tol);
         EXPECT_MSG(fabs(rel) < r[i].tol, "pinhole_room %s: %+.2f%%", r[i].name, 100 * rel);
     }
+    film_free(&a);
+    film_free(&b);
+}
+
+/* Helper D's cage: a point light inside a closed box of nearly-mirror quads (specular 0.99999,
+ * a trace of diffuse: caustic photons are stored on its inner faces), the box standing 0.5
+ * above a floor. No light leaves the box, so the exact image is 0 (path tracing gives exactly
+ * 0). The floor's caustic estimates found the photons on the box bottom's inner face, 0.5
+ * above, facing up like the floor and travelling down, so the direction and normal rules let
+ * them in: the image read 0.0094 (16x16, 16 spp, 20,000 caustic photons). Photon mapping must
+ * stay below 1e-6 (measured 2.9e-10 with side_estimate, photon_sides.h). */
+static const char *CAGE_SCENE =
+    "{\"camera\": {\"eye\": [0, 3, -8], \"look_at\": [0, 1, 0], \"fov_deg\": 50, \"width\": 16, \"height\": 16},"
+    " \"materials\": {\"mirror\": {\"type\": \"mix\", \"specular\": 0.99999, \"diffuse\": 0.5},"
+    "  \"white\": {\"type\": \"lambert\", \"reflectance\": 0.5}},"
+    " \"objects\": ["
+    "  {\"type\": \"quad\", \"vertices\": [[-1, 0.5, -1], [1, 0.5, -1], [1, 0.5, 1], [-1, 0.5, 1]], \"material\": \"mirror\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-1, 2.5, -1], [-1, 2.5, 1], [1, 2.5, 1], [1, 2.5, -1]], \"material\": \"mirror\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-1, 0.5, -1], [-1, 2.5, -1], [1, 2.5, -1], [1, 0.5, -1]], \"material\": \"mirror\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-1, 0.5, 1], [1, 0.5, 1], [1, 2.5, 1], [-1, 2.5, 1]], \"material\": \"mirror\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-1, 0.5, -1], [-1, 0.5, 1], [-1, 2.5, 1], [-1, 2.5, -1]], \"material\": \"mirror\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[1, 0.5, -1], [1, 2.5, -1], [1, 2.5, 1], [1, 0.5, 1]], \"material\": \"mirror\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-5, 0, -5], [-5, 0, 5], [5, 0, 5], [5, 0, -5]], \"material\": \"white\"}],"
+    " \"lights\": [{\"type\": \"point\", \"position\": [0, 1.5, 0], \"power\": 50}]}";
+
+TEST(render_hard_caustic_cage_no_leak) {
+    char scn[1024], pt[1024], pm[1024], cmd[4096], out[16384];
+    snprintf(scn, sizeof scn, "%s/caustic_cage.json", pm_test_tmpdir());
+    snprintf(pt, sizeof pt, "%s/caustic_cage_pt.pfm", pm_test_tmpdir());
+    snprintf(pm, sizeof pm, "%s/caustic_cage_pm.pfm", pm_test_tmpdir());
+    FILE *f = fopen(scn, "w");
+    ASSERT(f != NULL);
+    fputs(CAGE_SCENE, f);
+    fclose(f);
+    const char *flags[2] = {"--mode path --spp 16", "--mode pm --spp 16 --pm global=false --pm caustic_photons=20000"};
+    const char *files[2] = {pt, pm};
+    for (int i = 0; i < 2; i++) {
+        snprintf(cmd, sizeof cmd, "%s/render '%s' --width 16 --height 16 --quiet --hdr '%s' %s 2>&1",
+                 pm_test_build_dir(), scn, files[i], flags[i]);
+        int rc = pm_test_run(cmd, out, sizeof out);
+        ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
+    }
+    film a, b;
+    ASSERT(film_read_pfm(&a, pt) == 0 && film_read_pfm(&b, pm) == 0);
+    double ma = rect_mean(&a, 0, 0, 16, 16), mb = rect_mean(&b, 0, 0, 16, 16);
+    printf("    caustic cage: path %.3g, photon mapping %.3g (bound 1e-6)\n", ma, mb);
+    EXPECT_MSG(ma == 0, "path tracing lights the outside of the cage: %g", ma);
+    EXPECT_MSG(mb < 1e-6, "caustic photons leak out of the cage: %g", mb);
     film_free(&a);
     film_free(&b);
 }
