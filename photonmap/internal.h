@@ -7,7 +7,9 @@
  * queries promise not to): insertion sort for short arrays, where it is fastest, heapsort
  * otherwise, so the worst case stays O(n log n). Indices are distinct, so every correct sort
  * gives the same array. PM_SORT's sort of up to 256 results is pm__nb_sort_keys below (SIMD
- * ranks on 16-bit keys for 16..96 results, 16..128 under AVX2, else a 64-bit-key merge sort).
+ * ranks on 16-bit keys for 16..96 results, 16..128 under -mavx2, else a 64-bit-key merge sort;
+ * the rank loop uses AVX2 whenever the CPU has it: RUNTIME AVX2 below, the one function here
+ * that is static but not inline).
  *
  * HEAP. A binary max-heap on dist2 alone, in h[0..n): h[0] is the farthest, the current k-th
  * distance of a k-nearest search. pm__heap_sift_down places v at slot i and moves it down;
@@ -172,25 +174,189 @@ static inline void pm__knn_offer(pm_neighbor *out, unsigned k, unsigned *found, 
 #define PM__SORT_RANK_MIN 16u
 #if defined(__AVX2__)
 #define PM__SORT_RANK_MAX 128u
-#define PM__SORT_RANK_LANES 64u /* keys per pass of the rank loop: 4 vectors of 16 */
 #else
 #define PM__SORT_RANK_MAX 96u
-#define PM__SORT_RANK_LANES 32u /* 4 vectors of 8 */
 #endif
+#define PM__SORT_RANK_LANES 64u /* keys per pass of the AVX2 rank loop: 4 vectors of 16 */
+
+/* RUNTIME AVX2. A build without -mavx2 (the default: it must run on any x86-64) still counts
+ * the ranks with AVX2 when the CPU has it: the AVX2 loop is compiled for that target alone
+ * (a function attribute; GCC and clang) and chosen per call by pm__have_avx2, which asks cpuid
+ * once (AVX2, and that the OS saves the AVX state: OSXSAVE and XCR0) and keeps the answer in
+ * an atomic flag (__builtin_cpu_supports would need libgcc's __cpu_model, which the shared
+ * library does not link). The SSE2 loop stays for CPUs without AVX2. Both count the same
+ * ranks, so the results are the same arrays (tests/test_kdtree_sort.c runs both). Define
+ * PM_NO_RUNTIME_AVX2 to leave it out. */
+#if !defined(__AVX2__) && defined(__GNUC__) && (defined(__x86_64__) || defined(__i386__)) &&     \
+    !defined(PM_NO_RUNTIME_AVX2)
+#define PM__RANK_RUNTIME_AVX2 1
+#define PM__TARGET_AVX2 __attribute__((target("avx2"), noinline, unused))
+#include <cpuid.h>
+#include <immintrin.h>
+#include <stdatomic.h>
+static inline int pm__detect_avx2(void) {
+    unsigned a, b, c, d;
+    if (!__get_cpuid(1, &a, &b, &c, &d)) return 0;
+    if (!(c & (1u << 27)) || !(c & (1u << 28))) return 0; /* OSXSAVE, AVX */
+    unsigned xlo, xhi;
+    __asm__ volatile("xgetbv" : "=a"(xlo), "=d"(xhi) : "c"(0u));
+    (void)xhi;
+    if ((xlo & 6u) != 6u) return 0; /* the OS saves the SSE and AVX state */
+    if (!__get_cpuid_count(7, 0, &a, &b, &c, &d)) return 0;
+    return (b >> 5) & 1u; /* AVX2 */
+}
+static inline int pm__have_avx2(void) {
+    static atomic_int have = -1; /* one per file that includes this; each asks once */
+    int h = atomic_load_explicit(&have, memory_order_relaxed);
+    if (h < 0) {
+        h = pm__detect_avx2();
+        atomic_store_explicit(&have, h, memory_order_relaxed);
+    }
+    return h;
+}
+#else
+#define PM__RANK_RUNTIME_AVX2 0
+#define PM__TARGET_AVX2 inline
+static inline int pm__have_avx2(void) {
+#if defined(__AVX2__)
+    return 1;
+#else
+    return 0;
+#endif
+}
+#endif
+
+#if defined(__AVX2__) || PM__RANK_RUNTIME_AVX2
+/* The AVX2 rank loop: rank[i] = -#{j < n: key[j] < key[i]} for i < nl (nl: n rounded up to
+ * whole passes of PM__SORT_RANK_LANES; key[n..nl) = -32768, so those lanes get rank 0); returns
+ * the sum of the n ranks. Four independent counters per pass (one would be a chain of n
+ * dependent adds). */
+static PM__TARGET_AVX2 unsigned pm__rank_avx2(const int16_t *key, int16_t *rank, unsigned n,
+                                              unsigned nl) {
+    enum { L = PM__SORT_RANK_LANES };
+    __m256i tot = _mm256_setzero_si256();
+    for (unsigned g = 0; g < nl; g += L) {
+        const __m256i *kv = (const __m256i *)(const void *)&key[g];
+        __m256i *rv = (__m256i *)(void *)&rank[g];
+        const __m256i A0 = _mm256_loadu_si256(kv), A1 = _mm256_loadu_si256(kv + 1),
+                      A2 = _mm256_loadu_si256(kv + 2), A3 = _mm256_loadu_si256(kv + 3);
+        __m256i c0 = _mm256_setzero_si256(), c1 = c0, c2 = c0, c3 = c0;
+        for (unsigned j = 0; j < n; j++) {
+            const __m256i B = _mm256_set1_epi16(key[j]);
+            c0 = _mm256_add_epi16(c0, _mm256_cmpgt_epi16(A0, B));
+            c1 = _mm256_add_epi16(c1, _mm256_cmpgt_epi16(A1, B));
+            c2 = _mm256_add_epi16(c2, _mm256_cmpgt_epi16(A2, B));
+            c3 = _mm256_add_epi16(c3, _mm256_cmpgt_epi16(A3, B));
+        }
+        _mm256_storeu_si256(rv, c0);
+        _mm256_storeu_si256(rv + 1, c1);
+        _mm256_storeu_si256(rv + 2, c2);
+        _mm256_storeu_si256(rv + 3, c3);
+        const __m256i c = _mm256_add_epi16(_mm256_add_epi16(c0, c1), _mm256_add_epi16(c2, c3));
+        tot = _mm256_add_epi32(tot, _mm256_madd_epi16(c, _mm256_set1_epi16(-1)));
+    }
+    __m128i s = _mm_add_epi32(_mm256_castsi256_si128(tot), _mm256_extracti128_si256(tot, 1));
+    s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0x4e));
+    s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0xb1));
+    return (unsigned)_mm_cvtsi128_si32(s);
+}
+#endif
+
+/* The SSE2 rank loop of pm__nb_sort_rank for G (1..8, a constant once inlined) vectors of 8
+ * keys A[0..G): out[u] = -(the number of keys kk[0..n) below each of A[u]'s keys). Eight keys
+ * are broadcast from one load by an unpack and four shuffles each (one shuffle a key, against
+ * three instructions for a _mm_set1_epi16 from memory), and every broadcast serves all G
+ * vectors with G independent counters. */
+#define PM__RANK_STEP(b)                                                                         \
+    do {                                                                                         \
+        c0 = _mm_add_epi16(c0, _mm_cmpgt_epi16(A[0], b));                                        \
+        if (G > 1) c1 = _mm_add_epi16(c1, _mm_cmpgt_epi16(A[1], b));                             \
+        if (G > 2) c2 = _mm_add_epi16(c2, _mm_cmpgt_epi16(A[2], b));                             \
+        if (G > 3) c3 = _mm_add_epi16(c3, _mm_cmpgt_epi16(A[3], b));                             \
+        if (G > 4) c4 = _mm_add_epi16(c4, _mm_cmpgt_epi16(A[4], b));                             \
+        if (G > 5) c5 = _mm_add_epi16(c5, _mm_cmpgt_epi16(A[5], b));                             \
+        if (G > 6) c6 = _mm_add_epi16(c6, _mm_cmpgt_epi16(A[6], b));                             \
+        if (G > 7) c7 = _mm_add_epi16(c7, _mm_cmpgt_epi16(A[7], b));                             \
+    } while (0)
+static inline __attribute__((always_inline)) void pm__rank_group(const unsigned G, const __m128i *A,
+                                                                 const int16_t *kk, unsigned n,
+                                                                 __m128i *out) {
+    __m128i c0 = _mm_setzero_si128(), c1 = c0, c2 = c0, c3 = c0, c4 = c0, c5 = c0, c6 = c0, c7 = c0;
+    unsigned j = 0;
+    for (; j + 8 <= n; j += 8) {
+        const __m128i K = _mm_loadu_si128((const __m128i *)(const void *)&kk[j]);
+        const __m128i lo = _mm_unpacklo_epi16(K, K), hi = _mm_unpackhi_epi16(K, K);
+        __m128i b;
+        b = _mm_shuffle_epi32(lo, 0x00);
+        PM__RANK_STEP(b);
+        b = _mm_shuffle_epi32(lo, 0x55);
+        PM__RANK_STEP(b);
+        b = _mm_shuffle_epi32(lo, 0xaa);
+        PM__RANK_STEP(b);
+        b = _mm_shuffle_epi32(lo, 0xff);
+        PM__RANK_STEP(b);
+        b = _mm_shuffle_epi32(hi, 0x00);
+        PM__RANK_STEP(b);
+        b = _mm_shuffle_epi32(hi, 0x55);
+        PM__RANK_STEP(b);
+        b = _mm_shuffle_epi32(hi, 0xaa);
+        PM__RANK_STEP(b);
+        b = _mm_shuffle_epi32(hi, 0xff);
+        PM__RANK_STEP(b);
+    }
+    for (; j < n; j++) {
+        const __m128i b = _mm_set1_epi16(kk[j]);
+        PM__RANK_STEP(b);
+    }
+    out[0] = c0;
+    if (G > 1) out[1] = c1;
+    if (G > 2) out[2] = c2;
+    if (G > 3) out[3] = c3;
+    if (G > 4) out[4] = c4;
+    if (G > 5) out[5] = c5;
+    if (G > 6) out[6] = c6;
+    if (G > 7) out[7] = c7;
+}
+#undef PM__RANK_STEP
+
+/* The SSE2 rank loop: as pm__rank_avx2 for the nv = ceil(n / 8) vectors of keys. One pass over
+ * the keys for up to 8 vectors (64 keys), so that each key's broadcast serves them all; longer
+ * arrays take 8 and then the rest. */
+static inline unsigned pm__rank_sse2(const __m128i *keyv, const int16_t *key, __m128i *rankv,
+                                     unsigned n) {
+    const unsigned nv = (n + 7) / 8;
+    unsigned g = 0;
+    for (; g + 8 <= nv; g += 8) pm__rank_group(8, &keyv[g], key, n, &rankv[g]);
+    switch (nv - g) {
+    case 7: pm__rank_group(7, &keyv[g], key, n, &rankv[g]); break;
+    case 6: pm__rank_group(6, &keyv[g], key, n, &rankv[g]); break;
+    case 5: pm__rank_group(5, &keyv[g], key, n, &rankv[g]); break;
+    case 4: pm__rank_group(4, &keyv[g], key, n, &rankv[g]); break;
+    case 3: pm__rank_group(3, &keyv[g], key, n, &rankv[g]); break;
+    case 2: pm__rank_group(2, &keyv[g], key, n, &rankv[g]); break;
+    case 1: pm__rank_group(1, &keyv[g], key, n, &rankv[g]); break;
+    default: break;
+    }
+    __m128i s = _mm_setzero_si128();
+    for (g = 0; g < nv; g++) s = _mm_add_epi32(s, _mm_madd_epi16(rankv[g], _mm_set1_epi16(-1)));
+    s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0x4e));
+    s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0xb1));
+    return (unsigned)_mm_cvtsi128_si32(s);
+}
 
 /* Sorts a[0..n), 2 <= n <= PM__SORT_RANK_MAX, by (dist2, index) ascending and returns 1, or
  * returns 0 with a unchanged. Each dist2 becomes a 16-bit key, key = trunc((dist2 - lo) * s)
  * - 32768 with [lo, hi] the range of the dist2 and s = 65535 / (hi - lo), then each entry's
  * rank, the number of keys below its own, is counted by SIMD compares of every key against
- * every other (n^2 / 8 compares with SSE2, n^2 / 16 with AVX2; no branch depends on the data),
- * and the entry goes to out[rank]. The key is a non-decreasing function of dist2 (each float
+ * every other (n^2 / 8 compares with SSE2, n^2 / 16 with AVX2, which `avx2` selects; no branch
+ * depends on the data), and the entry goes to out[rank]. The key is a non-decreasing function of dist2 (each float
  * operation rounds monotonically, also when denormals flush to zero), so two entries with
  * different keys are in the right order; and the ranks sum to n(n-1)/2 exactly when no two keys
  * are equal (a tie lowers the later ranks of its group), in which case no two dist2 are equal
  * either and the order by keys IS the order by (dist2, index). Otherwise (keys tied: about 2%
  * of k = 50 results; all dist2 equal; a dist2 of +inf, which makes the range infinite) it
  * returns 0 and the merge sort below decides. dist2 is never NaN or negative (see below). */
-static inline int pm__nb_sort_rank(pm_neighbor *a, unsigned n) {
+static inline int pm__nb_sort_rank_with(pm_neighbor *a, unsigned n, int avx2) {
     enum { L = PM__SORT_RANK_LANES };
     union {
         int16_t k[PM__SORT_RANK_MAX + L];
@@ -240,65 +406,23 @@ static inline int pm__nb_sort_rank(pm_neighbor *a, unsigned n) {
         }
         for (; b < nl / 8; b++) key.v[b] = _mm_set1_epi16(-32768);
     }
-    /* rank.k[i] = -#{j < n: key[j] < key[i]}: a compare's true lane is -1; four independent
-     * counters per pass (one would be a chain of n dependent adds) */
-#if defined(__AVX2__)
-    __m256i tot = _mm256_setzero_si256();
-    for (unsigned g = 0; g < nl; g += L) {
-        const __m256i *kv = (const __m256i *)(const void *)&key.k[g];
-        __m256i *rv = (__m256i *)(void *)&rank.k[g];
-        const __m256i A0 = _mm256_loadu_si256(kv), A1 = _mm256_loadu_si256(kv + 1),
-                      A2 = _mm256_loadu_si256(kv + 2), A3 = _mm256_loadu_si256(kv + 3);
-        __m256i c0 = _mm256_setzero_si256(), c1 = c0, c2 = c0, c3 = c0;
-        for (unsigned j = 0; j < n; j++) {
-            const __m256i B = _mm256_set1_epi16(key.k[j]);
-            c0 = _mm256_add_epi16(c0, _mm256_cmpgt_epi16(A0, B));
-            c1 = _mm256_add_epi16(c1, _mm256_cmpgt_epi16(A1, B));
-            c2 = _mm256_add_epi16(c2, _mm256_cmpgt_epi16(A2, B));
-            c3 = _mm256_add_epi16(c3, _mm256_cmpgt_epi16(A3, B));
-        }
-        _mm256_storeu_si256(rv, c0);
-        _mm256_storeu_si256(rv + 1, c1);
-        _mm256_storeu_si256(rv + 2, c2);
-        _mm256_storeu_si256(rv + 3, c3);
-        const __m256i c = _mm256_add_epi16(_mm256_add_epi16(c0, c1), _mm256_add_epi16(c2, c3));
-        tot = _mm256_add_epi32(tot, _mm256_madd_epi16(c, _mm256_set1_epi16(-1)));
-    }
-    __m128i s = _mm_add_epi32(_mm256_castsi256_si128(tot), _mm256_extracti128_si256(tot, 1));
-#else
-    __m128i s = _mm_setzero_si128();
-    for (unsigned g = 0; g < nl / 8; g += 4) {
-        const __m128i A0 = key.v[g], A1 = key.v[g + 1], A2 = key.v[g + 2], A3 = key.v[g + 3];
-        __m128i c0 = _mm_setzero_si128(), c1 = c0, c2 = c0, c3 = c0;
-        unsigned j = 0;
-        for (; j + 2 <= n; j += 2) { /* two keys a step: gcc keeps the counters in place */
-            const __m128i B = _mm_set1_epi16(key.k[j]), C = _mm_set1_epi16(key.k[j + 1]);
-            c0 = _mm_add_epi16(c0, _mm_cmpgt_epi16(A0, B));
-            c1 = _mm_add_epi16(c1, _mm_cmpgt_epi16(A1, B));
-            c2 = _mm_add_epi16(c2, _mm_cmpgt_epi16(A2, B));
-            c3 = _mm_add_epi16(c3, _mm_cmpgt_epi16(A3, B));
-            c0 = _mm_add_epi16(c0, _mm_cmpgt_epi16(A0, C));
-            c1 = _mm_add_epi16(c1, _mm_cmpgt_epi16(A1, C));
-            c2 = _mm_add_epi16(c2, _mm_cmpgt_epi16(A2, C));
-            c3 = _mm_add_epi16(c3, _mm_cmpgt_epi16(A3, C));
-        }
-        if (j < n) {
-            const __m128i B = _mm_set1_epi16(key.k[j]);
-            c0 = _mm_add_epi16(c0, _mm_cmpgt_epi16(A0, B));
-            c1 = _mm_add_epi16(c1, _mm_cmpgt_epi16(A1, B));
-            c2 = _mm_add_epi16(c2, _mm_cmpgt_epi16(A2, B));
-            c3 = _mm_add_epi16(c3, _mm_cmpgt_epi16(A3, B));
-        }
-        rank.v[g] = c0, rank.v[g + 1] = c1, rank.v[g + 2] = c2, rank.v[g + 3] = c3;
-        const __m128i c = _mm_add_epi16(_mm_add_epi16(c0, c1), _mm_add_epi16(c2, c3));
-        s = _mm_add_epi32(s, _mm_madd_epi16(c, _mm_set1_epi16(-1)));
-    }
+    /* rank.k[i] = -#{j < n: key[j] < key[i]}: a compare's true lane is -1 */
+    unsigned total;
+#if defined(__AVX2__) || PM__RANK_RUNTIME_AVX2
+    if (avx2)
+        total = pm__rank_avx2(key.k, rank.k, n, nl);
+    else
 #endif
-    s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0x4e));
-    s = _mm_add_epi32(s, _mm_shuffle_epi32(s, 0xb1));
-    if ((unsigned)_mm_cvtsi128_si32(s) != n * (n - 1) / 2) return 0; /* two keys are equal */
+        total = pm__rank_sse2(key.v, key.k, rank.v, n);
+    (void)avx2;
+    if (total != n * (n - 1) / 2) return 0; /* two keys are equal */
     for (i = 0; i < n; i++) a[-rank.k[i]] = t[i];
     return 1;
+}
+
+/* pm__nb_sort_rank_with on this CPU's fastest rank loop. */
+static inline int pm__nb_sort_rank(pm_neighbor *a, unsigned n) {
+    return pm__nb_sort_rank_with(a, n, pm__have_avx2());
 }
 #endif /* __SSE2__ */
 

@@ -96,7 +96,9 @@ TEST(kdtree_sort_matches_qsort) {
  * evenly spaced distinct values (their keys are at least 65535 / (n - 1) apart). On k-NN-like
  * values it must accept most arrays (the speed it exists for: internal.h says about 2% of
  * k = 50 results decline; the test allows 10% at n = 50). */
-TEST(kdtree_sort_rank_exact_or_declines) {
+/* Both rank loops: the SSE2 one, and the AVX2 one where the CPU has it (compiled in by -mavx2
+ * or chosen at run time, internal.h: RUNTIME AVX2). */
+static void rank_exact_or_declines(int avx2) {
     kt_rng r = {777};
     pm_neighbor a[PM__SORT_RANK_MAX], b[PM__SORT_RANK_MAX], c[PM__SORT_RANK_MAX];
     int reps = PM_TEST_SANITIZED ? 3 : 40, bad = 0;
@@ -108,14 +110,15 @@ TEST(kdtree_sort_rank_exact_or_declines) {
                 memcpy(c, a, n * sizeof *a);
                 memcpy(b, a, n * sizeof *a);
                 qsort(b, n, sizeof *b, ref_cmp);
-                int ok = pm__nb_sort_rank(a, n);
+                int ok = pm__nb_sort_rank_with(a, n, avx2);
                 int tie = 0, inf = 0;
                 for (unsigned i = 0; i < n; i++) {
                     if (i && b[i].dist2 == b[i - 1].dist2) tie = 1;
                     if (isinf(b[i].dist2)) inf = 1;
                 }
                 if (ok && !same(a, b, n)) {
-                    EXPECT_MSG(0, "n = %u, distribution %d: accepted, differs from qsort", n, dist);
+                    EXPECT_MSG(0, "avx2 %d, n = %u, distribution %d: accepted, differs from qsort",
+                               avx2, n, dist);
                     bad = 1;
                 } else if (!ok && !same(a, c, n)) {
                     EXPECT_MSG(0, "n = %u, distribution %d: declined and changed the array", n,
@@ -128,16 +131,23 @@ TEST(kdtree_sort_rank_exact_or_declines) {
                 }
                 if (dist == SD_KNN && n == 50) knn50++, knn50_ok += ok;
             }
-    EXPECT_MSG(knn50_ok >= knn50 * 9 / 10, "accepted %ld of %ld k-NN arrays at n = 50", knn50_ok,
-               knn50);
+    EXPECT_MSG(knn50_ok >= knn50 * 9 / 10, "avx2 %d: accepted %ld of %ld k-NN arrays at n = 50",
+               avx2, knn50_ok, knn50);
     for (unsigned n = 2; n <= PM__SORT_RANK_MAX; n++) {
         for (unsigned i = 0; i < n; i++) { /* evenly spaced, in reverse */
             a[i].dist2 = 1.0f + (float)(n - 1 - i);
             a[i].index = i;
         }
-        EXPECT_MSG(pm__nb_sort_rank(a, n), "n = %u: declined distinct, evenly spaced values", n);
+        EXPECT_MSG(pm__nb_sort_rank_with(a, n, avx2),
+                   "avx2 %d, n = %u: declined distinct, evenly spaced values", avx2, n);
         for (unsigned i = 0; i < n; i++) EXPECT(a[i].dist2 == 1.0f + (float)i);
     }
+}
+
+TEST(kdtree_sort_rank_exact_or_declines) {
+    rank_exact_or_declines(0);
+    if (pm__have_avx2()) rank_exact_or_declines(1);
+    else printf("    this CPU has no AVX2: the SSE2 rank loop only\n");
 }
 #endif
 
