@@ -434,26 +434,14 @@ static int side_keeps(const scene *s, vec3 x, vec3 n, double *hx, double cap, ve
     return side_visible_h(s, x, n, *hx, p, pn, hp);
 }
 
-int side_estimate(const side_map *sm, const float x[3], const float n[3], const pm_estimate_options *o,
-                  void *scratch, pm_estimate_result *res) {
+int side_neighbours(const side_map *sm, const float x[3], const float n[3], const pm_knn_options *ko, unsigned k,
+                    float max_dist2, pm_neighbor *nb, int found, float *limit) {
+    *limit = max_dist2;
+    if (!sm->t || found <= 0) return found < 0 ? 0 : found;
     const scene *s = sm->s;
-    memset(res, 0, sizeof *res);
-    if (!sm->t) {
-        res->flags = PM_EST_F_EMPTY;
-        return PM_OK;
-    }
     const pm_photon *ph = pm_kdtree_records(sm->t);
-    float nrm[3];
-    pm_knn_options ko;
-    pm_estimate_search_options(o, n, nrm, &ko);
-    ko.flags |= PM_SORT;
-    /* The wrapper's layout of scratch (estimate.h): k neighbours, then the core's part. */
-    pm_neighbor *nb = scratch;
-    void *core = (char *)scratch + (((size_t)o->k * sizeof *nb + 7u) & ~(size_t)7u);
-    int found = pm_kdtree_knn_ex(sm->t, x, o->k, o->max_dist2, &ko, nb, NULL);
-    if (found < 0) return found;
     vec3 xv = v3f(x), nv = v3f(n);
-    double hx = -1, cap = 0.25 * sqrt((double)o->max_dist2);
+    double hx = -1, cap = 0.25 * sqrt((double)max_dist2);
     int hidden = 0;
     for (int i = 0; i < found && !hidden; i++) {
         if (nb[i].dist2 == 0) continue;
@@ -462,18 +450,20 @@ int side_estimate(const side_map *sm, const float x[3], const float n[3], const 
         pm_normal_decode(p->normal, pn);
         hidden = !side_keeps(s, xv, nv, &hx, cap, v3f(p->pos), v3f(pn), sm->hfree[nb[i].index]);
     }
-    if (!hidden) return pm_estimate_core(ph, nb, (unsigned)found, x, n, o, core, res);
+    if (!hidden) return found;
     /* A neighbour behind a surface: as side_cache_build, take SIDE_WIDEN x k candidates in order
      * of distance and keep the ones on x's side until k are kept; the area is the disc up to
      * the k-th kept, or, short of k, up to the last candidate examined (a wall that cuts the
      * disc leaves it low there, as at any edge of a lit region; never a leak). */
-    unsigned want = (unsigned)SIDE_WIDEN * o->k;
+    unsigned want = (unsigned)SIDE_WIDEN * k;
     pm_neighbor *wide = malloc((size_t)want * sizeof *wide);
     if (!wide) return PM_ENOMEM;
-    int n2 = pm_kdtree_knn_ex(sm->t, x, want, o->max_dist2, &ko, wide, NULL);
+    pm_knn_options kw = *ko;
+    kw.flags |= PM_SORT;
+    int n2 = pm_kdtree_knn_ex(sm->t, x, want, max_dist2, &kw, wide, NULL);
     if (n2 < 0) n2 = 0;
     unsigned kept = 0;
-    for (int i = 0; i < n2 && kept < o->k; i++) {
+    for (int i = 0; i < n2 && kept < k; i++) {
         int keep = 1;
         if (wide[i].dist2 > 0) {
             const pm_photon *p = &ph[wide[i].index];
@@ -481,12 +471,34 @@ int side_estimate(const side_map *sm, const float x[3], const float n[3], const 
             pm_normal_decode(p->normal, pn);
             keep = side_keeps(s, xv, nv, &hx, cap, v3f(p->pos), v3f(pn), sm->hfree[wide[i].index]);
         }
-        if (keep) wide[kept++] = wide[i];
+        if (keep) nb[kept++] = wide[i];
     }
-    pm_estimate_options oo = *o;
-    if (kept < o->k && (unsigned)n2 == want) oo.max_dist2 = wide[n2 - 1].dist2; /* examined up to there */
-    int rc = kept ? pm_estimate_core(ph, wide, kept, x, n, &oo, core, res) : PM_OK;
-    if (!kept) res->flags = PM_EST_F_EMPTY;
+    if (kept < k && (unsigned)n2 == want) *limit = wide[n2 - 1].dist2; /* examined up to there */
     free(wide);
-    return rc;
+    return (int)kept;
+}
+
+int side_estimate(const side_map *sm, const float x[3], const float n[3], const pm_estimate_options *o,
+                  void *scratch, pm_estimate_result *res) {
+    memset(res, 0, sizeof *res);
+    if (!sm->t) {
+        res->flags = PM_EST_F_EMPTY;
+        return PM_OK;
+    }
+    float nrm[3];
+    pm_knn_options ko;
+    pm_estimate_search_options(o, n, nrm, &ko);
+    /* The wrapper's layout of scratch (estimate.h): k neighbours, then the core's part. */
+    pm_neighbor *nb = scratch;
+    void *core = (char *)scratch + (((size_t)o->k * sizeof *nb + 7u) & ~(size_t)7u);
+    int found = pm_kdtree_knn_ex(sm->t, x, o->k, o->max_dist2, &ko, nb, NULL);
+    if (found < 0) return found;
+    pm_estimate_options oo = *o;
+    found = side_neighbours(sm, x, n, &ko, o->k, o->max_dist2, nb, found, &oo.max_dist2);
+    if (found < 0) return found;
+    if (found == 0) {
+        res->flags = PM_EST_F_EMPTY;
+        return PM_OK;
+    }
+    return pm_estimate_core(pm_kdtree_records(sm->t), nb, (unsigned)found, x, n, &oo, core, res);
 }

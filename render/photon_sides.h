@@ -203,6 +203,13 @@ void side_map_free(side_map *sm);
  * allocates only when a neighbour is hidden. */
 int side_estimate(const side_map *sm, const float x[3], const float n[3], const pm_estimate_options *o,
                   void *scratch, pm_estimate_result *res);
+/* side_estimate's neighbour rule for callers that search themselves (render/mpi/lookup.c):
+ * nb[0..found) are the k nearest that ko accepts within max_dist2, from sm's tree; returns how
+ * many of them stay (in nb[0..), at most k, the k nearest on x's side among 4k candidates when
+ * one of the first was hidden) and sets *limit to the radius^2 of the disc they cover when
+ * fewer than k stay (max_dist2 otherwise), or PM_ENOMEM. */
+int side_neighbours(const side_map *sm, const float x[3], const float n[3], const pm_knn_options *ko, unsigned k,
+                    float max_dist2, pm_neighbor *nb, int found, float *limit);
 
 #ifdef __cplusplus
 }

@@ -826,6 +826,7 @@ static int render_worker(const scene *s, const integrator *it, const render_job 
 int dist_render_image_ctl(const scene *s, const integrator *it, const render_job *job,
                           const render_control *ctl, film *out) {
     dist_start(0, NULL, NULL);
+    lk_begin(s); /* before this rank answers another's photon lookups */
     const camera *c = &s->cam;
     /* Rank 0 renders into the caller's state (a checkpointed or resumed render: checkpoints
      * are written from it), the workers into their own. */

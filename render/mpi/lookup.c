@@ -90,6 +90,8 @@ typedef struct lk_state {
     const scene *scene;
     const side_cache *side; /* this rank's part of the precomputed irradiance (NULL: none) */
     const photon_maps *maps; /* the photon mapper's maps (hook_partition): their global_path */
+    side_map caus_side;      /* this rank's caustic part's free heights (lk_begin): its estimates
+                              * keep to the query's side as side_estimate's (photon_sides.h) */
     int ready; /* the photon mapper handed over its trees (else: not a photon-mapping render) */
     int trace_again; /* PM_MPI_TEST_TRACE_AGAIN=1 (tests): keep no trace made on guesses */
     int done_from; /* DONE notices received */
@@ -154,18 +156,25 @@ static void answer_estimate(const lk_query *q, pm_neighbor *nb, lk_part *out) {
     pm_combine_acc acc;
     pm_combine_init(&acc);
     int found = 0;
+    float limit = o->max_dist2; /* the disc the part covers when short of k/M */
     if (t) {
         float nrm[3];
         pm_knn_options ko;
         pm_estimate_search_options(o, q->n, nrm, &ko);
         found = pm_kdtree_knn_ex(t, q->x, km, o->max_dist2, &ko, nb, NULL);
         if (found < 0) found = 0;
+        /* The caustic map's part keeps to the query's side, as one process's side_estimate. */
+        if (map == PHOTON_LOOKUP_CAUSTIC && L.caus_side.t) {
+            found = side_neighbours(&L.caus_side, q->x, q->n, &ko, km, o->max_dist2, nb, found, &limit);
+            if (found < 0) dist_die("out of memory answering photon lookups");
+        }
     }
     if (filtered_kind(o)) {
         /* The filter's weighted power and its area (pi r_m^2 times the filter's norm), both
          * measured against this part's own radius: E = M sum S_m / sum area_m (combine_one). */
         pm_estimate_options oo = *o;
         oo.k = km;
+        oo.max_dist2 = limit;
         pm_estimate_result res;
         double area = 0, S[3] = {0, 0, 0};
         memset(out, 0, sizeof *out);
@@ -176,8 +185,8 @@ static void answer_estimate(const lk_query *q, pm_neighbor *nb, lk_part *out) {
                 for (int c = 0; c < 3; c++) S[c] = res.rgb[c] * res.area;
                 out->rims = !(res.flags & PM_EST_F_RADIUS_LIMIT);
             }
-        } else if (found == 0 && isfinite(o->max_dist2)) {
-            area = M_PI * (double)o->max_dist2 *
+        } else if (found == 0 && isfinite(limit)) {
+            area = M_PI * (double)limit *
                    (o->kind == PM_EST_CONE ? pm_cone_norm(o->cone_k) : pm_gauss_norm());
         }
         for (int c = 0; c < 3; c++) out->power[c] = (float)S[c];
@@ -186,7 +195,7 @@ static void answer_estimate(const lk_query *q, pm_neighbor *nb, lk_part *out) {
         return;
     }
     pm_combine_add(&acc, t ? (const pm_photon *)pm_kdtree_records(t) : NULL, nb, (unsigned)found,
-                   km, o->max_dist2, o->bias, q->x);
+                   km, limit, o->bias, q->x);
     part_from_acc(&acc, out);
 }
 
@@ -987,6 +996,15 @@ static void render_block(const scene *s, const integrator *it, const render_job 
         rec_free(smp[i].rec);
         smp[i].rec = NULL;
     }
+}
+
+void lk_begin(const scene *s) {
+    if (!L.ready || L.caus_side.t || !L.trees[PHOTON_LOOKUP_CAUSTIC]) return;
+    char err[128];
+    const pm_kdtree *t = L.trees[PHOTON_LOOKUP_CAUSTIC];
+    if (side_map_init(&L.caus_side, s, t, pm_kdtree_size(t), L.opts[PHOTON_LOOKUP_CAUSTIC].max_dist2, err,
+                      sizeof err) < 0)
+        dist_die(err);
 }
 
 int lk_render_tiles(const scene *s, const integrator *it, const render_job *job, render_state *st,

@@ -89,6 +89,10 @@ extern "C" {
  * the lookups' own communicator (a duplicate of MPI_COMM_WORLD, made by every rank whatever
  * its mode, so that ranks started with different modes meet in dist.c's agreement). */
 void lk_init(int rank, int size, MPI_Comm comm);
+/* Before the pixel pass, on every rank, before it answers any query: the free heights of this
+ * rank's caustic part, so that its caustic estimates keep to the query's side (side_neighbours,
+ * photon_sides.h) as one process's do. Once; nothing without partitioned photon maps. */
+void lk_begin(const scene *s);
 /* 1 after lk_init. */
 int lk_on(void);
 /* Render tiles[0..n) into st: trace, exchange, trace again (above). While waiting it serves other
