@@ -37,6 +37,10 @@
 
 #include "kdtree_internal.h"
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 /* ---- small accessors --------------------------------------------------------------------- */
 
 pm_kdtree_config pm_kdtree_photon_config(unsigned bucket) {
@@ -437,6 +441,23 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
         /* Tight bounding box, and whether this node holds copies of its parent's split. */
         float mn[3], mx[3];
         int dup = 0;
+#if defined(__SSE2__)
+        { /* an item is one vector (x, y, z, index bits); lane 3 is ignored */
+            __m128 vmn = _mm_loadu_ps(w[lo].p), vmx = vmn;
+            const __m128 vpm = _mm_setr_ps(pm0, pm1, pm2, 0.0f);
+            for (size_t i = lo; i < hi; i++) {
+                const __m128 v = _mm_loadu_ps(w[i].p);
+                vmn = _mm_min_ps(v, vmn); /* v < vmn ? v : vmn, as the scalar loop below */
+                vmx = _mm_max_ps(v, vmx);
+                dup |= (_mm_movemask_ps(_mm_cmpeq_ps(v, vpm)) & 7) == 7;
+            }
+            float t4[4];
+            _mm_storeu_ps(t4, vmn);
+            mn[0] = t4[0], mn[1] = t4[1], mn[2] = t4[2];
+            _mm_storeu_ps(t4, vmx);
+            mx[0] = t4[0], mx[1] = t4[1], mx[2] = t4[2];
+        }
+#else
         for (int a = 0; a < 3; a++) mn[a] = mx[a] = w[lo].p[a];
         for (size_t i = lo; i < hi; i++) {
             float x = w[i].p[0], y = w[i].p[1], z = w[i].p[2];
@@ -445,6 +466,7 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
             mn[2] = z < mn[2] ? z : mn[2], mx[2] = z > mx[2] ? z : mx[2];
             dup |= (x == pm0) & (y == pm1) & (z == pm2);
         }
+#endif
         float ext[3] = {mx[0] - mn[0], mx[1] - mn[1], mx[2] - mn[2]};
         unsigned code = t->tight ? choose_code(clo, chi, mn, mx) : 0;
         pm__tighten(clo, chi, code);
