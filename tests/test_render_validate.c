@@ -353,6 +353,55 @@ TEST(render_validate_far_from_origin) {
                                     "times its bounding radius 1.73205 (the supported range");
 }
 
+/* A closed 10-unit box, every surface of reflectance 1 (a lossless furnace), lamp in the
+ * ceiling, camera inside, render.max_depth 100000: a photon never dies before a path budget. */
+static const char *k_furnace1 =
+    "{\"camera\": {\"eye\": [5, 5, 1], \"look_at\": [5, 5, 9], \"fov_deg\": 50, \"width\": 8,"
+    "  \"height\": 8, \"spp\": 1},"
+    " \"materials\": {\"white\": {\"type\": \"lambert\", \"reflectance\": 1},"
+    "  \"lamp\": {\"type\": \"lambert\", \"reflectance\": 1, \"emission\": 10}},"
+    " \"objects\": ["
+    "  {\"type\": \"quad\", \"vertices\": [[10,0,0],[0,0,0],[0,0,10],[10,0,10]], \"material\": \"white\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[10,10,0],[10,10,10],[0,10,10],[0,10,0]], \"material\": \"white\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[10,0,10],[0,0,10],[0,10,10],[10,10,10]], \"material\": \"white\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[0,0,10],[0,0,0],[0,10,0],[0,10,10]], \"material\": \"white\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[10,0,0],[10,0,10],[10,10,10],[10,10,0]], \"material\": \"white\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[0,0,0],[10,0,0],[10,10,0],[0,10,0]], \"material\": \"white\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[6,9.99,4],[6,9.99,6],[4,9.99,6],[4,9.99,4]], \"material\": \"lamp\"}],"
+    " \"render\": {\"max_depth\": 100000}}";
+
+/* Oracle: PASS BUDGETS (photon_trace.h) and the issue's runaway furnace. With 16 MiB of photon
+ * buffers and photons allowed 1e6 bounces, one batch of 4096 photons would store far more
+ * than the budget: the pass ends at once (the plan's pilot keeps the user's budget too), exit
+ * 1, the message names the budget and the scene file, nothing written (before: past 1.46 GB of
+ * memory in 12 s, still running at 90 s). With 16 bounces the same budget lets some batches
+ * through: the map keeps what was stored, the pass says which budget stopped it, exit 0. Both
+ * end well inside the runner's 120 s timeout (measured 0.4 s and 0.7 s). */
+TEST(render_validate_memory_budget_furnace) {
+    char out[16384], pfm[1024];
+    snprintf(pfm, sizeof pfm, "%s/o.pfm", pm_test_tmpdir());
+    remove(pfm);
+    int rc = render_text(k_furnace1, "--mode pm --threads 1 --pm global_photons=100000000 --pm max_memory_mb=16 "
+                         "--pm max_bounces=1000000", out, sizeof out);
+    EXPECT_MSG(rc == 1 && strstr(out, "render: s.json: photon tracing: Tracing global photons: no photon stored "
+                                      "within the photon_mapping.max_memory_mb budget (the next 4096 photons would "
+                                      "store more than the 16 MiB left of 16 MiB): raise it, or lower "
+                                      "photon_mapping.max_bounces or render.max_depth"),
+               "exit %d: %s", rc, out);
+    EXPECT_MSG(access(pfm, F_OK) != 0, "an image was written");
+    rc = render_text(k_furnace1, "--mode preview --threads 1 --pm global_photons=10000000 --pm max_memory_mb=16 "
+                     "--pm max_bounces=16", out, sizeof out);
+    EXPECT_MSG(rc == 0 && strstr(out, "of 10000000 photons stored after") &&
+                   strstr(out, "stopped by the photon_mapping.max_memory_mb budget (the next 4096 photons would "
+                               "store more than the") &&
+                   strstr(out, "photon paths were cut by the path-length budget (photon_mapping.max_bounces = 16)"),
+               "exit %d: %s", rc, out);
+    const char *ph = strstr(out, "Photons: ");
+    long stored = ph ? strtol(ph + 9, NULL, 10) : -1;
+    EXPECT_MSG(stored > 0 && stored * 48L <= 16L << 20, "stored %ld records (16 MiB holds %ld)", stored,
+               (16L << 20) / 48);
+}
+
 /* Oracle: the float range (3.4e38). The base scene shrunk to 1e-5 (a box 2e-5 wide) with a
  * point light of intensity 1e30 lights its walls with about 1e30 / (1e-5)^2 = 1e40: finite in
  * double, infinite in the film's floats. The light is within its range only because a far
