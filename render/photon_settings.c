@@ -135,11 +135,12 @@ static const setting_def k_settings[] = {
      "volume estimates near a medium's boundary divide by the part of their search ball inside "
      "the medium (pm_volume.h, BOUNDARIES); false: by the whole ball"},
     {"save_photons", ST_DIR, F(save_dir), 0, NONE,
-     "a directory to save the maps to (global.pmap, caustic.pmap, shadow.pmap; the format of "
+     "a directory to save the maps to (global.pmap, caustic.pmap, shadow.pmap, and in a scene "
+     "with media volume-M.pmap and volume_caustic-M.pmap for each medium M; the format of "
      "photonmap/mapfile.h), as traced"},
     {"load_photons", ST_DIR, F(load_dir), 0, NONE,
      "a directory to load the maps from instead of tracing them; maps of another scene or "
-     "traced with other settings are refused"},
+     "traced with other settings, a missing, corrupt or wrong-kind map file are refused"},
     {"force_load_photons", ST_BOOL, F(force_load), 0, NONE,
      "use the maps of load_photons even when their headers say another scene or other "
      "settings traced them (a warning per file; render --force-load-photons sets it)"},
