@@ -70,6 +70,10 @@
  *                    rule, tried on the 8 nearest candidates. Why: the value of a photon
  *                    behind a wall is the irradiance of another room. With none, the lookup
  *                    reports "none" (the caller computes y's light otherwise).
+ *   side_filter_shadow the shadow-photon hint's search: photons on the query's own surface
+ *                    only (the normal rule), below with its why.
+ *   side_estimate    a map's radiance estimate read directly (the caustic map): neighbours off
+ *                    the query's plane count only if side_visible sees them; below, with why.
  *
  * Threads: side_cache_build runs on OpenMP threads; a built cache is read-only and lookups
  * may run on any thread. The caller frees the cache with side_cache_free.

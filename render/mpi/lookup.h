@@ -62,6 +62,9 @@
  * the two). Each pixel's samples are then added in sample order, as
  * render_tile adds them. No decision of li() depends on an estimate's value (photon_lookup.h),
  * and a lookup's value is only added: only whether a lookup found a record changes the path.
+ * A caustic estimate's part keeps to the query's side as one process's side_estimate does
+ * (side_neighbours, photon_sides.h: neighbours off the query's plane that a wall hides are
+ * dropped, the part widened to 4 k/M candidates; the part's free heights come from lk_begin).
  * A cone or Gaussian filter (the caustic map's) is combined as sum_m S_m / sum_m A_m times M,
  * each part's filtered power S_m and area A_m (pi r_m^2 times the filter's norm) taken against
  * its own radius; the hull and differential filters fall back to the combined disc.
