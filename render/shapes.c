@@ -1,9 +1,20 @@
 /* shapes.c: Möller–Trumbore triangles and numerically stable spheres; see shapes.h. */
 #include "shapes.h"
 
+#include <float.h>
+#include <math.h>
+
 #include "sampling.h"
 
 #define BARY_EPS 1e-12
+
+/* |v| without overflow or underflow in the squares: v3_len where it is exact enough, else
+ * scaled by the largest component. */
+static double len_safe(vec3 v) {
+    double l = v3_len(v), m = v3_maxabs(v);
+    if ((isfinite(l) && (l > 0 || m == 0)) || !isfinite(m) || m < DBL_MIN) return isfinite(l) ? l : m;
+    return m * v3_len(v3_scale(v, 1.0 / m));
+}
 
 int triangle_make(triangle *t, vec3 a, vec3 b, vec3 c, int mat) {
     t->v0 = a;
@@ -12,13 +23,19 @@ int triangle_make(triangle *t, vec3 a, vec3 b, vec3 c, int mat) {
     t->mat = mat;
     t->light = -1;
     vec3 cr = v3_cross(t->e1, t->e2);
-    double len = v3_len(cr);
+    /* Lengths without overflow in their squares: a triangle with a vertex at 1e200 (out of the
+     * scene's range, which the loader reports with the coordinates, after a mesh file's
+     * transform) was called degenerate here. Its area may still be infinite; such a triangle
+     * never reaches a scene. */
+    double len = len_safe(cr);
     t->area = 0.5 * len;
-    t->n = len > 0 ? v3_scale(cr, 1.0 / len) : v3(0, 0, 0);
-    if (!v3_isfinite(a) || !v3_isfinite(b) || !v3_isfinite(c) || !isfinite(len)) return -1;
+    t->n = len > 0 && isfinite(len) ? v3_scale(cr, 1.0 / len) : v3(0, 0, 0);
+    if (!v3_isfinite(a) || !v3_isfinite(b) || !v3_isfinite(c)) return -1;
     /* |e1 x e2| = |e1||e2| sin(angle): degenerate when the sine is at rounding level. */
-    double scale = v3_len(t->e1) * v3_len(t->e2);
-    if (!(len > 1e-12 * scale) || !(scale > 0)) return -1;
+    double l1 = len_safe(t->e1), l2 = len_safe(t->e2);
+    if (!(l1 > 0) || !(l2 > 0)) return -1;
+    double sine = len_safe(v3_cross(v3_scale(t->e1, 1.0 / l1), v3_scale(t->e2, 1.0 / l2)));
+    if (!(sine > 1e-12)) return -1;
     return 0;
 }
 

@@ -353,6 +353,42 @@ TEST(render_validate_far_from_origin) {
                                     "times its bounding radius 1.73205 (the supported range");
 }
 
+/* Oracle: the Ranges table (coordinates -1e100 to 1e100, mesh files after their transform).
+ * An OBJ vertex at 1e200 is reported with its coordinates and the range, like a vertex in the
+ * scene file; it used to be called "degenerate face (zero area: repeated or collinear
+ * vertices 1 2 3)", the squares of its edge lengths overflowing in the reader's check. A
+ * really degenerate face is still that. */
+TEST(render_validate_mesh_file_range) {
+    char path[1024];
+    static const struct {
+        const char *obj, *msg;
+    } cases[] = {
+        {"v 0 0 0\nv 1 0 1e200\nv 0 1 0\nf 1 2 3\n",
+         "$.objects[7]: [1, 0, 1e+200] is outside the supported range of coordinates, -1e+100 to 1e+100"},
+        {"v 0 0 0\nv 1e200 0 0\nv 0 1e200 0\nf 1 2 3\n",
+         "$.objects[7]: [1e+200, 0, 0] is outside the supported range of coordinates, -1e+100 to 1e+100"},
+        {"v 0 0 0\nv 1 1 1\nv 2 2 2\nf 1 2 3\n", NULL},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        snprintf(path, sizeof path, "%s/big.obj", pm_test_tmpdir());
+        FILE *f = fopen(path, "w");
+        ASSERT(f);
+        fputs(cases[k].obj, f);
+        fclose(f);
+        const char *text = scene_text("\"material\": \"rough\"}", "\"material\": \"rough\"}, {\"type\": "
+                                      "\"mesh\", \"file\": \"big.obj\", \"material\": \"wall\"}", NULL);
+        if (cases[k].msg) {
+            expect_error(text, "--mode path", cases[k].msg);
+        } else {
+            char out[16384], want[1200];
+            int rc = render_text(text, "--mode path", out, sizeof out);
+            snprintf(want, sizeof want, "render: s.json: $.objects[7].file: %s:4: degenerate face (zero area: "
+                     "repeated or collinear vertices 1 2 3)", path);
+            EXPECT_MSG(rc == 2 && strstr(out, want), "exit %d: %s", rc, out);
+        }
+    }
+}
+
 /* A closed 10-unit box, every surface of reflectance 1 (a lossless furnace), lamp in the
  * ceiling, camera inside, render.max_depth 100000: a photon never dies before a path budget. */
 static const char *k_furnace1 =
