@@ -63,13 +63,16 @@ static int fbuf_push(fbuf *b, const fphoton *p) {
 
 /* Merge the per-thread buffers (each sorted by index, as every thread handles its photons in
  * increasing order) onto the end of out, in index order; empties them. Ties cannot straddle
- * buffers: one photon is traced by one thread. */
-static int fbuf_merge(fbuf *out, fbuf *bufs, int nb) {
+ * buffers: one photon is traced by one thread. cap_max (0: none): out's capacity in records
+ * never grows past it by doubling (only to what the records need), so that a pass's buffers
+ * stay within its memory budget instead of up to twice it. */
+static int fbuf_merge_capped(fbuf *out, fbuf *bufs, int nb, size_t cap_max) {
     size_t total = 0;
     for (int t = 0; t < nb; t++) total += bufs[t].n;
     if (out->n + total > out->cap) {
-        size_t nc = out->cap ? out->cap : 1024;
-        while (nc < out->n + total) nc *= 2;
+        size_t need = out->n + total, nc = out->cap ? out->cap : 1024;
+        while (nc < need) nc *= 2;
+        if (cap_max && nc > cap_max) nc = need > cap_max ? need : cap_max;
         fphoton *nv = realloc(out->v, nc * sizeof *nv);
         if (!nv) return PM_ENOMEM;
         out->v = nv;
@@ -87,6 +90,8 @@ static int fbuf_merge(fbuf *out, fbuf *bufs, int nb) {
     for (int t = 0; t < nb; t++) bufs[t].n = 0;
     return 0;
 }
+
+static int fbuf_merge(fbuf *out, fbuf *bufs, int nb) { return fbuf_merge_capped(out, bufs, nb, 0); }
 
 /* ---- tracing one photon ------------------------------------------------------------------- */
 
@@ -738,8 +743,13 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
             fail &= 1;
         }
         n_e += PT_BATCH;
-        if (fail || (!part && (fbuf_merge(main_buf, tg, nthreads) < 0 ||
-                               (shadow_buf && fbuf_merge(shadow_buf, ts, nthreads) < 0)))) {
+        /* The memory budget in records, less what the other buffer holds (the check above
+         * adds both buffers' capacities). */
+        size_t recs = o->max_memory_bytes / sizeof(fphoton);
+        size_t cap_main = recs ? recs - (shadow_buf && shadow_buf->cap < recs ? shadow_buf->cap : 0) : 0;
+        size_t cap_shadow = recs ? recs - (main_buf->cap < recs ? main_buf->cap : 0) : 0;
+        if (fail || (!part && (fbuf_merge_capped(main_buf, tg, nthreads, cap_main) < 0 ||
+                               (shadow_buf && fbuf_merge_capped(shadow_buf, ts, nthreads, cap_shadow) < 0)))) {
             snprintf(err, errcap, "out of memory while tracing photons (%s)", title);
             rc = PM_ENOMEM;
         }

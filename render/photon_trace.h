@@ -81,7 +81,8 @@
  * ("stopped by the photon_mapping.KEY budget"):
  *   emitted    max_emitted_factor x target, and at most max_emitted photons; a pass whose
  *              storage rate (after 4 batches) needs more than twice that stops at once;
- *   memory     max_memory_mb of photon buffers: checked between batches, and inside a batch
+ *   memory     max_memory_mb of photon buffers (the map's buffers grow to at most the
+ *              budget, not by doubling past it): checked between batches, and inside a batch
  *              (one process): a batch whose records, with those held, would pass the budget
  *              is dropped whole and the pass stops before it (one batch can store PT_BATCH
  *              times the path length: 19 GB in a lossless furnace with max_depth 1e5). A
