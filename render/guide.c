@@ -792,9 +792,23 @@ guide *guide_light_plan(const scene *s, int force, int usable, int *on, char *re
                  e.points, e.samples, 100 * rate);
         return gd;
     }
-    snprintf(reason, cap,
-             "light samples mostly pass: the regions where they are mostly blocked (%zu of %zu) carry %.1f%% "
-             "of the light that passes, below %.0f%% (pilot: %zu points, %llu light samples, %.1f%% pass)",
-             e.blocked, e.cells, 100 * e.blocked_share, 100 * GUIDE_MIN_SHARE, e.points, e.samples, 100 * rate);
+    /* Nothing to learn from: say so, rather than "mostly pass" over evidence of none. */
+    if (e.samples == 0)
+        snprintf(reason, cap,
+                 "no pilot light sample would carry light where the camera looks, shadowed or not (black "
+                 "surfaces, or lights facing away): nothing to learn (pilot: %zu points, 0 light samples)",
+                 e.points);
+    else if (e.passed == 0)
+        snprintf(reason, cap,
+                 "no pilot light sample passes where the camera looks: nothing to learn (pilot: %zu points, "
+                 "%llu light samples, none pass)",
+                 e.points, e.samples);
+    else
+        snprintf(reason, cap,
+                 "light samples mostly pass: the regions where they are mostly blocked (%zu of %zu) carry "
+                 "%.1f%% of the light that passes, below %.0f%% (pilot: %zu points, %llu light samples, %.1f%% "
+                 "pass)",
+                 e.blocked, e.cells, 100 * e.blocked_share, 100 * GUIDE_MIN_SHARE, e.points, e.samples,
+                 100 * rate);
     return NULL;
 }

@@ -324,6 +324,65 @@ TEST(render_guide_plan_lines) {
     }
 }
 
+/* Oracle: the geometry. Two scenes where the pilot has nothing to learn, whose line must say so
+ * instead of "light samples mostly pass" (the old wording, over evidence of 0 light samples or
+ * 0% passing): a lamp shut in an opaque box on a lit-nowhere floor (every segment from a point
+ * the camera sees to the lamp crosses the box: samples > 0, none pass), and a closed room of
+ * reflectance 0 lit by a ceiling lamp (every light sample's BSDF is 0: no sample carries
+ * light). Both off, with the pilot's counts. */
+TEST(render_guide_plan_nothing_to_learn) {
+    static const char *boxed =
+        "{\"camera\": {\"eye\": [5, 6, -8], \"look_at\": [5, 0, 5], \"fov_deg\": 60, \"width\": 4, \"height\": 4, "
+        "\"spp\": 1}, \"materials\": {\"white\": {\"type\": \"lambert\", \"reflectance\": 0.6}, \"lamp\": {\"type\": "
+        "\"lambert\", \"reflectance\": 0, \"emission\": 20}}, \"objects\": ["
+        "{\"type\": \"quad\", \"vertices\": [[-20, 0, -20], [-20, 0, 30], [30, 0, 30], [30, 0, -20]], \"material\": "
+        "\"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[3, 0, 3], [7, 0, 3], [7, 3, 3], [3, 3, 3]], \"material\": \"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[3, 0, 7], [7, 0, 7], [7, 3, 7], [3, 3, 7]], \"material\": \"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[3, 0, 3], [3, 0, 7], [3, 3, 7], [3, 3, 3]], \"material\": \"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[7, 0, 3], [7, 0, 7], [7, 3, 7], [7, 3, 3]], \"material\": \"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[3, 3, 3], [7, 3, 3], [7, 3, 7], [3, 3, 7]], \"material\": \"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[4, 2, 4], [6, 2, 4], [6, 2, 6], [4, 2, 6]], \"material\": \"lamp\"}], "
+        "\"render\": {\"max_depth\": 16}}";
+    static const char *black =
+        "{\"camera\": {\"eye\": [5, 5, -12], \"look_at\": [5, 5, 0], \"fov_deg\": 50, \"width\": 4, \"height\": 4, "
+        "\"spp\": 1}, \"materials\": {\"white\": {\"type\": \"lambert\", \"reflectance\": 0}, \"lamp\": {\"type\": "
+        "\"lambert\", \"reflectance\": 0.5, \"emission\": 10}}, \"objects\": ["
+        "{\"type\": \"quad\", \"vertices\": [[10, 0, 0], [0, 0, 0], [0, 0, 10], [10, 0, 10]], \"material\": \"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[10, 10, 0], [10, 10, 10], [0, 10, 10], [0, 10, 0]], \"material\": "
+        "\"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[10, 0, 10], [0, 0, 10], [0, 10, 10], [10, 10, 10]], \"material\": "
+        "\"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[0, 0, 10], [0, 0, 0], [0, 10, 0], [0, 10, 10]], \"material\": \"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[10, 0, 0], [10, 0, 10], [10, 10, 10], [10, 10, 0]], \"material\": "
+        "\"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[6, 9.99, 4], [6, 9.99, 6], [4, 9.99, 6], [4, 9.99, 4]], \"material\": "
+        "\"lamp\"}], \"render\": {\"max_depth\": 16}}";
+    const char *texts[2] = {boxed, black}, *names[2] = {"boxed", "black"};
+    const char *want[2] = {"light guide: off (no pilot light sample passes where the camera looks: nothing to learn "
+                           "(pilot: ",
+                           "light guide: off (no pilot light sample would carry light where the camera looks"};
+    for (int i = 0; i < 2; i++) {
+        char path[1024], cmd[4096];
+        static char out[16384];
+        snprintf(path, sizeof path, "%s/%s.json", pm_test_tmpdir(), names[i]);
+        FILE *f = fopen(path, "w");
+        ASSERT(f);
+        fputs(texts[i], f);
+        fclose(f);
+        snprintf(cmd, sizeof cmd,
+                 "%s/render '%s' --mode pm --quiet --pm global_photons=2000 --pm caustic_photons=2000 --hdr "
+                 "'%s/%s.pfm'",
+                 pm_test_build_dir(), path, pm_test_tmpdir(), names[i]);
+        int rc = pm_test_run(cmd, out, sizeof out);
+        const char *p = strstr(out, "light guide: ");
+        size_t n = p ? strcspn(p, "\n") : 0;
+        printf("    %s (exit %d): %.*s\n", names[i], rc, (int)n, p ? p : "no light guide line");
+        EXPECT_MSG(p && strncmp(p, want[i], strlen(want[i])) == 0, "%s: %.*s", names[i], (int)n, p ? p : out);
+        EXPECT_MSG(p && !strstr(p, "mostly pass"), "%s", names[i]);
+    }
+}
+
 /* The mean of an image and whether the render's statistics counted guided light samples. */
 static int render_hole(const char *flags, int seed, double *mean, long *guided) {
     char scn[1024], pfm[1024], cmd[4096], out[16384];
