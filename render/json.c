@@ -6,6 +6,7 @@
  */
 #include "json.h"
 
+#include <ctype.h>
 #include <errno.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -348,6 +349,10 @@ int json_array(const cJSON *obj, const char *path, const char *key, int required
 
 /* Optimal string alignment distance (Damerau-Levenshtein without repeated edits of a
  * substring), two rows of the table plus the one before; keys are short. */
+static int lower(char c) { return tolower((unsigned char)c); }
+
+/* Damerau-Levenshtein distance, letters compared without case ("K_GLOBAL" is 0 from
+ * "k_global"); (size_t)-1 for keys over 63 characters. */
 static size_t edit_distance(const char *a, const char *b) {
     size_t la = strlen(a), lb = strlen(b);
     if (la > 63 || lb > 63) return (size_t)-1;
@@ -357,11 +362,12 @@ static size_t edit_distance(const char *a, const char *b) {
         size_t *cur = d[i % 3], *prev = d[(i - 1) % 3], *pp = d[(i + 1) % 3];
         cur[0] = i;
         for (size_t j = 1; j <= lb; j++) {
-            size_t cost = a[i - 1] != b[j - 1];
+            size_t cost = lower(a[i - 1]) != lower(b[j - 1]);
             size_t v = prev[j] + 1;
             if (cur[j - 1] + 1 < v) v = cur[j - 1] + 1;
             if (prev[j - 1] + cost < v) v = prev[j - 1] + cost;
-            if (i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1] && pp[j - 2] + 1 < v)
+            if (i > 1 && j > 1 && lower(a[i - 1]) == lower(b[j - 2]) && lower(a[i - 2]) == lower(b[j - 1]) &&
+                pp[j - 2] + 1 < v)
                 v = pp[j - 2] + 1;
             cur[j] = v;
         }
@@ -371,17 +377,24 @@ static size_t edit_distance(const char *a, const char *b) {
 
 const char *json_nearest_key(const char *key, const char *const *known, size_t n) {
     if (!key) return NULL;
-    size_t limit = strlen(key) / 3, best_d = (size_t)-1;
-    if (limit < 1) limit = 1;
+    /* The key as given, and the part after its last dot: a key typed as its JSON path
+     * ("--pm photon_mapping.k_global=5") finds "k_global". */
+    const char *dot = strrchr(key, '.');
+    const char *cand[2] = {key, dot && dot[1] ? dot + 1 : NULL};
     const char *best = NULL;
-    for (size_t k = 0; k < n; k++) {
-        size_t dk = edit_distance(key, known[k]);
-        if (dk < best_d) {
-            best_d = dk;
-            best = known[k];
+    size_t best_d = (size_t)-1;
+    for (int c = 0; c < 2 && cand[c]; c++) {
+        size_t limit = strlen(cand[c]) / 3;
+        if (limit < 1) limit = 1;
+        for (size_t k = 0; k < n; k++) {
+            size_t dk = edit_distance(cand[c], known[k]);
+            if (dk <= limit && dk < best_d) {
+                best_d = dk;
+                best = known[k];
+            }
         }
     }
-    return best_d <= limit ? best : NULL;
+    return best;
 }
 
 int json_check_keys(const cJSON *obj, const char *path, const char *const *known, size_t n,

@@ -84,8 +84,10 @@ int json_item_vec3(const cJSON *item, const char *path, vec3 *out, json_err *e);
 /* A short name of an item's type for messages ("a string", "an array", ...). */
 const char *json_type_name(const cJSON *item);
 /* The known key nearest to `key` by edit distance (insertions, deletions, substitutions and
- * swaps of neighbours each count 1), if it is within max(1, strlen(key) / 3) edits; else NULL.
- * For "did you mean" in unknown-key errors ("emision" -> "emission"). */
+ * swaps of neighbours each count 1; letters compared without case), if it is within
+ * max(1, strlen(key) / 3) edits; else NULL. The part of key after its last '.' is tried too
+ * (a JSON path typed as a key: "photon_mapping.k_global" -> "k_global"). For "did you mean"
+ * in unknown-key errors ("emision" -> "emission"). */
 const char *json_nearest_key(const char *key, const char *const *known, size_t n);
 /* Every key of obj must be one of the n names in known. Else an error naming the first
  * unknown key's path and the nearest known key, or the known keys when none is near:

@@ -256,7 +256,8 @@ int photon_settings_parse(photon_settings *c, const cJSON *pm, json_err *e) {
             for (size_t k = 0; k < NSETTINGS; k++) names[k] = k_settings[k].key;
             const char *near = json_nearest_key(it->string, names, NSETTINGS);
             return json_fail(e, PM_EINVAL, P ".%s: unknown key%s%s%s", it->string ? it->string : "?",
-                             near ? " (did you mean \"" : "", near ? near : "", near ? "\"?)" : "");
+                             near ? " (did you mean \"" : "", near ? near : "",
+                             near ? "\"?)" : " (render --help-settings lists the keys)");
         }
     /* In table order, so that of several bad keys the same one is always reported. */
     for (size_t k = 0; k < NSETTINGS; k++)

@@ -156,6 +156,21 @@ TEST(render_validate_option_and_mode_messages) {
     rc = render_text(scene_text(NULL, NULL, NULL), "--pm caustics=yes", out, sizeof out);
     EXPECT_MSG(rc == 2 && strstr(out, "render: --pm caustics: expected true or false, got the string \"yes\""),
                "exit %d: %s", rc, out);
+    /* The nearest key also for a key typed as its JSON path or in another case; none near:
+     * where the keys are listed. */
+    static const struct {
+        const char *arg, *msg;
+    } near[] = {
+        {"--pm photon_mapping.k_global=5", "render: --pm photon_mapping.k_global: unknown key (did you mean \"k_global\"?)"},
+        {"--pm K_GLOBAL=5", "render: --pm K_GLOBAL: unknown key (did you mean \"k_global\"?)"},
+        {"--pm zzz=1", "render: --pm zzz: unknown key (render --help-settings lists the keys)"},
+    };
+    for (size_t k = 0; k < sizeof near / sizeof near[0]; k++) {
+        rc = render_text(scene_text(NULL, NULL, NULL), near[k].arg, out, sizeof out);
+        EXPECT_MSG(rc == 2 && strstr(out, near[k].msg), "%s: exit %d: %s", near[k].arg, rc, out);
+    }
+    expect_error(scene_text("\"emission\"", "\"Emission\"", NULL), "",
+                 "$.materials.lamp.Emission: unknown key (did you mean \"emission\"?)");
     const char *modes[] = {"--mode path", "--mode pm", "--mode objects"};
     for (int k = 0; k < 3; k++)
         expect_error(scene_text("\"mode\": \"path\"", "\"mode\": \"paht\"", NULL), modes[k],
