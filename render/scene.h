@@ -110,6 +110,8 @@ typedef struct scene {
     bvh accel;
     render_settings settings;
     cJSON *photon_mapping; /* a copy of "$.photon_mapping", or NULL */
+    char file[512];        /* the scene file as scene_load was given it (cut at 511 bytes), for
+                            * messages ("render: FILE: ..."); "" for a scene from text */
 } scene;
 
 /* A ray-surface hit. */

@@ -746,5 +746,7 @@ int scene_load(scene *s, const char *filename, json_err *e) {
     cJSON *root = NULL;
     memset(s, 0, sizeof *s);
     int rc = json_parse_file(filename, &root, e);
-    return load_parsed(s, rc, root, filename, e);
+    rc = load_parsed(s, rc, root, filename, e);
+    if (rc == 0) snprintf(s->file, sizeof s->file, "%s", filename);
+    return rc;
 }
