@@ -63,11 +63,9 @@ static int cmp_u32(const void *a, const void *b) {
     return (x > y) - (x < y);
 }
 
-unsigned side_count_paths(const pm_photon *ph, const uint32_t *path, const pm_neighbor *nb, int count,
-                          uint32_t *scratch) {
+unsigned side_count_paths(const uint32_t *path, const pm_neighbor *nb, int count, uint32_t *scratch) {
     unsigned m = 0;
     for (int j = 0; j < count; j++) {
-        if (pm_photon_kind(&ph[nb[j].index]) == PM_KIND_DIRECT) continue;
         /* Without paths every photon counts as its own path (photon_sides.h). */
         scratch[m] = path ? path[nb[j].index] : m;
         m++;
@@ -230,7 +228,7 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
                 /* The usual estimate: k photons, the k-th on the rim; or the whole disc. */
                 double r2 = (unsigned)found == k ? nb[found - 1].dist2 : (double)max_dist2;
                 disc_irradiance(ph, nb, found, r2, (unsigned)found == k, 1.0, e);
-                int readable = side_estimate_readable(side_count_paths(ph, path, nb, found, ids));
+                int readable = side_estimate_readable(side_count_paths(path, nb, found, ids));
                 r2v[which[j]] = readable ? (float)r2 : 0.0f;
                 sparse += !readable;
             } else {
@@ -271,7 +269,7 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
                 rays2 += SIDE_AREA_DIRS + 1;
                 if (frac < 1.0 / SIDE_AREA_DIRS) frac = 1.0 / SIDE_AREA_DIRS;
                 disc_irradiance(ph, nb, kept, r2, rim, frac, e);
-                int readable = side_estimate_readable(side_count_paths(ph, path, nb, kept, ids));
+                int readable = side_estimate_readable(side_count_paths(path, nb, kept, ids));
                 r2v[which[j]] = readable ? (float)r2 : 0.0f;
                 sparse += !readable;
             }

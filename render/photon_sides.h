@@ -32,28 +32,32 @@
  *                    own side (the radius then grows into the dark side, which holds none of
  *                    them: the same boundary bias as at any edge of a surface, low, never a
  *                    leak). Each precomputed photon keeps the radius^2 of its own estimate.
- *                    Sparse estimates: one whose indirect photons (those its value sums) come
- *                    from fewer than SIDE_MIN_PATHS (8) distinct photon paths keeps radius^2 0,
- *                    so no lookup returns it (the module's own-radius test, dist2 < r2, never
- *                    holds) and the caller computes the light there instead. Why paths and not
- *                    photons: the photons of one path (an emitted photon storing a record at
- *                    each diffuse bounce, photon_maps.h PHOTON PATHS) are not independent; in
- *                    a closed room they land all over the same few walls, so an estimate of n
- *                    photons from p paths has the error of p samples (1/sqrt(p)), not of n.
- *                    Why the rule holds: the value is the sum of each path's stores in the
- *                    disc, so it is exactly as trustworthy as the number of paths adding to
- *                    it; with at least 8 of them its error is at most about 35%, and where
- *                    the expected count is much larger (every lit part of a scene) the rule
- *                    rarely bites. Where few paths reach a region (a room lit through a
- *                    pinhole: about 4 of 56,000 emitted get in), an estimate is read only
- *                    when, by chance, many came near, and then it reads the region's light
- *                    high over a disc as wide as the largest radius: counting photons let 8
- *                    photons from 4 paths light pinhole_room's green wall (walls +12%, photon
- *                    seed 4), counting paths computes that light instead (+0.6%). Paths with
- *                    no indirect photon in the disc add nothing to the value and are not
- *                    counted, so an estimate of direct photons alone is computed too. The
- *                    rule needs no k: it holds as well for a distributed process's part of an
- *                    estimate, whose paths add up over the parts (render/mpi/lookup.c).
+ *                    Sparse estimates: one whose photons come from fewer than SIDE_MIN_PATHS
+ *                    (8) distinct photon paths keeps radius^2 0, so no lookup returns it (the
+ *                    module's own-radius test, dist2 < r2, never holds) and the caller
+ *                    computes the light there instead. Why paths and not photons: the photons
+ *                    of one path (an emitted photon storing a record at each diffuse bounce,
+ *                    photon_maps.h PHOTON PATHS) are not independent; in a closed room they
+ *                    land all over the same few walls, so an estimate of n photons from p
+ *                    paths has the error of p samples (1/sqrt(p)), not of n. Why the rule
+ *                    holds: the estimate is a sum over the paths that reached its disc, each
+ *                    an independent sample, so it is as trustworthy as their number; with 8
+ *                    or more its error is at most about 35%, and where many more are expected
+ *                    (every lit part of a scene) the rule never bites. Where few paths reach a
+ *                    region (a room lit through a pinhole: about 4 of 56,000 emitted get in),
+ *                    an estimate is read only when, by chance, many came near, and then it
+ *                    reads the region's light high over a disc as wide as the largest radius:
+ *                    counting photons let 8 photons from 4 paths light pinhole_room's green
+ *                    wall (walls +12%, photon seed 4); counting paths computes that light
+ *                    instead (+0.6%). Every photon found counts, direct ones too (each the
+ *                    first hit of its own path): they are independent samples of the disc
+ *                    as well, and whether they came is not the indirect value's chance, so
+ *                    counting them selects no estimate for reading high; counting indirect
+ *                    photons only made 42,872 of sun_spheres' 50,000 estimates unreadable (an
+ *                    open ground under the sun: 100 direct photons, a few indirect, all of
+ *                    it read correctly before) and computed their light at every gather hit.
+ *                    The rule needs no k: it holds as well for a distributed process's part
+ *                    of an estimate, whose paths add up over the parts (render/mpi/lookup.c).
  *                    Direct light: the values leave out the direct photons (first hits from
  *                    a light; they still count toward the k that set the radius), and the
  *                    caller computes y's direct light with a light sample instead. Why: direct
@@ -102,18 +106,17 @@ double side_free_height(const scene *s, vec3 p, vec3 np, double cap);
  * an estimate within radius^2 max_dist2 uses (a quarter of the radius), into h[0..n): one ray
  * each, on OpenMP threads. */
 void side_free_heights(const scene *s, const pm_photon *ph, size_t n, float max_dist2, float *h);
-/* Fewest distinct photon paths an estimate's indirect photons come from for it to be read
+/* Fewest distinct photon paths an estimate's photons come from for it to be read
  * ("Sparse estimates" above). */
 #define SIDE_MIN_PATHS 8u
-/* 1 if an estimate whose indirect photons come from `paths` distinct photon paths may be
- * looked up (see "Sparse estimates" above); the build gives the others radius^2 0. */
+/* 1 if an estimate whose photons come from `paths` distinct photon paths may be looked up
+ * (see "Sparse estimates" above); the build gives the others radius^2 0. */
 int side_estimate_readable(unsigned paths);
-/* The distinct paths among the indirect photons nb[0..count) of the map ph, whose path ids
- * are path (photon_maps.h, PHOTON PATHS; in ph's order). path NULL (not known): every photon
+/* The distinct paths among the photons nb[0..count) of a map whose path ids are path
+ * (photon_maps.h, PHOTON PATHS; in the map's order). path NULL (not known): every photon
  * counts as a path of its own, which reads the estimate as often as counting photons would.
  * scratch: room for count ids. */
-unsigned side_count_paths(const pm_photon *ph, const uint32_t *path, const pm_neighbor *nb, int count,
-                          uint32_t *scratch);
+unsigned side_count_paths(const uint32_t *path, const pm_neighbor *nb, int count, uint32_t *scratch);
 /* The shadow-photon map's search filter (the photon mapper's shadow hint; user: the query's
  * unit normal, float[3]): pm_filter_front (the photon travelled toward the query's side),
  * and the photon's surface normal within about 45 degrees of the query's (cos >= 0.7, as

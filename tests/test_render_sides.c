@@ -225,35 +225,26 @@ TEST(render_sides_paths_numbered_from_direct_records) {
     free(ref);
 }
 
-/* Oracle: a brute-force count of the distinct ids among the indirect photons (each id against
- * every earlier one); without ids (NULL) every indirect photon is a path of its own. And the
- * readable rule's threshold. */
+/* Oracle: a brute-force count of the distinct ids among the photons (each id against every
+ * earlier one), direct and indirect alike; without ids (NULL) every photon is a path of its
+ * own. And the readable rule's threshold. */
 TEST(render_sides_count_paths_brute_force) {
     enum { N = 300, K = 64 };
-    pm_photon ph[N];
     uint32_t path[N], scratch[K];
-    float pw[3] = {1, 1, 1}, d[3] = {0, 0, -1}, up[3] = {0, 0, 1};
     srng r = {5};
-    for (int i = 0; i < N; i++) {
-        float pos[3] = {(float)srng_unit(&r), (float)srng_unit(&r), 0};
-        pm_photon_init(&ph[i], pos, pw, d, up, srng_unit(&r) < 0.25 ? PM_KIND_DIRECT : PM_KIND_INDIRECT);
-        path[i] = (uint32_t)(srng_unit(&r) * (i % 3 ? 12 : 4000)); /* many repeats, some not */
-    }
+    for (int i = 0; i < N; i++) path[i] = (uint32_t)(srng_unit(&r) * (i % 3 ? 12 : 4000)); /* many repeats */
     for (int trial = 0; trial < 200; trial++) {
         pm_neighbor nb[K];
         int count = (int)(srng_unit(&r) * K);
         for (int j = 0; j < count; j++) nb[j].index = (uint32_t)(srng_unit(&r) * N), nb[j].dist2 = 0;
-        unsigned want = 0, indirect = 0;
+        unsigned want = 0;
         for (int j = 0; j < count; j++) {
-            if (pm_photon_kind(&ph[nb[j].index]) == PM_KIND_DIRECT) continue;
-            indirect++;
             int seen = 0;
-            for (int q = 0; q < j && !seen; q++)
-                seen = pm_photon_kind(&ph[nb[q].index]) != PM_KIND_DIRECT && path[nb[q].index] == path[nb[j].index];
+            for (int q = 0; q < j && !seen; q++) seen = path[nb[q].index] == path[nb[j].index];
             want += !seen;
         }
-        EXPECT_EQ_INT(side_count_paths(ph, path, nb, count, scratch), want);
-        EXPECT_EQ_INT(side_count_paths(ph, NULL, nb, count, scratch), indirect);
+        EXPECT_EQ_INT(side_count_paths(path, nb, count, scratch), want);
+        EXPECT_EQ_INT(side_count_paths(NULL, nb, count, scratch), count);
     }
     EXPECT(!side_estimate_readable(SIDE_MIN_PATHS - 1) && side_estimate_readable(SIDE_MIN_PATHS));
 }
@@ -284,15 +275,18 @@ TEST(render_sides_shadow_filter_keeps_to_the_surface) {
 /* Oracle: the readable rule's definition, end to end through side_cache_build and the lookup.
  * The floor of SIDES_SCENE left of its tall wall holds 40 indirect photons from 4 paths (their
  * DIRECT first records lie right of the wall); right of it, 300 paths of a DIRECT and an
- * INDIRECT record each. With k = 40 every estimate left of the wall has 40 photons from 4
- * paths: with the map's path ids none is readable (a lookup there finds nothing and
- * side_cache.sparse counts them), without ids (NULL: each photon a path) they all are;
- * right of the wall lookups find a record either way. */
+ * INDIRECT record each, and past the low wall 200 paths that stored one DIRECT record each
+ * (an open ground under the sun: their estimates hold direct photons only). With k = 40 every
+ * estimate left of the wall has 40 photons from 4 paths: with the map's path ids none is
+ * readable (a lookup there finds nothing and side_cache.sparse counts them), without ids
+ * (NULL: each photon a path) they all are; elsewhere lookups find a record either way (the
+ * direct-only estimates too: each photon is a path of its own). A lookup can miss for other
+ * reasons (no candidate's own radius covers it), so "find" means 45 or more of 50. */
 TEST(render_sides_sparse_by_distinct_paths) {
     scene s;
     json_err e;
     ASSERT_MSG(scene_load_text(&s, SIDES_SCENE, &e) == 0, "%s", e.msg);
-    const size_t n = 4 * 11 + 300 * 2;
+    const size_t n = 4 * 11 + 300 * 2 + 200;
     float pw[3] = {1, 1, 1}, d[3] = {0, 0, -1}, up[3] = {0, 0, 1};
     srng r = {31};
     for (int use_paths = 1; use_paths >= 0; use_paths--) {
@@ -315,6 +309,10 @@ TEST(render_sides_sparse_by_distinct_paths) {
                 float pos[3] = {(float)(0.2 + 1.6 * srng_unit(&r)), (float)(-1.8 + 1.6 * srng_unit(&r)), 0};
                 pm_photon_init(&m.global[at++], pos, pw, d, up, j ? PM_KIND_INDIRECT : PM_KIND_DIRECT);
             }
+        for (int p = 0; p < 200; p++) { /* past the low wall: direct photons only */
+            float pos[3] = {(float)(0.2 + 1.6 * srng_unit(&r)), (float)(0.7 + 1.1 * srng_unit(&r)), 0};
+            pm_photon_init(&m.global[at++], pos, pw, d, up, PM_KIND_DIRECT);
+        }
         ASSERT(at == n);
         pm_kdtree *t;
         char err[256];
@@ -323,21 +321,24 @@ TEST(render_sides_sparse_by_distinct_paths) {
         ASSERT_EQ_INT(side_cache_build(&c, &s, t, pm_kdtree_records(t), use_paths ? m.global_path : NULL, n, 40,
                                        16.0f, err, sizeof err),
                       0);
-        int left = 0, right = 0;
+        int left = 0, right = 0, direct = 0;
         for (int qi = 0; qi < 50; qi++) {
             float e3[3];
             vec3 yl = v3(-1.6 + 1.2 * srng_unit(&r), -1.6 + 1.2 * srng_unit(&r), 0);
             vec3 yr = v3(0.4 + 1.2 * srng_unit(&r), -1.6 + 1.2 * srng_unit(&r), 0);
+            vec3 yd = v3(0.4 + 1.2 * srng_unit(&r), 0.9 + 0.7 * srng_unit(&r), 0);
             left += side_cache_lookup(&c, &s, yl, v3(0, 0, 1), 16.0f, e3);
             right += side_cache_lookup(&c, &s, yr, v3(0, 0, 1), 16.0f, e3);
+            direct += side_cache_lookup(&c, &s, yd, v3(0, 0, 1), 16.0f, e3);
         }
-        printf("    %s path ids: %zu of %zu estimates too sparse to read; lookups found left %d of 50, right %d of 50\n",
-               use_paths ? "with" : "without", c.sparse, c.n, left, right);
+        printf("    %s path ids: %zu of %zu estimates too sparse to read; lookups found left %d, right %d, "
+               "direct-only %d of 50\n",
+               use_paths ? "with" : "without", c.sparse, c.n, left, right, direct);
         if (use_paths)
             EXPECT_MSG(left == 0 && c.sparse > 0, "left of the wall %d lookups read estimates of 4 paths", left);
         else
-            EXPECT_MSG(left == 50 && c.sparse == 0, "without ids: left %d, sparse %zu", left, c.sparse);
-        EXPECT_MSG(right == 50, "right of the wall: %d of 50", right);
+            EXPECT_MSG(left >= 45 && c.sparse == 0, "without ids: left %d, sparse %zu", left, c.sparse);
+        EXPECT_MSG(right >= 45 && direct >= 45, "right of the wall: %d of 50, direct-only: %d of 50", right, direct);
         side_cache_free(&c);
         pm_kdtree_free(t);
         photon_maps_free(&m);

@@ -17,7 +17,7 @@
  * as queries (position, normal, free height: 36-byte lk_query). Every rank answers every query
  * from its part: its k/M nearest photons on the query's side (photon_sides.h's visibility test,
  * widened past a wall as there), as the partial sums of a pm_combine_acc (power, farthest
- * power, r^2, count, the distinct photon paths of its indirect photons, rim, wall seen: 36
+ * power, r^2, count, the distinct photon paths of its photons, rim, wall seen: 36
  * bytes). An all-to-all returns each rank the answers to its queries; it combines them
  * (pm_combine_finish, divided by the visible part of the mean disc when a rank met a wall; the
  * indirect irradiance, as side_cache_build's: direct photons count in the radius, not in the
