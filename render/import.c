@@ -14,8 +14,10 @@
 #include <time.h>
 
 #include "common.h"
+#include "integrator.h"
 #include "scene.h"
 #include "stats.h"
+#include "tools.h"
 #include "tungsten.h"
 
 #define TRY(x) JSON_TRY(x)
@@ -125,7 +127,17 @@ int scene_dump_main(int argc, char **argv) {
     if (rc == 0) { /* load it all, meshes too, so what is printed is what renders */
         scene s;
         rc = scene_from_json(&s, root, &e);
-        if (rc == 0) scene_free(&s);
+        /* and the mode, which the loader leaves to the integrators' registry (main.c checks
+         * it the same way) */
+        if (rc == 0 && cli_mode_known(s.settings.mode) == 0) {
+            char merr[256];
+            integrator none;
+            integrator_create(s.settings.mode, &s, &none, merr, sizeof merr); /* says why only */
+            rc = json_fail(&e, PM_EINVAL, "$.render.mode: %s", merr);
+            scene_free(&s);
+        } else if (rc == 0) {
+            scene_free(&s);
+        }
         if (rc < 0) cJSON_Delete(root);
     }
     if (rc < 0) {

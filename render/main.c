@@ -34,30 +34,6 @@
 #include <omp.h>
 #endif
 
-/* 1 if name is a mode of integrator.h's registry (read from integrator_list's lines: four
- * spaces, the name, spaces, its help), 0 if not, -1 if it cannot tell (no memory). */
-static int mode_known(const char *name) {
-    char *buf = NULL;
-    size_t len = 0;
-    FILE *f = open_memstream(&buf, &len);
-    if (!f) return -1;
-    integrator_list(f);
-    if (fclose(f) != 0 || !buf) {
-        free(buf);
-        return -1;
-    }
-    int found = 0;
-    size_t n = strlen(name);
-    for (const char *line = buf; *line && !found;) {
-        while (*line == ' ') line++;
-        found = strncmp(line, name, n) == 0 && (line[n] == ' ' || line[n] == '\n' || !line[n]);
-        const char *nl = strchr(line, '\n');
-        line = nl ? nl + 1 : line + strlen(line);
-    }
-    free(buf);
-    return found;
-}
-
 static void usage(FILE *f) {
     fprintf(f,
             "usage: render SCENE.json [options]\n"
@@ -349,7 +325,7 @@ int main(int argc, char **argv) {
     if (seed >= 0) s.settings.seed = (uint64_t)seed;
     /* The file's render.mode is checked even when --mode replaces it: a misspelt mode in the
      * file is an error of the file, found now rather than when the option is dropped. */
-    if (mode && strcmp(mode, s.settings.mode) != 0 && mode_known(s.settings.mode) == 0) {
+    if (mode && strcmp(mode, s.settings.mode) != 0 && cli_mode_known(s.settings.mode) == 0) {
         char merr[256];
         integrator dummy;
         integrator_create(s.settings.mode, &s, &dummy, merr, sizeof merr); /* only says why */

@@ -1,7 +1,8 @@
 /* tools.c: the two image tools of the render program, `render --compare` (error of one PFM
  * against a reference, over the image, a rectangle or an object mask, with an optional
  * difference PNG) and `render --tonemap` (a PFM to a PNG with the render's tone curves), and
- * the strict number parsers they share with main.c's options.
+ * the strict number parsers they share with main.c's options, and the check of a mode name
+ * against integrator.h's registry (main.c and render --dump-scene).
  *
  * Each tool parses its own arguments (argv[1] is the tool's flag) and returns the exit status:
  * 0 ok, 1 a write failure, 2 a usage error or an unreadable input. The comparison itself is
@@ -19,6 +20,31 @@
 #include "compare.h"
 #include "errors.h"
 #include "film.h"
+#include "integrator.h"
+
+/* 1 if name is a mode of integrator.h's registry (read from integrator_list's lines: four
+ * spaces, the name, spaces, its help), 0 if not, -1 if it cannot tell (no memory). */
+int cli_mode_known(const char *name) {
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (!f) return -1;
+    integrator_list(f);
+    if (fclose(f) != 0 || !buf) {
+        free(buf);
+        return -1;
+    }
+    int found = 0;
+    size_t n = strlen(name);
+    for (const char *line = buf; *line && !found;) {
+        while (*line == ' ') line++;
+        found = strncmp(line, name, n) == 0 && (line[n] == ' ' || line[n] == '\n' || !line[n]);
+        const char *nl = strchr(line, '\n');
+        line = nl ? nl + 1 : line + strlen(line);
+    }
+    free(buf);
+    return found;
+}
 
 /* A whole number in [lo, hi] with nothing after it: 0, or -1. */
 int cli_parse_long(const char *s, long lo, long hi, long *out) {

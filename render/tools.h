@@ -1,5 +1,5 @@
-/* tools.h: `render --compare` and `render --tonemap` (tools.c), and the strict number
- * parsers that main.c's options share with them.
+/* tools.h: `render --compare` and `render --tonemap` (tools.c), the strict number parsers
+ * that main.c's options share with them, and the check of a mode name.
  */
 #ifndef RENDER_TOOLS_H
 #define RENDER_TOOLS_H
@@ -12,6 +12,10 @@ extern "C" {
 int cli_parse_long(const char *s, long lo, long hi, long *out);
 /* A positive, finite number: 0 and *out set, or -1 (NULL, trailing text, <= 0, inf, nan). */
 int cli_parse_positive(const char *s, double *out);
+
+/* 1 if name is a rendering mode of integrator.h's registry, 0 if not, -1 if it cannot tell
+ * (out of memory). */
+int cli_mode_known(const char *name);
 
 /* The tools' programs: argv[1] is "--compare" or "--tonemap"; they return the exit status
  * (0 ok, 1 write failure, 2 usage error or unreadable input). */

@@ -70,6 +70,15 @@ static int check_keys(const char *file, const cJSON *obj, const char *P, const c
             twarn(file, "%s.%s: ignored (does not change the image)", P, k);
             continue;
         }
+        /* The nearest key of the subset, as in our own format; worded for a real Tungsten key
+         * outside the subset too ("min_bounces" is not a misspelt "max_bounces"). */
+        const char *names[64];
+        size_t n = 0;
+        for (const char *const *l = ok; l && *l && n < 64; l++) names[n++] = *l;
+        for (const char *const *l = warn; l && *l && n < 64; l++) names[n++] = *l;
+        const char *near = json_nearest_key(k, names, n);
+        if (near)
+            return json_fail(e, PM_EINVAL, "%s.%s: not supported (%s; the nearest supported key is \"%s\")", P, k, what, near);
         return json_fail(e, PM_EINVAL, "%s.%s: not supported (%s)", P, k, what);
     }
     return 0;

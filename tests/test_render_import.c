@@ -684,6 +684,52 @@ TEST(tungsten_unsupported_is_an_error_naming_path) {
            strstr(e.msg, "$.camera.medium: unknown medium \"fog\""));
 }
 
+/* Oracle: the subset's key lists (tungsten.c): a key outside them names the nearest supported
+ * key, as our own format's unknown keys do (worded so that it also fits a real Tungsten key
+ * the subset leaves out); render --dump-scene refuses a scene whose render.mode is unknown,
+ * as render does. */
+TEST(tungsten_unsupported_key_names_the_nearest) {
+    static const struct {
+        const char *prims, *extra, *want;
+    } cases[] = {
+        {"{\"type\": \"quad\", \"bsdf\": \"w\", \"emision\": 1}", "",
+         "$.primitives[0].emision: not supported (a primitive key outside the supported subset; the nearest "
+         "supported key is \"emission\")"},
+        {"{\"type\": \"quad\", \"bsdf\": {\"type\": \"lambert\", \"albdo\": 0.5}}", "",
+         "$.primitives[0].bsdf.albdo: not supported (a bsdf key outside the supported subset; the nearest "
+         "supported key is \"albedo\")"},
+        {"{\"type\": \"quad\", \"bsdf\": \"w\"}", ", \"integrator\": {\"max_bounce\": 3}",
+         "$.integrator.max_bounce: not supported (an integrator key outside the supported subset; the nearest "
+         "supported key is \"max_bounces\")"},
+        {"{\"type\": \"quad\", \"bsdf\": \"w\", \"visible\": false}", "",
+         "$.primitives[0].visible: not supported (a primitive key outside the supported subset)"},
+    };
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
+        char t[2048];
+        snprintf(t, sizeof t, "{\"bsdfs\": [{\"name\": \"w\", \"type\": \"lambert\"}], \"primitives\": [%s],\n"
+                 " \"camera\": {\"transform\": {\"position\": [0, 1, 5], \"look_at\": [0, 0, 0]}}%s}",
+                 cases[i].prims, cases[i].extra);
+        scene s;
+        json_err e;
+        e.msg[0] = 0;
+        int rc = scene_load_text(&s, t, &e);
+        EXPECT_MSG(rc < 0, "case %zu loaded", i);
+        if (rc == 0) scene_free(&s);
+        EXPECT_MSG(strcmp(e.msg, cases[i].want) == 0, "case %zu: \"%s\", want \"%s\"", i, e.msg, cases[i].want);
+    }
+    char path[1024], cmd[4096], out[8192];
+    snprintf(path, sizeof path, "%s/mode.json", pm_test_tmpdir());
+    ASSERT(write_text(path, "{\"camera\": {\"eye\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 4, \"height\": 4},"
+                            " \"materials\": {\"w\": {\"type\": \"lambert\", \"reflectance\": 0.5}},"
+                            " \"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1,"
+                            " \"material\": \"w\"}], \"render\": {\"mode\": \"pmm\"}}") == 0);
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' --dump-scene mode.json 2>&1 >/dev/null", pm_test_tmpdir(),
+             pm_test_build_dir());
+    int rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 2 && strstr(out, "render: mode.json: $.render.mode: unknown mode \"pmm\"; modes:"),
+               "--dump-scene: exit %d: %s", rc, out);
+}
+
 /* Oracle: tungsten.h: a key that does not change the image is skipped with a warning, and
  * every warning (like every error) names the scene file, as render's own warnings do
  * ("render: FILE: warning: ..."). The same scene given as text to the loader warns without a
