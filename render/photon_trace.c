@@ -769,11 +769,14 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
     free(bc);
     uint64_t cut = nfirst >> 32;
     nfirst &= 0xffffffffULL;
+    /* The warnings name the scene file as render's other messages do ("render: FILE: ..."). */
+    const char *file = c->s->file[0] ? c->s->file : NULL;
     if (rc == 0 && cut > 0 && !o->pilot)
         fprintf(stderr,
-                "photon tracing: %s: %llu photon paths were cut by the path-length budget "
+                "%s%s%sphoton tracing: %s: %llu photon paths were cut by the path-length budget "
                 "(photon_mapping.max_bounces = %d)\n",
-                title, (unsigned long long)cut, o->max_bounces);
+                file ? "render: " : "", file ? file : "", file ? ": " : "", title, (unsigned long long)cut,
+                o->max_bounces);
     *runaway = rc == 0 && (long)main_buf->n < target;
     if (rc == 0 && stop && main_buf->n == 0 && strcmp(stop, "max_memory_mb") == 0) {
         snprintf(err, errcap,
@@ -797,10 +800,10 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
             snprintf(with, sizeof with, " (the pilot's %zu stores and %llu photons included)", tn,
                      (unsigned long long)c->tail_emitted);
         fprintf(stderr,
-                "photon tracing: %s: only %zu of %ld photons stored after %llu emitted%s; stopped by "
+                "%s%s%sphoton tracing: %s: only %zu of %ld photons stored after %llu emitted%s; stopped by "
                 "the photon_mapping.%s budget (%s)\n",
-                title, main_buf->n + tn, target + (long)tn, (unsigned long long)(n_e + c->tail_emitted), with,
-                stop ? stop : "?", why);
+                file ? "render: " : "", file ? file : "", file ? ": " : "", title, main_buf->n + tn,
+                target + (long)tn, (unsigned long long)(n_e + c->tail_emitted), with, stop ? stop : "?", why);
     }
     *emitted = n_e;
     whole[0] = main_buf->n; /* the whole pass's counts (a partitioned pass keeps a part) */
