@@ -249,6 +249,52 @@ TEST(render_sides_count_paths_brute_force) {
     EXPECT(!side_estimate_readable(SIDE_MIN_PATHS - 1) && side_estimate_readable(SIDE_MIN_PATHS));
 }
 
+/* Oracle: the whole map's count. render-mpi's partitioned build (lookup.h) sums the distinct
+ * paths each part counts with the ids photon_tree_build_global numbers from that part alone (a
+ * run of the map's order): the sum is the whole map's count, plus at most one for each path
+ * that straddles two parts' boundary (M - 1 of them), never less. Random maps (30% DIRECT
+ * records), split into M = 2..5 runs, random neighbour sets of 10 to 200 records. */
+TEST(render_sides_paths_of_parts_add_up) {
+    enum { N = 3000, K = 200 };
+    pm_photon *ph = malloc(N * sizeof *ph);
+    uint32_t *whole = malloc(N * sizeof *whole), *part = malloc(N * sizeof *part), scratch[K];
+    ASSERT(ph && whole && part);
+    float pw[3] = {1, 1, 1}, d[3] = {0, 0, -1}, up[3] = {0, 0, 1}, pos[3] = {0, 0, 0};
+    srng r = {123};
+    for (int i = 0; i < N; i++)
+        pm_photon_init(&ph[i], pos, pw, d, up, srng_unit(&r) < 0.3 ? PM_KIND_DIRECT : PM_KIND_INDIRECT);
+    photon_paths(ph, N, whole);
+    int exact = 0, over = 0;
+    for (int M = 2; M <= 5; M++) {
+        size_t lo[6];
+        for (int p = 0; p <= M; p++) lo[p] = (size_t)N * (size_t)p / (size_t)M;
+        for (int p = 0; p < M; p++) photon_paths(ph + lo[p], lo[p + 1] - lo[p], part + lo[p]);
+        for (int trial = 0; trial < 100; trial++) {
+            int count = 10 + (int)(srng_unit(&r) * (K - 10));
+            pm_neighbor nb[K], sub[K];
+            /* near a part's boundary half the time, so that straddling paths show */
+            size_t c0 = trial % 2 ? lo[1 + trial % (M - 1)] - 20 : (size_t)(srng_unit(&r) * (N - 60));
+            for (int j = 0; j < count; j++)
+                nb[j].index = (uint32_t)(c0 + (size_t)(srng_unit(&r) * 60)), nb[j].dist2 = 0;
+            unsigned want = side_count_paths(whole, nb, count, scratch), sum = 0;
+            for (int p = 0; p < M; p++) { /* each part counts its own records with its own ids */
+                int ns = 0;
+                for (int j = 0; j < count; j++)
+                    if (nb[j].index >= lo[p] && nb[j].index < lo[p + 1]) sub[ns++] = nb[j];
+                sum += side_count_paths(part, sub, ns, scratch);
+            }
+            EXPECT_MSG(sum >= want && sum <= want + (unsigned)(M - 1), "M %d: parts %u, whole %u", M, sum, want);
+            exact += sum == want;
+            over += sum > want;
+        }
+    }
+    printf("    parts' path counts: %d equal the whole map's, %d one or more over (straddling paths)\n", exact, over);
+    EXPECT(exact > 0 && over > 0);
+    free(ph);
+    free(whole);
+    free(part);
+}
+
 /* Oracle: geometry of the shadow hint's filter (photon_sides.h, side_filter_shadow). The query
  * is on a wall facing -z (pinhole_room's red wall from inside). A photon on the roof's top
  * (normal +y) travelling down and toward the wall passes pm_filter_front but not this filter;
