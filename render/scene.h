@@ -28,9 +28,11 @@
  * SCENE_RADIANCE_MAX (I <= 1e30 D^2, power <= 4 pi 1e30 D^2). A medium's sigma_a and sigma_s
  * are at most 1 / SCENE_LENGTH_MIN per unit length. A film pixel that still overflows is
  * counted ("Film/Non-finite pixels") and `render` warns. The scene reaches at most
- * SCENE_OFFSET_MAX bounding radii from the origin: ray offsets include 64e-9 of a point's
- * coordinates (vec.h), and farther out they stop being small against the scene (a box 1.2e7
- * radii out read 17% dark in path tracing). Photon mapping stores positions and squared
+ * SCENE_OFFSET_MAX bounding radii from the origin, and each object at most
+ * SCENE_OBJECT_OFFSET_MAX of its own: ray offsets include 64e-9 of a point's coordinates
+ * (vec.h), and farther out they stop being small against the scene or the object (a box 1.2e7
+ * radii out read 17% dark in path tracing, also when a huge ground sphere made the scene's
+ * radius large). Photon mapping stores positions and squared
  * distances in 32-bit floats: scene_check_photon_range() says whether a loaded scene is
  * within its narrower range (SCENE_PM_SIZE_MIN..SCENE_PM_SIZE_MAX, not too far from the
  * origin for its size, and light powers a photon can carry).
@@ -62,6 +64,7 @@ extern "C" {
 #define SCENE_LENGTH_MIN 1e-100 /* the scene's bounding radius; a triangle's longest edge */
 #define SCENE_RADIANCE_MAX 1e30 /* emission (W/m^2/sr), a directional light's irradiance */
 #define SCENE_OFFSET_MAX 1e5     /* every mode: |coordinate| / bounding radius (ray offsets) */
+#define SCENE_OBJECT_OFFSET_MAX 1e6 /* every mode: an object's |coordinate| / its own radius */
 #define SCENE_PM_SIZE_MIN 1e-12 /* photon mapping: the scene's bounding radius */
 #define SCENE_PM_SIZE_MAX 1e12
 #define SCENE_PM_OFFSET_MAX 1e4 /* photon mapping: |coordinate| / bounding radius */

@@ -366,6 +366,26 @@ TEST(render_validate_far_from_origin) {
     for (int k = 0; k < 3; k++)
         expect_error(far, modes[k], "$.objects: the scene reaches 207847 from the origin, more than 100000 "
                                     "times its bounding radius 1.73205 (the supported range");
+    /* A huge ground sphere under the far box makes the scene's radius large: each object is
+     * also held to its own size (1e6 of its radii). Moved 1e7 (5.8e6 radii of the box) it is
+     * refused, naming the first object too far for its size; moved 1e5 it renders. */
+    char text[16384];
+    for (int k = 0; k < 2; k++) {
+        double d = k ? 1e7 : 1e5;
+        char *moved = shifted_scene(d);
+        ASSERT(moved);
+        const char *end = strstr(moved, "}],\"lights\"");
+        ASSERT_MSG(end != NULL, "no end of objects in %s", moved);
+        snprintf(text, sizeof text, "%.*s}, {\"type\": \"sphere\", \"center\": [%.17g, -1e19, 0], \"radius\": "
+                 "1e19, \"material\": \"wall\"}%s", (int)(end - moved), moved, d, end + 1);
+        if (k == 0) {
+            rc = render_text(text, "--mode path --spp 4", out, sizeof out);
+            EXPECT_MSG(rc == 0, "moved 1e5 on a ground sphere: exit %d: %s", rc, out);
+        } else {
+            expect_error(text, "--mode path", "$.objects[0]: the object reaches 1e+07 from the origin, more than "
+                                              "1e+06 times its bounding radius 1.41421 (the supported range");
+        }
+    }
 }
 
 /* Oracle: the Ranges table (coordinates -1e100 to 1e100, mesh files after their transform).
