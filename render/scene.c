@@ -137,12 +137,13 @@ int scene_prepare(scene *s, json_err *e) {
             l->power = v3_scale(l->irradiance, M_PI * s->bsphere_r * s->bsphere_r);
         w[i] = (l->power.x + l->power.y + l->power.z) / 3.0;
         if (!isfinite(w[i])) { /* finite inputs whose product overflows */
+            double wi = w[i];
             free(w);
             if (l->type == LIGHT_AREA || l->type == LIGHT_SPHERE)
                 return json_fail(e, PM_EINVAL, "$.objects[%d]: an emissive %s whose power (pi Le "
                                  "area) is too large to represent (%g): make it smaller or dimmer",
                                  l->type == LIGHT_AREA ? s->tri_obj[l->tri] : s->sphere_obj[l->sphere],
-                                 l->type == LIGHT_AREA ? "triangle" : "sphere", w[i]);
+                                 l->type == LIGHT_AREA ? "triangle" : "sphere", wi);
             return json_fail(e, PM_EINVAL, "$.lights[%d]: its power is too large to represent%s", i,
                              l->type == LIGHT_DIRECTIONAL ? " (irradiance times the scene's cross-section)" : "");
         }
