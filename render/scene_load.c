@@ -523,6 +523,13 @@ static int load_settings(scene *s, const cJSON *root, json_err *e) {
     return 0;
 }
 
+/* "comment" is allowed in every object of the format, also in the maps of named materials
+ * and media, where a text under that key is a comment, not a material or medium (an object
+ * under it is one named "comment"). */
+static int is_comment(const cJSON *it) {
+    return it->string && strcmp(it->string, "comment") == 0 && cJSON_IsString(it);
+}
+
 /* $.media: named homogeneous media (medium.h). */
 static int load_media(scene *s, const cJSON *root, json_err *e) {
     const cJSON *ms;
@@ -533,6 +540,7 @@ static int load_media(scene *s, const cJSON *root, json_err *e) {
     if (!s->media) return json_fail(e, PM_ENOMEM, "out of memory");
     char P[P_MAX];
     for (const cJSON *it = ms->child; it; it = it->next) {
+        if (is_comment(it)) continue;
         medium *m = &s->media[s->nmedia];
         json_path_key(P, sizeof P, "$.media", it->string ? it->string : "?");
         if (!cJSON_IsObject(it))
@@ -671,6 +679,7 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
     TRY(json_object(root, "$", "materials", 1, &mats, e));
     char p[P_MAX];
     for (const cJSON *it = mats->child; it; it = it->next) {
+        if (is_comment(it)) continue;
         material m;
         json_path_key(p, sizeof p, "$.materials", it->string ? it->string : "?");
         if (it->string && strlen(it->string) >= sizeof m.name)

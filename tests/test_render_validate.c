@@ -115,6 +115,21 @@ TEST(render_validate_typo_everywhere) {
                  "reflectance, emission, two_sided, comment)");
 }
 
+/* Oracle: data/scenes/README.md: "`comment` is allowed everywhere". Also in the maps of named
+ * materials and media, where a text under "comment" was read as a material ("$.materials.
+ * comment: expected an object, got a string", exit 2); anything but a text there is still a
+ * material or medium named "comment" and checked as one. */
+TEST(render_validate_comment_everywhere) {
+    char out[16384];
+    const char *extra = ", \"comment\": \"top\", \"media\": {\"comment\": \"none yet\", \"fog\": {\"sigma_s\": 0, "
+                        "\"comment\": \"f\"}}, \"photon_mapping\": {\"comment\": \"p\"}";
+    char *text = scene_text("\"materials\": {", "\"materials\": {\"comment\": \"the walls\", ", extra);
+    int rc = render_text(text, "--mode path", out, sizeof out);
+    EXPECT_MSG(rc == 0, "comments in the maps of materials and media: exit %d: %s", rc, out);
+    expect_error(scene_text("\"materials\": {", "\"materials\": {\"comment\": 5, ", NULL), "",
+                 "$.materials.comment: expected an object, got a number");
+}
+
 /* Oracle: the photon-mapping settings table. "photon_mapping" is checked in every mode (here
  * path tracing, which does not use it): a misspelt key in the file names the file and the
  * JSON path; a misspelt or out-of-range --pm option names the option, not a JSON path. */
