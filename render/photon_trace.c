@@ -356,6 +356,7 @@ static int part_pass(const pass_ctx *c) { return g_dist && g_dist->partitioned &
  * process's own failure before the exchange tells every process (trace_dist.failed). */
 static int dist_trace(const trace_dist *d, const pass_ctx *c, uint64_t start, fbuf *tg, fbuf *ts,
                       int nthreads, uint64_t *nfirst) {
+    if (c->batch_records) *c->batch_records = 0; /* the memory budget counts each batch anew */
     int fail = trace_batch(c, start, tg, ts, nthreads, nfirst);
     return d->test_fail && d->test_fail(d->user) ? 1 : fail;
 }
@@ -422,6 +423,11 @@ static int dist_round(const pass_ctx *c, round_buf *rb, uint64_t start, fbuf *tg
     batch_head *heads = NULL; /* a partitioned pass: the heads alone */
     int fail = !sizes, part = part_pass(c);
     if (part && !(heads = calloc((size_t)per, sizeof *heads))) fail = 1;
+    /* The memory budget inside the batches (run_pass sets the records still allowed): each of
+     * this process's `per` batches of the round may store its share, so the round's records
+     * stay within what is left. c is run_pass's own (not const there). */
+    uint64_t allowance = c->batch_cap;
+    if (allowance) ((pass_ctx *)c)->batch_cap = allowance / (uint64_t)per > 0 ? allowance / (uint64_t)per : 1;
     for (int j = 0; j < per && !fail; j++) {
         batch_head h = {0, 0, 0, 0};
         fbuf m = {0}, sh = {0};
@@ -452,8 +458,10 @@ static int dist_round(const pass_ctx *c, round_buf *rb, uint64_t start, fbuf *tg
         for (int t = 0; t < nthreads; t++) tg[t].n = ts[t].n = 0;
         fail = (int)h.fail;
     }
-    batch_head failed = {0, 0, 0, 1};
-    if (fail) dist_failed(d, c, 0);
+    if (allowance) ((pass_ctx *)c)->batch_cap = allowance;
+    /* fail 2: a batch passed the memory budget (no error): every process stops there. */
+    batch_head failed = {0, 0, 0, fail == 2 ? 2 : 1};
+    if (fail && fail != 2) dist_failed(d, c, 0);
     int rc = !sizes ? -1
              : fail ? d->allgather(d->user, &failed, sizeof failed, (void **)&rb->all, sizes)
              : part ? d->allgather(d->user, heads, (size_t)per * sizeof *heads, (void **)&rb->all, sizes)
@@ -475,7 +483,7 @@ static int dist_batch(const pass_ctx *c, round_buf *rb, uint64_t n_e, fbuf *tg, 
         if (dist_round(c, rb, n_e, tg, ts, nthreads)) return 1;
     batch_head h;
     memcpy(&h, rb->all + rb->off, sizeof h);
-    if (h.fail) return 1;
+    if (h.fail) return h.fail == 2 ? 2 : 1;
     if (counts) { /* a partitioned pass: the batch's counts, from its head alone */
         counts[0] = h.nmain;
         counts[1] = h.nshadow;
@@ -696,6 +704,15 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
             break;
         }
         int fail;
+        /* Distributed passes keep the memory budget inside their batches too (dist_round): a
+         * batch that would pass its share stops every process there, with the message of the
+         * one-process pass below. */
+        uint64_t d_budget = o->max_memory_bytes / sizeof(fphoton),
+                 d_held = (uint64_t)main_buf->n + (shadow_buf ? (uint64_t)shadow_buf->n : 0), d_count = 0;
+        if (part || use_dist) {
+            c->batch_cap = o->max_memory_bytes > 0 ? (d_budget > d_held ? d_budget - d_held : 1) : 0;
+            c->batch_records = c->batch_cap ? &d_count : NULL;
+        }
         if (part) {
             uint64_t cnt[2] = {0, 0};
             fail = dist_batch(c, &rb, n_e, tg, ts, nthreads, &nfirst, cnt);
@@ -712,7 +729,7 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
                 bc[nbc++].nshadow = cnt[1];
                 vgrow(main_buf, cnt[0]);
                 if (shadow_buf) vgrow(shadow_buf, cnt[1]);
-            } else {
+            } else if (fail != 2) { /* 2: over the memory budget, below */
                 fail = 1;
             }
         } else if (use_dist) {
@@ -741,6 +758,18 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
             }
             nfirst += nf;
             fail &= 1;
+        }
+        if (part || use_dist) {
+            c->batch_cap = 0;
+            c->batch_records = NULL;
+            if (fail == 2) {
+                for (int t = 0; t < nthreads; t++) tg[t].n = ts[t].n = 0;
+                stop = "max_memory_mb";
+                snprintf(why, sizeof why, "the next batches of %d photons would store more than the %zu MiB "
+                         "left of %zu MiB", PT_BATCH, (size_t)((d_budget > d_held ? d_budget - d_held : 0) *
+                         sizeof(fphoton)) >> 20, o->max_memory_bytes >> 20);
+                break;
+            }
         }
         n_e += PT_BATCH;
         /* The memory budget in records, less what the other buffer holds (the check above

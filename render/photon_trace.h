@@ -82,12 +82,16 @@
  *   emitted    max_emitted_factor x target, and at most max_emitted photons; a pass whose
  *              storage rate (after 4 batches) needs more than twice that stops at once;
  *   memory     max_memory_mb of photon buffers (the map's buffers grow to at most the
- *              budget, not by doubling past it): checked between batches, and inside a batch
- *              (one process): a batch whose records, with those held, would pass the budget
- *              is dropped whole and the pass stops before it (one batch can store PT_BATCH
- *              times the path length: 19 GB in a lossless furnace with max_depth 1e5). A
- *              pass stopped so before storing anything ends with PM_EEMPTY and a message
- *              that names the budget;
+ *              budget, not by doubling past it): checked between batches, and inside a batch:
+ *              a batch whose records, with those held, would pass the budget is dropped
+ *              whole and the pass stops before it (one batch can store PT_BATCH times the
+ *              path length: 19 GB in a lossless furnace with max_depth 1e5). In a
+ *              distributed pass each of a process's m batches of a round may store 1/m of
+ *              what is left, and a batch past its share stops every process at that batch
+ *              (so there the stop can come earlier than in one process; the maps are the
+ *              one-process maps whenever no budget stops the pass). A pass stopped so
+ *              before storing anything ends with PM_EEMPTY and a message that names the
+ *              budget;
  *   path       max_bounces bounces per photon (below the scene's max_depth), so one photon
  *              stores a bounded number of records (the furnace with reflectance 1 would
  *              bounce to max_depth); the paths cut are counted and reported;

@@ -692,5 +692,44 @@ kill_test path data/scenes/cornell_box.json --mode path --width 64 --height 64 -
 kill_test partitioned data/scenes/cornell_spheres.json --mode pm --width 64 --height 64 --spp 1024 \
   --pm global_photons=20000 --pm caustic_photons=20000 --pm distributed=partitioned
 
+# ---- the memory budget inside a distributed pass ------------------------------------------
+# Oracle: PASS BUDGETS (photon_trace.h) and render's own run of the same command. A lossless
+# furnace (a closed box, every reflectance 1, render.max_depth 1e5) whose batches of 4096
+# photons, allowed 1e6 bounces, would store far more than max_memory_mb=16: render ends at
+# once, status 1, "no photon stored within the photon_mapping.max_memory_mb budget"; so must
+# render-mpi, replicated and partitioned, within 60 s and writing nothing (before, each rank
+# grew past 0.9 GB in 15 s and the job was still running at 60 s).
+cat > "$T/furnace1.json" <<FURNACE
+{"camera": {"eye": [5, 5, 1], "look_at": [5, 5, 9], "fov_deg": 50, "width": 8, "height": 8, "spp": 1},
+ "materials": {"w": {"type": "lambert", "reflectance": 1},
+               "lamp": {"type": "lambert", "reflectance": 1, "emission": 10}},
+ "objects": [
+  {"type": "quad", "vertices": [[10,0,0],[0,0,0],[0,0,10],[10,0,10]], "material": "w"},
+  {"type": "quad", "vertices": [[10,10,0],[10,10,10],[0,10,10],[0,10,0]], "material": "w"},
+  {"type": "quad", "vertices": [[10,0,10],[0,0,10],[0,10,10],[10,10,10]], "material": "w"},
+  {"type": "quad", "vertices": [[0,0,10],[0,0,0],[0,10,0],[0,10,10]], "material": "w"},
+  {"type": "quad", "vertices": [[10,0,0],[10,0,10],[10,10,10],[10,10,0]], "material": "w"},
+  {"type": "quad", "vertices": [[0,0,0],[10,0,0],[10,10,0],[0,10,0]], "material": "w"},
+  {"type": "quad", "vertices": [[6,9.99,4],[6,9.99,6],[4,9.99,6],[4,9.99,4]], "material": "lamp"}],
+ "render": {"max_depth": 100000}}
+FURNACE
+BUDGET="--mode pm --pm global_photons=100000000 --pm max_memory_mb=16 --pm max_bounces=1000000 --quiet"
+BUDGET_MSG="no photon stored within the photon_mapping.max_memory_mb budget"
+for dmode in replicated partitioned; do
+  mkdir -p "$T/budget.$dmode"
+  t0=$(date +%s)
+  # shellcheck disable=SC2086
+  timeout 120 $MPIRUN -np 2 "$M" "$T/furnace1.json" $BUDGET --threads 1 --pm distributed=$dmode \
+    --hdr "$T/budget.$dmode/o.pfm" >"$T/budget.$dmode.log" 2>&1
+  rc=$?
+  dt=$(($(date +%s) - t0))
+  if [ $rc = 1 ] && [ $dt -lt 60 ] && [ -z "$(ls -A "$T/budget.$dmode")" ] \
+     && grep -q "^render: .*furnace1.json: photon tracing: Tracing global photons: $BUDGET_MSG" "$T/budget.$dmode.log"; then
+    ok "memory budget in a distributed pass ($dmode): render's message, status 1, ${dt} s, no output"
+  else
+    bad "memory budget in a distributed pass ($dmode)" "rc $rc, ${dt} s, left: $(ls -A "$T/budget.$dmode" | tr '\n' ' '); $(grep render "$T/budget.$dmode.log" | head -2)"
+  fi
+done
+
 echo "$pass passed, $fail failed"
 [ "$fail" = 0 ]
