@@ -5,7 +5,9 @@
  * a mkstemp temporary next to the target and renames it over the target only after every
  * byte was written, flushed and synced, and only if the target is absent or a regular file
  * (checked with lstat, which does not follow links). A load checks the whole header against
- * the file's size (fstat) before it allocates.
+ * the file's size (fstat) before it allocates. The version-3 checksum (FNV-1a 64 of header
+ * bytes 0..55 and then the record bytes, as stored) is summed while the records are packed or
+ * unpacked, so it costs no second pass; a save writes it into the header last.
  */
 #ifndef _POSIX_C_SOURCE
 #define _POSIX_C_SOURCE 200809L
@@ -24,9 +26,18 @@
 #define PM__HEADER_BYTES 64
 #define PM__RECORD_BYTES 20
 #define PM__CHUNK 1024 /* records per buffered read or write */
+#define PM__CHECKSUM_AT 56 /* version 3: the checksum's 8 bytes (reserved, zero, before) */
 static const char pm__magic[8] = {'P', 'M', 'A', 'P', 'H', 'O', 'T', 'N'};
 
 _Static_assert(sizeof(pm_photon) == PM__RECORD_BYTES, "the file's record is one pm_photon");
+
+/* FNV-1a, 64 bits (Fowler, Noll, Vo): h = (h ^ byte) * prime, from the offset basis. */
+#define PM__FNV_BASIS 0xcbf29ce484222325ull
+#define PM__FNV_PRIME 0x100000001b3ull
+static uint64_t fnv1a(uint64_t h, const unsigned char *b, size_t n) {
+    for (size_t i = 0; i < n; i++) h = (h ^ b[i]) * PM__FNV_PRIME;
+    return h;
+}
 
 static void put32(unsigned char *b, uint32_t v) {
     b[0] = (unsigned char)v, b[1] = (unsigned char)(v >> 8);
@@ -102,14 +113,22 @@ int pm_map_save(const char *path, const pm_photon *photons, const pm_map_header 
         put32(h + 40 + 8 * t, (uint32_t)hdr->tag[t]);
         put32(h + 44 + 8 * t, (uint32_t)(hdr->tag[t] >> 32));
     }
+    /* The header with its checksum bytes zero, the records, then the checksum at 56. */
     int ok = write_all(fd, h, sizeof h) == 0;
+    uint64_t sum = fnv1a(PM__FNV_BASIS, h, PM__CHECKSUM_AT);
     unsigned char buf[PM__RECORD_BYTES * PM__CHUNK];
     for (uint64_t i = 0; ok && i < hdr->count;) {
         size_t c = 0;
         for (; c < PM__CHUNK && i < hdr->count; c++, i++)
             pack_photon(buf + PM__RECORD_BYTES * c, &photons[i]);
+        sum = fnv1a(sum, buf, PM__RECORD_BYTES * c);
         ok = write_all(fd, buf, PM__RECORD_BYTES * c) == 0;
     }
+    unsigned char cs[8];
+    put32(cs, (uint32_t)sum);
+    put32(cs + 4, (uint32_t)(sum >> 32));
+    if (ok && (lseek(fd, PM__CHECKSUM_AT, SEEK_SET) != PM__CHECKSUM_AT || write_all(fd, cs, sizeof cs) != 0))
+        ok = 0;
     if (ok && fchmod(fd, mode) != 0) ok = 0;
     if (ok && fsync(fd) != 0) ok = 0;
     if (close(fd) != 0) ok = 0;
@@ -149,14 +168,16 @@ int pm_map_load(const char *path, pm_photon **photons, pm_map_header *hdr) {
     hd.tree_bucket = get32(h + 36);
     for (int t = 0; t < 2; t++)
         hd.tag[t] = (uint64_t)get32(h + 40 + 8 * t) | (uint64_t)get32(h + 44 + 8 * t) << 32;
-    if (hd.version != 1 && hd.version != PM_FILE_VERSION) {
+    if (hd.version < 1 || hd.version > PM_FILE_VERSION) {
         rc = PM_EVERSION;
         goto out;
     }
     /* Version 1 reserved bytes 40..63 (zero) and knew kinds up to PM_MAP_OTHER; version 2
-     * keeps bytes 56..63 zero. */
+     * keeps bytes 56..63 zero; version 3 has its checksum there. */
     int reserved_zero = 1;
-    for (int i = hd.version == 1 ? 40 : 56; i < PM__HEADER_BYTES; i++) reserved_zero &= h[i] == 0;
+    for (int i = hd.version == 1 ? 40 : 56; hd.version < 3 && i < PM__HEADER_BYTES; i++) reserved_zero &= h[i] == 0;
+    uint64_t want_sum = (uint64_t)get32(h + PM__CHECKSUM_AT) | (uint64_t)get32(h + PM__CHECKSUM_AT + 4) << 32;
+    uint64_t sum = fnv1a(PM__FNV_BASIS, h, PM__CHECKSUM_AT);
     uint32_t max_kind = hd.version == 1 ? PM_MAP_OTHER : PM_MAP_VOLUME;
     if (hd.record_size != sizeof(pm_photon) || hd.kind < PM_MAP_GLOBAL || hd.kind > max_kind ||
         !reserved_zero) {
@@ -188,9 +209,14 @@ int pm_map_load(const char *path, pm_photon **photons, pm_map_header *hdr) {
                 rc = ferror(f) ? PM_EIO : PM_EFORMAT;
                 goto out;
             }
+            sum = fnv1a(sum, buf, PM__RECORD_BYTES * want);
             for (size_t c = 0; c < want; c++, i++)
                 unpack_photon(&p[i], buf + PM__RECORD_BYTES * c);
         }
+    }
+    if (hd.version >= 3 && sum != want_sum) { /* a damaged header field or record */
+        rc = PM_EFORMAT;
+        goto out;
     }
     *hdr = hd;
     *photons = p;

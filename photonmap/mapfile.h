@@ -17,15 +17,20 @@
  *   uint64   tag[1]       renderer: a hash of the scene and one of the photon settings;
  *                         render/photon_maps.h); 0 = none. Stored and returned, never
  *                         interpreted here
- *   uint8    reserved[8]  zero
+ *   uint64   checksum     FNV-1a 64 of header bytes 0..55 followed by every record's bytes as
+ *                         stored (version 3; bytes 56..63, zero in versions 1 and 2)
  * Records are stored little-endian whatever the host.
  *
- * VERSIONS. Version 2 (PM_FILE_VERSION, written by every save) added tag[] and the kind
+ * VERSIONS. Version 3 (PM_FILE_VERSION, written by every save) added the checksum in the
+ * last 8 header bytes, which version 2 kept zero: a flipped bit anywhere in the header or the
+ * records (a count, a tag, a photon's position or power) is refused as PM_EFORMAT, where the
+ * checks of the header alone saw only bad values and sizes. Version 2 added tag[] and the kind
  * PM_MAP_VOLUME in bytes that version 1 kept zero (reserved[24] from byte 40) and in a kind
- * value it refused. A version-1 file still loads: hdr->version = 1 and tag = {0, 0}, its
- * bytes 40..63 must be zero and its kind one of PM_MAP_GLOBAL..PM_MAP_OTHER. A reader of
- * version 1 refuses a version-2 file with PM_EVERSION (not as a corrupt one). Any other
- * version is refused with PM_EVERSION.
+ * value it refused. Older files still load, without the checksum's protection: a version-2
+ * file (hdr->version = 2) if its bytes 56..63 are zero; a version-1 file (hdr->version = 1,
+ * tag = {0, 0}) if its bytes 40..63 are zero and its kind is one of
+ * PM_MAP_GLOBAL..PM_MAP_OTHER. A reader of an older version refuses a newer file with
+ * PM_EVERSION (not as a corrupt one). Any other version is refused with PM_EVERSION.
  *
  * SAVING. pm_map_save writes the whole file to a new temporary file in the same directory
  * (PATH.XXXXXX, created by mkstemp, so concurrent saves never share one and no existing file
@@ -41,14 +46,17 @@
  * of the PM_MAP_* values (else PM_EINVAL, nothing written); hdr->tag is written as given.
  *
  * LOADING. pm_map_load reads the header and checks every field before allocating anything:
- * the magic, the version (1 or 2), the record size, the kind (a PM_MAP_* value), the reserved
+ * the magic, the version (1 to 3), the record size, the kind (a PM_MAP_* value), the reserved
  * bytes (zero), and that the file's size is exactly 64 + 20 * count (so a corrupt or hostile count
  * can never make it allocate more than the file holds). It allocates *photons with malloc
- * (NULL for an empty map); the caller frees it.
+ * (NULL for an empty map), and for version 3 compares the checksum after reading the records
+ * (it is summed as they are read: no second pass); on a mismatch nothing is returned. The
+ * caller frees *photons.
  *
  * ERRORS. PM_EIO (cannot open, read, write, flush or rename; errno has the detail),
  * PM_ENOTFILE (save: PATH exists and is not a regular file), PM_EFORMAT (bad magic, record
- * size, kind, reserved bytes, or a size that does not match the count), PM_EVERSION,
+ * size, kind, reserved bytes, a size that does not match the count, or a checksum that does
+ * not match the bytes), PM_EVERSION,
  * PM_EINVAL (NULL arguments, a bad record size or kind), PM_ENOMEM, PM_ERANGE (a count this build
  * cannot address).
  *
@@ -65,7 +73,7 @@
 extern "C" {
 #endif
 
-#define PM_FILE_VERSION 2u
+#define PM_FILE_VERSION 3u
 /* What a map holds. PM_MAP_VOLUME (photons in a participating medium) is new in version 2. */
 enum { PM_MAP_GLOBAL = 1, PM_MAP_CAUSTIC = 2, PM_MAP_SHADOW = 3, PM_MAP_OTHER = 4, PM_MAP_VOLUME = 5 };
 

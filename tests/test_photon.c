@@ -44,10 +44,22 @@ static double angle_deg(const float a[3], const double b[3]) {
     return atan2(s, c) * 180.0 / 3.14159265358979323846;
 }
 
+/* FNV-1a 64, written from its definition (the test's own, not mapfile.c's): checked against
+ * the published vectors of "" and "a" before use. */
+static uint64_t test_fnv1a(uint64_t h, const unsigned char *b, size_t n) {
+    for (size_t i = 0; i < n; i++) {
+        h ^= b[i];
+        h *= 1099511628211ull; /* 2^40 + 2^8 + 0xb3 */
+    }
+    return h;
+}
+#define TEST_FNV_BASIS 14695981039346656037ull
+
 /* Oracle: mapfile.h's table of the format, read byte by byte from a saved file (the size of
  * the record itself is a static assertion in photon.c; this checks what reaches the disk):
- * magic, version, record size, count, kind, emitted (two halves), tree_bucket, zero reserved
- * bytes, then each record as little-endian float x, y, z, RGBE, theta, phi, flag, normal. */
+ * magic, version, record size, count, kind, emitted (two halves), tree_bucket, the checksum
+ * (FNV-1a 64 of bytes 0..55 and the records, computed here from the bytes read), then each
+ * record as little-endian float x, y, z, RGBE, theta, phi, flag, normal. */
 TEST(map_file_bytes_match_the_documented_layout) {
     char path[600];
     snprintf(path, sizeof path, "%s/one.pm", pm_test_tmpdir());
@@ -68,13 +80,18 @@ TEST(map_file_bytes_match_the_documented_layout) {
     EXPECT(memcmp(b, "PMAPHOTN", 8) == 0);
     const uint32_t w[12] = {PM_FILE_VERSION, 20, 2, 0, PM_MAP_SHADOW, 7, 5, 8,
                             0x55667788u, 0x11223344u, 0xa9u, 0};
-    EXPECT_EQ_INT(PM_FILE_VERSION, 2);
+    EXPECT_EQ_INT(PM_FILE_VERSION, 3);
     for (int i = 0; i < 12; i++) {
         uint32_t v = (uint32_t)b[8 + 4 * i] | (uint32_t)b[9 + 4 * i] << 8 |
                      (uint32_t)b[10 + 4 * i] << 16 | (uint32_t)b[11 + 4 * i] << 24;
         EXPECT_MSG(v == w[i], "header word %d at byte %d: %u, want %u", i, 8 + 4 * i, v, w[i]);
     }
-    for (int i = 56; i < 64; i++) EXPECT_EQ_INT(b[i], 0);
+    EXPECT(test_fnv1a(TEST_FNV_BASIS, (const unsigned char *)"", 0) == 0xcbf29ce484222325ull);
+    EXPECT(test_fnv1a(TEST_FNV_BASIS, (const unsigned char *)"a", 1) == 0xaf63dc4c8601ec8cull);
+    uint64_t sum = test_fnv1a(test_fnv1a(TEST_FNV_BASIS, b, 56), b + 64, 40), got = 0;
+    for (int i = 7; i >= 0; i--) got = got << 8 | b[56 + i];
+    EXPECT_MSG(got == sum, "checksum %016llx, FNV-1a of the bytes %016llx", (unsigned long long)got,
+               (unsigned long long)sum);
     for (int r = 0; r < 2; r++) {
         const unsigned char *rec = b + 64 + 20 * r;
         for (int a = 0; a < 3; a++) {
@@ -325,7 +342,7 @@ TEST(map_file_round_trip_and_errors) {
     ASSERT_EQ_INT(pm_map_save(path, p, &h), 0);
     f = fopen(path, "r+b");
     fseek(f, 8, SEEK_SET);
-    fputc(3, f);
+    fputc(PM_FILE_VERSION + 1, f);
     fclose(f);
     EXPECT_EQ_INT(pm_map_load(path, &q, &g), PM_EVERSION);
     ASSERT_EQ_INT(pm_map_save(path, p, &h), 0);
@@ -642,7 +659,7 @@ static int patch_bytes(const char *path, long off, const unsigned char *b, size_
 /* Oracle: mapfile.h's VERSIONS paragraph, on files patched byte by byte. A version-1 file
  * (version word 1, bytes 40..63 zero) loads with version 1, tag {0, 0} and the same photons;
  * a version-1 file with any non-zero byte at 40..63 (where version 2 keeps its tags) or with
- * kind PM_MAP_VOLUME is corrupt; versions 0 and 3 are PM_EVERSION; a version-2 map of kind
+ * kind PM_MAP_VOLUME is corrupt; versions 0 and 4 are PM_EVERSION; a map of kind
  * PM_MAP_VOLUME round-trips; saving a kind outside the PM_MAP_* values is PM_EINVAL and
  * writes nothing. */
 TEST(map_file_reads_version_1_and_tags) {
@@ -689,8 +706,8 @@ TEST(map_file_reads_version_1_and_tags) {
     ASSERT_EQ_INT(patch_bytes(path, 8, one, 4), 0);
     ASSERT_EQ_INT(patch_bytes(path, 40, zeros, 24), 0);
     EXPECT_EQ_INT(pm_map_load(path, &q, &g), PM_EFORMAT);
-    /* Versions 0 and 3. */
-    const unsigned char v0[4] = {0, 0, 0, 0}, v3[4] = {3, 0, 0, 0};
+    /* Versions 0 and 4. */
+    const unsigned char v0[4] = {0, 0, 0, 0}, v3[4] = {4, 0, 0, 0};
     ASSERT_EQ_INT(pm_map_save(path, p, &h), PM_OK);
     ASSERT_EQ_INT(patch_bytes(path, 8, v0, 4), 0);
     EXPECT_EQ_INT(pm_map_load(path, &q, &g), PM_EVERSION);
@@ -707,5 +724,60 @@ TEST(map_file_reads_version_1_and_tags) {
         EXPECT_EQ_INT(pm_map_save(fresh, p, &hk), PM_EINVAL);
         EXPECT(access(fresh, F_OK) != 0);
     }
+    free(p);
+}
+
+/* Oracle: mapfile.h's VERSIONS paragraph (version 3's checksum), on files patched byte by byte.
+ * One flipped bit anywhere the checksum covers is refused as PM_EFORMAT with nothing returned:
+ * in the first, a middle and the last record (position, power, flag, normal bytes), in a tag,
+ * in emitted and in tree_bucket (header fields the other checks accept any value of), and in
+ * the checksum itself. The same file made version 2 (version word 2, bytes 56..63 zero) still
+ * loads, with version 2 and the same photons; with a record bit flipped it loads too (version
+ * 2 has no checksum: what version 3 adds), and with a byte at 56..63 non-zero it is corrupt. */
+TEST(map_file_checksum_refuses_flipped_bits) {
+    char path[600];
+    snprintf(path, sizeof path, "%s/c.pm", pm_test_tmpdir());
+    size_t n = 2500; /* over two read chunks of 1024 records */
+    pm_photon *p = some_photons(n), *q = NULL;
+    pm_map_header h = {0, 0, n, PM_MAP_CAUSTIC, 123456, 8, {0x0123456789abcdefull, 99}}, g;
+    const long rec = 64 + 20 * (long)n;
+    const long at[] = {64, 64 + 5, 64 + 12, 64 + 18, 64 + 20 * 1100 + 7, 64 + 20 * 1100 + 19, rec - 1,
+                       40, 47, 55, 28, 36, 56, 63};
+    for (size_t i = 0; i < sizeof at / sizeof at[0]; i++) {
+        ASSERT_EQ_INT(pm_map_save(path, p, &h), PM_OK);
+        FILE *f = fopen(path, "r+b");
+        ASSERT(f);
+        fseek(f, at[i], SEEK_SET);
+        int c = fgetc(f);
+        fseek(f, at[i], SEEK_SET);
+        fputc(c ^ 0x10, f);
+        fclose(f);
+        q = (pm_photon *)1;
+        EXPECT_MSG(pm_map_load(path, &q, &g) == PM_EFORMAT, "bit flipped at byte %ld: loaded", at[i]);
+        EXPECT_MSG(q == NULL, "byte %ld: photons returned", at[i]);
+        if (q != (pm_photon *)1) free(q);
+        q = NULL;
+    }
+    /* Version 2: no checksum, bytes 56..63 zero. */
+    const unsigned char two[4] = {2, 0, 0, 0}, zeros[8] = {0};
+    ASSERT_EQ_INT(pm_map_save(path, p, &h), PM_OK);
+    ASSERT_EQ_INT(patch_bytes(path, 8, two, 4), 0);
+    ASSERT_EQ_INT(patch_bytes(path, 56, zeros, 8), 0);
+    memset(&g, 0xff, sizeof g);
+    ASSERT_EQ_INT(pm_map_load(path, &q, &g), PM_OK);
+    EXPECT_EQ_INT(g.version, 2);
+    EXPECT_EQ_INT(g.count, n);
+    EXPECT(g.tag[0] == 0x0123456789abcdefull && g.tag[1] == 99 && g.emitted == 123456 && g.tree_bucket == 8);
+    EXPECT(q && memcmp(p, q, n * sizeof *p) == 0);
+    free(q);
+    q = NULL;
+    const unsigned char x = 0x5a;
+    ASSERT_EQ_INT(patch_bytes(path, 64 + 20 * 1100 + 7, &x, 1), 0);
+    EXPECT_EQ_INT(pm_map_load(path, &q, &g), PM_OK);
+    free(q);
+    q = NULL;
+    ASSERT_EQ_INT(patch_bytes(path, 60, &x, 1), 0);
+    EXPECT_EQ_INT(pm_map_load(path, &q, &g), PM_EFORMAT);
+    EXPECT(q == NULL);
     free(p);
 }

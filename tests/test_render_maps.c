@@ -269,7 +269,8 @@ TEST(render_maps_bad_files_exit_2) {
 }
 
 /* The saved headers: kind per file, tags = (scene_transport_hash of the scene as loaded, the
- * settings hash of map_stamp_make with the settings and plan render used), format version 2. */
+ * settings hash of map_stamp_make with the settings and plan render used), the current format
+ * version (PM_FILE_VERSION, 3: with the checksum). */
 TEST(render_maps_headers_carry_kind_and_stamp) {
     save_maps();
     scene s;
@@ -292,7 +293,7 @@ TEST(render_maps_headers_carry_kind_and_stamp) {
         pm_map_header h;
         ASSERT_EQ_INT(pm_map_load(rt_path(names[i]), &ph, &h), 0);
         EXPECT_EQ_INT(h.kind, kinds[i]);
-        EXPECT_EQ_INT(h.version, 2);
+        EXPECT_EQ_INT(h.version, PM_FILE_VERSION);
         EXPECT_MSG(h.tag[0] == want.scene && h.tag[1] == want.settings,
                    "%s: tags %016llx %016llx, want %016llx %016llx", names[i],
                    (unsigned long long)h.tag[0], (unsigned long long)h.tag[1],
