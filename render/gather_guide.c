@@ -55,6 +55,7 @@ double gather_guide_disc_pdf(const gather_guide *gg, vec3 x, vec3 d) {
 double gather_guide_share(const gather_guide *gg, vec3 x, vec3 ns) {
     if (!gg->aim) return 0;
     vec3 toc = v3_sub(gg->centre, x);
+    if (v3_len2(gg->lit) > 0 && !(v3_dot(toc, gg->lit) > gg->radius)) return 0; /* WHO AIMS */
     return v3_dot(toc, ns) > 0 && v3_len2(toc) > gg->radius * gg->radius ? GATHER_GUIDE_SHARE : 0;
 }
 
@@ -175,7 +176,7 @@ static int gg_nearest_point(const vec3 *x, const vec3 *d, const unsigned char *u
  * the lines' RMS distance *rms, 0 if none fits, PM_ENOMEM. *nline: the bright rays that read
  * the map; *all, *bright: the probed light in all, and in those rays. */
 static int gg_find_opening(const guide_point *pts, const size_t *jp, size_t nj, const gg_probe *pr, const double *v,
-                           size_t G2, size_t *nline, double *all, double *bright, vec3 *c, double *rms) {
+                           size_t G2, size_t *nline, double *all, double *bright, vec3 *c, double *rms, vec3 *lit) {
     size_t cap = (nj ? nj : 1) * 8, n = 0;
     vec3 *lx = calloc(cap, sizeof *lx), *ld = calloc(cap, sizeof *ld);
     unsigned char *use = calloc(cap, 1);
@@ -208,6 +209,12 @@ static int gg_find_opening(const guide_point *pts, const size_t *jp, size_t nj, 
         }
         fit = gg_nearest_point(lx, ld, use, n, c, rms);
     }
+    /* The lit side: the mean direction of the fitted lines, from the starved points through the
+     * opening toward the map's light (gather_guide.h, WHO AIMS). */
+    vec3 sum = v3s(0);
+    for (size_t l = 0; fit && l < n; l++)
+        if (use[l]) sum = v3_add(sum, ld[l]);
+    *lit = v3_len2(sum) > 0 ? v3_norm(sum) : v3s(0);
     *nline = n;
     free(lx);
     free(ld);
@@ -312,19 +319,21 @@ int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *w
     size_t nline = 0;
     double all = 0, bright = 0, rms = 0;
     vec3 c = v3s(0);
-    int fit = gg_find_opening(pts, jp, nj, pr, v, G2, &nline, &all, &bright, &c, &rms);
+    vec3 lit = v3s(0);
+    int fit = gg_find_opening(pts, jp, nj, pr, v, G2, &nline, &all, &bright, &c, &rms, &lit);
     if (fit < 0) goto oom;
     double size = v3_maxc(v3_sub(s->bounds_hi, s->bounds_lo));
     int opening = fit && nline >= GG_MIN_LINES && GG_AP_SPREAD * rms <= 0.02 * size && rms > 0;
     gg->aim = opening;
     gg->centre = c;
     gg->radius = GG_AP_SPREAD * rms;
+    gg->lit = lit;
     gg->on = opening || force == PLAN_ON;
     char what[256];
     if (opening)
-        snprintf(what, sizeof what, "an opening at (%.4g, %.4g, %.4g), radius %.3g: %zu rays that read the photon map "
-                 "meet there, carrying %.1f%% of the probed light",
-                 c.x, c.y, c.z, gg->radius, nline, all > 0 ? 100 * bright / all : 0);
+        snprintf(what, sizeof what, "an opening at (%.4g, %.4g, %.4g), radius %.3g, its light along (%.2f, %.2f, %.2f): "
+                 "%zu rays that read the photon map meet there, carrying %.1f%% of the probed light",
+                 c.x, c.y, c.z, gg->radius, lit.x, lit.y, lit.z, nline, all > 0 ? 100 * bright / all : 0);
     else
         snprintf(what, sizeof what, "no opening (%zu bright rays that read the photon map, %s)", nline,
                  nline < GG_MIN_LINES ? "too few" : "not meeting within 2% of the scene's size");

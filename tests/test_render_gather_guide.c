@@ -6,7 +6,8 @@
  * straddling the horizon); the scene's geometry (pinhole_room's hole is the square 495..505 x
  * 495..505 at y = 300: the opening the plan reports must lie in it); the photon mapper without
  * the guide (gather_guide=false: the same maps, cosine gathers) for the mean; the renderer's
- * own output for "unchanged where off" (byte-identical images) and for thread independence.
+ * own output for "unchanged where off" (byte-identical images) and for thread independence; the
+ * geometry of which points aim (gather_guide.h, WHO AIMS).
  */
 #include <math.h>
 #include <stdio.h>
@@ -253,4 +254,42 @@ TEST(render_gather_guide_mixture_closed_forms) {
     EXPECT_MSG(gather_guide_share(&gg, v3(0, 0, 0), v3(0, 0, 1)) == 0, "centre on the horizon: share %g",
                gather_guide_share(&gg, v3(0, 0, 0), v3(0, 0, 1)));
     gather_guide_free(&gg);
+}
+
+/* Oracle: the geometry of the rule (gather_guide.h, WHO AIMS). An opening at (0, 0, 4), radius
+ * 1, its light coming from +z (the pilot's lines went up through it): a point below it facing
+ * it aims (GATHER_GUIDE_SHARE); a point on the lit side facing it (it would look down into the
+ * dark side) and points level with the opening or less than its radius below it (the disc on
+ * their horizon: the small room's ceiling around the hole) do not, though all have the centre
+ * in front and farther than the radius; with the side unknown (lit zero) the rule is the old
+ * one. And the plan: pinhole_room's light comes down through the hole, so
+ * the direction it reports points up (the big room is above). */
+TEST(render_gather_guide_aims_from_the_dark_side) {
+    gather_guide gg;
+    gather_guide_init(&gg);
+    gg.aim = gg.on = 1;
+    gg.centre = v3(0, 0, 4);
+    gg.radius = 1;
+    gg.lit = v3(0, 0, 1);
+    double below = gather_guide_share(&gg, v3(0.5, 0, 0), v3(0, 0, 1));
+    double above = gather_guide_share(&gg, v3(0.5, 0, 8), v3(0, 0, -1));
+    double plane = gather_guide_share(&gg, v3(3, 0, 4.2), v3(-1, 0, 0));
+    double edge = gather_guide_share(&gg, v3(3, 0, 3.2), v3(-1, 0, 0)); /* 0.8 below: within r */
+    double deep = gather_guide_share(&gg, v3(3, 0, 2.5), v3(-1, 0, 0)); /* 1.5 below */
+    printf("    share below %.2f, above %.2f, in the plane %.2f, 0.8 below %.2f, 1.5 below %.2f\n", below, above,
+           plane, edge, deep);
+    EXPECT_MSG(below == GATHER_GUIDE_SHARE && deep == GATHER_GUIDE_SHARE, "dark side: %g %g", below, deep);
+    EXPECT_MSG(above == 0 && plane == 0 && edge == 0, "lit side or the opening's plane: %g %g %g", above, plane, edge);
+    gg.lit = v3(0, 0, 0);
+    EXPECT_MSG(gather_guide_share(&gg, v3(0.5, 0, 8), v3(0, 0, -1)) == GATHER_GUIDE_SHARE, "side unknown: %g",
+               gather_guide_share(&gg, v3(0.5, 0, 8), v3(0, 0, -1)));
+    gather_guide_free(&gg);
+
+    static char out[65536];
+    ASSERT_EQ_INT(gg_render("pinhole_room", "--width 8 --height 8 --spp 1 --threads 1", "pin_lit", out, sizeof out), 0);
+    const char *q = strstr(out, "its light along (");
+    ASSERT_MSG(q, "no light direction: %.400s", strstr(out, "gather guide") ? strstr(out, "gather guide") : out);
+    double x, y, z;
+    ASSERT(sscanf(q, "its light along (%lf, %lf, %lf)", &x, &y, &z) == 3);
+    EXPECT_MSG(y > 0.9, "pinhole_room: the opening's light along (%g, %g, %g), not up", x, y, z);
 }
