@@ -91,11 +91,34 @@ static int test_enomem(const char *pilot) {
     return v && strcmp(v, pilot) == 0;
 }
 
+/* A pilot's budgets. Its paths are capped at PASS_MAX_BOUNCES bounces whatever max_bounces
+ * says (a lossless furnace with max_bounces 1e6 otherwise follows each of its 8192 photons
+ * for max_depth bounces: minutes, or 8 GiB of stores, before the plan is made; its evidence,
+ * what a photon reaches within a few bounces, never needs longer paths). Where max_depth caps
+ * the paths first (max_depth <= PASS_MAX_BOUNCES: every shipped scene) the user's max_bounces
+ * changes nothing and is kept, so the pilot's photons are traced by the passes' rules and
+ * join them; past that the pilot's cap differs from the pass's and pilot_photons_joining
+ * keeps them out ("traced with another max_depth or max_bounces"): the pass traces its own.
+ * Its memory: the user's max_memory_mb, at most PILOT_MAX_MEMORY_MB (8192 photons of up to
+ * 256 bounces need far less). */
+#define PILOT_MAX_MEMORY_MB 256
+static int pilot_bounces(const scene *s, const photon_settings *cfg) {
+    int b = cfg->max_bounces;
+    return b > PASS_MAX_BOUNCES && s->settings.max_depth > PASS_MAX_BOUNCES ? PASS_MAX_BOUNCES : b;
+}
+static size_t pilot_memory(const photon_settings *cfg) {
+    long mb = cfg->max_memory_mb < PILOT_MAX_MEMORY_MB ? (long)cfg->max_memory_mb : PILOT_MAX_MEMORY_MB;
+    return (size_t)mb << 20;
+}
+
 /* A pilot pass's failure: anything but PM_EEMPTY (a pass that stores nothing, which is
  * evidence: a light inside a closed mirror, lights that face nothing) ends the plan, since a
- * pilot cut short by an error would be read as "nothing reaches there". */
-static int pilot_failed(int rc, const char *which, const char *why, char *err, size_t errcap) {
-    if (rc >= 0 || rc == PM_EEMPTY) return 0;
+ * pilot cut short by an error would be read as "nothing reaches there". A pilot that stored
+ * nothing because a budget stopped it before it emitted its photons (emitted < want: a tiny
+ * max_memory_mb) is cut short too. */
+static int pilot_failed(int rc, unsigned long long emitted, unsigned long long want, const char *which,
+                        const char *why, char *err, size_t errcap) {
+    if (rc >= 0 || (rc == PM_EEMPTY && emitted >= want)) return 0;
     if (errcap)
         snprintf(err, errcap, "plan: %s pilot: %s", which, why && why[0] ? why : pm_strerror(rc));
     return rc;
@@ -113,8 +136,8 @@ static int run_pilot(const scene *s, const photon_settings *cfg, const importanc
     trace_opts o;
     trace_opts_init(&o, s);
     o.seed = plan_pilot_seed(s);
-    o.max_bounces = cfg->max_bounces; /* the real passes' rules, so its photons can join them */
-    o.max_memory_bytes = (size_t)cfg->max_memory_mb << 20; /* and the user's memory budget */
+    o.max_bounces = pilot_bounces(s, cfg); /* the passes' rules where it can (pilot_bounces) */
+    o.max_memory_bytes = pilot_memory(cfg);
     o.quiet = 1;
     o.max_emitted = PLAN_PILOT_PHOTONS;
     o.max_emitted_factor = 1e300;
@@ -128,7 +151,7 @@ static int run_pilot(const scene *s, const photon_settings *cfg, const importanc
     o.global_target = 1L << 40; /* never reached: the emission budget ends the pilot */
     char why[256] = "";
     int rc = test_enomem("global") ? PM_ENOMEM : photon_trace(s, &o, &m, why, sizeof why);
-    if ((rc = pilot_failed(rc, "global photon", why, err, errcap)) < 0) {
+    if ((rc = pilot_failed(rc, r->g.emitted, PLAN_PILOT_PHOTONS, "global photon", why, err, errcap)) < 0) {
         pilot_photons_free(r->g.kept);
         r->g.kept = NULL;
         return rc;
@@ -149,7 +172,7 @@ static int run_pilot(const scene *s, const photon_settings *cfg, const importanc
     why[0] = 0;
     rc = test_enomem("caustic") ? PM_ENOMEM : photon_trace(s, &o, &m, why, sizeof why);
     r->g.kept = r->c.kept; /* created here if the global pilot kept none */
-    if ((rc = pilot_failed(rc, "caustic photon", why, err, errcap)) < 0) {
+    if ((rc = pilot_failed(rc, r->c.emitted, PLAN_PILOT_PHOTONS, "caustic photon", why, err, errcap)) < 0) {
         pilot_photons_free(r->g.kept);
         r->g.kept = r->c.kept = NULL;
         return rc;
@@ -298,17 +321,17 @@ static int plan_media(const scene *s, const photon_settings *cfg, render_plan *p
     o.lo = v3s(1);
     o.hi = v3s(-1);
     o.max_depth = s->settings.max_depth;
-    o.max_bounces = cfg->max_bounces; /* the path-length budget, as the passes have it */
+    o.max_bounces = pilot_bounces(s, cfg); /* the path-length budget, capped (pilot_bounces) */
     o.seed = PLAN_SEED;
     o.pilot = &pg;
     int rc = 0;
     if (emitting_lights(s)) rc = test_enomem("volume") ? PM_ENOMEM : vol_trace_pass(s, &o, &(vol_pass_result){0});
-    if ((rc = pilot_failed(rc, "volume photon", NULL, err, errcap)) < 0) return rc;
+    if ((rc = pilot_failed(rc, 0, 0, "volume photon", NULL, err, errcap)) < 0) return rc;
     o.caustic_pass = 1;
     o.projection_cells = cfg->projection ? cfg->projection_cells : 0; /* aimed, as the pass is */
     o.pilot = &pc;
     if (emitting_lights(s)) rc = vol_trace_pass(s, &o, &(vol_pass_result){0});
-    if ((rc = pilot_failed(rc, "volume caustic photon", NULL, err, errcap)) < 0) return rc;
+    if ((rc = pilot_failed(rc, 0, 0, "volume caustic photon", NULL, err, errcap)) < 0) return rc;
     char buf[300];
     int scatters = 0, nspec = 0;
     for (int m = 0; m < s->nmedia; m++) scatters += v3_maxc(s->media[m].sigma_s) > 0;

@@ -1292,6 +1292,79 @@ TEST(render_pm_plan_pilot_out_of_memory) {
     }
 }
 
+/* Oracle: the pilots' path cap (plan.c pilot_bounces) and closed-form counts. A closed box of
+ * reflectance 1 with max_depth 1e5 and --pm max_bounces 1e6: without the cap the pilot follows
+ * each of its 8192 photons 1e5 bounces (minutes, or 8 GiB of stores). Capped at
+ * PASS_MAX_BOUNCES, a lossless box keeps every photon to the cap, so the global pilot stores
+ * exactly 8192 x 256 records after a diffuse bounce, and they do not join the pass (traced
+ * with another max_bounces). The same box filled with lossless fog (sigma_s 1): the volume
+ * pilot's scattering events are at most 8192 x (256 + 1). Control: cornell_box (max_depth 16,
+ * below the cap) with max_bounces 1e6 keeps the user's value: its pilot photons join. */
+TEST(render_pm_pilots_capped_in_lossless_scenes) {
+    static char txt[4096];
+    const char *box =
+        "{\"camera\": {\"eye\": [5, 5, 1], \"look_at\": [5, 5, 9], \"fov_deg\": 50, \"width\": 8, \"height\": 8, "
+        "\"spp\": 4}, \"materials\": {\"white\": {\"type\": \"lambert\", \"reflectance\": 1.0}, \"lamp\": {\"type\": "
+        "\"lambert\", \"reflectance\": 1.0, \"emission\": 10.0}}, \"objects\": ["
+        "{\"type\": \"quad\", \"vertices\": [[10, 0, 0], [0, 0, 0], [0, 0, 10], [10, 0, 10]], \"material\": \"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[10, 10, 0], [10, 10, 10], [0, 10, 10], [0, 10, 0]], \"material\": "
+        "\"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[10, 0, 10], [0, 0, 10], [0, 10, 10], [10, 10, 10]], \"material\": "
+        "\"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[0, 0, 10], [0, 0, 0], [0, 10, 0], [0, 10, 10]], \"material\": \"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[10, 0, 0], [10, 0, 10], [10, 10, 10], [10, 10, 0]], \"material\": "
+        "\"white\"},"
+        "{\"type\": \"quad\", \"vertices\": [[6, 9.99, 4], [6, 9.99, 6], [4, 9.99, 6], [4, 9.99, 4]], \"material\": "
+        "\"lamp\"},"
+        "{\"type\": \"quad\", \"vertices\": [[0, 0, 0], [10, 0, 0], [10, 10, 0], [0, 10, 0]], \"material\": \"white\"}], "
+        "\"render\": {\"max_depth\": 100000}";
+    for (int fog = 0; fog < 2; fog++) {
+        snprintf(txt, sizeof txt, "%s%s}", box, fog ? ", \"media\": {\"fog\": {\"sigma_s\": 1.0}}, \"medium\": \"fog\"" : "");
+        scene s;
+        json_err e;
+        ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
+        photon_settings c;
+        photon_settings_defaults(&c);
+        c.max_bounces = 1000000;
+        c.progress = 0;
+        render_plan p;
+        char err[256];
+        int rc = plan_make(&s, &c, 0, &p, err, sizeof err);
+        ASSERT_MSG(rc == 0, "%s", err);
+        if (!fog) {
+            unsigned long long n = 0;
+            const char *at = strstr(p.global.reason, "diffuse surfaces reflect onto each other: ");
+            EXPECT_MSG(at && sscanf(at, "diffuse surfaces reflect onto each other: %llu photons stored", &n) == 1 &&
+                           n == (unsigned long long)PLAN_PILOT_PHOTONS * PASS_MAX_BOUNCES,
+                       "want %d x %d stores: %s", PLAN_PILOT_PHOTONS, PASS_MAX_BOUNCES, p.global.reason);
+            EXPECT_MSG(strstr(p.global.reason, "do not join the global map: the pilot was traced with another "
+                                               "max_depth or max_bounces"),
+                       "%s", p.global.reason);
+            printf("    lossless box: %llu pilot stores\n", n);
+        } else {
+            unsigned long long n = 0, np = 0;
+            const char *at = strstr(p.volume.reason, "is lit by the lights: ");
+            EXPECT_MSG(at && sscanf(at, "is lit by the lights: %llu scattering events of %llu pilot photons", &n, &np) == 2 &&
+                           n > 0 && n <= np * (PASS_MAX_BOUNCES + 1ull),
+                       "%s", p.volume.reason);
+            printf("    lossless fog: %llu scattering events of %llu pilot photons\n", n, np);
+        }
+        plan_free(&p);
+        scene_free(&s);
+    }
+    scene s;
+    json_err e;
+    ASSERT_MSG(load_shipped(&s, "cornell_box", &e) == 0, "%s", e.msg);
+    photon_settings c;
+    ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
+    c.max_bounces = 1000000;
+    render_plan p;
+    EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
+    EXPECT_MSG(strstr(p.global.reason, "stores join the global map"), "%s", p.global.reason);
+    plan_free(&p);
+    scene_free(&s);
+}
+
 /* ---- 6. saved photon maps ------------------------------------------------------------------ */
 
 /* DIR/NAME must load with pm_map_load and hold exactly the photons of `want` (n of them, in
