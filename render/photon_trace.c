@@ -1103,7 +1103,7 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
             if (rc == 0 && !part && o->global && o->shadow) rc = join(&sbuf, &rk->s);
             if (part) {
                 wg[0] += o->global ? rk->g.n : rk->s.n;
-                if (o->global) wg[1] += rk->s.n;
+                if (o->global && o->shadow) wg[1] += rk->s.n; /* as the join above */
             }
             np = (double)rk->emitted;
             m->global_emitted += rk->emitted;
