@@ -139,18 +139,28 @@ TEST(render_hard_shelf_glass_regions) {
  * photon paths lights the room (8 photons of 4 paths on the green wall: walls +12% at seed 4
  * before the distinct-paths rule, photon_sides.h "Sparse estimates"; the image was -51%, and
  * 25x before lookups kept to their side).
- * Six photon-mapping seeds (1-6; photon maps and samples both vary) against this reference:
- * whole image -1.47..+0.89%, patch -3.07..+1.67%, walls and ceiling -0.51..+5.48% (seed 1, the
- * test's: +0.79%, +0.43%, +2.51%). What is left is sampling noise: a region's mean moves by
- * about 2.3% (walls, one standard deviation over nine renders) from one sample seed to the
- * next over the same maps (seed 3's maps with four sample seeds: walls +5.48, +5.31, +1.74,
- * -0.30%), and three pixels of the top row carry most of it (1.0-1.2% each; two of them see
- * the lit big room through the hole, in a few hundredths of a pixel). The bounds are the six
- * seeds' worst case, rounded up: whole 5%, patch 5%, walls 6%. */
+ * Twelve photon-mapping seeds (1-12; photon maps and samples both vary) against this reference:
+ * whole image -1.62..+1.03%, patch -3.12..+2.01%, walls and ceiling -3.20..+3.97% (seeds 1-6:
+ * -1.24..+1.03%, -2.60..+2.01%, -3.20..+3.97%; seed 1, the test's: +1.03%, +1.80%, +1.10%),
+ * 20-23 CPU-s each. What is left is sampling noise, and the walls have the most: one standard
+ * deviation of their mean is 2.0% over the twelve seeds (1.9% before the gather guide kept to
+ * the opening's dark side, gather_guide.h WHO AIMS, when seeds 1-12 read -0.64..+5.48%: seed 3
+ * +5.48%, and its maps under three more sample seeds +5.31, +1.74, -0.30%), three pixels of the
+ * top row carry most of it (two see the lit big room through the hole, in a few hundredths of a
+ * pixel; a quarter of the walls' light). Their mean over the twelve seeds is +0.67% (se 0.6%;
+ * +1.65% before): no bias shows above the noise. Checked: without the shadow photons
+ * (shadow=false) seeds 1-6 read -1.89..+3.60% (mean +1.0%), without the gather guide
+ * -0.66..+4.79% (+1.0%); the pixels by the corner of the white and the red wall read about +6%
+ * over those 21 renders, but path tracing itself moves them -1.2% and +5.4% against the
+ * reference at 1M and 512K spp (a pixel's path-traced noise is still +-10% at 1M spp), so that
+ * is not shown to be a bias either (these checks ran before the dark-side rule). The bounds:
+ * whole 5%, patch 5%, walls 5% (the issue's); the walls' bound is 2.2 of their standard
+ * deviations above their mean, so a new seed would land outside it about 1 time in 60 (a
+ * normal law), and the test's seed 1 reads +1.10%. */
 TEST(render_hard_pinhole_room_regions) {
     const region r[] = {{"whole image", 0, 0, 8, 8, 0.05},
                         {"lit patch", 2, 6, 6, 8, 0.05},
-                        {"walls and ceiling", 0, 0, 8, 5, 0.06}};
+                        {"walls and ceiling", 0, 0, 8, 5, 0.05}};
     char scn[1024], ref[1024], pm[1024], cmd[4096], want[256] = "", got[256] = "";
     snprintf(scn, sizeof scn, "%s/data/scenes/pinhole_room.json", pm_test_source_dir());
     snprintf(ref, sizeof ref, "%s/data/reference-hard/pinhole_room.pfm", pm_test_source_dir());
