@@ -293,10 +293,15 @@ int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *w
     for (long j = 0; j < (long)nj; j++) {
         rng g = rng_stream(GG_SEED, jp[j], 1);
         for (int b = 0; b < GG_G; b++)
-            for (int a = 0; a < GG_G; a++)
+            for (int a = 0; a < GG_G; a++) {
+                /* Two statements, not two arguments of one call: C leaves the order in which a
+                 * call's arguments are evaluated unspecified, so compilers could draw them in
+                 * either order and the pilot would depend on the compiler. */
+                double v2 = (b + rng_uniform(&g)) / GG_G; /* the order gcc used: images kept */
+                double u2 = (a + rng_uniform(&g)) / GG_G;
                 pr[(size_t)j * G2 + (size_t)(a + GG_G * b)] =
-                    gg_probe_at(probe, s, &grid, ck, ncell, &pts[jp[j]], (a + rng_uniform(&g)) / GG_G,
-                                (b + rng_uniform(&g)) / GG_G, &g);
+                    gg_probe_at(probe, s, &grid, ck, ncell, &pts[jp[j]], u2, v2, &g);
+            }
     }
     /* The light gathered where the map has nothing: each round gives every cell the mean of its
      * points' probes, with the last round's cell values at the probes' hits (one more bounce). */
