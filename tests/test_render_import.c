@@ -600,6 +600,23 @@ TEST(tungsten_media_conversion_values) {
     scene_free(&s);
 }
 
+/* Loads a one-bsdf Tungsten scene with the primitives prims (and extra top-level text) and
+ * expects a refusal whose message holds want (exact: is want). */
+static void expect_refused(size_t i, const char *prims, const char *extra, const char *want, int exact) {
+    char t[2048];
+    snprintf(t, sizeof t, "{\"bsdfs\": [{\"name\": \"w\", \"type\": \"lambert\"}], \"primitives\": [%s],\n"
+             " \"camera\": {\"transform\": {\"position\": [0, 1, 5], \"look_at\": [0, 0, 0]}}%s}",
+             prims, extra);
+    scene s;
+    json_err e;
+    e.msg[0] = 0;
+    int rc = scene_load_text(&s, t, &e);
+    EXPECT_MSG(rc < 0, "case %zu loaded", i);
+    if (rc == 0) scene_free(&s);
+    EXPECT_MSG(exact ? strcmp(e.msg, want) == 0 : strstr(e.msg, want) != NULL, "case %zu: \"%s\", want \"%s\"", i,
+               e.msg, want);
+}
+
 /* Oracle: the JSON path and the feature named in each message, for what the subset leaves
  * out (every one would change the image). */
 TEST(tungsten_unsupported_is_an_error_naming_path) {
@@ -662,19 +679,8 @@ TEST(tungsten_unsupported_is_an_error_naming_path) {
          ", \"media\": [{\"name\": \"f\", \"type\": \"homogeneous\", \"sigma_s\": 1e60, \"density\": 1e41}]",
          "$.media[0]: sigma_a or sigma_s times density is 1e+101, outside the supported range, 0 to 1e+100 per unit length"},
     };
-    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
-        char t[2048];
-        snprintf(t, sizeof t, "{\"bsdfs\": [{\"name\": \"w\", \"type\": \"lambert\"}], \"primitives\": [%s],\n"
-                 " \"camera\": {\"transform\": {\"position\": [0, 1, 5], \"look_at\": [0, 0, 0]}}%s}",
-                 cases[i].prims, cases[i].extra);
-        scene s;
-        json_err e;
-        e.msg[0] = 0;
-        int rc = scene_load_text(&s, t, &e);
-        EXPECT_MSG(rc < 0, "case %zu loaded", i);
-        if (rc == 0) scene_free(&s);
-        EXPECT_MSG(strstr(e.msg, cases[i].want) != NULL, "case %zu: \"%s\", want \"%s\"", i, e.msg, cases[i].want);
-    }
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++)
+        expect_refused(i, cases[i].prims, cases[i].extra, cases[i].want, 0);
     /* a camera that is not a pinhole, and one whose medium would matter */
     scene s;
     json_err e;
@@ -704,19 +710,8 @@ TEST(tungsten_unsupported_key_names_the_nearest) {
         {"{\"type\": \"quad\", \"bsdf\": \"w\", \"visible\": false}", "",
          "$.primitives[0].visible: not supported (a primitive key outside the supported subset)"},
     };
-    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++) {
-        char t[2048];
-        snprintf(t, sizeof t, "{\"bsdfs\": [{\"name\": \"w\", \"type\": \"lambert\"}], \"primitives\": [%s],\n"
-                 " \"camera\": {\"transform\": {\"position\": [0, 1, 5], \"look_at\": [0, 0, 0]}}%s}",
-                 cases[i].prims, cases[i].extra);
-        scene s;
-        json_err e;
-        e.msg[0] = 0;
-        int rc = scene_load_text(&s, t, &e);
-        EXPECT_MSG(rc < 0, "case %zu loaded", i);
-        if (rc == 0) scene_free(&s);
-        EXPECT_MSG(strcmp(e.msg, cases[i].want) == 0, "case %zu: \"%s\", want \"%s\"", i, e.msg, cases[i].want);
-    }
+    for (size_t i = 0; i < sizeof cases / sizeof *cases; i++)
+        expect_refused(i, cases[i].prims, cases[i].extra, cases[i].want, 1);
     char path[1024], cmd[4096], out[8192];
     snprintf(path, sizeof path, "%s/mode.json", pm_test_tmpdir());
     ASSERT(write_text(path, "{\"camera\": {\"eye\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 4, \"height\": 4},"
