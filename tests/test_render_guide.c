@@ -14,6 +14,7 @@
 
 #include "test.h"
 #include "../photonmap/common.h"
+#include "test_render_run.h"
 #include "../render/direct.h"
 #include "../render/film.h"
 #include "../render/guide.h"
@@ -348,16 +349,7 @@ TEST(render_guide_plan_nothing_to_learn) {
         "{\"camera\": {\"eye\": [5, 5, -12], \"look_at\": [5, 5, 0], \"fov_deg\": 50, \"width\": 4, \"height\": 4, "
         "\"spp\": 1}, \"materials\": {\"white\": {\"type\": \"lambert\", \"reflectance\": 0}, \"lamp\": {\"type\": "
         "\"lambert\", \"reflectance\": 0.5, \"emission\": 10}}, \"objects\": ["
-        "{\"type\": \"quad\", \"vertices\": [[10, 0, 0], [0, 0, 0], [0, 0, 10], [10, 0, 10]], \"material\": \"white\"},"
-        "{\"type\": \"quad\", \"vertices\": [[10, 10, 0], [10, 10, 10], [0, 10, 10], [0, 10, 0]], \"material\": "
-        "\"white\"},"
-        "{\"type\": \"quad\", \"vertices\": [[10, 0, 10], [0, 0, 10], [0, 10, 10], [10, 10, 10]], \"material\": "
-        "\"white\"},"
-        "{\"type\": \"quad\", \"vertices\": [[0, 0, 10], [0, 0, 0], [0, 10, 0], [0, 10, 10]], \"material\": \"white\"},"
-        "{\"type\": \"quad\", \"vertices\": [[10, 0, 0], [10, 0, 10], [10, 10, 10], [10, 10, 0]], \"material\": "
-        "\"white\"},"
-        "{\"type\": \"quad\", \"vertices\": [[6, 9.99, 4], [6, 9.99, 6], [4, 9.99, 6], [4, 9.99, 4]], \"material\": "
-        "\"lamp\"}], \"render\": {\"max_depth\": 16}}";
+        TEST_BOX10_QUADS "], \"render\": {\"max_depth\": 16}}";
     const char *texts[2] = {boxed, black}, *names[2] = {"boxed", "black"};
     const char *want[2] = {"light guide: off (no pilot light sample passes where the camera looks: nothing to learn "
                            "(pilot: ",

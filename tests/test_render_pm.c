@@ -23,6 +23,7 @@
 #endif
 
 #include "test.h"
+#include "test_render_run.h"
 #include "../photonmap/photon.h"
 #include "../render/compare.h"
 #include "../render/film.h"
@@ -1306,16 +1307,7 @@ TEST(render_pm_pilots_capped_in_lossless_scenes) {
         "{\"camera\": {\"eye\": [5, 5, 1], \"look_at\": [5, 5, 9], \"fov_deg\": 50, \"width\": 8, \"height\": 8, "
         "\"spp\": 4}, \"materials\": {\"white\": {\"type\": \"lambert\", \"reflectance\": 1.0}, \"lamp\": {\"type\": "
         "\"lambert\", \"reflectance\": 1.0, \"emission\": 10.0}}, \"objects\": ["
-        "{\"type\": \"quad\", \"vertices\": [[10, 0, 0], [0, 0, 0], [0, 0, 10], [10, 0, 10]], \"material\": \"white\"},"
-        "{\"type\": \"quad\", \"vertices\": [[10, 10, 0], [10, 10, 10], [0, 10, 10], [0, 10, 0]], \"material\": "
-        "\"white\"},"
-        "{\"type\": \"quad\", \"vertices\": [[10, 0, 10], [0, 0, 10], [0, 10, 10], [10, 10, 10]], \"material\": "
-        "\"white\"},"
-        "{\"type\": \"quad\", \"vertices\": [[0, 0, 10], [0, 0, 0], [0, 10, 0], [0, 10, 10]], \"material\": \"white\"},"
-        "{\"type\": \"quad\", \"vertices\": [[10, 0, 0], [10, 0, 10], [10, 10, 10], [10, 10, 0]], \"material\": "
-        "\"white\"},"
-        "{\"type\": \"quad\", \"vertices\": [[6, 9.99, 4], [6, 9.99, 6], [4, 9.99, 6], [4, 9.99, 4]], \"material\": "
-        "\"lamp\"},"
+        TEST_BOX10_QUADS ","
         "{\"type\": \"quad\", \"vertices\": [[0, 0, 0], [10, 0, 0], [10, 10, 0], [0, 10, 0]], \"material\": \"white\"}], "
         "\"render\": {\"max_depth\": 100000}";
     for (int fog = 0; fog < 2; fog++) {

@@ -108,4 +108,19 @@ static inline int rt_render_paused(const char *phase, const char *sig, const cha
     return e ? atoi(e + 5) : -1;
 }
 
+/* A 10-unit box's floor, ceiling, back (z = 10), left and right walls (material "white") and a
+ * 2 x 2 lamp quad just under the ceiling (material "lamp"), facing in: JSON objects separated by
+ * commas, for a scene's "objects" array; the front wall (z = 0) is the caller's (open or closed). */
+#define TEST_BOX10_QUADS \
+    "{\"type\": \"quad\", \"vertices\": [[10, 0, 0], [0, 0, 0], [0, 0, 10], [10, 0, 10]], \"material\": \"white\"}," \
+    "{\"type\": \"quad\", \"vertices\": [[10, 10, 0], [10, 10, 10], [0, 10, 10], [0, 10, 0]], \"material\": " \
+    "\"white\"}," \
+    "{\"type\": \"quad\", \"vertices\": [[10, 0, 10], [0, 0, 10], [0, 10, 10], [10, 10, 10]], \"material\": " \
+    "\"white\"}," \
+    "{\"type\": \"quad\", \"vertices\": [[0, 0, 10], [0, 0, 0], [0, 10, 0], [0, 10, 10]], \"material\": \"white\"}," \
+    "{\"type\": \"quad\", \"vertices\": [[10, 0, 0], [10, 0, 10], [10, 10, 10], [10, 10, 0]], \"material\": " \
+    "\"white\"}," \
+    "{\"type\": \"quad\", \"vertices\": [[6, 9.99, 4], [6, 9.99, 6], [4, 9.99, 6], [4, 9.99, 4]], \"material\": " \
+    "\"lamp\"}"
+
 #endif /* TEST_RENDER_RUN_H */
