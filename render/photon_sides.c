@@ -58,23 +58,20 @@ void side_free_heights(const scene *s, const pm_photon *ph, size_t n, float max_
 
 int side_estimate_readable(unsigned paths) { return paths >= SIDE_MIN_PATHS; }
 
-static int cmp_u32(const void *a, const void *b) {
-    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    return (x > y) - (x < y);
-}
-
-unsigned side_count_paths(const uint32_t *path, const pm_neighbor *nb, int count, uint32_t *scratch) {
+unsigned side_count_paths(const uint32_t *path, const pm_neighbor *nb, int count, unsigned cap, uint32_t *scratch) {
+    /* Without paths every photon counts as its own path (photon_sides.h). */
+    if (!path) return (unsigned)count < cap ? (unsigned)count : cap;
+    /* Distinct ids by a linear scan of those seen so far: at most cap of them are kept, so an
+     * estimate costs count x cap compares, and the first photons (mostly of distinct paths
+     * wherever the map is dense) usually end it early. */
     unsigned m = 0;
-    for (int j = 0; j < count; j++) {
-        /* Without paths every photon counts as its own path (photon_sides.h). */
-        scratch[m] = path ? path[nb[j].index] : m;
-        m++;
+    for (int j = 0; j < count && m < cap; j++) {
+        uint32_t id = path[nb[j].index];
+        unsigned q = 0;
+        while (q < m && scratch[q] != id) q++;
+        if (q == m) scratch[m++] = id;
     }
-    if (m < 2) return m;
-    qsort(scratch, m, sizeof *scratch, cmp_u32);
-    unsigned d = 1;
-    for (unsigned j = 1; j < m; j++) d += scratch[j] != scratch[j - 1];
-    return d;
+    return m;
 }
 
 int side_filter_shadow(void *user, const void *record, uint32_t index) {
@@ -195,7 +192,7 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
     {
         /* SIDE_WIDEN x k candidates for the estimates that meet a wall. */
         pm_neighbor *nb = malloc((size_t)SIDE_WIDEN * k * sizeof *nb);
-        uint32_t *ids = malloc((size_t)k * sizeof *ids); /* side_count_paths's scratch */
+        uint32_t *ids = malloc(SIDE_MIN_PATHS * sizeof *ids); /* side_count_paths's scratch */
         if (!nb || !ids) fail = 1;
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 64)
@@ -228,7 +225,7 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
                 /* The usual estimate: k photons, the k-th on the rim; or the whole disc. */
                 double r2 = (unsigned)found == k ? nb[found - 1].dist2 : (double)max_dist2;
                 disc_irradiance(ph, nb, found, r2, (unsigned)found == k, 1.0, e);
-                int readable = side_estimate_readable(side_count_paths(path, nb, found, ids));
+                int readable = side_estimate_readable(side_count_paths(path, nb, found, SIDE_MIN_PATHS, ids));
                 r2v[which[j]] = readable ? (float)r2 : 0.0f;
                 sparse += !readable;
             } else {
@@ -269,7 +266,7 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
                 rays2 += SIDE_AREA_DIRS + 1;
                 if (frac < 1.0 / SIDE_AREA_DIRS) frac = 1.0 / SIDE_AREA_DIRS;
                 disc_irradiance(ph, nb, kept, r2, rim, frac, e);
-                int readable = side_estimate_readable(side_count_paths(path, nb, kept, ids));
+                int readable = side_estimate_readable(side_count_paths(path, nb, kept, SIDE_MIN_PATHS, ids));
                 r2v[which[j]] = readable ? (float)r2 : 0.0f;
                 sparse += !readable;
             }

@@ -113,10 +113,12 @@ void side_free_heights(const scene *s, const pm_photon *ph, size_t n, float max_
  * (see "Sparse estimates" above); the build gives the others radius^2 0. */
 int side_estimate_readable(unsigned paths);
 /* The distinct paths among the photons nb[0..count) of a map whose path ids are path
- * (photon_maps.h, PHOTON PATHS; in the map's order). path NULL (not known): every photon
- * counts as a path of its own, which reads the estimate as often as counting photons would.
- * scratch: room for count ids. */
-unsigned side_count_paths(const uint32_t *path, const pm_neighbor *nb, int count, uint32_t *scratch);
+ * (photon_maps.h, PHOTON PATHS; in the map's order), counted up to cap: the count, or cap if
+ * there are at least cap (the readable rule needs no more than SIDE_MIN_PATHS, and parts
+ * capped at it add up to at least SIDE_MIN_PATHS exactly when their full counts do). path NULL
+ * (not known): every photon counts as a path of its own, which reads the estimate as often as
+ * counting photons would. scratch: room for cap ids (read only with path). */
+unsigned side_count_paths(const uint32_t *path, const pm_neighbor *nb, int count, unsigned cap, uint32_t *scratch);
 /* The shadow-photon map's search filter (the photon mapper's shadow hint; user: the query's
  * unit normal, float[3]): pm_filter_front (the photon travelled toward the query's side),
  * and the photon's surface normal within about 45 degrees of the query's (cos >= 0.7, as

@@ -226,8 +226,8 @@ TEST(render_sides_paths_numbered_from_direct_records) {
 }
 
 /* Oracle: a brute-force count of the distinct ids among the photons (each id against every
- * earlier one), direct and indirect alike; without ids (NULL) every photon is a path of its
- * own. And the readable rule's threshold. */
+ * earlier one), direct and indirect alike, capped as asked (1, SIDE_MIN_PATHS, 20 and no cap);
+ * without ids (NULL) every photon is a path of its own. And the readable rule's threshold. */
 TEST(render_sides_count_paths_brute_force) {
     enum { N = 300, K = 64 };
     uint32_t path[N], scratch[K];
@@ -243,8 +243,12 @@ TEST(render_sides_count_paths_brute_force) {
             for (int q = 0; q < j && !seen; q++) seen = path[nb[q].index] == path[nb[j].index];
             want += !seen;
         }
-        EXPECT_EQ_INT(side_count_paths(path, nb, count, scratch), want);
-        EXPECT_EQ_INT(side_count_paths(NULL, nb, count, scratch), count);
+        const unsigned caps[] = {1, SIDE_MIN_PATHS, 20, K};
+        for (int c = 0; c < 4; c++) {
+            unsigned cap = caps[c];
+            EXPECT_EQ_INT(side_count_paths(path, nb, count, cap, scratch), want < cap ? want : cap);
+            EXPECT_EQ_INT(side_count_paths(NULL, nb, count, cap, scratch), (unsigned)count < cap ? (unsigned)count : cap);
+        }
     }
     EXPECT(!side_estimate_readable(SIDE_MIN_PATHS - 1) && side_estimate_readable(SIDE_MIN_PATHS));
 }
@@ -252,8 +256,9 @@ TEST(render_sides_count_paths_brute_force) {
 /* Oracle: the whole map's count. render-mpi's partitioned build (lookup.h) sums the distinct
  * paths each part counts with the ids photon_tree_build_global numbers from that part alone (a
  * run of the map's order): the sum is the whole map's count, plus at most one for each path
- * that straddles two parts' boundary (M - 1 of them), never less. Random maps (30% DIRECT
- * records), split into M = 2..5 runs, random neighbour sets of 10 to 200 records. */
+ * that straddles two parts' boundary (M - 1 of them), never less. And the build's counts,
+ * capped at SIDE_MIN_PATHS, make the same readable decision as the full ones. Random maps (30%
+ * DIRECT records), split into M = 2..5 runs, random neighbour sets of 10 to 200 records. */
 TEST(render_sides_paths_of_parts_add_up) {
     enum { N = 3000, K = 200 };
     pm_photon *ph = malloc(N * sizeof *ph);
@@ -276,14 +281,17 @@ TEST(render_sides_paths_of_parts_add_up) {
             size_t c0 = trial % 2 ? lo[1 + trial % (M - 1)] - 20 : (size_t)(srng_unit(&r) * (N - 60));
             for (int j = 0; j < count; j++)
                 nb[j].index = (uint32_t)(c0 + (size_t)(srng_unit(&r) * 60)), nb[j].dist2 = 0;
-            unsigned want = side_count_paths(whole, nb, count, scratch), sum = 0;
+            unsigned want = side_count_paths(whole, nb, count, K, scratch), sum = 0, capped = 0;
             for (int p = 0; p < M; p++) { /* each part counts its own records with its own ids */
                 int ns = 0;
                 for (int j = 0; j < count; j++)
                     if (nb[j].index >= lo[p] && nb[j].index < lo[p + 1]) sub[ns++] = nb[j];
-                sum += side_count_paths(part, sub, ns, scratch);
+                sum += side_count_paths(part, sub, ns, K, scratch);
+                capped += side_count_paths(part, sub, ns, SIDE_MIN_PATHS, scratch);
             }
             EXPECT_MSG(sum >= want && sum <= want + (unsigned)(M - 1), "M %d: parts %u, whole %u", M, sum, want);
+            EXPECT_MSG(side_estimate_readable(capped) == side_estimate_readable(sum), "M %d: capped %u, full %u", M,
+                       capped, sum);
             exact += sum == want;
             over += sum > want;
         }

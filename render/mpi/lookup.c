@@ -47,8 +47,8 @@ enum { LK_SIDE = 2, LK_BUILD = 3 };
 typedef struct lk_part {
     float power[3], far[3], r2;
     uint16_t found;
-    uint16_t paths;     /* the build's estimates: distinct paths among the part's photons
-                         * (side_count_paths; the parts' counts add up, lookup.h) */
+    uint16_t paths;     /* the build's estimates: distinct paths among the part's photons, up
+                         * to SIDE_MIN_PATHS (side_count_paths; the parts' counts add up, lookup.h) */
     uint8_t rims, wall; /* wall: the precomputed irradiance's search met a wall */
     uint8_t spare[2];   /* zero: every byte sent is set */
 } lk_part;
@@ -595,8 +595,7 @@ static void answer_side(const scene *s, const pm_kdtree *t, const pm_photon *ph,
      * PHOTON PATHS), so a path lies in one part, but for the at most M - 1 that straddle two
      * parts' boundaries (counted in both: a few paths too many in a whole map, only near
      * those paths' records). */
-    unsigned np = t ? side_count_paths(path, nb, found, ids) : 0;
-    out->paths = (uint16_t)(np > 65535 ? 65535 : np);
+    out->paths = (uint16_t)(t ? side_count_paths(path, nb, found, SIDE_MIN_PATHS, ids) : 0);
 }
 
 static int side_fail(side_cache *c, char *err, size_t errcap, const char *what) {
@@ -676,7 +675,7 @@ static int hook_side_build(void *user, side_cache *c, const scene *s, const pm_k
 #endif
     {
         pm_neighbor *nb = malloc((size_t)want * sizeof *nb);
-        uint32_t *ids = malloc((size_t)want * sizeof *ids); /* side_count_paths's scratch */
+        uint32_t *ids = malloc(SIDE_MIN_PATHS * sizeof *ids); /* side_count_paths's scratch */
         if (!nb || !ids) fail = 1;
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 64)
