@@ -146,7 +146,7 @@ typedef struct side_cache {
     size_t n;        /* photons precomputed */
     unsigned long long rays_first, rays_second; /* shadow rays of the build (first, second search) */
     size_t researched;                          /* estimates searched again (a neighbour was hidden) */
-    size_t sparse; /* estimates of too few photons to be looked up (see "Sparse estimates" above) */
+    size_t sparse; /* estimates of too few photon paths to be looked up (see "Sparse estimates" above) */
     int indirect_only; /* 1: the values leave out direct photons (side_cache_build; see "Direct
                         * light" above): the caller adds y's direct light itself */
     /* A distributed render's lookups (render/mpi/lookup.c, partitioned maps: this process holds

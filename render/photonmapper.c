@@ -738,7 +738,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         stat_add(st->st_side_again, st->sides.researched);
         stats_time_add("Time/Precomputed irradiance", stats_now() - t0);
         printf("Precomputed irradiance at %zu of %zu global photons (%zu estimates searched again "
-               "for a hidden neighbour; %zu of too few photons to be read: the light there is "
+               "for a hidden neighbour; %zu of too few photon paths to be read: the light there is "
                "computed)\n",
                st->sides.n, st->nglobal_all, st->sides.researched, st->sides.sparse);
     }
