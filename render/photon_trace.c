@@ -704,15 +704,16 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
             break;
         }
         int fail;
-        /* Distributed passes keep the memory budget inside their batches too (dist_round): a
-         * batch that would pass its share stops every process there, with the message of the
-         * one-process pass below. */
-        uint64_t d_budget = o->max_memory_bytes / sizeof(fphoton),
-                 d_held = (uint64_t)main_buf->n + (shadow_buf ? (uint64_t)shadow_buf->n : 0), d_count = 0;
-        if (part || use_dist) {
-            c->batch_cap = o->max_memory_bytes > 0 ? (d_budget > d_held ? d_budget - d_held : 1) : 0;
-            c->batch_records = c->batch_cap ? &d_count : NULL;
-        }
+        /* The memory budget inside the batch too: one batch can store PT_BATCH times the path
+         * length (a lossless furnace: 4096 x 1e5 records, 19 GB), so the check between batches
+         * alone comes too late. A batch whose records would pass what is left of the budget is
+         * dropped whole (its photons are not counted as emitted: the map is then that of a pass
+         * that stopped before it, its powers unbiased); distributed passes split what is left
+         * among a round's batches (dist_round) and stop every process together. */
+        uint64_t in_batch = 0, budget = o->max_memory_bytes / sizeof(fphoton),
+                 held = (uint64_t)main_buf->n + (shadow_buf ? (uint64_t)shadow_buf->n : 0);
+        c->batch_cap = o->max_memory_bytes > 0 ? (budget > held ? budget - held : 1) : 0;
+        c->batch_records = c->batch_cap ? &in_batch : NULL;
         if (part) {
             uint64_t cnt[2] = {0, 0};
             fail = dist_batch(c, &rb, n_e, tg, ts, nthreads, &nfirst, cnt);
@@ -735,41 +736,22 @@ static int run_pass(pass_ctx *c, long target, fbuf *main_buf, fbuf *shadow_buf, 
         } else if (use_dist) {
             fail = dist_batch(c, &rb, n_e, tg, ts, nthreads, &nfirst, NULL);
         } else {
-            /* The memory budget inside the batch too: one batch can store PT_BATCH times the
-             * path length (a lossless furnace: 4096 x 1e5 records, 19 GB), so the check between
-             * batches alone comes too late. A batch whose records would pass what is left of
-             * the budget is dropped whole (its photons are not counted as emitted: the map is
-             * then that of a pass that stopped before it, its powers unbiased). */
-            uint64_t in_batch = 0, budget = o->max_memory_bytes / sizeof(fphoton),
-                     held = (uint64_t)main_buf->n + (shadow_buf ? (uint64_t)shadow_buf->n : 0);
-            c->batch_cap = o->max_memory_bytes > 0 ? (budget > held ? budget - held : 1) : 0;
-            c->batch_records = &in_batch;
             uint64_t nf = 0;
             fail = trace_batch(c, n_e, tg, ts, nthreads, &nf);
-            c->batch_cap = 0;
-            c->batch_records = NULL;
-            if (fail == 2) { /* over the budget, and nothing failed */
-                for (int t = 0; t < nthreads; t++) tg[t].n = ts[t].n = 0;
-                stop = "max_memory_mb";
-                snprintf(why, sizeof why, "the next %d photons would store more than the %zu MiB left of %zu MiB",
-                         PT_BATCH, (size_t)((budget > held ? budget - held : 0) * sizeof(fphoton)) >> 20,
-                         o->max_memory_bytes >> 20);
-                break;
+            if (fail != 2) { /* 2: over the budget and nothing failed, below */
+                nfirst += nf;
+                fail &= 1;
             }
-            nfirst += nf;
-            fail &= 1;
         }
-        if (part || use_dist) {
-            c->batch_cap = 0;
-            c->batch_records = NULL;
-            if (fail == 2) {
-                for (int t = 0; t < nthreads; t++) tg[t].n = ts[t].n = 0;
-                stop = "max_memory_mb";
-                snprintf(why, sizeof why, "the next batches of %d photons would store more than the %zu MiB "
-                         "left of %zu MiB", PT_BATCH, (size_t)((d_budget > d_held ? d_budget - d_held : 0) *
-                         sizeof(fphoton)) >> 20, o->max_memory_bytes >> 20);
-                break;
-            }
+        c->batch_cap = 0;
+        c->batch_records = NULL;
+        if (fail == 2) {
+            for (int t = 0; t < nthreads; t++) tg[t].n = ts[t].n = 0;
+            stop = "max_memory_mb";
+            snprintf(why, sizeof why, "the next %s%d photons would store more than the %zu MiB left of %zu MiB",
+                     part || use_dist ? "batches of " : "", PT_BATCH,
+                     (size_t)((budget > held ? budget - held : 0) * sizeof(fphoton)) >> 20, o->max_memory_bytes >> 20);
+            break;
         }
         n_e += PT_BATCH;
         /* The memory budget in records, less what the other buffer holds (the check above
