@@ -273,6 +273,15 @@ int main(int argc, char **argv) {
             }
     }
 
+    /* --threads governs every parallel loop of the run, set before the first: the plan's
+     * pilots run inside integrator_create, photon tracing in preprocess, then the pixels. */
+    int nthreads = (int)threads;
+#ifdef _OPENMP
+    if (nthreads <= 0) nthreads = omp_get_max_threads();
+    omp_set_num_threads(nthreads);
+#else
+    nthreads = 1;
+#endif
     double t_start = stats_now();
     scene s;
     json_err e;
@@ -379,13 +388,6 @@ int main(int argc, char **argv) {
         scene_free(&s);
         return 2;
     }
-    int nthreads = (int)threads;
-#ifdef _OPENMP
-    if (nthreads <= 0) nthreads = omp_get_max_threads();
-    omp_set_num_threads(nthreads); /* so that preprocessing (photon tracing) uses --threads too */
-#else
-    nthreads = 1;
-#endif
     int nsph = s.nspheres, ntri = s.ntris;
     printf("Scene %s: %d triangles, %d spheres, %d materials, %d lights; BVH %d nodes, depth %d "
            "(%.3f s)\n",

@@ -126,6 +126,13 @@ void stats_reset(void) {
     pthread_mutex_unlock(&g_lock);
 }
 
+int stats_threads(void) {
+    pthread_mutex_lock(&g_lock);
+    int n = g_nslots + (g_nslots == MAX_THREAD_SLOTS); /* more share g_overflow: at least one */
+    pthread_mutex_unlock(&g_lock);
+    return n;
+}
+
 /* Print grouped by category, in registration order within each category. */
 void stats_print(FILE *f) {
     uint64_t tot[STATS_MAX];
@@ -151,6 +158,7 @@ void stats_print(FILE *f) {
                     (unsigned long long)tot[j]);
         }
     }
+    fprintf(f, "  Threads\n    %-48s %16d\n", "Threads that counted (in this process)", stats_threads());
     if (g_ntimers) {
         fprintf(f, "  Time\n");
         for (int i = 0; i < g_ntimers; i++) {

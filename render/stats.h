@@ -12,6 +12,11 @@
  *
  * Timers: stats_time_add("Time/Render", seconds) keeps named wall-clock times (not per
  * thread; call them from the main thread).
+ *
+ * stats_threads() is the number of threads that ever counted: every thread that traced a ray
+ * (the BVH counts each traversal), in any phase (the plan's pilots, photon tracing, the
+ * pixels). stats_print() shows it, so a run shows how many threads did its work (render
+ * --threads N must give at most N).
  */
 #ifndef RENDER_STATS_H
 #define RENDER_STATS_H
@@ -62,6 +67,8 @@ int stats_find(const char *name);
 const char *stats_name(int id);
 void stats_time_add(const char *name, double seconds);
 void stats_reset(void);
+/* How many threads have counted since the program started (stats_reset keeps them). */
+int stats_threads(void);
 /* Print every counter (zeros too, so skipped work shows as 0) and every timer. */
 void stats_print(FILE *f);
 /* Wall-clock seconds from a monotonic clock. */
