@@ -98,6 +98,13 @@ int mesh_object_read(const cJSON *o, const char *P, mesh_data *m, int *smooth, i
     clock_t c0 = clock(); /* CPU time too: on a shared machine the wall clock says little */
     char err[400];
     int rc = mesh_load(file, m, err, sizeof err);
+    /* A transform that takes the file's lengths out of the scene's range is the transform's
+     * error (scene.h "Ranges"), said as the other range errors are. */
+    if (rc == 0 && mesh_transform_lengths(m, (const double(*)[4])M, SCENE_LENGTH_MIN, SCENE_LENGTH_MAX,
+                                          err, sizeof err) < 0) {
+        mesh_free(m);
+        return json_fail(e, PM_EINVAL, "%s.transform: %s", P, err);
+    }
     if (rc == 0) rc = mesh_transform(m, (const double(*)[4])M, file, err, sizeof err);
     if (rc == 0 && *smooth && mesh_smooth_normals(m, recompute) < 0) {
         rc = PM_ENOMEM;

@@ -92,29 +92,98 @@ void mesh_free(mesh_data *m) {
     memset(m, 0, sizeof *m);
 }
 
+/* |v| without squaring: no underflow for tiny vectors (1e-160 squared is 0 in a double), no
+ * overflow for huge ones. */
+static double len_scaled(vec3 v) {
+    double mx = v3_maxabs(v);
+    if (!(mx > 0) || !isfinite(mx)) return mx;
+    return mx * v3_len(v3_scale(v, 1 / mx));
+}
+
+static vec3 xf_point(const double M[3][4], vec3 p) {
+    return v3(M[0][0] * p.x + M[0][1] * p.y + M[0][2] * p.z + M[0][3],
+              M[1][0] * p.x + M[1][1] * p.y + M[1][2] * p.z + M[1][3],
+              M[2][0] * p.x + M[2][1] * p.y + M[2][2] * p.z + M[2][3]);
+}
+
+static double tri_longest(vec3 a, vec3 b, vec3 c) {
+    return fmax(len_scaled(v3_sub(b, a)), fmax(len_scaled(v3_sub(c, b)), len_scaled(v3_sub(a, c))));
+}
+
+int mesh_transform_lengths(const mesh_data *m, const double M[3][4], double len_min, double len_max,
+                           char *err, size_t cap) {
+    for (int k = 0; k < m->npos; k++) {
+        vec3 p = m->pos[k], q = xf_point(M, p);
+        if (v3_maxabs(p) <= len_max && !(v3_maxabs(q) <= len_max)) {
+            snprintf(err, cap, "moves the file's vertex %d, [%g, %g, %g], to [%g, %g, %g], outside the "
+                     "supported range of coordinates, -%g to %g", k + 1, p.x, p.y, p.z, q.x, q.y, q.z,
+                     len_max, len_max);
+            return PM_EINVAL;
+        }
+    }
+    for (int t = 0; t < m->ntris; t++) {
+        const int *v = m->tri[t];
+        double before = tri_longest(m->pos[v[0]], m->pos[v[1]], m->pos[v[2]]);
+        double after = tri_longest(xf_point(M, m->pos[v[0]]), xf_point(M, m->pos[v[1]]),
+                                   xf_point(M, m->pos[v[2]]));
+        /* 0 after is a collapse (a singular transform, or a tiny mesh far from the origin),
+         * not a length out of range: mesh_transform and the scene's triangles say so. */
+        if (before >= len_min && after > 0 && after < len_min) {
+            snprintf(err, cap, "makes a triangle %g across in the file %g across, below the "
+                     "supported range of lengths, %g to %g", before, after, len_min, len_max);
+            return PM_EINVAL;
+        }
+    }
+    return 0;
+}
+
 int mesh_transform(mesh_data *m, const double M[3][4], const char *path, char *err, size_t cap) {
-    double a = M[0][0], b = M[0][1], c = M[0][2], d = M[1][0], e = M[1][1], f = M[1][2], g = M[2][0],
-           h = M[2][1], i = M[2][2];
+    int finite = 1;
+    for (int r = 0; r < 3; r++)
+        for (int k = 0; k < 4; k++) finite &= isfinite(M[r][k]) != 0;
+    if (!finite) {
+        snprintf(err, cap, "%s: the transform is not finite", path);
+        return PM_EINVAL;
+    }
+    /* The singular test and the normals use N, the matrix with unit columns: M = N D with
+     * D = diag(column lengths). |det N| is the volume the unit columns span, 1 for any rotation
+     * and scale (uniform or not) and 0 when they are linearly dependent: a test of M's
+     * determinant itself said "singular" for a uniform scale of 1e-150 (det 1e-450 underflows
+     * to 0) and for 1e150 (det overflows). Normals take M's inverse transpose,
+     * N^-T D^-1 = cof(N) D^-1 / det N: D^-1 is applied as lmin / len (all <= 1, no
+     * overflow), and cof(N) has entries of at most 1 (cofactors of M itself, of order
+     * scale^2, underflowed for a scale of 1e-90: NaN normals). */
+    double len[3], N[3][3];
+    int zero = -1;
+    for (int k = 0; k < 3; k++) {
+        len[k] = len_scaled(v3(M[0][k], M[1][k], M[2][k]));
+        if (!(len[k] > 0) && zero < 0) zero = k;
+    }
+    if (zero >= 0) {
+        snprintf(err, cap, "%s: the transform is singular (its column %d is zero: it flattens the "
+                 "mesh)", path, zero + 1);
+        return PM_EINVAL;
+    }
+    for (int r = 0; r < 3; r++)
+        for (int k = 0; k < 3; k++) N[r][k] = M[r][k] / len[k];
+    double a = N[0][0], b = N[0][1], c = N[0][2], d = N[1][0], e = N[1][1], f = N[1][2], g = N[2][0],
+           h = N[2][1], i = N[2][2];
     /* cofactors: inverse transpose = cof / det */
     double C[3][3] = {{e * i - f * h, f * g - d * i, d * h - e * g},
                       {c * h - b * i, a * i - c * g, b * g - a * h},
                       {b * f - c * e, c * d - a * f, a * e - b * d}};
     double det = a * C[0][0] + b * C[0][1] + c * C[0][2];
-    int finite = 1;
-    for (int r = 0; r < 3; r++)
-        for (int k = 0; k < 4; k++) finite &= isfinite(M[r][k]) != 0;
-    if (!finite || !(fabs(det) > 0) || !isfinite(det)) {
-        snprintf(err, cap, "%s: the transform is singular or not finite (determinant %g)", path, det);
+    if (!(fabs(det) >= MESH_SINGULAR_VOLUME)) {
+        snprintf(err, cap, "%s: the transform is singular (its columns, scaled to length 1, span a "
+                 "volume of %g, below %g: they are linearly dependent, and it flattens the mesh)",
+                 path, fabs(det), MESH_SINGULAR_VOLUME);
         return PM_EINVAL;
     }
-    for (int k = 0; k < m->npos; k++) {
-        vec3 p = m->pos[k];
-        m->pos[k] = v3(M[0][0] * p.x + M[0][1] * p.y + M[0][2] * p.z + M[0][3],
-                       M[1][0] * p.x + M[1][1] * p.y + M[1][2] * p.z + M[1][3],
-                       M[2][0] * p.x + M[2][1] * p.y + M[2][2] * p.z + M[2][3]);
-    }
+    double lmin = fmin(len[0], fmin(len[1], len[2]));
+    vec3 dinv = v3(lmin / len[0], lmin / len[1], lmin / len[2]);
+    for (int k = 0; k < m->npos; k++) m->pos[k] = xf_point(M, m->pos[k]);
     for (int k = 0; k < m->nnrm; k++) {
-        vec3 n = m->nrm[k];
+        vec3 n = v3_mul(m->nrm[k], dinv);
         m->nrm[k] = v3_norm(v3(C[0][0] * n.x + C[0][1] * n.y + C[0][2] * n.z,
                                C[1][0] * n.x + C[1][1] * n.y + C[1][2] * n.z,
                                C[2][0] * n.x + C[2][1] * n.y + C[2][2] * n.z));

@@ -57,9 +57,27 @@ void mesh_free(mesh_data *m);
  * or PM_ENOMEM with a message naming path. */
 int mesh_read_file(const char *path, char **buf, size_t *len, char *err, size_t cap);
 
+/* Below this volume spanned by the transform's columns scaled to length 1 (|det| of the
+ * matrix with unit columns: 1 for any rotation and scale, uniform or not, 0 when the columns
+ * are linearly dependent) the transform is singular: rounding leaves about 1e-16 in the volume
+ * of dependent columns, and at 1e-12 its inverse (for normals) keeps about 4 of 16 digits. */
+#define MESH_SINGULAR_VOLUME 1e-12
+
 /* p' = M[0..2][0..2] p + M[.][3]. Returns PM_EINVAL (message in err, starting with path) if M
- * is singular or not finite. */
+ * is not finite or singular (see MESH_SINGULAR_VOLUME); how large or small it scales lengths
+ * is not judged here (mesh_transform_lengths). */
 int mesh_transform(mesh_data *m, const double M[3][4], const char *path, char *err, size_t cap);
+
+/* Does M keep the mesh's lengths in len_min..len_max (the scene's range, scene.h "Ranges")? On
+ * the mesh before mesh_transform: PM_EINVAL, with a message (no path; "moves the file's vertex
+ * 3, [1, 0, 0], to [1e+150, 0, 0], outside the supported range of coordinates, ..." or "makes
+ * a triangle 1.41421 across in the file 1.41421e-150 across, below the supported range of
+ * lengths, ..."), when it takes a vertex within len_max of the origin outside it, or a
+ * triangle at least len_min across (its longest edge) below that. Lengths the file already
+ * had out of range, and triangles the transform collapses to 0 (singular), are not its
+ * business. 0 otherwise. */
+int mesh_transform_lengths(const mesh_data *m, const double M[3][4], double len_min, double len_max,
+                           char *err, size_t cap);
 
 /* Fill corner_n (see the top of this file). PM_ENOMEM or 0. */
 int mesh_smooth_normals(mesh_data *m, int recompute);

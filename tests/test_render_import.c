@@ -300,6 +300,164 @@ TEST(mesh_smooth_normals_and_transform) {
     mesh_free(&m);
 }
 
+/* A uniform scale by k (negative k mirrors in x too), as a 3x4 matrix. */
+static void scale_matrix(double k, double M[3][4]) {
+    memset(M, 0, 12 * sizeof(double));
+    M[0][0] = k < 0 ? k : fabs(k);
+    M[1][1] = M[2][2] = fabs(k);
+}
+
+/* Oracle: the inverse transpose, analytic for a scale: a mesh scaled by any factor keeps its
+ * normals (mirrored in x: x negated), and its points are k p (rounded once); a scale by
+ * (a, a, 2a) turns normal n into (n.x, n.y, n.z / 2), normalized. The determinant of a uniform
+ * scale by 1e-150 is 1e-450, which underflows to 0 in a double, and by 1e150 overflows: both
+ * were called "singular" (and 1e-90, determinant 1e-270, was accepted, but its cofactors, of
+ * 1e-180, squared to 0 when normalized: NaN normals). Singular (linearly dependent columns:
+ * a zero column, the rank-2 matrix 1..9, the same scaled by 1e-150) is still singular. */
+TEST(mesh_transform_scale_is_not_singular) {
+    char path[1024], err[256] = "";
+    snprintf(path, sizeof path, "%s/s.obj", pm_test_tmpdir());
+    ASSERT_EQ_INT(gen_mesh("sphere 16 8 1 0 0 0", path), 0);
+    mesh_data m0;
+    ASSERT_MSG(mesh_load(path, &m0, err, sizeof err) == 0, "%s", err);
+    ASSERT(m0.nnrm > 0);
+    const double ks[] = {1e-150, -1e-150, 1e-90, 1e-40, 1e-30, 1e30, 1e150, 1e300, 1e-300};
+    for (size_t j = 0; j < sizeof ks / sizeof ks[0]; j++) {
+        double M[3][4];
+        scale_matrix(ks[j], M);
+        mesh_data m;
+        ASSERT_MSG(mesh_load(path, &m, err, sizeof err) == 0, "%s", err);
+        int rc = mesh_transform(&m, (const double(*)[4])M, path, err, sizeof err);
+        EXPECT_MSG(rc == 0, "scale %g: %s", ks[j], err);
+        if (rc == 0) {
+            double worst_p = 0, worst_n = 0;
+            for (int k = 0; k < m.npos; k++) {
+                vec3 want = v3_scale(m0.pos[k], fabs(ks[j]));
+                if (ks[j] < 0) want.x = -want.x;
+                worst_p = fmax(worst_p, v3_maxabs(v3_sub(m.pos[k], want)) / fabs(ks[j]));
+            }
+            for (int k = 0; k < m.nnrm; k++) {
+                vec3 want = v3_norm(m0.nrm[k]);
+                if (ks[j] < 0) want.x = -want.x;
+                double d = v3_maxabs(v3_sub(m.nrm[k], want));
+                worst_n = isfinite(d) ? fmax(worst_n, d) : INFINITY;
+            }
+            EXPECT_MSG(worst_p <= 1e-15, "scale %g: points off by %g of the scale", ks[j], worst_p);
+            EXPECT_MSG(worst_n <= 1e-15, "scale %g: normals off by %g", ks[j], worst_n);
+        }
+        mesh_free(&m);
+    }
+    { /* (a, a, 2a), a = 1e-100: cofactors of M itself would be of 1e-200 */
+        double M[3][4] = {{1e-100, 0, 0, 0}, {0, 1e-100, 0, 0}, {0, 0, 2e-100, 0}};
+        mesh_data m;
+        ASSERT_MSG(mesh_load(path, &m, err, sizeof err) == 0, "%s", err);
+        ASSERT_MSG(mesh_transform(&m, (const double(*)[4])M, path, err, sizeof err) == 0, "%s", err);
+        double worst = 0;
+        for (int k = 0; k < m.nnrm; k++) {
+            vec3 n = m0.nrm[k], want = v3_norm(v3(n.x, n.y, n.z / 2));
+            double d = v3_maxabs(v3_sub(m.nrm[k], want));
+            worst = isfinite(d) ? fmax(worst, d) : INFINITY;
+        }
+        EXPECT_MSG(worst <= 1e-15, "scale (1, 1, 2) x 1e-100: normals off by %g", worst);
+        mesh_free(&m);
+    }
+    static const struct {
+        double M[3][4];
+        const char *why;
+    } singular[] = {
+        {{{1, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 1, 0}}, "its column 2 is zero"},
+        {{{1e-150, 0, 0, 0}, {0, 0, 0, 0}, {0, 0, 1e-150, 0}}, "its column 2 is zero"},
+        {{{1, 2, 3, 0}, {4, 5, 6, 0}, {7, 8, 9, 0}}, "its columns, scaled to length 1, span a volume of"},
+        {{{1e-150, 2e-150, 3e-150, 0}, {4e-150, 5e-150, 6e-150, 0}, {7e-150, 8e-150, 9e-150, 0}},
+         "its columns, scaled to length 1, span a volume of"},
+    };
+    for (size_t j = 0; j < sizeof singular / sizeof singular[0]; j++) {
+        mesh_data m;
+        ASSERT_MSG(mesh_load(path, &m, err, sizeof err) == 0, "%s", err);
+        int rc = mesh_transform(&m, singular[j].M, path, err, sizeof err);
+        EXPECT_MSG(rc < 0 && strstr(err, "the transform is singular (") && strstr(err, singular[j].why),
+                   "singular case %zu: rc %d: %s", j, rc, err);
+        mesh_free(&m);
+    }
+    mesh_free(&m0);
+}
+
+/* A unit quad (two triangles, 1.41421 across) with a normal, scaled by k about the origin,
+ * seen by a camera scaled with it: written to dir/q<tag>.json (and dir/q.obj). */
+static void quad_scene(const char *tag, const char *transform) {
+    char obj[1024], scn[1024], text[4096];
+    snprintf(obj, sizeof obj, "%s/q.obj", pm_test_tmpdir());
+    write_text(obj, "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1 4//1\n");
+    snprintf(scn, sizeof scn, "%s/q%s.json", pm_test_tmpdir(), tag);
+    snprintf(text, sizeof text,
+             "{\"camera\": {\"eye\": [0.5, 0.5, 3], \"look_at\": [0.5, 0.5, 0], \"fov_deg\": 40, \"width\": 8, "
+             "\"height\": 8},\n \"materials\": {\"lamp\": {\"type\": \"lambert\", \"reflectance\": 0, \"emission\": 1}},\n"
+             " \"objects\": [{\"type\": \"mesh\", \"file\": \"q.obj\", \"material\": \"lamp\", \"transform\": %s}]}\n",
+             transform);
+    write_text(scn, text);
+}
+
+/* Oracle: the Ranges table (data/scenes/README.md, scene.h): lengths 1e-100 to 1e100, a
+ * triangle's longest edge among them, and a range error names the field, gives the value and
+ * the range, and exits 2 (render_validate_range_errors). A transform that scales the unit quad
+ * by 1e-150 makes its triangles 1.41421e-150 across: out of range, said of $.objects[0].transform
+ * (it used to be "$.objects[0].file: q.obj: the transform is singular or not finite
+ * (determinant 0)"); by 1e150 it moves a vertex to 1e150. Scales 1e-30 and 1e-40 (determinants
+ * 1e-90 and 1e-120, fine in a double) keep it in range: an emitter of radiance 1 seen whole
+ * renders the same at any scale, so the image's mean equals the unscaled one's (the scene
+ * scaled, camera included: the camera is outside the mesh's transform, so it is moved with
+ * the scale written into the scene). A zero column is still "singular", exit 2. */
+TEST(render_mesh_transform_range_not_singular) {
+    const char *dir = pm_test_tmpdir();
+    char out[8192], scn[1024], pfm[1024];
+    static const struct {
+        const char *tag, *transform, *want;
+    } bad[] = {
+        {"m150", "[1e-150,0,0,0, 0,1e-150,0,0, 0,0,1e-150,0, 0,0,0,1]",
+         "$.objects[0].transform: makes a triangle 1.41421 across in the file 1.41421e-150 across, below the "
+         "supported range of lengths, 1e-100 to 1e+100"},
+        {"p150", "[1e150,0,0,0, 0,1e150,0,0, 0,0,1e150,0, 0,0,0,1]",
+         "$.objects[0].transform: moves the file's vertex 2, [1, 0, 0], to [1e+150, 0, 0], outside the "
+         "supported range of coordinates, -1e+100 to 1e+100"},
+        {"zero", "[1,0,0,0, 0,0,0,0, 0,0,1,0, 0,0,0,1]", "the transform is singular (its column 2 is zero"},
+    };
+    for (size_t j = 0; j < sizeof bad / sizeof bad[0]; j++) {
+        quad_scene(bad[j].tag, bad[j].transform);
+        snprintf(scn, sizeof scn, "%s/q%s.json", dir, bad[j].tag);
+        snprintf(pfm, sizeof pfm, "%s/q%s.pfm", dir, bad[j].tag);
+        int rc = render_file(scn, "--mode path", pfm, out, sizeof out);
+        EXPECT_MSG(rc == 2 && strstr(out, bad[j].want), "%s: exit %d, want \"%s\": %s", bad[j].tag, rc,
+                   bad[j].want, out);
+        EXPECT_MSG(!strstr(out, "Rendering"), "%s: it rendered: %s", bad[j].tag, out);
+    }
+    double mean[3];
+    const double ks[3] = {1, 1e-30, 1e-40};
+    for (int j = 0; j < 3; j++) {
+        char tr[256], text[4096], tag[16];
+        snprintf(tag, sizeof tag, "ok%d", j);
+        snprintf(tr, sizeof tr, "[%g,0,0,0, 0,%g,0,0, 0,0,%g,0, 0,0,0,1]", ks[j], ks[j], ks[j]);
+        snprintf(scn, sizeof scn, "%s/q%s.json", dir, tag);
+        snprintf(text, sizeof text,
+                 "{\"camera\": {\"eye\": [%g, %g, %g], \"look_at\": [%g, %g, 0], \"fov_deg\": 40, \"width\": 8, "
+                 "\"height\": 8},\n \"materials\": {\"lamp\": {\"type\": \"lambert\", \"reflectance\": 0, "
+                 "\"emission\": 1}},\n \"objects\": [{\"type\": \"mesh\", \"file\": \"q.obj\", \"material\": "
+                 "\"lamp\", \"transform\": %s}]}\n", 0.5 * ks[j], 0.5 * ks[j], 3 * ks[j], 0.5 * ks[j], 0.5 * ks[j], tr);
+        ASSERT(write_text(scn, text) == 0);
+        snprintf(pfm, sizeof pfm, "%s/q%s.pfm", dir, tag);
+        int rc = render_file(scn, "--mode path --spp 4", pfm, out, sizeof out);
+        ASSERT_MSG(rc == 0, "scale %g: exit %d: %s", ks[j], rc, out);
+        film f;
+        ASSERT(film_read_pfm(&f, pfm) == 0);
+        double sum = 0;
+        for (size_t i = 0; i < (size_t)f.width * (size_t)f.height * 3; i++) sum += f.px[i];
+        mean[j] = sum / ((double)f.width * f.height * 3);
+        film_free(&f);
+    }
+    EXPECT_MSG(mean[0] > 0.2 && mean[0] < 0.8, "the quad should fill part of the image: mean %g", mean[0]);
+    EXPECT_NEAR(mean[1], mean[0], 1e-3 * mean[0]);
+    EXPECT_NEAR(mean[2], mean[0], 1e-3 * mean[0]);
+}
+
 /* A scene of ours around one mesh object (extra keys in obj_extra), written to dir/name. */
 static void mesh_scene(const char *path, const char *obj_extra) {
     char text[4096];
