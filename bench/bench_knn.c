@@ -75,6 +75,7 @@ static struct {
     int nks;        /* --k: the k to race (0: the defaults) */
     int sets, modes; /* --queries, --modes: bit 0 near / unlimited, bit 1 empty / radius */
     int sort_rounds; /* rounds of the paired PM_SORT measurement */
+    int oracle;      /* --oracle: also time the searches given their own k-th distance */
 } opt;
 
 static FILE *g_csv, *g_build, *g_best;
@@ -320,11 +321,19 @@ static void structure_build(structure *s, const dataset *d, int type, int param)
 }
 
 /* ---- configurations ---- */
-enum { OP_KNN, OP_KNN_SORTED, OP_FL_BATCH, OP_FL_RMAXNN };
+enum { OP_KNN, OP_KNN_SORTED, OP_FL_BATCH, OP_FL_RMAXNN, OP_KNN_ORACLE };
+
+/* --oracle: per query of the pool (g_oracle_q), the next float above its own k-th dist2, so
+ * that a search given it as max_dist2 returns the same k distances having known the final
+ * radius from the start. Not something a caller can do: it measures how much of a query's
+ * time goes into finding that radius. */
+static float *g_oracle_r2;
+static const float *g_oracle_q;
 static const char *op_name(int op) {
     switch (op) {
     case OP_KNN: return "knn";
     case OP_KNN_SORTED: return "knn_sorted";
+    case OP_KNN_ORACLE: return "knn_oracle";
     case OP_FL_BATCH: return "knn_batch";
     default: return "radius_maxnn";
     }
@@ -377,7 +386,8 @@ static uint64_t run(const config *c, const float *q, size_t m, unsigned k, float
             f = flann_radius_search(s->fl, (float *)qi, sc->idx, sc->d, (int)k,
                                     isinf(r2) ? FLT_MAX : r2, &fp);
         } else if (s->type == S_KD) {
-            f = pm_kdtree_knn(s->kd, qi, k, r2, sc->nb, c->op == OP_KNN_SORTED ? PM_SORT : 0, st);
+            float ri = c->op == OP_KNN_ORACLE ? g_oracle_r2[(size_t)(qi - g_oracle_q) / 3] : r2;
+            f = pm_kdtree_knn(s->kd, qi, k, ri, sc->nb, c->op == OP_KNN_SORTED ? PM_SORT : 0, st);
         } else {
             f = bench_octree_knn(s->oct, qi, k, r2, sc->nb, c->op == OP_KNN_SORTED ? PM_SORT : 0,
                                  st);
@@ -516,6 +526,23 @@ static void label(char *buf, size_t n, const config *c) {
     snprintf(buf, n, "%s_%s_%d", struct_name(c->s->type), op_name(c->op), c->s->param);
 }
 
+/* g_oracle_r2 for the pool of qs: each query's k-th dist2 by an (untimed) unlimited search. */
+static void oracle_radii(const structure *kd, const qset *qs, unsigned k, scratch *sc) {
+    float *r = realloc(g_oracle_r2, opt.pool * sizeof *r);
+    if (!r) {
+        fprintf(stderr, "bench_knn: out of memory\n");
+        exit(2);
+    }
+    g_oracle_r2 = r, g_oracle_q = qs->q;
+    for (size_t i = 0; i < opt.pool; i++) {
+        int f = pm_kdtree_knn(kd->kd, &qs->q[3 * i], k, INFINITY, sc->nb, 0, NULL);
+        float mx = 0;
+        for (int j = 0; j < f; j++)
+            if (sc->nb[j].dist2 > mx) mx = sc->nb[j].dist2;
+        r[i] = f < (int)k ? INFINITY : nextafterf(mx, INFINITY);
+    }
+}
+
 static void run_dataset(dataset *d) {
     structure kd[NELEM(KD_B)], fl[NELEM(FL_LEAF)], oc[NELEM(OCT_CAP)];
     /* above 1.5M points only k = 50 (the 4M target), to keep the run within its time */
@@ -552,6 +579,11 @@ static void run_dataset(dataset *d) {
                 for (size_t i = 0; i < NELEM(FL_LEAF); i++) {
                     cs[nc++] = (config){.s = &fl[i], .op = OP_FL_BATCH};
                     if (mode == 1) cs[nc++] = (config){.s = &fl[i], .op = OP_FL_RMAXNN};
+                }
+                if (opt.oracle && mode == 0) {
+                    oracle_radii(&kd[0], qs, k, sc);
+                    for (size_t i = 0; i < NELEM(KD_B); i++)
+                        cs[nc++] = (config){.s = &kd[i], .op = OP_KNN_ORACLE};
                 }
                 if (k == OCT_K)
                     for (size_t i = 0; i < NELEM(OCT_CAP); i++)
@@ -621,7 +653,12 @@ static void usage(FILE *f) {
             "  --k LIST          only these k (comma list of 10, 50, 200; default all three,\n"
             "                    above 1.5M points 50)\n"
             "  --queries SET     only the query set near or empty (default both)\n"
-            "  --modes MODE      only unlimited or radius (default both)\n");
+            "  --modes MODE      only unlimited or radius (default both)\n"
+            "  --oracle          also time kdtree_knn_oracle_B in unlimited mode: the same search\n"
+            "                    given each query's own k-th distance (next float up) as its\n"
+            "                    maximum radius, found first by an untimed search. A diagnostic of\n"
+            "                    how much time goes into finding the radius, not a configuration a\n"
+            "                    caller can run: never counted as ours\n");
 }
 
 int main(int argc, char **argv) {
@@ -640,6 +677,8 @@ int main(int argc, char **argv) {
             return 0;
         } else if (!strcmp(a, "--quick")) {
             opt.quick = 1;
+        } else if (!strcmp(a, "--oracle")) {
+            opt.oracle = 1;
         } else if (v && !strcmp(a, "--out")) {
             opt.out = v, i++;
         } else if (v && !strcmp(a, "--n")) {

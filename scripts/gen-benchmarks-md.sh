@@ -179,6 +179,18 @@ axis, the one thing a left-balanced heap leaves free, did better than a few perc
 octree prunes every cell by the exact distance to its box (bench/octree.c), the same cell
 pruning as the kd-tree's, so the kd-tree / octree race is fair.
 
+The cells are not the whole story: on the clustered set most of an empty-space query's time
+goes into finding its radius. Given each query's own k-th distance as its maximum radius
+(\`bench_knn --oracle\`, a diagnostic no caller can use), the same search on the same tree runs
+2.3x faster at 1M and 2.2x at 4M, 2.4x and 2.5x FLANN's best (the ideas table below). Without
+that radius, the first records met lie far from q, and 87 of the 137 records that enter the
+k-nearest heap per query enter by replacing its top, at about 29 ns each: 36-38% of the query by
+perf. kdtree.h's TIES fix those entries (the visiting order, q's side first, and \"a record met
+later must be strictly closer than the current k-th\") and the heap's sift-down fixes which
+tied record leaves. Under those rules even a free heap step would leave this cell at about
+1.7x FLANN at 1M. Reaching 2x needs a different visiting order or tie rule, or splits that
+are not at the median, and issue 12 keeps all three.
+
 Choosing B: how often each bucket size was the fastest (unsorted k-NN, over every cell), and the worst loss of always using it instead of the cell's fastest:"
 echo
 echo "| B | fastest in | worst queries/s against the cell's fastest B (where) |"
