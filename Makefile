@@ -101,7 +101,8 @@ PM_SRC     := $(sort $(wildcard photonmap/*.c))
 PM_HDR     := $(sort $(wildcard photonmap/*.h))
 # Installed headers: internal.h and *_internal.h are the library's own, not API.
 PM_PUB_HDR := $(filter-out %_internal.h photonmap/internal.h,$(PM_HDR))
-RENDER_SRC := $(sort $(filter-out render/main.c,$(wildcard render/*.c)))
+# render/ is one folder per pipeline stage (render/README.md); render/mpi/ is built only with MPI=1.
+RENDER_SRC := $(sort $(filter-out render/app/main.c render/mpi/%,$(wildcard render/*/*.c)))
 BENCH_MAIN := $(sort $(wildcard bench/bench_*.c))
 BENCH_SRC  := $(sort $(filter-out $(BENCH_MAIN),$(wildcard bench/*.c)))
 TEST_SRC   := $(sort $(wildcard tests/*.c))
@@ -129,7 +130,7 @@ FLANN_LIBS  := -lflann -lm
         uninstall clean deps example
 .DEFAULT_GOAL := all
 
-all: $(LIB) $(SHLIB) $(if $(wildcard render/main.c),$(RENDER_BIN)) $(BENCH_BINS) $(TEST_BIN)
+all: $(LIB) $(SHLIB) $(if $(wildcard render/app/main.c),$(RENDER_BIN)) $(BENCH_BINS) $(TEST_BIN)
 lib: $(LIB) $(SHLIB)
 render: $(RENDER_BIN)
 bench-bin: $(BENCH_BINS)
@@ -147,9 +148,12 @@ deps:
 	    sh scripts/install-deps.sh; fi
 
 # ---- compile -------------------------------------------------------------------------------
+# The renderer and the tests name render's headers by stage ("scene/scene.h"): -Irender for
+# them only, so photonmap/ and bench/ cannot reach into render/ by accident.
+$(BUILD)/obj/render/%.o $(BUILD)/obj/tests/%.o: INC_RENDER := -Irender
 $(BUILD)/obj/%.o: %.c $(FLAGS_STAMP) | $(DEPS_FIRST)
 	@mkdir -p $(@D)
-	$(CC) $(ALL_CFLAGS) -MMD -MP -I. -Iphotonmap -c $< -o $@
+	$(CC) $(ALL_CFLAGS) -MMD -MP -I. -Iphotonmap $(INC_RENDER) -c $< -o $@
 
 # The shared library's objects: position-independent.
 $(BUILD)/pic/%.o: %.c $(FLAGS_STAMP) | $(DEPS_FIRST)
@@ -158,7 +162,7 @@ $(BUILD)/pic/%.o: %.c $(FLAGS_STAMP) | $(DEPS_FIRST)
 
 -include $(PM_OBJ:.o=.d) $(PM_PIC_OBJ:.o=.d) $(RENDER_OBJ:.o=.d) $(BENCH_OBJ:.o=.d) \
          $(TEST_OBJ:.o=.d) $(BENCH_MAIN:bench/%.c=$(BUILD)/obj/bench/%.d) \
-         $(BUILD)/obj/render/main.d
+         $(BUILD)/obj/render/app/main.d
 
 $(LIB): $(PM_OBJ)
 	@mkdir -p $(@D)
@@ -175,7 +179,7 @@ $(SHLIB): $(PM_PIC_OBJ) $(SHLIB_MAP) $(FLAGS_STAMP)
 	ln -sf $(notdir $@) $(BUILD)/$(SONAME)
 	ln -sf $(SONAME) $(BUILD)/libphotonmap.so
 
-$(RENDER_BIN): $(BUILD)/obj/render/main.o $(RENDER_OBJ) $(LIB) $(FLAGS_STAMP)
+$(RENDER_BIN): $(BUILD)/obj/render/app/main.o $(RENDER_OBJ) $(LIB) $(FLAGS_STAMP)
 	$(CC) -o $@ $(filter %.o %.a,$^) $(ALL_LDFLAGS) $(RENDER_LIBS)
 
 # Each bench/bench_*.c is a program; the other bench/*.c are linked into all of them.
@@ -230,7 +234,7 @@ check: all
 
 # ---- MPI (optional) ------------------------------------------------------------------------
 # `make MPI=1` also builds render-mpi, the distributed renderer (render/mpi/, docs/MPI.md):
-# render/main.c compiled again with mpicc, main renamed render_main and its image loop
+# render/app/main.c compiled again with mpicc, main renamed render_main and its image loop
 # render_image_ctl replaced by render/mpi's (-D below), linked with render/mpi/*.c. The
 # default build never compiles render/mpi/ nor needs mpi.h. OpenMPI is installed
 # (install-deps.sh --mpi) when mpicc is missing. `make MPI=1 test-mpi` runs
@@ -249,10 +253,10 @@ mpi-deps:
 $(BUILD)/obj/render/mpi/%.o: render/mpi/%.c $(FLAGS_STAMP) | mpi-deps
 	@mkdir -p $(@D)
 	$(MPICC) $(ALL_CFLAGS) -MMD -MP -I. -Iphotonmap -Irender -c $< -o $@
-$(BUILD)/obj/render/main_mpi.o: render/main.c $(FLAGS_STAMP) | mpi-deps
+$(BUILD)/obj/render/main_mpi.o: render/app/main.c $(FLAGS_STAMP) | mpi-deps
 	@mkdir -p $(@D)
 	$(MPICC) $(ALL_CFLAGS) -Dmain=render_main -Drender_image_ctl=dist_render_image_ctl -MMD -MP \
-	    -I. -Iphotonmap -c $< -o $@
+	    -I. -Iphotonmap -Irender -c $< -o $@
 $(RENDER_MPI_BIN): $(MPI_OBJ) $(RENDER_OBJ) $(LIB) $(FLAGS_STAMP)
 	$(MPICC) -o $@ $(filter %.o %.a,$^) $(ALL_LDFLAGS) $(RENDER_LIBS)
 -include $(MPI_OBJ:.o=.d)
@@ -269,7 +273,7 @@ run: $(RENDER_BIN)
 # ---- bench ---------------------------------------------------------------------------------
 # The renderer dumps the real photon map the search bench reads; gnuplot draws the plots
 # and valgrind profiles the headline (installed here when missing).
-BENCH_DEPS := $(BENCH_BINS) $(if $(wildcard render/main.c),$(RENDER_BIN))
+BENCH_DEPS := $(BENCH_BINS) $(if $(wildcard render/app/main.c),$(RENDER_BIN))
 bench: $(BENCH_DEPS)
 	@command -v gnuplot >/dev/null 2>&1 && command -v valgrind >/dev/null 2>&1 \
 	    || sh scripts/install-deps.sh --bench

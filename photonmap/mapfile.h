@@ -15,7 +15,7 @@
  *                         then rebuild the tree without reordering)
  *   uint64   tag[0]       two words the caller chooses to say what made the map (the
  *   uint64   tag[1]       renderer: a hash of the scene and one of the photon settings;
- *                         render/photon_maps.h); 0 = none. Stored and returned, never
+ *                         render/photons/photon_maps.h); 0 = none. Stored and returned, never
  *                         interpreted here
  *   uint64   checksum     FNV-1a 64 of header bytes 0..55 followed by every record's bytes as
  *                         stored (version 3; bytes 56..63, zero in versions 1 and 2)

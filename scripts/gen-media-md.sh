@@ -65,7 +65,7 @@ Photon mapping's best corrected RMSE, $(printf '%.5f' "$(sm cornell_fog pm_best_
 tracing $(printf '%.0f' "$(sm cornell_fog pt_spp_for_equal_error)") spp by the fit, $(printf '%.1f' "$(sm cornell_fog pt_cpu_for_equal_error)") CPU-s at its measured $(printf '%.4f' "$(sm cornell_fog pt_cpu_per_spp)") CPU-s per sample:
 **$(printf '%.2f' "$(sm cornell_fog ratio)")x** the time of photon mapping. (Thin fog is where path tracing's next-event estimation
 works well: every point of the fog sees the lamp directly. Since a842257 both methods add
-equiangular light samples along each segment in the fog (\`render/direct.h\`), so fog just under
+equiangular light samples along each segment in the fog (\`render/integrators/direct.h\`), so fog just under
 the lamp no longer gives fireflies; path tracing's samples cost about twice as much as before.)
 $(awk '$1 == "pm_cheapest_as_good_spp" && $2 > 0 { f = 1 } END { exit !f }' "$res/summary_cornell_fog.txt" &&
   echo "Measured without the fit: the longest path-traced run ($(sm cornell_fog pt_longest_spp) spp, $(printf '%.1f' "$(sm cornell_fog pt_longest_cpu)") CPU-s, RMSE $(printf '%.5f' "$(sm cornell_fog pt_longest_rmse)")) against the cheapest photon-mapping run at least as good ($(sm cornell_fog pm_cheapest_as_good_spp) spp, $(printf '%.1f' "$(sm cornell_fog pm_cheapest_as_good_cpu)") CPU-s): $(printf '%.2f' "$(sm cornell_fog measured_ratio_at_least)")x." ||

@@ -51,7 +51,7 @@ cat <<'EOF'
 `render-mpi` renders one image over several MPI processes (ranks), on one machine or on
 many, and gives the image of the one-process `render` bit for bit (or, with partitioned photon
 maps, an image within 1% of it region by region). It takes `render`'s
-options (it is `render/main.c` compiled a second time; `render/mpi/dist.h` explains the
+options (it is `render/app/main.c` compiled a second time; `render/mpi/dist.h` explains the
 seams) plus:
 
 | option | meaning |
@@ -343,7 +343,7 @@ correction c on the total (`pm_combine_add` on each rank, the sums added, `pm_co
   guess: 0 for an estimate, and for a lookup the rank's own records' answer, which decides
   whether the gather takes a record or computes the light at the hit (the one decision of
   the photon mapper that depends on a lookup; no decision depends on an estimate's value,
-  `render/photon_lookup.h`). The block's queries then go to every other rank in one message
+  `render/photon_mapping/photon_lookup.h`). The block's queries then go to every other rank in one message
   (36 bytes each), answered (32 bytes each) while the rank serves the others' queries; and
   the samples that made queries are traced again, each query taking its answer. A sample
   whose guessed lookup was wrong leaves its recorded path there: its queries from that
@@ -360,8 +360,8 @@ correction c on the total (`pm_combine_add` on each rank, the sums added, `pm_co
   image depends on the number of ranks (which splits the maps) and on nothing else, not the
   threads, which rank rendered which tile, nor whether the maps were traced or loaded.
 
-The hook that routes the photon mapper's lookups (`render/photon_lookup.h`) is a few lines in
-`render/photonmapper.c`; without it (`render`, replicated mode) the mapper reads its own maps.
+The hook that routes the photon mapper's lookups (`render/photon_mapping/photon_lookup.h`) is a few lines in
+`render/photon_mapping/photonmapper.c`; without it (`render`, replicated mode) the mapper reads its own maps.
 
 EOF
 
@@ -567,7 +567,7 @@ each sample once, that state must survive until the answer arrives, by one of:
 2. **A wavefront photon mapper**: `li()` rewritten as explicit per-sample state (the eye
    path's vertex, throughput, the gather's ray index and sum, the secondary gather's level)
    advanced from query to query in arrays, as GPU renderers do. No stacks, but it is a
-   rewrite of `render/photonmapper.c`'s eye path, gather, secondary gather and direct light,
+   rewrite of `render/photon_mapping/photonmapper.c`'s eye path, gather, secondary gather and direct light,
    which the one-process renderer must keep bit for bit.
 
 Either removes every trace but one of the samples traced more than once (the traces table

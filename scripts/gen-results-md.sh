@@ -59,7 +59,7 @@ The commit, date and machine below are those of the measurement (\`docs/results/
 | date | $(m date) |
 | image size | $(ref cornell_spheres width) x $(ref cornell_spheres height) |
 | references | path tracing, cornell_spheres $(ref cornell_spheres spp) spp ($(ref cornell_spheres cpu_seconds) CPU-s), cornell_diffuse $(ref cornell_diffuse spp) spp ($(ref cornell_diffuse cpu_seconds) CPU-s), seed $(ref cornell_spheres seed) |
-| photon mapping | \`render --mode pm --spp $pmspp $flags\` (everything else: the scene's and the defaults, \`render/plan.h\`) |
+| photon mapping | \`render --mode pm --spp $pmspp $flags\` (everything else: the scene's and the defaults, \`render/photon_mapping/plan.h\`) |
 | default plan | \`render --mode pm --spp $pmspp $dflags\`: the same with the plan's own choice of shadow photons |
 
 All comparisons are in linear HDR (PFM). A region's mean counts only pixels that see that

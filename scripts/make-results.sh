@@ -76,7 +76,7 @@ for name in cornell_spheres cornell_diffuse; do
     exit 2
   fi
   # A path-traced reference lacks the caustics of point and directional lights (light they
-  # send through specular surfaces onto diffuse ones; render/delta_lit.h). `render --mode
+  # send through specular surfaces onto diffuse ones; render/scene/delta_lit.h). `render --mode
   # path` names the specular objects such a light sees and the objects those caustics fall
   # on; the regions below would include them, so such a scene is refused, not compared.
   "$bin" "$scene" --mode path --width 8 --height 8 --spp 1 --quiet -o "$work/check.png" \

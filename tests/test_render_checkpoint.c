@@ -16,12 +16,12 @@
 
 #include "test.h"
 #include "../photonmap/common.h"
-#include "../render/checkpoint.h"
-#include "../render/film.h"
-#include "../render/integrator.h"
-#include "../render/output.h"
-#include "../render/renderer.h"
-#include "../render/scene.h"
+#include "../render/run/checkpoint.h"
+#include "../render/image/film.h"
+#include "../render/integrators/integrator.h"
+#include "../render/base/output.h"
+#include "../render/run/renderer.h"
+#include "../render/scene/scene.h"
 #include "test_render_run.h"
 
 static int load_scene(scene *s, const char *name, int w, int h, int spp) {

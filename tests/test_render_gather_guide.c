@@ -1,4 +1,4 @@
-/* test_render_gather_guide.c: the photon mapper's gather guide (render/photonmapper.c, GATHER
+/* test_render_gather_guide.c: the photon mapper's gather guide (render/photon_mapping/photonmapper.c, GATHER
  * GUIDE): gather rays aimed at an opening the pilot finds, weighted by the mixture's density.
  *
  * Oracles: closed forms for the mixture's own estimate (the irradiance of a constant sky and
@@ -15,9 +15,9 @@
 #include <string.h>
 
 #include "test.h"
-#include "../render/film.h"
-#include "../render/gather_guide.h"
-#include "../render/rng.h"
+#include "../render/image/film.h"
+#include "../render/guiding/gather_guide.h"
+#include "../render/base/rng.h"
 
 /* Render data/scenes/NAME.json with FLAGS into DIR/TAG.pfm; the output in out. */
 static int gg_render(const char *name, const char *flags, const char *tag, char *out, size_t cap) {

@@ -6,10 +6,10 @@
 #include <stdlib.h>
 
 #include "test.h"
-#include "../render/bvh.h"
-#include "../render/rng.h"
-#include "../render/sampling.h"
-#include "../render/shapes.h"
+#include "../render/scene/bvh.h"
+#include "../render/base/rng.h"
+#include "../render/base/sampling.h"
+#include "../render/scene/shapes.h"
 
 static triangle unit_tri(void) {
     triangle t;

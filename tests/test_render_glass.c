@@ -17,8 +17,8 @@
 #include <string.h>
 
 #include "test.h"
-#include "../render/film.h"
-#include "../render/material.h"
+#include "../render/image/film.h"
+#include "../render/scene/material.h"
 
 /* Oracle: the definition, (n_src / n)^2, with exact 1 where the photon is back in the index
  * of its light (so scenes whose photons leave every glass they enter render bit for bit as

@@ -1,4 +1,4 @@
-/* test_render_guide.c: the learned primary-sample guide (render/guide.h) and guided light
+/* test_render_guide.c: the learned primary-sample guide (render/guiding/guide.h) and guided light
  * sampling in the photon mapper's direct light (direct.h).
  *
  * Oracles: the table's own definition (q' = alpha / G^2 + (1 - alpha) q: sums, the density of
@@ -15,12 +15,12 @@
 #include "test.h"
 #include "../photonmap/common.h"
 #include "test_render_run.h"
-#include "../render/direct.h"
-#include "../render/film.h"
-#include "../render/guide.h"
-#include "../render/photon_settings.h"
-#include "../render/rng.h"
-#include "../render/scene.h"
+#include "../render/integrators/direct.h"
+#include "../render/image/film.h"
+#include "../render/guiding/guide.h"
+#include "../render/photons/photon_settings.h"
+#include "../render/base/rng.h"
+#include "../render/scene/scene.h"
 
 #ifdef _OPENMP
 #include <omp.h>

@@ -17,7 +17,7 @@
 #include <string.h>
 
 #include "test.h"
-#include "../render/film.h"
+#include "../render/image/film.h"
 
 /* Mean of the three channels over the rectangle [x0, x1) x [y0, y1) (top-left origin). */
 static double rect_mean(const film *f, int x0, int y0, int x1, int y1) {

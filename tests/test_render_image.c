@@ -10,13 +10,13 @@
 
 #include "test.h"
 #include "../photonmap/common.h"
-#include "../render/compare.h"
-#include "../render/errors.h"
-#include "../render/film.h"
-#include "../render/integrator.h"
-#include "../render/renderer.h"
-#include "../render/scene.h"
-#include "../render/stats.h"
+#include "../render/image/compare.h"
+#include "../render/base/errors.h"
+#include "../render/image/film.h"
+#include "../render/integrators/integrator.h"
+#include "../render/run/renderer.h"
+#include "../render/scene/scene.h"
+#include "../render/base/stats.h"
 
 static int render_text(const char *text, int w, int h, int spp, int threads, film *f) {
     scene s;

@@ -18,13 +18,13 @@
 #include <string.h>
 
 #include "test.h"
-#include "../render/compare.h"
-#include "../render/film.h"
-#include "../render/mesh.h"
-#include "../render/obj.h"
-#include "../render/scene.h"
-#include "../render/tungsten.h"
-#include "../render/wo3.h"
+#include "../render/image/compare.h"
+#include "../render/image/film.h"
+#include "../render/load/mesh.h"
+#include "../render/load/obj.h"
+#include "../render/scene/scene.h"
+#include "../render/load/tungsten.h"
+#include "../render/load/wo3.h"
 
 /* ---- helpers ------------------------------------------------------------------------------ */
 

@@ -6,8 +6,8 @@
  * power / n. Monte Carlo results are checked within 5 standard errors.
  */
 #include "test.h"
-#include "../render/rng.h"
-#include "../render/scene.h"
+#include "../render/base/rng.h"
+#include "../render/scene/scene.h"
 
 TEST(render_light_area_emission_moments) {
     const char *txt =

@@ -1,9 +1,9 @@
 /* test_render_maps.c: saved photon maps (--save-photons / --load-photons) and what they
- * promise in render/photon_maps.h and render/scene_hash.h.
+ * promise in render/photons/photon_maps.h and render/scene/scene_hash.h.
  *
  * Oracles: the stamp's definition (photon_maps.h MAP FILES, scene_hash.h): every field that
  * shapes photons changes it, one at a time, and every field that does not leaves it equal;
- * the exit status and message render/main.c documents for bad input (2, naming the file);
+ * the exit status and message render/app/main.c documents for bad input (2, naming the file);
  * and byte equality: the image rendered from loaded maps is the traced run's, and a refused
  * run leaves no output file. Renders are 16x16 with a few thousand photons (well under a
  * second each). Scenes with media (cornell_fog, volumetric_caustic) save and load their
@@ -17,9 +17,9 @@
 #include <unistd.h>
 
 #include "photonmap/mapfile.h"
-#include "render/photon_maps.h"
-#include "render/scene.h"
-#include "render/scene_hash.h"
+#include "render/photons/photon_maps.h"
+#include "render/scene/scene.h"
+#include "render/scene/scene_hash.h"
 #include "test.h"
 #include "test_render_run.h"
 
@@ -606,7 +606,7 @@ TEST(render_maps_media_loaded_equals_traced) {
                "under seed 4 the loaded seed-3 maps gave seed 4's traced image: they were traced again");
 }
 
-/* Oracle: photon_maps.h MAP FILES and render/main.c's exit status 2 for bad input. Each volume
+/* Oracle: photon_maps.h MAP FILES and render/app/main.c's exit status 2 for bad input. Each volume
  * file missing, truncated or garbage; a surface map under a volume map's name; the two volume
  * roles swapped (refused even forced: the wrong kind); the fog edited (another scene), the
  * volume target or the camera's position changed (other settings): exit 2 naming the file, no

@@ -5,9 +5,9 @@
  * Monte Carlo integrals with their standard errors.
  */
 #include "test.h"
-#include "../render/material.h"
-#include "../render/rng.h"
-#include "../render/sampling.h"
+#include "../render/scene/material.h"
+#include "../render/base/rng.h"
+#include "../render/base/sampling.h"
 
 /* Oracle: ((n1 - n2)/(n1 + n2))^2 = 0.04 for air to glass 1.5, both ways; 1e-15 absolute. */
 TEST(render_fresnel_normal_incidence) {

@@ -1,4 +1,4 @@
-/* test_render_media.c: participating media (render/medium.h): the scene format and its
+/* test_render_media.c: participating media (render/scene/medium.h): the scene format and its
  * errors, the Henyey–Greenstein phase function, free-flight sampling, transmittance through
  * media and invisible (null) interfaces, and the path tracer with media.
  *
@@ -17,13 +17,13 @@
 #include <time.h>
 
 #include "test.h"
-#include "../render/film.h"
-#include "../render/integrator.h"
-#include "../render/medium.h"
-#include "../render/plan.h"
-#include "../render/pm_volume.h"
-#include "../render/scene.h"
-#include "../render/volume.h"
+#include "../render/image/film.h"
+#include "../render/integrators/integrator.h"
+#include "../render/scene/medium.h"
+#include "../render/photon_mapping/plan.h"
+#include "../render/photon_mapping/pm_volume.h"
+#include "../render/scene/scene.h"
+#include "../render/photons/volume.h"
 
 /* The dense-fog comparison (render_media_pm_matches_path_in_dense_fog). */
 #ifndef DENSE_PT_SPP

@@ -29,15 +29,15 @@
 #include <string.h>
 
 #include "test.h"
-#include "../render/compare.h"
-#include "../render/direct.h"
-#include "../render/film.h"
-#include "../render/medium.h"
-#include "../render/photon_settings.h"
-#include "../render/pm_volume.h"
-#include "../render/rng.h"
-#include "../render/scene.h"
-#include "../render/volume.h"
+#include "../render/image/compare.h"
+#include "../render/integrators/direct.h"
+#include "../render/image/film.h"
+#include "../render/scene/medium.h"
+#include "../render/photons/photon_settings.h"
+#include "../render/photon_mapping/pm_volume.h"
+#include "../render/base/rng.h"
+#include "../render/scene/scene.h"
+#include "../render/photons/volume.h"
 
 /* ---- 1. the volumetric caustic --------------------------------------------------------------- */
 

@@ -1,6 +1,6 @@
 /* test_render_output.c: output files that are safe as root, and bounded input.
  *
- * Oracles: the documented rules of render/output.h: a regular file is replaced whole (its
+ * Oracles: the documented rules of render/base/output.h: a regular file is replaced whole (its
  * new bytes are exactly what was written, its inode changes), a FIFO and a character device
  * are written through and stay what they were (same type, same device number), a symbolic
  * link stays a link and its target gets the bytes, a dangling link, a directory are refused
@@ -26,8 +26,8 @@
 
 #include "test.h"
 #include "../photonmap/common.h"
-#include "../render/film.h"
-#include "../render/output.h"
+#include "../render/image/film.h"
+#include "../render/base/output.h"
 #include "test_render_run.h"
 
 static int write_text(const char *path, const char *text) {

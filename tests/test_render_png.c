@@ -1,6 +1,6 @@
 /* test_render_png.c: the PNG writer, read back with libpng.
  *
- * Oracle: the published curves, written out here independently of render/film.c: the sRGB
+ * Oracle: the published curves, written out here independently of render/image/film.c: the sRGB
  * transfer function (IEC 61966-2-1: 12.92 v below 0.0031308, else 1.055 v^(1/2.4) - 0.055)
  * and Hable's filmic curve (A = 0.15, B = 0.50, C = 0.10, D = 0.20, E = 0.02, F = 0.30,
  * normalised by its value at the white point W = 11.2). A film whose pixels hold known values
@@ -13,7 +13,7 @@
 #include <string.h>
 
 #include "test.h"
-#include "../render/film.h"
+#include "../render/image/film.h"
 
 static double ref_srgb(double v) {
     v = v < 0 ? 0 : v > 1 ? 1 : v;

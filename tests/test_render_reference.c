@@ -1,4 +1,4 @@
-/* test_render_reference.c: the path tracer says what it cannot render (render/delta_lit.h).
+/* test_render_reference.c: the path tracer says what it cannot render (render/scene/delta_lit.h).
  *
  * Oracles: the photon tracer's caustic map (independent of delta_lit.c: its photons are the
  * L S+ D paths themselves, stored where they land, each landing point assigned to its object
@@ -12,10 +12,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "render/delta_lit.h"
-#include "render/photon_maps.h"
-#include "render/photon_trace.h"
-#include "render/scene.h"
+#include "render/scene/delta_lit.h"
+#include "render/photons/photon_maps.h"
+#include "render/photons/photon_trace.h"
+#include "render/scene/scene.h"
 #include "test.h"
 #include "test_render_run.h"
 

@@ -2,7 +2,7 @@
  *
  * Every command runs in the test's own directory (pm_test_tmpdir()), background jobs
  * included, so outputs never land anywhere else. rt_render_paused uses the render program's
- * test-only hook PM_RENDER_TEST_PAUSE=PHASE (render/output.h): it starts the program, waits
+ * test-only hook PM_RENDER_TEST_PAUSE=PHASE (render/base/output.h): it starts the program, waits
  * until it says "test pause at", runs a shell snippet (e.g. copy a snapshot), sends the
  * signal and returns the exit status as the shell reports it (128 + signal when killed).
  * Static inline helpers, so a file that uses some of them has no unused-function warnings.

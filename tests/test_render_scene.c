@@ -9,7 +9,7 @@
 #include <unistd.h>
 
 #include "test.h"
-#include "../render/scene.h"
+#include "../render/scene/scene.h"
 
 #define CAM "\"camera\": {\"eye\": [0,0,-5], \"look_at\": [0,0,0], \"fov_deg\": 40, \"width\": 8, \"height\": 8, \"spp\": 1}"
 #define MATS "\"materials\": {\"w\": {\"type\": \"lambert\", \"reflectance\": 0.5}, \"e\": {\"type\": \"lambert\", \"reflectance\": 0, \"emission\": 1}}"

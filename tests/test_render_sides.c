@@ -1,4 +1,4 @@
-/* test_render_sides.c: the side-keeping precomputed irradiance of render/photon_sides.h, read
+/* test_render_sides.c: the side-keeping precomputed irradiance of render/photon_mapping/photon_sides.h, read
  * through the module's lookup with a caller's rule (photonmap/irradiance.h).
  *
  * Oracle: a brute-force scan of the records with the rules of photon_sides.h written out:
@@ -15,9 +15,9 @@
 #include <string.h>
 
 #include "test.h"
-#include "../render/photon_maps.h"
-#include "../render/photon_sides.h"
-#include "../render/scene.h"
+#include "../render/photons/photon_maps.h"
+#include "../render/photon_mapping/photon_sides.h"
+#include "../render/scene/scene.h"
 
 typedef struct { uint64_t s; } srng;
 static double srng_unit(srng *r) {

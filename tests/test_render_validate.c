@@ -15,7 +15,7 @@
 #include <cjson/cJSON.h>
 
 #include "test.h"
-#include "../render/film.h"
+#include "../render/image/film.h"
 
 /* A small closed box (floor, ceiling, walls; open front) with an area light in its
  * ceiling, one sphere and one point light. %s: extra top-level members (with a leading
@@ -240,7 +240,7 @@ TEST(render_validate_photon_map_directories) {
 
 /* Oracle: the files themselves. Every shipped scene still loads under the one rule for
  * unknown keys (exit 0 at 2x2 pixels, 1 sample, path tracing); the Tungsten scene among them
- * is converted by render/tungsten.c, which skips Tungsten keys that do not change the image
+ * is converted by render/load/tungsten.c, which skips Tungsten keys that do not change the image
  * (with a warning) and refuses those that would. */
 TEST(render_validate_shipped_scenes_load) {
     char cmd[4096], out[16384];

@@ -33,13 +33,13 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "checkpoint.h"
-#include "output.h"
+#include "run/checkpoint.h"
+#include "base/output.h"
 #include "photonmap/common.h"
-#include "photon_trace.h"
-#include "progress.h"
-#include "stats.h"
-#include "volume.h"
+#include "photons/photon_trace.h"
+#include "base/progress.h"
+#include "base/stats.h"
+#include "photons/volume.h"
 
 enum { TAG_REQ = 101, TAG_ASSIGN, TAG_RESULT, TAG_STATS, TAG_FAIL };
 #define MSG_MAX 1024

@@ -54,7 +54,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "renderer.h"
+#include "run/renderer.h"
 
 #ifdef __cplusplus
 extern "C" {

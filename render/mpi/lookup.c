@@ -17,13 +17,13 @@
 #include <string.h>
 #include <time.h>
 
-#include "camera.h"
+#include "scene/camera.h"
 #include "dist.h"
-#include "photon_lookup.h"
+#include "photon_mapping/photon_lookup.h"
 #include "photonmap/combined.h"
 #include "photonmap/common.h"
-#include "rng.h"
-#include "stats.h"
+#include "base/rng.h"
+#include "base/stats.h"
 
 #ifdef _OPENMP
 #include <omp.h>

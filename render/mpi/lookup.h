@@ -82,7 +82,7 @@
 
 #include <mpi.h>
 
-#include "renderer.h"
+#include "run/renderer.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -21,7 +21,7 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "checkpoint.h"
+#include "run/checkpoint.h"
 #include "dist.h"
 
 int render_main(int argc, char **argv);

@@ -1,0 +1,211 @@
+/* tools.c: the two image tools of the render program, `render --compare` (error of one PFM
+ * against a reference, over the image, a rectangle or an object mask, with an optional
+ * difference PNG) and `render --tonemap` (a PFM to a PNG with the render's tone curves), and
+ * the strict number parsers they share with main.c's options, and the check of a mode name
+ * against integrator.h's registry (main.c and render --dump-scene).
+ *
+ * Each tool parses its own arguments (argv[1] is the tool's flag) and returns the exit status:
+ * 0 ok, 1 a write failure, 2 a usage error or an unreadable input. The comparison itself is
+ * compare.c's; the PFM and PNG codecs are film.c's.
+ */
+#include "app/tools.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "photonmap/common.h"
+#include "image/compare.h"
+#include "base/errors.h"
+#include "image/film.h"
+#include "integrators/integrator.h"
+
+/* 1 if name is a mode of integrator.h's registry (read from integrator_list's lines: four
+ * spaces, the name, spaces, its help), 0 if not, -1 if it cannot tell (no memory). */
+int cli_mode_known(const char *name) {
+    char *buf = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (!f) return -1;
+    integrator_list(f);
+    if (fclose(f) != 0 || !buf) {
+        free(buf);
+        return -1;
+    }
+    int found = 0;
+    size_t n = strlen(name);
+    for (const char *line = buf; *line && !found;) {
+        while (*line == ' ') line++;
+        found = strncmp(line, name, n) == 0 && (line[n] == ' ' || line[n] == '\n' || !line[n]);
+        const char *nl = strchr(line, '\n');
+        line = nl ? nl + 1 : line + strlen(line);
+    }
+    free(buf);
+    return found;
+}
+
+/* A whole number in [lo, hi] with nothing after it: 0, or -1. */
+int cli_parse_long(const char *s, long lo, long hi, long *out) {
+    char *end;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (errno || end == s || *end || v < lo || v > hi) return -1;
+    *out = v;
+    return 0;
+}
+
+/* A positive, finite number: 0, or -1 (a missing value, trailing text, <= 0, inf, nan). */
+int cli_parse_positive(const char *s, double *out) {
+    if (!s) return -1;
+    char *end;
+    double v = strtod(s, &end);
+    if (end == s || *end || !(v > 0) || !isfinite(v)) return -1;
+    *out = v;
+    return 0;
+}
+
+static int read_pfm_or_say(film *f, const char *path) {
+    int rc = film_read_pfm(f, path);
+    if (rc < 0)
+        fprintf(stderr, "render: %s: %s\n", path, render_strerror(rc));
+    return rc;
+}
+
+int tools_compare(int argc, char **argv) {
+    const char *fa = NULL, *fb = NULL, *fmask = NULL, *fdiff = NULL;
+    long rect[4] = {0, 0, 0, 0};
+    int ids[64], nids = 0;
+    double dscale = 0.25;
+    for (int i = 2; i < argc; i++) {
+        if (strcmp(argv[i], "--rect") == 0) {
+            if (i + 4 >= argc) {
+                fprintf(stderr, "render: --rect needs X Y W H\n");
+                return 2;
+            }
+            for (int k = 0; k < 4; k++)
+                if (cli_parse_long(argv[i + 1 + k], -100000, 100000, &rect[k]) < 0) {
+                    fprintf(stderr, "render: --rect: bad number '%s'\n", argv[i + 1 + k]);
+                    return 2;
+                }
+            i += 4;
+        } else if (strcmp(argv[i], "--mask") == 0 || strcmp(argv[i], "--diff") == 0) {
+            if (i + 1 >= argc) {
+                fprintf(stderr, "render: %s needs a file name\n", argv[i]);
+                return 2;
+            }
+            *(argv[i][2] == 'm' ? &fmask : &fdiff) = argv[i + 1];
+            i++;
+        } else if (strcmp(argv[i], "--id") == 0) {
+            long v;
+            if (i + 1 >= argc || cli_parse_long(argv[i + 1], 0, 1000000, &v) < 0) {
+                fprintf(stderr, "render: --id needs an object id (a whole number >= 0)\n");
+                return 2;
+            }
+            if (nids == (int)(sizeof ids / sizeof ids[0])) {
+                fprintf(stderr, "render: at most %d --id options\n", nids);
+                return 2;
+            }
+            ids[nids++] = (int)v;
+            i++;
+        } else if (strcmp(argv[i], "--diff-scale") == 0) {
+            if (cli_parse_positive(i + 1 < argc ? argv[i + 1] : NULL, &dscale) < 0) {
+                fprintf(stderr, "render: --diff-scale needs a positive number\n");
+                return 2;
+            }
+            i++;
+        } else if (!fa) {
+            fa = argv[i];
+        } else if (!fb) {
+            fb = argv[i];
+        } else {
+            fprintf(stderr, "render: --compare takes two files\n");
+            return 2;
+        }
+    }
+    if (!fa || !fb) {
+        fprintf(stderr, "render: --compare needs two PFM files\n");
+        return 2;
+    }
+    if (!fmask != !nids) {
+        fprintf(stderr, "render: --mask and --id go together\n");
+        return 2;
+    }
+    film a = {0}, b = {0}, mask = {0};
+    int rc = read_pfm_or_say(&a, fa);
+    if (rc == 0) rc = read_pfm_or_say(&b, fb);
+    if (rc == 0 && fmask) rc = read_pfm_or_say(&mask, fmask);
+    if (rc < 0) {
+        film_free(&a);
+        film_free(&b);
+        film_free(&mask);
+        return 2;
+    }
+    image_diff d;
+    image_region reg = {(int)rect[0], (int)rect[1], (int)rect[2], (int)rect[3], fmask ? &mask : NULL,
+                        ids, nids};
+    rc = image_compare_region(&a, &b, &reg, &d);
+    if (rc < 0) {
+        fprintf(stderr, "render: --compare: %s\n",
+                a.width != b.width || a.height != b.height ? "the images differ in size"
+                : fmask && (mask.width != a.width || mask.height != a.height)
+                    ? "the mask differs in size from the images"
+                    : "the region holds no pixel");
+    } else {
+        printf("pixels %ld\nrmse %.6g\nrel_rmse %.6g\nmre %.6g\nmean_a %.6g\nmean_b %.6g\nrel_mean %.6g\n",
+               d.npixels, d.rmse, d.rel_rmse, d.mre, d.mean_a, d.mean_b, d.rel_mean);
+        if (fdiff && (rc = image_diff_png(&a, &b, dscale, fdiff)) < 0)
+            fprintf(stderr, "render: %s: %s\n", fdiff, render_strerror(rc));
+    }
+    film_free(&a);
+    film_free(&b);
+    film_free(&mask);
+    return rc < 0 ? 2 : 0;
+}
+
+/* render --tonemap IN.pfm OUT.png [--exposure X] [--tone filmic|srgb]: a PFM to a PNG, with
+ * the same tone curves and auto exposure as a render (so images can share one exposure). */
+int tools_tonemap(int argc, char **argv) {
+    const char *in = NULL, *out = NULL;
+    double exposure = -1;
+    int tone = FILM_TONE_FILMIC;
+    for (int i = 2; i < argc; i++) {
+        if (strcmp(argv[i], "--exposure") == 0) {
+            if (cli_parse_positive(i + 1 < argc ? argv[i + 1] : NULL, &exposure) < 0) {
+                fprintf(stderr, "render: --exposure needs a positive number\n");
+                return 2;
+            }
+            i++;
+        } else if (strcmp(argv[i], "--tone") == 0) {
+            if (i + 1 >= argc || (strcmp(argv[i + 1], "filmic") && strcmp(argv[i + 1], "srgb"))) {
+                fprintf(stderr, "render: --tone must be filmic or srgb\n");
+                return 2;
+            }
+            tone = strcmp(argv[++i], "srgb") == 0 ? FILM_TONE_SRGB : FILM_TONE_FILMIC;
+        } else if (!in) {
+            in = argv[i];
+        } else if (!out) {
+            out = argv[i];
+        } else {
+            fprintf(stderr, "render: --tonemap takes one PFM and one PNG\n");
+            return 2;
+        }
+    }
+    if (!in || !out) {
+        fprintf(stderr, "render: --tonemap needs IN.pfm OUT.png\n");
+        return 2;
+    }
+    film f;
+    if (read_pfm_or_say(&f, in) < 0) return 2;
+    double used = 0;
+    int rc = film_write_png(&f, out, tone, exposure, 1.0, &used);
+    film_free(&f);
+    if (rc < 0) {
+        fprintf(stderr, "render: %s: %s\n", out, render_strerror(rc));
+        return 1;
+    }
+    printf("Wrote %s (%s, exposure %.4g%s)\n", out, tone == FILM_TONE_SRGB ? "sRGB" : "filmic", used,
+           exposure > 0 ? "" : ", auto");
+    return 0;
+}

@@ -1,0 +1,371 @@
+/* gather_guide.c: the photon mapper's gather guide (see gather_guide.h): the mixture of aimed and
+ * cosine gather directions with its density, and the pilot that finds the opening.
+ *
+ * The pilot probes each point on its own stream (GG_SEED, point) and writes every probe into a
+ * fixed slot before anything is summed, so its answer is the same for any thread count; the
+ * caller's probe callbacks read the photon map (gather_guide_probe).
+ */
+#include "guiding/gather_guide.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "photonmap/common.h"
+#include "scene/material.h"
+#include "photons/photon_settings.h"
+#include "base/sampling.h"
+#include "base/stats.h"
+
+#define GG_G 32
+#define GG_RES 16
+#define GG_PATHS 4096
+#define GG_CELL_POINTS 4
+#define GG_MAX_JOBS 768
+#define GG_BOUNCES 4
+#define GG_OUTLIER 16
+#define GG_MIN_LINES 16
+#define GG_AP_SPREAD 3.0
+#define GG_STARVED 0.75
+#define GG_SEED 0x676174686572ULL /* "gather" */
+
+void gather_guide_init(gather_guide *gg) {
+    memset(gg, 0, sizeof *gg);
+    gg->stat_aimed = stats_register("Photon mapping/Gather rays aimed at the opening (gather guide)");
+}
+
+void gather_guide_free(gather_guide *gg) {
+    int id = gg->stat_aimed;
+    memset(gg, 0, sizeof *gg);
+    gg->stat_aimed = id;
+}
+
+/* ---- the mixture (WHY THE ESTIMATE STAYS UNBIASED) ---------------------------------------- */
+
+double gather_guide_disc_pdf(const gather_guide *gg, vec3 x, vec3 d) {
+    vec3 toc = v3_sub(gg->centre, x);
+    double dc = v3_len(toc), cd = v3_dot(d, toc) / dc;
+    if (!(cd > 0)) return 0;
+    double t = dc / cd, R = gg->radius;
+    if (v3_len2(v3_sub(v3_add(x, v3_scale(d, t)), gg->centre)) > R * R) return 0;
+    return t * t / (M_PI * R * R * cd);
+}
+
+double gather_guide_share(const gather_guide *gg, vec3 x, vec3 ns) {
+    if (!gg->aim) return 0;
+    vec3 toc = v3_sub(gg->centre, x);
+    if (v3_len2(gg->lit) > 0 && !(v3_dot(toc, gg->lit) > gg->radius)) return 0; /* WHO AIMS */
+    return v3_dot(toc, ns) > 0 && v3_len2(toc) > gg->radius * gg->radius ? GATHER_GUIDE_SHARE : 0;
+}
+
+double gather_guide_pdf(const gather_guide *gg, double a, vec3 x, vec3 nsh, vec3 d) {
+    double c = v3_dot(d, nsh);
+    return (1 - a) * (c > 0 ? c : 0) / M_PI + a * gather_guide_disc_pdf(gg, x, d);
+}
+
+vec3 gather_guide_direction(const gather_guide *gg, double a, vec3 x, vec3 nsh, double u1, double u2, rng *g,
+                            double *wk) {
+    vec3 d;
+    if (rng_uniform(g) < a) {
+        vec3 toc = v3_sub(gg->centre, x), ds, dt;
+        double dx, dy;
+        v3_basis(v3_norm(toc), &ds, &dt);
+        sample_concentric_disc(u1, u2, &dx, &dy);
+        vec3 q = v3_add(gg->centre, v3_add(v3_scale(ds, gg->radius * dx), v3_scale(dt, gg->radius * dy)));
+        d = v3_norm(v3_sub(q, x));
+        if (gg->stat_aimed >= 0) stat_inc(gg->stat_aimed);
+    } else
+        d = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
+    double c = v3_dot(d, nsh);
+    double p = gather_guide_pdf(gg, a, x, nsh, d);
+    *wk = c > 0 && p > 0 ? c / M_PI / p : 0;
+    return d;
+}
+
+/* ---- the pilot (THE PILOT, DECISION) ------------------------------------------------------- */
+
+/* One probe: its value as read at the hit (base) and, where the map had nothing there, the
+ * weight w that the light gathered in y's cell (ycell, -1: none) is multiplied by. */
+typedef struct gg_probe {
+    float base, w;
+    int ycell;
+    int found;   /* the map answered at y */
+    float y[3];  /* the hit */
+} gg_probe;
+
+static int gg_size_cmp(const void *a, const void *b) {
+    size_t x = *(const size_t *)a, y = *(const size_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* The index of key c among the sorted keys ck[0..n), or -1. */
+static int gg_cell_index(const uint64_t *ck, size_t n, uint64_t c) {
+    size_t lo = 0, hi = n;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (ck[mid] < c)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo < n && ck[lo] == c ? (int)lo : -1;
+}
+
+/* The probe from pt at (u1, u2): a cosine gather ray, read as the gather reads it (probe->read). */
+static gg_probe gg_probe_at(const gather_guide_probe *probe, const scene *s, const guide_grid *grid,
+                            const uint64_t *ck, size_t nck, const guide_point *pt, double u1, double u2, rng *g) {
+    gg_probe pr = {0, 0, -1, 0, {0, 0, 0}};
+    vec3 d = sampling_to_world(sample_cosine_hemisphere(u1, u2), material_shading_side(pt->wo, pt->h.ng, pt->h.ns));
+    if (!(v3_dot(d, pt->n) > 0)) return pr;
+    gather_guide_read rd;
+    if (!probe->read(probe->user, s, pt, d, g, &rd)) return pr;
+    double x = rd.value, w = rd.weight;
+    pr.base = x > 0 && isfinite(x) ? (float)x : 0;
+    pr.found = rd.found;
+    pr.y[0] = (float)rd.y.x;
+    pr.y[1] = (float)rd.y.y;
+    pr.y[2] = (float)rd.y.z;
+    if (!rd.found && w > 0 && isfinite(w)) {
+        pr.w = (float)w;
+        pr.ycell = gg_cell_index(ck, nck, guide_cell(grid, rd.y, rd.ny));
+    }
+    return pr;
+}
+
+/* The point nearest the n lines (x[i], unit d[i]) (least squares) into *c; 0 if they are
+ * (nearly) parallel. *rms: the lines' RMS distance from it. use[i] = 0 leaves line i out. */
+static int gg_nearest_point(const vec3 *x, const vec3 *d, const unsigned char *use, size_t n, vec3 *c, double *rms) {
+    double A[9] = {0}, b[3] = {0};
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (!use[i]) continue;
+        double dd[3] = {d[i].x, d[i].y, d[i].z}, xx[3] = {x[i].x, x[i].y, x[i].z};
+        for (int r = 0; r < 3; r++)
+            for (int k = 0; k < 3; k++) {
+                double e = (r == k) - dd[r] * dd[k]; /* I - d d^T: the distance to the line */
+                A[3 * r + k] += e;
+                b[r] += e * xx[k];
+            }
+        m++;
+    }
+#define GG_DET(M) ((M)[0] * ((M)[4] * (M)[8] - (M)[5] * (M)[7]) - (M)[1] * ((M)[3] * (M)[8] - (M)[5] * (M)[6]) + \
+                   (M)[2] * ((M)[3] * (M)[7] - (M)[4] * (M)[6]))
+    double det = GG_DET(A);
+    if (!(m >= 2) || !(fabs(det) > 1e-9 * (double)m * (double)m * (double)m)) return 0;
+    double sol[3];
+    for (int k = 0; k < 3; k++) { /* Cramer's rule */
+        double M[9];
+        memcpy(M, A, sizeof M);
+        for (int r = 0; r < 3; r++) M[3 * r + k] = b[r];
+        sol[k] = GG_DET(M) / det;
+    }
+#undef GG_DET
+    *c = v3(sol[0], sol[1], sol[2]);
+    double s2 = 0;
+    for (size_t i = 0; i < n; i++)
+        if (use[i]) {
+            vec3 e = v3_sub(*c, x[i]);
+            s2 += v3_len2(v3_sub(e, v3_scale(d[i], v3_dot(e, d[i]))));
+        }
+    *rms = sqrt(s2 / (double)m);
+    return 1;
+}
+
+/* The opening from the pilot's probes (gather_guide.h, THE PILOT): 1 and its centre *c and
+ * the lines' RMS distance *rms, 0 if none fits, PM_ENOMEM. *nline: the bright rays that read
+ * the map; *all, *bright: the probed light in all, and in those rays. */
+static int gg_find_opening(const guide_point *pts, const size_t *jp, size_t nj, const gg_probe *pr, const double *v,
+                           size_t G2, size_t *nline, double *all, double *bright, vec3 *c, double *rms, vec3 *lit) {
+    size_t cap = (nj ? nj : 1) * 8, n = 0;
+    vec3 *lx = calloc(cap, sizeof *lx), *ld = calloc(cap, sizeof *ld);
+    unsigned char *use = calloc(cap, 1);
+    if (!lx || !ld || !use) {
+        free(lx);
+        free(ld);
+        free(use);
+        return PM_ENOMEM;
+    }
+    *all = *bright = 0;
+    for (size_t j = 0; j < nj; j++) {
+        double t = 0;
+        for (size_t i = 0; i < G2; i++) t += v[j * G2 + i];
+        *all += t;
+        for (size_t i = 0; i < G2 && t > 0; i++) {
+            const gg_probe *p = &pr[j * G2 + i];
+            if (!p->found || !(p->base > t / GG_OUTLIER) || n >= cap) continue;
+            vec3 x = pts[jp[j]].h.p;
+            lx[n] = x;
+            ld[n] = v3_norm(v3_sub(v3(p->y[0], p->y[1], p->y[2]), x));
+            use[n++] = 1;
+            *bright += p->base;
+        }
+    }
+    int fit = gg_nearest_point(lx, ld, use, n, c, rms);
+    if (fit) { /* again without the lines far from the first fit (another source of bright rays) */
+        for (size_t l = 0; l < n; l++) {
+            vec3 e = v3_sub(*c, lx[l]);
+            use[l] = v3_len(v3_sub(e, v3_scale(ld[l], v3_dot(e, ld[l])))) <= 3 * *rms;
+        }
+        fit = gg_nearest_point(lx, ld, use, n, c, rms);
+    }
+    /* The lit side: the mean direction of the fitted lines, from the starved points through the
+     * opening toward the map's light (gather_guide.h, WHO AIMS). */
+    vec3 sum = v3s(0);
+    for (size_t l = 0; fit && l < n; l++)
+        if (use[l]) sum = v3_add(sum, ld[l]);
+    *lit = v3_len2(sum) > 0 ? v3_norm(sum) : v3s(0);
+    *nline = n;
+    free(lx);
+    free(ld);
+    free(use);
+    return fit;
+}
+
+int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *why,
+                      const gather_guide_probe *probe, char *err, size_t errcap) {
+    gg->on = 0;
+    gg->aim = 0;
+    if (force == PLAN_OFF) {
+        snprintf(gg->reason, sizeof gg->reason, "off (forced)");
+        return 0;
+    }
+    if (why) {
+        snprintf(gg->reason, sizeof gg->reason, "off (%s%s)", why, force == PLAN_ON ? "; asked for" : "");
+        return 0;
+    }
+    guide_point *pts = NULL;
+    size_t npts = 0;
+    int rc = guide_points(s, GG_PATHS, GG_SEED, 0, &pts, &npts);
+    if (rc < 0) {
+        snprintf(err, errcap, "out of memory (gather guide pilot)");
+        return rc;
+    }
+    /* Photon-starved camera points: no precomputed irradiance on their side. */
+    size_t starved = 0, cam = 0;
+    for (size_t k = 0; k < npts; k++) {
+        if (pts[k].bounce) continue;
+        cam++;
+        starved += !probe->found(probe->user, s, &pts[k].h, pts[k].wo);
+    }
+    if (force != PLAN_ON && !((double)starved >= GG_STARVED * (double)cam && starved > 0)) {
+        snprintf(gg->reason, sizeof gg->reason,
+                 "off (%zu of %zu camera points find no precomputed irradiance on their side, under "
+                 "%.0f%%: the gathers read the photon map, no opening is looked for)",
+                 starved, cam, 100 * GG_STARVED);
+        free(pts);
+        return 0;
+    }
+    guide_grid grid;
+    guide_grid_init(&grid, s, GG_RES);
+    const size_t G2 = (size_t)GG_G * GG_G;
+    size_t n1 = npts ? npts : 1, nj = 0, ncell = 0;
+    guide_cell_ref *pk = malloc(n1 * sizeof *pk);
+    uint64_t *ck = malloc(n1 * sizeof *ck);
+    size_t *jp = malloc(n1 * sizeof *jp);
+    int *jc = malloc(n1 * sizeof *jc);
+    gg_probe *pr = NULL;
+    double *v = NULL, *Lc = NULL, *Ln = NULL, *nc = NULL;
+    if (!pk || !ck || !jp || !jc) goto oom;
+    /* Cells; per cell its first GG_CELL_POINTS points; at most GG_MAX_JOBS, evenly in point order. */
+    for (size_t k = 0; k < npts; k++) pk[k] = (guide_cell_ref){guide_cell(&grid, pts[k].h.p, pts[k].n), k};
+    qsort(pk, npts, sizeof *pk, guide_cell_ref_cmp);
+    for (size_t a = 0, b; a < npts; a = b) {
+        for (b = a; b < npts && pk[b].cell == pk[a].cell; b++)
+            if (b - a < GG_CELL_POINTS) jp[nj++] = pk[b].k;
+        ck[ncell++] = pk[a].cell;
+    }
+    qsort(jp, nj, sizeof *jp, gg_size_cmp);
+    if (nj > GG_MAX_JOBS) {
+        for (size_t j = 0; j < GG_MAX_JOBS; j++) jp[j] = jp[j * nj / GG_MAX_JOBS];
+        nj = GG_MAX_JOBS;
+    }
+    for (size_t j = 0; j < nj; j++) jc[j] = gg_cell_index(ck, ncell, guide_cell(&grid, pts[jp[j]].h.p, pts[jp[j]].n));
+    size_t nj1 = nj ? nj : 1, nc1 = ncell ? ncell : 1;
+    pr = malloc(nj1 * G2 * sizeof *pr);
+    v = malloc(nj1 * G2 * sizeof *v);
+    Lc = calloc(nc1, sizeof *Lc);
+    Ln = calloc(nc1, sizeof *Ln);
+    nc = calloc(nc1, sizeof *nc);
+    if (!pr || !v || !Lc || !Ln || !nc) goto oom;
+    /* One probe per stratum, jittered; each point on its own stream (thread-count free). */
+#pragma omp parallel for schedule(dynamic, 4)
+    for (long j = 0; j < (long)nj; j++) {
+        rng g = rng_stream(GG_SEED, jp[j], 1);
+        for (int b = 0; b < GG_G; b++)
+            for (int a = 0; a < GG_G; a++) {
+                /* Two statements, not two arguments of one call: C leaves the order in which a
+                 * call's arguments are evaluated unspecified, so compilers could draw them in
+                 * either order and the pilot would depend on the compiler. */
+                double v2 = (b + rng_uniform(&g)) / GG_G; /* the order gcc used: images kept */
+                double u2 = (a + rng_uniform(&g)) / GG_G;
+                pr[(size_t)j * G2 + (size_t)(a + GG_G * b)] =
+                    gg_probe_at(probe, s, &grid, ck, ncell, &pts[jp[j]], u2, v2, &g);
+            }
+    }
+    /* The light gathered where the map has nothing: each round gives every cell the mean of its
+     * points' probes, with the last round's cell values at the probes' hits (one more bounce). */
+    for (int round = 0; round <= GG_BOUNCES; round++) {
+        memset(Ln, 0, nc1 * sizeof *Ln);
+        memset(nc, 0, nc1 * sizeof *nc);
+        for (size_t j = 0; j < nj; j++) {
+            double t = 0;
+            for (size_t i = 0; i < G2; i++) {
+                const gg_probe *p = &pr[j * G2 + i];
+                v[j * G2 + i] = p->base + (p->ycell >= 0 ? p->w * Lc[p->ycell] : 0);
+                t += v[j * G2 + i];
+            }
+            Ln[jc[j]] += t / (double)G2;
+            nc[jc[j]] += 1;
+        }
+        for (size_t c = 0; c < ncell; c++) Lc[c] = nc[c] > 0 ? Ln[c] / nc[c] : 0;
+    }
+    /* The opening: rays that read the map and carry over 1/GG_OUTLIER of their point's light. */
+    size_t nline = 0;
+    double all = 0, bright = 0, rms = 0;
+    vec3 c = v3s(0);
+    vec3 lit = v3s(0);
+    int fit = gg_find_opening(pts, jp, nj, pr, v, G2, &nline, &all, &bright, &c, &rms, &lit);
+    if (fit < 0) goto oom;
+    double size = v3_maxc(v3_sub(s->bounds_hi, s->bounds_lo));
+    int opening = fit && nline >= GG_MIN_LINES && GG_AP_SPREAD * rms <= 0.02 * size && rms > 0;
+    gg->aim = opening;
+    gg->centre = c;
+    gg->radius = GG_AP_SPREAD * rms;
+    gg->lit = lit;
+    gg->on = opening || force == PLAN_ON;
+    char what[256];
+    if (opening)
+        snprintf(what, sizeof what, "an opening at (%.4g, %.4g, %.4g), radius %.3g, its light along (%.2f, %.2f, %.2f): "
+                 "%zu rays that read the photon map meet there, carrying %.1f%% of the probed light",
+                 c.x, c.y, c.z, gg->radius, lit.x, lit.y, lit.z, nline, all > 0 ? 100 * bright / all : 0);
+    else
+        snprintf(what, sizeof what, "no opening (%zu bright rays that read the photon map, %s)", nline,
+                 nline < GG_MIN_LINES ? "too few" : "not meeting within 2% of the scene's size");
+    snprintf(gg->reason, sizeof gg->reason,
+             "%s (%zu of %zu camera points find no precomputed irradiance; the pilot probed %zu points in %zu "
+             "cells, %zu probes: %s)",
+             force == PLAN_ON && !opening ? "on (forced; no opening: gathers stay cosine)"
+             : force == PLAN_ON           ? "on (forced)"
+             : gg->on                     ? "on"
+                                          : "off",
+             starved, cam, nj, ncell, nj * G2, what);
+    rc = 0;
+    goto done;
+oom:
+    rc = PM_ENOMEM;
+    snprintf(err, errcap, "out of memory (gather guide pilot)");
+done:
+    if (rc < 0 || !gg->on) gg->aim = 0;
+    free(pts);
+    free(pk);
+    free(ck);
+    free(jp);
+    free(jc);
+    free(pr);
+    free(v);
+    free(Lc);
+    free(Ln);
+    free(nc);
+    return rc;
+}

@@ -1,0 +1,45 @@
+/* import.h: what the scene loader needs to read scenes and meshes written elsewhere.
+ *
+ * scene_import() runs on a parsed scene file before it is loaded: a Tungsten scene is
+ * converted into our format (tungsten.h), and the "file" of every mesh object is joined to the
+ * scene file's directory, so the document no longer depends on where it came from. The result
+ * is what `render --dump-scene` prints.
+ *
+ * mesh_object_read() reads the mesh of one {"type": "mesh", "file": ...} object (keys in
+ * data/scenes/README.md: file, transform, smooth, recompute_normals, usemtl): it loads the
+ * file, applies the transform, and, when smooth, makes the corner normals (mesh.h). Errors
+ * name the JSON path, and the file with its line or byte offset.
+ *
+ * Timing: both add their wall-clock time to the statistics timer "Time/Mesh loading", and
+ * mesh_object_read its process CPU time to "Time/Mesh loading (CPU)" (stats.h).
+ */
+#ifndef RENDER_IMPORT_H
+#define RENDER_IMPORT_H
+
+#include <cjson/cJSON.h>
+
+#include "base/json.h"
+#include "load/mesh.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Replace *root by the document to load (the same one, edited, or a converted one; the old
+ * one is freed then). scene_path may be NULL (text scenes: paths stay relative to the current
+ * directory). */
+int scene_import(cJSON **root, const char *scene_path, json_err *e);
+
+/* Read the mesh of object o at JSON path P. *smooth tells whether m->corner_n is filled;
+ * *usemtl whether the OBJ's usemtl names choose materials. */
+int mesh_object_read(const cJSON *o, const char *P, mesh_data *m, int *smooth, int *usemtl, json_err *e);
+
+/* `render --dump-scene SCENE.json` (argv[1] is the option): print the document that
+ * scene_import makes of the file, after loading it fully (so it is known to load). Exit
+ * status 0, 1 when stdout fails, 2 for a bad scene or mesh. */
+int scene_dump_main(int argc, char **argv);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_IMPORT_H */

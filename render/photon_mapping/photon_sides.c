@@ -1,0 +1,499 @@
+/* photon_sides.c: visibility-checked precomputed irradiance and lookups; see photon_sides.h.
+ *
+ * The build runs one estimate per chosen photon on OpenMP threads (each with its own neighbour
+ * buffer), writes the results by the photon's rank among the chosen ones (so the cache is the
+ * same for any thread count), then builds a kd-tree over the chosen photons alone.
+ */
+#include "photon_mapping/photon_sides.h"
+
+#include <float.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "photonmap/common.h"
+#include "photonmap/estimate.h"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+/* Directions of the visible-area probe of an estimate with a hidden neighbour. */
+#define SIDE_AREA_DIRS 32
+/* Candidates examined by an estimate that meets a wall, as a multiple of k. */
+#define SIDE_WIDEN 4
+/* Candidates a lookup tests for visibility, nearest first. */
+#define SIDE_LOOKUP_CANDIDATES 8u
+/* An estimate's neighbour within this fraction of its distance of the query's tangent plane
+ * lies on the query's own surface (side_estimate: no ray). */
+#define SIDE_PLANE_TOL 1e-3
+/* A lookup's normal rule (irradiance.h): the photon's normal within about 45 degrees of y's. */
+#define SIDE_LOOKUP_COS 0.7f
+
+static vec3 v3f(const float f[3]) { return v3(f[0], f[1], f[2]); }
+
+double side_free_height(const scene *s, vec3 p, vec3 np, double cap) {
+    if (!(cap > 0)) return 0;
+    /* p is a photon's float position: it may lie off its surface by its rounding, a float step
+     * in each coordinate, more than a ray offset's epsilon; start past that, or the photon's own
+     * surface is taken for a ceiling right above it (a free height of 0 hides the photon from
+     * its neighbours: the furnace at 10x its size read +42%). */
+    ray r = {v3_madd(p, np, 8 * FLT_EPSILON * (s->offset_floor + v3_maxabs(p))), np};
+    hit h;
+    if (!isfinite(cap)) cap = 1e300;
+    if (!scene_intersect(s, r, cap, &h)) return cap;
+    return h.t;
+}
+
+void side_free_heights(const scene *s, const pm_photon *ph, size_t n, float max_dist2, float *h) {
+    double cap = 0.25 * sqrt((double)max_dist2);
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 256)
+#endif
+    for (size_t i = 0; i < n; i++) {
+        float nf[3];
+        pm_normal_decode(ph[i].normal, nf);
+        h[i] = (float)side_free_height(s, v3f(ph[i].pos), v3f(nf), cap);
+    }
+}
+
+int side_estimate_readable(unsigned paths) { return paths >= SIDE_MIN_PATHS; }
+
+unsigned side_count_paths(const uint32_t *path, const pm_neighbor *nb, int count, unsigned cap, uint32_t *scratch) {
+    /* Without paths every photon counts as its own path (photon_sides.h). */
+    if (!path) return (unsigned)count < cap ? (unsigned)count : cap;
+    /* Distinct ids by a linear scan of those seen so far: at most cap of them are kept, so an
+     * estimate costs count x cap compares, and the first photons (mostly of distinct paths
+     * wherever the map is dense) usually end it early. */
+    unsigned m = 0;
+    for (int j = 0; j < count && m < cap; j++) {
+        uint32_t id = path[nb[j].index];
+        unsigned q = 0;
+        while (q < m && scratch[q] != id) q++;
+        if (q == m) scratch[m++] = id;
+    }
+    return m;
+}
+
+int side_filter_shadow(void *user, const void *record, uint32_t index) {
+    const float *n = user;
+    const pm_photon *p = record;
+    if (!pm_filter_front(user, record, index)) return 0;
+    float pn[3];
+    pm_normal_decode(p->normal, pn);
+    return pn[0] * n[0] + pn[1] * n[1] + pn[2] * n[2] >= SIDE_LOOKUP_COS;
+}
+
+int side_visible_h(const scene *s, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq) {
+    vec3 d = v3_sub(q, p);
+    double len = v3_len(d);
+    if (!(len > 0)) return 1;
+    /* Lift each end off its surface by L/4, on the side its normal points to (the side the
+     * photon arrived on, or the side the query looks from), but at most halfway to the first
+     * surface above it, so the lifted end stays in the space on that side; see the top of
+     * photon_sides.h. */
+    vec3 pl = v3_madd(p, np, fmin(0.25 * len, 0.5 * hp)), ql = v3_madd(q, nq, fmin(0.25 * len, 0.5 * hq));
+    return scene_visible(s, pl, v3s(0), ql, v3s(0));
+}
+
+int side_visible(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq) {
+    double L4 = 0.25 * v3_len(v3_sub(q, p));
+    return side_visible_h(s, p, np, side_free_height(s, p, np, L4), q, nq,
+                          side_free_height(s, q, nq, L4));
+}
+
+
+/* The fraction of the disc of radius r around the surface point p (normal n, the photon's
+ * quantized one) that lies on p's side of every surface: SIDE_AREA_DIRS rays along the
+ * surface, just off it, each reaching min(t, r); the area in polar form is the mean of
+ * min(t, r)^2 / r^2 over the directions, so a wall at distance w cuts its sector to w. The
+ * rays run in the tangent plane of the surface's exact geometric normal, found by one short
+ * ray back to the surface: in the plane of the quantized normal (up to 10 degrees off) they
+ * would run into the surface itself within a few of its free heights. */
+static double visible_disc_fraction(const scene *s, vec3 p, vec3 n, double r) {
+    if (!(r > 0) || !isfinite(r)) return 1.0;
+    double scale = s->offset_floor + v3_maxabs(p), delta = 1e-5 * scale;
+    ray down = {v3_madd(p, n, delta), v3_neg(n)};
+    hit h;
+    vec3 base = p, ng = n;
+    if (scene_intersect(s, down, 3 * delta, &h)) {
+        base = h.p;
+        ng = v3_dot(h.ng, n) >= 0 ? h.ng : v3_neg(h.ng);
+    }
+    vec3 t1, t2;
+    v3_basis(ng, &t1, &t2);
+    vec3 o = v3_madd(base, ng, 4 * 64e-9 * scale); /* a few times v3_offset's epsilon */
+    double sum = 0;
+    for (int k = 0; k < SIDE_AREA_DIRS; k++) {
+        double a = 2 * M_PI * (k + 0.5) / SIDE_AREA_DIRS;
+        vec3 d = v3_add(v3_scale(t1, cos(a)), v3_scale(t2, sin(a)));
+        ray ry = {o, d};
+        double t = scene_intersect(s, ry, r, &h) ? h.t : r;
+        sum += (t / r) * (t / r);
+    }
+    return sum / SIDE_AREA_DIRS;
+}
+
+double side_disc_fraction(const scene *s, vec3 p, vec3 n, double r) {
+    double f = visible_disc_fraction(s, p, n, r);
+    return f < 1.0 / SIDE_AREA_DIRS ? 1.0 / SIDE_AREA_DIRS : f;
+}
+
+/* The disc estimate of irradiance from the photons nb[0..count) over the disc of radius^2
+ * r2: with rim = 1 the farthest of them lies on the rim (a k-th nearest), and the area is
+ * scaled by k / (k - 0.5) as pm_estimate's PM_BIAS_AREA does; with rim = 0 the whole disc
+ * was searched and the area is used as it is. area_fraction: the part of the disc on this
+ * side of every wall (1 without walls). Direct photons count in the radius but not in the
+ * sum: the value is the indirect irradiance (see "Direct light" in photon_sides.h). */
+static void disc_irradiance(const pm_photon *ph, const pm_neighbor *nb, int count, double r2,
+                            int rim, double area_fraction, float e[3]) {
+    double sum[3] = {0, 0, 0};
+    for (int j = 0; j < count; j++) {
+        float pw[3];
+        if (pm_photon_kind(&ph[nb[j].index]) == PM_KIND_DIRECT) continue;
+        pm_rgbe_decode(ph[nb[j].index].power, pw);
+        for (int c = 0; c < 3; c++) sum[c] += pw[c];
+    }
+    double area = M_PI * r2 * area_fraction;
+    if (rim && count > 1) area *= (double)count / (count - 0.5);
+    for (int c = 0; c < 3; c++) e[c] = area > 0 && isfinite(area) ? (float)(sum[c] / area) : 0.0f;
+}
+
+int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
+                     const uint32_t *path, size_t n, unsigned k, float max_dist2, char *err, size_t errcap) {
+    memset(c, 0, sizeof *c);
+    if (!global || n == 0) return 0;
+    /* Which photons: the quarter that pm_irradiance_build precomputes (neither leaves nor
+     * parents of leaves), numbered by rank. */
+    size_t m = 0;
+    uint32_t *which = malloc(n * sizeof *which);
+    if (!which) goto nomem;
+    for (size_t i = 0; i < n; i++)
+        if (pm_kdtree_height(global, (uint32_t)i) >= 2) which[m++] = (uint32_t)i;
+    /* The estimates by map index (read only at the chosen photons), for
+     * pm_irradiance_build_values. */
+    float *val = malloc(n * 3 * sizeof *val), *r2v = malloc(n * sizeof *r2v);
+    /* Every photon's free height along its normal, up to the largest lift an estimate can
+     * use (a quarter of the search radius): one ray per photon, so that each visibility test
+     * below, and each lookup's, is a single ray. */
+    float *hfree = c->hfree = malloc(n * sizeof *hfree);
+    if (!val || !r2v || !hfree) {
+        free(val);
+        free(r2v);
+        free(which);
+        goto nomem;
+    }
+    side_free_heights(s, ph, n, max_dist2, hfree);
+    unsigned long long rays1 = n, rays2 = 0;
+    size_t again = 0, sparse = 0;
+    int fail = 0;
+#ifdef _OPENMP
+#pragma omp parallel reduction(+ : rays1, rays2, again, sparse) reduction(| : fail)
+#endif
+    {
+        /* SIDE_WIDEN x k candidates for the estimates that meet a wall. */
+        pm_neighbor *nb = malloc((size_t)SIDE_WIDEN * k * sizeof *nb);
+        uint32_t *ids = malloc(SIDE_MIN_PATHS * sizeof *ids); /* side_count_paths's scratch */
+        if (!nb || !ids) fail = 1;
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 64)
+#endif
+        for (size_t j = 0; j < m; j++) {
+            if (!nb || !ids) continue;
+            const pm_photon *p = &ph[which[j]];
+            float nf[3];
+            pm_normal_decode(p->normal, nf);
+            vec3 pp = v3f(p->pos), pn = v3f(nf);
+            double hp = hfree[which[j]];
+            pm_knn_options ko = {0};
+            ko.filter = pm_filter_front;
+            ko.filter_user = nf;
+            ko.flags = PM_SORT;
+            int found = pm_kdtree_knn_ex(global, p->pos, k, max_dist2, &ko, nb, NULL);
+            if (found < 0) found = 0;
+            int hidden = 0;
+            for (int t = 0; t < found && !hidden; t++) {
+                const pm_photon *q = &ph[nb[t].index];
+                if (nb[t].dist2 == 0) continue;
+                float nq[3];
+                pm_normal_decode(q->normal, nq);
+                rays1++;
+                if (!side_visible_h(s, pp, pn, hp, v3f(q->pos), v3f(nq), hfree[nb[t].index]))
+                    hidden = 1;
+            }
+            float e[3];
+            if (!hidden) {
+                /* The usual estimate: k photons, the k-th on the rim; or the whole disc. */
+                double r2 = (unsigned)found == k ? nb[found - 1].dist2 : (double)max_dist2;
+                disc_irradiance(ph, nb, found, r2, (unsigned)found == k, 1.0, e);
+                int readable = side_estimate_readable(side_count_paths(path, nb, found, SIDE_MIN_PATHS, ids));
+                r2v[which[j]] = readable ? (float)r2 : 0.0f;
+                sparse += !readable;
+            } else {
+                /* A wall: take SIDE_WIDEN x k candidates in order of distance and keep the
+                 * visible ones until k are kept. Every photon closer than the last one tested
+                 * was tested, so the estimate covers the disc up to it (the k-th kept on its
+                 * rim, or, short of k, the whole disc searched). The disc reaches past the
+                 * wall, where no photon of this side can be: divide by the part of the disc on
+                 * this side only (a wall leaves this side's photons at their density over a
+                 * smaller area). Rays per estimate: at most SIDE_WIDEN x k + SIDE_AREA_DIRS + 1. */
+                again++;
+                unsigned want = (unsigned)SIDE_WIDEN * k;
+                int n2 = pm_kdtree_knn_ex(global, p->pos, want, max_dist2, &ko, nb, NULL);
+                if (n2 < 0) n2 = 0;
+                int kept = 0;
+                double r2 = (double)max_dist2;
+                int rim = 0;
+                for (int t = 0; t < n2; t++) {
+                    const pm_photon *q = &ph[nb[t].index];
+                    int vis = 1;
+                    if (nb[t].dist2 > 0) {
+                        float nq[3];
+                        pm_normal_decode(q->normal, nq);
+                        rays2++;
+                        vis = side_visible_h(s, pp, pn, hp, v3f(q->pos), v3f(nq), hfree[nb[t].index]);
+                    }
+                    if (vis) {
+                        nb[kept++] = nb[t];
+                        if ((unsigned)kept == k) {
+                            r2 = nb[t].dist2;
+                            rim = 1;
+                            break;
+                        }
+                    }
+                }
+                if (!rim && (unsigned)n2 == want) r2 = nb[n2 - 1].dist2; /* examined up to there */
+                double frac = visible_disc_fraction(s, pp, pn, sqrt(r2));
+                rays2 += SIDE_AREA_DIRS + 1;
+                if (frac < 1.0 / SIDE_AREA_DIRS) frac = 1.0 / SIDE_AREA_DIRS;
+                disc_irradiance(ph, nb, kept, r2, rim, frac, e);
+                int readable = side_estimate_readable(side_count_paths(path, nb, kept, SIDE_MIN_PATHS, ids));
+                r2v[which[j]] = readable ? (float)r2 : 0.0f;
+                sparse += !readable;
+            }
+            memcpy(&val[3 * (size_t)which[j]], e, sizeof e);
+        }
+        free(nb);
+        free(ids);
+    }
+    free(which);
+    if (fail) {
+        free(val);
+        free(r2v);
+        goto nomem;
+    }
+    c->n = m;
+    c->rays_first = rays1;
+    c->rays_second = rays2;
+    c->researched = again;
+    c->sparse = sparse;
+    c->indirect_only = 1;
+    if (m) {
+        /* The module keeps the values, the radii and the lookup (irradiance.h). */
+        pm_irradiance_options io;
+        pm_irradiance_options_init(&io, k);
+        io.fraction = PM_PRECOMP_QUARTER;
+        io.store_radius = 1;
+        io.store_index = 1;
+        int rc = pm_irradiance_build_values(&c->irr, global, &io, val, r2v);
+        if (rc < 0) {
+            free(val);
+            free(r2v);
+            side_cache_free(c);
+            snprintf(err, errcap, "precomputing irradiance: %s", pm_strerror(rc));
+            return rc;
+        }
+    }
+    free(val);
+    free(r2v);
+    return 0;
+nomem:
+    side_cache_free(c);
+    snprintf(err, errcap, "precomputing irradiance: out of memory");
+    return PM_ENOMEM;
+}
+
+int side_cache_from_records(side_cache *c, pm_photon *recs, const float *r2, const float *hfree,
+                            size_t m, char *err, size_t errcap) {
+    memset(c, 0, sizeof *c);
+    if (m == 0) return 0;
+    pm_kdtree *t = NULL;
+    uint32_t *perm = malloc(m * sizeof *perm);
+    float *val = malloc(3 * m * sizeof *val), *r2t = malloc(m * sizeof *r2t);
+    c->hfree = malloc(m * sizeof *c->hfree);
+    int rc = PM_ENOMEM;
+    if (!perm || !val || !r2t || !c->hfree) goto done;
+    pm_kdtree_config kc = pm_kdtree_photon_config(8);
+    if ((rc = pm_kdtree_build(&t, recs, m, &kc, perm)) < 0) goto done;
+    for (size_t i = 0; i < m; i++) { /* tree order: record i was recs' perm[i] */
+        pm_rgbe_decode(recs[i].power, &val[3 * i]);
+        r2t[i] = r2[perm[i]];
+        c->hfree[i] = hfree[perm[i]];
+    }
+    pm_irradiance_options io;
+    pm_irradiance_options_init(&io, 1);
+    io.fraction = PM_PRECOMP_ALL;
+    io.store_radius = 1;
+    io.store_index = 1;
+    rc = pm_irradiance_build_values(&c->irr, t, &io, val, r2t);
+    c->n = m;
+done:
+    pm_kdtree_free(t);
+    free(perm);
+    free(val);
+    free(r2t);
+    if (rc < 0) {
+        side_cache_free(c);
+        snprintf(err, errcap, "precomputed irradiance: %s", pm_strerror(rc));
+    }
+    return rc < 0 ? rc : 0;
+}
+
+void side_cache_free(side_cache *c) {
+    pm_irradiance_free(c->irr);
+    free(c->hfree);
+    memset(c, 0, sizeof *c);
+}
+
+/* The query's side of every wall, as pm_irradiance_lookup_if's rule: a photon answers only if
+ * the lifted segment from y reaches it (its free height from the build). The position of the
+ * last photon accepted (the answer: the search stops there) goes to pos. */
+typedef struct side_rule {
+    const side_cache *c;
+    const scene *s;
+    vec3 y, n;
+    double hy; /* y's free height */
+    float pos[3];
+} side_rule;
+
+static int side_accepts(void *user, uint32_t photon, const float pos[3], const float normal[3]) {
+    side_rule *r = user;
+    int ok = side_visible_h(r->s, r->y, r->n, r->hy, v3f(pos), v3f(normal), r->c->hfree[photon]);
+    if (ok) memcpy(r->pos, pos, sizeof r->pos);
+    return ok;
+}
+
+int side_cache_lookup_local(const side_cache *c, const scene *s, vec3 y, vec3 n, double hy,
+                            float max_dist2, float e[3], float pos[3]) {
+    e[0] = e[1] = e[2] = 0;
+    if (!c->irr) return 0;
+    side_rule r = {c, s, y, n, hy, {0, 0, 0}};
+    float yf[3] = {(float)y.x, (float)y.y, (float)y.z}, nf[3] = {(float)n.x, (float)n.y, (float)n.z};
+    /* A bounded number of shadow rays per lookup, even beside a wall with many photons behind. */
+    int found = pm_irradiance_lookup_if(c->irr, yf, nf, max_dist2, SIDE_LOOKUP_COS, SIDE_LOOKUP_CANDIDATES,
+                                        side_accepts, &r, e, NULL, NULL) == 1;
+    if (found && pos) memcpy(pos, r.pos, sizeof r.pos);
+    return found;
+}
+
+int side_cache_lookup(const side_cache *c, const scene *s, vec3 y, vec3 n, float max_dist2,
+                      float e[3]) {
+    if (c->remote) return c->remote(c->remote_user, s, y, n, max_dist2, e);
+    e[0] = e[1] = e[2] = 0;
+    if (!c->irr) return 0;
+    return side_cache_lookup_local(c, s, y, n, side_free_height(s, y, n, 0.25 * sqrt((double)max_dist2)),
+                                   max_dist2, e, NULL);
+}
+
+/* ---- estimates of a map that keep to the query's side --------------------------------------- */
+
+int side_map_init(side_map *sm, const scene *s, const pm_kdtree *t, size_t n, float max_dist2, char *err,
+                  size_t errcap) {
+    memset(sm, 0, sizeof *sm);
+    if (!t || n == 0) return 0;
+    sm->hfree = malloc(n * sizeof *sm->hfree);
+    if (!sm->hfree) {
+        snprintf(err, errcap, "side-keeping estimates: out of memory");
+        return PM_ENOMEM;
+    }
+    sm->s = s;
+    sm->t = t;
+    sm->n = n;
+    side_free_heights(s, pm_kdtree_records(t), n, max_dist2, sm->hfree);
+    return 0;
+}
+
+void side_map_free(side_map *sm) {
+    free(sm->hfree);
+    memset(sm, 0, sizeof *sm);
+}
+
+/* 1 if the neighbour at p (normal pn, free height hp) is on the query's side: with no ray when
+ * it lies in the query's tangent plane (within SIDE_PLANE_TOL of its distance, and a float
+ * step), else side_visible_h. *hx: the query's free height, computed at the first ray (< 0:
+ * not yet). */
+static int side_keeps(const scene *s, vec3 x, vec3 n, double *hx, double cap, vec3 p, vec3 pn, double hp) {
+    vec3 d = v3_sub(p, x);
+    double off = fabs(v3_dot(d, n)), len = v3_len(d);
+    if (off <= SIDE_PLANE_TOL * len + 1e-6 * (s->offset_floor + v3_maxabs(x))) return 1;
+    if (*hx < 0) *hx = side_free_height(s, x, n, cap);
+    return side_visible_h(s, x, n, *hx, p, pn, hp);
+}
+
+int side_neighbours(const side_map *sm, const float x[3], const float n[3], const pm_knn_options *ko, unsigned k,
+                    float max_dist2, pm_neighbor *nb, int found, float *limit) {
+    *limit = max_dist2;
+    if (!sm->t || found <= 0) return found < 0 ? 0 : found;
+    const scene *s = sm->s;
+    const pm_photon *ph = pm_kdtree_records(sm->t);
+    vec3 xv = v3f(x), nv = v3f(n);
+    double hx = -1, cap = 0.25 * sqrt((double)max_dist2);
+    int hidden = 0;
+    for (int i = 0; i < found && !hidden; i++) {
+        if (nb[i].dist2 == 0) continue;
+        const pm_photon *p = &ph[nb[i].index];
+        float pn[3];
+        pm_normal_decode(p->normal, pn);
+        hidden = !side_keeps(s, xv, nv, &hx, cap, v3f(p->pos), v3f(pn), sm->hfree[nb[i].index]);
+    }
+    if (!hidden) return found;
+    /* A neighbour behind a surface: as side_cache_build, take SIDE_WIDEN x k candidates in order
+     * of distance and keep the ones on x's side until k are kept; the area is the disc up to
+     * the k-th kept, or, short of k, up to the last candidate examined (a wall that cuts the
+     * disc leaves it low there, as at any edge of a lit region; never a leak). */
+    unsigned want = (unsigned)SIDE_WIDEN * k;
+    pm_neighbor *wide = malloc((size_t)want * sizeof *wide);
+    if (!wide) return PM_ENOMEM;
+    pm_knn_options kw = *ko;
+    kw.flags |= PM_SORT;
+    int n2 = pm_kdtree_knn_ex(sm->t, x, want, max_dist2, &kw, wide, NULL);
+    if (n2 < 0) n2 = 0;
+    unsigned kept = 0;
+    for (int i = 0; i < n2 && kept < k; i++) {
+        int keep = 1;
+        if (wide[i].dist2 > 0) {
+            const pm_photon *p = &ph[wide[i].index];
+            float pn[3];
+            pm_normal_decode(p->normal, pn);
+            keep = side_keeps(s, xv, nv, &hx, cap, v3f(p->pos), v3f(pn), sm->hfree[wide[i].index]);
+        }
+        if (keep) nb[kept++] = wide[i];
+    }
+    if (kept < k && (unsigned)n2 == want) *limit = wide[n2 - 1].dist2; /* examined up to there */
+    free(wide);
+    return (int)kept;
+}
+
+int side_estimate(const side_map *sm, const float x[3], const float n[3], const pm_estimate_options *o,
+                  void *scratch, pm_estimate_result *res) {
+    memset(res, 0, sizeof *res);
+    if (!sm->t) {
+        res->flags = PM_EST_F_EMPTY;
+        return PM_OK;
+    }
+    float nrm[3];
+    pm_knn_options ko;
+    pm_estimate_search_options(o, n, nrm, &ko);
+    /* The wrapper's layout of scratch (estimate.h): k neighbours, then the core's part. */
+    pm_neighbor *nb = scratch;
+    void *core = (char *)scratch + (((size_t)o->k * sizeof *nb + 7u) & ~(size_t)7u);
+    int found = pm_kdtree_knn_ex(sm->t, x, o->k, o->max_dist2, &ko, nb, NULL);
+    if (found < 0) return found;
+    pm_estimate_options oo = *o;
+    found = side_neighbours(sm, x, n, &ko, o->k, o->max_dist2, nb, found, &oo.max_dist2);
+    if (found < 0) return found;
+    if (found == 0) {
+        res->flags = PM_EST_F_EMPTY;
+        return PM_OK;
+    }
+    return pm_estimate_core(pm_kdtree_records(sm->t), nb, (unsigned)found, x, n, &oo, core, res);
+}

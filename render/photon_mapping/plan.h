@@ -1,0 +1,106 @@
+/* plan.h: which photon-mapping effects a scene needs (the settings are photon_settings.h).
+ *
+ * Before a photon is traced, plan_make() looks at the scene and decides, with a reason for
+ * each decision that is printed before rendering:
+ *   caustics      a caustic map is built only if a specular or refractive surface can be
+ *                 reached straight from a light (L S: the first step of an L S+ D path) and a
+ *                 diffuse surface exists to receive it;
+ *   global        a global map only if diffuse light can reflect onto other diffuse surfaces
+ *                 (found by probe rays that leave the lights like photons, pass specular
+ *                 surfaces to a diffuse one, and leave it with a cosine-distributed direction
+ *                 on the side they arrived at: does any reach another diffuse surface?);
+ *   shadow        shadow photons only for area lights with occluders (probe segments between
+ *                 points on area lights and on diffuse surfaces that face each other; an
+ *                 occluder exists if any is blocked);
+ *   final gather  indirect diffuse by final gathering whenever there is a global map (the
+ *                 preview mode shows the global map directly instead);
+ *   volume        a volume photon map only in a scene with a participating medium that
+ *                 scatters (sigma_s > 0) and is lit: the pilot of volume.h counts photons
+ *                 scattering in each medium; without a medium the line says that no volume
+ *                 map is built;
+ *   volume caustics  a volume caustic map only when a specular surface sends light into a
+ *                 medium (pilot photons that scatter in a medium after specular bounces only,
+ *                 L S+ V, counted by the first specular surface).
+ *   photon emission  the global pass (and its shadow photons) emits toward what the camera
+ *                 sees (importance.h) when importance_paths > 0, the map is read through a
+ *                 final gather (shown directly, in preview mode, it keeps photons of even
+ *                 power) and the camera paths' light connections cover at least
+ *                 IMP_MIN_COVERAGE of the lights' power; else by power alone. The line gives the camera paths, the connections that carry
+ *                 light, the cells and the coverage. photon_trace builds the same table from
+ *                 the same streams, so the pass does what the line says.
+ *   light guide  the photon mapper's light samples are guided toward the part of each area
+ *                 light a pilot saw pass (guide.h, guide_light_plan) when light samples are
+ *                 mostly blocked where the camera looks (light through an opening); the line
+ *                 gives the pilot's points, pass rate, regions, probes and tables.
+ * In a scene with media (or null surfaces) every decision comes from volume.h's pilot (the
+ * tracer that builds those maps) instead of photon_trace's: caustics from its L S+ D stores,
+ * the global map from stores after a diffuse bounce or a scattering event; shadow photons are
+ * off (shadow rays there carry the media's transmittance).
+ * The pilots' stores join the real passes' maps (photon_trace.h, PILOT PHOTONS): the caustics
+ * and global lines (the shadow photons' line when there is no global map) end with "the
+ * pilot's N stores join the caustic map (its M photons counted as emitted)", or with why they
+ * do not (pilot_photons_joining's reason, or loaded maps), by the rule photon_trace applies
+ * to the options the settings give (trace_opts_settings).
+ * Every probe uses fixed random streams (the photon pilot's drawn from the scene's seed,
+ * plan_pilot_seed), so the plan of a scene and seed never changes between runs.
+ * The scene's "photon_mapping" object may force any of them: "caustics": true/false, and the
+ * same for "global", "shadow" and "final_gather"; the reason then says "forced".
+ *
+ * Plain data, except the importance table (read-only once made, shared by the photon
+ * tracer's threads); plan_free frees it.
+ */
+#ifndef RENDER_PLAN_H
+#define RENDER_PLAN_H
+
+#include <cjson/cJSON.h>
+#include <stdio.h>
+
+#include "base/json.h"
+#include "photons/photon_settings.h"
+#include "photons/photon_trace.h"
+#include "scene/scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The pilot passes' streams and size (plan.c): seed, and photons per pilot pass. */
+#define PLAN_SEED 0x706c616eULL /* "plan" */
+#define PLAN_PILOT_PHOTONS (2 * PT_BATCH)
+/* The seed of the pilot whose photons join the maps: PLAN_SEED mixed with the scene's seed,
+ * so the pilot is drawn anew with the seed (its share of the maps averages out over seeds,
+ * as the passes' own photons do) and fixed for a given one. volume.h's pilot (scenes with
+ * media; it keeps no photons) uses PLAN_SEED itself. */
+uint64_t plan_pilot_seed(const scene *s);
+
+typedef struct plan_item {
+    int on;
+    char reason[480];
+} plan_item;
+
+typedef struct render_plan {
+    plan_item caustics, global, shadow, final_gather, volume, volume_caustics;
+    plan_item emission; /* on: importance-driven emission of the global pass (importance.h) */
+    struct importance *imp; /* emission on: the table for trace_opts.importance (owned) */
+    pilot_photons *pilot;   /* the pilots' photons for trace_opts.reuse (owned; NULL when none
+                               join a map the plan traces) */
+    plan_item light_guide;  /* on: guided light samples in the photon mapper's direct light */
+    struct guide *guide;    /* light_guide on: its tables (guide.h; owned), else NULL */
+} render_plan;
+
+/* Decide the plan for scene s under config c; preview = 1 turns final gathering off. The
+ * plan may hold the importance table (imp) and the pilot's photons (pilot): plan_free frees
+ * them. Returns 0, or a negative PM_E* code when a pilot pass fails (PM_ENOMEM: its evidence
+ * would be a pass cut short, so no plan is made from it) with a message in err that names the
+ * pilot ("plan: global photon pilot: out of memory"); then p holds nothing to free.
+ * A pilot that stores nothing (PM_EEMPTY) is evidence, not a failure. Test hook:
+ * PM_PLAN_TEST_ENOMEM=global|caustic|volume fails that pilot (plan.c). */
+int plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p, char *err, size_t errcap);
+void plan_free(render_plan *p);
+/* "caustics: off (no specular surface reachable from a light)" and so on, one per line. */
+void plan_print(const render_plan *p, FILE *f);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_PLAN_H */

@@ -1,0 +1,95 @@
+/* renderer.h: the image loop shared by every integrator: tiles, threads, strata, film, and
+ * the render state that checkpoints save and resumed renders continue.
+ *
+ * render_image() splits the image into 16x16 tiles and renders them with OpenMP (threads take
+ * the next unfinished tile, so slow tiles around glass do not hold up a thread). Each pixel
+ * takes cam.spp = strata^2 samples, one per stratum, jittered inside it; sample k of pixel i
+ * uses the random stream (seed, i, k) and nothing else. A pixel's samples are added in sample
+ * order (k = 0, 1, ...) into a double sum by one thread at a time, and the pixel value is
+ * sum * (1 / spp) (box filter), so the film is bit-identical for any thread count. Non-finite
+ * samples are dropped and counted ("Film/Non-finite samples").
+ *
+ * The render state (render_state) is that sum and the number of samples done, per pixel. A
+ * tile works sample by sample (sample k of all its pixels, then k + 1), and between two
+ * samples it may stop: for a periodic pause (render_control.pause_every: the on_pause callback writes a
+ * checkpoint or a snapshot while every thread waits) or for a signal deferred by output.h
+ * (stop_on_signal: on_pause is called once more, then render_image returns
+ * RENDER_INTERRUPTED). A render given a state that is partly done continues from it: the
+ * samples it adds are the ones an uninterrupted render would have added next, in the same
+ * order, so the final image is bit-identical to an uninterrupted render at any thread count
+ * (tests/test_render_checkpoint.c).
+ *
+ * The caller owns the integrator (already created and preprocessed), the film (render_image
+ * initializes it to the camera's size; film_free it afterwards) and the state, if it gives one.
+ */
+#ifndef RENDER_RENDERER_H
+#define RENDER_RENDERER_H
+
+#include <stdint.h>
+
+#include "image/film.h"
+#include "integrators/integrator.h"
+#include "scene/scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define RENDER_TILE 16
+
+typedef struct render_state {
+    int width, height, spp;
+    double *sum;     /* 3 per pixel, row-major: the sum of the pixel's finite samples */
+    uint32_t *count; /* per pixel: samples 0 .. count-1 are in sum */
+} render_state;
+
+/* An empty state (all counts 0). 0 or PM_ENOMEM. */
+int render_state_init(render_state *st, int width, int height, int spp);
+void render_state_free(render_state *st);
+/* Samples done over all pixels. */
+uint64_t render_state_done(const render_state *st);
+/* The image so far: sum * (1 / count) per pixel, black where count is 0. f must have the
+ * state's size. For a finished state this is exactly the image render_image gives. */
+void render_state_to_film(const render_state *st, film *f);
+
+enum { RENDER_PAUSE_PERIODIC = 0, RENDER_PAUSE_SIGNAL = 1 };
+enum { RENDER_INTERRUPTED = 1 }; /* render_image's return when a signal stopped it */
+/* Called on the calling thread with all workers idle; why is a RENDER_PAUSE_*. A negative
+ * return ends the render with that code. */
+typedef int (*render_pause_fn)(void *user, const render_state *st, int why);
+
+typedef struct render_job {
+    int threads;   /* 0: OpenMP's default (all cores) */
+    int quiet;     /* no progress output */
+    uint64_t seed; /* usually scene.settings.seed */
+} render_job;
+
+/* What a checkpointed or snapshotted render adds to the job (zero it, then set fields). */
+typedef struct render_control {
+    render_state *state; /* NULL: a private, empty one; else continue from it and keep it */
+    double pause_every;  /* seconds between periodic on_pause calls; 0: none */
+    render_pause_fn on_pause;
+    void *user;
+    int stop_on_signal; /* stop at a signal deferred by output.h (see above) */
+} render_control;
+
+/* 0, or a negative PM_E* code (PM_ENOMEM). */
+int render_image(const scene *s, const integrator *it, const render_job *job, film *out);
+/* The same with a control (NULL: none). 0, RENDER_INTERRUPTED, or a negative PM_E* code
+ * (PM_ENOMEM, PM_EINVAL for a state of another size, or on_pause's code). The film holds
+ * the image so far unless the return is negative. */
+int render_image_ctl(const scene *s, const integrator *it, const render_job *job,
+                     const render_control *ctl, film *out);
+
+/* Render the listed tiles (indices row-major over the RENDER_TILE grid) completely into st,
+ * threads taking the next tile as in render_image; no film, progress, pauses or timers. Each
+ * pixel gets exactly the sums render_image gives it, so a distributed render (render/mpi/)
+ * can hand tiles to any process and copy the sums into one state. 0, or PM_EINVAL for a
+ * state of another size or a tile index out of range. */
+int render_tiles(const scene *s, const integrator *it, const render_job *job, render_state *st,
+                 const int *tiles, int ntiles);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_RENDERER_H */

@@ -1,0 +1,72 @@
+/* light.h: area, point and directional lights, and sampling them for next-event estimation.
+ *
+ * Area lights are the scene's triangles (and quads, as two triangles) whose material emits:
+ * the loader makes one light per emissive triangle. They emit Le from the front side (or
+ * both, two_sided) and are sampled by a uniform point on the triangle, whose area pdf 1/A is
+ * turned into a solid-angle pdf with dist^2 / (cos_light A). Emissive spheres are sphere
+ * lights, sampled the same way by a uniform point on the whole sphere (half of the samples
+ * land on the far side and carry nothing when it emits outward only; from inside a two-sided
+ * sphere, the furnace, every sample counts).
+ * Point lights have an intensity I (W/sr); directional lights an irradiance E (W/m^2 on a
+ * surface facing them) and a direction of travel.
+ *
+ * Each light also carries its total power (W), which the path tracer uses to choose a light
+ * in proportion to it and photon emission uses to share photons out:
+ *   area and sphere: pi Le A (x2 if two-sided); point: 4 pi I; directional: E pi R^2, where R is the
+ *   radius of the scene's bounding sphere (the disc photons are shot from).
+ */
+#ifndef RENDER_LIGHT_H
+#define RENDER_LIGHT_H
+
+#include "base/vec.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+enum { LIGHT_AREA, LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPHERE };
+
+typedef struct light {
+    int type;
+    int tri;        /* area: index into scene.tris */
+    int sphere;     /* sphere: index into scene.spheres */
+    vec3 pos;       /* point: position */
+    vec3 dir;       /* directional: unit direction in which the light travels */
+    rgb Le;         /* area: emitted radiance */
+    rgb intensity;  /* point: radiant intensity, W/sr */
+    rgb irradiance; /* directional: irradiance on a perpendicular surface, W/m^2 */
+    int two_sided;  /* area: emits from both sides */
+    rgb power;      /* total emitted power, W (see above) */
+} light;
+
+/* A light sample seen from a shading point p. */
+typedef struct light_sample {
+    vec3 wi;     /* unit direction from p toward the light */
+    double dist; /* distance to the sampled point; INFINITY for a directional light */
+    vec3 p, n;   /* sampled point and its unit normal (area lights); p for point lights */
+    rgb L;       /* incident radiance divided by the solid-angle pdf of this sample
+                    (area: Le cos_l A / dist^2; point: I / dist^2; directional: E);
+                    zero when the light faces away. Divide by the light's choice probability. */
+} light_sample;
+
+struct scene;
+/* Sample light number li as seen from p with (u1, u2). Returns 1 if the sample can carry
+ * light (before the visibility test), 0 otherwise. */
+int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2, light_sample *ls);
+
+/* A ray of light leaving light number li, for photon emission; u[0..3] uniform in [0,1).
+ *   area:        a uniform point on the triangle and a cosine-weighted direction about its
+ *                front normal (two-sided: u[0] < 0.5 picks the front, the rest the back);
+ *   sphere:      the same with a uniform point on the sphere (front: the outside);
+ *   point:       the light's position and a uniform direction;
+ *   directional: a uniform point on the disc of radius R (the scene's bounding sphere)
+ *                perpendicular to the light, R in front of the scene, travelling along dir.
+ * With these densities every emitted photon of light li carries power light.power / n_emitted
+ * (for n_emitted photons from that light). *p is the origin, *n the surface normal at it
+ * (zero for point and directional lights: no offset needed), *d the unit direction. */
+void light_sample_le(const struct scene *s, int li, const double u[4], vec3 *p, vec3 *n, vec3 *d);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_LIGHT_H */

@@ -1,0 +1,177 @@
+/* scene.h: the scene: camera, materials, shapes, lights, settings, and its accelerator.
+ *
+ * Data flow: scene_load() (scene_load.c) parses a JSON scene file (format:
+ * data/scenes/README.md), checks every field and turns quads and meshes into triangles;
+ * scene_prepare() (scene.c) then makes one area light per emissive triangle and builds the
+ * BVH. After that the scene is immutable, and scene_intersect() / scene_visible() may be
+ * called from any number of threads.
+ *
+ * Errors: scene_load returns a negative PM_E* code and a message in json_err: the line and
+ * column of a syntax error, or the JSON path of a missing, mistyped or invalid field
+ * ("$.objects[3].radius: must be positive, got -1"). main.c prints it and exits with 2.
+ *
+ * Extensions: the "photon_mapping" object of the file is checked here against the settings
+ * table (photon_settings_parse: known keys, types, ranges), not otherwise interpreted; a copy
+ * is kept in scene.photon_mapping (NULL when absent) for the photon-mapping code to read with
+ * the json.h getters (its path is "$.photon_mapping"). A key the format does not know is an
+ * error anywhere in the file (json_check_keys), with the nearest known key.
+ *
+ * Ranges: numbers that would break the arithmetic are refused with the supported range in
+ * the message. Lengths (every coordinate, radius, the scene's size) are within
+ * SCENE_LENGTH_MIN..SCENE_LENGTH_MAX: their squares and cubes (areas, light powers, the
+ * volume of a closed mesh) stay far inside a double. Emission and a directional light's
+ * irradiance are at most SCENE_RADIANCE_MAX: the image is stored in 32-bit floats (PFM, the
+ * film), whose largest value is 3.4e38, so that leaves 8 orders of magnitude for light
+ * concentrated by a lens. A point light's intensity gives I / d^2, which depends on the
+ * scene's units, so its limit scales with the scene: the irradiance it gives at D, the larger
+ * of the scene's bounding radius and the light's distance from the scene's centre, is at most
+ * SCENE_RADIANCE_MAX (I <= 1e30 D^2, power <= 4 pi 1e30 D^2). A medium's sigma_a and sigma_s
+ * are at most 1 / SCENE_LENGTH_MIN per unit length. A film pixel that still overflows is
+ * counted ("Film/Non-finite pixels") and `render` warns. The scene reaches at most
+ * SCENE_OFFSET_MAX bounding radii from the origin, and each object at most
+ * SCENE_OBJECT_OFFSET_MAX of its own: ray offsets include 64e-9 of a point's coordinates
+ * (vec.h), and farther out they stop being small against the scene or the object (a box 1.2e7
+ * radii out read 17% dark in path tracing, also when a huge ground sphere made the scene's
+ * radius large). Photon mapping stores positions and squared
+ * distances in 32-bit floats: scene_check_photon_range() says whether a loaded scene is
+ * within its narrower range (SCENE_PM_SIZE_MIN..SCENE_PM_SIZE_MAX, not too far from the
+ * origin for its size, and light powers a photon can carry).
+ *
+ * Ownership: the scene owns all its arrays and the photon_mapping copy; scene_free()
+ * releases them. A zeroed scene may be freed.
+ */
+#ifndef RENDER_SCENE_H
+#define RENDER_SCENE_H
+
+#include <cjson/cJSON.h>
+#include <stdint.h>
+
+#include "scene/bvh.h"
+#include "scene/camera.h"
+#include "base/json.h"
+#include "scene/light.h"
+#include "scene/material.h"
+#include "scene/medium.h"
+#include "base/sampling.h"
+#include "scene/shapes.h"
+#include "base/vec.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SCENE_LENGTH_MAX 1e100  /* |coordinate|, radius */
+#define SCENE_LENGTH_MIN 1e-100 /* the scene's bounding radius; a triangle's longest edge */
+#define SCENE_RADIANCE_MAX 1e30 /* emission (W/m^2/sr), a directional light's irradiance */
+#define SCENE_OFFSET_MAX 1e5     /* every mode: |coordinate| / bounding radius (ray offsets) */
+#define SCENE_OBJECT_OFFSET_MAX 1e6 /* every mode: an object's |coordinate| / its own radius */
+#define SCENE_PM_SIZE_MIN 1e-12 /* photon mapping: the scene's bounding radius */
+#define SCENE_PM_SIZE_MAX 1e12
+#define SCENE_PM_OFFSET_MAX 1e4 /* photon mapping: |coordinate| / bounding radius */
+#define SCENE_PM_POWER_MAX 1e30 /* photon mapping: the total light power (photons are floats) */
+
+enum { TONE_FILMIC, TONE_SRGB };
+
+/* Settings from the file's "render" and "image" objects; the command line overrides them. */
+typedef struct render_settings {
+    int max_depth;       /* path length limit (bounces); default 64 */
+    int rr_depth;        /* Russian roulette starts after this many bounces; default 3 */
+    char mode[32];       /* integrator name, default "path" */
+    uint64_t seed;       /* default 1 */
+    int tone;            /* TONE_FILMIC (Hable) or TONE_SRGB; default filmic */
+    double clip_percent; /* auto exposure: this % of pixels at or above clipping; default 1 */
+    double exposure;     /* > 0: a fixed exposure multiplier instead of auto exposure */
+} render_settings;
+
+typedef struct scene {
+    camera cam;
+    material *mats;
+    int nmats;
+    triangle *tris;
+    int ntris;
+    sphere *spheres;
+    int nspheres;
+    int *tri_obj, *sphere_obj; /* index in $.objects of each triangle's / sphere's object */
+    vec3 (*tri_ns)[3]; /* corner shading normals of triangles 0..ntri_ns-1 (smooth meshes), or NULL */
+    int ntri_ns;
+    light *lights;
+    int nlights;
+    distrib1d light_distrib; /* choose a light in proportion to its power (mean of RGB) */
+    double medium_ior;       /* index of refraction of the space between objects; default 1 */
+    medium *media;           /* participating media ($.media; medium.h), nmedia of them */
+    int nmedia;
+    int global_medium;       /* index in media of $.medium (between objects), or -1 */
+    int camera_medium;       /* the medium the camera is in (found from the nearest surface) */
+    int *obj_medium;         /* per object of $.objects: its interior_medium, or -1 */
+    int nobj;
+    int has_null;            /* some surface has the "null" (invisible interface) material */
+    vec3 bounds_lo, bounds_hi;
+    vec3 bsphere_c; /* bounding sphere of all geometry */
+    double bsphere_r;
+    double offset_floor; /* ray offsets (scene_offset) do not shrink below 64e-9 of this length:
+                          * 1e-3 of bsphere_r, so they scale with the scene */
+    bvh accel;
+    render_settings settings;
+    cJSON *photon_mapping; /* a copy of "$.photon_mapping", or NULL */
+    char file[512];        /* the scene file as scene_load was given it (cut at 511 bytes), for
+                            * messages ("render: FILE: ..."); "" for a scene from text */
+} scene;
+
+/* A ray-surface hit. */
+typedef struct hit {
+    double t;
+    vec3 p;            /* hit point */
+    vec3 ng;           /* unit geometric normal (front side / outward); not flipped to the ray */
+    vec3 ns;           /* unit shading normal: a smooth mesh's interpolated corner normals, else
+                        * ng; on ng's side. It only shades: every side decision uses ng */
+    int prim;          /* primitive id: < ntris a triangle, else ntris + sphere index */
+    int mat;           /* material index */
+    double u, v;       /* triangle barycentrics */
+} hit;
+
+int scene_load(scene *s, const char *filename, json_err *e);
+/* The same from a JSON text (for tests). */
+int scene_load_text(scene *s, const char *text, json_err *e);
+/* The same from a parsed document (not consumed). */
+int scene_from_json(scene *s, const cJSON *root, json_err *e);
+void scene_free(scene *s);
+/* After the loader has filled the camera, materials, shapes and the point and directional
+ * lights: the bounds and bounding sphere, one light per emissive triangle or sphere, every
+ * light's power and the light distribution, and the BVH. 0, or a negative code with a
+ * message in e (no geometry, a power too large to represent, out of memory). */
+int scene_prepare(scene *s, json_err *e);
+/* Is the loaded scene within the range photon mapping supports (see Ranges above)? 0, or
+ * PM_EINVAL with a message that gives the range ("$.objects: the scene's bounding radius
+ * 4.8e+21 is outside the range photon mapping supports, 1e-12 to 1e+12 ..."). */
+int scene_check_photon_range(const scene *s, json_err *e);
+
+/* Nearest hit along r with 0 < t < tmax. */
+int scene_intersect(const scene *s, ray r, double tmax, hit *h);
+/* Is the segment between surface points p (normal np) and q (normal nq) unblocked? Both ends
+ * are offset off their surfaces; pass a zero normal for a point that is not on a surface. */
+int scene_visible(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq);
+/* Is the ray from surface point p (normal np) in direction d unblocked to infinity? */
+int scene_visible_dir(const scene *s, vec3 p, vec3 np, vec3 d);
+
+/* v3_offset with the scene's floor: the origin of a ray leaving surface point p (geometric
+ * normal n) in direction d. Every new ray origin on a surface should come from here. */
+static inline vec3 scene_offset(const scene *s, vec3 p, vec3 n, vec3 d) {
+    return v3_offset_floor(p, n, d, s->offset_floor);
+}
+
+static inline const material *scene_material(const scene *s, const hit *h) {
+    return &s->mats[h->mat];
+}
+/* The index in $.objects of the object that primitive prim (hit.prim) came from. */
+static inline int scene_prim_object(const scene *s, int prim) {
+    return prim < s->ntris ? s->tri_obj[prim] : s->sphere_obj[prim - s->ntris];
+}
+/* Is this primitive an area light in the light list (sampled by next-event estimation)? */
+static inline int scene_prim_is_light(const scene *s, int prim) {
+    return prim < s->ntris ? s->tris[prim].light >= 0 : s->spheres[prim - s->ntris].light >= 0;
+}
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_SCENE_H */
