@@ -196,6 +196,7 @@ echo "generated from \`docs/import/\` by \`scripts/gen-import-md.sh\`: do not ed
 echo "in \`tests/test_render_import.c\` check the same comparisons at 32x32 with fewer samples; here"
 echo "they run at $(m resolution)x$(m resolution). A figure is the relative difference of mean radiance, first image against"
 echo "the second (the reference), over the pixels that see the object (from \`render --mode objects\`)."
+echo "Measured sources (stamp $(m commit | cut -d' ' -f1)): \`photonmap/\` \`render/\` \`Makefile\`"
 echo
 echo "## The Tungsten Cornell box against the same box in our format"
 echo

@@ -40,6 +40,7 @@ table() {
 stamp() {
   echo "Measured at commit $(ms "$1" commit), $(ms "$1" date), on $(ms "$1" machine) (load average at the start);"
   echo "$(ms "$1" resolution)x$(ms "$1" resolution) pixels, every render on $(ms "$1" threads) thread, CPU time (user + system)."
+  echo "Measured sources (stamp $(ms "$1" commit | cut -d' ' -f1)): \`photonmap/\` \`render/\` \`Makefile\`"
 }
 # What the path-traced runs of the beam show, read from time_error_volumetric_caustic.csv: the
 # runs whose image mean is under a tenth of the best photon-mapping run's miss the beam (their
@@ -127,6 +128,7 @@ before and after a change to the media code (named below), both built the same w
 run on one thread, 32x32 pixels; CPU time (user + system), median of the runs. Before: $(cm before).
 After: $(cm after). RMSE between their path-traced images: $(cm path_rmse_between_binaries).
 $(cm note)
+Measured sources (stamp $(cm after | cut -d' ' -f1)): \`photonmap/\` \`render/\` \`Makefile\`
 
 | case | runs | before, median CPU s | after, median CPU s | after / before | run by run, lowest / highest after / before |
 |---|---:|---:|---:|---:|---:|

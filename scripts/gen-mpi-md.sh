@@ -163,6 +163,7 @@ echo "Measured by \`scripts/mpi-scaling.sh\` at commit $(meas commit), $(meas da
 echo "$(meas machine); load average before $(meas load_before), after $(meas load_after)"
 echo "(the machine is shared: figures are medians of $(meas reps) interleaved runs, and noisy)."
 echo "Scene \`$(meas scene)\`; pm: \`$(meas pm_args)\`; path: \`$(meas path_args)\`."
+echo "Measured sources (stamp $(meas commit | cut -d' ' -f1)): \`photonmap/\` \`render/\` \`Makefile\`"
 echo
 echo "### Efficiency: 2 ranks x 1 thread against 1 rank x 2 threads"
 echo
@@ -383,6 +384,7 @@ echo "32x32 quarter against the one-process render's with the shadow-photon map 
 echo "photons and camera samples, and exact shadow rays in both, so what differs is the estimate"
 echo "alone), the largest over the repetitions. (test-mpi.sh prints, beside its own such"
 echo "figures, how far apart two renders of different seeds are.)"
+echo "Measured sources (stamp $(pmeas commit | cut -d' ' -f1)): \`photonmap/\` \`render/\` \`Makefile\`"
 pbefore=$(pmeas before)
 if [ -n "$pbefore" ]; then
   echo "Rows \"before\": the partitioned mode of $pbefore, run beside it"
@@ -474,6 +476,7 @@ echo "Scene \`$(mmeas scene)\`, \`$(mmeas pm_args)\`, 1 thread per rank: a map"
 echo "large against the rest of the process. Peak memory: every rank's maximum resident set size"
 echo "(/usr/bin/time), the largest and the smallest over the ranks; photon exchange: the bytes"
 echo "sent by all ranks in the photon passes (each part counted once per receiving rank)."
+echo "Measured sources (stamp $(mmeas commit | cut -d' ' -f1)): \`photonmap/\` \`render/\` \`Makefile\`"
 mbefore=$(mmeas before)
 if [ -n "$mbefore" ]; then
   echo "Rows \"before\": the partitioned mode of $mbefore, run beside it (every rank"

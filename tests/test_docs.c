@@ -210,3 +210,108 @@ TEST(docs_media_cost_column_is_lowest_and_highest) {
     }
     EXPECT_MSG(cases >= 1, "no cost row of docs/media/cost.csv found in docs/MEDIA.md");
 }
+
+/* ---- staleness: a measured section is older than the sources it measures ----------------- */
+
+/* Each measured section of the documents in docs/ says what it measured in one line written by its
+ * generator from the measurement's own files:
+ *
+ *     Measured sources (stamp COMMIT): `photonmap/` `render/` `Makefile`
+ *
+ * (the stamp is the commit the measured binaries were built from). The section is stale when a
+ * commit after the stamp touched one of those sources (git rev-list STAMP..HEAD -- SOURCES),
+ * or when the stamp is not a commit of this history.
+ *
+ * KNOWN_STALE lists the sections that were stale when this check was written and are being or
+ * will be re-measured, as "doc|section heading|stamp": they are reported, not failed. An entry
+ * matches only its stamp, so a section re-measured (a new stamp) is checked again at once; an
+ * entry that matches nothing any more is reported for removal. The lead shrinks this list as
+ * sections are re-measured; a new stale section fails.
+ *
+ * UNDECLARED lists the measured documents whose generators do not write the line yet
+ * (docs/RESULTS.md: scripts/gen-results-md.sh, C's; docs/BENCHMARKS.md:
+ * scripts/gen-benchmarks-md.sh, A's): reported; every other document in docs/ must have the line at
+ * least once, or be in NOT_MEASURED. */
+static const char *const KNOWN_STALE[] = {
+    "docs/ACCURACY.md|Accuracy of the radiance estimates|00dd5c0",
+    "docs/IMPORT.md|Scene import: measurements|3768173",
+    "docs/MEDIA.md|cornell_fog: the whole image|582ff3a",
+    "docs/MEDIA.md|volumetric_caustic: the beam in the fog|582ff3a",
+    "docs/MEDIA.md|Cost: scenes without media|582ff3a",
+    "docs/MPI.md|Measurements|59044b9",
+    "docs/MPI.md|Accuracy, traffic and time|ef5be97",
+    "docs/MPI.md|Memory per rank and the photon exchange|90ae0ac",
+};
+static const char *const UNDECLARED[] = {"docs/RESULTS.md", "docs/BENCHMARKS.md"};
+static const char *const NOT_MEASURED[] = {NULL};
+
+static int in_list(const char *const *list, size_t n, const char *s) {
+    for (size_t i = 0; i < n; i++)
+        if (list[i] && !strcmp(list[i], s)) return 1;
+    return 0;
+}
+
+/* Oracle: git's history of the checkout against the stamps and sources the documents state. */
+TEST(docs_measured_sections_are_not_stale) {
+    char cmd[8192], out[32768];
+    snprintf(cmd, sizeof cmd, "git -C '%s' rev-parse --verify -q HEAD", pm_test_source_dir());
+    if (pm_test_run(cmd, out, sizeof out) != 0) SKIP("the source directory is not a git checkout: no history to compare stamps with");
+    /* doc|heading|stamp|newer commits|newest of them|sources, one line per measured section;
+     * then "doc|-" for each document with no such line */
+    snprintf(cmd, sizeof cmd,
+             "cd '%s' && for d in docs/*.md; do "
+             "awk -v d=\"$d\" '/^#/ { h = $0; sub(/^#+ */, \"\", h) } "
+             "/^Measured sources \\(stamp [0-9a-f]+\\): / { s = $0; sub(/^Measured sources \\(stamp /, \"\", s); "
+             "st = s; sub(/\\).*/, \"\", st); sub(/^[^:]*: /, \"\", s); gsub(/`/, \"\", s); "
+             "print d \"|\" h \"|\" st \"|\" s; f = 1 } END { if (!f) print d \"|-\" }' \"$d\"; done | "
+             "while IFS='|' read -r doc head stamp src; do "
+             "if [ \"$head\" = - ]; then echo \"$doc|-\"; continue; fi; "
+             "if git cat-file -e \"$stamp^{commit}\" 2>/dev/null; then "
+             "n=$(git rev-list --count \"$stamp..HEAD\" -- $src); last=$(git log -1 --format=%%h \"$stamp..HEAD\" -- $src); "
+             "else n=unknown; last=-; fi; echo \"$doc|$head|$stamp|$n|$last|$src\"; done",
+             pm_test_source_dir());
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    int sections = 0, stale = 0, known = 0;
+    int used[sizeof KNOWN_STALE / sizeof *KNOWN_STALE] = {0};
+    for (char *line = strtok(out, "\n"); line; line = strtok(NULL, "\n")) {
+        char doc[256] = "", head[512] = "", stamp[64] = "", n[32] = "", last[64] = "", src[1024] = "", key[1024];
+        char *f[6] = {doc, head, stamp, n, last, src};
+        size_t cap[6] = {sizeof doc, sizeof head, sizeof stamp, sizeof n, sizeof last, sizeof src};
+        char *p = line;
+        for (int i = 0; i < 6 && p; i++) {
+            char *bar = i < 5 ? strchr(p, '|') : NULL;
+            size_t len = bar ? (size_t)(bar - p) : strlen(p);
+            snprintf(f[i], cap[i], "%.*s", (int)len, p);
+            p = bar ? bar + 1 : NULL;
+        }
+        if (!strcmp(head, "-")) {
+            if (in_list(UNDECLARED, sizeof UNDECLARED / sizeof *UNDECLARED, doc))
+                printf("    %s: no 'Measured sources' line yet (listed as undeclared)\n", doc);
+            else
+                EXPECT_MSG(in_list(NOT_MEASURED, sizeof NOT_MEASURED / sizeof *NOT_MEASURED, doc),
+                           "%s has no 'Measured sources (stamp ...)' line: its generator must write one", doc);
+            continue;
+        }
+        if (in_list(UNDECLARED, sizeof UNDECLARED / sizeof *UNDECLARED, doc))
+            printf("    %s now declares its sources: take it off UNDECLARED\n", doc);
+        sections++;
+        if (!strcmp(n, "0")) continue;
+        snprintf(key, sizeof key, "%s|%s|%s", doc, head, stamp);
+        int k = -1;
+        for (size_t i = 0; i < sizeof KNOWN_STALE / sizeof *KNOWN_STALE; i++)
+            if (!strcmp(KNOWN_STALE[i], key)) k = (int)i;
+        if (k >= 0) {
+            used[k] = 1;
+            known++;
+            printf("    known stale: %s \"%s\" (stamp %s; %s later commits to %s, the last %s)\n", doc, head, stamp, n, src, last);
+        } else {
+            stale++;
+            EXPECT_MSG(0, "%s \"%s\" is stale: measured at %s, and %s later commits touched %s (the last %s): re-measure it",
+                       doc, head, stamp, n, src, last);
+        }
+    }
+    for (size_t i = 0; i < sizeof KNOWN_STALE / sizeof *KNOWN_STALE; i++)
+        if (!used[i]) printf("    KNOWN_STALE entry no longer stale or gone (remove it): %s\n", KNOWN_STALE[i]);
+    printf("    %d measured sections: %d stale (known %d)\n", sections, stale + known, known);
+    EXPECT_MSG(sections >= 8, "only %d measured sections found", sections);
+}
