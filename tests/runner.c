@@ -300,6 +300,8 @@ int main(int argc, char **argv) {
     if (list) {
         for (int i = 0; i < g_ntests; i++)
             if (selected(&g_tests[i], npat, pat, nexcl, excl)) printf("%s  (%s)\n", g_tests[i].name, g_tests[i].file);
+        free(pat);
+        free(excl);
         return 0;
     }
     run = calloc((size_t)jobs, sizeof *run);

@@ -69,6 +69,7 @@ int posix_memalign(void **out, size_t align, size_t n) {
 #define ALLOC_COUNTING 0
 #endif
 
+#if ALLOC_COUNTING
 static uint64_t rng_next(uint64_t *s) {
     *s += 0x9E3779B97F4A7C15ull;
     uint64_t z = *s;
@@ -91,6 +92,8 @@ static int irr_accept_all(void *user, uint32_t photon, const float pos[3], const
     (void)user, (void)photon, (void)pos, (void)normal;
     return 1;
 }
+
+#endif
 
 /* Oracle: the count of the interposed allocator, which must be 0 across every query and
  * estimate of a built tree: k-nearest (iterative, recursive, with the ellipsoid metric and a
