@@ -8,7 +8,8 @@
 # region, series, rel_mean_pct, pixels: the relative difference of mean radiance of two renders
 # over the pixels of a region, empty with 0 pixels when the region is not in view), load.csv
 # (the medians of three loads of a 1M-triangle OBJ) and measurement.txt (commit, date, build
-# directory, load average and CPUs of the run). Every figure and stamp in the document comes
+# directory, load average and CPUs of the run, and its settings: resolution, samples per pixel,
+# the OBJ sphere's segments and triangles, the number of loads). Every figure and stamp in the document comes
 # from those files, never from the checkout or the clock at generation time, so the same files
 # always give the same document (tests/test_docs.c regenerates it from the committed files and
 # compares). --out FILE writes FILE instead of docs/IMPORT.md (- for standard output).
@@ -36,6 +37,18 @@ while [ $# -gt 0 ]; do
   esac
 done
 
+# The settings of a measurement: --run uses them and writes them into measurement.txt, and the
+# document reads them from there (so it describes the run that made the files, whatever these
+# lines say later).
+RES=64                # pixels per side of every comparison render
+CORNELL_PATH_SPP=1024 # the two Cornell boxes, path tracing
+CORNELL_PM_SPP=256    # and photon mapping
+SPHERE_SEG="128 64"   # the OBJ sphere's segments (around, pole to pole)
+SPHERE_SPP=1024       # the sphere renders (path tracing)
+WATER_PATH_SPP=4096   # the water caustic's reference
+WATER_PM_SPP=256      # and its photon-mapped render
+LOAD_RUNS=3           # loads of the 1M-triangle OBJ (medians)
+
 if [ -n "$run" ]; then
 BUILD=$run
 R="$BUILD/render"
@@ -43,7 +56,7 @@ R="$BUILD/render"
 T=$(mktemp -d)
 trap 'rm -rf "$T"' EXIT
 S="$here/data/scenes"
-SIZE="--width 64 --height 64 --quiet"
+SIZE="--width $RES --height $RES --quiet"
 cd "$here"
 
 # One row of comparisons.csv: section, region, series, then rel_mean of A against B (percent)
@@ -59,13 +72,13 @@ row() {
 
 echo "rendering the Cornell boxes..." >&2
 "$R" $S/cornell_rect.json $SIZE --mode objects --spp 16 --hdr "$T/ids_c.pfm" >/dev/null
-"$R" $S/cornell_tungsten.json $SIZE --mode path --spp 1024 --seed 3 --hdr "$T/ct_path.pfm" >/dev/null 2>&1
-"$R" $S/cornell_rect.json $SIZE --mode path --spp 1024 --seed 4 --hdr "$T/cr_path.pfm" >/dev/null
-"$R" $S/cornell_tungsten.json $SIZE --mode pm --spp 256 --seed 3 --hdr "$T/ct_pm.pfm" >/dev/null 2>&1
-"$R" $S/cornell_rect.json $SIZE --mode pm --spp 256 --seed 4 --hdr "$T/cr_pm.pfm" >/dev/null
+"$R" $S/cornell_tungsten.json $SIZE --mode path --spp $CORNELL_PATH_SPP --seed 3 --hdr "$T/ct_path.pfm" >/dev/null 2>&1
+"$R" $S/cornell_rect.json $SIZE --mode path --spp $CORNELL_PATH_SPP --seed 4 --hdr "$T/cr_path.pfm" >/dev/null
+"$R" $S/cornell_tungsten.json $SIZE --mode pm --spp $CORNELL_PM_SPP --seed 3 --hdr "$T/ct_pm.pfm" >/dev/null 2>&1
+"$R" $S/cornell_rect.json $SIZE --mode pm --spp $CORNELL_PM_SPP --seed 4 --hdr "$T/cr_pm.pfm" >/dev/null
 
 echo "rendering the spheres..." >&2
-sh scripts/gen-mesh.sh sphere 128 64 100 278 150 300 > "$T/sphere.obj"
+sh scripts/gen-mesh.sh sphere $SPHERE_SEG 100 278 150 300 > "$T/sphere.obj"
 cat > "$T/sphere_scene.in" <<'EOF'
 {"camera": {"eye": [278, 273, -800], "look_at": [278, 273, 0], "fov_deg": 39.3, "width": 64, "height": 64},
  "materials": {"w": {"type": "lambert", "reflectance": 0.7}, "r": {"type": "lambert", "reflectance": [0.6, 0.1, 0.1]},
@@ -80,13 +93,13 @@ cat > "$T/sphere_scene.in" <<'EOF'
 EOF
 sed 's|OBJECT|{"type": "sphere", "center": [278, 150, 300], "radius": 100, "material": "w"}|' "$T/sphere_scene.in" > "$T/analytic.json"
 sed 's|OBJECT|{"type": "mesh", "file": "sphere.obj", "smooth": true, "material": "w"}|' "$T/sphere_scene.in" > "$T/mesh.json"
-"$R" "$T/analytic.json" $SIZE --spp 1024 --seed 5 --hdr "$T/analytic.pfm" >/dev/null
-"$R" "$T/mesh.json" $SIZE --spp 1024 --seed 6 --hdr "$T/mesh.pfm" >/dev/null
+"$R" "$T/analytic.json" $SIZE --spp $SPHERE_SPP --seed 5 --hdr "$T/analytic.pfm" >/dev/null
+"$R" "$T/mesh.json" $SIZE --spp $SPHERE_SPP --seed 6 --hdr "$T/mesh.pfm" >/dev/null
 "$R" "$T/analytic.json" $SIZE --mode objects --spp 16 --hdr "$T/ids_s.pfm" >/dev/null
 
 echo "rendering the water caustic..." >&2
-"$R" $S/water_caustic.json $SIZE --mode path --spp 4096 --seed 8 --hdr "$T/w_path.pfm" >/dev/null
-"$R" $S/water_caustic.json $SIZE --mode pm --spp 256 --seed 9 --hdr "$T/w_pm.pfm" >/dev/null
+"$R" $S/water_caustic.json $SIZE --mode path --spp $WATER_PATH_SPP --seed 8 --hdr "$T/w_path.pfm" >/dev/null
+"$R" $S/water_caustic.json $SIZE --mode pm --spp $WATER_PM_SPP --seed 9 --hdr "$T/w_pm.pfm" >/dev/null
 "$R" $S/water_caustic.json $SIZE --mode objects --spp 16 --hdr "$T/ids_w.pfm" >/dev/null
 
 echo "section,region,series,rel_mean_pct,pixels" > "$T/comparisons.csv"
@@ -114,7 +127,7 @@ echo "timing a 1M-triangle OBJ..." >&2
 sh scripts/gen-mesh.sh sphere 1002 500 100 278 150 300 > "$T/big.obj"
 sed 's|OBJECT|{"type": "mesh", "file": "big.obj", "smooth": true, "material": "w"}|' "$T/sphere_scene.in" > "$T/big.json"
 : > "$T/times.txt"
-for run in 1 2 3; do
+for run in $(seq "$LOAD_RUNS"); do
     /usr/bin/time -f "cpu %U %S" "$R" "$T/big.json" --width 8 --height 8 --spp 1 --threads 1 --quiet \
         --hdr "$T/big.pfm" > "$T/big.out" 2> "$T/big.err"
     awk '/^Scene /{ ntri = $3 } /Mesh loading  / { ml = $(NF-1) } /BVH build  / { bvh = $(NF-1) }
@@ -144,13 +157,24 @@ cp "$T/comparisons.csv" "$res/comparisons.csv"
     echo "build $BUILD"
     echo "load $LOAD"
     echo "cpus $NCPU"
+    echo "resolution $RES"
+    echo "cornell_path_spp $CORNELL_PATH_SPP"
+    echo "cornell_pm_spp $CORNELL_PM_SPP"
+    echo "sphere_segments $SPHERE_SEG"
+    echo "sphere_triangles $(awk '/^f / { t += NF - 3 } END { print t }' "$T/sphere.obj")"
+    echo "sphere_spp $SPHERE_SPP"
+    echo "water_path_spp $WATER_PATH_SPP"
+    echo "water_pm_spp $WATER_PM_SPP"
+    echo "load_runs $LOAD_RUNS"
+    echo "load_obj_triangles $(awk '/^f / { t += NF - 3 } END { print t }' "$T/big.obj")"
 } > "$res/measurement.txt"
 fi
 
 for f in comparisons.csv load.csv measurement.txt; do
   [ -f "$res/$f" ] || { echo "gen-import-md: $res/$f missing: run scripts/gen-import-md.sh --run BUILD_DIR" >&2; exit 2; }
 done
-m() { awk -v k="$1" '$1 == k { sub(/^[^ ]+ /, ""); print; exit }' "$res/measurement.txt"; }
+m() { awk -v k="$1" '$1 == k { sub(/^[^ ]+ /, ""); print; f = 1; exit } END { exit !f }' "$res/measurement.txt" ||
+      { echo "gen-import-md: $res/measurement.txt has no '$1' (measured by an older --run)" >&2; echo "?"; }; }
 C="$res/comparisons.csv"
 # The cell of section $1, region $2, series $3: "+0.12% (302 px)", or "no pixel".
 cell() {
@@ -170,15 +194,15 @@ echo
 echo "Measured by \`scripts/gen-import-md.sh --run $(m build)\` on $(m date) at $(m commit);"
 echo "generated from \`docs/import/\` by \`scripts/gen-import-md.sh\`: do not edit by hand. The tests"
 echo "in \`tests/test_render_import.c\` check the same comparisons at 32x32 with fewer samples; here"
-echo "they run at 64x64. A figure is the relative difference of mean radiance, first image against"
+echo "they run at $(m resolution)x$(m resolution). A figure is the relative difference of mean radiance, first image against"
 echo "the second (the reference), over the pixels that see the object (from \`render --mode objects\`)."
 echo
 echo "## The Tungsten Cornell box against the same box in our format"
 echo
 echo "\`data/scenes/cornell_tungsten.json\` (converted on load) against \`data/scenes/cornell_rect.json\`"
-echo "(written by hand), different seeds, so the differences are the two renders' noise."
+echo "(written by hand), different seeds, so the differences include the two renders' noise."
 echo
-echo "| region | path tracing, 1024 spp | photon mapping, 256 spp |"
+echo "| region | path tracing, $(m cornell_path_spp) spp | photon mapping, $(m cornell_pm_spp) spp |"
 echo "|---|---|---|"
 regions tungsten | while IFS= read -r n; do
     echo "| $n | $(cell tungsten "$n" path) | $(cell tungsten "$n" pm) |"
@@ -186,8 +210,8 @@ done
 echo
 echo "## A tessellated OBJ sphere against the analytic sphere"
 echo
-echo "A UV sphere of 128 x 64 segments (16,128 triangles, smooth, the file's normals) against a"
-echo "sphere of the same radius; path tracing, 1024 spp, different seeds."
+echo "A UV sphere of $(m sphere_segments | sed 's/ / x /') segments ($(m sphere_triangles | sed -e :a -e 's/\([0-9]\)\([0-9]\{3\}\)\($\|,\)/\1,\2\3/;ta') triangles, smooth, the file's normals) against a"
+echo "sphere of the same radius; path tracing, $(m sphere_spp) spp, different seeds."
 echo
 echo "| region | OBJ against analytic |"
 echo "|---|---|"
@@ -197,7 +221,7 @@ echo "## Water caustic: photon mapping against path tracing"
 echo
 echo "\`data/scenes/water_caustic.json\`: a glass slab with a wavy top (\`data/meshes/water.obj\`, from"
 echo "\`scripts/gen-mesh.sh water 48 20 80 20 80 40 50 6\`) under an area light. Photon mapping"
-echo "256 spp against path tracing 4096 spp. The caustic is the floor below the slab (a rectangle"
+echo "$(m water_pm_spp) spp against path tracing $(m water_path_spp) spp. The caustic is the floor below the slab (a rectangle"
 echo "of the floor's pixels)."
 echo
 echo "| region | pm against path |"
@@ -206,8 +230,8 @@ regions water | while IFS= read -r n; do echo "| $n | $(cell water "$n" pm) |"; 
 echo
 echo "## Loading 1M triangles"
 echo
-echo "A scene of $(load triangles) triangles, all but 10 of them a UV sphere OBJ ($(load obj_bytes) bytes, with a"
-echo "normal per vertex, smooth), loaded by \`render\` (one thread) three times; medians. The times"
+echo "A scene of $(load triangles) triangles, all but $(( $(load triangles) - $(m load_obj_triangles) )) of them a UV sphere OBJ ($(load obj_bytes) bytes, with a"
+echo "normal per vertex, smooth), loaded by \`render\` (one thread) $(m load_runs | sed 's/^3$/three/') times; medians. The times"
 echo "are render's statistics: \`Time/Mesh loading\` (reading and parsing the file, transforming it,"
 echo "making its smooth normals) and \`Time/BVH build\`, each as wall-clock and as CPU time; and the"
 echo "whole process's CPU time (user + system, with scene setup and an 8x8 1-spp render), from"

@@ -188,8 +188,13 @@ for mode in pm path; do
 done
 echo
 echo "In pm mode the two ranks each build the kd-trees and the precomputed irradiance of the"
-echo "whole map on one thread, where one rank builds them once on two threads: that part does"
-echo "not scale with the ranks. Photon tracing and the pixel pass do."
+echo "whole map on one thread, where one rank builds them once on two threads: that part is not"
+echo "divided among the ranks. Photon tracing and the pixel pass are."
+awk -v t1="$(get pm mpi_1x2 2)" -v t2="$(get pm mpi_2x1 2)" -v k1="$(get pm mpi_1x2 3)" -v k2="$(get pm mpi_2x1 3)" \
+    -v i1="$(get pm mpi_1x2 4)" -v i2="$(get pm mpi_2x1 4)" -v p1="$(get pm mpi_1x2 5)" -v p2="$(get pm mpi_2x1 5)" 'BEGIN {
+  printf "Measured (pm, 2 ranks x 1 thread against 1 rank x 2 threads, time ratios): photon tracing %.2f,\n", t2 / t1
+  printf "pixel pass %.2f, kd-trees %.2f, precomputed irradiance %.2f (1: as fast as two threads in one rank).\n", p2 / p1, k2 / k1, i2 / i1 }'
+
 echo
 echo "### Traffic"
 echo
@@ -230,10 +235,11 @@ awk -F, '
       printf "| %d | %d | %.0f | %.1f | %.1f |\n", r, BP[r], bound(r), BP[r] / N[r], bound(r) / N[1]
     for (r = 8; r <= 64; r *= 2)
       printf "| %d | (model) | %.0f | | %.1f |\n", r, bound(r), bound(r) / N[1]
+    lt = 64 * (ng + 1) + (kc ? 64 * (nc + 1) : 0)
     printf "\nThe last term grows as R squared: once R nears the batches a pass needs (here %d for the\n", kg
-    printf "global pass), most of a round is traced and sent only to be dropped, as the 64-rank line\n"
-    printf "shows for this small map. A production map (millions of photons, hundreds of batches per\n"
-    printf "pass) keeps the term small; smaller batches in the last rounds would curb it.\n"
+    printf "global pass), most of a round is traced and sent only to be dropped; for this map it is\n"
+    printf "%.0f%% of the bound at 64 ranks. A map of hundreds of batches per pass keeps the term\n", 100 * lt / (N[1] + k + lt)
+    printf "small; smaller batches in the last rounds would curb it.\n"
     printf "\nOtherwise the traffic per photon grows as 64 (R - 1) bytes: replicated mode sends every photon to\n"
     printf "every rank, so each rank receives the whole map, about 64 bytes per photon, however many\n"
     printf "ranks there are; the total grows linearly with R. (Exchanging the 20-byte packed records\n"
@@ -258,8 +264,8 @@ awk -F, '
       p1 = 64 * 64; t1 = 16; p2 = 1920 * 1080; t2 = 120 * 68
       printf "| %d | %.2f | %.2f |\n", r, ((r - 1) / r * (24 * p1 + 20 * t1) + (r - 1) * cw) / p1,
              ((r - 1) / r * (24 * p2 + 20 * t2) + (r - 1) * cw) / p2 }
-    printf "\nSo the pixel pass stays near 24 bytes per pixel at any rank count for real image sizes:\n"
-    printf "it is never the bottleneck (a 1920x1080 film is about 50 MB in all).\n\n"
+    p2 = 1920 * 1080; t2 = 120 * 68; b64 = (63 / 64 * (24 * p2 + 20 * t2) + 63 * cw)
+    printf "\nAt 64 ranks the model gives %.2f bytes per pixel for a 1920x1080 film, %.0f MB in all.\n\n", b64 / p2, b64 / 1e6
   }' "$dir/traffic.csv"
 
 # Time model from the 1 rank x 2 threads phases.
@@ -280,9 +286,10 @@ awk -v tr="$tr" -v tt="$tt" -v ti="$ti" -v tp="$tp" -v tw="$tw" -F, '
       t = (tr + tp) / r + tt + ti + other + 64 * N * (r - 1) / r / 1e9
       if (r == 1) t1 = t
       printf "| %d | %.2f | %.2f | %.2f |\n", r, t, t1 / t, t1 / t / r }
-    printf "\nThis small test scene is dominated by the replicated part; a production render (more\n"
-    printf "samples per pixel, so a far larger pixel pass) scales much further, since only the pixel\n"
-    printf "and tracing terms shrink with R. Distributing the kd-tree build and the irradiance\n"
+    rep = tt + ti + other; all = rep + tr + tp
+    printf "\nIn this test scene the part every rank repeats (kd-trees, irradiance, rest) is %.0f%%\n", 100 * rep / all
+    printf "of the 1-rank time; a render with more samples per pixel (a larger pixel pass) scales\n"
+    printf "further, since only the pixel and tracing terms shrink with R. Distributing the kd-tree build and the irradiance\n"
     printf "precomputation (each rank precomputes a share of the records, then an all-gather) is the\n"
     printf "next step for pm scaling.\n\n"
   }' "$dir/traffic.csv"
@@ -374,8 +381,8 @@ echo "(\`$(meas scene)\`, \`$(meas pm_args)\`), 1 thread per rank, replicated"
 echo "and partitioned at the same rank count. Accuracy: the partitioned image's mean over each"
 echo "32x32 quarter against the one-process render's with the shadow-photon map off (the same"
 echo "photons and camera samples, and exact shadow rays in both, so what differs is the estimate"
-echo "alone), the largest over the repetitions. (test-mpi.sh prints,"
-echo "beside its own such figures, how far apart two renders of different seeds are: far more.)"
+echo "alone), the largest over the repetitions. (test-mpi.sh prints, beside its own such"
+echo "figures, how far apart two renders of different seeds are.)"
 pbefore=$(pmeas before)
 if [ -n "$pbefore" ]; then
   echo "Rows \"before\": the partitioned mode of $pbefore, run beside it"
@@ -413,9 +420,13 @@ awk -F, -v before="$pbefore" '
       printf ".\n" }
     printf "\nThe photon tracing of a partitioned run traces each rank'"'"'s photons twice (the counts of\n"
     printf "its rounds, then its part) but exchanges and merges no photons; a replicated run traces\n"
-    printf "once and receives and merges every photon. The precomputed irradiance of a partitioned\n"
-    printf "run is faster, each rank computing its own share of the estimates (a replicated rank\n"
-    printf "computes all of them itself). Its pixel pass traces most samples twice (below), sends\n"
+    faster = 0; nr = 0
+    for (r = 2; r <= 4; r += 2) if ((r " replicated") in n && (r " partitioned") in n) {
+      nr++; if (med(r " partitioned", 7) < med(r " replicated", 7)) faster++ }
+    printf "once and receives and merges every photon. In a partitioned run each rank computes its\n"
+    printf "own share of the precomputed irradiance estimates (a replicated rank computes all of\n"
+    printf "them itself): %s. Its pixel pass traces again each sample that made a query (below), sends\n", \
+      faster == nr ? "faster at every rank count measured" : faster == 0 ? "not faster at any rank count measured" : "faster at some rank counts measured, not all"
     printf "every lookup to every rank, and each rank answers every rank'"'"'s lookups (with their\n"
     printf "visibility rays) from its own records.\n"
     printf "\nTraces of the partitioned runs (all ranks; a sample that made a query is traced again\n"
@@ -485,13 +496,22 @@ awk -F, 'NR > 1 { k = $1 " " $2; if (!(k in hi) || $4 > hi[k]) hi[k] = $4; if (!
       if (c in hi) printf "; partitioned / before: peak memory %.3f (largest rank)", hi[b] / hi[c]
       printf ".\n" }
     printf "\nThe precomputed irradiance itself (its records, radii, indices, lookup tree and free\n"
-    printf "heights, as the partitioned runs report them): each rank now keeps its own records; before,\n"
-    printf "every rank held the records of all ranks (about all parts together):\n\n"
+    printf "heights, as the partitioned runs report them): each rank keeps its own records; before,\n"
+    printf "every rank held the records of all ranks (all parts together):\n\n"
     printf "| ranks | records on the largest rank, KiB | on all ranks, KiB | largest rank / all |\n|---:|---:|---:|---:|\n"
     for (r = 2; r <= 64; r++) if ((r " partitioned") in cmax && cmax[r " partitioned"] > 0) {
       k = r " partitioned"; printf "| %d | %.1f | %.1f | %.3f |\n", r, cmax[k] / 1024, call[k] / 1024, cmax[k] / call[k] }
   }' "$dir/memory.csv"
-cat <<'EOF'
+# Sentences of the text below that state a measurement, computed here and put in its
+# @PLACEHOLDERS@: how the partitioned peak compares with "before" at the most ranks measured
+# with both, and photon tracing's share of the 1 rank x 2 threads pm run.
+peak_vs_before=$(awk -F, 'NR > 1 { k = $1 " " $2; if (!(k in hi) || $4 > hi[k]) hi[k] = $4; R[$1] = 1 }
+  END { best = 0; for (r in R) if ((r " partitioned") in hi && (r " before") in hi && r + 0 > best) best = r + 0
+        if (best) { q = hi[best " partitioned"] / hi[best " before"]
+                    printf "splitting the records changes the largest rank'"'"'s peak by %+.1f%% in this test at %d ranks (the \"before\" rows)", 100 * (q - 1), best }
+        else printf "the \"before\" rows are not measured here" }' "$dir/memory.csv")
+tracing_share=$(awk -v tr="$(get pm mpi_1x2 2)" -v tw="$(get pm mpi_1x2 1)" 'BEGIN { printf "%.0f%%", 100 * tr / tw }')
+sed -e "s|@PEAK_VS_BEFORE@|$peak_vs_before|" -e "s|@TRACING_SHARE@|$tracing_share|" <<'EOF'
 
 A replicated rank holds the whole maps through the pass (64 bytes per stored photon while
 tracing, then the 20-byte packed records and their kd-tree) plus the round being exchanged,
@@ -503,8 +523,7 @@ tree); the rest of its peak (the scene, the OpenMPI library and buffers, the fil
 depend on the map. Before, every rank also received the whole precomputed irradiance (28
 bytes a record from every rank) and built its lookup structure over all of it. A partitioned
 rank's peak comes in its photon pass (its part as 64-byte records while it traces it), before
-the precomputed irradiance exists, so splitting the records barely moves the peak in this
-test (the "before" rows); it divides by R what a rank holds for the pixel pass (the table
+the precomputed irradiance exists, so @PEAK_VS_BEFORE@; it divides by R what a rank holds for the pixel pass (the table
 above), which is what matters where the maps themselves are too large for one machine.
 
 The photon exchange of a partitioned render is, with B batches of
@@ -520,22 +539,22 @@ replicated exchange sends about 64 bytes per stored photon to each other rank.
 What is not partitioned yet, and what differs from the replicated image:
 
 - **The photon pass traces a rank's photons twice**: once for the counts in its rounds, once
-  for its part (a rank that traced a batch in its rounds may not keep it). Tracing is a
-  small part of a pm render here (see the timers above), and each rank traces about
+  for its part (a rank that traced a batch in its rounds may not keep it). Tracing is
+  @TRACING_SHARE@ of the 1 rank x 2 threads pm run's wall time here (the timers above), and each rank traces about
   2/R of the photons, where a replicated rank traces 1/R and receives the rest.
 - **Filters.** A cone or Gaussian filter (the caustic estimate's; a cone by default) is
   combined as f R ΣS_m / ΣA_m: each part's filtered power S_m and area A_m (π r_m² times
   the filter's norm) measured against its own radius r_m. Each part has a rim photon, of the
   filter's rim weight, where one map of the same photons has one: f puts the expected
   weighted sum back to one map's ((n - 1)/(n - R) for the default cone, whose rim weight is
-  0; without it the caustics of R = 4 parts of k = 60 read 5% low). The hull and
+  0). The hull and
   differential filters have no combined form here and become the combined disc.
 - **No shadow-photon map**: every shadow ray is traced, which is exact, and slower where the
   map would have decided. The replicated image has the map's approximation where the map
   decides, and since the photon mapper also samples the light at every gather hit that is
   a visible difference of its own, larger than the partitioning's: so the accuracy above and
   the test's oracle are the one-process render with the map off (`--pm shadow=false`).
-- **Most samples are traced twice** (see the traces table): a sample that makes a query is
+- **A sample that makes a query is traced at least twice** (the traces table counts them): it is
   traced to find its queries (on guesses), then again with the answers, and a third time
   where a guessed lookup was wrong. A sample without queries is traced once, and so is one
   whose guesses all were the answers (its lookups' records on the tracing rank, or found
@@ -585,9 +604,7 @@ the answering work of the other ranks or the waits.
   must be started again, or resumed from its last checkpoint.
 - Media: the photon passes of a scene with media (`volume.c`, which makes its surface
   photons too) are split over the ranks by batch and all-gathered in both modes, so every
-  rank holds the whole volume maps; partitioned mode then keeps 1/R of the surface maps only
-  (cornell_fog and glass_of_smoke at -np 2: quarters within 0.04% of render, measured by
-  mpib).
+  rank holds the whole volume maps; partitioned mode then keeps 1/R of the surface maps only.
 - Statistics: the pixel pass's counters are the sum over ranks; the preprocessing counters
   (photons stored, their rays) are rank 0's, whose maps are every rank's.
 EOF

@@ -10,6 +10,7 @@
  *   -j N runs N tests at once (default: PM_TEST_JOBS, else 2). Each child's output is
  *   captured and printed whole when it ends, so parallel output does not interleave.
  *   PM_TEST_TIMEOUT (seconds, default 300) kills a test that runs too long.
+ * FIXTURE bodies (test.h) are left out, unlisted and uncounted, unless PM_TEST_INNER is set.
  * A test that cannot run here (a missing tool) calls SKIP("reason"): its child exits with
  * PM_TEST_SKIP_STATUS, and it is neither passed nor failed. The skipped tests are listed with
  * their reasons before the last line, "N passed, N failed, N skipped"; the exit status is 1
@@ -19,6 +20,7 @@
 #include "test.h"
 
 #include <errno.h>
+#include <grp.h>
 #include <signal.h>
 #include <stdarg.h>
 #include <stdint.h>
@@ -34,6 +36,7 @@ typedef struct {
     const char *name, *file;
     pm_test_fn fn;
     int timed;          /* cpu and wall hold a measurement (read from --times or just made) */
+    int fixture;        /* FIXTURE: run only when PM_TEST_INNER is set */
     double cpu, wall;
 } test_entry;
 
@@ -47,13 +50,19 @@ static int g_failures;       /* in the child: failures of the running test */
 static int g_skipped;        /* in the child: the running test called SKIP */
 static char g_tmpdir[512];
 
-void pm_test_register(const char *name, const char *file, pm_test_fn fn) {
+static void add_entry(const char *name, const char *file, pm_test_fn fn, int fixture) {
     if (g_ntests == g_cap) {
         g_cap = g_cap ? 2 * g_cap : 64;
         g_tests = realloc(g_tests, (size_t)g_cap * sizeof *g_tests);
         if (!g_tests) abort();
     }
-    g_tests[g_ntests++] = (test_entry){name, file, fn, 0, 0, 0};
+    g_tests[g_ntests++] = (test_entry){.name = name, .file = file, .fn = fn, .fixture = fixture};
+}
+
+void pm_test_register(const char *name, const char *file, pm_test_fn fn) { add_entry(name, file, fn, 0); }
+
+void pm_test_register_fixture(const char *name, const char *file, pm_test_fn fn) {
+    add_entry(name, file, fn, 1);
 }
 
 void pm_test_fail(const char *file, int line, const char *fmt, ...) {
@@ -126,6 +135,49 @@ int pm_test_run(const char *cmd, char *buf, size_t cap) {
     return WEXITSTATUS(status);
 }
 
+int pm_test_unprivileged(void (*fn)(void *), void *arg, char *why, size_t cap) {
+    int status;
+    pid_t pid;
+    fflush(NULL);
+    if ((pid = fork()) < 0) {
+        snprintf(why, cap, "fork: %s", strerror(errno));
+        return -1;
+    }
+    if (pid == 0) {
+        if (geteuid() == 0 && (setgroups(0, NULL) != 0 || setgid(PM_TEST_NOBODY) != 0 ||
+                               setuid(PM_TEST_NOBODY) != 0))
+            _exit(PM_TEST_SKIP_STATUS);
+        g_failures = 0;
+        fn(arg);
+        fflush(NULL);
+        _exit(g_failures > 100 ? 100 : g_failures);
+    }
+    if (waitpid(pid, &status, 0) != pid || !WIFEXITED(status)) {
+        snprintf(why, cap, "the unprivileged child did not exit normally");
+        g_failures++;
+        return 1;
+    }
+    if (WEXITSTATUS(status) == PM_TEST_SKIP_STATUS) {
+        snprintf(why, cap, "running as root and cannot drop to uid %d (setuid: not permitted here)",
+                 PM_TEST_NOBODY);
+        return -1;
+    }
+    g_failures += WEXITSTATUS(status);
+    return WEXITSTATUS(status);
+}
+
+const char *pm_test_unprivileged_prefix(char *why, size_t cap) {
+    static const char prefix[] = "setpriv --reuid=65534 --regid=65534 --clear-groups ";
+    char cmd[256];
+    if (geteuid() != 0) return "";
+    snprintf(cmd, sizeof cmd, "%s sh -c 'test \"$(id -u)\" = 65534'", prefix);
+    if (pm_test_run(cmd, NULL, 0) != 0) {
+        snprintf(why, cap, "running as root and setpriv cannot drop to uid %d here", PM_TEST_NOBODY);
+        return NULL;
+    }
+    return prefix;
+}
+
 static double now_s(void) {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -164,7 +216,11 @@ static int matches(const test_entry *t, int npat, char **pat) {
     return 0;
 }
 
+/* Fixtures (FIXTURE) run only inside the runner's own tests, which set PM_TEST_INNER. */
 static int selected(const test_entry *t, int npat, char **pat, int nexcl, char **excl) {
+    static int inner = -1;
+    if (inner < 0) inner = getenv("PM_TEST_INNER") != NULL;
+    if (t->fixture && !inner) return 0;
     return (npat == 0 || matches(t, npat, pat)) && !matches(t, nexcl, excl);
 }
 

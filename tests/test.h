@@ -21,6 +21,10 @@
  * Every test checks values against an oracle (brute force, an analytic answer or a long
  * reference) with a stated tolerance: say which in a comment above the test.
  *
+ * FIXTURE(name) { ... } declares a body the runner's own tests run in an inner runner (a test
+ * that fails or skips on purpose). It is not a test: the runner leaves it out, unlisted and
+ * uncounted, unless PM_TEST_INNER is set in the environment.
+ *
  * Helpers: pm_test_build_dir() is the build directory (binaries: render, bench_*, the example),
  * pm_test_source_dir() the repository root, pm_test_tmpdir() a fresh directory for this test.
  */
@@ -40,6 +44,7 @@
 
 typedef void (*pm_test_fn)(void);
 void pm_test_register(const char *name, const char *file, pm_test_fn fn);
+void pm_test_register_fixture(const char *name, const char *file, pm_test_fn fn);
 void pm_test_fail(const char *file, int line, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 int pm_test_failed(void);
@@ -49,6 +54,17 @@ void pm_test_skip(const char *reason);
 const char *pm_test_build_dir(void);
 const char *pm_test_source_dir(void);
 const char *pm_test_tmpdir(void);
+/* Permission cases (a directory without write permission) mean nothing to root, who writes
+ * anyway. pm_test_unprivileged runs fn(arg) in a forked child as this user when it is not root,
+ * and as root after dropping to nobody (uid and gid 65534, no supplementary groups); it returns
+ * the number of failures the child recorded (0: it passed), or -1 with the reason in why when
+ * the privileges cannot be dropped (then SKIP). pm_test_unprivileged_prefix is the same for a
+ * shell command: "" when not root, else a setpriv prefix that runs the command as nobody, or
+ * NULL with the reason. Files the unprivileged side must reach need o+x on every directory
+ * above them (pm_test_tmpdir() is 0700: chmod it). */
+#define PM_TEST_NOBODY 65534
+int pm_test_unprivileged(void (*fn)(void *), void *arg, char *why, size_t cap);
+const char *pm_test_unprivileged_prefix(char *why, size_t cap);
 /* Run a shell command, capturing combined stdout+stderr into buf (NUL-terminated, truncated
  * to cap). Returns the exit status (0..255), or -1 if it could not run or was killed. */
 int pm_test_run(const char *cmd, char *buf, size_t cap);
@@ -57,6 +73,13 @@ int pm_test_run(const char *cmd, char *buf, size_t cap);
     static void name(void);                                                          \
     __attribute__((constructor)) static void name##__register(void) {                \
         pm_test_register(#name, __FILE__, name);                                     \
+    }                                                                                \
+    static void name(void)
+
+#define FIXTURE(name)                                                                \
+    static void name(void);                                                          \
+    __attribute__((constructor)) static void name##__register(void) {                \
+        pm_test_register_fixture(#name, __FILE__, name);                             \
     }                                                                                \
     static void name(void)
 

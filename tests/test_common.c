@@ -25,11 +25,17 @@ TEST(runner_reports_failures) {
     int rc = pm_test_run(cmd, out, sizeof out);
     ASSERT_EQ_INT(rc, 1);
     ASSERT_MSG(strstr(out, "\n0 passed, 1 failed, 0 skipped\n") != NULL, "runner printed: %s", out);
+    /* Without PM_TEST_INNER the fixtures are not tests: not run, not listed, not counted. */
+    snprintf(cmd, sizeof cmd, "env -u PM_TEST_INNER %s/run_tests harness_", pm_test_build_dir());
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strcmp(out, "0 passed, 0 failed, 0 skipped\n") == 0, "runner printed: %s", out);
+    snprintf(cmd, sizeof cmd, "env -u PM_TEST_INNER %s/run_tests --list harness_", pm_test_build_dir());
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(out[0] == 0, "--list printed: %s", out);
 }
 
-TEST(harness_always_fails_inner) {
-    /* Only meaningful when run by runner_reports_failures; passes when run normally. */
-    if (getenv("PM_TEST_INNER")) ASSERT_MSG(0, "deliberate failure (inner run)");
+FIXTURE(harness_always_fails_inner) {
+    ASSERT_MSG(0, "deliberate failure (inner run)");
 }
 
 /* Oracle: the runner's documented output. A test that calls SKIP is counted as skipped (not
@@ -80,14 +86,12 @@ TEST(runner_quick_leaves_out_recorded_slow_tests) {
                "times file not updated: %s", out);
 }
 
-TEST(harness_skips_inner) {
-    /* Only meaningful when run by runner_reports_skips; passes when run normally. */
-    if (getenv("PM_TEST_INNER")) SKIP("no such tool here");
+/* The fixtures of the runner's tests above: run only in their inner runs (PM_TEST_INNER). */
+FIXTURE(harness_skips_inner) {
+    SKIP("no such tool here");
 }
 
-TEST(harness_fails_then_skips_inner) {
-    if (getenv("PM_TEST_INNER")) {
-        EXPECT_MSG(0, "deliberate failure (inner run)");
-        SKIP("too late: it failed already");
-    }
+FIXTURE(harness_fails_then_skips_inner) {
+    EXPECT_MSG(0, "deliberate failure (inner run)");
+    SKIP("too late: it failed already");
 }

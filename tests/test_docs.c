@@ -169,3 +169,44 @@ TEST(docs_media_md_stamps_the_measurement) {
         EXPECT_MSG(pm_test_run(cmd, out, sizeof out) == 0 && strstr(out, scripts[i]), "%s --help: %s", scripts[i], out);
     }
 }
+
+/* Oracle: the definition of the column. docs/MEDIA.md's cost table gives, per case, the lowest
+ * and the highest of the run-by-run after / before ratios: the lowest is never above the
+ * highest (the column once printed the ratio of the minima over that of the maxima, and a
+ * "minimum" above the "maximum"). Each is recomputed from docs/media/cost.csv (runs paired by
+ * run number) to 0.0005, the table's rounding. */
+TEST(docs_media_cost_column_is_lowest_and_highest) {
+    char cmd[4096], out[8192];
+    snprintf(cmd, sizeof cmd,
+             "cd '%s/docs' && awk -F, 'NR > 1 { t[$1 SUBSEP $2 SUBSEP $3] = $4; c[$1] = 1; b[$2] = 1 }"
+             " END { for (k in c) print k }' media/cost.csv | sort", pm_test_source_dir());
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    int cases = 0;
+    for (char *line = strtok(out, "\n"); line; line = strtok(NULL, "\n")) {
+        char name[256], row[8192], *p;
+        double lo = 0, hi = 0, want_lo = 0, want_hi = 0;
+        snprintf(name, sizeof name, "%s", line);
+        snprintf(cmd, sizeof cmd, "grep '^| %s |' '%s/docs/MEDIA.md'", name, pm_test_source_dir());
+        if (pm_test_run(cmd, row, sizeof row) != 0) continue;
+        p = strrchr(row, '|');
+        if (p) *p = 0;
+        p = strrchr(row, '|');
+        ASSERT_MSG(p && sscanf(p, "| %lf / %lf", &lo, &hi) == 2, "row: %s", row);
+        snprintf(cmd, sizeof cmd,
+                 "cd '%s/docs' && b0=$(awk '$1 == \"before\" { print $2 }' media/cost_measurement.txt) && "
+                 "b1=$(awk '$1 == \"after\" { print $2 }' media/cost_measurement.txt) && "
+                 "awk -F, -v c='%s' -v b0=\"$b0\" -v b1=\"$b1\" '$1 == c && $2 == b0 { t0[$3] = $4 } "
+                 "$1 == c && $2 == b1 { t1[$3] = $4 } END { lo = 1e9; hi = -1e9; for (r in t0) if (r in t1) "
+                 "{ q = t1[r] / t0[r]; if (q < lo) lo = q; if (q > hi) hi = q } printf \"%%.6f %%.6f\", lo, hi }' "
+                 "media/cost.csv",
+                 pm_test_source_dir(), name);
+        char got[256];
+        ASSERT_EQ_INT(pm_test_run(cmd, got, sizeof got), 0);
+        ASSERT(sscanf(got, "%lf %lf", &want_lo, &want_hi) == 2);
+        EXPECT_MSG(lo <= hi, "%s: lowest %.3f above highest %.3f", name, lo, hi);
+        EXPECT_NEAR(lo, want_lo, 0.0005);
+        EXPECT_NEAR(hi, want_hi, 0.0005);
+        cases++;
+    }
+    EXPECT_MSG(cases >= 1, "no cost row of docs/media/cost.csv found in docs/MEDIA.md");
+}

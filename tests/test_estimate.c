@@ -885,6 +885,11 @@ TEST(estimate_parallel_matches_serial) {
     EXPECT(memcmp(serial, par, sizeof *par * Q * PM_EST_COUNT_) == 0);
     pm_kdtree_free(tree);
     free(qs), free(serial), free(par), free_square(&sq);
+#ifndef _OPENMP
+    /* OPENMP=0: the "parallel" pass was the serial loop again, so the comparison could not
+     * fail. */
+    SKIP("built without OpenMP (OPENMP=0): the parallel lookups are the serial ones here");
+#endif
 }
 
 /* Oracle: the disc estimate's own flag. For every estimator, PM_EST_F_FAR is set, and the
@@ -1048,4 +1053,44 @@ TEST(bench_estimate_accuracy_tables) {
     EXPECT_EQ_INT(rows, 4 * 2 * 3 * 7);
     EXPECT_EQ_INT(checked, 6);
     EXPECT_MSG(hull02 > hull0, "random k=15: hull %g, boundary 0 %g", hull02, hull0);
+}
+
+/* Oracle: estimate.h's GUARANTEES ("a non-finite x or normal gives PM_ENONFINITE"). For every
+ * estimator, through the core (with a list of real neighbours) and through the wrapper, and for
+ * the combined estimate: a normal with a NaN, +inf or -inf component gives PM_ENONFINITE and a
+ * zero estimate; the same calls with the finite normal give PM_OK and a positive value, so the
+ * refusal is the normal's doing. */
+TEST(estimate_non_finite_normal_refused) {
+    square sq;
+    make_square(&sq, 11, RANDOM);
+    pm_kdtree *tree = NULL;
+    pm_kdtree_config cfg = pm_kdtree_photon_config(4);
+    ASSERT_EQ_INT(pm_kdtree_build(&tree, sq.ph, SIDE * SIDE, &cfg, NULL), PM_OK);
+    const pm_photon *tp = pm_kdtree_records(tree);
+    const float x[3] = {0.5f, 0.5f, 0};
+    const float bad[3][3] = {{NAN, 0, 1}, {0, INFINITY, 1}, {0, 0, -INFINITY}};
+    enum { K = 30 };
+    pm_neighbor nb[K];
+    void *scratch = malloc(pm_estimate_scratch_bytes(K));
+    ASSERT(scratch);
+    int found = pm_kdtree_knn(tree, x, K, INFINITY, nb, 0, NULL);
+    ASSERT_EQ_INT(found, K);
+    for (int kind = 0; kind < PM_EST_COUNT_; kind++) {
+        pm_estimate_options o;
+        pm_estimate_result r;
+        pm_estimate_options_init(&o, (pm_estimator)kind, K);
+        EXPECT_EQ_INT(pm_estimate(tree, x, UP, &o, scratch, &r, NULL), PM_OK);
+        EXPECT_MSG(r.rgb[0] > 0, "%s: finite normal gave %g", pm_estimator_name((pm_estimator)kind), r.rgb[0]);
+        EXPECT_EQ_INT(pm_estimate_core(tp, nb, K, x, UP, &o, scratch, &r), PM_OK);
+        EXPECT(r.rgb[0] > 0);
+        for (int b = 0; b < 3; b++) {
+            EXPECT_EQ_INT(pm_estimate(tree, x, bad[b], &o, scratch, &r, NULL), PM_ENONFINITE);
+            EXPECT(r.rgb[0] == 0 && r.rgb[1] == 0 && r.rgb[2] == 0);
+            EXPECT_EQ_INT(pm_estimate_core(tp, nb, K, x, bad[b], &o, scratch, &r), PM_ENONFINITE);
+            EXPECT(r.rgb[0] == 0 && r.rgb[1] == 0 && r.rgb[2] == 0);
+        }
+    }
+    free(scratch);
+    pm_kdtree_free(tree);
+    free_square(&sq);
 }

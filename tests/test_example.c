@@ -12,14 +12,46 @@
 
 #include "test.h"
 #include "common.h"
+#include "photon.h"
 
-/* Oracle: the analytic flux density of the example's scene. It stores N = 100000 photons
- * uniformly on the unit square, each of power (1e-5, 1e-5, 0.8e-5), so the true density is
- * (1, 1, 0.8); a 50-photon disc estimate has a relative noise of about 1/sqrt(50) = 14%, and
- * the program is deterministic, so the printed density must be within 30% of 1 (about 2
- * sigma), and the third channel 0.8 of the first within the RGBE rounding (2^-8 of each
- * photon, 1% here). Building is checked by the Makefile; this checks that what was built
- * works, linked either way. */
+/* Oracle: brute force. The example is deterministic: it stores N = 100000 photons at points
+ * of a fixed LCG on the unit square (power 1e-5, 1e-5, 0.8e-5 each), finds the K = 50 nearest
+ * to (0.5, 0, 0.5) within dist2 0.01 and prints sum(power) / (pi r2) with r2 the 50th dist2.
+ * The same points, sorted by dist2 here, give that r2; the powers are the RGBE-decoded
+ * photon's (all equal). The printed density must match to its printed 4 significant digits
+ * (relative 5e-4, plus float rounding: tolerance 1e-3, so a 1.2x error fails by 200 times
+ * the tolerance), the nearest and farthest dist2 to their 3 printed digits (5e-3), and the
+ * density is within 15% of the analytic 1 (about 1/sqrt(50), the noise of a 50-photon
+ * estimate: a sanity check on the oracle itself). Building is checked by the Makefile; this
+ * checks that what was built works, linked either way. */
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static void example_oracle(double *density, double *near2, double *far2) {
+    enum { N = 100000, K = 50 };
+    static double d2[N];
+    unsigned seed = 1;
+    for (int i = 0; i < N; i++) {
+        seed = seed * 1664525u + 1013904223u;
+        float x = (float)(seed >> 8) / 16777216.0f;
+        seed = seed * 1664525u + 1013904223u;
+        float z = (float)(seed >> 8) / 16777216.0f;
+        float dx = x - 0.5f, dz = z - 0.5f;
+        d2[i] = (double)(dx * dx + dz * dz);
+    }
+    qsort(d2, N, sizeof *d2, cmp_double);
+    pm_photon p;
+    float c[3];
+    pm_photon_init(&p, (float[3]){0, 0, 0}, (float[3]){1e-5f, 1e-5f, 0.8e-5f}, (float[3]){0, -1, 0},
+                   (float[3]){0, 1, 0}, PM_KIND_INDIRECT);
+    pm_rgbe_decode(p.power, c);
+    *near2 = d2[0];
+    *far2 = d2[K - 1];
+    *density = K * (double)c[0] / (3.14159265 * d2[K - 1]);
+}
+
 static void check_example(const char *name) {
     char cmd[2048], out[4096];
     snprintf(cmd, sizeof cmd, "%s/example/%s", pm_test_build_dir(), name);
@@ -27,13 +59,18 @@ static void check_example(const char *name) {
     if (access(cmd, X_OK) != 0) return;
     EXPECT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
     int found = 0;
-    double d[3] = {0, 0, 0};
+    double d[3] = {0, 0, 0}, n2 = 0, f2 = 0, want, want_n2, want_f2;
+    example_oracle(&want, &want_n2, &want_f2);
     const char *p = strstr(out, "found ");
-    EXPECT_MSG(p && sscanf(p, "found %d photons", &found) == 1, "%s: %s", name, out);
+    EXPECT_MSG(p && sscanf(p, "found %d photons, nearest dist2 %lf, farthest dist2 %lf", &found, &n2, &f2) == 3,
+               "%s: %s", name, out);
     EXPECT_EQ_INT(found, 50);
+    EXPECT_REL(n2, want_n2, 5e-3);
+    EXPECT_REL(f2, want_f2, 5e-3);
     p = strstr(out, "flux density ");
     EXPECT_MSG(p && sscanf(p, "flux density %lf %lf %lf", &d[0], &d[1], &d[2]) == 3, "%s: %s", name, out);
-    EXPECT_NEAR(d[0], 1.0, 0.3);
+    EXPECT_REL(d[0], want, 1e-3);
+    EXPECT_REL(want, 1.0, 0.15);
     EXPECT_REL(d[1], d[0], 1e-6);
     EXPECT_REL(d[2], 0.8 * d[0], 0.01);
     snprintf(cmd, sizeof cmd, "%s/example/%s --help", pm_test_build_dir(), name);

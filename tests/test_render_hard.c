@@ -154,8 +154,8 @@ TEST(render_hard_shelf_glass_regions) {
  * over those 21 renders, but path tracing itself moves them -1.2% and +5.4% against the
  * reference at 1M and 512K spp (a pixel's path-traced noise is still +-10% at 1M spp), so that
  * is not shown to be a bias either (these checks ran before the dark-side rule). The bounds:
- * whole 5%, patch 5%, walls 5% (the issue's); the walls' bound is 2.2 of their standard
- * deviations above their mean, so a new seed would land outside it about 1 time in 60 (a
+ * whole 5%, patch 5%, walls 5% (the target set for this scene); the walls' bound is 2.2 of
+ * their standard deviations above their mean, so a new seed would land outside it about 1 time in 60 (a
  * normal law), and the test's seed 1 reads +1.10%. */
 TEST(render_hard_pinhole_room_regions) {
     const region r[] = {{"whole image", 0, 0, 8, 8, 0.05},

@@ -456,8 +456,8 @@ static const char *k_furnace1 =
     "  {\"type\": \"quad\", \"vertices\": [[6,9.99,4],[6,9.99,6],[4,9.99,6],[4,9.99,4]], \"material\": \"lamp\"}],"
     " \"render\": {\"max_depth\": 100000}}";
 
-/* Oracle: PASS BUDGETS (photon_trace.h) and the issue's runaway furnace. With 16 MiB of photon
- * buffers and photons allowed 1e6 bounces, one batch of 4096 photons would store far more
+/* Oracle: PASS BUDGETS (photon_trace.h) on a runaway furnace (k_furnace1: its photons never
+ * die). With 16 MiB of photon buffers and photons allowed 1e6 bounces, one batch of 4096 photons would store far more
  * than the budget: the pass ends at once (the plan's pilot keeps the user's budget too), exit
  * 1, the message names the budget and the scene file, nothing written (before: past 1.46 GB of
  * memory in 12 s, still running at 90 s). With 16 bounces the same budget lets some batches
