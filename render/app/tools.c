@@ -68,10 +68,11 @@ int cli_parse_positive(const char *s, double *out) {
     return 0;
 }
 
-static int read_pfm_or_say(film *f, const char *path) {
-    int rc = film_read_pfm(f, path);
+static int read_pfm_or_say(film *f, const char *path) { /* PFM or OpenEXR (film_read_image) */
+    char err[600];
+    int rc = film_read_image(f, path, err, sizeof err);
     if (rc < 0)
-        fprintf(stderr, "render: %s: %s\n", path, render_strerror(rc));
+        fprintf(stderr, "render: %s\n", err);
     return rc;
 }
 

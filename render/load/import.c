@@ -103,6 +103,10 @@ int mesh_object_read(const cJSON *o, const char *P, mesh_data *m, int *smooth, i
         mesh_free(m);
         return json_fail(e, PM_EINVAL, "%s.transform: %s", P, err);
     }
+    if (rc == 0 && m->nskipped > 0) /* one counted warning per file (mesh.h) */
+        fprintf(stderr, "render: %s: warning: %s.file: skipped %ld degenerate face%s (zero area: repeated or "
+                "collinear corners; the first at %s), kept %d triangles\n", file, P, m->nskipped,
+                m->nskipped == 1 ? "" : "s", m->first_skip, m->ntris);
     if (rc == 0) rc = mesh_transform(m, (const double(*)[4])M, file, err, sizeof err);
     if (rc == 0 && *smooth && mesh_smooth_normals(m, recompute) < 0) {
         rc = PM_ENOMEM;
