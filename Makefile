@@ -123,7 +123,8 @@ RENDER_BIN := $(BUILD)/render
 BENCH_BINS := $(BENCH_MAIN:bench/%.c=$(BUILD)/%)
 TEST_BIN   := $(BUILD)/run_tests
 
-RENDER_LIBS := -lcjson -lpng -lz -lm
+# OpenEXRCore: the C API of libopenexr-dev (render/image/exr.c), not the C++ library.
+RENDER_LIBS := -lcjson -lpng -lOpenEXRCore -lz -lm
 FLANN_LIBS  := -lflann -lm
 
 .PHONY: all lib render bench-bin tests test check run bench bench-quick results install \
@@ -143,7 +144,7 @@ DEPS_GOALS := deps run test check bench bench-quick results
 DEPS_FIRST := $(if $(filter $(DEPS_GOALS),$(MAKECMDGOALS)),deps)
 deps:
 	@if ! command -v pkg-config >/dev/null 2>&1 || ! command -v $(CC) >/dev/null 2>&1 \
-	    || ! pkg-config --exists libcjson libpng flann 2>/dev/null \
+	    || ! pkg-config --exists libcjson libpng flann OpenEXR 2>/dev/null \
 	    || ! [ -x /usr/bin/time ]; then \
 	    sh scripts/install-deps.sh; fi
 

@@ -16,8 +16,9 @@
 # every package a step needs is named here, never left to a recommendation.
 set -eu
 
-# Needed to build and test: compiler, pkg-config, the three libraries, GNU time (/usr/bin/time).
-BASE="build-essential pkg-config libflann-dev libcjson-dev libpng-dev time"
+# Needed to build and test: compiler, pkg-config, the four libraries (OpenEXR: its C API,
+# OpenEXRCore, for --hdr x.exr), GNU time (/usr/bin/time).
+BASE="build-essential pkg-config libflann-dev libcjson-dev libpng-dev libopenexr-dev time"
 # Needed by `make bench` and the plot scripts.
 BENCH="gnuplot-nox valgrind"
 # Needed by .ci/run: clang, its OpenMP runtime (libomp, with the Archer tool TSan uses) and

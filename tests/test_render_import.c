@@ -119,8 +119,7 @@ TEST(obj_errors_name_line_and_reason) {
          "t.obj:2: v: coordinate 3 is too long a number"}, /* never cut short silently */
         {"v 0 0 0\nv 1 0 0\nv 0 1 0\n", "t.obj: empty mesh"},
         {"# nothing\n", "t.obj: empty mesh"},
-        {"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "t.obj:4: degenerate face"},
-        {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 1 2\n", "t.obj:4: degenerate face"},
+        {"v 0 0 0\nv 1 0 0\nv 2 0 0\nf 1 2 3\n", "t.obj: empty mesh: all 1 faces are degenerate (zero area; the first at line 4)"},
         {"v 0 0 0\nv 1 0 0\nf 1 2\n", "t.obj:3: f: a face needs at least 3 corners, got 2"},
         {"v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//2 3//1\n", "t.obj:5: normal index 2 out of range"},
         {"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3x\n", "t.obj:4: f: corner 3: unexpected character 'x'"},
@@ -199,8 +198,8 @@ TEST(wo3_reads_tungsten_layout) {
 }
 
 /* Oracle: the byte offset and reason of each corruption of the tetrahedron: cut at every
- * length (truncated), one byte too many, a NaN position, an index out of range, no triangle,
- * a degenerate triangle. */
+ * length (truncated), one byte too many, a NaN position, an index out of range, no triangle;
+ * a degenerate triangle is skipped and counted (3 of 4 kept, its byte offset kept). */
 TEST(wo3_errors_name_byte_offset) {
     unsigned char b[256], c[256];
     size_t n = tetra_wo3(b);
@@ -223,9 +222,12 @@ TEST(wo3_errors_name_byte_offset) {
     EXPECT_MSG(wo3_parse(c, n, "t.wo3", &m, err, sizeof err) < 0 &&
                strstr(err, "byte 200: triangle 3: vertex index 4 out of range"), "%s", err);
     memcpy(c, b, n);
-    put_u32(c + 144 + 16 * 1 + 4, 0); /* triangle 1: 0 0 3 */
-    EXPECT_MSG(wo3_parse(c, n, "t.wo3", &m, err, sizeof err) < 0 && strstr(err, "byte 160: triangle 1: degenerate"),
-               "%s", err);
+    put_u32(c + 144 + 16 * 1 + 4, 0); /* triangle 1: 0 0 3: skipped and counted, not an error */
+    EXPECT_MSG(wo3_parse(c, n, "t.wo3", &m, err, sizeof err) == 0, "%s", err);
+    EXPECT_EQ_INT(m.ntris, 3);
+    EXPECT_EQ_INT(m.nskipped, 1);
+    EXPECT_MSG(strcmp(m.first_skip, "byte 160 (triangle 1)") == 0, "%s", m.first_skip);
+    mesh_free(&m);
     memcpy(c, b, 144);
     put_u64(c + 136, 0); /* no triangle */
     EXPECT_MSG(wo3_parse(c, 144, "t.wo3", &m, err, sizeof err) < 0 && strstr(err, "empty mesh"), "%s", err);
@@ -821,8 +823,6 @@ TEST(tungsten_unsupported_is_an_error_naming_path) {
         {"{\"type\": \"mesh\", \"file\": \"m.obj\", \"bsdf\": \"w\", \"backface_culling\": true}", "",
          "$.primitives[0].backface_culling: true is not supported"},
         {"{\"type\": \"quad\", \"bsdf\": \"w\"}", ", \"integrator\": {\"min_bounces\": 2}", "$.integrator.min_bounces"},
-        {"{\"type\": \"quad\", \"bsdf\": \"w\"}", ", \"integrator\": {\"type\": \"bidirectional_path_tracer\"}",
-         "$.integrator.type: integrator \"bidirectional_path_tracer\""},
         {"{\"type\": \"quad\", \"bsdf\": \"w\"}", ", \"textures\": []", "$.textures: not supported"},
         {"{\"type\": \"quad\", \"bsdf\": \"w\", \"emission\": [1, -1, 1]}", "", "$.primitives[0].emission"},
         /* our ranges (scene.h), named by the Tungsten file's paths */
@@ -1286,4 +1286,134 @@ TEST(tungsten_mesh_power_and_transform) {
     EXPECT_NEAR(s.tris[3].v0.x, 1 + 2 * 1, 1e-12); /* triangle 3 starts at vertex 1 = (1, 0, 0) */
     EXPECT_EQ_INT(s.ntri_ns, 4);
     scene_free(&s);
+}
+
+/* ---- 6. issue 29's quick wins -------------------------------------------------------------- */
+
+/* Oracle: JSON's number grammar (RFC 8259: -?(0|[1-9][0-9]*)(.[0-9]+)?([eE][+-]?[0-9]+)?),
+ * which cJSON does not enforce: each bad number is refused with its line, column and JSON
+ * path; the good ones (and digits inside strings) load. Through render: exit 2, the file named,
+ * no image. */
+TEST(json_leading_zeros_refused_with_path) {
+    static const struct {
+        const char *num, *want;
+    } bad[] = {
+        {"01", "line 2, column 64: $.objects[0].radius: the number 01 has a leading zero (JSON forbids it)"},
+        {"-01", "line 2, column 64: $.objects[0].radius: the number -01 has a leading zero"},
+        {"00", "line 2, column 64: $.objects[0].radius: the number 00 has a leading zero"},
+        {"007.5", "line 2, column 64: $.objects[0].radius: the number 007.5 has a leading zero"},
+        {"1.", "line 2, column 64: $.objects[0].radius: the number 1. has no digit after its decimal point"},
+        {"1.e2", "line 2, column 64: $.objects[0].radius: the number 1.e2 has no digit after its decimal point"},
+    };
+    static const char *const good[] = {"1", "0.5", "10", "1e0", "1.0E+0", "100e-2", "0.1e1"};
+    char t[1024];
+    for (size_t i = 0; i < sizeof bad / sizeof *bad + sizeof good / sizeof *good; i++) {
+        int is_bad = i < sizeof bad / sizeof *bad;
+        const char *num = is_bad ? bad[i].num : good[i - sizeof bad / sizeof *bad];
+        snprintf(t, sizeof t, "{\"camera\": {\"eye\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 4, \"height\": 4, \"comment\": \"01\"},\n"
+                 " \"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": %s, \"material\": \"w\"}],\n"
+                 " \"materials\": {\"w\": {\"type\": \"lambert\", \"reflectance\": 0.5, \"emission\": 1}}}", num);
+        scene s;
+        json_err e;
+        e.msg[0] = 0;
+        int rc = scene_load_text(&s, t, &e);
+        if (is_bad) {
+            EXPECT_MSG(rc < 0 && strncmp(e.msg, bad[i].want, strlen(bad[i].want)) == 0, "%s: rc %d \"%s\", want \"%s\"",
+                       num, rc, e.msg, bad[i].want);
+        } else {
+            EXPECT_MSG(rc == 0, "%s refused: %s", num, e.msg);
+        }
+        if (rc == 0) scene_free(&s);
+    }
+    /* deeper: the path of an array element */
+    scene s;
+    json_err e;
+    EXPECT(scene_load_text(&s, "{\"camera\": {\"eye\": [0, 0, -05]}}", &e) < 0 &&
+           strstr(e.msg, "line 1, column 27: $.camera.eye[2]: the number -05 has a leading zero"));
+    char path[1024], cmd[4096], out[4096];
+    snprintf(path, sizeof path, "%s/lz.json", pm_test_tmpdir());
+    snprintf(t, sizeof t, "{\"camera\": {\"eye\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 4, \"height\": 4},\n"
+             " \"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 01, \"material\": \"w\"}],\n"
+             " \"materials\": {\"w\": {\"type\": \"lambert\", \"reflectance\": 0.5, \"emission\": 1}}}");
+    ASSERT(write_text(path, t) == 0);
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' lz.json --quiet --hdr lz.pfm 2>&1; test ! -e lz.pfm",
+             pm_test_tmpdir(), pm_test_build_dir());
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' lz.json --quiet --hdr lz.pfm 2>&1", pm_test_tmpdir(),
+             pm_test_build_dir());
+    int rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 2 && strstr(out, "render: lz.json: line 2, column 64: $.objects[0].radius: the number 01 has a "
+                                      "leading zero"), "exit %d: %s", rc, out);
+    snprintf(path, sizeof path, "%s/lz.pfm", pm_test_tmpdir());
+    FILE *f = fopen(path, "rb");
+    EXPECT_MSG(f == NULL, "an image was written");
+    if (f) fclose(f);
+}
+
+/* Oracle: issue 29, item 2: an integrator we lack is no refusal: the scene loads with mode
+ * "path" (the nearest unbiased method), one warning names the key and what is used, one more
+ * per setting of that integrator; an unknown reconstruction filter is named with the box
+ * filter used instead. The converted document says mode "path" and keeps max_bounces. */
+TEST(tungsten_unsupported_integrator_warns) {
+    char path[1024], cmd[4096], out[16384];
+    snprintf(path, sizeof path, "%s/bdpt.json", pm_test_tmpdir());
+    ASSERT(write_text(path,
+        "{\"bsdfs\": [{\"name\": \"w\", \"type\": \"lambert\"}],\n"
+        " \"primitives\": [{\"type\": \"quad\", \"bsdf\": \"w\", \"emission\": 1}],\n"
+        " \"camera\": {\"reconstruction_filter\": \"tent\", \"transform\": {\"position\": [0, 1, 5], \"look_at\": [0, 0, 0]}},\n"
+        " \"integrator\": {\"type\": \"bidirectional_path_tracer\", \"max_bounces\": 7, \"image_pyramid\": true}}\n") == 0);
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' --dump-scene bdpt.json 2>&1", pm_test_tmpdir(), pm_test_build_dir());
+    int rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 0, "exit %d: %s", rc, out);
+    const char *want[] = {
+        "render: bdpt.json: warning: $.integrator.type: integrator \"bidirectional_path_tracer\" is not supported: "
+        "rendering with \"path\"",
+        "render: bdpt.json: warning: $.integrator.image_pyramid: ignored (a setting of the integrator "
+        "\"bidirectional_path_tracer\", which is not used)",
+        "render: bdpt.json: warning: $.camera.reconstruction_filter: the filter \"tent\" is not supported: each pixel "
+        "is the mean of its own samples (a box filter) instead",
+        "\"mode\":\t\"path\"", "\"max_depth\":\t7"};
+    for (size_t i = 0; i < sizeof want / sizeof *want; i++) EXPECT_MSG(strstr(out, want[i]), "no '%s' in: %s", want[i], out);
+    EXPECT_MSG(!strstr(out, "$.integrator.max_bounces: ignored"), "%s", out);
+    /* and it renders, with --mode pm too */
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' bdpt.json --width 4 --height 4 --spp 1 --mode pm --quiet --hdr b.pfm 2>&1",
+             pm_test_tmpdir(), pm_test_build_dir());
+    rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 0, "exit %d: %s", rc, out);
+}
+
+/* Oracle: hand-counted faces. Degenerate faces (a repeated corner, three collinear corners, a
+ * zero-area polygon's fan) are skipped and counted, never refused; the rest are kept with
+ * their indices; render prints one warning for the file with the count and the first line. */
+TEST(degenerate_faces_skipped_with_one_warning) {
+    const char *t = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\nv 1 1 0\n"
+                    "f 1 2 3\n"      /* kept */
+                    "f 1 1 2\n"      /* repeated corner (line 7) */
+                    "f 1 2 4\n"      /* collinear */
+                    "f 1 2 4 2\n"    /* a flat polygon: 2 fan triangles, both zero area */
+                    "f 2 5 3\n";     /* kept */
+    mesh_data m;
+    char err[256] = "";
+    ASSERT_MSG(obj_text(t, &m, err, sizeof err) == 0, "%s", err);
+    EXPECT_EQ_INT(m.ntris, 2);
+    EXPECT_EQ_INT(m.nskipped, 4);
+    EXPECT_MSG(strcmp(m.first_skip, "line 7") == 0, "%s", m.first_skip);
+    EXPECT(m.tri[0][0] == 0 && m.tri[0][1] == 1 && m.tri[0][2] == 2);
+    EXPECT(m.tri[1][0] == 1 && m.tri[1][1] == 4 && m.tri[1][2] == 2);
+    mesh_free(&m);
+    const char *dir = pm_test_tmpdir();
+    char obj[1024], scn[1024], pfm[1024], out[8192];
+    snprintf(obj, sizeof obj, "%s/deg.obj", dir);
+    snprintf(scn, sizeof scn, "%s/s.json", dir);
+    snprintf(pfm, sizeof pfm, "%s/o.pfm", dir);
+    ASSERT(write_text(obj, t) == 0);
+    ASSERT(write_text(scn, "{\"camera\": {\"eye\": [0.5, 0.5, 5], \"look_at\": [0.5, 0.5, 0], \"fov_deg\": 40, "
+                           "\"width\": 8, \"height\": 8},\n \"materials\": {\"m\": {\"type\": \"lambert\", "
+                           "\"reflectance\": 0.5, \"emission\": 1}},\n \"objects\": [{\"type\": \"mesh\", "
+                           "\"file\": \"deg.obj\", \"material\": \"m\"}]}\n") == 0);
+    int rc = render_file(scn, "--spp 1", pfm, out, sizeof out);
+    EXPECT_MSG(rc == 0, "exit %d: %s", rc, out);
+    const char *w = strstr(out, "warning: $.objects[0].file: skipped 4 degenerate faces (zero area: repeated or "
+                                "collinear corners; the first at line 7), kept 2 triangles");
+    EXPECT_MSG(w != NULL, "%s", out);
+    if (w) EXPECT_MSG(strstr(w + 1, "warning") == NULL, "more than one warning: %s", out);
 }

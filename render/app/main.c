@@ -18,6 +18,7 @@
 #include "run/checkpoint.h"
 #include "base/errors.h"
 #include "photonmap/common.h"
+#include "image/exr.h"
 #include "image/film.h"
 #include "load/import.h"
 #include "integrators/integrator.h"
@@ -47,7 +48,8 @@ static void usage(FILE *f) {
             "\n"
             "options:\n"
             "  -o FILE.png       tone-mapped 8-bit image (default: out.png unless --hdr is given)\n"
-            "  --hdr FILE.pfm    linear float image, for exact comparison\n"
+            "  --hdr FILE.pfm    linear float image, for exact comparison (FILE.exr: OpenEXR)\n"
+            "  --hdr-half        with --hdr FILE.exr: 16-bit half floats instead of 32-bit\n"
             "  --spp N           samples per pixel (rounded up to a square number of strata)\n"
             "  --threads N       worker threads (default: all cores)\n"
             "  --seed S          random seed (same seed, same image, for any thread count)\n"
@@ -146,6 +148,7 @@ int main(int argc, char **argv) {
         }
     }
     const char *scene_path = NULL, *png = NULL, *pfm = NULL, *mode = NULL, *tone = NULL;
+    int hdr_half = 0;
     const char *ckpt_path = NULL, *resume = NULL;
     double ckpt_every = 600, snap_every = 0;
     long max_scene_mb = 256;
@@ -177,6 +180,8 @@ int main(int argc, char **argv) {
         } else if (strcmp(a, "--hdr") == 0) {
             NEED_VALUE();
             pfm = v;
+        } else if (strcmp(a, "--hdr-half") == 0) {
+            hdr_half = 1;
         } else if (strcmp(a, "--spp") == 0) {
             NEED_VALUE();
             bad = parse_opt(a, v, 1, 1 << 20, &spp);
@@ -256,6 +261,10 @@ int main(int argc, char **argv) {
         return 2;
     }
     if (!png && !pfm) png = "out.png";
+    if (hdr_half && !(pfm && exr_has_ext(pfm))) {
+        fprintf(stderr, "render: --hdr-half needs --hdr FILE.exr (a PFM holds 32-bit floats only)\n");
+        return 2;
+    }
     json_set_max_file_bytes((size_t)max_scene_mb << 20);
     out_signals_install();
     /* An output that cannot be written is refused now, not after the render. */
@@ -457,8 +466,8 @@ int main(int argc, char **argv) {
                 nonfinite == 1 ? "is" : "are");
     double used = 0;
     char werr[600];
-    if (film_write_outputs(&f, pfm, png, s.settings.tone, s.settings.exposure, s.settings.clip_percent,
-                           &used, werr, sizeof werr) < 0) {
+    if (film_write_outputs_ex(&f, pfm, hdr_half ? EXR_HALF : EXR_FLOAT, png, s.settings.tone, s.settings.exposure,
+                              s.settings.clip_percent, &used, werr, sizeof werr) < 0) {
         fprintf(stderr, "render: %s (no output written)\n", werr);
         status = 1;
     }

@@ -21,6 +21,8 @@
 #include "base/errors.h"
 #include "image/film.h"
 #include "integrators/integrator.h"
+#include "load/import.h"
+#include "scene/scene.h"
 
 /* 1 if name is a mode of integrator.h's registry (read from integrator_list's lines: four
  * spaces, the name, spaces, its help), 0 if not, -1 if it cannot tell (no memory). */
@@ -66,10 +68,11 @@ int cli_parse_positive(const char *s, double *out) {
     return 0;
 }
 
-static int read_pfm_or_say(film *f, const char *path) {
-    int rc = film_read_pfm(f, path);
+static int read_pfm_or_say(film *f, const char *path) { /* PFM or OpenEXR (film_read_image) */
+    char err[600];
+    int rc = film_read_image(f, path, err, sizeof err);
     if (rc < 0)
-        fprintf(stderr, "render: %s: %s\n", path, render_strerror(rc));
+        fprintf(stderr, "render: %s\n", err);
     return rc;
 }
 
@@ -208,4 +211,49 @@ int tools_tonemap(int argc, char **argv) {
     printf("Wrote %s (%s, exposure %.4g%s)\n", out, tone == FILM_TONE_SRGB ? "sRGB" : "filmic", used,
            exposure > 0 ? "" : ", auto");
     return 0;
+}
+
+/* ---- render --dump-scene ----------------------------------------------------------------- */
+
+int scene_dump_main(int argc, char **argv) {
+    if (argc != 3) {
+        fprintf(stderr, "usage: render --dump-scene SCENE.json\n");
+        return 2;
+    }
+    cJSON *root;
+    json_err e;
+    int rc = json_parse_file(argv[2], &root, &e);
+    if (rc == 0) {
+        rc = scene_import(&root, argv[2], &e);
+        if (rc < 0) cJSON_Delete(root);
+    }
+    if (rc == 0) { /* load it all, meshes too, so what is printed is what renders */
+        scene s;
+        rc = scene_from_json(&s, root, &e);
+        /* and the mode, which the loader leaves to the integrators' registry (main.c checks
+         * it the same way) */
+        if (rc == 0 && cli_mode_known(s.settings.mode) == 0) {
+            char merr[256];
+            integrator none;
+            integrator_create(s.settings.mode, &s, &none, merr, sizeof merr); /* says why only */
+            rc = json_fail(&e, PM_EINVAL, "$.render.mode: %s", merr);
+            scene_free(&s);
+        } else if (rc == 0) {
+            scene_free(&s);
+        }
+        if (rc < 0) cJSON_Delete(root);
+    }
+    if (rc < 0) {
+        fprintf(stderr, "render: %s: %s\n", argv[2], e.msg);
+        return 2;
+    }
+    char *text = cJSON_Print(root);
+    cJSON_Delete(root);
+    if (!text) {
+        fprintf(stderr, "render: out of memory\n");
+        return 1;
+    }
+    int bad = puts(text) < 0 || fflush(stdout) != 0;
+    free(text);
+    return bad ? 1 : 0;
 }

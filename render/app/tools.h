@@ -1,4 +1,4 @@
-/* tools.h: `render --compare` and `render --tonemap` (tools.c), the strict number parsers
+/* tools.h: `render --compare`, `render --tonemap` and `render --dump-scene` (tools.c), the strict number parsers
  * that main.c's options share with them, and the check of a mode name.
  */
 #ifndef RENDER_TOOLS_H
@@ -21,6 +21,11 @@ int cli_mode_known(const char *name);
  * (0 ok, 1 write failure, 2 usage error or unreadable input). */
 int tools_compare(int argc, char **argv);
 int tools_tonemap(int argc, char **argv);
+
+/* `render --dump-scene SCENE.json` (argv[1] is the option): print the document that
+ * scene_import makes of the file, after loading it fully (so it is known to load). Exit
+ * status 0, 1 when stdout fails, 2 for a bad scene or mesh. */
+int scene_dump_main(int argc, char **argv);
 
 #ifdef __cplusplus
 }

@@ -106,12 +106,94 @@ static int check_repeated_keys(const cJSON *it, char *path, size_t len, size_t c
     return 0;
 }
 
+/* cJSON reads a number with strtod over the characters it allows, so it takes "01", "-00",
+ * "1." and "1.e5", which JSON's grammar forbids (-?(0|[1-9][0-9]*)(.[0-9]+)?([eE][+-]?[0-9]+)?).
+ * After cJSON accepted the text (so its structure is sound), scan it once more, keeping the
+ * JSON path of the current value, and refuse the first such number with its line, column and
+ * path: "line 3, column 15: $.objects[0].radius: the number 01 has a leading zero (JSON
+ * forbids it)". Strings are skipped with their escapes. */
+typedef struct jlevel {
+    int is_obj, index, want_key;
+    const char *key;
+    size_t key_len;
+} jlevel;
+
+static int check_numbers(const char *text, json_err *e) {
+    static const int max_depth = CJSON_NESTING_LIMIT + 2;
+    jlevel *st = malloc((size_t)max_depth * sizeof *st);
+    if (!st) return json_fail(e, PM_ENOMEM, "out of memory");
+    int depth = 0, rc = 0;
+    for (const char *c = text; *c && rc == 0; c++) {
+        if (*c == '"') {
+            const char *b = ++c;
+            while (*c && *c != '"') c += (*c == '\\' && c[1]) ? 2 : 1;
+            if (depth > 0 && st[depth - 1].is_obj && st[depth - 1].want_key) {
+                st[depth - 1].key = b;
+                st[depth - 1].key_len = (size_t)(c - b);
+                st[depth - 1].want_key = 0;
+            }
+            if (!*c) break;
+        } else if (*c == '{' || *c == '[') {
+            if (depth == max_depth) break; /* deeper than cJSON allows: it refused already */
+            st[depth++] = (jlevel){*c == '{', 0, *c == '{', NULL, 0};
+        } else if (*c == '}' || *c == ']') {
+            if (depth > 0) depth--;
+        } else if (*c == ',' && depth > 0) {
+            st[depth - 1].index++;
+            st[depth - 1].want_key = st[depth - 1].is_obj;
+        } else if ((*c == '-' || (*c >= '0' && *c <= '9')) &&
+                   (c == text || !(isalnum((unsigned char)c[-1]) || c[-1] == '.' || c[-1] == '+' ||
+                                   c[-1] == '-'))) {
+            const char *b = c, *q = c + (*c == '-');
+            const char *why = NULL;
+            if (*q == '0' && q[1] >= '0' && q[1] <= '9') why = "has a leading zero";
+            while (*q >= '0' && *q <= '9') q++;
+            if (!why && *q == '.') {
+                if (!(q[1] >= '0' && q[1] <= '9')) why = "has no digit after its decimal point";
+                for (q++; *q >= '0' && *q <= '9'; q++) {}
+            }
+            if (!why && (*q == 'e' || *q == 'E')) {
+                q++;
+                if (*q == '+' || *q == '-') q++;
+                if (!(*q >= '0' && *q <= '9')) why = "has no digit in its exponent";
+            }
+            while (*q && strchr("0123456789+-eE.", *q)) q++;
+            if (why) {
+                int line = 1, col = 1;
+                for (const char *t = text; t < b; t++) {
+                    if (*t == '\n') {
+                        line++;
+                        col = 1;
+                    } else {
+                        col++;
+                    }
+                }
+                char path[512] = "$";
+                size_t n = 1;
+                for (int d = 0; d < depth && n < sizeof path - 1; d++) {
+                    int kl = (int)(st[d].key_len > 200 ? 200 : st[d].key_len);
+                    int k = st[d].is_obj ? snprintf(path + n, sizeof path - n, ".%.*s", kl, st[d].key ? st[d].key : "")
+                                         : snprintf(path + n, sizeof path - n, "[%d]", st[d].index);
+                    if (k < 0 || (size_t)k >= sizeof path - n) break;
+                    n += (size_t)k;
+                }
+                rc = json_fail(e, PM_EFORMAT, "line %d, column %d: %s: the number %.*s %s (JSON forbids it)",
+                               line, col, path, (int)(q - b > 40 ? 40 : q - b), b, why);
+            }
+            c = q - 1;
+        }
+    }
+    free(st);
+    return rc;
+}
+
 int json_parse_text(const char *text, cJSON **root, json_err *e) {
     const char *end = NULL;
     *root = cJSON_ParseWithOpts(text, &end, 1);
     if (*root) {
         char path[1024] = "$";
-        int rc = check_repeated_keys(*root, path, 1, sizeof path, e);
+        int rc = check_numbers(text, e);
+        if (rc == 0) rc = check_repeated_keys(*root, path, 1, sizeof path, e);
         if (rc < 0) {
             cJSON_Delete(*root);
             *root = NULL;

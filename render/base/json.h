@@ -10,6 +10,9 @@
  *
  * json_parse_file reads and parses a file; a syntax error is reported with its line and
  * column ("line 12, column 5: syntax error at '"eye": [1,2,>}'", where > marks the spot).
+ * A number JSON forbids but cJSON reads (a leading zero, "01" or "-00"; "1." or "1.e5") is an
+ * error with its line, column and JSON path ("line 3, column 15: $.objects[0].radius: the
+ * number 01 has a leading zero (JSON forbids it)").
  * A key repeated within one object, at any depth, is an error too ("$.camera: the key
  * "width" is given more than once"): cJSON would keep both and the getters see the first.
  *

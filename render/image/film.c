@@ -5,6 +5,7 @@
  * device) and removes the temporary on failure or SIGINT/SIGTERM.
  */
 #include "image/film.h"
+#include "image/exr.h"
 
 #include <errno.h>
 #include <png.h>
@@ -16,6 +17,7 @@
 #include <unistd.h>
 
 #include "common.h"
+#include "base/errors.h"
 #include "base/output.h"
 
 #define HABLE_W FILM_HABLE_WHITE
@@ -255,6 +257,19 @@ int film_write_png(const film *f, const char *path, int tone, double exposure, d
 
 int film_write_outputs(const film *f, const char *pfm, const char *png, int tone, double exposure,
                        double clip_percent, double *used, char *err, size_t errcap) {
+    return film_write_outputs_ex(f, pfm, EXR_FLOAT, png, tone, exposure, clip_percent, used, err, errcap);
+}
+
+int film_read_image(film *f, const char *path, char *err, size_t errcap) {
+    if (exr_is_exr(path)) return exr_read(f, path, err, errcap);
+    int rc = film_read_pfm(f, path);
+    if (rc < 0)
+        snprintf(err, errcap, "%s: %s%s", path, render_strerror(rc), rc == PM_EFORMAT ? " (PFM or OpenEXR expected)" : "");
+    return rc;
+}
+
+int film_write_outputs_ex(const film *f, const char *pfm, int exr_type, const char *png, int tone, double exposure,
+                          double clip_percent, double *used, char *err, size_t errcap) {
     out_file o[2];
     out_file *list[2];
     int n = 0, rc = 0;
@@ -264,7 +279,14 @@ int film_write_outputs(const film *f, const char *pfm, const char *png, int tone
         if ((rc = out_open(&o[n], pfm, err, errcap)) < 0) goto fail;
         list[n] = &o[n];
         n++;
-        if ((rc = film_write_pfm_fp(f, o[n - 1].fp)) < 0 || (rc = fflush(o[n - 1].fp) ? PM_EIO : 0) < 0) {
+        if (exr_has_ext(pfm)) {
+            char eerr[400];
+            if ((rc = exr_write_fp(f, o[n - 1].fp, exr_type, eerr, sizeof eerr)) < 0 ||
+                (rc = fflush(o[n - 1].fp) ? PM_EIO : 0) < 0) {
+                snprintf(err, errcap, "%s: %s", pfm, rc == PM_EIO ? strerror(errno) : eerr);
+                goto fail;
+            }
+        } else if ((rc = film_write_pfm_fp(f, o[n - 1].fp)) < 0 || (rc = fflush(o[n - 1].fp) ? PM_EIO : 0) < 0) {
             snprintf(err, errcap, "%s: cannot write: %s", pfm, strerror(errno));
             goto fail;
         }

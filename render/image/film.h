@@ -1,4 +1,4 @@
-/* film.h: the linear float framebuffer and the image writers (PFM, PNG).
+/* film.h: the linear float framebuffer and the image writers (PFM, PNG; OpenEXR in exr.h).
  *
  * The film holds linear RGB radiance per pixel, row 0 at the top. PFM files keep it exactly
  * (32-bit floats; rows stored bottom to top as the format says, little-endian, scale -1), so
@@ -76,6 +76,14 @@ int film_write_png_fp(const film *f, FILE *fp, int tone, double exposure, double
  * leaves both old files. 0 or a negative code with a message in err. */
 int film_write_outputs(const film *f, const char *pfm, const char *png, int tone, double exposure,
                        double clip_percent, double *used, char *err, size_t errcap);
+/* The same, with the HDR output's format: a name ending in ".exr" (any case) is written as
+ * OpenEXR (image/exr.h; exr_type EXR_FLOAT or EXR_HALF), any other as PFM (exr_type must then
+ * be EXR_FLOAT). film_write_outputs is this with EXR_FLOAT. */
+int film_write_outputs_ex(const film *f, const char *hdr, int exr_type, const char *png, int tone, double exposure,
+                          double clip_percent, double *used, char *err, size_t errcap);
+/* Read a PFM or an OpenEXR file (told apart by the first bytes). 0, or a negative code with a
+ * message naming path in err (PM_EIO, PM_EFORMAT, PM_ENOMEM). */
+int film_read_image(film *f, const char *path, char *err, size_t errcap);
 
 /* Hable's filmic curve, normalized so that W maps to 1 (x >= 0). */
 double film_hable(double x);

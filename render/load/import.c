@@ -14,10 +14,8 @@
 #include <time.h>
 
 #include "common.h"
-#include "integrators/integrator.h"
 #include "scene/scene.h"
 #include "base/stats.h"
-#include "app/tools.h"
 #include "load/tungsten.h"
 
 #define TRY(x) JSON_TRY(x)
@@ -105,6 +103,10 @@ int mesh_object_read(const cJSON *o, const char *P, mesh_data *m, int *smooth, i
         mesh_free(m);
         return json_fail(e, PM_EINVAL, "%s.transform: %s", P, err);
     }
+    if (rc == 0 && m->nskipped > 0) /* one counted warning per file (mesh.h) */
+        fprintf(stderr, "render: %s: warning: %s.file: skipped %ld degenerate face%s (zero area: repeated or "
+                "collinear corners; the first at %s), kept %d triangles\n", file, P, m->nskipped,
+                m->nskipped == 1 ? "" : "s", m->first_skip, m->ntris);
     if (rc == 0) rc = mesh_transform(m, (const double(*)[4])M, file, err, sizeof err);
     if (rc == 0 && *smooth && mesh_smooth_normals(m, recompute) < 0) {
         rc = PM_ENOMEM;
@@ -117,47 +119,4 @@ int mesh_object_read(const cJSON *o, const char *P, mesh_data *m, int *smooth, i
         return json_fail(e, rc, "%s.file: %s", P, err);
     }
     return 0;
-}
-
-int scene_dump_main(int argc, char **argv) {
-    if (argc != 3) {
-        fprintf(stderr, "usage: render --dump-scene SCENE.json\n");
-        return 2;
-    }
-    cJSON *root;
-    json_err e;
-    int rc = json_parse_file(argv[2], &root, &e);
-    if (rc == 0) {
-        rc = scene_import(&root, argv[2], &e);
-        if (rc < 0) cJSON_Delete(root);
-    }
-    if (rc == 0) { /* load it all, meshes too, so what is printed is what renders */
-        scene s;
-        rc = scene_from_json(&s, root, &e);
-        /* and the mode, which the loader leaves to the integrators' registry (main.c checks
-         * it the same way) */
-        if (rc == 0 && cli_mode_known(s.settings.mode) == 0) {
-            char merr[256];
-            integrator none;
-            integrator_create(s.settings.mode, &s, &none, merr, sizeof merr); /* says why only */
-            rc = json_fail(&e, PM_EINVAL, "$.render.mode: %s", merr);
-            scene_free(&s);
-        } else if (rc == 0) {
-            scene_free(&s);
-        }
-        if (rc < 0) cJSON_Delete(root);
-    }
-    if (rc < 0) {
-        fprintf(stderr, "render: %s: %s\n", argv[2], e.msg);
-        return 2;
-    }
-    char *text = cJSON_Print(root);
-    cJSON_Delete(root);
-    if (!text) {
-        fprintf(stderr, "render: out of memory\n");
-        return 1;
-    }
-    int bad = puts(text) < 0 || fflush(stdout) != 0;
-    free(text);
-    return bad ? 1 : 0;
 }

@@ -34,10 +34,6 @@ int scene_import(cJSON **root, const char *scene_path, json_err *e);
  * *usemtl whether the OBJ's usemtl names choose materials. */
 int mesh_object_read(const cJSON *o, const char *P, mesh_data *m, int *smooth, int *usemtl, json_err *e);
 
-/* `render --dump-scene SCENE.json` (argv[1] is the option): print the document that
- * scene_import makes of the file, after loading it fully (so it is known to load). Exit
- * status 0, 1 when stdout fails, 2 for a bad scene or mesh. */
-int scene_dump_main(int argc, char **argv);
 
 #ifdef __cplusplus
 }

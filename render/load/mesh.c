@@ -17,6 +17,7 @@
 
 #include "common.h"
 #include "load/obj.h"
+#include "load/ply.h"
 #include "base/sampling.h"
 #include "load/wo3.h"
 
@@ -65,17 +66,18 @@ static int has_ext(const char *path, const char *ext) {
 
 int mesh_load(const char *path, mesh_data *m, char *err, size_t cap) {
     memset(m, 0, sizeof *m);
-    int is_obj = has_ext(path, ".obj");
-    if (!is_obj && !has_ext(path, ".wo3")) {
-        snprintf(err, cap, "%s: unknown mesh format (the name must end in .obj or .wo3)", path);
+    int is_obj = has_ext(path, ".obj"), is_ply = has_ext(path, ".ply");
+    if (!is_obj && !is_ply && !has_ext(path, ".wo3")) {
+        snprintf(err, cap, "%s: unknown mesh format (the name must end in .obj, .ply or .wo3)", path);
         return PM_EINVAL;
     }
     char *buf;
     size_t len;
     int rc = mesh_read_file(path, &buf, &len, err, cap);
     if (rc < 0) return rc;
-    rc = is_obj ? obj_parse(buf, len, path, m, err, cap)
-                : wo3_parse((const unsigned char *)buf, len, path, m, err, cap);
+    rc = is_obj   ? obj_parse(buf, len, path, m, err, cap)
+         : is_ply ? ply_parse(buf, len, path, m, err, cap)
+                  : wo3_parse((const unsigned char *)buf, len, path, m, err, cap);
     free(buf);
     return rc;
 }

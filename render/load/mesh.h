@@ -1,12 +1,15 @@
-/* mesh.h: triangle meshes read from files (Wavefront OBJ, Tungsten's binary wo3), placed in the
+/* mesh.h: triangle meshes read from files (Wavefront OBJ, Tungsten's binary wo3, PLY), placed in the
  * scene by a transform, with flat or smooth shading normals.
  *
  * A reader (obj.h, wo3.h) fills a mesh_data in the file's own coordinates: positions, optional
  * normals, and triangles that index them. Faces are checked while reading, so every error names
  * the place in the file ("bunny.obj:12: vertex index 99 out of range (1..98)", "water.wo3: byte
- * 1032: ..."): a truncated file, an index out of range, a NaN or infinite number, an empty mesh
- * and a degenerate (zero-area) face are all errors. mesh_load() picks the reader by the file
- * name's extension (.obj or .wo3, any case).
+ * 1032: ..."): a truncated file, an index out of range, a NaN or infinite number and an empty
+ * mesh are errors. A degenerate face (zero area: repeated or collinear corners, judged as
+ * triangle_make does) is not: real meshes carry them and other renderers skip them, so the
+ * readers leave it out and count it (nskipped, first_skip), and mesh_object_read (import.h)
+ * prints one warning per file. A file whose faces are all degenerate is an empty mesh.
+ * mesh_load() picks the reader by the file name's extension (.obj, .wo3 or .ply, any case).
  *
  * mesh_transform() applies a 3x4 affine matrix to positions (and its inverse transpose to
  * normals). The front of a triangle is decided after the transform, by the winding of the
@@ -47,9 +50,11 @@ typedef struct mesh_data {
     char **groups; /* usemtl names in order of first use */
     int ngroups;
     vec3 (*corner_n)[3]; /* after mesh_smooth_normals: unit shading normal of each corner */
+    long nskipped;       /* degenerate faces (zero area) the reader left out */
+    char first_skip[64]; /* where the first of them is ("line 12", "byte 1032", "face 7") */
 } mesh_data;
 
-/* Read path as OBJ or wo3 by its extension. 0, or a negative PM_E* code with a message that
+/* Read path as OBJ, wo3 or PLY by its extension. 0, or a negative PM_E* code with a message that
  * starts with the file name in err. */
 int mesh_load(const char *path, mesh_data *m, char *err, size_t cap);
 void mesh_free(mesh_data *m);

@@ -116,9 +116,10 @@ static int read_long(const char **s, const char *end, long *out) {
  * tri_n share the capacity p->tcap. */
 static int add_tri(parser *p, mesh_data *m, const int v[3], const int n[3], int group, int any_n) {
     triangle t;
-    if (triangle_make(&t, m->pos[v[0]], m->pos[v[1]], m->pos[v[2]], 0) < 0)
-        return fail(p, PM_EINVAL, "degenerate face (zero area: repeated or collinear vertices %d %d %d)",
-                    v[0] + 1, v[1] + 1, v[2] + 1);
+    if (triangle_make(&t, m->pos[v[0]], m->pos[v[1]], m->pos[v[2]], 0) < 0) { /* skipped, counted (mesh.h) */
+        if (m->nskipped++ == 0) snprintf(m->first_skip, sizeof m->first_skip, "line %ld", p->line);
+        return 0;
+    }
     if (m->ntris == p->tcap) {
         if (m->ntris >= (1 << 30)) return fail(p, PM_ERANGE, "too many faces");
         int nc = p->tcap ? 2 * p->tcap : 1024;
@@ -255,7 +256,9 @@ int obj_parse(const char *text, size_t len, const char *name, mesh_data *m, char
     }
     if (rc == 0 && m->ntris == 0) {
         p.line = 0;
-        rc = fail(&p, PM_EINVAL, "empty mesh: no face (f) in the file");
+        rc = m->nskipped ? fail(&p, PM_EINVAL, "empty mesh: all %ld faces are degenerate (zero area; the first "
+                                "at %s)", m->nskipped, m->first_skip)
+                         : fail(&p, PM_EINVAL, "empty mesh: no face (f) in the file");
     }
     if (rc < 0) mesh_free(m);
     return rc;

@@ -11,8 +11,9 @@
  *
  * Errors (PM_EINVAL, PM_EIO, PM_ENOMEM) name the file and line: a missing or non-numeric
  * coordinate (or one longer than 63 characters), NaN or infinity, an index of 0 or out of
- * range, a face with fewer than three corners, a degenerate face (zero area, judged as
- * triangle_make does), a file with no face. Speed: one pass over the file in memory
+ * range, a face with fewer than three corners, a file with no face (or only degenerate ones).
+ * A degenerate face (zero area, judged as triangle_make does) is skipped and counted (mesh.h).
+ * Speed: one pass over the file in memory
  * (docs/IMPORT.md has the time for a 1M-triangle file).
  */
 #ifndef RENDER_OBJ_H

@@ -549,8 +549,14 @@ static int convert_camera(const char *file, const cJSON *root, cJSON *out, long 
     TRY(json_object(root, "$", "camera", 1, &c, e));
     const char *P = "$.camera";
     static const char *const ok[] = {"type", "resolution", "transform", "fov", "medium", NULL};
-    static const char *const warn[] = {"tonemap", "reconstruction_filter", NULL};
-    TRY(check_keys(file, c, P, ok, warn, "a camera key outside the supported subset", e));
+    static const char *const warn[] = {"tonemap", NULL};
+    const cJSON *filt = json_get(c, "reconstruction_filter");
+    if (filt) /* a name ("tent", "gaussian", ...) or an object: either way not ours */
+        twarn(file, "%s.reconstruction_filter: %s%s%s is not supported: each pixel is the mean of its own "
+              "samples (a box filter) instead", P, cJSON_IsString(filt) ? "the filter \"" : "a filter",
+              cJSON_IsString(filt) ? filt->valuestring : "", cJSON_IsString(filt) ? "\"" : "");
+    static const char *const ok_f[] = {"type", "resolution", "transform", "fov", "medium", "reconstruction_filter", NULL};
+    TRY(check_keys(file, c, P, filt ? ok_f : ok, warn, "a camera key outside the supported subset", e));
     const char *type = "pinhole";
     TRY(json_string(c, P, "type", 0, &type, e));
     if (strcmp(type, "pinhole") != 0)
@@ -621,16 +627,33 @@ static int convert_settings(const char *file, const cJSON *root, cJSON *out, lon
                                        "enable_volume_light_sampling", "photon_count", "volume_photon_count",
                                        "gather_photon_count", "gather_radius", "alpha", "fixed_volume_radius",
                                        "volume_gather_radius", "volume_photon_type", "include_surfaces", NULL};
-    TRY(check_keys(file, in, P, ok, warn, "an integrator key outside the supported subset", e));
     const char *type = "path_tracer";
     TRY(json_string(in, P, "type", 0, &type, e));
+    int known = strcmp(type, "path_tracer") == 0 || strcmp(type, "photon_map") == 0 ||
+                strcmp(type, "progressive_photon_map") == 0;
+    if (!known) {
+        /* An integrator we lack is no reason to refuse the scene (issue 29): the scene is the
+         * same, only the method differs. Path tracing renders its expected image; --mode or
+         * render.mode chooses another. Its own keys are ignored, each named. */
+        twarn(file, "%s.type: integrator \"%s\" is not supported: rendering with \"path\" (path tracing; "
+              "--mode chooses another: path, pm, ...)", P, type);
+        cJSON_AddStringToObject(rs, "mode", "path");
+        for (const cJSON *it = in->child; it; it = it->next) {
+            const char *k = it->string ? it->string : "?";
+            if (strcmp(k, "type") != 0 && strcmp(k, "max_bounces") != 0)
+                twarn(file, "%s.%s: ignored (a setting of the integrator \"%s\", which is not used)", P, k, type);
+        }
+        long maxb = 64;
+        TRY(json_int(in, P, "max_bounces", 0, 1, 100000, &maxb, e));
+        cJSON_AddNumberToObject(rs, "max_depth", (double)maxb);
+        *max_depth = maxb;
+        return 0;
+    }
+    TRY(check_keys(file, in, P, ok, warn, "an integrator key outside the supported subset", e));
     if (strcmp(type, "path_tracer") == 0)
         cJSON_AddStringToObject(rs, "mode", "path");
-    else if (strcmp(type, "photon_map") == 0 || strcmp(type, "progressive_photon_map") == 0)
-        cJSON_AddStringToObject(rs, "mode", "pm");
     else
-        return json_fail(e, PM_EINVAL, "%s.type: integrator \"%s\" is not supported (path_tracer, photon_map, "
-                         "progressive_photon_map)", P, type);
+        cJSON_AddStringToObject(rs, "mode", "pm");
     long maxb = 64, minb = 0;
     TRY(json_int(in, P, "max_bounces", 0, 1, 100000, &maxb, e));
     TRY(json_int(in, P, "min_bounces", 0, 0, 100000, &minb, e));

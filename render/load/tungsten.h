@@ -16,7 +16,9 @@
  * (the test "tungsten_rotation_order" proves this order from Tungsten's own Cornell box walls
  * and from axis-angle rotations).
  *
- * Anything that would change the image and is not supported is an error naming its JSON path
+ * An integrator we lack (bidirectional_path_tracer, ...) is a warning naming it, and the scene
+ * renders with "path" (--mode chooses another); so is a reconstruction filter (ours is a box).
+ * Anything else that would change the image and is not supported is an error naming its JSON path
  * and the feature ("$.primitives[4].bump: bump maps are not supported"). Keys that change only the file output, the noise or the
  * display (camera.tonemap, camera.reconstruction_filter, renderer.output_file, the photon
  * counts of Tungsten's photon mappers, ...) give a warning on stderr that names the file.

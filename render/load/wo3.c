@@ -88,6 +88,7 @@ int wo3_parse(const unsigned char *buf, size_t len, const char *name, mesh_data 
         m->pos[i] = v3(f[0], f[1], f[2]);
         m->nrm[i] = v3(f[3], f[4], f[5]);
     }
+    int out = 0; /* triangles kept: degenerate ones are skipped and counted (mesh.h) */
     for (uint64_t i = 0; i < nt && rc == 0; i++) {
         const unsigned char *p = buf + toff + 8 + i * TRI_BYTES;
         int v[3];
@@ -102,15 +103,21 @@ int wo3_parse(const unsigned char *buf, size_t len, const char *name, mesh_data 
         if (rc < 0) break;
         triangle t;
         if (triangle_make(&t, m->pos[v[0]], m->pos[v[1]], m->pos[v[2]], 0) < 0) {
-            rc = fail(err, cap, name, (size_t)(p - buf), "triangle %llu: degenerate (zero area: vertices %d %d %d)",
-                      (unsigned long long)i, v[0], v[1], v[2]);
-            break;
+            if (m->nskipped++ == 0)
+                snprintf(m->first_skip, sizeof m->first_skip, "byte %zu (triangle %llu)", (size_t)(p - buf),
+                         (unsigned long long)i);
+            continue;
         }
-        memcpy(m->tri[i], v, sizeof v);
+        memcpy(m->tri[out], v, sizeof v);
         /* A zero normal cannot shade: leave such corners to mesh_smooth_normals. */
-        for (int k = 0; k < 3; k++) m->tri_n[i][k] = v3_iszero(m->nrm[v[k]]) ? -1 : v[k];
-        m->tri_group[i] = -1;
+        for (int k = 0; k < 3; k++) m->tri_n[out][k] = v3_iszero(m->nrm[v[k]]) ? -1 : v[k];
+        m->tri_group[out] = -1;
+        out++;
     }
+    if (rc == 0) m->ntris = out;
+    if (rc == 0 && out == 0)
+        rc = fail(err, cap, name, toff, "empty mesh: all %ld triangles are degenerate (zero area; the first at %s)",
+                  m->nskipped, m->first_skip);
     if (rc < 0) mesh_free(m);
     return rc;
 }

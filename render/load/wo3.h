@@ -8,7 +8,8 @@
  *
  * Errors (PM_EINVAL, PM_EIO, PM_ENOMEM) name the file and the byte offset: a file shorter than
  * its counts say (truncated), bytes after the last triangle, a NaN or infinite position or
- * normal, a vertex index out of range, a degenerate triangle, no triangle at all.
+ * normal, a vertex index out of range, no triangle (or only degenerate ones) at all; a
+ * degenerate triangle is skipped and counted (mesh.h).
  */
 #ifndef RENDER_WO3_H
 #define RENDER_WO3_H

@@ -12,7 +12,7 @@
 
 #include "photonmap/common.h"
 #include "photonmap/estimate.h"
-#include "run/checkpoint.h"
+#include "base/hash.h"
 #include "scene/material.h"
 #include "base/output.h"
 #include "scene/scene_hash.h"
@@ -41,7 +41,7 @@ static const char *kind_name(uint32_t kind) {
 void map_stamp_make(const scene *s, const photon_settings *cfg, int global_on, int caustic_on,
                     int shadow_on, map_stamp *st) {
     st->scene = scene_transport_hash(s);
-    uint64_t h = hash_int(CKPT_HASH_INIT, PHOTON_TRACE_VERSION);
+    uint64_t h = hash_int(HASH_FNV_INIT, PHOTON_TRACE_VERSION);
     h = hash_int(hash_int(hash_int(h, global_on != 0), caustic_on != 0), shadow_on != 0);
     h = hash_int(h, s->settings.max_depth);
     h = hash_double(h, cfg->max_emitted_factor);

@@ -15,48 +15,13 @@
 #include <unistd.h>
 
 #include "common.h"
+#include "base/hash.h"
 #include "base/output.h"
 #include "photons/photon_settings.h"
 #include "base/stats.h"
 
 #define MAGIC "PMRCKPT\n"
 enum { HEADER_BYTES = 56, PIXEL_BYTES = 28, MAX_SIDE = 1 << 14, MAX_SPP = 1 << 20 };
-
-uint64_t ckpt_hash(uint64_t h, const void *p, size_t n) {
-    const unsigned char *b = p;
-    for (size_t i = 0; i < n; i++) {
-        h ^= b[i];
-        h *= 0x100000001b3ULL;
-    }
-    return h;
-}
-
-int ckpt_hash_file(const char *path, uint64_t max_bytes, uint64_t *h, char *err, size_t errcap) {
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        snprintf(err, errcap, "%s: %s", path, strerror(errno));
-        return PM_EIO;
-    }
-    unsigned char buf[1 << 16];
-    uint64_t total = 0;
-    size_t got;
-    while ((got = fread(buf, 1, sizeof buf, f)) > 0) {
-        total += got;
-        if (total > max_bytes) {
-            fclose(f);
-            snprintf(err, errcap, "%s: larger than %llu bytes", path, (unsigned long long)max_bytes);
-            return PM_EIO;
-        }
-        *h = ckpt_hash(*h, buf, got);
-    }
-    int bad = ferror(f);
-    fclose(f);
-    if (bad) {
-        snprintf(err, errcap, "%s: cannot read", path);
-        return PM_EIO;
-    }
-    return 0;
-}
 
 /* ---- writing ------------------------------------------------------------------------------ */
 
@@ -67,7 +32,7 @@ typedef struct wr {
 } wr;
 
 static void put(wr *w, const void *p, size_t n) {
-    w->h = ckpt_hash(w->h, p, n);
+    w->h = hash_fnv1a(w->h, p, n);
     if (w->ok && fwrite(p, 1, n, w->fp) != n) w->ok = 0;
 }
 static void le32(unsigned char *b, uint32_t v) {
@@ -86,7 +51,7 @@ int ckpt_write(const char *path, const ckpt_info *ci, const render_state *st, ch
     out_file o;
     int rc = out_open(&o, path, err, errcap);
     if (rc < 0) return rc;
-    wr w = {o.fp, CKPT_HASH_INIT, 1};
+    wr w = {o.fp, HASH_FNV_INIT, 1};
     size_t ls = strlen(ci->settings), lp = strlen(ci->photons);
     unsigned char hd[HEADER_BYTES];
     memcpy(hd, MAGIC, 8);
@@ -140,7 +105,7 @@ static int fail(char *err, size_t errcap, int code, const char *path, const char
 /* Read n bytes into p, hashing them. 0 or -1. */
 static int get(FILE *f, void *p, size_t n, uint64_t *h) {
     if (fread(p, 1, n, f) != n) return -1;
-    *h = ckpt_hash(*h, p, n);
+    *h = hash_fnv1a(*h, p, n);
     return 0;
 }
 
@@ -153,7 +118,7 @@ int ckpt_read(const char *path, ckpt_info *ci, render_state *st, char *err, size
     }
     struct stat sb;
     unsigned char hd[HEADER_BYTES];
-    uint64_t h = CKPT_HASH_INIT;
+    uint64_t h = HASH_FNV_INIT;
     int rc = PM_EFORMAT;
     char msg[256];
     if (fstat(fileno(f), &sb) != 0 || !S_ISREG(sb.st_mode)) {
@@ -333,13 +298,13 @@ int ckpt_replay_args(int argc, char **argv, int *nargc, char ***nargv, char **st
 
 int ckpt_photon_hash(const char *dir, uint64_t *h, char *err, size_t errcap) {
     static const char *names[3] = {"global.pmap", "caustic.pmap", "shadow.pmap"};
-    *h = CKPT_HASH_INIT;
+    *h = HASH_FNV_INIT;
     char path[OUT_PATH_MAX], name[64];
     for (int k = 0; k < 3; k++) {
         snprintf(path, sizeof path, "%s/%s", dir, names[k]);
-        *h = ckpt_hash(*h, names[k], strlen(names[k]) + 1);
+        *h = hash_fnv1a(*h, names[k], strlen(names[k]) + 1);
         if (access(path, F_OK) != 0) continue;
-        int rc = ckpt_hash_file(path, UINT64_MAX, h, err, errcap);
+        int rc = hash_file(path, UINT64_MAX, h, err, errcap);
         if (rc < 0) return rc;
     }
     /* A scene with media: the volume maps of media 0, 1, ... (photon_maps.h), up to the
@@ -351,8 +316,8 @@ int ckpt_photon_hash(const char *dir, uint64_t *h, char *err, size_t errcap) {
             snprintf(path, sizeof path, "%s/%s", dir, name);
             if (access(path, F_OK) != 0) continue;
             any = 1;
-            *h = ckpt_hash(*h, name, strlen(name) + 1);
-            int rc = ckpt_hash_file(path, UINT64_MAX, h, err, errcap);
+            *h = hash_fnv1a(*h, name, strlen(name) + 1);
+            int rc = hash_file(path, UINT64_MAX, h, err, errcap);
             if (rc < 0) return rc;
         }
         if (!any) break;
@@ -461,8 +426,8 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
     }
     ckpt_settings_text(s, s->settings.mode, ci->settings, sizeof ci->settings);
     err[0] = 0;
-    ci->scene_hash = CKPT_HASH_INIT;
-    if (ckpt_hash_file(scene_path, UINT64_MAX, &ci->scene_hash, err, sizeof err) < 0 ||
+    ci->scene_hash = HASH_FNV_INIT;
+    if (hash_file(scene_path, UINT64_MAX, &ci->scene_hash, err, sizeof err) < 0 ||
         ckpt_store_args(ci, argc, argv, scene_path) < 0) {
         fprintf(stderr, "render: %s\n", err[0] ? err : "too many arguments to keep in a checkpoint");
         return 2;

@@ -60,12 +60,6 @@ int ckpt_write(const char *path, const ckpt_info *ci, const render_state *st, ch
  * it). A file whose checksum does not match is refused either way (PM_EFORMAT). */
 int ckpt_read(const char *path, ckpt_info *ci, render_state *st, char *err, size_t errcap);
 
-/* 64-bit FNV-1a, continued from h (start with CKPT_HASH_INIT). */
-#define CKPT_HASH_INIT 0xcbf29ce484222325ULL
-uint64_t ckpt_hash(uint64_t h, const void *p, size_t n);
-/* Continue h over a file's bytes (at most max_bytes; more is an error). 0 or PM_EIO. */
-int ckpt_hash_file(const char *path, uint64_t max_bytes, uint64_t *h, char *err, size_t errcap);
-
 /* ---- a distributed render (render/mpi/) ---------------------------------------------------
  *
  * Every process of a distributed render runs main.c, so every process sets up the checkpoint

@@ -6,12 +6,12 @@
 
 #include <string.h>
 
-#include "run/checkpoint.h"
+#include "base/hash.h"
 
 static uint64_t hash_u64(uint64_t h, uint64_t v) {
     unsigned char b[8];
     for (int i = 0; i < 8; i++) b[i] = (unsigned char)(v >> (8 * i));
-    return ckpt_hash(h, b, sizeof b);
+    return hash_fnv1a(h, b, sizeof b);
 }
 
 uint64_t hash_double(uint64_t h, double v) {
@@ -53,7 +53,7 @@ static uint64_t hash_light(uint64_t h, const light *l) {
 }
 
 uint64_t scene_transport_hash(const scene *s) {
-    uint64_t h = CKPT_HASH_INIT;
+    uint64_t h = HASH_FNV_INIT;
     h = hash_int(h, s->ntris);
     for (int i = 0; i < s->ntris; i++) {
         const triangle *t = &s->tris[i];

@@ -31,7 +31,7 @@ extern "C" {
 uint64_t scene_transport_hash(const scene *s);
 
 /* The FNV-1a steps it is made of, for hashing other values the same way (start from
- * CKPT_HASH_INIT, checkpoint.h). */
+ * HASH_FNV_INIT, base/hash.h). */
 uint64_t hash_double(uint64_t h, double v);
 uint64_t hash_int(uint64_t h, int64_t v);
 

@@ -1,0 +1,50 @@
+/* exr.h: OpenEXR images, written and read with OpenEXRCore, the C API of Debian's
+ * libopenexr-dev (openexr.h, -lOpenEXRCore).
+ *
+ * Writing: one scanline part, channels R, G, B, 32-bit float (exact: the film's floats as
+ * they are) or 16-bit half (EXR_HALF: rounded to the nearest half, relative error at most
+ * 2^-11 for |v| in half's normal range 6.1e-5 .. 65504; larger values become infinity, smaller
+ * ones lose precision as half's subnormals do), ZIP compression (lossless), data and display
+ * window 0 .. width-1, 0 .. height-1, row 0 at the top (EXR's y grows downward, as the film's).
+ * The file is built in memory and then written to the caller's stream in one piece, so it goes
+ * through output.h's atomic outputs like every other image (a temporary renamed into place;
+ * a FIFO written through).
+ *
+ * Reading: the first part of a scanline file, any compression OpenEXRCore decodes, channels R,
+ * G and B (or Y alone, read as grey) of any pixel type, converted to float; the data window
+ * gives the size. Tiled and deep files, and files with neither R, G, B nor Y, are refused.
+ *
+ * Errors: a negative PM_E* code (PM_EIO: cannot open or write; PM_EFORMAT: not an EXR file we
+ * read, with OpenEXRCore's own message; PM_ENOMEM) and a message in err naming the file.
+ * Nothing here keeps state; a film read is the caller's (film_free).
+ */
+#ifndef RENDER_EXR_H
+#define RENDER_EXR_H
+
+#include <stddef.h>
+#include <stdio.h>
+
+#include "image/film.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+enum { EXR_FLOAT = 0, EXR_HALF = 1 };
+
+/* Write f as an EXR file to fp (pixel type EXR_FLOAT or EXR_HALF). */
+int exr_write_fp(const film *f, FILE *fp, int pixel_type, char *err, size_t cap);
+
+/* Read an EXR file into f (zeroed first). */
+int exr_read(film *f, const char *path, char *err, size_t cap);
+
+/* Does the file start with EXR's magic number (76 2f 31 01)? 0 when it cannot be read. */
+int exr_is_exr(const char *path);
+
+/* Does the name end in ".exr" (any case)? */
+int exr_has_ext(const char *path);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_EXR_H */

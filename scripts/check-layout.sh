@@ -1,0 +1,78 @@
+#!/bin/sh
+# check-layout.sh [ROOT]: the rules of render/'s layout (render/README.md), checked.
+#
+#   1. Stages in pipeline order: a file includes only its own stage and stages before it
+#      (an include of a later stage is an import that runs back up).
+#   2. No file over 600 lines.
+#   3. No function over 120 lines (a function: a line at column 0 that ends in ") {", up to the
+#      next "}" at column 0; the style of every file in render/).
+# What breaks a rule today is listed below as a known exception, each with its size, so the
+# debt is visible and cannot grow: an exception that no longer applies is reported too, so the
+# list only shrinks. Prints one line per violation; exit 1 if there is any, else 0.
+root=${1:-.}
+cd "$root/render" || exit 2
+STAGES="base scene load photons guiding integrators photon_mapping image run app mpi"
+# Known exceptions: "include FILE STAGE/HEADER", "file FILE MAXLINES", "func FILE NAME MAXLINES".
+EXCEPTIONS='
+include load/scene_load.c photons/photon_settings.h
+file load/scene_load.c 761
+file load/tungsten.c 711
+file guiding/guide.c 814
+file photon_mapping/photonmapper.c 833
+file photons/photon_trace.c 1154
+file mpi/dist.c 867
+file mpi/lookup.c 1107
+func app/main.c main 365
+func photons/photon_trace.c photon_trace 208
+func photons/photon_trace.c run_pass 205
+func mpi/lookup.c hook_side_build 202
+func load/tungsten.c convert_primitive 167
+func photons/volume.c vol_trace_pass 160
+func photon_mapping/photon_sides.c side_cache_build 153
+func guiding/gather_guide.c gather_guide_plan 147
+func photon_mapping/pm_volume.c pmv_trace 133
+func photon_mapping/photonmapper.c mapper_preprocess 125
+'
+# One awk over every file (the checker must stay cheap: it runs in the test suite).
+awk -v stages="$STAGES" -v ex="$EXCEPTIONS" '
+  BEGIN {
+    ns = split(stages, S, " "); for (i = 1; i <= ns; i++) rank[S[i]] = i
+    n = split(ex, L, "\n")
+    for (i = 1; i <= n; i++) {
+      if (split(L[i], w, " ") < 3) continue
+      if (w[1] == "include") inc_ok[w[2] " " w[3]] = 1
+      if (w[1] == "file") file_lim[w[2]] = w[3]
+      if (w[1] == "func") func_lim[w[2] " " w[3]] = w[4]
+    }
+  }
+  FNR == 1 { if (prev != "") end_file(); prev = FILENAME; st = FILENAME; sub(/\/.*/, "", st); start = 0; pend = 0 }
+  /^#include "[a-z_0-9]+\/[a-z_0-9]+\.h"/ {
+    h = $2; gsub(/"/, "", h); is = h; sub(/\/.*/, "", is)
+    if (is in rank) {
+      if (rank[is] > rank[st]) {
+        if ((FILENAME " " h) in inc_ok) seen_inc[FILENAME " " h] = 1
+        else { printf "back-import: %s includes %s (stage %s comes after %s)\n", FILENAME, h, is, st; bad = 1 }
+      }
+    }
+  }
+  /^[A-Za-z_][^;=]*\(/ && !/^(typedef|struct|enum|union|static const|const)/ {
+    name = $0; sub(/\(.*/, "", name); sub(/.*[ *]/, "", name); cand = FNR; pend = 1 }
+  pend && /\) *\{ *$/ { start = cand; pend = 0; next }
+  pend && /;/ && !/\(/ { pend = 0 }
+  /^\}/ && start {
+    len = FNR - start + 1; k = FILENAME " " name; l = (k in func_lim) ? func_lim[k] : 120
+    if (len > l) { printf "long function: %s %s() has %d lines (limit %d)\n", FILENAME, name, len, l; bad = 1 }
+    if ((k in func_lim) && len <= 120) { printf "stale exception: func %s %s (now %d lines)\n", FILENAME, name, len; bad = 1 }
+    start = 0
+  }
+  { lines[FILENAME] = FNR }
+  function end_file() {
+    l = (prev in file_lim) ? file_lim[prev] : 600
+    if (lines[prev] > l) { printf "long file: %s has %d lines (limit %d)\n", prev, lines[prev], l; bad = 1 }
+    if ((prev in file_lim) && lines[prev] <= 600) { printf "stale exception: file %s (now %d lines)\n", prev, lines[prev]; bad = 1 }
+  }
+  END {
+    if (prev != "") end_file()
+    for (k in inc_ok) if (!(k in seen_inc)) { printf "stale exception: include %s\n", k; bad = 1 }
+    exit bad
+  }' */*.c */*.h

@@ -1,0 +1,63 @@
+/* test_layout.c: render/'s layout keeps its rules (render/README.md, scripts/check-layout.sh).
+ *
+ * Oracle: the rules themselves. Stages in pipeline order, an include of a later stage is an
+ * import that runs back up; no file over 600 lines and no function over 120, except the
+ * exceptions the script lists with their sizes (which may shrink, never grow). The checker is
+ * itself checked on a copy of the tree with one planted violation of each kind, so a checker
+ * that stopped seeing them fails here too.
+ */
+#include <stdio.h>
+#include <string.h>
+
+#include "test.h"
+
+TEST(layout_render_keeps_its_rules) {
+    char cmd[4096], out[16384];
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/check-layout.sh' '%s'", pm_test_source_dir(),
+             pm_test_source_dir());
+    int rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 0 && out[0] == 0, "render/ breaks its layout rules (rc %d):\n%s", rc, out);
+}
+
+/* Copy render/ into the temporary directory, plant one violation, run the checker there. */
+static int planted(const char *plant, char *out, size_t cap) {
+    char cmd[8192];
+    snprintf(cmd, sizeof cmd,
+             "rm -rf '%s/t' && mkdir -p '%s/t' && cp -r '%s/render' '%s/t/' && cd '%s/t/render' && %s "
+             "&& sh '%s/scripts/check-layout.sh' '%s/t'",
+             pm_test_tmpdir(), pm_test_tmpdir(), pm_test_source_dir(), pm_test_tmpdir(),
+             pm_test_tmpdir(), plant, pm_test_source_dir(), pm_test_tmpdir());
+    return pm_test_run(cmd, out, cap);
+}
+
+TEST(layout_checker_sees_each_kind_of_violation) {
+    static const struct {
+        const char *plant, *expect;
+    } cases[] = {
+        /* a scene file reaching into the program */
+        {"echo '#include \"app/tools.h\"' >> scene/camera.h",
+         "back-import: scene/camera.h includes app/tools.h"},
+        /* a file of 601 lines */
+        {"for i in $(seq 601); do echo '/* x */'; done > base/long.h", "long file: base/long.h has 601 lines"},
+        /* a function of 121 lines (signature, 119 statements, closing brace) */
+        {"{ echo 'int planted_long(int a) {'; for i in $(seq 119); do echo '    a++;'; done; echo '}'; } "
+         "> base/planted.c",
+         "long function: base/planted.c planted_long() has 121 lines"},
+        /* a listed exception that grew past its recorded size */
+        {"for i in $(seq 5); do echo '/* x */'; done >> photons/photon_trace.c",
+         "long file: photons/photon_trace.c"},
+        /* a listed exception that no longer applies must be struck from the list */
+        {"sed -i '/^#include \"photons\\/photon_settings.h\"/d' load/scene_load.c",
+         "stale exception: include load/scene_load.c photons/photon_settings.h"},
+    };
+    char out[16384];
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        int rc = planted(cases[i].plant, out, sizeof out);
+        EXPECT_MSG(rc == 1 && strstr(out, cases[i].expect),
+                   "planted '%s': expected rc 1 and '%s', got rc %d:\n%s", cases[i].plant,
+                   cases[i].expect, rc, out);
+    }
+    /* and a clean copy passes, so the cases above fail for their plant alone */
+    int rc = planted("true", out, sizeof out);
+    EXPECT_MSG(rc == 0 && out[0] == 0, "the unplanted copy fails (rc %d):\n%s", rc, out);
+}
