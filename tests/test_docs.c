@@ -219,7 +219,8 @@ TEST(docs_media_cost_column_is_lowest_and_highest) {
  *     Measured sources (stamp COMMIT): `photonmap/` `render/` `Makefile`
  *
  * (the stamp is the commit the measured binaries were built from). The section is stale when a
- * commit after the stamp touched one of those sources (git rev-list STAMP..HEAD -- SOURCES),
+ * commit after the stamp, other than a merge, touched one of those sources (git rev-list
+ * --no-merges STAMP..HEAD -- SOURCES),
  * or when the stamp is not a commit of this history.
  *
  * KNOWN_STALE lists the sections that were stale when this check was written and are being or
@@ -267,7 +268,7 @@ TEST(docs_measured_sections_are_not_stale) {
              "while IFS='|' read -r doc head stamp src; do "
              "if [ \"$head\" = - ]; then echo \"$doc|-\"; continue; fi; "
              "if git cat-file -e \"$stamp^{commit}\" 2>/dev/null; then "
-             "n=$(git rev-list --count \"$stamp..HEAD\" -- $src); last=$(git log -1 --format=%%h \"$stamp..HEAD\" -- $src); "
+             "n=$(git rev-list --no-merges --count \"$stamp..HEAD\" -- $src); last=$(git log --no-merges -1 --format=%%h \"$stamp..HEAD\" -- $src); "
              "else n=unknown; last=-; fi; echo \"$doc|$head|$stamp|$n|$last|$src\"; done",
              pm_test_source_dir());
     ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
