@@ -296,6 +296,8 @@ echo "every 100th quad collapsed to zero area; each file is loaded by our \`mesh
 echo "three times each, and the table gives the median process CPU time of one load and the"
 echo "triangles returned. The expected count is the construction's (2 x 708^2, less the collapsed"
 echo "quads' 2 x 5013 in the last file)."
+# the objects --run-ply links (its loop above), and the timing program
+echo "Measured sources (stamp $(pm commit | cut -d' ' -f1)): $(for f in load/mesh load/obj load/ply load/wo3 scene/shapes base/sampling; do printf '`render/%s.c` ' $f; done)\`scripts/ply-load-time.c\`"
 echo
 echo "| file | bytes | expected triangles | ours: triangles | ours: CPU s | assimp: triangles | assimp: CPU s |"
 echo "|---|---|---|---|---|---|---|"
