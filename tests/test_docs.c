@@ -316,3 +316,38 @@ TEST(docs_measured_sections_are_not_stale) {
     printf("    %d measured sections: %d stale (known %d)\n", sections, stale + known, known);
     EXPECT_MSG(sections >= 8, "only %d measured sections found", sections);
 }
+
+/* Oracle: the data the sentences read. gen-media-md.sh's sentences on the path-traced beam
+ * runs are computed from time_error_volumetric_caustic.csv, not typed: on a copy of docs/media/
+ * whose path-traced runs all see the beam (image mean that of photon mapping) with RMSE
+ * exactly sqrt(40 / N), the document says no run misses the beam and that N RMSE² stays
+ * within 40 to 40 (RMSE falls as 1/sqrt(N)); on the committed files it names the runs of 16
+ * and 64 spp and says RMSE does not yet fall as 1/sqrt(N). gen-accuracy-md.sh likewise says
+ * the two lookups agree only when every row's mismatches is 0. */
+TEST(docs_generators_sentences_follow_the_data) {
+    char cmd[8192], out[65536];
+    const char *t = pm_test_tmpdir(), *src = pm_test_source_dir();
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-media-md.sh' --out - 2>/dev/null", src);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "Path tracing's runs of 16 and 64 spp miss the beam"), "committed media: %.400s", out);
+    EXPECT_MSG(strstr(out, "its RMSE does not yet fall as 1/sqrt(N)."), "committed media");
+    snprintf(cmd, sizeof cmd,
+             "cp -r '%s/docs/media' '%s/media' && cd '%s/media' && "
+             "awk -F, -v OFS=, 'NR == 1 { print; next } $1 == \"pm\" { m = $6 } { r[NR] = $0 } "
+             "END { for (i = 2; i <= NR; i++) { split(r[i], f, \",\"); if (f[1] == \"path\") { f[6] = m; "
+             "f[5] = f[7] = sqrt(40 / f[2]) } print f[1], f[2], f[3], f[4], f[5], f[6], f[7] } }' "
+             "time_error_volumetric_caustic.csv > x && mv x time_error_volumetric_caustic.csv && "
+             "sh '%s/scripts/gen-media-md.sh' --out - '%s/media' 2>/dev/null",
+             src, t, t, src, t);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(!strstr(out, "miss the beam"), "no run misses the beam here: %.400s", out);
+    EXPECT_MSG(strstr(out, "N RMSE² stays within 40 to 40: its RMSE falls as 1/sqrt(N)."), "synthetic media");
+    snprintf(cmd, sizeof cmd,
+             "cp -r '%s/docs/accuracy' '%s/acc' && cd '%s/acc' && "
+             "awk -F, -v OFS=, 'NR == 2 { $9 = 3 } { print }' irradiance_lookup.csv > x && mv x irradiance_lookup.csv && "
+             "sh '%s/scripts/gen-accuracy-md.sh' --out - '%s/acc'",
+             src, t, t, src, t);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(!strstr(out, "Both give the same answers") && strstr(out, "In 3 answers of the rows below the two disagree"),
+               "accuracy with 3 mismatches: %.300s", strstr(out, "private tree") ? strstr(out, "private tree") : out);
+}
