@@ -17,6 +17,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include "test.h"
 #include "photonmap.h"
 #include "estimate.h"
@@ -852,6 +855,15 @@ TEST(estimate_leak_control) {
  * thread, lookups run in parallel (OpenMP, when the build has it) give bit-identical results
  * for every estimator. */
 TEST(estimate_parallel_matches_serial) {
+#ifdef _OPENMP
+    int team = 0;
+#pragma omp parallel num_threads(2)
+    {
+#pragma omp single
+        team = omp_get_num_threads();
+    }
+    ASSERT_MSG(team == 2, "OpenMP gave %d threads, not 2: the comparison would not test anything", team);
+#endif
     square sq;
     make_square(&sq, 8, RANDOM);
     pm_kdtree *tree = NULL;
