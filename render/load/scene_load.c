@@ -385,7 +385,7 @@ static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_e
         for (int i = 1; i + 1 < nv; i++) TRY(add_tri(s, cp, v[0], v[i], v[i + 1], mat, P, e));
     } else if (strcmp(type, "mesh") == 0 && json_get(o, "file")) {
         KEYS(o, P, "a mesh from a file", "type", "name", "file", "material", "usemtl", "transform", "smooth",
-             "recompute_normals", "interior_medium", "vertices", "triangles"); /* import.c: not both */
+             "recompute_normals", "flip", "interior_medium", "vertices", "triangles"); /* import.c: not both */
         return load_mesh_file(s, cp, o, P, e);
     } else if (strcmp(type, "mesh") == 0) {
         KEYS(o, P, "a mesh", "type", "name", "vertices", "triangles", "material", "interior_medium", "file");
@@ -754,7 +754,7 @@ int scene_load_text(scene *s, const char *text, json_err *e) {
 int scene_load(scene *s, const char *filename, json_err *e) {
     cJSON *root = NULL;
     memset(s, 0, sizeof *s);
-    int rc = json_parse_file(filename, &root, e);
+    int rc = scene_parse_file(filename, &root, e); /* JSON, or a pbrt-v3 file converted */
     rc = load_parsed(s, rc, root, filename, e);
     if (rc == 0) snprintf(s->file, sizeof s->file, "%s", filename);
     return rc;
