@@ -569,3 +569,58 @@ TEST(pbrt_cornell_same_seed_same_image) {
         EXPECT_MSG(rel < 1e-6, "%s: %s", m ? "pm" : "path", out);
     }
 }
+
+/* Oracle: by hand. A trianglemesh with "normal N": the normals go through the transform's
+ * inverse transpose (Scale 2 1 1: n = (1, 0, 1) becomes (0.5, 0, 1), normalized) and the
+ * mirror (x negated: plain LookAt), the mesh becomes smooth, and each triangle is wound so its
+ * front faces its normals as pbrt's FaceForward does (a triangle whose winding gives +z with
+ * normals toward -z is turned). Loaded, the corner normals are the given ones. */
+TEST(pbrt_trianglemesh_normals_smooth) {
+    const char *t = "LookAt 0 0 -5 0 0 0 0 1 0\nCamera \"perspective\"\nWorldBegin\n"
+                    "AttributeBegin\nScale 2 1 1\n"
+                    "Shape \"trianglemesh\" \"point P\" [0 0 0 1 0 0 0 1 0] \"integer indices\" [0 1 2]\n"
+                    "  \"normal N\" [1 0 1  1 0 1  1 0 1]\n"
+                    "AttributeEnd\n"
+                    "Shape \"trianglemesh\" \"point P\" [0 0 1 1 0 1 0 1 1] \"integer indices\" [0 1 2]\n"
+                    "  \"normal N\" [0 0 -1  0 0 -1  0 0 -1]\n"
+                    "WorldEnd\n";
+    cJSON *d = convert_ok(t);
+    ASSERT(d);
+    double l = sqrt(0.25 + 1);
+    EXPECT_NEAR(num_at(d, "objects.0.normals.0.0"), -0.5 / l, 1e-12); /* mirrored */
+    EXPECT_NEAR(num_at(d, "objects.0.normals.0.2"), 1 / l, 1e-12);
+    EXPECT_NEAR(num_at(d, "objects.0.triangles.0.1"), 2, 0); /* mirrored winding -z, normals +z: turned */
+    EXPECT(cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(d, "objects"), 0), "smooth")));
+    /* object 1: pbrt's winding normal +z, mirrored (x -> -x) it is -z in ours: faces its -z
+     * normals without a turn */
+    EXPECT_NEAR(num_at(d, "objects.1.triangles.0.1"), 1, 0);
+    EXPECT_NEAR(num_at(d, "objects.1.normals.2.2"), -1, 1e-12);
+    scene s;
+    json_err e;
+    char *txt = cJSON_PrintUnformatted(d);
+    ASSERT(txt);
+    ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
+    ASSERT_EQ_INT(s.ntris, 2);
+    ASSERT(s.tri_ns != NULL && s.ntri_ns == 2);
+    for (int k = 0; k < 2; k++) {
+        vec3 n0 = s.tri_ns[k][0];
+        EXPECT_MSG(v3_dot(s.tris[k].n, n0) > 0, "triangle %d: front against its normals", k);
+    }
+    EXPECT_NEAR(s.tri_ns[0][1].x, -0.5 / l, 1e-9);
+    EXPECT_NEAR(s.tri_ns[1][2].z, -1, 1e-9);
+    scene_free(&s);
+    free(txt);
+    cJSON_Delete(d);
+    /* the same second triangle with its normals toward +z: turned (the winding would face -z) */
+    d = convert_ok("LookAt 0 0 -5 0 0 0 0 1 0\nCamera \"perspective\"\nWorldBegin\n"
+                   "Shape \"trianglemesh\" \"point P\" [0 0 1 1 0 1 0 1 1] \"integer indices\" [0 1 2] \"normal N\" [0 0 1 0 0 1 0 0 1]\n");
+    ASSERT(d);
+    EXPECT_NEAR(num_at(d, "objects.0.triangles.0.1"), 2, 0);
+    cJSON_Delete(d);
+    /* JSON: normals need smooth, one per vertex */
+    EXPECT(scene_load_text(&s, "{\"camera\": {\"eye\": [0, 0, -5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 4, \"height\": 4},"
+                               " \"materials\": {\"w\": {\"type\": \"lambert\", \"reflectance\": 0.5}},"
+                               " \"objects\": [{\"type\": \"mesh\", \"vertices\": [[0,0,0],[1,0,0],[0,1,0]], \"triangles\": [[0,1,2]],"
+                               " \"normals\": [[0,0,1],[0,0,1]], \"smooth\": true, \"material\": \"w\"}]}", &e) < 0 &&
+           strstr(e.msg, "$.objects[0].normals: expected one normal per vertex (3)"));
+}

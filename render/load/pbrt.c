@@ -585,20 +585,44 @@ static int shape_trianglemesh(conv *c, const tok *at, plist *pl, const char *mat
     int ni = I ? I->n : (nv == 3 ? 3 : -1);
     if (ni < 0) return pfail(c, at, PM_EINVAL, "Shape \"trianglemesh\": \"integer indices\" missing (required unless P has 3 points)");
     if (ni % 3) return pfail(c, at, PM_EINVAL, "Shape \"trianglemesh\": %d indices, not a multiple of 3", ni);
-    if (N) pwarn(c, at, "Shape \"trianglemesh\": \"normal N\" is not supported: flat shading");
-    vec3 *v = malloc((size_t)nv * sizeof *v);
-    if (!v) return PM_ENOMEM;
+    if (N && N->n != P->n) return pfail(c, at, PM_EINVAL, "Shape \"trianglemesh\": \"normal N\" has %d numbers, P %d", N->n, P->n);
+    vec3 *v = malloc((size_t)nv * sizeof *v), *vn = N ? malloc((size_t)nv * sizeof *vn) : NULL;
+    if (!v || (N && !vn)) {
+        free(v);
+        free(vn);
+        return PM_ENOMEM;
+    }
+    /* normals by the inverse transpose, then the mirror (pbrt.h); pbrt turns the geometric
+     * normal toward them (FaceForward), so with N each triangle is wound to face its normals */
+    double inv[4][4];
+    if (N && m_inv(c->g.m, inv) < 0) {
+        free(v);
+        free(vn);
+        return pfail(c, at, PM_EINVAL, "Shape \"trianglemesh\": the transform is singular");
+    }
+    for (int i = 0; N && i < nv; i++) {
+        vec3 n = v3(N->num[3 * i], N->num[3 * i + 1], N->num[3 * i + 2]);
+        vec3 w = v3(inv[0][0] * n.x + inv[1][0] * n.y + inv[2][0] * n.z, inv[0][1] * n.x + inv[1][1] * n.y + inv[2][1] * n.z,
+                    inv[0][2] * n.x + inv[1][2] * n.y + inv[2][2] * n.z);
+        if (!(v3_len(w) > 0) || !isfinite(w.x + w.y + w.z)) {
+            free(v);
+            free(vn);
+            return pfail(c, at, PM_EINVAL, "Shape \"trianglemesh\": normal %d is zero or not finite", i);
+        }
+        vn[i] = out_v(c, v3_norm(w));
+    }
     for (int i = 0; i < nv; i++) {
         vec3 p = v3(P->num[3 * i], P->num[3 * i + 1], P->num[3 * i + 2]);
         if (!isfinite(p.x) || !isfinite(p.y) || !isfinite(p.z)) {
             free(v);
+            free(vn);
             return pfail(c, at, PM_EINVAL, "Shape \"trianglemesh\": point %d is not finite", i);
         }
         v[i] = out_v(c, m_point(c->g.m, p));
     }
     int flip = need_flip(c);
-    cJSON *o = cJSON_CreateObject(), *va = cJSON_CreateArray(), *ta = cJSON_CreateArray();
-    int rc = o && va && ta ? 0 : PM_ENOMEM;
+    cJSON *o = cJSON_CreateObject(), *va = cJSON_CreateArray(), *ta = cJSON_CreateArray(), *na = N ? cJSON_CreateArray() : NULL;
+    int rc = o && va && ta && (!N || na) ? 0 : PM_ENOMEM;
     for (int i = 0; i < nv && rc == 0; i++) cJSON_AddItemToArray(va, jv(v[i]));
     long skipped = 0;
     for (int t = 0; t < ni / 3 && rc == 0; t++) {
@@ -617,32 +641,36 @@ static int shape_trianglemesh(conv *c, const tok *at, plist *pl, const char *mat
             skipped++;
             continue;
         }
-        if (flip) {
+        if (vn ? v3_dot(tr.n, v3_add(vn[k[0]], v3_add(vn[k[1]], vn[k[2]]))) < 0 : flip) {
             int x = k[1];
             k[1] = k[2];
             k[2] = x;
         }
         cJSON_AddItemToArray(ta, cJSON_CreateIntArray(k, 3));
     }
+    for (int i = 0; vn && i < nv && rc == 0; i++) cJSON_AddItemToArray(na, jv(vn[i]));
     free(v);
+    free(vn);
     if (rc == 0 && skipped)
         pwarn(c, at, "Shape \"trianglemesh\": skipped %ld degenerate triangle%s (zero area)", skipped, skipped == 1 ? "" : "s");
     if (rc == 0 && cJSON_GetArraySize(ta) == 0) {
         pwarn(c, at, "Shape \"trianglemesh\": no triangle with an area: skipped");
-        cJSON_Delete(o);
-        cJSON_Delete(va);
-        cJSON_Delete(ta);
-        return 0;
+        rc = 1;
     }
-    if (rc < 0) {
+    if (rc != 0) {
         cJSON_Delete(o);
         cJSON_Delete(va);
         cJSON_Delete(ta);
-        return rc;
+        cJSON_Delete(na);
+        return rc < 0 ? rc : 0;
     }
     cJSON_AddStringToObject(o, "type", "mesh");
     cJSON_AddItemToObject(o, "vertices", va);
     cJSON_AddItemToObject(o, "triangles", ta);
+    if (na) {
+        cJSON_AddItemToObject(o, "normals", na);
+        cJSON_AddBoolToObject(o, "smooth", 1);
+    }
     cJSON_AddStringToObject(o, "material", mat);
     cJSON_AddItemToArray(c->target, o);
     return 0;

@@ -9,7 +9,8 @@
  *   - the transform stack: Identity, Translate, Scale, Rotate, Transform, ConcatTransform,
  *     CoordinateSystem, CoordSysTransform, TransformBegin/End, AttributeBegin/End,
  *     ReverseOrientation;
- *   - Shape "trianglemesh" (P, indices; N is warned about: flat shading), "plymesh" (a PLY file
+ *   - Shape "trianglemesh" (P, indices, N: smooth shading, each triangle wound to face its
+ *     normals as pbrt's FaceForward does), "plymesh" (a PLY file
  *     through our reader, ply.h; smooth where the file has normals) and "sphere" (full spheres);
  *   - Material and MakeNamedMaterial/NamedMaterial: matte (Kd, sigma: lambert or oren_nayar),
  *     mirror (Kr), glass (eta or index: dielectric), plastic, substrate and uber (Kd under a
