@@ -72,6 +72,13 @@ uint64_t pass_seed(uint64_t seed, int pass) {
     return rng_mix64(seed ^ rng_mix64(0x7061737300000000ULL + (uint64_t)pass)); /* "pass" */
 }
 
+/* Tests: PM_RENDER_TEST_PAUSE=pass:N pauses (output.h's out_test_pause, phase "pass") once
+ * pass N's maps are made, before its image, so a signal there stops pass N mid-way. */
+static void test_pause_at(int pass) {
+    const char *v = getenv("PM_RENDER_TEST_PAUSE");
+    if (v && strncmp(v, "pass:", 5) == 0 && atoi(v + 5) == pass) out_test_pause("pass");
+}
+
 int render_passes(const scene *s, integrator *it, const render_job *job, const pass_run *run,
                   pass_state *ps, film *out, pass_report *rep, char *err, size_t errcap) {
     memset(rep, 0, sizeof *rep);
@@ -95,6 +102,7 @@ int render_passes(const scene *s, integrator *it, const render_job *job, const p
         double tb = stats_now();
         if (it->begin_pass && (rc = it->begin_pass(it, s, p, seed, err, errcap)) < 0) break;
         stats_time_add("Time/Passes: begin_pass (photon maps)", stats_now() - tb);
+        test_pause_at(p);
         render_job pj = *job;
         pj.seed = seed;
         pj.quiet = 1;

@@ -29,7 +29,8 @@
  * budget plus about one pass, and always renders at least one pass. After each pass on_pass
  * is called with the state (checkpoints, snapshots). A signal deferred by output.h stops the
  * pass being rendered (stop_on_signal); it is dropped, and the state keeps the passes
- * completed before it.
+ * completed before it. Test hook: PM_RENDER_TEST_PAUSE=pass:N pauses before pass N's image
+ * (after its begin_pass), as output.h's phases do.
  */
 #ifndef RENDER_PASSES_H
 #define RENDER_PASSES_H
