@@ -88,7 +88,8 @@ typedef struct mapper_state {
     int st_emission_rays;
     /* Progressive passes (mapper_begin_pass): the pass whose maps are built, its seed, its
      * squared radii's factor against pass 0's, pass 0's radii and volume radii. */
-    int pass;
+    int pass, progressive; /* progressive: ppm_radius applies (a render in passes) */
+    int made;              /* preprocess ran once: the plan's parts and messages are done */
     uint64_t pass_seed;
     double r2_scale, t_trace, t_trees, t_irr; /* the last pass's times (seconds) */
     map_radii rad0;
@@ -652,7 +653,7 @@ static int pass_volume_radii(mapper_state *st, const scene *s);
 
 static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
     mapper_state *st = self->data;
-    if (!st->pass) plan_print(&st->plan, stdout);
+    if (!st->made) plan_print(&st->plan, stdout);
     fflush(stdout);
     photon_maps *m = &st->maps;
     int rc;
@@ -699,7 +700,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         }
         if ((rc = photon_trace(s, &o, m, err, errcap)) < 0) return rc;
         m->stamp = stamp;
-        if (!st->pass)
+        if (!st->made)
         printf("Photons: %zu global, %zu shadow-map (from %llu emitted); %zu caustic (from %llu "
                "emitted; projection maps cover %.2f%% of the light's power, saving %llu "
                "emissions)\n",
@@ -712,7 +713,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     stats_time_add("Time/Photon tracing (or loading)", st->t_trace);
     /* Saved before the trees reorder them: loading these files then gives the trees, the
      * precomputed irradiance and the image of this run exactly. */
-    if (st->cfg.save_dir[0] && !st->pass) {
+    if (st->cfg.save_dir[0] && !st->made) {
         if ((rc = photon_maps_save(m, st->cfg.save_dir, err, errcap)) < 0) return rc;
         printf("Saved photon maps to %s\n", st->cfg.save_dir);
     }
@@ -720,9 +721,9 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     /* The radii of the whole maps, before a distributed render keeps only its part of them. */
     map_radii rad;
     photon_maps_radii(s, m, &st->cfg, &rad);
-    pass_radii(st, &rad); /* progressive passes: pass 0's radii, shrunk */
     st->nglobal_all = m->part ? m->whole_global : m->nglobal;
     st->ncaustic_all = m->part ? m->whole_caustic : m->ncaustic;
+    pass_radii(st, &rad); /* progressive passes: pass 0's radii, shrunk */
     if (g_lookup && (rc = g_lookup->partition(g_lookup->user, m, err, errcap)) < 0) return rc;
 
     t0 = stats_now();
@@ -738,7 +739,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     st->r2_lookup = rad.r2_lookup;
     st->r2_shadow = rad.r2_shadow;
     st->sec_dist = st->cfg.secondary_distance > 0 ? st->cfg.secondary_distance : rad.typical;
-    if (!st->pass)
+    if (!st->made)
     printf("Radii: global estimate %.4g, caustic estimate %.4g, secondary gather below %.4g, "
            "shadow-map query %.4g\n",
            rad.global, rad.caustic, st->sec_dist, rad.shadow);
@@ -764,13 +765,13 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         stat_add(st->st_side_again, st->sides.researched);
         st->t_irr = stats_now() - t0;
         stats_time_add("Time/Precomputed irradiance", st->t_irr);
-        if (!st->pass)
+        if (!st->made)
         printf("Precomputed irradiance at %zu of %zu global photons (%zu estimates searched again "
                "for a hidden neighbour; %zu of too few photon paths to be read: the light there is "
                "computed)\n",
                st->sides.n, st->nglobal_all, st->sides.researched, st->sides.sparse);
     }
-    if (st->pass) { /* the gather guide is the plan's: made once, on pass 0 */
+    if (st->made) { /* the gather guide is the plan's: made once, on pass 0 */
         fflush(stdout);
         return 0;
     }
@@ -787,6 +788,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     }
     stats_time_add("Time/Gather guide pilot", stats_now() - t0);
     printf("  gather guide: %s\n", st->gg.reason);
+    st->made = 1;
     if (g_lookup) {
         const pm_kdtree *trees[2] = {st->tg, st->tc};
         pm_estimate_options opts[2] = {st->glob_opt, st->caus_opt};
@@ -817,6 +819,23 @@ static double ppm_r2_scale(int pass, double alpha) {
  * query (a hint that never changes the mean) and the typical radius (which decides where
  * secondary gathers run, an unbiased choice) stay as the pass finds them or as pass 0 had. */
 static void pass_radii(mapper_state *st, map_radii *rad) {
+    if (!st->pass && st->progressive && st->cfg.ppm_radius > 0) {
+        /* ppm_radius: the first radii, f times a k-photon estimate's radius at the map's mean
+         * density over the diffuse area: typical^2 = k_g A / (pi n_g) for the global map (from
+         * photon_maps_radii), and k_c A / (pi n_c) = typical^2 (k_c n_g) / (k_g n_c) for the
+         * caustic map; never above the maximum radii. */
+        double f = st->cfg.ppm_radius, t2 = rad->typical * rad->typical;
+        double g = f * rad->typical;
+        if (isfinite(g) && g < rad->global) rad->global = g;
+        if (st->ncaustic_all && st->nglobal_all) {
+            double c = f * sqrt(t2 * st->cfg.k_caustic * (double)st->nglobal_all /
+                                ((double)st->cfg.k_global * (double)st->ncaustic_all));
+            if (isfinite(c) && c < rad->caustic) rad->caustic = c;
+        }
+        rad->r2_global = (float)(rad->global * rad->global);
+        rad->r2_caustic = (float)(rad->caustic * rad->caustic);
+        if (rad->r2_lookup > rad->r2_global) rad->r2_lookup = rad->r2_global;
+    }
     if (!st->pass) {
         st->rad0 = *rad;
         return;
@@ -883,7 +902,11 @@ static void print_pass(const mapper_state *st, int pass) {
 static int mapper_begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, char *err,
                              size_t errcap) {
     mapper_state *st = self->data;
-    if (pass == st->pass) { /* pass 0: preprocess made it */
+    /* Pass 0 is what preprocess made, unless ppm_radius asks for other first radii: then it
+     * is made again (the same photons) with them. */
+    int again = pass == 0 && !st->progressive && st->cfg.ppm_radius > 0;
+    st->progressive = 1;
+    if (pass == st->pass && !again) {
         print_pass(st, pass);
         return 0;
     }
