@@ -891,7 +891,12 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
 /* One line per pass on stdout: the maps, what building them cost, and the radii. */
 static void print_pass(const mapper_state *st, int pass) {
     printf("Pass %d: photons %zu global, %zu caustic", pass, st->nglobal_all, st->ncaustic_all);
-    if (st->vol.on) printf(", %zu volume, %zu volume-caustic", st->vol.n_all, st->vol.n_caus);
+    if (st->vol.on) {
+        double r2v = 0; /* the largest r^2 of the media's multiple-scattering maps */
+        for (int md = 0; st->vol.ms && md < st->vol.nmedia; md++)
+            if (st->vol.ms[md].n && (double)st->vol.ms[md].r2 > r2v) r2v = (double)st->vol.ms[md].r2;
+        printf(", %zu volume (r^2 %.9g), %zu volume-caustic", st->vol.n_all, r2v, st->vol.n_caus);
+    }
     printf("; trace %.3f s, kd-trees %.3f s, irradiance %.3f s; r^2 global %.9g, caustic %.9g "
            "(pass 0's x %.9g)\n",
            st->t_trace, st->t_trees, st->t_irr, (double)st->r2_global, (double)st->r2_caustic,

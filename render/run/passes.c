@@ -69,7 +69,7 @@ double pass_state_rmse(const pass_state *ps, double *mean) {
 
 uint64_t pass_seed(uint64_t seed, int pass) {
     if (pass == 0) return seed;
-    return rng_mix64(seed ^ rng_mix64(0x7061737300000000ULL + (uint64_t)pass)); /* "pass" */
+    return rng_mix64(seed ^ rng_mix64(UINT64_C(0x7061737300000000) + (uint64_t)pass)); /* "pass" */
 }
 
 /* Tests: PM_RENDER_TEST_PAUSE=pass:N pauses (output.h's out_test_pause, phase "pass") once
