@@ -38,6 +38,9 @@
 #ifdef _OPENMP
 #include <omp.h>
 #endif
+#ifdef render_image_ctl /* render-mpi: main.c compiled again with mpicc (mpi/dist.h) */
+#include "mpi/dist.h"
+#endif
 
 static void usage(FILE *f) {
     fprintf(f,
@@ -429,12 +432,15 @@ int main(int argc, char **argv) {
     }
     static pass_state pstate;
     if (in_passes) {
-#ifdef render_image_ctl /* render-mpi (dist.h): its image loop ends the worker ranks */
-        fprintf(stderr, "render-mpi: rendering in passes (--time, --passes, --only-pass or the "
-                "scene's render.time) is not available in render-mpi; use render, or --spp for "
-                "one pass of fixed work\n");
-        scene_free(&s);
-        return 2;
+#ifdef render_image_ctl /* render-mpi (mpi/dist.h): passes in the replicated mode only */
+        if (dist_partitioned()) {
+            fprintf(stderr, "render-mpi: rendering in passes (--time, --passes, --only-pass or the "
+                    "scene's render.time) is not available with --pm distributed=partitioned (each "
+                    "pass would partition fresh maps); use the replicated mode, or --spp for one "
+                    "pass of fixed work\n");
+            scene_free(&s);
+            return 2;
+        }
 #endif
         const cJSON *ld = s.photon_mapping ? cJSON_GetObjectItemCaseSensitive(s.photon_mapping, "load_photons") : NULL;
         if (uses_photons && cJSON_IsString(ld) && ld->valuestring[0]) {
@@ -536,12 +542,20 @@ int main(int argc, char **argv) {
         pr.t_first = pstate.done == 0 ? t_prep0 : 0;
         pr.only = (int)only_pass;
         pr.stop_on_signal = ckpt_path != NULL;
+#ifdef render_image_ctl
+        pr.image = dist_pass_image;
+        pr.agree = dist_pass_agree;
+#else
         pr.image = render_image_ctl;
+#endif
         pr.on_pass = ckpt_path || snap_every > 0 ? ckpt_session_pass : NULL;
         pr.user = &cs;
         pr.quiet = quiet;
         err[0] = 0;
         rc = render_passes(&s, &it, &job, &pr, &pstate, &f, &prep, err, sizeof err);
+#ifdef render_image_ctl
+        dist_passes_end(rc); /* the worker ranks end here */
+#endif
         if (rc < 0 && err[0]) snprintf(cs.err, sizeof cs.err, "%s", err);
         /* The last state, so that the render can be continued with more passes. */
         if (rc == 0 && ckpt_path && !out_pending_signal() &&

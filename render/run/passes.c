@@ -86,15 +86,17 @@ int render_passes(const scene *s, integrator *it, const render_job *job, const p
     double tsum = 0;
     int first = run->only >= 0 ? run->only : ps->done;
     for (int p = first;; p++) {
-        if (run->only >= 0 && p > run->only) break;
-        if (run->only < 0 && run->max_passes > 0 && p >= run->max_passes) break;
-        if (rep->passes > 0 && run->budget > 0 &&
-            stats_now() - run->t_origin + tsum / rep->passes > run->budget) {
-            rep->stopped_by_budget = 1;
-            break;
-        }
-        if (run->stop_on_signal && out_pending_signal()) {
-            interrupted = 1;
+        int go = 1, by_budget = 0, by_signal = 0;
+        if (run->only >= 0 && p > run->only) go = 0;
+        if (run->only < 0 && run->max_passes > 0 && p >= run->max_passes) go = 0;
+        if (go && rep->passes > 0 && run->budget > 0 &&
+            stats_now() - run->t_origin + tsum / rep->passes > run->budget)
+            go = 0, by_budget = 1;
+        if (go && run->stop_on_signal && out_pending_signal()) go = 0, by_signal = 1;
+        if (run->agree) go = run->agree(go); /* a distributed render: rank 0's decision */
+        if (!go) {
+            rep->stopped_by_budget = by_budget;
+            interrupted = by_signal;
             break;
         }
         double t0 = rep->passes == 0 && run->t_first > 0 ? run->t_first : stats_now();

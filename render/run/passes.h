@@ -83,6 +83,7 @@ typedef struct pass_run {
     int only;           /* >= 0: render pass `only` alone into the empty state (--only-pass) */
     int stop_on_signal;
     pass_image_fn image;
+    int (*agree)(int go); /* NULL; render-mpi: every rank gets rank 0's go (mpi/dist.h) */
     pass_fn on_pass;
     void *user;
     int quiet;          /* no progress lines */
