@@ -4,6 +4,7 @@
 #   scripts/gen-import-md.sh [--out FILE] [RESULTS_DIR]
 #   scripts/gen-import-md.sh --run BUILD_DIR
 #   scripts/gen-import-md.sh --run-ply BUILD_DIR
+#   scripts/gen-import-md.sh --run-pbrt BUILD_DIR
 #
 # RESULTS_DIR (default docs/import) holds what a measurement found: comparisons.csv (section,
 # region, series, rel_mean_pct, pixels: the relative difference of mean radiance of two renders
@@ -27,12 +28,19 @@
 # (ASCII, binary LE and BE, triangle strips, degenerate quads) into a temporary directory and
 # load each with our reader and with assimp (medians of 3), into docs/import/ply.csv and
 # ply_measurement.txt. A minute or two. The section is left out while ply.csv is missing.
+#
+# --run-pbrt BUILD_DIR measures only the pbrt section: data/pbrt/cornell_box.pbrt against
+# data/scenes/cornell_box.json at 64x64 (path 1024 spp, pm 256 spp, different seeds; regions
+# from the JSON scene's --mode objects), into docs/import/pbrt.csv and pbrt_measurement.txt,
+# and the gallery: 128x128 PNGs (path, 256 spp) of each importer's Cornell box beside ours in
+# docs/import/gallery/. A few minutes. The section is left out while pbrt.csv is missing.
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 doc="$here/docs/IMPORT.md"
 res="$here/docs/import"
 run=""
 runply=""
+runpbrt=""
 while [ $# -gt 0 ]; do
   case "$1" in
     -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
@@ -42,6 +50,8 @@ while [ $# -gt 0 ]; do
            run=$2; shift 2 ;;
     --run-ply) [ $# -ge 2 ] || { echo "gen-import-md: --run-ply needs a build directory" >&2; exit 2; }
            runply=$2; shift 2 ;;
+    --run-pbrt) [ $# -ge 2 ] || { echo "gen-import-md: --run-pbrt needs a build directory" >&2; exit 2; }
+           runpbrt=$2; shift 2 ;;
     -*) echo "gen-import-md: unknown option '$1' (see --help)" >&2; exit 2 ;;
     *) res=$1; shift ;;
   esac
@@ -205,6 +215,57 @@ cp "$T/ply.csv" "$res/ply.csv"
 } > "$res/ply_measurement.txt"
 fi
 
+if [ -n "$runpbrt" ]; then
+R="$runpbrt/render"
+[ -x "$R" ] || { echo "gen-import-md: $R not found (make BUILD=$runpbrt render)" >&2; exit 2; }
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+S="$here/data/scenes"
+PB="$here/data/pbrt/cornell_box.pbrt"
+SZ="--width 64 --height 64 --quiet"
+echo "rendering the pbrt Cornell box and ours..." >&2
+"$R" $S/cornell_box.json $SZ --mode objects --spp 16 --hdr "$T/ids.pfm" >/dev/null
+"$R" "$PB" $SZ --mode path --spp 1024 --seed 3 --hdr "$T/pb_path.pfm" >/dev/null
+"$R" $S/cornell_box.json $SZ --mode path --spp 1024 --seed 4 --hdr "$T/js_path.pfm" >/dev/null
+"$R" "$PB" $SZ --mode pm --spp 256 --seed 3 --hdr "$T/pb_pm.pfm" >/dev/null
+"$R" $S/cornell_box.json $SZ --mode pm --spp 256 --seed 4 --hdr "$T/js_pm.pfm" >/dev/null
+prow() {
+    reg=$1 ser=$2
+    shift 2
+    "$R" --compare "$@" 2>/dev/null | awk -v r="$reg" -v t="$ser" '
+        $1 == "rel_mean" { m = sprintf("%.6f", 100 * $2) } $1 == "pixels" { n = $2 }
+        END { if (m == "") { m = ""; n = 0 } printf "pbrt,%s,%s,%s,%d\n", r, t, m, n }' >> "$T/pbrt.csv"
+}
+echo "section,region,series,rel_mean_pct,pixels" > "$T/pbrt.csv"
+for ser in path pm; do prow image $ser "$T/pb_$ser.pfm" "$T/js_$ser.pfm"; done
+for id in 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16; do
+    case $id in 1) n=floor;; 2) n=ceiling;; 3) n="back wall";; 4) n="green wall";; 5) n="red wall";; 6) n=light;;
+                7|8|9|10|11) n="short block";; *) n="tall block";; esac
+    [ $id = 7 ] || [ $id = 12 ] || [ $id -lt 7 ] || continue
+    ids="--id $id"
+    [ $id = 7 ] && ids="--id 7 --id 8 --id 9 --id 10 --id 11"
+    [ $id = 12 ] && ids="--id 12 --id 13 --id 14 --id 15 --id 16"
+    for ser in path pm; do prow "$n" $ser "$T/pb_$ser.pfm" "$T/js_$ser.pfm" --mask "$T/ids.pfm" $ids; done
+done
+echo "rendering the gallery..." >&2
+mkdir -p "$res/gallery"
+G="--width 128 --height 128 --quiet --mode path --spp 256 --seed 1"
+"$R" $S/cornell_box.json $G -o "$res/gallery/cornell_box_json.png" >/dev/null
+"$R" "$PB" $G -o "$res/gallery/cornell_box_pbrt.png" >/dev/null
+"$R" $S/cornell_rect.json $G -o "$res/gallery/cornell_rect_json.png" >/dev/null
+"$R" $S/cornell_tungsten.json $G -o "$res/gallery/cornell_tungsten.png" >/dev/null 2>&1
+mkdir -p "$res"
+cp "$T/pbrt.csv" "$res/pbrt.csv"
+{
+    echo "commit $(git -C "$here" rev-parse --short HEAD 2>/dev/null || echo unknown)$(git -C "$here" diff --quiet HEAD -- render data/pbrt 2>/dev/null || echo ' (with uncommitted changes)')"
+    echo "date $(date -u '+%Y-%m-%d %H:%M UTC')"
+    echo "build $runpbrt"
+    echo "load $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo '?')"
+    echo "cpus $(nproc 2>/dev/null || echo '?')"
+    if cmp -s "$res/gallery/cornell_box_json.png" "$res/gallery/cornell_box_pbrt.png"; then echo "gallery_same yes"; else echo "gallery_same no"; fi
+} > "$res/pbrt_measurement.txt"
+fi
+
 for f in comparisons.csv load.csv measurement.txt; do
   [ -f "$res/$f" ] || { echo "gen-import-md: $res/$f missing: run scripts/gen-import-md.sh --run BUILD_DIR" >&2; exit 2; }
 done
@@ -278,6 +339,48 @@ echo "| | mesh loading | BVH build | whole process |"
 echo "|---|---|---|---|"
 echo "| CPU time | $(load mesh_loading_cpu_s) s | $(load bvh_build_cpu_s) s | $(load process_cpu_s) s |"
 echo "| wall clock | $(load mesh_loading_wall_s) s | $(load bvh_build_wall_s) s | |"
+if [ -f "$res/pbrt.csv" ] && [ -f "$res/pbrt_measurement.txt" ]; then
+Q="$res/pbrt.csv"
+qm() { awk -v k="$1" '$1 == k { sub(/^[^ ]+ /, ""); print; exit }' "$res/pbrt_measurement.txt"; }
+qcell() {
+  awk -F, -v r="$1" -v t="$2" '
+    $2 == r && $3 == t { found = 1; if ($5 + 0 == 0) print "no pixel"; else printf "%+.2f%% (%d px)\n", $4, $5 }
+    END { if (!found) print "–" }' "$Q"
+}
+echo
+echo "## The pbrt-v3 Cornell box against the same box in our format"
+echo
+echo "Measured by \`scripts/gen-import-md.sh --run-pbrt $(qm build)\` on $(qm date) at $(qm commit); load"
+echo "average $(qm load) on $(qm cpus) CPUs. \`data/pbrt/cornell_box.pbrt\` (a hand translation into"
+echo "pbrt-v3's syntax: named materials, an Include for the walls, the light in an AttributeBegin"
+echo "block, \`Scale -1 1 1\` before \`LookAt\` as pbrt's own Cornell scenes do) against"
+echo "\`data/scenes/cornell_box.json\`, 64x64, different seeds, so the differences are the renders'"
+echo "noise; the regions come from the JSON scene's \`--mode objects\` (the converted scene keeps"
+echo "pbrt's picture, which here is ours)."
+echo
+echo "| region | path tracing, 1024 spp | photon mapping, 256 spp |"
+echo "|---|---|---|"
+awk -F, 'NR > 1 && !seen[$2]++ { print $2 }' "$Q" | while IFS= read -r n; do
+    echo "| $n | $(qcell "$n" path) | $(qcell "$n" pm) |"
+done
+echo
+echo "## Gallery"
+echo
+echo "Each importer's scene beside the same scene written in our format (128x128, path tracing,"
+echo "256 spp, same seed; rendered by \`--run-pbrt\` with the table above)."
+if [ "$(qm gallery_same)" = yes ]; then
+echo "The pbrt file's PNG and the JSON scene's are the same bytes: the converted scene has the"
+echo "JSON scene's triangles in the JSON scene's order, so with one seed every path is the same;"
+echo "the linear images differ only by the rounding of the camera's fov (the file's 39.307648"
+echo "degrees against the JSON's focal length and sensor), which \`tests/test_render_import_pbrt.c\`"
+echo "bounds at 16x16 (relative rmse below 1e-6, path and pm)."
+fi
+echo
+echo "| ours (JSON) | imported |"
+echo "|---|---|"
+echo "| ![cornell_box.json](import/gallery/cornell_box_json.png) \`cornell_box.json\` | ![cornell_box.pbrt](import/gallery/cornell_box_pbrt.png) \`data/pbrt/cornell_box.pbrt\` (pbrt-v3) |"
+echo "| ![cornell_rect.json](import/gallery/cornell_rect_json.png) \`cornell_rect.json\` | ![cornell_tungsten.json](import/gallery/cornell_tungsten.png) \`cornell_tungsten.json\` (Tungsten) |"
+fi
 if [ -f "$res/ply.csv" ] && [ -f "$res/ply_measurement.txt" ]; then
 P="$res/ply.csv"
 pm() { awk -v k="$1" '$1 == k { sub(/^[^ ]+ /, ""); print; exit }' "$res/ply_measurement.txt"; }

@@ -222,7 +222,7 @@ int scene_dump_main(int argc, char **argv) {
     }
     cJSON *root;
     json_err e;
-    int rc = json_parse_file(argv[2], &root, &e);
+    int rc = scene_parse_file(argv[2], &root, &e);
     if (rc == 0) {
         rc = scene_import(&root, argv[2], &e);
         if (rc < 0) cJSON_Delete(root);

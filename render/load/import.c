@@ -16,6 +16,7 @@
 #include "common.h"
 #include "scene/scene.h"
 #include "base/stats.h"
+#include "load/pbrt.h"
 #include "load/tungsten.h"
 
 #define TRY(x) JSON_TRY(x)
@@ -72,6 +73,8 @@ int mesh_object_read(const cJSON *o, const char *P, mesh_data *m, int *smooth, i
     TRY(json_bool(o, P, "smooth", 0, smooth, e));
     TRY(json_bool(o, P, "recompute_normals", 0, &recompute, e));
     TRY(json_bool(o, P, "usemtl", 0, usemtl, e));
+    int flip = 0;
+    TRY(json_bool(o, P, "flip", 0, &flip, e));
     if (json_get(o, "vertices") || json_get(o, "triangles"))
         return json_fail(e, PM_EINVAL, "%s: give a file or vertices and triangles, not both", P);
     double M[3][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}};
@@ -103,6 +106,16 @@ int mesh_object_read(const cJSON *o, const char *P, mesh_data *m, int *smooth, i
         mesh_free(m);
         return json_fail(e, PM_EINVAL, "%s.transform: %s", P, err);
     }
+    for (int k = 0; rc == 0 && flip && k < m->ntris; k++) { /* the other side is the front */
+        int x = m->tri[k][1];
+        m->tri[k][1] = m->tri[k][2];
+        m->tri[k][2] = x;
+        if (m->tri_n) {
+            x = m->tri_n[k][1];
+            m->tri_n[k][1] = m->tri_n[k][2];
+            m->tri_n[k][2] = x;
+        }
+    }
     if (rc == 0 && m->nskipped > 0) /* one counted warning per file (mesh.h) */
         fprintf(stderr, "render: %s: warning: %s.file: skipped %ld degenerate face%s (zero area: repeated or "
                 "collinear corners; the first at %s), kept %d triangles\n", file, P, m->nskipped,
@@ -119,4 +132,12 @@ int mesh_object_read(const cJSON *o, const char *P, mesh_data *m, int *smooth, i
         return json_fail(e, rc, "%s.file: %s", P, err);
     }
     return 0;
+}
+
+int scene_parse_file(const char *path, cJSON **root, json_err *e) {
+    if (!pbrt_is_file(path)) return json_parse_file(path, root, e);
+    double t0 = stats_now();
+    int rc = pbrt_convert_file(path, root, e);
+    stats_time_add("Time/Mesh loading", stats_now() - t0);
+    return rc;
 }

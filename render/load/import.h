@@ -6,7 +6,7 @@
  * is what `render --dump-scene` prints.
  *
  * mesh_object_read() reads the mesh of one {"type": "mesh", "file": ...} object (keys in
- * data/scenes/README.md: file, transform, smooth, recompute_normals, usemtl): it loads the
+ * data/scenes/README.md: file, transform, smooth, recompute_normals, usemtl, flip): it loads the
  * file, applies the transform, and, when smooth, makes the corner normals (mesh.h). Errors
  * name the JSON path, and the file with its line or byte offset.
  *
@@ -29,6 +29,10 @@ extern "C" {
  * one is freed then). scene_path may be NULL (text scenes: paths stay relative to the current
  * directory). */
 int scene_import(cJSON **root, const char *scene_path, json_err *e);
+
+/* Parse a scene file: a pbrt-v3 file (name ending in .pbrt, pbrt.h) is converted into our
+ * document, anything else is parsed as JSON (json.h). The caller owns *root. */
+int scene_parse_file(const char *path, cJSON **root, json_err *e);
 
 /* Read the mesh of object o at JSON path P. *smooth tells whether m->corner_n is filled;
  * *usemtl whether the OBJ's usemtl names choose materials. */

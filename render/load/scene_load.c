@@ -310,6 +310,32 @@ static int read_points(const cJSON *obj, const char *P, const char *key, int n, 
     return 0;
 }
 
+/* Corner normals of an inline mesh's nt triangles (tv, indices into v; vn: the given normals
+ * or NULL), the scene's triangles first.. first+nt-1: mesh_smooth_normals as for mesh files. */
+static int inline_smooth(scene *s, int first, vec3 *v, int nv, vec3 *vn, int (*tv)[3], int nt, json_err *e) {
+    mesh_data md;
+    memset(&md, 0, sizeof md);
+    md.pos = v;
+    md.npos = nv;
+    md.nrm = vn;
+    md.nnrm = vn ? nv : 0;
+    md.tri = tv;
+    md.tri_n = vn ? tv : NULL;
+    md.ntris = nt;
+    if (mesh_smooth_normals(&md, 0) < 0) return json_fail(e, PM_ENOMEM, "out of memory");
+    vec3(*ns)[3] = realloc(s->tri_ns, (size_t)s->ntris * sizeof *ns);
+    if (!ns) {
+        free(md.corner_n);
+        return json_fail(e, PM_ENOMEM, "out of memory");
+    }
+    s->tri_ns = ns;
+    for (int t = s->ntri_ns; t < first; t++) ns[t][0] = ns[t][1] = ns[t][2] = s->tris[t].n;
+    memcpy(ns + first, md.corner_n, (size_t)nt * sizeof *ns);
+    s->ntri_ns = s->ntris;
+    free(md.corner_n);
+    return 0;
+}
+
 /* A mesh from a file (import.h): its triangles, their materials (usemtl names or "material")
  * and, when smooth, their corner normals in s->tri_ns. */
 static int load_mesh_file(scene *s, caps *cp, const cJSON *o, const char *P, json_err *e) {
@@ -385,10 +411,11 @@ static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_e
         for (int i = 1; i + 1 < nv; i++) TRY(add_tri(s, cp, v[0], v[i], v[i + 1], mat, P, e));
     } else if (strcmp(type, "mesh") == 0 && json_get(o, "file")) {
         KEYS(o, P, "a mesh from a file", "type", "name", "file", "material", "usemtl", "transform", "smooth",
-             "recompute_normals", "interior_medium", "vertices", "triangles"); /* import.c: not both */
+             "recompute_normals", "flip", "interior_medium", "vertices", "triangles"); /* import.c: not both */
         return load_mesh_file(s, cp, o, P, e);
     } else if (strcmp(type, "mesh") == 0) {
-        KEYS(o, P, "a mesh", "type", "name", "vertices", "triangles", "material", "interior_medium", "file");
+        KEYS(o, P, "a mesh", "type", "name", "vertices", "triangles", "normals", "smooth", "material", "interior_medium",
+             "file");
         const cJSON *va, *ta;
         TRY(json_array(o, P, "vertices", 1, &va, e));
         TRY(json_array(o, P, "triangles", 1, &ta, e));
@@ -404,6 +431,29 @@ static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_e
             json_path_index(p, sizeof p, pk, i);
             rc = json_item_vec3(it, p, &v[i], e);
         }
+        /* smooth shading (the normals given per vertex, else made as for mesh files) */
+        int smooth = 0;
+        vec3 *vn = NULL;
+        if (rc == 0) rc = json_bool(o, P, "smooth", 0, &smooth, e);
+        const cJSON *na = json_get(o, "normals");
+        if (rc == 0 && na && !smooth)
+            rc = json_fail(e, PM_EINVAL, "%s.normals: used only with \"smooth\": true", P);
+        if (rc == 0 && na && (!cJSON_IsArray(na) || cJSON_GetArraySize(na) != nv))
+            rc = json_fail(e, PM_EINVAL, "%s.normals: expected one normal per vertex (%d)", P, nv);
+        if (rc == 0 && na) {
+            vn = malloc((size_t)(nv > 0 ? nv : 1) * sizeof *vn);
+            if (!vn) rc = json_fail(e, PM_ENOMEM, "out of memory");
+            json_path_key(pk, sizeof pk, P, "normals");
+            i = 0;
+            for (const cJSON *it = na->child; it && rc == 0; it = it->next, i++) {
+                json_path_index(p, sizeof p, pk, i);
+                rc = json_item_vec3(it, p, &vn[i], e);
+                if (rc == 0 && v3_iszero(vn[i])) rc = json_fail(e, PM_EINVAL, "%s: a zero normal", p);
+            }
+        }
+        int (*tv)[3] = smooth && rc == 0 ? malloc((size_t)nt * sizeof *tv) : NULL;
+        if (smooth && rc == 0 && !tv) rc = json_fail(e, PM_ENOMEM, "out of memory");
+        int first = s->ntris;
         json_path_key(pk, sizeof pk, P, "triangles");
         i = 0;
         for (const cJSON *it = ta->child; it && rc == 0; it = it->next, i++) {
@@ -417,7 +467,12 @@ static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_e
                     rc = json_fail(e, PM_EINVAL, "%s[%d]: vertex index %g is not an integer in [0, %d)",
                                    p, k, ix[k], nv);
             if (rc == 0) rc = add_tri(s, cp, v[(int)ix[0]], v[(int)ix[1]], v[(int)ix[2]], mat, p, e);
+            if (rc == 0 && tv)
+                for (int k = 0; k < 3; k++) tv[i][k] = (int)ix[k];
         }
+        if (rc == 0 && smooth) rc = inline_smooth(s, first, v, nv, vn, tv, nt, e);
+        free(tv);
+        free(vn);
         free(v);
         return rc;
     } else {
@@ -480,10 +535,13 @@ static int load_settings(scene *s, const cJSON *root, json_err *e) {
     st->tone = TONE_FILMIC;
     st->clip_percent = 1.0;
     st->exposure = 0;
+    st->time = 0;
+    st->pass_spp = 0;
     const cJSON *r, *im;
     TRY(json_object(root, "$", "render", 0, &r, e));
     if (r) {
-        KEYS(r, "$.render", "the render settings", "mode", "max_depth", "rr_depth", "seed");
+        KEYS(r, "$.render", "the render settings", "mode", "max_depth", "rr_depth", "seed", "time",
+             "pass_spp");
         long v;
         v = st->max_depth;
         TRY(json_int(r, "$.render", "max_depth", 0, 1, 100000, &v, e));
@@ -494,6 +552,15 @@ static int load_settings(scene *s, const cJSON *root, json_err *e) {
         v = (long)st->seed;
         TRY(json_int(r, "$.render", "seed", 0, 0, 2147483647L, &v, e));
         st->seed = (uint64_t)v;
+        /* A time budget: render in passes (run/passes.h) for this many seconds. */
+        double tb = 0;
+        TRY(json_number(r, "$.render", "time", 0, &tb, e));
+        if (json_get(r, "time") && !(tb > 0 && tb <= 1e9))
+            return json_fail(e, PM_EINVAL, "$.render.time: expected seconds in (0, 1e9], got %g", tb);
+        st->time = tb;
+        v = 0;
+        TRY(json_int(r, "$.render", "pass_spp", 0, 1, 1 << 20, &v, e));
+        st->pass_spp = (int)v;
         const char *mode = NULL;
         TRY(json_string(r, "$.render", "mode", 0, &mode, e));
         if (mode) snprintf(st->mode, sizeof st->mode, "%s", mode);
@@ -754,7 +821,7 @@ int scene_load_text(scene *s, const char *text, json_err *e) {
 int scene_load(scene *s, const char *filename, json_err *e) {
     cJSON *root = NULL;
     memset(s, 0, sizeof *s);
-    int rc = json_parse_file(filename, &root, e);
+    int rc = scene_parse_file(filename, &root, e); /* JSON, or a pbrt-v3 file converted */
     rc = load_parsed(s, rc, root, filename, e);
     if (rc == 0) snprintf(s->file, sizeof s->file, "%s", filename);
     return rc;
