@@ -678,3 +678,17 @@ TEST(pbrt_medium_matches_json) {
            strstr(e.msg, "t.pbrt:2: MediumInterface: no medium named \"fog\""));
     cJSON_Delete(o);
 }
+
+/* Oracle: the pbrt file itself. `render --dump-scene x.pbrt` prints our document of it, which
+ * loads and renders the same image bit for bit (path, 8x8, same seed), from another directory
+ * (the Include was resolved when converting). */
+TEST(pbrt_dump_scene_round_trip) {
+    char cmd[8192], out[8192];
+    snprintf(cmd, sizeof cmd,
+             "cd '%s' && R='%s/render' && P='%s/data/pbrt/cornell_box.pbrt' && $R --dump-scene \"$P\" > d.json && "
+             "O='--width 8 --height 8 --spp 4 --seed 2 --quiet' && $R d.json $O --hdr a.pfm >/dev/null && "
+             "$R \"$P\" $O --hdr b.pfm >/dev/null && cmp a.pfm b.pfm && echo SAME",
+             pm_test_tmpdir(), pm_test_build_dir(), pm_test_source_dir());
+    int rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 0 && strstr(out, "SAME"), "exit %d: %s", rc, out);
+}
