@@ -387,7 +387,7 @@ echo "$(pv grid_strips_le.ply ours triangles_expected) of the triangle-strip fil
 echo "unless asked to look for them ($(pv grid_degenerate_le.ply assimp triangles) against $(pv grid_degenerate_le.ply ours triangles_expected); ours skips and counts"
 echo "them, as the OBJ and wo3 readers do). By time: on binary files the two are close"
 echo "(little-endian $(pv grid_le.ply ours cpu_s) s against $(pv grid_le.ply assimp cpu_s) s; big-endian $(pv grid_be.ply ours cpu_s) s against $(pv grid_be.ply assimp cpu_s) s), and on"
-echo "ASCII assimp is faster ($(pv grid_ascii.ply assimp cpu_s) s against our $(pv grid_ascii.ply ours cpu_s) s: ours parses each number with"
+echo "ASCII assimp is faster ($(pv grid_ascii.ply assimp cpu_s) s against our $(pv grid_ascii.ply ours cpu_s) s: ours parses each coordinate with"
 echo "strtod). Our times include the degeneracy pass and the checks every error message needs"
 echo "(file:line or byte offset, counts against the bytes left before allocating). Keeping our"
 echo "reader also keeps render/'s libraries to cJSON, libpng and OpenEXRCore (assimp brings"
