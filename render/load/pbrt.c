@@ -69,6 +69,7 @@ typedef struct gstate {
     int area; /* an AreaLightSource is active */
     rgb L;
     int twosided;
+    char inside[64], outside[64]; /* MediumInterface ("" : none) */
 } gstate;
 
 typedef struct named_obj {
@@ -94,6 +95,8 @@ typedef struct conv {
     double fov;
     const char *mode;
     cJSON *mats, *objs, *lights, *target; /* target: objs, or the object being defined */
+    cJSON *media;                         /* our "media" (NULL until MakeNamedMedium) */
+    char cam_medium[64];                  /* the outside medium at Camera: our global medium */
     named_obj *nobj;
     int nnobj;
     named_cs cs[16];
@@ -870,6 +873,7 @@ static int apply(conv *c, const tok *at, double T[4][4]) {
 static int run_file(conv *c, const char *path, const tok *from);
 
 static int camera_done(conv *c, const tok *at) {
+    snprintf(c->cam_medium, sizeof c->cam_medium, "%s", c->g.outside);
     double inv[4][4];
     if (m_inv(c->g.m, inv) < 0) return pfail(c, at, PM_EINVAL, "Camera: the camera transform is singular or not finite");
     memcpy(c->cam2world, inv, sizeof inv);
@@ -1058,10 +1062,17 @@ static int directive(conv *c, const toks *ts, int *i) {
         plist_free(&pl);
         return 0;
     }
-    if (strcmp(d, "MediumInterface") == 0) {
-        int n = 0;
-        while (*i < ts->n && ts->t[*i].kind == K_STR && n < 2) (*i)++, n++;
-        pwarn(c, at, "MediumInterface: participating media are not supported by the pbrt importer: ignored");
+    if (strcmp(d, "MediumInterface") == 0) { /* "inside" ["outside"]; one name is both */
+        const char *a = NULL, *b = NULL;
+        TRY(one_string(c, ts, i, at, &a, d));
+        if (*i < ts->n && ts->t[*i].kind == K_STR) b = ts->t[(*i)++].s;
+        if (!b) b = a;
+        const char *nm[2] = {a, b};
+        for (int k = 0; k < 2; k++)
+            if (nm[k][0] && !(c->media && cJSON_GetObjectItemCaseSensitive(c->media, nm[k])))
+                return pfail(c, at, PM_EINVAL, "MediumInterface: no medium named \"%s\" (MakeNamedMedium first)", nm[k]);
+        snprintf(c->g.inside, sizeof c->g.inside, "%s", a);
+        snprintf(c->g.outside, sizeof c->g.outside, "%s", b);
         return 0;
     }
     if (!known) {
@@ -1233,16 +1244,51 @@ static int directive(conv *c, const toks *ts, int *i) {
             pwarn(c, at, "%s is not supported (point, distant): skipped, so its light is missing", what);
         }
     } else if (strcmp(d, "MakeNamedMedium") == 0) {
-        pwarn(c, at, "%s: participating media are not supported by the pbrt importer: ignored", what);
+        const char *type = NULL, *preset = NULL;
+        rgb sa = v3(0.0011, 0.0024, 0.014), ss = v3(2.55, 3.21, 3.77); /* pbrt-v3's defaults */
+        double scale = 1, g = 0;
+        if ((rc = get_string(c, at, &pl, "type", &type)) == 0) rc = pfail(c, at, PM_EINVAL, "%s: \"string type\" missing", what);
+        if (rc > 0 && strcmp(type, "homogeneous") != 0)
+            rc = pfail(c, at, PM_EINVAL, "%s: medium type \"%s\" is not supported (homogeneous)", what, type);
+        if (rc > 0 && (rc = get_string(c, at, &pl, "preset", &preset)) > 0)
+            pwarn(c, at, "%s: the preset \"%s\" is not supported: sigma_a and sigma_s as given (or pbrt's defaults)", what, preset);
+        if (rc >= 0 && (rc = get_color(c, at, &pl, "sigma_a", &sa)) >= 0 && (rc = get_color(c, at, &pl, "sigma_s", &ss)) >= 0 &&
+            (rc = get_floats(c, at, &pl, "scale", "float", 1, &scale)) >= 0 && (rc = get_floats(c, at, &pl, "g", "float", 1, &g)) >= 0)
+            rc = 0;
+        if (rc == 0 && (sa.x < 0 || sa.y < 0 || sa.z < 0 || ss.x < 0 || ss.y < 0 || ss.z < 0 || !(scale >= 0)))
+            rc = pfail(c, at, PM_EINVAL, "%s: sigma_a, sigma_s and scale must not be negative", what);
+        if (rc == 0 && !(g > -1 && g < 1)) rc = pfail(c, at, PM_EINVAL, "%s: g must be in (-1, 1), got %g", what, g);
+        if (rc == 0 && !c->media && !(c->media = cJSON_CreateObject())) rc = PM_ENOMEM;
+        if (rc == 0) {
+            cJSON *m = cJSON_CreateObject();
+            if (!m) return PM_ENOMEM;
+            cJSON_AddItemToObject(m, "sigma_a", jv(v3_scale(sa, scale)));
+            cJSON_AddItemToObject(m, "sigma_s", jv(v3_scale(ss, scale)));
+            cJSON_AddNumberToObject(m, "g", g);
+            if (cJSON_GetObjectItemCaseSensitive(c->media, s)) cJSON_ReplaceItemInObjectCaseSensitive(c->media, s, m);
+            else cJSON_AddItemToObject(c->media, s, m);
+            pparam *le;
+            TRY(pget(c, at, &pl, "Le", "rgb|spectrum|blackbody", &le));
+            if (le) pwarn(c, at, "%s: an emitting medium (Le) is not supported: it does not emit", what);
+            warn_unused(c, at, what, &pl);
+        }
     } else if (strcmp(d, "Shape") == 0) {
         char mat[96];
         if (!c->in_world) rc = pfail(c, at, PM_EINVAL, "Shape before WorldBegin");
         const cJSON *cur = rc == 0 ? cJSON_GetObjectItemCaseSensitive(c->mats, c->g.mat) : NULL;
         const cJSON *ct = cur ? cJSON_GetObjectItemCaseSensitive(cur, "type") : NULL;
-        if (rc == 0 && cJSON_IsString(ct) && strcmp(ct->valuestring, "null") == 0) {
-            pwarn(c, at, "%s with material \"none\" or \"interface\" (a medium boundary): skipped", what);
+        int is_null = cJSON_IsString(ct) && strcmp(ct->valuestring, "null") == 0;
+        /* media (pbrt.h): the inside of a shape is its interior_medium; its outside must be the
+         * camera's medium, ours between all objects */
+        int new_inside = strcmp(c->g.inside, c->cam_medium) != 0;
+        if (rc == 0 && (c->g.inside[0] || c->g.outside[0]) && strcmp(c->g.outside, c->cam_medium) != 0)
+            pwarn(c, at, "%s: the medium outside it (\"%s\") is not the camera's (\"%s\"): one medium surrounds all "
+                  "objects here, the camera's", what, c->g.outside, c->cam_medium);
+        if (rc == 0 && is_null && !new_inside) {
+            pwarn(c, at, "%s with material \"none\" or \"interface\" and no medium of its own inside: skipped", what);
             for (int k = 0; k < pl.n; k++) pl.p[k].used = 1;
         } else if (rc == 0 && (rc = shape_material(c, mat, sizeof mat)) == 0) {
+            int before = cJSON_GetArraySize(c->target);
             if (strcmp(s, "trianglemesh") == 0) rc = shape_trianglemesh(c, at, &pl, mat);
             else if (strcmp(s, "plymesh") == 0) rc = shape_plymesh(c, at, &pl, mat);
             else if (strcmp(s, "sphere") == 0) rc = shape_sphere(c, at, &pl, mat);
@@ -1250,6 +1296,12 @@ static int directive(conv *c, const toks *ts, int *i) {
                 pwarn(c, at, "%s is not supported (trianglemesh, plymesh, sphere): skipped", what);
                 for (int k = 0; k < pl.n; k++) pl.p[k].used = 1;
             }
+            cJSON *made = cJSON_GetArraySize(c->target) > before ? cJSON_GetArrayItem(c->target, before) : NULL;
+            /* only a surface light passes through has an inside that matters (ours: a closed
+             * sphere or mesh); no key is no medium inside */
+            int passes = is_null || (cJSON_IsString(ct) && strcmp(ct->valuestring, "dielectric") == 0);
+            if (rc == 0 && made && passes && c->g.inside[0])
+                cJSON_AddStringToObject(made, "interior_medium", c->g.inside);
             pparam *al;
             if (rc == 0) rc = pget(c, at, &pl, "alpha", "float|texture", &al);
             if (rc == 0 && al) pwarn(c, at, "%s: alpha is not supported: opaque", what);
@@ -1356,7 +1408,9 @@ static int convert(const char *text, const char *path, cJSON **out, json_err *e)
         cJSON_AddItemToObject(doc, "materials", c->mats);
         cJSON_AddItemToObject(doc, "objects", c->objs);
         cJSON_AddItemToObject(doc, "lights", c->lights);
-        c->mats = c->objs = c->lights = NULL;
+        if (c->media) cJSON_AddItemToObject(doc, "media", c->media);
+        if (c->cam_medium[0]) cJSON_AddStringToObject(doc, "medium", c->cam_medium);
+        c->mats = c->objs = c->lights = c->media = NULL;
         cJSON *r = cJSON_CreateObject();
         cJSON_AddStringToObject(r, "mode", c->mode);
         cJSON_AddNumberToObject(r, "max_depth", (double)c->maxdepth);
@@ -1366,6 +1420,7 @@ static int convert(const char *text, const char *path, cJSON **out, json_err *e)
     cJSON_Delete(c->mats);
     cJSON_Delete(c->objs);
     cJSON_Delete(c->lights);
+    cJSON_Delete(c->media);
     for (int k = 0; k < c->nnobj; k++) cJSON_Delete(c->nobj[k].objs);
     free(c->nobj);
     for (int k = 0; k < c->nfiles; k++) free(c->files[k]);

@@ -122,6 +122,17 @@ static int read_value(rd *r, int t, const pelem *el, unsigned long long index, d
     if (s >= end)
         return fail_at(r, r->pos, r->line, "truncated: the data ends inside %s %llu (the header says %llu)", el->name,
                        index, el->count);
+    if (is_int_type(t)) { /* counts and indices, most of a face list: digits, exactly, without strtod */
+        const char *q = s + (*s == '-' || *s == '+');
+        long long v = 0;
+        int nd = 0;
+        while (q < end && *q >= '0' && *q <= '9' && nd < 15) v = 10 * v + (*q++ - '0'), nd++;
+        if (nd > 0 && (q == end || *q == ' ' || *q == '\t' || *q == '\r' || *q == '\n')) {
+            *out = (double)(*s == '-' ? -v : v);
+            r->pos = (size_t)(q - r->buf);
+            return 0;
+        } /* anything else (a sign alone, a decimal point, letters): strtod says what it is */
+    }
     char *e;
     double v = strtod(s, &e);
     size_t tl = 0;

@@ -239,6 +239,16 @@ typedef struct conv {
     const char *dir;
     const char *file;      /* the scene file, for warnings (NULL: a text) */
     int nemit;
+    /* Quads that light passes through with a medium behind them, merged into one mesh per
+     * (medium, material) at the end: a box of such quads bounds its medium (tungsten.h). */
+    struct qgroup {
+        int medium;
+        char mat[64];
+        cJSON *verts, *tris;
+        int nq;
+        char first[P_MAX]; /* the first quad's JSON path, for messages */
+    } qg[16];
+    int nqg;
 } conv;
 
 /* One Tungsten medium object at path P into our media under the name `name`; its index in
@@ -422,9 +432,7 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
     if (invisible && emits && (im || xm))
         return json_fail(e, PM_EINVAL, "%s.emission: an emitting \"%s\" medium boundary is not supported", P, b.type);
     if (invisible && !emits && inside == c->global) return 0; /* changes nothing: dropped (tungsten.h) */
-    if (inside >= 0 && strcmp(type, "quad") == 0)
-        return json_fail(e, PM_EINVAL, "%s: a quad that light passes through would have the medium \"%s\" behind it: "
-                         "a medium needs a closed primitive (sphere, cube, closed mesh)", mp, c->mnames[inside]);
+    int quad_group = inside >= 0 && strcmp(type, "quad") == 0; /* merged later (tungsten.h) */
     if (invisible && !emits) {
         snprintf(b.name, sizeof b.name, "%s", "boundary");
         b.type = "boundary";
@@ -452,6 +460,37 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
         if (!(area > 0)) return json_fail(e, PM_EINVAL, "%s: the quad has zero area", tp);
         /* front = e1 x e0, Tungsten's normal (see shapes.h for ours) */
         obj = quad_json(base, v3_add(base, e1), v3_add(v3_add(base, e0), e1), v3_add(base, e0), mat);
+        if (quad_group && obj) { /* into its group's mesh; the medium is behind its front */
+            int gi = -1;
+            for (int k = 0; k < c->nqg; k++)
+                if (c->qg[k].medium == inside && strcmp(c->qg[k].mat, mat) == 0) gi = k;
+            if (gi < 0) {
+                if (c->nqg == 16) {
+                    cJSON_Delete(obj);
+                    return json_fail(e, PM_EINVAL, "%s: more than 16 groups of quads with a medium behind them", P);
+                }
+                gi = c->nqg++;
+                c->qg[gi].medium = inside;
+                snprintf(c->qg[gi].mat, sizeof c->qg[gi].mat, "%s", mat);
+                snprintf(c->qg[gi].first, sizeof c->qg[gi].first, "%s", P);
+                c->qg[gi].verts = cJSON_CreateArray();
+                c->qg[gi].tris = cJSON_CreateArray();
+                c->qg[gi].nq = 0;
+                if (!c->qg[gi].verts || !c->qg[gi].tris) {
+                    cJSON_Delete(obj);
+                    return json_fail(e, PM_ENOMEM, "out of memory");
+                }
+            }
+            struct qgroup *q = &c->qg[gi];
+            const cJSON *vs = json_get(obj, "vertices");
+            for (const cJSON *v = vs->child; v; v = v->next) cJSON_AddItemToArray(q->verts, cJSON_Duplicate(v, 1));
+            int b0 = 4 * q->nq++;
+            int t1[3] = {b0, b0 + 1, b0 + 2}, t2[3] = {b0, b0 + 2, b0 + 3};
+            cJSON_AddItemToArray(q->tris, cJSON_CreateIntArray(t1, 3));
+            cJSON_AddItemToArray(q->tris, cJSON_CreateIntArray(t2, 3));
+            cJSON_Delete(obj);
+            return add_material(c, mat, &b, v3s(0), e);
+        }
     } else if (strcmp(type, "cube") == 0) {
         vec3 ctr = xf_point(M, v3s(0)), corner[8];
         for (int i = 0; i < 8; i++)
@@ -714,6 +753,25 @@ static int convert(const cJSON *root, const char *dir, const char *file, cJSON *
     for (const cJSON *pr = prims->child; pr && rc == 0; pr = pr->next, i++) {
         json_path_index(p, sizeof p, "$.primitives", i);
         rc = convert_primitive(&c, pr, p, i, e);
+    }
+    for (int k = 0; k < c.nqg; k++) { /* each group of quads with a medium behind them: one mesh */
+        struct qgroup *q = &c.qg[k];
+        cJSON *o = rc == 0 ? cJSON_CreateObject() : NULL;
+        if (o) {
+            char nm[P_MAX + 96];
+            snprintf(nm, sizeof nm, "the %d quads with the medium \"%s\" behind them (from %s)", q->nq,
+                     c.mnames[q->medium], q->first);
+            cJSON_AddStringToObject(o, "type", "mesh");
+            cJSON_AddStringToObject(o, "name", nm);
+            cJSON_AddItemToObject(o, "vertices", q->verts);
+            cJSON_AddItemToObject(o, "triangles", q->tris);
+            cJSON_AddStringToObject(o, "material", q->mat);
+            cJSON_AddStringToObject(o, "interior_medium", c.mnames[q->medium]);
+            cJSON_AddItemToArray(c.objs, o);
+        } else {
+            cJSON_Delete(q->verts);
+            cJSON_Delete(q->tris);
+        }
     }
     free(c.bsdfs);
     if (c.media) cJSON_AddItemToObject(out, "media", c.media); /* owned by out from here */
