@@ -151,7 +151,8 @@ TEST(render_progressive_radius_schedule) {
  * ppm_radius=0.5, pass 0's global r^2 is (0.5 x the typical radius)^2, the typical radius
  * being what the plain render prints as the secondary-gather distance (4 significant digits:
  * relative 2e-3), and below the maximum radius it prints; the volume map's r^2 follows the
- * same recurrence as the surface maps (float precision). */
+ * same recurrence as the surface maps (float precision); and the render checkpointed after
+ * 1 pass and resumed to 3 is the 3 passes' image byte for byte. */
 TEST(render_progressive_start_radius_and_volume_schedule) {
     char out[65536];
     ASSERT_MSG(rt_render("'%s/data/scenes/cornell_fog.json' --mode pm --width 8 --height 8 --pm "
@@ -173,6 +174,18 @@ TEST(render_progressive_start_radius_and_volume_schedule) {
         double got = num_after(pl, "volume (r^2 ");
         EXPECT_MSG(fabs(got - v) <= 1e-6 * v, "pass %d: volume r^2 %.9g, expected %.9g", i, got, v);
     }
+    /* a resumed render starts its radii where the uninterrupted one did (the first pass it
+     * renders is not pass 0) */
+    ASSERT_MSG(rt_render("'%s/data/scenes/cornell_fog.json' --mode pm --width 8 --height 8 --pm "
+                         "global_photons=5000 --pm volume_photons=5000 --pass-spp 1",
+                         "--passes 1 --pm ppm_radius=0.5 --threads 2 --quiet --hdr w.pfm -o w.png --checkpoint w.ckpt",
+                         out, sizeof out) == 0, "%s", out);
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "'%s/render' '%s/data/scenes/cornell_fog.json' --resume w.ckpt --passes 3 --threads 1",
+             pm_test_build_dir(), pm_test_source_dir());
+    ASSERT_MSG(rt_run(cmd, out, sizeof out) == 0, "%s", out);
+    EXPECT_MSG(rt_same_file("w.pfm", "v.pfm") && rt_same_file("w.png", "v.png"),
+               "ppm_radius: resumed after 1 pass, the image differs from 3 passes at once");
 }
 
 /* Oracle: the budget rule, from what the program prints (never a speed). Path tracing with a
