@@ -818,12 +818,12 @@ static double ppm_r2_scale(int pass, double alpha) {
 /* Pass 0 keeps its radii; a later pass takes them, scaled, in place of its own. The shadow
  * query (a hint that never changes the mean) and the typical radius (which decides where
  * secondary gathers run, an unbiased choice) stay as the pass finds them or as pass 0 had. */
-static void pass_radii(mapper_state *st, map_radii *rad) {
-    if (!st->pass && st->progressive && st->cfg.ppm_radius > 0) {
-        /* ppm_radius: the first radii, f times a k-photon estimate's radius at the map's mean
-         * density over the diffuse area: typical^2 = k_g A / (pi n_g) for the global map (from
-         * photon_maps_radii), and k_c A / (pi n_c) = typical^2 (k_c n_g) / (k_g n_c) for the
-         * caustic map; never above the maximum radii. */
+/* ppm_radius: the first radii, f times a k-photon estimate's radius at the map's mean density
+ * over the diffuse area: typical^2 = k_g A / (pi n_g) for the global map (from
+ * photon_maps_radii), and k_c A / (pi n_c) = typical^2 (k_c n_g) / (k_g n_c) for the caustic
+ * map; never above the maximum radii. From pass 0's radii and photon counts. */
+static void start_radii(const mapper_state *st, map_radii *rad) {
+    {
         double f = st->cfg.ppm_radius, t2 = rad->typical * rad->typical;
         double g = f * rad->typical;
         if (isfinite(g) && g < rad->global) rad->global = g;
@@ -836,7 +836,11 @@ static void pass_radii(mapper_state *st, map_radii *rad) {
         rad->r2_caustic = (float)(rad->caustic * rad->caustic);
         if (rad->r2_lookup > rad->r2_global) rad->r2_lookup = rad->r2_global;
     }
+}
+
+static void pass_radii(mapper_state *st, map_radii *rad) {
     if (!st->pass) {
+        if (st->progressive && st->cfg.ppm_radius > 0) start_radii(st, rad);
         st->rad0 = *rad;
         return;
     }
@@ -910,6 +914,13 @@ static int mapper_begin_pass(integrator *self, const scene *s, int pass, uint64_
     /* Pass 0 is what preprocess made, unless ppm_radius asks for other first radii: then it
      * is made again (the same photons) with them. */
     int again = pass == 0 && !st->progressive && st->cfg.ppm_radius > 0;
+    if (!st->progressive && st->cfg.filter == CAUSTIC_FILTER_HULL && st->ncaustic_all)
+        fprintf(stderr, "render: note: filter hull divides by the photons' hull, not by the "
+                "shrinking disc: the caustics of progressive passes converge with the cone or none "
+                "(README.md, Progressive photon mapping)\n");
+    /* The first call (pass 0, or the first pass of a resumed render: preprocess made pass 0
+     * and its counts are still here): pass 0's radii become the progressive start. */
+    if (!st->progressive && st->cfg.ppm_radius > 0 && st->pass == 0) start_radii(st, &st->rad0);
     st->progressive = 1;
     if (pass == st->pass && !again) {
         print_pass(st, pass);
