@@ -107,7 +107,12 @@ typedef struct pm_kdtree_config {
     unsigned bucket;   /* leaf bucket size B >= 1; 1 is Jensen's classic tree */
 } pm_kdtree_config;
 
-/* A config for pm_photon records with bucket size B (axis in the flag byte). */
+/* The bucket size recommended by the k-nearest race (docs/BENCHMARKS.md, "Choosing B"): the
+ * one whose worst loss against each cell's fastest B was smallest. */
+#define PM_KDTREE_BUCKET_DEFAULT 32u
+
+/* A config for pm_photon records with bucket size B (axis in the flag byte); bucket 0 means
+ * PM_KDTREE_BUCKET_DEFAULT. */
 pm_kdtree_config pm_kdtree_photon_config(unsigned bucket);
 
 /* Build a tree over records[0..n). Reorders records in place (see the top of this file).

@@ -216,3 +216,28 @@ TEST(kdtree_ties_same_for_any_thread_count) {
     pm_kdtree_free(t);
     free(ph);
 }
+
+/* pm_kdtree_photon_config(0) is the default bucket size, and that tree answers exactly. */
+TEST(kdtree_default_bucket) {
+    kt_rng r = {7};
+    const size_t n = 5000;
+    pm_photon *ph = calloc(n, sizeof *ph);
+    ASSERT(ph);
+    for (size_t i = 0; i < n; i++)
+        for (int a = 0; a < 3; a++) ph[i].pos[a] = (float)(kt_next(&r) % 11);
+    pm_kdtree *t = NULL;
+    pm_kdtree_config cfg = pm_kdtree_photon_config(0);
+    ASSERT_EQ_INT(pm_kdtree_build(&t, ph, n, &cfg, NULL), 0);
+    EXPECT_EQ_INT((int)pm_kdtree_bucket(t), (int)PM_KDTREE_BUCKET_DEFAULT);
+    pm_neighbor *want = malloc(n * sizeof *want), got[50];
+    for (int i = 0; i < 20; i++) {
+        float q[3] = {0.5f * (float)(kt_next(&r) % 22), 0.5f * (float)(kt_next(&r) % 22),
+                      0.5f * (float)(kt_next(&r) % 22)};
+        size_t c = tie_oracle(t, q, INFINITY, 0, want);
+        int g = pm_kdtree_knn(t, q, 50, INFINITY, got, 0, NULL);
+        EXPECT(tie_same(got, g, 0, want, c, 50, "default bucket"));
+    }
+    free(want);
+    pm_kdtree_free(t);
+    free(ph);
+}
