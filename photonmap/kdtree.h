@@ -107,8 +107,10 @@ typedef struct pm_kdtree_config {
     unsigned bucket;   /* leaf bucket size B >= 1; 1 is Jensen's classic tree */
 } pm_kdtree_config;
 
-/* The bucket size recommended by the k-nearest race (docs/BENCHMARKS.md, "Choosing B"): the
- * one whose worst loss against each cell's fastest B was smallest. */
+/* The bucket size recommended by the k-nearest race (docs/BENCHMARKS.md, "Choosing B"): B = 32
+ * and 64 came out even there (each the fastest in about as many cells, and within a few percent
+ * of each cell's fastest B in the median cell); 32 is the fastest in the worst cell (clustered
+ * data, empty-space queries, k = 10) and the better one over the two races of issue 28. */
 #define PM_KDTREE_BUCKET_DEFAULT 32u
 
 /* A config for pm_photon records with bucket size B (axis in the flag byte); bucket 0 means

@@ -1,11 +1,13 @@
 /* kdtree_query.c: k-nearest, radius and predicate queries on the heap kd-tree.
  *
- * TRAVERSAL. Christensen's "iteration instead of recursion": walk down to the bucket on the
- * query's side of every split, pushing (bounds, far child, far cell) on a fixed stack of at
+ * TRAVERSAL. Christensen's "iteration instead of recursion": walk down, at every split into
+ * the child whose cell is closer to q (q's side of the split unless the other child's
+ * tightened cell is closer), pushing (bounds, other child, its cell) on a fixed stack of at
  * most D entries; scan the bucket; then pop entries until one has a bound < r2, where r2 is
  * the current search radius. Only then is that node's own record tested, and the walk
- * continues down its far child if the far cell is still within reach. The recursive version
- * makes the same decisions in the same order, so both return identical arrays.
+ * continues down the other child if its cell is still within reach. The recursive version
+ * makes the same decisions in the same order, so both return identical arrays. (Best-first
+ * order was measured and lost: bench/results/experiments.csv.)
  *
  * CELL DISTANCE (Arya and Mount's). A subtree is pruned by the squared distance from q to its
  * cell, not to one split plane. The query carries the current cell as a box [lo, hi] (two
