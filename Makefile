@@ -72,6 +72,10 @@ endif
 CFLAGS ?=
 LDFLAGS ?=
 ALL_CFLAGS = $(CFLAGS_BASE) $(SAN_FLAGS) $(SAN_DEFS) $(CFLAGS)
+# The one C++ file (bench/nanoflann_peer.cpp: nanoflann, a header-only C++ library, raced in
+# bench/ only) gets the same warnings, and CFLAGS without a C -std.
+CXXFLAGS_BASE := -std=c++17 -g $(OPT) -Wall -Wextra -Wshadow -fno-math-errno
+ALL_CXXFLAGS = $(CXXFLAGS_BASE) $(SAN_FLAGS) $(SAN_DEFS) $(filter-out -std=%,$(CFLAGS))
 ALL_LDFLAGS = $(SAN_FLAGS) $(OMP_LIBS) $(LDFLAGS)
 
 # ---- flags stamp ---------------------------------------------------------------------------
@@ -80,7 +84,7 @@ ALL_LDFLAGS = $(SAN_FLAGS) $(OMP_LIBS) $(LDFLAGS)
 # stale stamp as out of date instead, so it shows what a real run would rebuild.
 FLAGS_STAMP := $(BUILD)/flags.stamp
 FLAGS_TEXT := $(strip CC=$(CC) CXX=$(CXX) SIMD=$(SIMD) OPENMP=$(OPENMP) SANITIZE=$(SANITIZE) \
-                CFLAGS=$(ALL_CFLAGS) LDFLAGS=$(ALL_LDFLAGS))
+                CFLAGS=$(ALL_CFLAGS) CXXFLAGS=$(ALL_CXXFLAGS) LDFLAGS=$(ALL_LDFLAGS))
 ifneq ($(file <$(FLAGS_STAMP)),$(FLAGS_TEXT))
   ifneq ($(findstring n,$(firstword -$(MAKEFLAGS)))$(findstring q,$(firstword -$(MAKEFLAGS))),)
     .PHONY: $(FLAGS_STAMP)
@@ -105,12 +109,13 @@ PM_PUB_HDR := $(filter-out %_internal.h photonmap/internal.h,$(PM_HDR))
 RENDER_SRC := $(sort $(filter-out render/app/main.c render/mpi/%,$(wildcard render/*/*.c)))
 BENCH_MAIN := $(sort $(wildcard bench/bench_*.c))
 BENCH_SRC  := $(sort $(filter-out $(BENCH_MAIN),$(wildcard bench/*.c)))
+BENCH_CXX  := $(sort $(wildcard bench/*.cpp))
 TEST_SRC   := $(sort $(wildcard tests/*.c))
 
 PM_OBJ     := $(PM_SRC:%.c=$(BUILD)/obj/%.o)
 PM_PIC_OBJ := $(PM_SRC:%.c=$(BUILD)/pic/%.o)
 RENDER_OBJ := $(RENDER_SRC:%.c=$(BUILD)/obj/%.o)
-BENCH_OBJ  := $(BENCH_SRC:%.c=$(BUILD)/obj/%.o)
+BENCH_OBJ  := $(BENCH_SRC:%.c=$(BUILD)/obj/%.o) $(BENCH_CXX:%.cpp=$(BUILD)/obj/%.o)
 TEST_OBJ   := $(TEST_SRC:%.c=$(BUILD)/obj/%.o)
 # The octree is raced in bench/ only; its test links it from there when it lives there.
 TEST_EXTRA_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard bench/octree.c))
@@ -144,7 +149,7 @@ DEPS_GOALS := deps run test check bench bench-quick results
 DEPS_FIRST := $(if $(filter $(DEPS_GOALS),$(MAKECMDGOALS)),deps)
 deps:
 	@if ! command -v pkg-config >/dev/null 2>&1 || ! command -v $(CC) >/dev/null 2>&1 \
-	    || ! pkg-config --exists libcjson libpng flann OpenEXR 2>/dev/null \
+	    || ! pkg-config --exists libcjson libpng flann nanoflann OpenEXR 2>/dev/null \
 	    || ! [ -x /usr/bin/time ]; then \
 	    sh scripts/install-deps.sh; fi
 
@@ -155,6 +160,10 @@ $(BUILD)/obj/render/%.o $(BUILD)/obj/tests/%.o: INC_RENDER := -Irender
 $(BUILD)/obj/%.o: %.c $(FLAGS_STAMP) | $(DEPS_FIRST)
 	@mkdir -p $(@D)
 	$(CC) $(ALL_CFLAGS) -MMD -MP -I. -Iphotonmap $(INC_RENDER) -c $< -o $@
+
+$(BUILD)/obj/%.o: %.cpp $(FLAGS_STAMP) | $(DEPS_FIRST)
+	@mkdir -p $(@D)
+	$(CXX) $(ALL_CXXFLAGS) -MMD -MP -I. -Iphotonmap -c $< -o $@
 
 # The shared library's objects: position-independent.
 $(BUILD)/pic/%.o: %.c $(FLAGS_STAMP) | $(DEPS_FIRST)
