@@ -62,25 +62,13 @@ static int do_look_at(conv *c, const toks *ts, int *i, const tok *at) {
     return apply(c, at, W);
 }
 
-static int do_translate(conv *c, const toks *ts, int *i, const tok *at) {
-    double v[16];
-    TRY(pb_nums(c, ts, i, at, 3, v, "Translate"));
-    double T[4][4];
+/* Translate (x y z in the last column) or Scale (on the diagonal). */
+static int do_translate_scale(conv *c, const toks *ts, int *i, const tok *at) {
+    const char *d = at->s;
+    double v[16], T[4][4];
+    TRY(pb_nums(c, ts, i, at, 3, v, d));
     pb_ident(T);
-    T[0][3] = v[0];
-    T[1][3] = v[1];
-    T[2][3] = v[2];
-    return apply(c, at, T);
-}
-
-static int do_scale(conv *c, const toks *ts, int *i, const tok *at) {
-    double v[16];
-    TRY(pb_nums(c, ts, i, at, 3, v, "Scale"));
-    double T[4][4];
-    pb_ident(T);
-    T[0][0] = v[0];
-    T[1][1] = v[1];
-    T[2][2] = v[2];
+    for (int k = 0; k < 3; k++) T[k][d[0] == 'T' ? 3 : k] = v[k];
     return apply(c, at, T);
 }
 
@@ -398,8 +386,8 @@ static const struct {
     named_fn named;
 } k_directives[] = {
     {"LookAt", do_look_at, NULL},
-    {"Translate", do_translate, NULL},
-    {"Scale", do_scale, NULL},
+    {"Translate", do_translate_scale, NULL},
+    {"Scale", do_translate_scale, NULL},
     {"Rotate", do_rotate, NULL},
     {"Transform", do_transform, NULL},
     {"ConcatTransform", do_transform, NULL},
