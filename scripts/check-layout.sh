@@ -15,7 +15,6 @@ STAGES="base scene load photons guiding integrators photon_mapping image run app
 # Known exceptions: "include FILE STAGE/HEADER", "file FILE MAXLINES", "func FILE NAME MAXLINES".
 EXCEPTIONS='
 include load/scene_load.c photons/photon_settings.h
-file load/scene_load.c 761
 file guiding/guide.c 814
 file photon_mapping/photonmapper.c 833
 file photons/photon_trace.c 1154
