@@ -156,14 +156,15 @@ int main(int argc, char **argv) {
     for (int k = 0; k < nadd; k++) av[at + k] = added[k];
     ac += nadd;
     av[ac] = NULL;
-    /* A tool's output is rank 0's (the others' stdout is discarded; two ranks would write
-     * --tonemap's file twice). */
+    /* render's program with dist.c's image loops (app/app.h); passes only when replicated. */
     render_hooks hooks = {dist_render_image_ctl, dist_pass_image, dist_pass_agree, dist_passes_end, NULL};
-    if (mode == DIST_PARTITIONED) /* each pass would partition fresh maps */
+    if (dist_partitioned()) /* each pass would partition fresh maps */
         hooks.no_passes = "render-mpi: rendering in passes (--time, --passes, --only-pass or the "
                           "scene's render.time) is not available with --pm distributed=partitioned (each "
                           "pass would partition fresh maps); use the replicated mode, or --spp for one "
                           "pass of fixed work";
+    /* A tool's output is rank 0's (the others' stdout is discarded; two ranks would write
+     * --tonemap's file twice). */
     int rc = tool && rank > 0 ? 0 : render_main(ac, av, &hooks);
     free(av);
     if (help && rank == 0) usage_mpi();
