@@ -244,15 +244,15 @@ check: all
 
 # ---- MPI (optional) ------------------------------------------------------------------------
 # `make MPI=1` also builds render-mpi, the distributed renderer (render/mpi/, docs/MPI.md):
-# render/app/main.c compiled again with mpicc, main renamed render_main and its image loop
-# render_image_ctl replaced by render/mpi's (-D below), linked with render/mpi/*.c. The
+# render/mpi/*.c compiled with mpicc and linked with the renderer's objects: its main calls
+# render's program, render_main (render/app/app.h), with render/mpi's hooks. The
 # default build never compiles render/mpi/ nor needs mpi.h. OpenMPI is installed
 # (install-deps.sh --mpi) when mpicc is missing. `make MPI=1 test-mpi` runs
 # scripts/test-mpi.sh (its own "N passed, N failed" line).
 MPI ?= 0
 MPICC ?= mpicc
 RENDER_MPI_BIN := $(BUILD)/render-mpi
-MPI_OBJ := $(BUILD)/obj/render/main_mpi.o $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard render/mpi/*.c))
+MPI_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard render/mpi/*.c))
 ifeq ($(MPI),1)
 all: $(RENDER_MPI_BIN)
 endif
@@ -263,10 +263,6 @@ mpi-deps:
 $(BUILD)/obj/render/mpi/%.o: render/mpi/%.c $(FLAGS_STAMP) | mpi-deps
 	@mkdir -p $(@D)
 	$(MPICC) $(ALL_CFLAGS) -MMD -MP -I. -Iphotonmap -Irender -c $< -o $@
-$(BUILD)/obj/render/main_mpi.o: render/app/main.c $(FLAGS_STAMP) | mpi-deps
-	@mkdir -p $(@D)
-	$(MPICC) $(ALL_CFLAGS) -Dmain=render_main -Drender_image_ctl=dist_render_image_ctl -MMD -MP \
-	    -I. -Iphotonmap -Irender -c $< -o $@
 $(RENDER_MPI_BIN): $(MPI_OBJ) $(RENDER_OBJ) $(LIB) $(FLAGS_STAMP)
 	$(MPICC) -o $@ $(filter %.o %.a,$^) $(ALL_LDFLAGS) $(RENDER_LIBS)
 -include $(MPI_OBJ:.o=.d)

@@ -20,7 +20,6 @@ file photon_mapping/photonmapper.c 833
 file photons/photon_trace.c 1154
 file mpi/dist.c 867
 file mpi/lookup.c 1107
-func app/main.c main 365
 func photons/photon_trace.c photon_trace 208
 func photons/photon_trace.c run_pass 205
 func mpi/lookup.c hook_side_build 202
