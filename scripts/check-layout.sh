@@ -18,7 +18,7 @@ include load/scene_load.c photons/photon_settings.h
 file guiding/guide.c 814
 file photon_mapping/photonmapper.c 833
 file photons/photon_trace.c 1154
-file mpi/dist.c 867
+file mpi/dist.c 903
 file mpi/lookup.c 1107
 func photons/photon_trace.c photon_trace 208
 func photons/photon_trace.c run_pass 205
