@@ -755,5 +755,60 @@ for dmode in replicated partitioned; do
   fi
 done
 
+# ---- rendering in passes (render --passes, --time; run/passes.h) ---------------------------
+# Oracle: the one-process render of the same passes, byte for byte: 3 passes of progressive
+# photon mapping (fresh maps each pass, shrinking radii) and of path tracing at -np 1, 2 and 3;
+# a render in passes checkpointed by -np 2 and continued by render to 4 passes equals 4 passes
+# at once; --time ends with more than one pass; the partitioned mode is refused (exit 2, a
+# message naming it).
+PASSES="--width 24 --height 24 --pass-spp 4 --passes 3"
+for mode in path pm; do
+  name=passes.$mode
+  # shellcheck disable=SC2086
+  "$R" data/scenes/cornell_spheres.json $PASSES $PMSMALL --mode $mode --threads 2 --quiet \
+    --hdr "$T/$name.ref.pfm" >"$T/$name.ref.log" 2>&1 || { bad "$name" "the one-process render failed"; continue; }
+  same=""; differ=""
+  for np in 1 2 3; do
+    # shellcheck disable=SC2086
+    timeout 300 $MPIRUN -np $np "$M" data/scenes/cornell_spheres.json $PASSES $PMSMALL --mode $mode \
+      --threads 1 --quiet --hdr "$T/$name.np$np.pfm" >"$T/$name.np$np.log" 2>&1
+    if cmp -s "$T/$name.np$np.pfm" "$T/$name.ref.pfm" && grep -q "^Passes: 3 done" "$T/$name.np$np.log"; then
+      same="$same $np"
+    else
+      differ="$differ $np"
+    fi
+  done
+  if [ -z "$differ" ]; then ok "$name: 3 passes, PFM bytes equal the one-process render at -np$same"
+  else bad "$name" "differs from the one-process render at -np$differ"; fi
+done
+# shellcheck disable=SC2086
+"$R" data/scenes/cornell_spheres.json --width 24 --height 24 --pass-spp 4 --passes 4 $PMSMALL --mode pm \
+  --threads 2 --quiet --hdr "$T/passes.ref4.pfm" >"$T/passes.ref4.log" 2>&1
+# shellcheck disable=SC2086
+timeout 300 $MPIRUN -np 2 "$M" data/scenes/cornell_spheres.json --width 24 --height 24 --pass-spp 4 --passes 2 \
+  $PMSMALL --mode pm --threads 1 --quiet --hdr "$T/passes.c.pfm" --checkpoint "$T/passes.ckpt" >"$T/passes.c.log" 2>&1
+"$R" data/scenes/cornell_spheres.json --resume "$T/passes.ckpt" --passes 4 --quiet >"$T/passes.r.log" 2>&1
+if cmp -s "$T/passes.c.pfm" "$T/passes.ref4.pfm" && grep -q "^Passes: 4 done (2 by this run)" "$T/passes.r.log"; then
+  ok "passes: checkpointed by -np 2 after 2 passes, continued by render to 4: equal to 4 passes at once"
+else
+  bad "passes resume" "$(tail -2 "$T/passes.r.log")"
+fi
+timeout 120 $MPIRUN -np 2 "$M" data/scenes/cornell_box.json --width 16 --height 16 --pass-spp 1 --time 1 \
+  --threads 1 --quiet --hdr "$T/passes.t.pfm" >"$T/passes.t.log" 2>&1
+n=$(sed -n 's/^Passes: \([0-9]*\) done.*/\1/p' "$T/passes.t.log")
+if [ "${n:-0}" -gt 1 ] && grep -q "budget of 1 s (stopped by it)" "$T/passes.t.log"; then
+  ok "passes: --time 1 at -np 2 ran $n passes and stopped by the budget"
+else
+  bad "passes --time" "$(grep -i passes "$T/passes.t.log" | head -2)"
+fi
+timeout 120 $MPIRUN -np 2 "$M" data/scenes/cornell_box.json --width 16 --height 16 --passes 2 --mode pm \
+  --pm distributed=partitioned --threads 1 --quiet --hdr "$T/passes.p.pfm" >"$T/passes.p.log" 2>&1
+rc=$?
+if [ $rc = 2 ] && grep -q "partitioned" "$T/passes.p.log" && [ ! -e "$T/passes.p.pfm" ]; then
+  ok "passes: refused with --pm distributed=partitioned (exit 2, named)"
+else
+  bad "passes partitioned" "rc $rc: $(head -2 "$T/passes.p.log")"
+fi
+
 echo "$pass passed, $fail failed"
 [ "$fail" = 0 ]

@@ -2,7 +2,11 @@
  * write the images, print the summary and statistics.
  *
  *   render SCENE.json [-o out.png] [--hdr out.pfm] [--spp N] [--threads N] [--seed S]
- *          [--width W] [--height H] [--mode M] [--quiet] [--help]
+ *          [--width W] [--height H] [--mode M] [--time S] [--passes N] [--pass-spp N]
+ *          [--quiet] [--help]
+ *
+ * One pass of --spp samples (the scene's image.spp) is fixed work; --time, --passes or the
+ * scene's render.time render in passes instead (run/passes.h).
  *
  * The image tools (render --compare, render --tonemap) are tools.c's; main() dispatches them.
  * Exit status: 0 success, 1 a failure while rendering or writing, 2 a usage error or a bad
@@ -24,6 +28,7 @@
 #include "base/json.h"
 #include "base/output.h"
 #include "photons/photon_settings.h"
+#include "run/passes.h"
 #include "run/renderer.h"
 #include "scene/scene.h"
 #include "base/stats.h"
@@ -32,6 +37,9 @@
 
 #ifdef _OPENMP
 #include <omp.h>
+#endif
+#ifdef render_image_ctl /* render-mpi: main.c compiled again with mpicc (mpi/dist.h) */
+#include "mpi/dist.h"
 #endif
 
 static void usage(FILE *f) {
@@ -56,6 +64,19 @@ static void usage(FILE *f) {
             "  --mode M          rendering algorithm (default: the scene's render.mode, else path):\n");
     integrator_list(f);
     fprintf(f,
+            "  --time S          render in passes until S seconds of wall time are spent (the\n"
+            "                    scene's render.time; overrides the scene's spp): a pass that\n"
+            "                    the mean pass time says would overrun is not started, so the\n"
+            "                    run takes at most S plus about one pass, and at least one pass\n"
+            "  --passes N        render exactly N passes (with --time: whichever ends first);\n"
+            "                    the same seed and passes give the same image on any threads\n"
+            "  --pass-spp N      samples per pixel of each pass (default: the scene's\n"
+            "                    render.pass_spp, else 4; rounded up to a square)\n"
+            "                    The image is the mean of the pass images. Pass 0 is the plain\n"
+            "                    render with --seed; pass p > 0 has its own seed. In pm and\n"
+            "                    preview each pass traces fresh photon maps and the radii shrink\n"
+            "                    (progressive photon mapping; --pm ppm_alpha=A; README.md)\n"
+            "  --only-pass P     render pass P of such a render alone (to check the mean)\n"
             "  --tone T          filmic or srgb (PNG tone curve)\n"
             "  --exposure X      fixed exposure multiplier instead of auto exposure\n"
             "  --pm KEY=VALUE    a photon-mapping setting, as in the scene's \"photon_mapping\"\n"
@@ -150,6 +171,8 @@ int main(int argc, char **argv) {
     double ckpt_every = 600, snap_every = 0;
     long max_scene_mb = 256;
     long spp = 0, threads = 0, width = 0, height = 0, seed = -1;
+    long passes = 0, pass_spp = 0, only_pass = -1;
+    double time_budget = 0;
     double exposure = -1;
     int quiet = 0;
     /* Photon-mapping flags, applied to the scene's photon_mapping object
@@ -180,6 +203,21 @@ int main(int argc, char **argv) {
         } else if (strcmp(a, "--spp") == 0) {
             NEED_VALUE();
             bad = parse_opt(a, v, 1, 1 << 20, &spp);
+        } else if (strcmp(a, "--time") == 0) {
+            NEED_VALUE();
+            if (cli_parse_positive(v, &time_budget) < 0 || time_budget > 1e9) {
+                fprintf(stderr, "render: --time: expected seconds, a number in (0, 1e9], got '%s'\n", v);
+                return 2;
+            }
+        } else if (strcmp(a, "--passes") == 0) {
+            NEED_VALUE();
+            bad = parse_opt(a, v, 1, 1 << 20, &passes);
+        } else if (strcmp(a, "--pass-spp") == 0) {
+            NEED_VALUE();
+            bad = parse_opt(a, v, 1, 1 << 20, &pass_spp);
+        } else if (strcmp(a, "--only-pass") == 0) {
+            NEED_VALUE();
+            bad = parse_opt(a, v, 0, 1 << 20, &only_pass);
         } else if (strcmp(a, "--threads") == 0) {
             NEED_VALUE();
             bad = parse_opt(a, v, 1, 1024, &threads);
@@ -293,6 +331,30 @@ int main(int argc, char **argv) {
     double t_load = stats_now() - t_start;
     stats_time_add("Time/Scene loading and BVH build", t_load);
     if (spp) camera_set_spp(&s.cam, (int)spp);
+    /* Passes (run/passes.h): --time, --passes, --only-pass, or the scene's render.time unless
+     * --spp asks for one pass of fixed work. */
+    int cli_passes = time_budget > 0 || passes > 0 || only_pass >= 0;
+    int in_passes = cli_passes || (s.settings.time > 0 && !spp);
+    if (cli_passes && spp) {
+        fprintf(stderr, "render: --spp is one pass of fixed work; with --time, --passes or "
+                "--only-pass give the samples of each pass with --pass-spp\n");
+        scene_free(&s);
+        return 2;
+    }
+    if (!in_passes && pass_spp) {
+        fprintf(stderr, "render: --pass-spp needs passes: --time, --passes or the scene's render.time\n");
+        scene_free(&s);
+        return 2;
+    }
+    if (only_pass >= 0 && (ckpt_path || resume || snap_every > 0)) {
+        fprintf(stderr, "render: --only-pass renders one pass alone: no --checkpoint, --resume or "
+                "--snapshot-every with it\n");
+        scene_free(&s);
+        return 2;
+    }
+    double budget = time_budget > 0 ? time_budget : cli_passes ? 0 : s.settings.time;
+    int pspp = pass_spp ? (int)pass_spp : s.settings.pass_spp ? s.settings.pass_spp : 4;
+    if (in_passes) camera_set_spp(&s.cam, pspp);
     if (width || height) {
         /* The side not given follows the scene's aspect, and must stay in range too. */
         double w = width ? (double)width : floor((double)height * s.cam.width / s.cam.height + 0.5);
@@ -348,6 +410,9 @@ int main(int argc, char **argv) {
     if (spp && s.cam.spp != spp)
         fprintf(stderr, "render: note: %ld spp rounded up to %d (%dx%d strata)\n", spp, s.cam.spp,
                 s.cam.strata, s.cam.strata);
+    if (in_passes && s.cam.spp != pspp)
+        fprintf(stderr, "render: note: %d samples per pass rounded up to %d (%dx%d strata)\n", pspp,
+                s.cam.spp, s.cam.strata, s.cam.strata);
     if (s.nlights == 0) {
         int any_emit = 0;
         for (int i = 0; i < s.nmats; i++) any_emit |= material_is_emissive(&s.mats[i]);
@@ -364,6 +429,28 @@ int main(int argc, char **argv) {
         fprintf(stderr, "render: %s: %s\n", scene_path, e.msg);
         scene_free(&s);
         return 2;
+    }
+    static pass_state pstate;
+    if (in_passes) {
+#ifdef render_image_ctl /* render-mpi (mpi/dist.h): passes in the replicated mode only */
+        if (dist_partitioned()) {
+            fprintf(stderr, "render-mpi: rendering in passes (--time, --passes, --only-pass or the "
+                    "scene's render.time) is not available with --pm distributed=partitioned (each "
+                    "pass would partition fresh maps); use the replicated mode, or --spp for one "
+                    "pass of fixed work\n");
+            scene_free(&s);
+            return 2;
+        }
+#endif
+        const cJSON *ld = s.photon_mapping ? cJSON_GetObjectItemCaseSensitive(s.photon_mapping, "load_photons") : NULL;
+        if (uses_photons && cJSON_IsString(ld) && ld->valuestring[0]) {
+            fprintf(stderr, "render: --load-photons (photon_mapping.load_photons) fixes the photon "
+                    "maps, but each pass of --time, --passes or render.time traces its own: use one "
+                    "or the other\n");
+            scene_free(&s);
+            return 2;
+        }
+        ckpt_set_passes(&pstate);
     }
     if ((rc = checkpoint_setup(&s, scene_path, argc, argv, ckpt_path, resume, uses_photons, &cs,
                                &rstate)) != 0) {
@@ -395,8 +482,16 @@ int main(int argc, char **argv) {
     printf("Rendering %dx%d, %d spp (%dx%d strata), mode %s, %d thread%s, seed %llu\n", s.cam.width,
            s.cam.height, s.cam.spp, s.cam.strata, s.cam.strata, it.name, nthreads,
            nthreads == 1 ? "" : "s", (unsigned long long)s.settings.seed);
+    if (in_passes) {
+        printf("In passes of %d spp", s.cam.spp);
+        if (only_pass >= 0) printf(": pass %ld alone", only_pass);
+        if (passes > 0 && only_pass < 0) printf(": %ld passes", passes);
+        if (budget > 0 && only_pass < 0) printf("%s time budget %.4g s", passes > 0 ? ", or a" : ": a", budget);
+        printf("\n");
+    }
     fflush(stdout);
     out_test_pause("photons");
+    double t_prep0 = stats_now();
     if (it.preprocess) {
         double t0 = stats_now();
         rc = it.preprocess(&it, &s, err, sizeof err);
@@ -411,8 +506,12 @@ int main(int argc, char **argv) {
     film f;
     render_job job = {nthreads, quiet, s.settings.seed};
     render_control ctl = {NULL, 0, NULL, NULL, 0};
+    if (in_passes && !pstate.sum && pass_state_init(&pstate, s.cam.width, s.cam.height) < 0) {
+        fprintf(stderr, "render: out of memory for the render state\n");
+        return 1;
+    }
     if (ckpt_path || snap_every > 0 || resume) {
-        if (!rstate.sum && render_state_init(&rstate, s.cam.width, s.cam.height, s.cam.spp) < 0) {
+        if (!in_passes && !rstate.sum && render_state_init(&rstate, s.cam.width, s.cam.height, s.cam.spp) < 0) {
             fprintf(stderr, "render: out of memory for the render state\n");
             return 1;
         }
@@ -424,6 +523,7 @@ int main(int argc, char **argv) {
         cs.exposure = s.settings.exposure;
         cs.clip_percent = s.settings.clip_percent;
         cs.quiet = quiet;
+        cs.pass_spp = s.cam.spp;
         if ((rc = checkpoint_begin(&cs, uses_photons, &rstate)) != 0) return rc;
         ctl = (render_control){&rstate, ckpt_session_period(&cs), ckpt_session_pause, &cs, ckpt_path != NULL};
     }
@@ -431,11 +531,45 @@ int main(int argc, char **argv) {
      * the checkpoint, and then end the program by that signal. */
     if (ckpt_path) out_defer_begin();
     double t_render0 = stats_now();
-    rc = render_image_ctl(&s, &it, &job, &ctl, &f);
+    pass_report prep;
+    memset(&prep, 0, sizeof prep);
+    if (in_passes) {
+        pass_run pr;
+        memset(&pr, 0, sizeof pr);
+        pr.max_passes = (int)passes;
+        pr.budget = budget;
+        pr.t_origin = t_start;
+        pr.t_first = pstate.done == 0 ? t_prep0 : 0;
+        pr.only = (int)only_pass;
+        pr.stop_on_signal = ckpt_path != NULL;
+#ifdef render_image_ctl
+        pr.image = dist_pass_image;
+        pr.agree = dist_pass_agree;
+#else
+        pr.image = render_image_ctl;
+#endif
+        pr.on_pass = ckpt_path || snap_every > 0 ? ckpt_session_pass : NULL;
+        pr.user = &cs;
+        pr.quiet = quiet;
+        err[0] = 0;
+        rc = render_passes(&s, &it, &job, &pr, &pstate, &f, &prep, err, sizeof err);
+#ifdef render_image_ctl
+        dist_passes_end(rc); /* the worker ranks end here */
+#endif
+        if (rc < 0 && err[0]) snprintf(cs.err, sizeof cs.err, "%s", err);
+        /* The last state, so that the render can be continued with more passes. */
+        if (rc == 0 && ckpt_path && !out_pending_signal() &&
+            ckpt_session_pass(&cs, &pstate, RENDER_PAUSE_SIGNAL) < 0)
+            rc = PM_EIO;
+    } else {
+        rc = render_image_ctl(&s, &it, &job, &ctl, &f);
+    }
     double t_render = stats_now() - t_render0;
     integrator_destroy(&it);
     if (ckpt_path) {
-        if (rc == 0 && out_pending_signal()) rc = ckpt_session_pause(&cs, &rstate, RENDER_PAUSE_SIGNAL);
+        if (rc == 0 && out_pending_signal())
+            rc = in_passes ? ckpt_session_pass(&cs, &pstate, RENDER_PAUSE_SIGNAL)
+                           : ckpt_session_pause(&cs, &rstate, RENDER_PAUSE_SIGNAL);
         if (rc == 0 && out_pending_signal()) rc = RENDER_INTERRUPTED;
         if (rc == RENDER_INTERRUPTED)
             fprintf(stderr, "render: interrupted; the render state is in %s (continue with: %s "
@@ -449,6 +583,10 @@ int main(int argc, char **argv) {
         return 1;
     }
     render_state_free(&rstate);
+    double pass_err = -1, pass_mean = 0;
+    int passes_done = pstate.done;
+    if (in_passes) pass_err = pass_state_rmse(&pstate, &pass_mean);
+    pass_state_free(&pstate);
     int status = 0;
     size_t nonfinite = film_count_nonfinite(&f);
     if (nonfinite)
@@ -467,6 +605,17 @@ int main(int argc, char **argv) {
                     stats_total(STAT_SHADOW_RAYS);
     printf("Summary: wall time %.2f s (rendering %.2f s), %.3g M rays, %.3g M rays/s\n", wall, t_render,
            (double)rays * 1e-6, t_render > 0 ? (double)rays * 1e-6 / t_render : 0.0);
+    if (in_passes) {
+        printf("Passes: %d done (%d by this run) of %d spp; mean pass %.3f s, longest %.3f s; "
+               "elapsed %.3f s", passes_done, prep.passes, s.cam.spp, prep.mean, prep.longest,
+               prep.elapsed);
+        if (budget > 0 && only_pass < 0)
+            printf(" of a budget of %.4g s%s", budget, prep.stopped_by_budget ? " (stopped by it)" : "");
+        if (pass_err >= 0)
+            printf("; error estimate %.4g (%.3f%% of the mean %.4g)", pass_err,
+                   pass_mean > 0 ? 100 * pass_err / pass_mean : 0.0, pass_mean);
+        printf("\n");
+    }
     if (status == 0) {
         if (png)
             printf("Wrote %s (%s, exposure %.4g%s)\n", png, s.settings.tone == TONE_SRGB ? "sRGB" : "filmic",

@@ -21,6 +21,12 @@
  *                           concurrently, so it must only read shared state; g is this
  *                           sample's own stream and id says which sample it is
  *   thread_end(it, scratch) optional
+ *   begin_pass(it, scene, pass, seed)  optional; a render in passes (run/passes.h) calls
+ *                           it on the main thread before each pass p >= 1 (pass 0 is what
+ *                           preprocess made), between two passes' li calls, with the pass's
+ *                           own seed: e.g. trace fresh photon maps with that seed and shrink
+ *                           the radii (photonmapper.c: progressive photon mapping). An
+ *                           integrator without it renders every pass alike but for the seed
  *   destroy(it)             optional; frees it->data
  * Failures return a negative PM_E* code with a message in err (preprocess, create).
  *
@@ -69,6 +75,8 @@ struct integrator {
               void *scratch);
     void (*thread_end)(const integrator *self, void *scratch);
     void (*destroy)(integrator *self);
+    int (*begin_pass)(integrator *self, const scene *s, int pass, uint64_t seed, char *err,
+                      size_t errcap);
 };
 
 typedef int (*integrator_create_fn)(integrator *it, const scene *s, char *err, size_t errcap);

@@ -480,10 +480,13 @@ static int load_settings(scene *s, const cJSON *root, json_err *e) {
     st->tone = TONE_FILMIC;
     st->clip_percent = 1.0;
     st->exposure = 0;
+    st->time = 0;
+    st->pass_spp = 0;
     const cJSON *r, *im;
     TRY(json_object(root, "$", "render", 0, &r, e));
     if (r) {
-        KEYS(r, "$.render", "the render settings", "mode", "max_depth", "rr_depth", "seed");
+        KEYS(r, "$.render", "the render settings", "mode", "max_depth", "rr_depth", "seed", "time",
+             "pass_spp");
         long v;
         v = st->max_depth;
         TRY(json_int(r, "$.render", "max_depth", 0, 1, 100000, &v, e));
@@ -494,6 +497,15 @@ static int load_settings(scene *s, const cJSON *root, json_err *e) {
         v = (long)st->seed;
         TRY(json_int(r, "$.render", "seed", 0, 0, 2147483647L, &v, e));
         st->seed = (uint64_t)v;
+        /* A time budget: render in passes (run/passes.h) for this many seconds. */
+        double tb = 0;
+        TRY(json_number(r, "$.render", "time", 0, &tb, e));
+        if (json_get(r, "time") && !(tb > 0 && tb <= 1e9))
+            return json_fail(e, PM_EINVAL, "$.render.time: expected seconds in (0, 1e9], got %g", tb);
+        st->time = tb;
+        v = 0;
+        TRY(json_int(r, "$.render", "pass_spp", 0, 1, 1 << 20, &v, e));
+        st->pass_spp = (int)v;
         const char *mode = NULL;
         TRY(json_string(r, "$.render", "mode", 0, &mode, e));
         if (mode) snprintf(st->mode, sizeof st->mode, "%s", mode);

@@ -823,8 +823,10 @@ static int render_worker(const scene *s, const integrator *it, const render_job 
     return 0;
 }
 
-int dist_render_image_ctl(const scene *s, const integrator *it, const render_job *job,
-                          const render_control *ctl, film *out) {
+/* One distributed image. in_passes 0: the whole render (workers end here); 1: one pass of a
+ * render in passes (dist.h): every rank returns, the workers with a black film. */
+static int dist_image(const scene *s, const integrator *it, const render_job *job,
+                      const render_control *ctl, film *out, int in_passes) {
     dist_start(0, NULL, NULL);
     lk_begin(s); /* before this rank answers another's photon lookups */
     const camera *c = &s->cam;
@@ -846,7 +848,7 @@ int dist_render_image_ctl(const scene *s, const integrator *it, const render_job
         if (rc >= 0) render_state_to_film(st, out);
         if (st == &own) render_state_free(&own);
         stats_time_add("Time/Rendering", stats_now() - t0);
-        if (rc == 0) g_stage = 2;
+        if (rc == 0 && !in_passes) g_stage = 2;
         return rc;
     }
     uint64_t *base = dcalloc(STATS_MAX, sizeof *base, PH_PIXELS);
@@ -859,7 +861,41 @@ int dist_render_image_ctl(const scene *s, const integrator *it, const render_job
     free(base);
     render_state_free(&own);
     if (rc < 0) return rc;
+    if (in_passes) return film_init(out, c->width, c->height); /* rank 0 has the pass's tiles */
     /* Done: rank 0 has this rank's tiles and statistics, and writes the image. */
+    g_stage = 2;
+    fflush(stdout);
+    MPI_Finalize();
+    exit(0);
+}
+
+int dist_render_image_ctl(const scene *s, const integrator *it, const render_job *job,
+                          const render_control *ctl, film *out) {
+    return dist_image(s, it, job, ctl, out, 0);
+}
+
+int dist_pass_image(const scene *s, const integrator *it, const render_job *job,
+                    const render_control *ctl, film *out) {
+    return dist_image(s, it, job, ctl, out, 1);
+}
+
+int dist_pass_agree(int go) {
+    dist_start(0, NULL, NULL);
+    int32_t v = go;
+    MPI_Request r;
+    MPI_Ibcast(&v, 1, MPI_INT32_T, 0, MPI_COMM_WORLD, &r);
+    wait_listening(&r);
+    return v != 0;
+}
+
+int dist_partitioned(void) { return g_mode == DIST_PARTITIONED; }
+
+void dist_passes_end(int rc) {
+    if (rc < 0) return; /* main.c says it; dist_finish stops the job */
+    if (g_rank == 0) {
+        g_stage = 2;
+        return;
+    }
     g_stage = 2;
     fflush(stdout);
     MPI_Finalize();

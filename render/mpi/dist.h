@@ -98,6 +98,23 @@ int dist_finish(int rc);
 int dist_render_image_ctl(const scene *s, const integrator *it, const render_job *job,
                           const render_control *ctl, film *out);
 
+/* RENDERING IN PASSES (run/passes.h; replicated mode only, main.c refuses partitioned). Every
+ * rank runs the pass loop in lockstep: before each pass dist_pass_agree gives every rank rank
+ * 0's decision to render it (the budget, a signal and the pass count are rank 0's), so all
+ * ranks call begin_pass (whose photon passes exchange batches as above) and the pass's image
+ * together. dist_pass_image is one pass's image: the tile queue as above, but every rank
+ * returns (rank 0 with the pass's film, the others with a black one, which they never write),
+ * and ctl's pauses are not made inside a pass (a signal ends the render after the pass in
+ * progress, at the next agreement). Rank 0's passes are the one-process render's, so the
+ * mean is too, bit for bit. dist_passes_end(rc) after the loop: the workers finish MPI and
+ * exit (0); rank 0 goes on to write the outputs. */
+int dist_pass_image(const scene *s, const integrator *it, const render_job *job,
+                    const render_control *ctl, film *out);
+int dist_pass_agree(int go);
+void dist_passes_end(int rc);
+/* 1 with --pm distributed=partitioned. */
+int dist_partitioned(void);
+
 #ifdef __cplusplus
 }
 #endif

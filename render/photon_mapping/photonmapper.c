@@ -97,6 +97,14 @@ typedef struct mapper_state {
     double emit_var; /* a sample's emission variance, the image's mean (emission_mask_build) */
     int explicit_gather, explicit_secondary, explicit_stride; /* set in the scene or by --pm: kept */
     char sample_reason[480], emit_reason[320]; /* the plan's "sample:" and "emission rays:" lines */
+    /* Progressive passes (mapper_begin_pass): the pass whose maps are built, its seed, its
+     * squared radii's factor against pass 0's, pass 0's radii and volume radii. */
+    int pass, progressive; /* progressive: ppm_radius applies (a render in passes) */
+    int made;              /* preprocess ran once: the plan's parts and messages are done */
+    uint64_t pass_seed;
+    double r2_scale, t_trace, t_trees, t_irr; /* the last pass's times (seconds) */
+    map_radii rad0;
+    float *vol_r2_0; /* 3 per medium: ms, caus, all */
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
         st_global_est, st_lookup_miss, st_side_rays, st_side_again;
 } mapper_state;
@@ -941,6 +949,7 @@ static void mapper_destroy(integrator *self) {
     pm_kdtree_free(st->ts);
     photon_maps_free(&st->maps);
     plan_free(&st->plan);
+    free(st->vol_r2_0);
     free(st);
 }
 
@@ -948,9 +957,13 @@ static void mapper_destroy(integrator *self) {
 
 enum { BUCKET_GLOBAL = 1, BUCKET_CAUSTIC = 8, BUCKET_SHADOW = 8 };
 
+/* Progressive passes (defined below, with mapper_begin_pass). */
+static void pass_radii(mapper_state *st, map_radii *rad);
+static int pass_volume_radii(mapper_state *st, const scene *s);
+
 static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
     mapper_state *st = self->data;
-    plan_print(&st->plan, stdout);
+    if (!st->made) plan_print(&st->plan, stdout);
     fflush(stdout);
     photon_maps *m = &st->maps;
     int rc;
@@ -966,8 +979,12 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
             (rc = photon_maps_load(m, st->cfg.load_dir, &stamp, st->cfg.force_load, err, errcap)) < 0)
             return rc;
         int loaded = m->loaded;
-        if ((rc = pmv_trace(&st->vol, s, &st->cfg, &st->plan, m, err, errcap)) < 0) return rc;
+        /* A later pass traces with its own seed (the scene's copy carries it to pmv_trace). */
+        scene sp = *s;
+        sp.settings.seed = st->pass_seed;
+        if ((rc = pmv_trace(&st->vol, &sp, &st->cfg, &st->plan, m, err, errcap)) < 0) return rc;
         if (!loaded) m->stamp = stamp;
+        if ((rc = pass_volume_radii(st, s)) < 0) return rc;
     } else if (st->cfg.load_dir[0]) {
         if ((rc = photon_maps_load(m, st->cfg.load_dir, &stamp, st->cfg.force_load, err, errcap)) < 0)
             return rc;
@@ -987,8 +1004,13 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         o.shadow = st->plan.shadow.on;
         o.importance = st->plan.imp; /* importance-driven emission, when the plan chose it */
         o.reuse = st->plan.pilot;    /* the plan's pilot photons join the global maps */
+        if (st->pass) { /* a later pass: its own photons only (the pilot joined pass 0) */
+            o.seed = st->pass_seed;
+            o.reuse = NULL;
+        }
         if ((rc = photon_trace(s, &o, m, err, errcap)) < 0) return rc;
         m->stamp = stamp;
+        if (!st->made)
         printf("Photons: %zu global, %zu shadow-map (from %llu emitted); %zu caustic (from %llu "
                "emitted; projection maps cover %.2f%% of the light's power, saving %llu "
                "emissions)\n",
@@ -997,10 +1019,11 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
                (unsigned long long)m->caustic_emitted, 100 * m->caustic_fraction,
                (unsigned long long)m->caustic_saved);
     }
-    stats_time_add("Time/Photon tracing (or loading)", stats_now() - t0);
+    st->t_trace = stats_now() - t0;
+    stats_time_add("Time/Photon tracing (or loading)", st->t_trace);
     /* Saved before the trees reorder them: loading these files then gives the trees, the
      * precomputed irradiance and the image of this run exactly. */
-    if (st->cfg.save_dir[0]) {
+    if (st->cfg.save_dir[0] && !st->made) {
         if ((rc = photon_maps_save(m, st->cfg.save_dir, err, errcap)) < 0) return rc;
         printf("Saved photon maps to %s\n", st->cfg.save_dir);
     }
@@ -1010,6 +1033,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     photon_maps_radii(s, m, &st->cfg, &rad);
     st->nglobal_all = m->part ? m->whole_global : m->nglobal;
     st->ncaustic_all = m->part ? m->whole_caustic : m->ncaustic;
+    pass_radii(st, &rad); /* progressive passes: pass 0's radii, shrunk */
     if (g_lookup && (rc = g_lookup->partition(g_lookup->user, m, err, errcap)) < 0) return rc;
 
     t0 = stats_now();
@@ -1018,12 +1042,14 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         (rc = photon_tree_build(&st->ts, m->shadow, m->nshadow, BUCKET_SHADOW, err, errcap)) < 0)
         return rc;
     if ((rc = side_map_init(&st->caus_side, s, st->tc, m->ncaustic, rad.r2_caustic, err, errcap)) < 0) return rc;
-    stats_time_add("Time/Photon kd-trees", stats_now() - t0);
+    st->t_trees = stats_now() - t0;
+    stats_time_add("Time/Photon kd-trees", st->t_trees);
     st->r2_global = rad.r2_global;
     st->r2_caustic = rad.r2_caustic;
     st->r2_lookup = rad.r2_lookup;
     st->r2_shadow = rad.r2_shadow;
     st->sec_dist = st->cfg.secondary_distance > 0 ? st->cfg.secondary_distance : rad.typical;
+    if (!st->made)
     printf("Radii: global estimate %.4g, caustic estimate %.4g, secondary gather below %.4g, "
            "shadow-map query %.4g\n",
            rad.global, rad.caustic, st->sec_dist, rad.shadow);
@@ -1036,6 +1062,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     st->glob_opt.max_dist2 = st->r2_global;
     st->glob_opt.reject_behind = 1;
 
+    st->t_irr = 0;
     if (st->nglobal_all && !st->direct_vis) {
         t0 = stats_now();
         rc = g_lookup ? g_lookup->side_build(g_lookup->user, &st->sides, s, st->tg,
@@ -1046,11 +1073,17 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         if (rc < 0) return rc;
         stat_add(st->st_side_rays, st->sides.rays_first + st->sides.rays_second);
         stat_add(st->st_side_again, st->sides.researched);
-        stats_time_add("Time/Precomputed irradiance", stats_now() - t0);
+        st->t_irr = stats_now() - t0;
+        stats_time_add("Time/Precomputed irradiance", st->t_irr);
+        if (!st->made)
         printf("Precomputed irradiance at %zu of %zu global photons (%zu estimates searched again "
                "for a hidden neighbour; %zu of too few photon paths to be read: the light there is "
                "computed)\n",
                st->sides.n, st->nglobal_all, st->sides.researched, st->sides.sparse);
+    }
+    if (st->made) { /* the gather guide is the plan's: made once, on pass 0 */
+        fflush(stdout);
+        return 0;
     }
     t0 = stats_now();
     {
@@ -1074,6 +1107,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     stats_time_add("Time/Sample pilot and emission mask", stats_now() - t0);
     printf("  sample: %s\n", st->sample_reason);
     printf("  emission rays: %s\n", st->emit_reason);
+    st->made = 1;
     if (g_lookup) {
         const pm_kdtree *trees[2] = {st->tg, st->tc};
         pm_estimate_options opts[2] = {st->glob_opt, st->caus_opt};
@@ -1082,6 +1116,158 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     fflush(stdout);
     return 0;
 }
+
+/* ---- progressive passes ------------------------------------------------------------------ */
+
+/* Progressive photon mapping (README.md, "Progressive photon mapping"): a render in passes
+ * (run/passes.h) calls mapper_begin_pass before pass p >= 1. The pass traces fresh maps with
+ * its own seed (global, caustic, shadow, volume; the plan's pilot photons joined pass 0 only),
+ * builds its own trees, precomputed irradiance and caustic side map, and caps every estimate
+ * at pass 0's radius^2 times ppm_r2_scale(p) (Knaus and Zwicker 2011). The plan, the
+ * importance table and the guides are pass 0's. */
+
+/* prod_{j=1..p} (j + alpha) / (j + 1): r^2 of pass p (0-based) over r^2 of pass 0, from
+ * r^2_{i+1} = r^2_i (i + alpha) / (i + 1) with the first pass i = 1. */
+static double ppm_r2_scale(int pass, double alpha) {
+    double f = 1;
+    for (int j = 1; j <= pass; j++) f *= (j + alpha) / (j + 1);
+    return f;
+}
+
+/* Pass 0 keeps its radii; a later pass takes them, scaled, in place of its own. The shadow
+ * query (a hint that never changes the mean) and the typical radius (which decides where
+ * secondary gathers run, an unbiased choice) stay as the pass finds them or as pass 0 had. */
+static void pass_radii(mapper_state *st, map_radii *rad) {
+    if (!st->pass && st->progressive && st->cfg.ppm_radius > 0) {
+        /* ppm_radius: the first radii, f times a k-photon estimate's radius at the map's mean
+         * density over the diffuse area: typical^2 = k_g A / (pi n_g) for the global map (from
+         * photon_maps_radii), and k_c A / (pi n_c) = typical^2 (k_c n_g) / (k_g n_c) for the
+         * caustic map; never above the maximum radii. */
+        double f = st->cfg.ppm_radius, t2 = rad->typical * rad->typical;
+        double g = f * rad->typical;
+        if (isfinite(g) && g < rad->global) rad->global = g;
+        if (st->ncaustic_all && st->nglobal_all) {
+            double c = f * sqrt(t2 * st->cfg.k_caustic * (double)st->nglobal_all /
+                                ((double)st->cfg.k_global * (double)st->ncaustic_all));
+            if (isfinite(c) && c < rad->caustic) rad->caustic = c;
+        }
+        rad->r2_global = (float)(rad->global * rad->global);
+        rad->r2_caustic = (float)(rad->caustic * rad->caustic);
+        if (rad->r2_lookup > rad->r2_global) rad->r2_lookup = rad->r2_global;
+    }
+    if (!st->pass) {
+        st->rad0 = *rad;
+        return;
+    }
+    double f = st->r2_scale, sf = sqrt(f);
+    const map_radii *r0 = &st->rad0;
+    rad->global = r0->global * sf;
+    rad->caustic = r0->caustic * sf;
+    rad->typical = r0->typical;
+    rad->r2_global = (float)((double)r0->r2_global * f);
+    rad->r2_caustic = (float)((double)r0->r2_caustic * f);
+    rad->r2_lookup = (float)((double)r0->r2_lookup * f);
+}
+
+/* The same for the volume maps of each medium (pm_volume.h): pass 0's r^2 (where pass 0 had
+ * photons) times the pass's factor. */
+static int pass_volume_radii(mapper_state *st, const scene *s) {
+    pmv_state *v = &st->vol;
+    if (!v->on || s->nmedia <= 0 || !v->ms) return 0;
+    pmv_map *maps[3] = {v->ms, v->caus, v->all};
+    if (!st->pass) {
+        free(st->vol_r2_0);
+        st->vol_r2_0 = malloc((size_t)s->nmedia * 3 * sizeof *st->vol_r2_0);
+        if (!st->vol_r2_0) return PM_ENOMEM;
+        for (int md = 0; md < s->nmedia; md++)
+            for (int k = 0; k < 3; k++) st->vol_r2_0[3 * md + k] = maps[k][md].r2;
+        return 0;
+    }
+    for (int md = 0; md < s->nmedia && st->vol_r2_0; md++)
+        for (int k = 0; k < 3; k++) {
+            float r0 = st->vol_r2_0[3 * md + k];
+            if (isfinite(r0)) maps[k][md].r2 = (float)((double)r0 * st->r2_scale);
+        }
+    return 0;
+}
+
+/* Free the volume trees of a pass (pmv_trace allocates them anew); the rest of v stays. */
+static void drop_volume_maps(pmv_state *v) {
+    pmv_map *maps[3] = {v->ms, v->caus, v->all};
+    for (int k = 0; k < 3; k++) {
+        for (int md = 0; maps[k] && md < v->nmedia; md++) {
+            pm_kdtree_free(maps[k][md].t);
+            free(maps[k][md].a);
+        }
+        free(maps[k]);
+    }
+    v->ms = v->caus = v->all = NULL;
+    v->n_ms = v->n_caus = v->n_all = 0;
+}
+
+static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t errcap);
+
+/* One line per pass on stdout: the maps, what building them cost, and the radii. */
+static void print_pass(const mapper_state *st, int pass) {
+    printf("Pass %d: photons %zu global, %zu caustic", pass, st->nglobal_all, st->ncaustic_all);
+    if (st->vol.on) {
+        double r2v = 0; /* the largest r^2 of the media's multiple-scattering maps */
+        for (int md = 0; st->vol.ms && md < st->vol.nmedia; md++)
+            if (st->vol.ms[md].n && (double)st->vol.ms[md].r2 > r2v) r2v = (double)st->vol.ms[md].r2;
+        printf(", %zu volume (r^2 %.9g), %zu volume-caustic", st->vol.n_all, r2v, st->vol.n_caus);
+    }
+    printf("; trace %.3f s, kd-trees %.3f s, irradiance %.3f s; r^2 global %.9g, caustic %.9g "
+           "(pass 0's x %.9g)\n",
+           st->t_trace, st->t_trees, st->t_irr, (double)st->r2_global, (double)st->r2_caustic,
+           st->r2_scale);
+    fflush(stdout);
+}
+
+static int mapper_begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, char *err,
+                             size_t errcap) {
+    mapper_state *st = self->data;
+    /* Pass 0 is what preprocess made, unless ppm_radius asks for other first radii: then it
+     * is made again (the same photons) with them. */
+    int again = pass == 0 && !st->progressive && st->cfg.ppm_radius > 0;
+    st->progressive = 1;
+    if (pass == st->pass && !again) {
+        print_pass(st, pass);
+        return 0;
+    }
+    if (g_lookup) {
+        snprintf(err, errcap, "progressive passes (--time, --passes) are not available with --pm "
+                 "distributed=partitioned: every pass would partition fresh maps (use the "
+                 "replicated mode)");
+        return PM_EINVAL;
+    }
+    if (st->cfg.load_dir[0]) {
+        snprintf(err, errcap, "load_photons (--load-photons %s) fixes the photon maps, but each "
+                 "progressive pass traces its own: render one pass (no --time or --passes) or "
+                 "leave the maps out", st->cfg.load_dir);
+        return PM_EINVAL;
+    }
+    side_cache_free(&st->sides);
+    side_map_free(&st->caus_side);
+    pm_kdtree_free(st->tg);
+    pm_kdtree_free(st->tc);
+    pm_kdtree_free(st->ts);
+    st->tg = st->tc = st->ts = NULL;
+    drop_volume_maps(&st->vol);
+    int nmedia = st->maps.nmedia;
+    photon_maps_free(&st->maps);
+    st->maps.nmedia = nmedia;
+    st->pass = pass;
+    st->pass_seed = seed;
+    st->r2_scale = ppm_r2_scale(pass, st->cfg.ppm_alpha);
+    int progress = st->cfg.progress;
+    st->cfg.progress = 0; /* one line per pass instead of the tracer's bars */
+    int rc = mapper_preprocess(self, s, err, errcap);
+    st->cfg.progress = progress;
+    if (rc == 0) print_pass(st, pass);
+    return rc;
+}
+
+/* ---- create -------------------------------------------------------------------------------- */
 
 static int create_common(integrator *it, const scene *s, int preview, char *err, size_t errcap) {
     mapper_state *st = calloc(1, sizeof *st);
@@ -1134,12 +1320,15 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
     st->st_global_est = stats_register("Photon mapping/Global-map estimates (direct view)");
     st->st_emission_rays = stats_register("Photon mapping/Emission-only camera rays");
     gather_guide_init(&st->gg); /* its counter of aimed rays */
+    st->pass_seed = s->settings.seed;
+    st->r2_scale = 1;
     it->data = st;
     it->preprocess = mapper_preprocess;
     it->thread_begin = mapper_thread_begin;
     it->thread_end = mapper_thread_end;
     it->li = mapper_li;
     it->destroy = mapper_destroy;
+    it->begin_pass = mapper_begin_pass;
     return 0;
 }
 

@@ -137,6 +137,14 @@ static const setting_def k_settings[] = {
     {"volume_boundary", ST_BOOL, F(volume_boundary), 1, NONE,
      "volume estimates near a medium's boundary divide by the part of their search ball inside "
      "the medium (pm_volume.h, BOUNDARIES); false: by the whole ball"},
+    {"ppm_alpha", ST_NUMBER, F(ppm_alpha), 2.0 / 3.0, 0.01, 1,
+     "progressive photon mapping (a photon mode rendered in passes, render --time or "
+     "--passes): pass i+1's squared radii are pass i's times (i + alpha) / (i + 1), i = 1, 2, "
+     "... (Knaus and Zwicker 2011); 1: the radii do not shrink"},
+    {"ppm_radius", ST_NUMBER, F(ppm_radius), 0, 0, 1000,
+     "progressive photon mapping: the first pass's radius of the global and caustic estimates, "
+     "in units of a k-photon estimate's radius at the map's mean density over the diffuse "
+     "area (at most the maximum radius); 0: the maximum radii of max_radius_global/_caustic"},
     {"save_photons", ST_DIR, F(save_dir), 0, NONE,
      "a directory to save the maps to (global.pmap, caustic.pmap, shadow.pmap, and in a scene "
      "with media volume-M.pmap and volume_caustic-M.pmap for each medium M; the format of "

@@ -58,6 +58,8 @@ typedef struct photon_settings {
     double volume_step; /* 0: automatic */
     int volume_boundary; /* volume estimates divide by the part of their ball inside the medium */
     int force_load; /* load_photons: a stamp mismatch is a warning, not an error */
+    double ppm_alpha; /* progressive passes: the radius schedule's alpha (photonmapper.c) */
+    double ppm_radius; /* progressive passes: the first radius / the typical radius; 0: the caps */
     /* Directories for save_photons and load_photons; empty: none. */
     char save_dir[PHOTON_SETTINGS_PATH_MAX], load_dir[PHOTON_SETTINGS_PATH_MAX];
 } photon_settings;

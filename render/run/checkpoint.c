@@ -20,7 +20,14 @@
 #include "base/stats.h"
 
 #define MAGIC "PMRCKPT\n"
-enum { HEADER_BYTES = 56, PIXEL_BYTES = 28, MAX_SIDE = 1 << 14, MAX_SPP = 1 << 20 };
+/* PIXEL_BYTES: version 1 (a render state: 3 sums, a count); PASS_PIXEL_BYTES: version 2 (a
+ * render in passes: 3 sums of pass images, 3 sums of their squares). */
+enum { HEADER_BYTES = 56, PIXEL_BYTES = 28, PASS_PIXEL_BYTES = 48, MAX_SIDE = 1 << 14, MAX_SPP = 1 << 20,
+       MAX_PASSES = 1 << 30 };
+
+static pass_state *g_ps; /* ckpt_set_passes: a render in passes, and its state */
+
+void ckpt_set_passes(pass_state *ps) { g_ps = ps; }
 
 uint64_t ckpt_hash(uint64_t h, const void *p, size_t n) {
     const unsigned char *b = p;
@@ -81,42 +88,46 @@ static uint32_t get32(const unsigned char *b) {
 }
 static uint64_t get64(const unsigned char *b) { return (uint64_t)get32(b) | (uint64_t)get32(b + 4) << 32; }
 
-int ckpt_write(const char *path, const ckpt_info *ci, const render_state *st, char *err,
-               size_t errcap) {
+/* Version 1 from st, or version 2 from ps (spp: the samples of each pass). */
+static int write_any(const char *path, const ckpt_info *ci, const render_state *st,
+                     const pass_state *ps, int spp, char *err, size_t errcap) {
     out_file o;
     int rc = out_open(&o, path, err, errcap);
     if (rc < 0) return rc;
     wr w = {o.fp, CKPT_HASH_INIT, 1};
     size_t ls = strlen(ci->settings), lp = strlen(ci->photons);
+    int width = ps ? ps->width : st->width, height = ps ? ps->height : st->height;
     unsigned char hd[HEADER_BYTES];
     memcpy(hd, MAGIC, 8);
-    le32(hd + 8, CKPT_VERSION);
-    le32(hd + 12, (uint32_t)st->width);
-    le32(hd + 16, (uint32_t)st->height);
-    le32(hd + 20, (uint32_t)st->spp);
+    le32(hd + 8, ps ? 2u : 1u);
+    le32(hd + 12, (uint32_t)width);
+    le32(hd + 16, (uint32_t)height);
+    le32(hd + 20, (uint32_t)(ps ? spp : st->spp));
     le64(hd + 24, ci->scene_hash);
     le64(hd + 32, ci->photon_hash);
     le32(hd + 40, (uint32_t)ls);
     le32(hd + 44, (uint32_t)ci->args_len);
     le32(hd + 48, (uint32_t)lp);
-    le32(hd + 52, 0);
+    le32(hd + 52, ps ? (uint32_t)ps->done : 0u);
     put(&w, hd, sizeof hd);
     put(&w, ci->settings, ls);
     put(&w, ci->args, ci->args_len);
     put(&w, ci->photons, lp);
-    size_t n = (size_t)st->width * (size_t)st->height;
-    unsigned char px[PIXEL_BYTES * 256];
+    size_t n = (size_t)width * (size_t)height;
+    size_t pb = ps ? PASS_PIXEL_BYTES : PIXEL_BYTES;
+    unsigned char px[PASS_PIXEL_BYTES * 256];
     for (size_t i = 0; i < n && w.ok;) {
         size_t m = 0;
         for (; m < 256 && i < n; m++, i++) {
-            for (int c = 0; c < 3; c++) {
+            for (int c = 0; c < (ps ? 6 : 3); c++) {
                 uint64_t u;
-                memcpy(&u, &st->sum[3 * i + (size_t)c], 8);
-                le64(px + PIXEL_BYTES * m + 8 * c, u);
+                const double *src = ps ? (c < 3 ? ps->sum : ps->sum2) : st->sum;
+                memcpy(&u, &src[3 * i + (size_t)(c % 3)], 8);
+                le64(px + pb * m + 8 * (size_t)c, u);
             }
-            le32(px + PIXEL_BYTES * m + 24, st->count[i]);
+            if (!ps) le32(px + pb * m + 24, st->count[i]);
         }
-        put(&w, px, PIXEL_BYTES * m);
+        put(&w, px, pb * m);
     }
     unsigned char tail[8];
     le64(tail, w.h);
@@ -128,6 +139,16 @@ int ckpt_write(const char *path, const ckpt_info *ci, const render_state *st, ch
     }
     out_file *list[1] = {&o};
     return out_commit(list, 1, err, errcap);
+}
+
+int ckpt_write(const char *path, const ckpt_info *ci, const render_state *st, char *err,
+               size_t errcap) {
+    return write_any(path, ci, st, NULL, 0, err, errcap);
+}
+
+int ckpt_write_passes(const char *path, const ckpt_info *ci, const pass_state *ps, int spp, char *err,
+                      size_t errcap) {
+    return write_any(path, ci, NULL, ps, spp, err, errcap);
 }
 
 /* ---- reading ------------------------------------------------------------------------------ */
@@ -144,7 +165,8 @@ static int get(FILE *f, void *p, size_t n, uint64_t *h) {
     return 0;
 }
 
-int ckpt_read(const char *path, ckpt_info *ci, render_state *st, char *err, size_t errcap) {
+static int read_any(const char *path, ckpt_info *ci, render_state *st, pass_state *ps, char *err,
+                    size_t errcap) {
     memset(ci, 0, sizeof *ci);
     FILE *f = fopen(path, "rb");
     if (!f) {
@@ -166,18 +188,32 @@ int ckpt_read(const char *path, ckpt_info *ci, render_state *st, char *err, size
     }
     uint32_t version = get32(hd + 8), w = get32(hd + 12), ht = get32(hd + 16), spp = get32(hd + 20);
     uint32_t ls = get32(hd + 40), la = get32(hd + 44), lp = get32(hd + 48);
-    if (version != CKPT_VERSION) {
-        snprintf(msg, sizeof msg, "checkpoint format version %u; this renderer reads version %u",
-                 version, CKPT_VERSION);
+    if (version != 1 && version != CKPT_VERSION) {
+        snprintf(msg, sizeof msg, "checkpoint format version %u; this renderer reads versions 1 "
+                 "and %u", version, CKPT_VERSION);
         rc = fail(err, errcap, PM_EVERSION, path, msg);
         goto out;
     }
+    uint32_t npass = get32(hd + 52);
     if (w < 1 || w > MAX_SIDE || ht < 1 || ht > MAX_SIDE || spp < 1 || spp > MAX_SPP ||
-        ls >= sizeof ci->settings || la > sizeof ci->args || lp >= sizeof ci->photons) {
+        ls >= sizeof ci->settings || la > sizeof ci->args || lp >= sizeof ci->photons ||
+        (version == 1 && npass != 0) || npass > MAX_PASSES) {
         rc = fail(err, errcap, PM_EFORMAT, path, "corrupt header (a size out of range)");
         goto out;
     }
-    uint64_t want = (uint64_t)HEADER_BYTES + ls + la + lp + (uint64_t)w * ht * PIXEL_BYTES + 8;
+    ci->version = version;
+    ci->passes = npass;
+    /* A state of the other kind than the caller's render is refused before it is read. */
+    if ((st && version != 1) || (ps && version != 2)) {
+        rc = fail(err, errcap, PM_EINVAL, path,
+                  version == 2 ? "a checkpoint of a render in passes (--time, --passes, render.time); "
+                                 "this render is one pass of fixed work"
+                               : "a checkpoint of one pass of fixed work (--spp); this render is in "
+                                 "passes (--time, --passes, render.time)");
+        goto out;
+    }
+    size_t pb = version == 2 ? PASS_PIXEL_BYTES : PIXEL_BYTES;
+    uint64_t want = (uint64_t)HEADER_BYTES + ls + la + lp + (uint64_t)w * ht * pb + 8;
     if ((uint64_t)sb.st_size != want) {
         snprintf(msg, sizeof msg, "%s: %lld bytes, but its header says %llu",
                  (uint64_t)sb.st_size < want ? "truncated" : "has extra data", (long long)sb.st_size,
@@ -204,22 +240,34 @@ int ckpt_read(const char *path, ckpt_info *ci, render_state *st, char *err, size
         rc = fail(err, errcap, PM_ENOMEM, path, "out of memory");
         goto out;
     }
+    if (ps && pass_state_init(ps, (int)w, (int)ht) < 0) {
+        rc = fail(err, errcap, PM_ENOMEM, path, "out of memory");
+        goto out;
+    }
+    if (ps) ps->done = (int)npass;
     size_t n = (size_t)w * ht;
-    unsigned char px[PIXEL_BYTES * 256];
+    unsigned char px[PASS_PIXEL_BYTES * 256];
     int over_spp = 0;
     rc = 0;
     for (size_t i = 0; i < n && rc == 0;) {
         size_t m = n - i < 256 ? n - i : 256;
-        if (get(f, px, PIXEL_BYTES * m, &h) != 0) {
+        if (get(f, px, pb * m, &h) != 0) {
             rc = fail(err, errcap, PM_EFORMAT, path, "truncated");
             break;
         }
         for (size_t j = 0; j < m; j++, i++) {
-            uint32_t cnt = get32(px + PIXEL_BYTES * j + 24);
+            if (version == 2) {
+                for (int c = 0; ps && c < 6; c++) {
+                    uint64_t u = get64(px + pb * j + 8 * (size_t)c);
+                    memcpy(&(c < 3 ? ps->sum : ps->sum2)[3 * i + (size_t)(c % 3)], &u, 8);
+                }
+                continue;
+            }
+            uint32_t cnt = get32(px + pb * j + 24);
             over_spp |= cnt > spp;
             if (!st) continue;
             for (int c = 0; c < 3; c++) {
-                uint64_t u = get64(px + PIXEL_BYTES * j + 8 * c);
+                uint64_t u = get64(px + pb * j + 8 * (size_t)c);
                 memcpy(&st->sum[3 * i + (size_t)c], &u, 8);
             }
             st->count[i] = cnt;
@@ -232,9 +280,18 @@ int ckpt_read(const char *path, ckpt_info *ci, render_state *st, char *err, size
     if (rc == 0 && over_spp)
         rc = fail(err, errcap, PM_EFORMAT, path, "corrupt (a pixel has more samples than spp)");
     if (rc < 0 && st) render_state_free(st);
+    if (rc < 0 && ps) pass_state_free(ps);
 out:
     fclose(f);
     return rc;
+}
+
+int ckpt_read(const char *path, ckpt_info *ci, render_state *st, char *err, size_t errcap) {
+    return read_any(path, ci, st, NULL, err, errcap);
+}
+
+int ckpt_read_passes(const char *path, ckpt_info *ci, pass_state *ps, char *err, size_t errcap) {
+    return read_any(path, ci, NULL, ps, err, errcap);
 }
 
 /* ---- around a checkpointed render ----------------------------------------------------------- */
@@ -268,9 +325,9 @@ void ckpt_settings_text(const scene *s, const char *mode, char *buf, size_t cap)
             cJSON_Delete(copy);
         }
     }
-    snprintf(buf, cap, "renderer %s; mode %s; %dx%d; spp %d; seed %llu; photon_mapping %s%s",
-             PM_VERSION_STRING, mode, s->cam.width, s->cam.height, s->cam.spp,
-             (unsigned long long)s->settings.seed, pm ? pm : "{}", g_extra);
+    snprintf(buf, cap, "renderer %s; mode %s; %dx%d; %s %d; seed %llu; photon_mapping %s%s",
+             PM_VERSION_STRING, mode, s->cam.width, s->cam.height, g_ps ? "in passes of spp" : "spp",
+             s->cam.spp, (unsigned long long)s->settings.seed, pm ? pm : "{}", g_extra);
     free(pm);
 }
 
@@ -402,6 +459,35 @@ int ckpt_session_pause(void *user, const render_state *st, int why) {
     return 0;
 }
 
+int ckpt_session_pass(void *user, const pass_state *ps, int why) {
+    ckpt_session *cs = user;
+    if (!g_writer) return 0;
+    double now = stats_now();
+    if (cs->ckpt_path && (why == RENDER_PAUSE_SIGNAL || now >= cs->next_ckpt)) {
+        int rc = ckpt_write_passes(cs->ckpt_path, &cs->info, ps, cs->pass_spp, cs->err, sizeof cs->err);
+        if (rc < 0) return rc;
+        if (!cs->quiet)
+            fprintf(stderr, "render: checkpoint %s (%d pass%s)\n", cs->ckpt_path, ps->done,
+                    ps->done == 1 ? "" : "es");
+        cs->next_ckpt = stats_now() + cs->ckpt_every;
+    }
+    if (cs->snap_path && why == RENDER_PAUSE_PERIODIC && now >= cs->next_snap) {
+        film f;
+        if (film_init(&f, ps->width, ps->height) < 0) return PM_ENOMEM;
+        pass_state_to_film(ps, &f);
+        int rc = film_write_png(&f, cs->snap_path, cs->tone, cs->exposure, cs->clip_percent, NULL);
+        int saved = errno;
+        film_free(&f);
+        if (rc < 0) {
+            snprintf(cs->err, sizeof cs->err, "%s: cannot write the snapshot: %s", cs->snap_path,
+                     strerror(saved));
+            return rc;
+        }
+        cs->next_snap = stats_now() + cs->snap_every;
+    }
+    return 0;
+}
+
 static const char *pm_dir_key(const scene *s, const char *key) {
     const cJSON *v = s->photon_mapping ? cJSON_GetObjectItemCaseSensitive(s->photon_mapping, key) : NULL;
     return cJSON_IsString(v) && v->valuestring[0] ? v->valuestring : NULL;
@@ -424,7 +510,8 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
     }
     /* Maps that cannot be saved whole (ckpt_set_distributed's retrace) are traced again by a
      * resumed render: the checkpoint names none. */
-    if (ckpt_path && uses_photons && !resume && !g_retrace) {
+    /* A render in passes keeps no maps: each pass traces its own from its seed. */
+    if (ckpt_path && uses_photons && !resume && !g_retrace && !g_ps) {
         if (load) {
             snprintf(ci->photons, sizeof ci->photons, "%s", load);
         } else {
@@ -470,7 +557,7 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
     if (!resume) return 0;
     ckpt_info *old = malloc(sizeof *old);
     if (!old) return 1;
-    int rc = ckpt_read(resume, old, st, err, sizeof err);
+    int rc = g_ps ? ckpt_read_passes(resume, old, g_ps, err, sizeof err) : ckpt_read(resume, old, st, err, sizeof err);
     if (rc < 0) {
         fprintf(stderr, "render: --resume %s\n", err);
         free(old);
@@ -485,7 +572,7 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
         fprintf(stderr, "render: --resume %s: the checkpoint has other settings\n  checkpoint: %s\n"
                 "  this run:   %s\n", resume, old->settings, ci->settings);
         status = 2;
-    } else if (uses_photons && !g_retrace) {
+    } else if (uses_photons && !g_retrace && !g_ps) {
         uint64_t h;
         if (!old->photons[0] || ckpt_photon_hash(old->photons, &h, err, sizeof err) < 0 ||
             h != old->photon_hash) {
@@ -501,13 +588,16 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
         ci->photon_hash = old->photon_hash;
     }
     free(old);
-    if (status) render_state_free(st);
+    if (status) {
+        render_state_free(st);
+        if (g_ps) pass_state_free(g_ps);
+    }
     return status;
 }
 
 int checkpoint_begin(ckpt_session *cs, int uses_photons, render_state *st) {
     char err[1024];
-    int fresh = render_state_done(st) == 0;
+    int fresh = g_ps ? g_ps->done == 0 : render_state_done(st) == 0;
     if (!g_writer) { /* another process writes (ckpt_set_distributed) */
         ckpt_session_start(cs);
         return 0;
@@ -517,7 +607,9 @@ int checkpoint_begin(ckpt_session *cs, int uses_photons, render_state *st) {
         fprintf(stderr, "render: photon maps: %s\n", err);
         return 1;
     }
-    if (cs->ckpt_path && fresh && ckpt_write(cs->ckpt_path, &cs->info, st, err, sizeof err) < 0) {
+    if (cs->ckpt_path && fresh &&
+        (g_ps ? ckpt_write_passes(cs->ckpt_path, &cs->info, g_ps, cs->pass_spp, err, sizeof err)
+              : ckpt_write(cs->ckpt_path, &cs->info, st, err, sizeof err)) < 0) {
         fprintf(stderr, "render: --checkpoint %s\n", err);
         return 1;
     }

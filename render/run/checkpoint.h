@@ -21,6 +21,18 @@
  * arguments and the photon directory, u32 0; those bytes; width * height pixels of
  * (3 x f64 sum, u32 count), rows top to bottom; u64 checksum.
  *
+ * VERSIONS. Version 1 (above) is the state of one pass of fixed work (--spp). Version 2 is a
+ * render in passes (run/passes.h; --time, --passes, render.time): the same layout but spp is
+ * the samples of each pass, the last header u32 is the number of passes done, each pixel is
+ * (3 x f64 sum of the pass images, 3 x f64 sum of their squares), and no photon maps are kept
+ * (photon directory "", hash 0: each pass traces its maps from its own seed, so a resumed
+ * render needs none). A checkpoint is written at pass boundaries only (periodically, at the
+ * end, and at a signal, which drops the pass being rendered), so resuming is bit-identical
+ * to the uninterrupted render with the same passes; resuming with a larger --passes or
+ * --time continues the render. Both versions are read; each kind of render refuses the
+ * other's (with a message that says which is which), and a renderer of version 1 refuses
+ * version 2 files by their version.
+ *
  * ckpt_read checks the size the header implies against the file's size before it allocates
  * anything, so a truncated (or padded) file is refused at once with a message, as are a
  * count above spp and a checksum mismatch. It reads regular files only.
@@ -36,6 +48,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "run/passes.h"
 #include "run/renderer.h"
 #include "scene/scene.h"
 
@@ -43,9 +56,10 @@
 extern "C" {
 #endif
 
-#define CKPT_VERSION 1u
+#define CKPT_VERSION 2u
 
 typedef struct ckpt_info {
+    uint32_t version, passes; /* set by the readers: the file's version; passes done (version 2) */
     uint64_t scene_hash, photon_hash;
     char settings[4096];
     char args[8192]; /* NUL-terminated arguments, one after another */
@@ -59,6 +73,14 @@ int ckpt_write(const char *path, const ckpt_info *ci, const render_state *st, ch
  * file's checksum without keeping the pixels; else st gets a new state (render_state_free
  * it). A file whose checksum does not match is refused either way (PM_EFORMAT). */
 int ckpt_read(const char *path, ckpt_info *ci, render_state *st, char *err, size_t errcap);
+/* Version 2 (a render in passes; spp: each pass's samples) and its reader (ps: a new state,
+ * pass_state_free it; a version 1 file is refused with a message). */
+int ckpt_write_passes(const char *path, const ckpt_info *ci, const pass_state *ps, int spp, char *err,
+                      size_t errcap);
+int ckpt_read_passes(const char *path, ckpt_info *ci, pass_state *ps, char *err, size_t errcap);
+/* A render in passes: before checkpoint_setup, main.c gives the state that a resume fills and
+ * that checkpoint_begin writes (settings text, VERSIONS). NULL (the default): one pass. */
+void ckpt_set_passes(pass_state *ps);
 
 /* 64-bit FNV-1a, continued from h (start with CKPT_HASH_INIT). */
 #define CKPT_HASH_INIT 0xcbf29ce484222325ULL
@@ -126,6 +148,7 @@ typedef struct ckpt_session {
     double exposure, clip_percent;
     int quiet;
     ckpt_info info;
+    int pass_spp;                /* a render in passes: each pass's samples per pixel */
     double next_ckpt, next_snap; /* stats_now() times; set by ckpt_session_start */
     char err[512];               /* why the last write failed */
 } ckpt_session;
@@ -149,6 +172,8 @@ int checkpoint_begin(ckpt_session *cs, int uses_photons, render_state *st);
 /* The shorter of the two periods, 0 if neither is set: the render's pause_every. */
 double ckpt_session_period(const ckpt_session *cs);
 int ckpt_session_pause(void *user, const render_state *st, int why);
+/* The same for a render in passes: a passes.h pass_fn (called at pass boundaries). */
+int ckpt_session_pass(void *user, const pass_state *ps, int why);
 
 #ifdef __cplusplus
 }

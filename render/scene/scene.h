@@ -81,6 +81,8 @@ typedef struct render_settings {
     int tone;            /* TONE_FILMIC (Hable) or TONE_SRGB; default filmic */
     double clip_percent; /* auto exposure: this % of pixels at or above clipping; default 1 */
     double exposure;     /* > 0: a fixed exposure multiplier instead of auto exposure */
+    double time;         /* > 0: render in passes for this many seconds (render.time) */
+    int pass_spp;        /* > 0: samples per pixel of each pass (render.pass_spp) */
 } render_settings;
 
 typedef struct scene {

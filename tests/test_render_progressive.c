@@ -1,0 +1,278 @@
+/* test_render_progressive.c: rendering in passes (render --time, --passes; run/passes.h) and
+ * progressive photon mapping (photonmapper.c, mapper_begin_pass).
+ *
+ * Oracles: the furnace's analytic radiance (L = Le / (1 - rho) = 2 everywhere), within a
+ * tolerance from the spread of the pass images (a t bound that shrinks as 1/sqrt(passes));
+ * the radius schedule's recurrence r^2_{i+1} = r^2_i (i + alpha) / (i + 1), computed here
+ * step by step; the documented mean of the pass images, computed here from passes rendered
+ * one at a time (--only-pass) and compared bit for bit; an uninterrupted render, against which
+ * a resumed one and one at another thread count must be bit-identical; the budget rule
+ * (elapsed <= budget + the longest pass, from the counts the program prints, never a speed);
+ * and the documented refusals (exit 2 with a message naming the option or field).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "test.h"
+#include "../photonmap/common.h"
+#include "../render/image/film.h"
+#include "test_render_run.h"
+
+#define FURNACE_PM                                                                         \
+    "'%s/data/scenes/furnace.json' --mode pm --pm global_photons=20000 --width 8 --height 8 " \
+    "--pass-spp 4"
+#define BOX_PM                                                                             \
+    "'%s/data/scenes/cornell_spheres.json' --mode pm --pm global_photons=8000 --pm "       \
+    "caustic_photons=8000 --width 16 --height 16 --pass-spp 4"
+
+/* The number after key in text (the first occurrence after from), or NAN. */
+static double num_after(const char *text, const char *key) {
+    const char *p = strstr(text, key);
+    return p ? strtod(p + strlen(key), NULL) : NAN;
+}
+
+/* cornell_box.json with a "render" object holding `keys` (JSON members), as name in the test
+ * directory. 0 or -1. */
+static int write_box_with_render(const char *name, const char *keys) {
+    char src[1024];
+    snprintf(src, sizeof src, "%s/data/scenes/cornell_box.json", pm_test_source_dir());
+    size_t n;
+    char *text = rt_slurp(src, &n);
+    char *brace = text ? strchr(text, '{') : NULL;
+    FILE *f = brace ? fopen(rt_path(name), "wb") : NULL;
+    if (!f) {
+        free(text);
+        return -1;
+    }
+    fprintf(f, "{\"render\": {%s},%s", keys, brace + 1);
+    fclose(f);
+    free(text);
+    return 0;
+}
+
+/* The mean over pixels and channels of a PFM in the test directory, or NAN. */
+static double pfm_mean(const char *name) {
+    film f;
+    if (film_read_pfm(&f, rt_path(name)) < 0) return NAN;
+    double m = 0;
+    size_t n = (size_t)f.width * (size_t)f.height * 3;
+    for (size_t i = 0; i < n; i++) m += f.px[i];
+    film_free(&f);
+    return m / (double)n;
+}
+
+/* Oracle: (a) the analytic furnace value 2 and (c) the documented mean. Six passes of
+ * progressive photon mapping rendered one at a time (--only-pass p) and all together
+ * (--passes 6): the whole render's PFM is, bit for bit, (float)(sum_p (double)image_p / 6)
+ * summed in pass order; and its mean radiance is within t * s / sqrt(6) of 2, where s is the
+ * spread of the six passes' image means and t = 6.87 the two-sided 99.9% point of Student's t
+ * with 5 degrees of freedom (a bound that shrinks with the passes; the photon maps of one pass
+ * are shared by all its pixels, so the passes, not the pixels, are the independent samples).
+ * Passes 1..5 differ from pass 0 (fresh photons), so the mean is not one image repeated. */
+TEST(render_progressive_furnace_converges_and_mean_of_passes) {
+    enum { P = 6 };
+    char out[32768], args[512];
+    film img[P];
+    double means[P];
+    for (int p = 0; p < P; p++) {
+        snprintf(args, sizeof args, "--only-pass %d --threads 2 --quiet --hdr p%d.pfm -o p%d.png", p, p, p);
+        ASSERT_MSG(rt_render(FURNACE_PM, args, out, sizeof out) == 0, "%s", out);
+    }
+    for (int p = 0; p < P; p++) {
+        char name[32];
+        snprintf(name, sizeof name, "p%d.pfm", p);
+        ASSERT(film_read_pfm(&img[p], rt_path(name)) == 0);
+        means[p] = pfm_mean(name);
+    }
+    ASSERT_MSG(rt_render(FURNACE_PM, "--passes 6 --threads 2 --quiet --hdr all.pfm -o all.png", out,
+                         sizeof out) == 0, "%s", out);
+    film all;
+    ASSERT(film_read_pfm(&all, rt_path("all.pfm")) == 0);
+    size_t n = (size_t)all.width * (size_t)all.height * 3, mismatched = 0;
+    for (size_t i = 0; i < n; i++) {
+        double sum = 0;
+        for (int p = 0; p < P; p++) sum += (double)img[p].px[i];
+        float want = (float)(sum / P);
+        mismatched += memcmp(&want, &all.px[i], sizeof want) != 0;
+    }
+    EXPECT_MSG(mismatched == 0, "%zu of %zu values differ from the mean of the passes", mismatched, n);
+    EXPECT_MSG(memcmp(img[0].px, img[1].px, n * sizeof(float)) != 0, "pass 1 repeats pass 0");
+    double m = 0, s2 = 0;
+    for (int p = 0; p < P; p++) m += means[p] / P;
+    for (int p = 0; p < P; p++) s2 += (means[p] - m) * (means[p] - m) / (P - 1);
+    double tol = 6.87 * sqrt(s2 / P);
+    double got = pfm_mean("all.pfm");
+    EXPECT_MSG(tol > 0 && fabs(got - 2.0) <= tol, "furnace mean %.6f, expected 2 within %.6f", got, tol);
+    printf("    furnace: mean of 6 passes %.6f (pass means' spread %.3g, tolerance %.3g)\n", got,
+           sqrt(s2), tol);
+    for (int p = 0; p < P; p++) film_free(&img[p]);
+    film_free(&all);
+}
+
+/* Oracle: the recurrence r^2_{i+1} = r^2_i (i + alpha) / (i + 1), i = 1 for the first pass
+ * (Knaus and Zwicker 2011), stepped here from the r^2 pass 0 prints, against the r^2 of the
+ * global and caustic estimates each pass prints, to float precision (the searches take r^2 as
+ * a float: relative 2^-23, so 1e-6), for the default alpha 2/3 and for ppm_alpha=0.4. */
+TEST(render_progressive_radius_schedule) {
+    static const struct {
+        const char *extra;
+        double alpha;
+    } cases[] = {{"", 2.0 / 3.0}, {"--pm ppm_alpha=0.4", 0.4}};
+    char out[65536], args[512];
+    for (int c = 0; c < 2; c++) {
+        snprintf(args, sizeof args, "--passes 5 --threads 2 --quiet --hdr r.pfm -o r.png %s", cases[c].extra);
+        ASSERT_MSG(rt_render(BOX_PM, args, out, sizeof out) == 0, "%s", out);
+        const char *p0 = strstr(out, "Pass 0: ");
+        ASSERT_MSG(p0 && strstr(p0, "r^2 global "), "no pass line: %s", out);
+        double g = num_after(p0, "r^2 global "), k = num_after(strstr(p0, "r^2 global "), "caustic ");
+        ASSERT(g > 0 && k > 0 && isfinite(g) && isfinite(k));
+        for (int i = 1; i < 5; i++) {
+            g *= (i + cases[c].alpha) / (i + 1);
+            k *= (i + cases[c].alpha) / (i + 1);
+            char key[32];
+            snprintf(key, sizeof key, "Pass %d: ", i);
+            const char *pl = strstr(out, key);
+            ASSERT_MSG(pl, "no line for pass %d", i);
+            const char *r2 = strstr(pl, "r^2 global ");
+            ASSERT(r2);
+            double rg = num_after(r2, "r^2 global "), rc = num_after(r2, "caustic ");
+            EXPECT_MSG(fabs(rg - g) <= 1e-6 * g, "alpha %g pass %d: global r^2 %.9g, expected %.9g",
+                       cases[c].alpha, i, rg, g);
+            EXPECT_MSG(fabs(rc - k) <= 1e-6 * k, "alpha %g pass %d: caustic r^2 %.9g, expected %.9g",
+                       cases[c].alpha, i, rc, k);
+        }
+    }
+}
+
+/* Oracle: the budget rule, from what the program prints (never a speed). Path tracing with a
+ * budget of 1.5 s in passes of 1 sample: more than one pass runs, the run stops because of the
+ * budget, and the elapsed time is at most the budget plus the longest pass. The scene's own
+ * render.time does the same, and --spp on the command line overrides it (one pass, no
+ * "Passes:" line). */
+TEST(render_progressive_time_budget) {
+    char out[65536], cmd[8192];
+    ASSERT_MSG(rt_render("'%s/data/scenes/cornell_box.json' --width 16 --height 16",
+                         "--time 1.5 --pass-spp 1 --threads 2 --quiet --hdr t.pfm -o t.png", out,
+                         sizeof out) == 0, "%s", out);
+    const char *l = strstr(out, "Passes: ");
+    ASSERT_MSG(l, "no Passes line: %s", out);
+    double done = num_after(l, "Passes: "), longest = num_after(l, "longest "),
+           elapsed = num_after(l, "elapsed "), budget = num_after(l, "budget of ");
+    printf("    %g passes, longest %.3f s, elapsed %.3f s of %.3g s\n", done, longest, elapsed, budget);
+    EXPECT_MSG(done > 1, "%g passes", done);
+    EXPECT_MSG(budget == 1.5, "budget %g", budget);
+    EXPECT_MSG(elapsed <= budget + longest, "elapsed %.3f > budget %.3f + longest pass %.3f", elapsed,
+               budget, longest);
+    EXPECT_MSG(strstr(l, "(stopped by it)"), "not stopped by the budget: %s", l);
+    /* the scene's render.time */
+    ASSERT(write_box_with_render("timed.json", "\"time\": 0.5, \"pass_spp\": 1") == 0);
+    snprintf(cmd, sizeof cmd, "'%s/render' timed.json --width 16 --height 16 --threads 2 --quiet --hdr s.pfm -o s.png",
+             pm_test_build_dir());
+    ASSERT_MSG(rt_run(cmd, out, sizeof out) == 0, "%s", out);
+    l = strstr(out, "Passes: ");
+    ASSERT_MSG(l, "render.time: no Passes line: %s", out);
+    EXPECT_MSG(num_after(l, "Passes: ") > 1, "render.time: %s", l);
+    EXPECT_MSG(num_after(l, "budget of ") == 0.5, "render.time: %s", l);
+    snprintf(cmd, sizeof cmd, "'%s/render' timed.json --width 16 --height 16 --spp 1 --threads 2 --quiet --hdr u.pfm -o u.png",
+             pm_test_build_dir());
+    ASSERT_MSG(rt_run(cmd, out, sizeof out) == 0, "%s", out);
+    EXPECT_MSG(!strstr(out, "Passes: ") && strstr(out, "1 spp"), "--spp did not override render.time: %s", out);
+}
+
+/* Oracle: the uninterrupted render with the same passes, byte for byte (PFM and PNG).
+ * (1) A render of 2 passes with --checkpoint, resumed with --passes 4 (the checkpoint's
+ * options replayed, the new count winning), equals 4 passes at once. (2) A render stopped by
+ * SIGINT in the middle of pass 2 (PM_RENDER_TEST_PAUSE=pass:2) writes a checkpoint of the 2
+ * passes done (exit 130, no image); resumed at 1 thread, it equals the uninterrupted 4 passes.
+ * (3) A checkpoint of one pass of fixed work is refused by a render in passes (exit 2). */
+TEST(render_progressive_resume_bit_identical) {
+    char out[65536], sc[2048], cmd[8192];
+    ASSERT_MSG(rt_render(BOX_PM, "--passes 4 --threads 2 --quiet --hdr ref.pfm -o ref.png", out, sizeof out) == 0,
+               "%s", out);
+    ASSERT_MSG(rt_render(BOX_PM, "--passes 2 --threads 2 --quiet --hdr c.pfm -o c.png --checkpoint c.ckpt", out,
+                         sizeof out) == 0, "%s", out);
+    snprintf(sc, sizeof sc, BOX_PM, pm_test_source_dir());
+    *strchr(sc + 1, '\'') = 0;
+    snprintf(cmd, sizeof cmd, "'%s/render' %s' --resume c.ckpt --passes 4 --threads 1", pm_test_build_dir(), sc);
+    ASSERT_MSG(rt_run(cmd, out, sizeof out) == 0, "%s", out);
+    EXPECT_MSG(strstr(out, "Passes: 4 done (2 by this run)"), "%s", out);
+    EXPECT_MSG(rt_same_file("c.pfm", "ref.pfm") && rt_same_file("c.png", "ref.png"),
+               "continued to 4 passes: the image differs from 4 passes at once");
+    rt_run("rm -f c.ckpt c.pfm c.png", out, sizeof out);
+    int rc = rt_render_paused("pass:2", "INT", BOX_PM, "--passes 4 --threads 2 --hdr c.pfm -o c.png --checkpoint c.ckpt",
+                              "", out, sizeof out);
+    EXPECT_MSG(rc == 130, "status %d: %s", rc, out);
+    EXPECT_MSG(strstr(out, "checkpoint c.ckpt (2 passes)"), "the checkpoint does not keep 2 passes: %s", out);
+    EXPECT_MSG(access(rt_path("c.pfm"), F_OK) != 0, "an image was written");
+    snprintf(cmd, sizeof cmd, "'%s/render' %s' --resume c.ckpt --threads 1", pm_test_build_dir(), sc);
+    ASSERT_MSG(rt_run(cmd, out, sizeof out) == 0, "%s", out);
+    EXPECT_MSG(strstr(out, "Passes: 4 done (2 by this run)"), "%s", out);
+    EXPECT_MSG(rt_same_file("c.pfm", "ref.pfm") && rt_same_file("c.png", "ref.png"),
+               "resumed after SIGINT: the image differs from the uninterrupted one");
+    /* a checkpoint of one pass of fixed work, resumed in passes */
+    rt_run("rm -f c.ckpt c.pfm c.png", out, sizeof out);
+    ASSERT_MSG(rt_render("'%s/data/scenes/cornell_box.json' --width 16 --height 16",
+                         "--spp 1 --threads 2 --quiet --hdr c.pfm --checkpoint one.ckpt", out, sizeof out) == 0,
+               "%s", out);
+    snprintf(cmd, sizeof cmd, "'%s/render' '%s/data/scenes/cornell_box.json' --resume one.ckpt --passes 2",
+             pm_test_build_dir(), pm_test_source_dir());
+    rc = rt_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 2 && strstr(out, "one pass of fixed work"), "status %d: %s", rc, out);
+}
+
+/* Oracle: the same render at 1 thread, byte for byte: 3 passes of progressive photon mapping
+ * (cornell_spheres: caustic and global maps) and of path tracing at 2 threads. */
+TEST(render_progressive_threads_bit_identical) {
+    char out[65536];
+    static const char *scenes[2] = {BOX_PM, "'%s/data/scenes/cornell_box.json' --width 24 --height 16 --pass-spp 4"};
+    for (int k = 0; k < 2; k++) {
+        ASSERT_MSG(rt_render(scenes[k], "--passes 3 --threads 1 --quiet --hdr one.pfm -o one.png", out, sizeof out) == 0,
+                   "%s", out);
+        ASSERT_MSG(rt_render(scenes[k], "--passes 3 --threads 2 --quiet --hdr two.pfm -o two.png", out, sizeof out) == 0,
+                   "%s", out);
+        EXPECT_MSG(rt_same_file("one.pfm", "two.pfm") && rt_same_file("one.png", "two.png"),
+                   "%s: 1 and 2 threads differ", k ? "path" : "pm");
+    }
+}
+
+/* Oracle: the documented refusals: exit status 2, a message that names the option or the
+ * field, and no image. */
+TEST(render_progressive_bad_input) {
+    char out[16384], cmd[8192];
+    static const struct {
+        const char *args, *expect;
+    } cases[] = {
+        {"--time -1", "--time"},
+        {"--time nan", "--time"},
+        {"--time inf", "--time"},
+        {"--time 0", "--time"},
+        {"--time", "--time needs a value"},
+        {"--passes 0", "--passes"},
+        {"--passes two", "--passes"},
+        {"--pass-spp 0 --passes 2", "--pass-spp"},
+        {"--pass-spp 4", "--pass-spp needs passes"},
+        {"--time 5 --spp 4", "--pass-spp"},
+        {"--only-pass -1", "--only-pass"},
+        {"--passes 2 --pm ppm_alpha=0", "ppm_alpha"},
+        {"--passes 2 --pm ppm_alpha=1.5", "ppm_alpha"},
+        {"--passes 2 --mode pm --load-photons nowhere", "load-photons"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
+        int rc = rt_render("'%s/data/scenes/cornell_box.json' --width 8 --height 8 --quiet --hdr bad.pfm",
+                           cases[k].args, out, sizeof out);
+        EXPECT_MSG(rc == 2 && strstr(out, cases[k].expect), "%s: status %d: %s", cases[k].args, rc, out);
+    }
+    static const char *fields[] = {"\"abc\"", "-1", "0", "true", "[1]", "1e300"};
+    for (size_t k = 0; k < sizeof fields / sizeof fields[0]; k++) {
+        char keys[64];
+        snprintf(keys, sizeof keys, "\"time\": %s", fields[k]);
+        ASSERT(write_box_with_render("bad.json", keys) == 0);
+        snprintf(cmd, sizeof cmd, "'%s/render' bad.json --width 8 --height 8 --quiet --hdr bad.pfm", pm_test_build_dir());
+        int rc = rt_run(cmd, out, sizeof out);
+        EXPECT_MSG(rc == 2 && strstr(out, "$.render.time"), "render.time %s: status %d: %s", fields[k], rc, out);
+    }
+    EXPECT_MSG(access(rt_path("bad.pfm"), F_OK) != 0, "an image was written");
+}
