@@ -147,6 +147,34 @@ TEST(render_progressive_radius_schedule) {
     }
 }
 
+/* Oracle: ppm_radius's definition and the schedule of the volume maps. In the fog room with
+ * ppm_radius=0.5, pass 0's global r^2 is (0.5 x the typical radius)^2, the typical radius
+ * being what the plain render prints as the secondary-gather distance (4 significant digits:
+ * relative 2e-3), and below the maximum radius it prints; the volume map's r^2 follows the
+ * same recurrence as the surface maps (float precision). */
+TEST(render_progressive_start_radius_and_volume_schedule) {
+    char out[65536];
+    ASSERT_MSG(rt_render("'%s/data/scenes/cornell_fog.json' --mode pm --width 8 --height 8 --pm "
+                         "global_photons=5000 --pm volume_photons=5000 --pass-spp 1",
+                         "--passes 3 --pm ppm_radius=0.5 --threads 2 --quiet --hdr v.pfm -o v.png", out,
+                         sizeof out) == 0, "%s", out);
+    double typical = num_after(out, "secondary gather below "), cap = num_after(out, "Radii: global estimate ");
+    const char *p0 = strstr(out, "Pass 0: ");
+    ASSERT_MSG(p0 && typical > 0 && cap > 0, "%s", out);
+    double g0 = num_after(p0, "r^2 global "), v = num_after(p0, "volume (r^2 ");
+    EXPECT_MSG(fabs(g0 - 0.25 * typical * typical) <= 2e-3 * g0, "pass 0 r^2 %.9g, typical %.6g", g0, typical);
+    EXPECT_MSG(g0 < cap * cap, "pass 0 r^2 %.9g not below the cap %.6g^2", g0, cap);
+    for (int i = 1; i < 3; i++) {
+        v *= (i + 2.0 / 3.0) / (i + 1);
+        char key[32];
+        snprintf(key, sizeof key, "Pass %d: ", i);
+        const char *pl = strstr(out, key);
+        ASSERT_MSG(pl, "no line for pass %d", i);
+        double got = num_after(pl, "volume (r^2 ");
+        EXPECT_MSG(fabs(got - v) <= 1e-6 * v, "pass %d: volume r^2 %.9g, expected %.9g", i, got, v);
+    }
+}
+
 /* Oracle: the budget rule, from what the program prints (never a speed). Path tracing with a
  * budget of 1.5 s in passes of 1 sample: more than one pass runs, the run stops because of the
  * budget, and the elapsed time is at most the budget plus the longest pass. The scene's own
@@ -223,6 +251,18 @@ TEST(render_progressive_resume_bit_identical) {
     EXPECT_MSG(rc == 2 && strstr(out, "one pass of fixed work"), "status %d: %s", rc, out);
 }
 
+/* Oracle: the PNG of the same render stopped after 2 passes, byte for byte. With
+ * --snapshot-every, the PNG rewritten after each pass is the running estimate: paused before
+ * pass 2's image (PM_RENDER_TEST_PAUSE=pass:2), it holds the mean of passes 0 and 1. */
+TEST(render_progressive_snapshot_is_the_running_estimate) {
+    char out[65536];
+    ASSERT_MSG(rt_render(BOX_PM, "--passes 2 --threads 2 --quiet -o two.png", out, sizeof out) == 0, "%s", out);
+    int rc = rt_render_paused("pass:2", "TERM", BOX_PM, "--passes 4 --threads 2 -o snap.png --snapshot-every 0.001",
+                              "cp snap.png seen.png", out, sizeof out);
+    EXPECT_MSG(rc == 143, "status %d: %s", rc, out);
+    EXPECT_MSG(rt_same_file("seen.png", "two.png"), "the snapshot after 2 passes differs from 2 passes' PNG");
+}
+
 /* Oracle: the same render at 1 thread, byte for byte: 3 passes of progressive photon mapping
  * (cornell_spheres: caustic and global maps) and of path tracing at 2 threads. */
 TEST(render_progressive_threads_bit_identical) {
@@ -233,6 +273,7 @@ TEST(render_progressive_threads_bit_identical) {
                    "%s", out);
         ASSERT_MSG(rt_render(scenes[k], "--passes 3 --threads 2 --quiet --hdr two.pfm -o two.png", out, sizeof out) == 0,
                    "%s", out);
+        if (!strstr(out, ", 2 threads,")) SKIP("a build without OpenMP renders one thread");
         EXPECT_MSG(rt_same_file("one.pfm", "two.pfm") && rt_same_file("one.png", "two.png"),
                    "%s: 1 and 2 threads differ", k ? "path" : "pm");
     }

@@ -539,7 +539,7 @@ int main(int argc, char **argv) {
         pr.max_passes = (int)passes;
         pr.budget = budget;
         pr.t_origin = t_start;
-        pr.t_first = pstate.done == 0 ? t_prep0 : 0;
+        pr.t_first = t_prep0; /* the first pass of this run counts its preprocessing */
         pr.only = (int)only_pass;
         pr.stop_on_signal = ckpt_path != NULL;
 #ifdef render_image_ctl

@@ -1229,6 +1229,10 @@ static int mapper_begin_pass(integrator *self, const scene *s, int pass, uint64_
     /* Pass 0 is what preprocess made, unless ppm_radius asks for other first radii: then it
      * is made again (the same photons) with them. */
     int again = pass == 0 && !st->progressive && st->cfg.ppm_radius > 0;
+    if (!st->progressive && st->cfg.filter == CAUSTIC_FILTER_HULL && st->ncaustic_all)
+        fprintf(stderr, "render: note: filter hull divides by the photons' hull, not by the "
+                "shrinking disc: the caustics of progressive passes converge with the cone or none "
+                "(README.md, Progressive photon mapping)\n");
     st->progressive = 1;
     if (pass == st->pass && !again) {
         print_pass(st, pass);

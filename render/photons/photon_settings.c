@@ -295,13 +295,22 @@ static const char *type_name(setting_type t) {
     return "?";
 }
 
+/* v in the fewest significant digits (15 to 17) that read back as v exactly, so a documented
+ * default such as 2/3 written into a scene gives the default itself. */
+static void exact_text(double v, char *buf, size_t cap) {
+    for (int digits = 15; digits <= 17; digits++) {
+        snprintf(buf, cap, "%.*g", digits, v);
+        if (strtod(buf, NULL) == v) return;
+    }
+}
+
 static void default_text(const setting_def *d, char *buf, size_t cap) {
     switch (d->type) {
     case ST_FORCE: snprintf(buf, cap, "automatic"); break;
     case ST_BOOL: snprintf(buf, cap, "%s", d->def != 0 ? "true" : "false"); break;
     case ST_INT:
     case ST_LONG:
-    case ST_NUMBER: snprintf(buf, cap, "%.15g", d->def); break;
+    case ST_NUMBER: exact_text(d->def, buf, cap); break;
     case ST_FILTER: snprintf(buf, cap, "\"%s\"", caustic_filter_name((int)d->def)); break;
     case ST_DIR:
     case ST_TEXT: snprintf(buf, cap, "none"); break;
