@@ -72,9 +72,12 @@ for name in $scenes; do
     echo "make-equal-time: $scene changed since its reference was rendered" >&2; exit 2; }
 done
 
+# The images are scratch; the CSVs are written as the runs end into $out.partial (kept if the
+# script stops, so a failed run is not lost), which replaces $out's files at the end.
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-mkdir -p "$work/out"
+mkdir -p "$out.partial"
+ln -s "$out.partial" "$work/out"
 echo "scene,mode,spp,cpu_s,wall_s" > "$work/out/calib.csv"
 echo "scene,mode,budget_cpu_s,spp,cpu_s,wall_s,rmse,ref_spp" > "$work/out/runs.csv"
 
@@ -85,14 +88,15 @@ prog_spp="${ET_PROG_SPP:-16}"
 [ -z "$before" ] || [ -x "$before" ] || { echo "make-equal-time: ET_BEFORE_BIN=$before is not a program" >&2; exit 2; }
 
 # run NAME MODE SPP SEED [FLAGS...]: render; sets cpu, wall, spp_used; the image is
-# $work/img.pfm. Mode pm_before runs $before in mode pm.
+# $work/img.pfm. Mode pm_before runs $before in mode pm. SPP "-": no --spp (passes).
 run() {
   r_name=$1 r_mode=$2 r_spp=$3 r_seed=$4
   shift 4
   r_bin=$bin
   [ "$r_mode" = pm_before ] && r_bin=$before r_mode=pm
+  [ "$r_spp" = - ] || set -- --spp "$r_spp" "$@"
   /usr/bin/time -f '%U %S %e' -o "$work/time" "$r_bin" "$here/data/scenes/$r_name.json" --mode "$r_mode" \
-      --width "$res" --height "$res" --spp "$r_spp" --seed "$r_seed" --threads "$threads" --quiet \
+      --width "$res" --height "$res" --seed "$r_seed" --threads "$threads" --quiet \
       --hdr "$work/img.pfm" -o "$work/img.png" "$@" > "$work/log" 2> "$work/err" || {
     echo "make-equal-time: $r_name $r_mode $r_spp spp failed:" >&2; cat "$work/err" >&2; exit 1; }
   cpu=$(awk '{ printf "%.2f", $1 + $2 }' "$work/time")
@@ -104,7 +108,7 @@ for name in $scenes; do
   refspp=$(info "$name" spp)
   for mode in pm path ${before:+pm_before}; do
     # timing: two sample counts, a line through them
-    case $mode in path) s1=16 s2=144 ;; *) s1=4 s2=36 ;; esac
+    case $mode in path) s1=16 s2=400 ;; *) s1=4 s2=144 ;; esac
     run "$name" $mode $s1 7
     c1=$cpu; echo "$name,$mode,$spp_used,$cpu,$wall" >> "$work/out/calib.csv"
     [ $mode = pm ] && grep -E '^  [a-z ]+: ' "$work/log" > "$work/out/plan_$name.txt"
@@ -118,7 +122,7 @@ for name in $scenes; do
       run "$name" $mode "$spp" $seed
       rmse=$("$bin" --compare "$work/img.pfm" "$refdir/$name.pfm" | awk '$1 == "rmse" { print $2 }')
       echo "$name,$mode,$b,$spp_used,$cpu,$wall,$rmse,$refspp" >> "$work/out/runs.csv"
-      echo "make-equal-time: $name $mode budget $b CPU-s: $spp_used spp, $cpu CPU-s, $wall s, RMSE $rmse" >&2
+      echo "make-equal-time: $name $mode budget $b CPU-s (timing: $s1 spp $c1, $s2 spp $c2 CPU-s): $spp_used spp, $cpu CPU-s, $wall s, RMSE $rmse" >&2
     done
   done
 done
@@ -126,7 +130,7 @@ for name in $prog_scenes; do
   case " $scenes " in *" $name "*) ;; *) continue ;; esac
   refspp=$(info "$name" spp)
   for n in $prog_passes; do
-    run "$name" pm 1 7 --passes "$n" --pass-spp "$prog_spp"
+    run "$name" pm - 7 --passes "$n" --pass-spp "$prog_spp"
     grep -E '^Pass 0:' "$work/log" | head -1 > "$work/out/passes_$name.txt"
     rmse=$("$bin" --compare "$work/img.pfm" "$refdir/$name.pfm" | awk '$1 == "rmse" { print $2 }')
     echo "$name,pm_passes,$n,$((n * spp_used)),$cpu,$wall,$rmse,$refspp" >> "$work/out/runs.csv"
@@ -146,5 +150,6 @@ done
   for name in $scenes; do echo "ref_$name $(info "$name" spp) spp, seed $(info "$name" seed), $(info "$name" cpu_seconds) CPU-s, commit $(info "$name" commit)"; done
 } > "$work/out/measurement.txt"
 mkdir -p "$out"
-cp "$work/out/"* "$out/"
+cp "$out.partial/"* "$out/"
+rm -rf "$out.partial"
 echo "make-equal-time: wrote $out" >&2
