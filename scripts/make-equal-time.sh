@@ -5,7 +5,7 @@
 #
 #   scripts/make-equal-time.sh [--quick]
 #
-# The protocol, scaled down from issue 26's (10, 30, 100, 300 s at the scenes' own size) to
+# The protocol, scaled down from the full one (10, 30, 100, 300 s at the scenes' own size) to
 # what 2 shared cores allow: ET_RES x ET_RES pixels (default 96), budgets ET_BUDGETS in
 # CPU-seconds (default "4 12 40": 2, 6 and 20 s of wall time on 2 idle cores), ET_THREADS
 # threads (default 2). Each mode renders at each budget once, with no flag but --spp, --seed,
