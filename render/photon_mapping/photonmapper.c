@@ -700,11 +700,15 @@ static int emission_mask_build(mapper_state *st, const scene *s, char *err, size
     int fail = 0;
     if (!seen || !mask || !pvar) fail = 1;
     if (!fail) {
+#ifdef _OPENMP
 #pragma omp parallel reduction(| : fail)
+#endif
         {
             mapper_scratch *sc = scratch_new(st);
             if (!sc) fail = 1;
+#ifdef _OPENMP
 #pragma omp for schedule(dynamic, 64)
+#endif
             for (long p = 0; p < (long)n; p++) {
                 if (!sc) continue;
                 rng g = rng_stream(s->settings.seed ^ EMIT_SEED, (uint64_t)p, 0);
