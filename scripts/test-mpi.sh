@@ -199,7 +199,7 @@ fi
 # (volume.h), its surface maps partitioned, its volume maps whole on every rank.
 # The sample's work is given (gather_rays, secondary_rays, caustic_stride): a partitioned render
 # cannot run the plan's sample pilot (its lookups are shared between the ranks) and keeps these,
-# where the one-process render would pick its own (photonmapper.c, THE SAMPLE PILOT), and the
+# where the one-process render would pick its own (photon_mapping/pm_sample.c, THE SAMPLE PILOT), and the
 # two would no longer draw the same camera samples.
 PARTS="--width 32 --height 32 --spp 4 --pm global_photons=30000 --pm caustic_photons=30000 --quiet \
   --pm gather_rays=4 --pm secondary_rays=2 --pm caustic_stride=2"

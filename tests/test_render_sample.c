@@ -1,5 +1,5 @@
 /* test_render_sample.c: the photon mapper's per-sample work as its preprocess decides it
- * (render/photon_mapping/photonmapper.c, THE SAMPLE PILOT and emission_mask_build): the plan
+ * (render/photon_mapping/pm_sample.c: THE SAMPLE PILOT and pm_emission_mask_build): the plan
  * lines "sample:" and "emission rays:".
  *
  * Oracles: the documented candidates and line format; an explicit setting is kept (printed
