@@ -9,7 +9,7 @@
 #                        machine): it leaves out the tests that took more than 0.5 CPU-second or
 #                        3 s in the last `make test` (BUILD/test-times.txt) and those in
 #                        CHECK_SKIP (slow renders, the quick benchmark, the staged install)
-#   make run             render the default Cornell box to out/
+#   make run             photon mapping of cornell_spheres to out/ (45 s; SCENE=, RUNFLAGS=)
 #   make bench           run the full benchmarks, write bench/results/*.csv, plots and docs
 #   make bench-quick     a small benchmark subset (also run by the test suite)
 #   make results         path-traced references (if missing, ~45 min) and docs/RESULTS.md (~20 min;
@@ -270,7 +270,11 @@ test-mpi: $(RENDER_MPI_BIN) $(RENDER_BIN)
 	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/test-mpi.sh
 
 # ---- run -----------------------------------------------------------------------------------
-SCENE ?= data/scenes/cornell_box.json
+# The default shows photon mapping: cornell_spheres (a glass sphere's caustic on the floor) at
+# 256x256, progressive passes of 16 spp until 45 s of wall time are spent (at most about one
+# pass more). SCENE=... renders another scene with the same flags; RUNFLAGS=... replaces them.
+SCENE ?= data/scenes/cornell_spheres.json
+RUNFLAGS ?= --mode pm --width 256 --height 256 --time 45 --pass-spp 16
 run: $(RENDER_BIN)
 	@mkdir -p out
 	$(RENDER_BIN) $(SCENE) -o out/$(basename $(notdir $(SCENE))).png \
@@ -290,8 +294,16 @@ bench-quick: $(BENCH_DEPS)
 
 # ---- results -------------------------------------------------------------------------------
 # Photon mapping against long path-traced references (data/reference/, not in git).
+# First photon mapping at its defaults against path tracing at equal CPU time (make-equal-time.sh;
+# 96x96 references of its scenes made in data/reference/et96/ when missing), then the
+# correctness and time-to-error sections at 256x256 (make-results.sh) and the media section.
+ET_SCENES ?= cornell_box cornell_spheres water_caustic
 results: $(RENDER_BIN)
 	@command -v gnuplot >/dev/null 2>&1 || sh scripts/install-deps.sh --bench
+	@for s in $(ET_SCENES); do [ -f data/reference/et96/$$s.pfm ] || \
+	    REF_RES=96 REF_OUT=data/reference/et96 REF_SPP_cornell_spheres=8192 REF_SPP_water_caustic=2048 \
+	    REF_SPP_cornell_box=8192 PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-reference.sh $$s || exit 1; done
+	ET_SCENES="$(ET_SCENES)" PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-equal-time.sh
 	@for s in cornell_spheres cornell_diffuse; do [ -f data/reference/$$s.pfm ] || \
 	    PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-reference.sh $$s || exit 1; done
 	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-results.sh

@@ -49,8 +49,12 @@
  *
  * Threads: li only reads the maps; each thread has its own scratch (estimate buffers).
  */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include "base/json.h"
+#include "base/rng.h"
 
 #include "photonmap/common.h"
 #include "photonmap/estimate.h"
@@ -66,6 +70,7 @@
 #include "photon_mapping/photon_sides.h"
 #include "photons/photon_trace.h"
 #include "photon_mapping/plan.h"
+#include "photon_mapping/pm_sample.h"
 #include "photon_mapping/pm_volume.h"
 #include "base/stats.h"
 
@@ -86,6 +91,12 @@ typedef struct mapper_state {
     pm_estimate_options caus_opt, glob_opt;
     unsigned kmax;
     int st_emission_rays;
+    /* Emission-only rays (emission_strata) only where the camera may see an emitter (pm_sample.h;
+     * emit.mask NULL: at every pixel). */
+    pm_emission_mask emit;
+    const scene *scene; /* for pm_sample.c's eye rays (sample_eye), during the preprocess */
+    int explicit_gather, explicit_secondary, explicit_stride; /* set in the scene or by --pm: kept */
+    char sample_reason[480], emit_reason[320]; /* the plan's "sample:" and "emission rays:" lines */
     /* Progressive passes (mapper_begin_pass): the pass whose maps are built, its seed, its
      * squared radii's factor against pass 0's, pass 0's radii and volume radii. */
     int pass, progressive; /* progressive: ppm_radius applies (a render in passes) */
@@ -102,6 +113,7 @@ typedef struct mapper_scratch {
     void *est;
     pm_neighbor *nb;
     const sample_id *id; /* the camera sample being traced (for the lookup hook) */
+    pm_sample_caustics *pc; /* the sample pilot's tally of camera-level caustics, else NULL */
 } mapper_scratch;
 
 /* A distributed render's lookups (photon_lookup.h); NULL in one process. */
@@ -524,7 +536,14 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
                                      : v3s(0);
             } else {
                 Ld = direct_light(st, s, m, &h, ns, wo, g, sc);
-                if (cw > 0) Ld = v3_add(Ld, v3_scale(caustics_at(st, s, m, &h, ns, wo, sc), cw));
+                if (cw > 0) {
+                    rgb Lc = caustics_at(st, s, m, &h, ns, wo, sc);
+                    Ld = v3_add(Ld, v3_scale(Lc, cw));
+                    if (sc->pc && st->ncaustic_all) {
+                        sc->pc->L = v3_add(sc->pc->L, v3_mul(beta, Lc));
+                        sc->pc->n++;
+                    }
+                }
                 if (st->plan.final_gather.on) {
                     double share = fmin(1.0, v3_maxc(beta));
                     int n = (int)ceil(st->cfg.gather_rays * share);
@@ -592,7 +611,7 @@ static rgb mapper_li(const integrator *self, const scene *s, ray r, rng *g, cons
     const mapper_state *st = self->data;
     if (scratch) ((mapper_scratch *)scratch)->id = id;
     int m = st->cfg.emission_strata;
-    if (m <= 0 || !id || id->strata <= 0)
+    if (m <= 0 || !id || id->strata <= 0 || (st->emit.mask && id->pixel < st->emit.pixels && !st->emit.mask[id->pixel]))
         return eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_ALL, s->camera_medium, g, scratch);
     rgb L = eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_SHADE, s->camera_medium, g, scratch);
     rgb E = v3s(0);
@@ -611,7 +630,7 @@ static rgb mapper_li(const integrator *self, const scene *s, ray r, rng *g, cons
 
 static void *mapper_thread_begin(const integrator *self) {
     const mapper_state *st = self->data;
-    mapper_scratch *sc = malloc(sizeof *sc);
+    mapper_scratch *sc = calloc(1, sizeof *sc);
     if (!sc) return NULL;
     sc->est = malloc(pm_estimate_scratch_bytes(st->kmax));
     sc->nb = malloc((size_t)st->cfg.k_shadow * sizeof *sc->nb);
@@ -627,12 +646,71 @@ static void mapper_thread_end(const integrator *self, void *scratch) {
     free(sc);
 }
 
+/* ---- the cheap sample (pm_sample.h): the photon mapper's side ---------------------------- */
+
+/* Scratch for the preprocess's own camera rays (the emission mask, the sample pilot). */
+static void *sample_scratch_new(void *user) {
+    const mapper_state *st = user;
+    mapper_scratch *sc = calloc(1, sizeof *sc);
+    if (!sc) return NULL;
+    sc->est = malloc(pm_estimate_scratch_bytes(st->kmax));
+    sc->nb = malloc((size_t)st->cfg.k_shadow * sizeof *sc->nb);
+    if (!sc->est || !sc->nb) {
+        free(sc->est);
+        free(sc->nb);
+        free(sc);
+        return NULL;
+    }
+    return sc;
+}
+
+static void sample_scratch_free(void *user, void *scratch) {
+    (void)user;
+    mapper_scratch *sc = scratch;
+    if (!sc) return;
+    free(sc->est);
+    free(sc->nb);
+    free(sc);
+}
+
+/* An eye ray for pm_sample.c: emission alone, or the shading alone with caustics at weight 1
+ * tallied into pc (eye_radiance adds the camera path's caustics to sc->pc). */
+static rgb sample_eye(void *user, ray r, int emit, rng *g, void *scratch, pm_sample_caustics *pc) {
+    const mapper_state *st = user;
+    mapper_scratch *sc = scratch;
+    const scene *s = st->scene;
+    sc->pc = pc;
+    rgb L = eye_radiance(st, s, r, 0, v3s(1), emit ? 0 : 1.0, emit ? EYE_EMIT : EYE_SHADE, s->camera_medium, g, sc);
+    sc->pc = NULL;
+    return L;
+}
+
+/* The emission mask and the sample pilot, once (pass 0's preprocess), and their plan lines. */
+static int sample_decide(mapper_state *st, const scene *s, char *err, size_t errcap) {
+    st->scene = s;
+    const char *no_pilot = !st->plan.final_gather.on || st->direct_vis ? "no final gather"
+                           : !st->sides.irr ? "no precomputed irradiance to gather from"
+                           : g_lookup ? "partitioned render-mpi: its lookups are shared between processes"
+                                      : NULL;
+    pm_sample_host h = {s, &st->cfg, st->st_lookup, st->st_caustic, st->ncaustic_all > 0, no_pilot, st,
+                        sample_scratch_new, sample_scratch_free, sample_eye};
+    int rc = pm_emission_mask_build(&h, &st->emit, st->emit_reason, sizeof st->emit_reason, err, errcap);
+    if (rc < 0) return rc;
+    if (st->cfg.emission_strata <= 0)
+        snprintf(st->emit_reason, sizeof st->emit_reason, "none (photon_mapping.emission_strata is 0): "
+                 "a sample's own path collects emission");
+    pm_sample_pilot(&h, st->explicit_gather, st->explicit_secondary, st->explicit_stride, st->emit.var,
+                    st->sample_reason, sizeof st->sample_reason);
+    return 0;
+}
+
 static void mapper_destroy(integrator *self) {
     mapper_state *st = self->data;
     if (!st) return;
     side_cache_free(&st->sides);
     side_map_free(&st->caus_side);
     gather_guide_free(&st->gg);
+    pm_emission_mask_free(&st->emit);
     pmv_free(&st->vol);
     pm_kdtree_free(st->tg);
     pm_kdtree_free(st->tc);
@@ -788,6 +866,11 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     }
     stats_time_add("Time/Gather guide pilot", stats_now() - t0);
     printf("  gather guide: %s\n", st->gg.reason);
+    t0 = stats_now();
+    if ((rc = sample_decide(st, s, err, errcap)) < 0) return rc;
+    stats_time_add("Time/Sample pilot and emission mask", stats_now() - t0);
+    printf("  sample: %s\n", st->sample_reason);
+    printf("  emission rays: %s\n", st->emit_reason);
     st->made = 1;
     if (g_lookup) {
         const pm_kdtree *trees[2] = {st->tg, st->tc};
@@ -975,6 +1058,9 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
         return rc;
     }
     st->preview = preview;
+    st->explicit_gather = json_get(s->photon_mapping, "gather_rays") != NULL;
+    st->explicit_secondary = json_get(s->photon_mapping, "secondary_rays") != NULL;
+    st->explicit_stride = json_get(s->photon_mapping, "caustic_stride") != NULL;
     if ((rc = plan_make(s, &st->cfg, preview, &st->plan, err, errcap)) < 0) {
         free(st);
         return rc;
