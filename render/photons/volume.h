@@ -64,6 +64,10 @@
  * PILOT. With a vol_pilot the pass keeps nothing and counts what the photons do (the plan's
  * evidence, plan.h).
  *
+ * CODE. volume.c has the walk through media and the round driver; the walk's state (bounces,
+ * kinds, the refraction chain, the path-length cut) is photon_path.h's and the caustic pass's
+ * aim, the exchange and the budgets' messages photon_pass.h's, shared with photon_trace.c.
+ *
  * Ownership: the caller frees the result's arrays (vol_pass_free, or free() on vol_photons).
  */
 #ifndef RENDER_VOLUME_H
