@@ -21,6 +21,9 @@
 
 /* ---- records ------------------------------------------------------------------------------ */
 
+/* photon_rounds.c sends a batch's head in the room of one record. */
+_Static_assert(sizeof(pass_rec) == 64, "pass_rec is 64 bytes");
+
 int pass_buf_push(pass_buf *b, const pass_rec *p) {
     if (b->n == b->cap) {
         size_t nc = b->cap ? 2 * b->cap : 1024;
@@ -84,7 +87,8 @@ void pass_rec_set(pass_rec *f, uint64_t idx, vec3 p, rgb power, vec3 d, vec3 n, 
     f->power[0] = (float)power.x, f->power[1] = (float)power.y, f->power[2] = (float)power.z;
     f->dir[0] = (float)d.x, f->dir[1] = (float)d.y, f->dir[2] = (float)d.z;
     f->normal[0] = (float)n.x, f->normal[1] = (float)n.y, f->normal[2] = (float)n.z;
-    f->kind = kind;
+    f->kind = (int16_t)kind;
+    f->medium = -1;
 }
 
 /* Whether a batch passes the cap depends only on its photons (their records in all), not on

@@ -33,7 +33,8 @@ extern "C" {
 typedef struct pass_rec {
     uint64_t index; /* emitted photon it came from: the merge key */
     float pos[3], power[3], dir[3], normal[3];
-    int kind;
+    int16_t kind;   /* PM_KIND_* */
+    int16_t medium; /* a volume photon's medium (index into scene.media); -1: a surface photon */
     float rel; /* p(l, u) / p_l of its emission under the pass's importance table (1: none) */
 } pass_rec;
 
@@ -51,6 +52,7 @@ static inline int pass_buf_merge(pass_buf *out, pass_buf *bufs, int nb) { return
  * return how many photons that is (n_e when the target is not passed); the shadow buffer (or
  * NULL) keeps the records of the same photons. */
 uint64_t pass_cut_at_target(pass_buf *main_buf, pass_buf *shadow_buf, long target, uint64_t n_e);
+/* A surface photon's record (medium -1); a volume photon sets medium after it. */
 void pass_rec_set(pass_rec *f, uint64_t idx, vec3 p, rgb power, vec3 d, vec3 n, int kind, double rel);
 
 /* ---- aim ---- */

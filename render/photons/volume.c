@@ -31,19 +31,12 @@
 #include "photons/projmap.h"
 #include "base/rng.h"
 
-enum { WHERE_SURFACE, WHERE_VOLUME };
-
-/* A stored photon before the power is divided by the map's emitted count. */
-typedef struct vrec {
-    uint64_t index; /* photon index in the pass */
-    float pos[3], power[3], dir[3], nrm[3];
-    int kind, where, med;
-} vrec;
-
-_Static_assert(sizeof(vrec) == VOL_RECORD_BYTES, "VOL_RECORD_BYTES in volume.h");
+/* Records are photon_pass.h's pass_rec, before the power is divided by the map's emitted
+ * count: a volume photon's has its medium, a surface photon's medium -1. The memory budget
+ * counts each as VOL_RECORD_BYTES (volume.h). */
 
 typedef struct vbuf {
-    vrec *r;
+    pass_rec *r;
     size_t n, cap;
     size_t max_n;    /* the memory budget's share of this batch, in records */
     vol_pilot pilot; /* this batch's counts */
@@ -60,13 +53,7 @@ typedef struct vctx {
     pass_aim aim;  /* with proj: lights by power times active fraction (photon_pass.h) */
 } vctx;
 
-static void to3(float f[3], vec3 v) {
-    f[0] = (float)v.x;
-    f[1] = (float)v.y;
-    f[2] = (float)v.z;
-}
-
-static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kind, int where, int med) {
+static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kind, int med) {
     if (b->fail || b->over) return;
     if (b->n >= b->max_n) { /* the memory budget: this photon's path is not kept */
         b->over = 1;
@@ -75,7 +62,7 @@ static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kin
     if (b->n == b->cap) {
         size_t nc = b->cap ? 2 * b->cap : 1024;
         if (nc > b->max_n) nc = b->max_n;
-        vrec *nr = realloc(b->r, nc * sizeof *nr);
+        pass_rec *nr = realloc(b->r, nc * sizeof *nr);
         if (!nr) {
             b->fail = 1;
             return;
@@ -83,15 +70,9 @@ static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kin
         b->r = nr;
         b->cap = nc;
     }
-    vrec *v = &b->r[b->n++];
-    v->index = i;
-    to3(v->pos, p);
-    to3(v->power, power);
-    to3(v->dir, d);
-    to3(v->nrm, n);
-    v->kind = kind;
-    v->where = where;
-    v->med = med;
+    pass_rec *v = &b->r[b->n++];
+    pass_rec_set(v, i, p, power, d, n, kind, 1);
+    v->medium = (int16_t)med;
 }
 
 /* Roulette on a throughput factor w: survive with q = min(1, max channel), power * w / q. */
@@ -144,7 +125,7 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
                 b->pilot.events[clampi(med, VOL_PILOT_MEDIA)][kind]++;
                 if (kind == PM_KIND_CAUSTIC) b->pilot.caustic_by_mat[clampi(spec_mat, VOL_PILOT_MATS)]++;
                 if (c->keep_volume && (!caustic_pass || kind == PM_KIND_CAUSTIC) && inside(c->o, x))
-                    push(b, i, x, v3_mul(power, w), r.d, v3s(0), kind, WHERE_VOLUME, med);
+                    push(b, i, x, v3_mul(power, w), r.d, v3s(0), kind, med);
                 if (caustic_pass) return; /* not L S+ any more */
                 pp.scattered = vscattered = 1;
                 if (!survive(&power, w, &g)) return;
@@ -178,9 +159,9 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
             vec3 ns = path_arrival_normal(wo, h.ng);
             rgb ps = v3_scale(power, path_store_scale(&pp));
             if (c->keep_surface && !caustic_pass)
-                push(b, i, h.p, ps, r.d, ns, path_global_kind(&pp), WHERE_SURFACE, -1);
+                push(b, i, h.p, ps, r.d, ns, path_global_kind(&pp), -1);
             if (c->keep_surface && caustic_pass && kind == PM_KIND_CAUSTIC)
-                push(b, i, h.p, ps, r.d, ns, kind, WHERE_SURFACE, -1);
+                push(b, i, h.p, ps, r.d, ns, kind, -1);
         }
         bsdf_sample bs;
         double ul = rng_uniform(&g), u1 = rng_uniform(&g), u2 = rng_uniform(&g);
@@ -221,16 +202,16 @@ static void pilot_add(vol_pilot *a, const vol_pilot *b) {
 typedef struct vmap {
     int keep;
     long target;
-    vrec *r;
+    pass_rec *r;
     size_t n, cap;
     uint64_t cut; /* photons [0, cut) kept; UINT64_MAX: not cut yet */
 } vmap;
 
-static int vmap_take(vmap *m, const vrec *v) {
+static int vmap_take(vmap *m, const pass_rec *v) {
     if (!m->keep || v->index >= m->cut) return 0;
     if (m->n == m->cap) {
         size_t nc = m->cap ? 2 * m->cap : 4096;
-        vrec *nr = realloc(m->r, nc * sizeof *nr);
+        pass_rec *nr = realloc(m->r, nc * sizeof *nr);
         if (!nr) return PM_ENOMEM;
         m->r = nr;
         m->cap = nc;
@@ -253,13 +234,13 @@ static int vmap_finish(vmap *m, uint64_t emitted, pm_photon **out, short **med, 
             free(ph);
             return PM_ENOMEM;
         }
-        for (size_t k = 0; k < m->n; k++) (*med)[k] = (short)m->r[k].med;
+        for (size_t k = 0; k < m->n; k++) (*med)[k] = m->r[k].medium;
     }
     float sc = (float)(1.0 / (double)*ne);
     for (size_t k = 0; k < m->n; k++) {
-        const vrec *v = &m->r[k];
+        const pass_rec *v = &m->r[k];
         float pw[3] = {v->power[0] * sc, v->power[1] * sc, v->power[2] * sc};
-        pm_photon_init(&ph[k], v->pos, pw, v->dir, v->where == WHERE_SURFACE ? v->nrm : NULL, v->kind);
+        pm_photon_init(&ph[k], v->pos, pw, v->dir, v->medium < 0 ? v->normal : NULL, v->kind);
     }
     *out = ph;
     *n = m->n;
@@ -297,7 +278,7 @@ static int vol_exchange(vbuf *bufs, int nb) {
     size_t bytes = 0;
     int mine = 0;
     for (int b = d->part; b < nb; b += d->nparts) {
-        bytes += sizeof(vbatch_head) + bufs[b].n * sizeof(vrec);
+        bytes += sizeof(vbatch_head) + bufs[b].n * sizeof(pass_rec);
         mine++;
     }
     char *out = malloc(bytes ? bytes : 1);
@@ -322,8 +303,8 @@ static int vol_exchange(vbuf *bufs, int nb) {
         if (!out) continue;
         memcpy(out + off, &h, sizeof h);
         off += sizeof h;
-        if (bf->n) memcpy(out + off, bf->r, bf->n * sizeof(vrec));
-        off += bf->n * sizeof(vrec);
+        if (bf->n) memcpy(out + off, bf->r, bf->n * sizeof(pass_rec));
+        off += bf->n * sizeof(pass_rec);
     }
     /* This process's own failure: said before the exchange tells every process of it. */
     if (own_fail && d->failed)
@@ -348,7 +329,7 @@ static int vol_exchange(vbuf *bufs, int nb) {
             off += sizeof h;
             vbuf *bf = &bufs[h.b];
             if (h.cap != bf->cap) { /* the tracing process's capacity */
-                vrec *nr = realloc(bf->r, (h.cap ? h.cap : 1) * sizeof *nr);
+                pass_rec *nr = realloc(bf->r, (h.cap ? h.cap : 1) * sizeof *nr);
                 if (!nr) rc = PM_ENOMEM;
                 else {
                     bf->r = nr;
@@ -356,8 +337,8 @@ static int vol_exchange(vbuf *bufs, int nb) {
                 }
             }
             bf->n = rc == 0 ? h.n : 0;
-            if (bf->n) memcpy(bf->r, all + off, h.n * sizeof(vrec));
-            off += h.n * sizeof(vrec);
+            if (bf->n) memcpy(bf->r, all + off, h.n * sizeof(pass_rec));
+            off += h.n * sizeof(pass_rec);
             bf->stop = h.stop;
             bf->cut = h.cut;
             bf->fail = h.fail || rc < 0;
@@ -393,15 +374,15 @@ static int vol_round(vpass *p) {
     /* The memory budget (max_memory_bytes): the maps' buffers between rounds, and within a
      * round each batch's buffer at most its share of what the maps leave, so the stop is
      * the same for any thread count. */
-    size_t held = (p->ms.cap + p->mv.cap) * sizeof(vrec), room = SIZE_MAX;
-    for (int b = 0; b < nb; b++) held += bufs[b].cap * sizeof(vrec);
+    size_t held = (p->ms.cap + p->mv.cap) * VOL_RECORD_BYTES, room = SIZE_MAX;
+    for (int b = 0; b < nb; b++) held += bufs[b].cap * VOL_RECORD_BYTES;
     if (o->max_memory_bytes > 0 && !p->c.counting) {
         if (held > o->max_memory_bytes) {
             p->stop = "photon_mapping.max_memory_mb budget";
             snprintf(p->why, sizeof p->why, "%.2f MiB of photon buffers", (double)held / (1 << 20));
             return 1;
         }
-        room = (o->max_memory_bytes - (p->ms.cap + p->mv.cap) * sizeof(vrec)) / VOL_ROUND / sizeof(vrec);
+        room = (o->max_memory_bytes - (p->ms.cap + p->mv.cap) * VOL_RECORD_BYTES) / VOL_ROUND / VOL_RECORD_BYTES;
     }
     const trace_dist *dist = p->dist;
     const vctx *c = &p->c;
@@ -435,14 +416,14 @@ static int vol_round(vpass *p) {
         if (o->pilot) pilot_add(o->pilot, &bufs[b].pilot);
         p->cut += bufs[b].cut;
         for (size_t k = 0; k < bufs[b].n && rc == 0; k++) {
-            const vrec *v = &bufs[b].r[k];
-            rc = vmap_take(v->where == WHERE_SURFACE ? &p->ms : &p->mv, v);
+            const pass_rec *v = &bufs[b].r[k];
+            rc = vmap_take(v->medium < 0 ? &p->ms : &p->mv, v);
         }
         if (bufs[b].over) { /* the photons before it are whole; none after it counts */
             end = bufs[b].stop;
             p->stop = "photon_mapping.max_memory_mb budget";
             snprintf(p->why, sizeof p->why, "a batch of photons outgrew its share of the budget, "
-                     "%.2f MiB, at photon %llu", (double)(room * sizeof(vrec)) / (1 << 20),
+                     "%.2f MiB, at photon %llu", (double)(room * VOL_RECORD_BYTES) / (1 << 20),
                      (unsigned long long)bufs[b].stop);
             break;
         }
