@@ -9,7 +9,7 @@
 #                        machine): it leaves out the tests that took more than 0.5 CPU-second or
 #                        3 s in the last `make test` (BUILD/test-times.txt) and those in
 #                        CHECK_SKIP (slow renders, the quick benchmark, the staged install)
-#   make run             render the default Cornell box to out/
+#   make run             photon mapping of cornell_spheres to out/ (45 s; SCENE=, RUNFLAGS=)
 #   make bench           run the full benchmarks, write bench/results/*.csv, plots and docs
 #   make bench-quick     a small benchmark subset (also run by the test suite)
 #   make results         path-traced references (if missing, ~45 min) and docs/RESULTS.md (~20 min;
@@ -72,6 +72,10 @@ endif
 CFLAGS ?=
 LDFLAGS ?=
 ALL_CFLAGS = $(CFLAGS_BASE) $(SAN_FLAGS) $(SAN_DEFS) $(CFLAGS)
+# The one C++ file (bench/nanoflann_peer.cpp: nanoflann, a header-only C++ library, raced in
+# bench/ only) gets the same warnings, and CFLAGS without a C -std.
+CXXFLAGS_BASE := -std=c++17 -g $(OPT) -Wall -Wextra -Wshadow -fno-math-errno
+ALL_CXXFLAGS = $(CXXFLAGS_BASE) $(SAN_FLAGS) $(SAN_DEFS) $(filter-out -std=%,$(CFLAGS))
 ALL_LDFLAGS = $(SAN_FLAGS) $(OMP_LIBS) $(LDFLAGS)
 
 # ---- flags stamp ---------------------------------------------------------------------------
@@ -80,7 +84,7 @@ ALL_LDFLAGS = $(SAN_FLAGS) $(OMP_LIBS) $(LDFLAGS)
 # stale stamp as out of date instead, so it shows what a real run would rebuild.
 FLAGS_STAMP := $(BUILD)/flags.stamp
 FLAGS_TEXT := $(strip CC=$(CC) CXX=$(CXX) SIMD=$(SIMD) OPENMP=$(OPENMP) SANITIZE=$(SANITIZE) \
-                CFLAGS=$(ALL_CFLAGS) LDFLAGS=$(ALL_LDFLAGS))
+                CFLAGS=$(ALL_CFLAGS) CXXFLAGS=$(ALL_CXXFLAGS) LDFLAGS=$(ALL_LDFLAGS))
 ifneq ($(file <$(FLAGS_STAMP)),$(FLAGS_TEXT))
   ifneq ($(findstring n,$(firstword -$(MAKEFLAGS)))$(findstring q,$(firstword -$(MAKEFLAGS))),)
     .PHONY: $(FLAGS_STAMP)
@@ -105,12 +109,13 @@ PM_PUB_HDR := $(filter-out %_internal.h photonmap/internal.h,$(PM_HDR))
 RENDER_SRC := $(sort $(filter-out render/app/main.c render/mpi/%,$(wildcard render/*/*.c)))
 BENCH_MAIN := $(sort $(wildcard bench/bench_*.c))
 BENCH_SRC  := $(sort $(filter-out $(BENCH_MAIN),$(wildcard bench/*.c)))
+BENCH_CXX  := $(sort $(wildcard bench/*.cpp))
 TEST_SRC   := $(sort $(wildcard tests/*.c))
 
 PM_OBJ     := $(PM_SRC:%.c=$(BUILD)/obj/%.o)
 PM_PIC_OBJ := $(PM_SRC:%.c=$(BUILD)/pic/%.o)
 RENDER_OBJ := $(RENDER_SRC:%.c=$(BUILD)/obj/%.o)
-BENCH_OBJ  := $(BENCH_SRC:%.c=$(BUILD)/obj/%.o)
+BENCH_OBJ  := $(BENCH_SRC:%.c=$(BUILD)/obj/%.o) $(BENCH_CXX:%.cpp=$(BUILD)/obj/%.o)
 TEST_OBJ   := $(TEST_SRC:%.c=$(BUILD)/obj/%.o)
 # The octree is raced in bench/ only; its test links it from there when it lives there.
 TEST_EXTRA_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard bench/octree.c))
@@ -144,7 +149,7 @@ DEPS_GOALS := deps run test check bench bench-quick results
 DEPS_FIRST := $(if $(filter $(DEPS_GOALS),$(MAKECMDGOALS)),deps)
 deps:
 	@if ! command -v pkg-config >/dev/null 2>&1 || ! command -v $(CC) >/dev/null 2>&1 \
-	    || ! pkg-config --exists libcjson libpng flann OpenEXR 2>/dev/null \
+	    || ! pkg-config --exists libcjson libpng flann nanoflann OpenEXR 2>/dev/null \
 	    || ! [ -x /usr/bin/time ]; then \
 	    sh scripts/install-deps.sh; fi
 
@@ -155,6 +160,10 @@ $(BUILD)/obj/render/%.o $(BUILD)/obj/tests/%.o: INC_RENDER := -Irender
 $(BUILD)/obj/%.o: %.c $(FLAGS_STAMP) | $(DEPS_FIRST)
 	@mkdir -p $(@D)
 	$(CC) $(ALL_CFLAGS) -MMD -MP -I. -Iphotonmap $(INC_RENDER) -c $< -o $@
+
+$(BUILD)/obj/%.o: %.cpp $(FLAGS_STAMP) | $(DEPS_FIRST)
+	@mkdir -p $(@D)
+	$(CXX) $(ALL_CXXFLAGS) -MMD -MP -I. -Iphotonmap -c $< -o $@
 
 # The shared library's objects: position-independent.
 $(BUILD)/pic/%.o: %.c $(FLAGS_STAMP) | $(DEPS_FIRST)
@@ -235,15 +244,15 @@ check: all
 
 # ---- MPI (optional) ------------------------------------------------------------------------
 # `make MPI=1` also builds render-mpi, the distributed renderer (render/mpi/, docs/MPI.md):
-# render/app/main.c compiled again with mpicc, main renamed render_main and its image loop
-# render_image_ctl replaced by render/mpi's (-D below), linked with render/mpi/*.c. The
+# render/mpi/*.c compiled with mpicc and linked with the renderer's objects: its main calls
+# render's program, render_main (render/app/app.h), with render/mpi's hooks. The
 # default build never compiles render/mpi/ nor needs mpi.h. OpenMPI is installed
 # (install-deps.sh --mpi) when mpicc is missing. `make MPI=1 test-mpi` runs
 # scripts/test-mpi.sh (its own "N passed, N failed" line).
 MPI ?= 0
 MPICC ?= mpicc
 RENDER_MPI_BIN := $(BUILD)/render-mpi
-MPI_OBJ := $(BUILD)/obj/render/main_mpi.o $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard render/mpi/*.c))
+MPI_OBJ := $(patsubst %.c,$(BUILD)/obj/%.o,$(wildcard render/mpi/*.c))
 ifeq ($(MPI),1)
 all: $(RENDER_MPI_BIN)
 endif
@@ -254,10 +263,6 @@ mpi-deps:
 $(BUILD)/obj/render/mpi/%.o: render/mpi/%.c $(FLAGS_STAMP) | mpi-deps
 	@mkdir -p $(@D)
 	$(MPICC) $(ALL_CFLAGS) -MMD -MP -I. -Iphotonmap -Irender -c $< -o $@
-$(BUILD)/obj/render/main_mpi.o: render/app/main.c $(FLAGS_STAMP) | mpi-deps
-	@mkdir -p $(@D)
-	$(MPICC) $(ALL_CFLAGS) -Dmain=render_main -Drender_image_ctl=dist_render_image_ctl -MMD -MP \
-	    -I. -Iphotonmap -Irender -c $< -o $@
 $(RENDER_MPI_BIN): $(MPI_OBJ) $(RENDER_OBJ) $(LIB) $(FLAGS_STAMP)
 	$(MPICC) -o $@ $(filter %.o %.a,$^) $(ALL_LDFLAGS) $(RENDER_LIBS)
 -include $(MPI_OBJ:.o=.d)
@@ -265,7 +270,11 @@ test-mpi: $(RENDER_MPI_BIN) $(RENDER_BIN)
 	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/test-mpi.sh
 
 # ---- run -----------------------------------------------------------------------------------
-SCENE ?= data/scenes/cornell_box.json
+# The default shows photon mapping: cornell_spheres (a glass sphere's caustic on the floor) at
+# 256x256, progressive passes of 16 spp until 45 s of wall time are spent (at most about one
+# pass more). SCENE=... renders another scene with the same flags; RUNFLAGS=... replaces them.
+SCENE ?= data/scenes/cornell_spheres.json
+RUNFLAGS ?= --mode pm --width 256 --height 256 --time 45 --pass-spp 16
 run: $(RENDER_BIN)
 	@mkdir -p out
 	$(RENDER_BIN) $(SCENE) -o out/$(basename $(notdir $(SCENE))).png \
@@ -285,8 +294,16 @@ bench-quick: $(BENCH_DEPS)
 
 # ---- results -------------------------------------------------------------------------------
 # Photon mapping against long path-traced references (data/reference/, not in git).
+# First photon mapping at its defaults against path tracing at equal CPU time (make-equal-time.sh;
+# 96x96 references of its scenes made in data/reference/et96/ when missing), then the
+# correctness and time-to-error sections at 256x256 (make-results.sh) and the media section.
+ET_SCENES ?= cornell_box cornell_spheres water_caustic
 results: $(RENDER_BIN)
 	@command -v gnuplot >/dev/null 2>&1 || sh scripts/install-deps.sh --bench
+	@for s in $(ET_SCENES); do [ -f data/reference/et96/$$s.pfm ] || \
+	    REF_RES=96 REF_OUT=data/reference/et96 REF_SPP_cornell_spheres=8192 REF_SPP_water_caustic=2048 \
+	    REF_SPP_cornell_box=8192 PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-reference.sh $$s || exit 1; done
+	ET_SCENES="$(ET_SCENES)" PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-equal-time.sh
 	@for s in cornell_spheres cornell_diffuse; do [ -f data/reference/$$s.pfm ] || \
 	    PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-reference.sh $$s || exit 1; done
 	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-results.sh

@@ -1,5 +1,6 @@
 /* bench_knn.c: the k-nearest race on workloads that do not flatter the kd-tree, against
- * FLANN's best exact configuration and the best octree, side by side in one run.
+ * nanoflann's best configuration, FLANN's best exact configuration and the best octree, side
+ * by side in one run.
  *
  * WORKLOADS, generated here from a seed (or read from photon maps the renderer dumped):
  *   cluster  64 Gaussian clusters, centres uniform in [0.1, 0.9]^3, widths (sigma) spaced
@@ -16,8 +17,11 @@
  * CELLS. For every workload, N, query set, k in {10, 50, 200} and mode (`unlimited` radius,
  * or `radius`: the median over the verified queries of their true k-th nearest dist2, so that
  * a typical query finds about k; above 1.5M points k = 50 only) the following race side by
- * side: our kd-tree for B in {16, 32} (8 won 1 of 12 cells in a trial run), unsorted and with
- * PM_SORT; FLANN's exact single kd-tree for leaf sizes
+ * side: our kd-tree for B in {8, 16, 32, 64}, unsorted and with PM_SORT; nanoflann's
+ * KDTreeSingleIndexAdaptor (nanoflann_peer.h) for leaf sizes {8, 16, 32, 64}, each with its
+ * points in input order and in its own tree order (a copy rewritten in the order of its index
+ * array, then built again), k-NN with the radius as its result set's first worst distance;
+ * FLANN's exact single kd-tree for leaf sizes
  * {16, 32, 64} (8 was never its fastest in trial runs), as batched k-NN (256 queries per call; in radius mode the sorted k
  * nearest are then cut at the radius, which gives the exact answer) and, in radius mode, as
  * radius search with max_neighbors = k (one call per query, the API's own way); and, at
@@ -45,6 +49,7 @@
 
 #include "bench.h"
 #include "kdtree.h"
+#include "nanoflann_peer.h"
 #include "octree.h"
 #include "photon.h"
 
@@ -53,8 +58,10 @@
 #define FL_BATCH 256
 #define MAX_MAPS 8
 
-static const unsigned KD_B[] = {16, 32};
+static const unsigned KD_B[] = {8, 16, 32, 64};
 static const int FL_LEAF[] = {16, 32, 64};
+/* nanoflann's leaf_max_size, each with its points in input order and in its own tree order */
+static const unsigned NF_LEAF[] = {8, 16, 32, 64};
 static const unsigned OCT_CAP[] = {32, 128};
 static const unsigned KS_FULL[] = {10, 50, 200};
 static const unsigned KS_QUICK[] = {50};
@@ -242,9 +249,11 @@ static void dataset_free(dataset *d) {
 }
 
 /* ---- structures ---- */
-enum { S_KD, S_FLANN, S_OCT };
+enum { S_KD, S_FLANN, S_OCT, S_NF };
 typedef struct structure {
     int type, param;
+    int tree_order; /* S_NF: points rewritten in nanoflann's tree order */
+    nf_peer *nf;
     pm_photon *rec;
     pm_kdtree *kd;
     bench_octree *oct;
@@ -254,26 +263,28 @@ typedef struct structure {
 } structure;
 
 static const char *struct_name(int t) {
-    return t == S_KD ? "kdtree" : t == S_FLANN ? "flann_single" : "octree";
+    return t == S_KD ? "kdtree" : t == S_FLANN ? "flann_single" : t == S_NF ? "nanoflann" : "octree";
 }
 
 static void structure_release(structure *s) {
     if (s->kd) pm_kdtree_free(s->kd);
     if (s->oct) bench_octree_free(s->oct);
     if (s->fl) flann_free_index(s->fl, &s->fp);
+    if (s->nf) nf_free(s->nf);
+    s->nf = NULL;
     free(s->rec);
     s->kd = NULL, s->oct = NULL, s->fl = NULL, s->rec = NULL;
 }
 
-static void structure_build(structure *s, const dataset *d, int type, int param) {
+static void structure_build(structure *s, const dataset *d, int type, int param, int tree_order) {
     double t[16];
     int runs = opt.build_runs;
     size_t heap = 0;
     memset(s, 0, sizeof *s);
-    s->type = type, s->param = param;
+    s->type = type, s->param = param, s->tree_order = tree_order;
     for (int r = 0; r < runs; r++) {
         structure_release(s);
-        if (type != S_FLANN) {
+        if (type != S_FLANN && type != S_NF) {
             s->rec = malloc(d->n * sizeof *s->rec);
             memcpy(s->rec, d->ph, d->n * sizeof *s->rec);
         }
@@ -286,6 +297,11 @@ static void structure_build(structure *s, const dataset *d, int type, int param)
         } else if (type == S_OCT) {
             bench_octree_config c = bench_octree_photon_config((unsigned)param);
             rc = bench_octree_build(&s->oct, s->rec, d->n, &c, NULL);
+        } else if (type == S_NF) {
+            double bt = 0;
+            s->nf = nf_build(d->xyz, d->n, (unsigned)param, tree_order, cpu_now, &bt);
+            rc = s->nf ? 0 : -1;
+            t0 = cpu_now() - bt; /* the build in input order alone */
         } else {
             float speedup;
             s->fp = DEFAULT_FLANN_PARAMETERS;
@@ -313,15 +329,18 @@ static void structure_build(structure *s, const dataset *d, int type, int param)
         s->bytes_pp = sizeof(pm_photon) + (double)pm_kdtree_index_bytes(s->kd) / (double)d->n;
     else if (type == S_OCT)
         s->bytes_pp = sizeof(pm_photon) + (double)bench_octree_index_bytes(s->oct) / (double)d->n;
+    else if (type == S_NF) /* the caller's float[3] points it reads, and its index */
+        s->bytes_pp = 12.0 + (double)nf_index_bytes(s->nf) / (double)d->n;
     else /* its reordered point copy and its index: the heap growth across the build */
         s->bytes_pp = (double)heap / (double)d->n;
-    fprintf(g_build, "%s,%zu,%s,%d,%.6f,%d,%.3f\n", d->name, d->n, struct_name(type), param,
+    fprintf(g_build, "%s,%zu,%s%s,%d,%.6f,%d,%.3f\n", d->name, d->n, struct_name(type),
+            tree_order ? "_tree_order" : "", param,
             s->build_s, runs, s->bytes_pp);
     fflush(g_build);
 }
 
 /* ---- configurations ---- */
-enum { OP_KNN, OP_KNN_SORTED, OP_FL_BATCH, OP_FL_RMAXNN, OP_KNN_ORACLE };
+enum { OP_KNN, OP_KNN_SORTED, OP_FL_BATCH, OP_FL_RMAXNN, OP_KNN_ORACLE, OP_NF, OP_NF_TREE };
 
 /* --oracle: per query of the pool (g_oracle_q), the next float above its own k-th dist2, so
  * that a search given it as max_dist2 returns the same k distances having known the final
@@ -335,6 +354,8 @@ static const char *op_name(int op) {
     case OP_KNN_SORTED: return "knn_sorted";
     case OP_KNN_ORACLE: return "knn_oracle";
     case OP_FL_BATCH: return "knn_batch";
+    case OP_NF: return "knn";
+    case OP_NF_TREE: return "knn_tree_order";
     default: return "radius_maxnn";
     }
 }
@@ -350,6 +371,7 @@ typedef struct config {
 typedef struct scratch {
     pm_neighbor nb[KMAX];
     int idx[FL_BATCH * KMAX];
+    uint32_t nfi[KMAX];
     float d[FL_BATCH * KMAX];
 } scratch;
 
@@ -380,7 +402,9 @@ static uint64_t run(const config *c, const float *q, size_t m, unsigned k, float
     for (size_t i = 0; i < m; i++) {
         const float *qi = &q[3 * i];
         long f;
-        if (c->op == OP_FL_RMAXNN) {
+        if (s->type == S_NF) {
+            f = (long)nf_knn(s->nf, qi, k, r2, sc->nfi, sc->d);
+        } else if (c->op == OP_FL_RMAXNN) {
             struct FLANNParameters fp = s->fp;
             fp.max_neighbors = (int)k;
             f = flann_radius_search(s->fl, (float *)qi, sc->idx, sc->d, (int)k,
@@ -422,10 +446,12 @@ static void verify(config *c, const dataset *d, const qset *qs, unsigned k, floa
             const float *p;
             if (c->s->type == S_KD) p = pm_kdtree_pos(c->s->kd, sc->nb[j].index);
             else if (c->s->type == S_OCT) p = bench_octree_pos(c->s->oct, sc->nb[j].index);
+            else if (c->s->type == S_NF) p = nf_pos(c->s->nf, sc->nfi[j]);
             else p = &d->xyz[3 * (size_t)sc->idx[j]];
             float dx = q[0] - p[0], dy = q[1] - p[1], dz = q[2] - p[2];
             d2[j] = dx * dx + dy * dy + dz * dz;
-            if (c->s->type != S_FLANN && sc->nb[j].dist2 != d2[j]) d2[j] = -1; /* poisons */
+            if ((c->s->type == S_KD || c->s->type == S_OCT) && sc->nb[j].dist2 != d2[j])
+                d2[j] = -1; /* poisons */
         }
         if (c->op == OP_KNN_SORTED)
             for (unsigned j = 1; j < f; j++)
@@ -436,7 +462,7 @@ static void verify(config *c, const dataset *d, const qset *qs, unsigned k, floa
     }
     c->exact_frac = g ? (double)exact / (double)g : 1;
     c->found_mean = g ? (double)found / (double)g : 0;
-    c->has_stats = c->s->type != S_FLANN;
+    c->has_stats = c->s->type == S_KD || c->s->type == S_OCT;
     c->nodes_pq = g ? (double)st.nodes_visited / (double)g : 0;
     c->evals_pq = g ? (double)st.dist_evals / (double)g : 0;
 }
@@ -544,16 +570,19 @@ static void oracle_radii(const structure *kd, const qset *qs, unsigned k, scratc
 }
 
 static void run_dataset(dataset *d) {
-    structure kd[NELEM(KD_B)], fl[NELEM(FL_LEAF)], oc[NELEM(OCT_CAP)];
+    structure kd[NELEM(KD_B)], fl[NELEM(FL_LEAF)], oc[NELEM(OCT_CAP)], nf[2 * NELEM(NF_LEAF)];
     /* above 1.5M points only k = 50 (the 4M target), to keep the run within its time */
     const int small = opt.quick || d->n > 1500000;
     const unsigned *ks = opt.nks ? opt.ks : small ? KS_QUICK : KS_FULL;
     const int nk = opt.nks ? opt.nks : small ? (int)NELEM(KS_QUICK) : (int)NELEM(KS_FULL);
     scratch *sc = malloc(sizeof *sc);
     bench_log("%s n=%zu: building", d->name, d->n);
-    for (size_t i = 0; i < NELEM(KD_B); i++) structure_build(&kd[i], d, S_KD, (int)KD_B[i]);
-    for (size_t i = 0; i < NELEM(FL_LEAF); i++) structure_build(&fl[i], d, S_FLANN, FL_LEAF[i]);
-    for (size_t i = 0; i < NELEM(OCT_CAP); i++) structure_build(&oc[i], d, S_OCT, (int)OCT_CAP[i]);
+    for (size_t i = 0; i < NELEM(KD_B); i++) structure_build(&kd[i], d, S_KD, (int)KD_B[i], 0);
+    for (size_t i = 0; i < NELEM(FL_LEAF); i++) structure_build(&fl[i], d, S_FLANN, FL_LEAF[i], 0);
+    for (size_t i = 0; i < NELEM(OCT_CAP); i++)
+        structure_build(&oc[i], d, S_OCT, (int)OCT_CAP[i], 0);
+    for (size_t i = 0; i < NELEM(nf); i++)
+        structure_build(&nf[i], d, S_NF, (int)NF_LEAF[i / 2], (int)(i & 1));
     for (int s = 0; s < 2; s++) {
         qset *qs = &d->qs[s];
         if (!(opt.sets >> s & 1)) continue;
@@ -570,7 +599,7 @@ static void run_dataset(dataset *d) {
                     free(v);
                     if (!(r2 > 0) || isinf(r2)) continue;
                 }
-                config cs[32];
+                config cs[48];
                 int nc = 0;
                 for (size_t i = 0; i < NELEM(KD_B); i++) {
                     cs[nc++] = (config){.s = &kd[i], .op = OP_KNN};
@@ -580,6 +609,8 @@ static void run_dataset(dataset *d) {
                     cs[nc++] = (config){.s = &fl[i], .op = OP_FL_BATCH};
                     if (mode == 1) cs[nc++] = (config){.s = &fl[i], .op = OP_FL_RMAXNN};
                 }
+                for (size_t i = 0; i < NELEM(nf); i++)
+                    cs[nc++] = (config){.s = &nf[i], .op = nf[i].tree_order ? OP_NF_TREE : OP_NF};
                 if (opt.oracle && mode == 0) {
                     oracle_radii(&kd[0], qs, k, sc);
                     for (size_t i = 0; i < NELEM(KD_B); i++)
@@ -601,6 +632,7 @@ static void run_dataset(dataset *d) {
                 sort_cost_paired(&cs[bk], &cs[bt], qs->q, k, r2, sc, opt.sort_rounds, &scm, &scl,
                                  &sch);
                 int bf = best_of(cs, nc, S_FLANN, -1), bo = best_of(cs, nc, S_OCT, -1);
+                int bn = best_of(cs, nc, S_NF, -1), bni = best_of(cs, nc, S_NF, OP_NF);
                 char lk[64], ls[64], lf[64], lo[64] = "";
                 label(lk, sizeof lk, &cs[bk]);
                 label(ls, sizeof ls, &cs[bs]);
@@ -618,8 +650,13 @@ static void run_dataset(dataset *d) {
                         scm);
                 if (bo >= 0) fprintf(g_best, "%.3f,", cs[bk].qps / cs[bo].qps);
                 else fprintf(g_best, ",");
-                fprintf(g_best, "%.2f,%.2f,%.4f,%.3f,%.3f,%d\n", cs[bk].evals_pq, cs[bk].found_mean,
+                fprintf(g_best, "%.2f,%.2f,%.4f,%.3f,%.3f,%d,", cs[bk].evals_pq, cs[bk].found_mean,
                         exact, scl, sch, opt.sort_rounds);
+                char ln[64], lni[64];
+                label(ln, sizeof ln, &cs[bn]);
+                label(lni, sizeof lni, &cs[bni]);
+                fprintf(g_best, "%s,%.1f,%.3f,%s,%.1f,%.3f\n", ln, cs[bn].qps,
+                        cs[bk].qps / cs[bn].qps, lni, cs[bni].qps, cs[bk].qps / cs[bni].qps);
                 fflush(g_best);
             }
         }
@@ -627,6 +664,7 @@ static void run_dataset(dataset *d) {
     for (size_t i = 0; i < NELEM(KD_B); i++) structure_release(&kd[i]);
     for (size_t i = 0; i < NELEM(FL_LEAF); i++) structure_release(&fl[i]);
     for (size_t i = 0; i < NELEM(OCT_CAP); i++) structure_release(&oc[i]);
+    for (size_t i = 0; i < NELEM(nf); i++) structure_release(&nf[i]);
     free(sc);
 }
 
@@ -636,8 +674,9 @@ static void usage(FILE *f) {
             "                 [--workloads LIST] [--map NAME=FILE]... [--k LIST]\n"
             "                 [--queries near|empty] [--modes unlimited|radius]\n"
             "\n"
-            "Races our kd-tree (B 16, 32; unsorted and PM_SORT) against FLANN's exact single\n"
-            "kd-tree (leaf 16..64) and the octree on clustered, slab and planar-caustic points and\n"
+            "Races our kd-tree (B 8..64; unsorted and PM_SORT) against nanoflann (leaf 8..64, points\n"
+            "in input order and in its tree order), FLANN's exact single kd-tree (leaf 16..64)\n"
+            "and the octree on clustered, slab and planar-caustic points and\n"
             "on photon-map files, with near-data and empty-space queries, k = 10, 50, 200,\n"
             "unlimited and maximum-radius modes, one thread. Writes knn.csv, knn_build.csv and\n"
             "knn_best.csv to DIR (columns: bench/README.md); progress goes to stderr.\n"
@@ -789,7 +828,8 @@ int main(int argc, char **argv) {
                             "kdtree_sorted_qps,flann,flann_qps,octree,octree_qps,ratio_flann,"
                             "ratio_sorted_flann,sort_cost,ratio_octree,kdtree_dist_evals,"
                             "kdtree_mean_found,min_exact_frac,sort_cost_min,sort_cost_max,"
-                            "sort_rounds");
+                            "sort_rounds,nanoflann,nanoflann_qps,ratio_nanoflann,"
+                            "nanoflann_input,nanoflann_input_qps,ratio_nanoflann_input");
     bench_log("bench_knn: %s, %d runs", opt.quick ? "quick" : "full", opt.runs);
 
     static const char *const W[] = {"cluster", "slab", "caustic"};

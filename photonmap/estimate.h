@@ -87,7 +87,7 @@
  * and timed without a tree, and a WRAPPER, pm_estimate(), that runs the k-nearest search on a
  * pm_kdtree (optionally an ellipsoid search compressed along n, and skipping photons that
  * arrive from behind the surface: leak control) and then the core. The core accepts the list
- * in any order (the kd-tree's heap order is fine); it never modifies it.
+ * in any order (the kd-tree's unsorted order is fine); it never modifies it.
  *
  * SCRATCH AND THREADS. Nothing here allocates or keeps state. The caller passes `scratch`, at
  * least pm_estimate_scratch_bytes(k) bytes aligned for a double (malloc memory is); one buffer

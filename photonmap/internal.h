@@ -11,13 +11,13 @@
  * the rank loop uses AVX2 whenever the CPU has it: RUNTIME AVX2 below, the one function here
  * that is static but not inline).
  *
- * HEAP. A binary max-heap on dist2 alone, in h[0..n): h[0] is the farthest, the current k-th
- * distance of a k-nearest search. pm__heap_sift_down places v at slot i and moves it down;
- * the larger child is picked without a branch (the comparison is a coin toss, so a branch
- * would mispredict half the time). Ties between children go to the left one and a child that
- * equals v stays below it: which of several tied records a search returns (kdtree.h, TIES:
- * the one that leaves is the heap's top) follows from exactly these choices, so they are
- * fixed here once. (A 4-ary heap was measured and gave nothing: docs/BENCHMARKS.md.)
+ * HEAP. A binary max-heap on the key (dist2, index), in h[0..n): h[0] is the largest, the
+ * current k-th neighbour of a k-nearest search with a large k. pm__heap_sift_down places v at
+ * slot i and moves it down; the larger child is picked without a branch (the comparison is a
+ * coin toss, so a branch would mispredict half the time). Keys are distinct, so which records
+ * a search returns does not depend on these choices (kdtree.h, TIES). (A 4-ary heap was
+ * measured and gave nothing: docs/BENCHMARKS.md.) Small k keep a sorted array instead: THE
+ * K-NEAREST RESULT SET below.
  */
 #ifndef PM_INTERNAL_H
 #define PM_INTERNAL_H
@@ -86,45 +86,56 @@ static inline void pm__nb_sort(pm_neighbor *a, size_t n) {
     pm__nb_heapsort(a, n);
 }
 
-/* Max-heap on dist2 in h[0..n): puts v at slot i and sifts it down. */
+/* The (dist2, index) key of a neighbour as one unsigned 64-bit integer: dist2 is never negative
+ * (nor NaN), so its bits order like its value, and the index breaks ties. */
+static inline uint64_t pm__nb_key(pm_neighbor v) {
+    uint32_t b;
+    memcpy(&b, &v.dist2, sizeof b);
+    return (uint64_t)b << 32 | v.index;
+}
+
+/* Max-heap on (dist2, index) in h[0..n): puts v at slot i and sifts it down. */
 static inline void pm__heap_sift_down(pm_neighbor *h, unsigned n, unsigned i, pm_neighbor v) {
+    const uint64_t kv = pm__nb_key(v);
     for (;;) {
         unsigned c = 2 * i + 1;
         if (c >= n) break;
-        if (c + 1 < n) c += h[c + 1].dist2 > h[c].dist2;
-        if (!(h[c].dist2 > v.dist2)) break;
+        if (c + 1 < n) c += pm__nb_key(h[c + 1]) > pm__nb_key(h[c]);
+        if (!(pm__nb_key(h[c]) > kv)) break;
         h[i] = h[c];
         i = c;
     }
     h[i] = v;
 }
 
-/* Turns h[0..n), in any order, into a max-heap on dist2. */
+/* Turns h[0..n), in any order, into a max-heap on (dist2, index). */
 static inline void pm__heapify(pm_neighbor *h, unsigned n) {
     for (unsigned i = n / 2; i-- > 0;) pm__heap_sift_down(h, n, i, h[i]);
 }
 
-/* Replaces the farthest entry h[0] by v and restores the heap: exactly
+/* Replaces the largest entry h[0] by v and restores the heap: exactly
  * pm__heap_sift_down(h, n, 0, v), computed without a data-dependent branch. The sift-down
  * follows the path of larger children from the root (which child is larger does not depend on
- * v) and stops above the first path node that is not > v; along that path dist2 never grows,
+ * v) and stops above the first path node that is not > v; along that path the key never grows,
  * so "> v" holds for a prefix of it. Here the whole path is walked first (its length depends on
  * n only, except for the last step), m = the number of path nodes > v is counted, the first m
  * move up one place and v goes to the m-th. The k-nearest searches call this once per record
  * that enters a full heap; the loop that stopped at a data-dependent level mispredicted its
- * exit about once per call. */
+ * exit about once per call. Keys are (dist2, index) (pm__nb_key), all distinct. */
 static inline void pm__heap_replace_top(pm_neighbor *h, unsigned n, pm_neighbor v) {
     if (n < 2) {
         h[0] = v;
         return;
     }
+    const uint64_t kv = pm__nb_key(v);
     unsigned path[33], D = 31u - (unsigned)__builtin_clz(n), i = 0, m = 0;
     path[0] = 0;
     /* levels 1 .. D-1 are complete: both children exist */
     for (unsigned d = 1; d < D; d++) {
         unsigned c = 2 * i + 1;
-        c += h[c + 1].dist2 > h[c].dist2;
-        m += h[c].dist2 > v.dist2;
+        uint64_t k0 = pm__nb_key(h[c]), k1 = pm__nb_key(h[c + 1]);
+        c += k1 > k0;
+        m += (k1 > k0 ? k1 : k0) > kv;
         path[d] = i = c;
     }
     /* level D: none, one or two children (l, r: i itself where a child is missing) */
@@ -132,8 +143,8 @@ static inline void pm__heap_replace_top(pm_neighbor *h, unsigned n, pm_neighbor 
         unsigned c = 2 * i + 1;
         unsigned has = c < n, has2 = c + 1 < n;
         unsigned l = i + (has ? c - i : 0u), r = l + (has2 ? 1u : 0u);
-        unsigned cc = r + (h[r].dist2 > h[l].dist2 ? 0u : l - r);
-        m += has & (h[cc].dist2 > v.dist2);
+        unsigned cc = r + (pm__nb_key(h[r]) > pm__nb_key(h[l]) ? 0u : l - r);
+        m += has & (pm__nb_key(h[cc]) > kv);
         path[D] = cc;
     }
     /* the first m path nodes move up: D steps, each a move or a rewrite of the same value */
@@ -144,25 +155,83 @@ static inline void pm__heap_replace_top(pm_neighbor *h, unsigned n, pm_neighbor 
     h[path[m]] = v;
 }
 
-/* Offers (d2, idx) to a k-nearest search's max-heap out[0..*found) of capacity k: it fills,
- * becomes a heap at k, then replaces its farthest entry. *r2, the search's bound, becomes the
- * farthest kept dist2 once k are held. The caller has checked !(d2 >= *r2). */
-static inline void pm__knn_offer(pm_neighbor *out, unsigned k, unsigned *found, float *r2, float d2,
-                                 uint32_t idx) {
+/* THE K-NEAREST RESULT SET, shared by every k-nearest search of the module (kdtree.h, TIES):
+ * the k records of smallest (dist2, index), among those with dist2 < max_dist2. A search keeps
+ * a bound `lim` and offers a record only when !(d2 >= lim) (lim NaN = no bound): lim starts as
+ * max_dist2 (NaN for +inf) and, once k are held, becomes the float just above the largest
+ * kept dist2 (the next bit pattern up; NaN when that dist2 is +inf), so a record tied with the
+ * largest kept one is still offered and wins when its index is smaller. Cells are pruned by
+ * the same test on their distance, so a cell at exactly the k-th distance is still searched.
+ * Up to PM__KNN_SORTED_MAX results are kept in an array sorted by (dist2, index) ascending
+ * (insertion from the end, as short arrays are cheapest that way); above it, a max-heap on the
+ * same key. Either way the set is the same for any visiting order. */
+#ifndef PM__KNN_SORTED_MAX
+#define PM__KNN_SORTED_MAX 16u
+#endif
+
+static inline float pm__nextup(float x) {
+    uint32_t b;
+    memcpy(&b, &x, sizeof b);
+    b++;
+    memcpy(&x, &b, sizeof x);
+    return x;
+}
+
+/* The heap half of pm__knn_offer (k > PM__KNN_SORTED_MAX), out of line: it is the rarer and
+ * the larger one. */
+#if defined(__GNUC__)
+__attribute__((noinline, unused))
+#endif
+static int pm__knn_offer_heap(pm_neighbor *out, unsigned k, unsigned *found, float *lim,
+                              pm_neighbor nb) {
+    unsigned f = *found;
+    if (f < k) {
+        out[f++] = nb;
+        *found = f;
+        if (f == k) {
+            pm__heapify(out, k);
+            *lim = pm__nextup(out[0].dist2);
+        }
+        return 1;
+    }
+    if (nb.dist2 == out[0].dist2 && nb.index > out[0].index) return 0;
+    pm__heap_replace_top(out, k, nb);
+    *lim = pm__nextup(out[0].dist2);
+    return 1;
+}
+
+/* Offers (d2, idx) to out[0..*found) of capacity k. The caller has checked !(d2 >= *lim).
+ * Returns 1 when the record entered, 0 when it lost a tie to the largest kept one (then so
+ * does every record at the same d2 with a larger index). Inlined into each search (the
+ * sorted array's insertion is a few instructions per entry moved). */
+#if defined(__GNUC__)
+__attribute__((always_inline, unused))
+#endif
+static inline int pm__knn_offer(pm_neighbor *out, unsigned k, unsigned *found, float *lim,
+                                float d2, uint32_t idx) {
     pm_neighbor nb;
     nb.dist2 = d2;
     nb.index = idx;
-    if (*found < k) {
-        out[(*found)++] = nb;
-        if (*found == k) {
-            pm__heapify(out, k);
-            *r2 = out[0].dist2;
-        }
+    if (k > PM__KNN_SORTED_MAX) return pm__knn_offer_heap(out, k, found, lim, nb);
+    unsigned f = *found, j;
+    if (f < k) {
+        j = f;
+        *found = ++f;
     } else {
-        pm__heap_replace_top(out, k, nb);
-        *r2 = out[0].dist2;
+        j = k - 1;
+        if (d2 == out[j].dist2 && idx > out[j].index) return 0;
     }
+    while (j > 0 && (out[j - 1].dist2 > d2 || (out[j - 1].dist2 == d2 && out[j - 1].index > idx))) {
+        out[j] = out[j - 1];
+        j--;
+    }
+    out[j] = nb;
+    if (f == k) *lim = pm__nextup(out[k - 1].dist2);
+    return 1;
 }
+
+/* Whether a k-nearest result of k slots is kept sorted (then PM_SORT has nothing to do). */
+static inline int pm__knn_is_sorted(unsigned k) { return k <= PM__KNN_SORTED_MAX; }
 
 /* Up to this many results are sorted by pm__nb_sort_keys, on the stack (2 x 8 bytes each). */
 #define PM__SORT_KEYS_MAX 256u

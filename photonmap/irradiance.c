@@ -440,7 +440,7 @@ static int accept_normal(void *user, const void *record, uint32_t index) {
 /* ---- the search with reach -------------------------------------------------------------
  * The k nearest records (dist2 < max_dist2) that accept_normal passes, by the same traversal
  * as pm_kdtree_knn_ex on this tree (kdtree_query.c: near side first, then the node's record,
- * then the far side; an array until k are found, then a max-heap whose top is the radius), so
+ * then the far side; the module's result set, internal.h, whose bound is the radius), so
  * that the same records are offered to the predicate in the same order, plus one more cut: a
  * subtree is skipped when its cell's distance from x is >= its reach (REACH above), as every
  * record in it would fail the radius rule. The cell distance is the same float lower bound as
@@ -450,7 +450,7 @@ typedef struct reach_state {
     const pm_irradiance *irr;
     lookup_ctx *c;
     float q[3];
-    float r2; /* current radius; NaN = unlimited (every test is !(d2 >= r2)) */
+    float r2; /* the result set's bound (lim); NaN = none (every test is !(d2 >= r2)) */
     pm_neighbor *out;
     unsigned k, found;
     uint64_t nodes, evals;
@@ -466,8 +466,8 @@ static float cell_dist2(const float q[3], const float lo[3], const float hi[3]) 
     return o[0] * o[0] + o[1] * o[1] + o[2] * o[2];
 }
 
-static void reach_push(reach_state *s, float d2, uint32_t idx) {
-    pm__knn_offer(s->out, s->k, &s->found, &s->r2, d2, idx);
+static int reach_push(reach_state *s, float d2, uint32_t idx) {
+    return pm__knn_offer(s->out, s->k, &s->found, &s->r2, d2, idx);
 }
 
 static float rec_dist2(const reach_state *s, const float *p) {
@@ -494,7 +494,7 @@ static void reach_uniform(reach_state *s, uint64_t node) {
         for (uint64_t i = r[g].begin; i < r[g].end; i++) {
             if (d2 >= s->r2) return;
             if (!accept_normal(s->c, &s->irr->recs[i], (uint32_t)i)) continue;
-            reach_push(s, d2, (uint32_t)i);
+            if (!reach_push(s, d2, (uint32_t)i)) return; /* lost a tie: so do the rest */
         }
 }
 
@@ -590,7 +590,7 @@ static int irr_knn(const pm_irradiance *irr, lookup_ctx *c, const float q[3], un
         stats->nodes_visited += s.nodes;
         stats->dist_evals += s.evals;
     }
-    if (flags & PM_SORT) {
+    if ((flags & PM_SORT) && !pm__knn_is_sorted(k)) {
         if (s.found <= PM__SORT_KEYS_MAX) pm__nb_sort_keys(s.out, s.found);
         else pm__nb_sort(s.out, s.found);
     }

@@ -48,7 +48,7 @@ pm_kdtree_config pm_kdtree_photon_config(unsigned bucket) {
     c.stride = 20;
     c.pos_offset = 0;
     c.axis_offset = 18; /* pm_photon.flag; see photon.h */
-    c.bucket = bucket;
+    c.bucket = bucket ? bucket : PM_KDTREE_BUCKET_DEFAULT;
     return c;
 }
 

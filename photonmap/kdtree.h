@@ -57,18 +57,19 @@
  * at most PM_KDTREE_MAX_DEPTH entries, never allocate, never lock, and never write to the tree,
  * so any number of threads may query one tree at once.
  *
- * TIES. The k nearest are the k records of smallest dist2. When several records share the k-th
- * smallest distance, which of them are returned is a fixed function of the tree and the query:
- * a record met later must be strictly closer than the current k-th to enter, and when a closer
- * one enters, the tied record that leaves is the one at the top of the max-heap. The traversal
- * order is fixed too: at each node the side of the split containing q (q[axis] >= split goes
- * right) is searched first, then the node's record, then the far side. So the multiset of
- * returned distances always equals that of a brute-force scan, every record strictly closer
- * than the k-th distance is returned, and repeated or concurrent queries give identical arrays.
- * The iterative and recursive searches make the same decisions in the same order and return
- * identical arrays (and identical pm_query_stats). Unsorted results are in max-heap order once
- * k were found (out[0] is the farthest), else in traversal order. With PM_SORT, results are
- * ordered by (dist2, index) ascending.
+ * TIES. Among records at equal dist2 the smaller record index wins: the k nearest are the k
+ * records of smallest (dist2, index), compared by dist2 and then by index into the reordered
+ * array, among those with dist2 < max_dist2. That set does not depend on the traversal, so
+ * every k-nearest search here (pm_kdtree_knn, _recursive, _knn_ex with its metric and filter,
+ * pm_kdtree_nearest_if, with or without a maximum radius or PM_SORT) returns exactly it, and
+ * repeated or concurrent queries from any number of threads give identical arrays. (A filter
+ * applies first: the rule picks among the records it accepts.) The iterative and recursive
+ * searches visit in the same order and return identical arrays (and identical
+ * pm_query_stats). ORDER of results: with PM_SORT, ascending by (dist2, index); without it,
+ * for k <= 16 also ascending (the search keeps them sorted, so PM_SORT costs nothing there),
+ * and for k > 16 a max-heap on (dist2, index) (out[0] is the k-th nearest once k were found).
+ * pm_kdtree_radius returns every record within r2, so ties do not arise; when more than cap
+ * are within, which cap of them are written follows the traversal.
  *
  * STATS. nodes_visited counts internal nodes descended through, buckets scanned and uniform
  * subtrees met; dist_evals counts dist2 computations. Passing NULL selects a search instance
@@ -106,7 +107,14 @@ typedef struct pm_kdtree_config {
     unsigned bucket;   /* leaf bucket size B >= 1; 1 is Jensen's classic tree */
 } pm_kdtree_config;
 
-/* A config for pm_photon records with bucket size B (axis in the flag byte). */
+/* The bucket size recommended by the k-nearest race (docs/BENCHMARKS.md, "Choosing B"): B = 32
+ * and 64 came out even there (each the fastest in about as many cells, and within a few percent
+ * of each cell's fastest B in the median cell); 32 is the fastest in the worst cell (clustered
+ * data, empty-space queries, k = 10) and the better one over the two races of issue 28. */
+#define PM_KDTREE_BUCKET_DEFAULT 32u
+
+/* A config for pm_photon records with bucket size B (axis in the flag byte); bucket 0 means
+ * PM_KDTREE_BUCKET_DEFAULT. */
 pm_kdtree_config pm_kdtree_photon_config(unsigned bucket);
 
 /* Build a tree over records[0..n). Reorders records in place (see the top of this file).
@@ -129,10 +137,11 @@ const float *pm_kdtree_pos(const pm_kdtree *tree, uint32_t i);
  * irradiance uses it to pick "the photons that are neither leaves nor parents of leaves". */
 int pm_kdtree_height(const pm_kdtree *tree, uint32_t i);
 
-/* The k nearest records with dist2 < max_dist2. out must hold k entries. Returns the number
- * found (0..k) or a negative code. Iterative: an explicit stack of plane distances and far
- * children, a plain array until k candidates are found, then a max-heap whose top shrinks the
- * search radius. Unsorted (heap order) unless flags has PM_SORT. */
+/* The k nearest records with dist2 < max_dist2 (ties: the smaller index, see TIES above). out
+ * must hold k entries. Returns the number found (0..k) or a negative code. Iterative: an
+ * explicit stack of cells and far children; the results are kept in an array sorted by
+ * (dist2, index) for k <= 16, else in a max-heap, whose k-th entry shrinks the search radius.
+ * Order: see TIES (PM_SORT sorts when k > 16). */
 int pm_kdtree_knn(const pm_kdtree *tree, const float q[3], unsigned k, float max_dist2,
                   pm_neighbor *out, unsigned flags, pm_query_stats *stats);
 /* The same search written recursively (depth at most D + 1 <= 33 frames), for comparison;

@@ -1,11 +1,13 @@
 /* kdtree_query.c: k-nearest, radius and predicate queries on the heap kd-tree.
  *
- * TRAVERSAL. Christensen's "iteration instead of recursion": walk down to the bucket on the
- * query's side of every split, pushing (bounds, far child, far cell) on a fixed stack of at
+ * TRAVERSAL. Christensen's "iteration instead of recursion": walk down, at every split into
+ * the child whose cell is closer to q (q's side of the split unless the other child's
+ * tightened cell is closer), pushing (bounds, other child, its cell) on a fixed stack of at
  * most D entries; scan the bucket; then pop entries until one has a bound < r2, where r2 is
  * the current search radius. Only then is that node's own record tested, and the walk
- * continues down its far child if the far cell is still within reach. The recursive version
- * makes the same decisions in the same order, so both return identical arrays.
+ * continues down the other child if its cell is still within reach. The recursive version
+ * makes the same decisions in the same order, so both return identical arrays. (Best-first
+ * order was measured and lost: bench/results/experiments.csv.)
  *
  * CELL DISTANCE (Arya and Mount's). A subtree is pruned by the squared distance from q to its
  * cell, not to one split plane. The query carries the current cell as a box [lo, hi] (two
@@ -24,10 +26,12 @@
  * whose float dist2 overflowed to +inf; against a finite r2 it is the strict x < r2. dist2 and
  * plane distances are never NaN (positions and queries are finite), so no other case arises.
  *
- * K-NN. Candidates go to the caller's array in arrival order until k are found; the array is
- * then turned into a max-heap on dist2 and r2 becomes its top, so the radius shrinks as closer
- * records replace the top. A record is accepted only with dist2 < r2, so among records tied at
- * the k-th distance the first met wins.
+ * K-NN. The result set is internal.h's (THE K-NEAREST RESULT SET): the k smallest
+ * (dist2, index) within max_dist2, kept sorted for small k and in a max-heap for large k. The
+ * search's bound r2 is that set's `lim`: max_dist2 until k are found, then the float just
+ * above the k-th dist2, so that a record or a cell at exactly the k-th distance is still
+ * looked at (a tied record with a smaller index must win, wherever it lies). Every test stays
+ * !(x >= r2). The answer is thus the same for any visiting order.
  *
  * UNIFORM SUBTREES (axis code 3, all records at one position) are handled as one distance:
  * records are taken from them only while they can still enter the result, so a million
@@ -283,7 +287,7 @@ static void root_box(const view *v, int ph, float lo[3], float hi[3]) {
 
 typedef struct {
     float q[3];
-    float r2;             /* current radius; NaN = unlimited */
+    float r2;             /* the result set's bound (lim): offer only !(d2 >= r2); NaN = none */
     pm_neighbor *out;
     unsigned k, found;
     const float *nrm;     /* ellipsoid metric normal, or NULL */
@@ -295,9 +299,9 @@ typedef struct {
     float rd;             /* dist2 from q to it */
 } knn_state;
 
-/* Precondition: !(d2 >= s->r2). */
-PM__INLINE void knn_push(knn_state *s, float d2, uint32_t idx) {
-    pm__knn_offer(s->out, s->k, &s->found, &s->r2, d2, idx);
+/* Precondition: !(d2 >= s->r2). Returns 0 when the record lost a tie (pm__knn_offer). */
+PM__INLINE int knn_push(knn_state *s, float d2, uint32_t idx) {
+    return pm__knn_offer(s->out, s->k, &s->found, &s->r2, d2, idx);
 }
 
 PM__INLINE float knn_dist2(const knn_state *s, const float *p, int metric) {
@@ -320,7 +324,8 @@ PM__INLINE void knn_consider(knn_state *s, const view *v, uint64_t i, int metric
     }
 }
 
-/* A uniform subtree rooted at internal node `node`: one distance for all its records. */
+/* A uniform subtree rooted at internal node `node`: one distance for all its records, offered
+ * in increasing index order (pm__subtree_ranges lists its ranges that way). */
 static void knn_uniform(knn_state *s, const view *v, uint64_t node, int metric, int filter) {
     float d2 = knn_dist2(s, P(v, node - 1), metric);
     s->evals++;
@@ -331,7 +336,8 @@ static void knn_uniform(knn_state *s, const view *v, uint64_t node, int metric, 
         for (uint64_t i = r[g].begin; i < r[g].end; i++) {
             if (d2 >= s->r2) return;
             if (filter && !s->filter(s->user, v->rec + i * v->stride, (uint32_t)i)) continue;
-            knn_push(s, d2, (uint32_t)i);
+            /* indices only grow from here on, so once one loses the tie all the rest do */
+            if (!knn_push(s, d2, (uint32_t)i)) return;
         }
     }
 }
@@ -438,7 +444,9 @@ PM__INLINE void prefetch_buckets(const view *v, uint64_t near) {
     }
 }
 
-PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, int ph, int cnt) {
+/* Depth first from `node0`, whose cell is [lo0, hi0] at dist2 cd0 from q. */
+PM__INLINE void knn_dfs(knn_state *io, const view *v, uint64_t node0, v4 lo0, v4 hi0, float cd0,
+                        int metric, int filter, int ph, int cnt) {
     /* Work on a local copy whose address never escapes, so the compiler keeps r2, found and
      * the query in registers; the rare uniform case goes through memory. */
     knn_state ls = *io, *s = &ls;
@@ -451,11 +459,12 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
         uint32_t node;
     } stack[PM_KDTREE_MAX_DEPTH];
     int sp = 0;
-    uint64_t node = 1;
+    uint64_t node = node0;
     const uint64_t L = v->L;
     const v4 qv = v4_load3(s->q);
-    v4 lo = v4_load3(s->lo), hi = v4_load3(s->hi);
-    if (s->rd >= s->r2) return; /* the whole tree is out of reach */
+    v4 lo = lo0, hi = hi0;
+    float cd = cd0; /* dist2 from q to the current cell [lo, hi] */
+    if (cd >= s->r2) return; /* out of reach */
     for (;;) {
         while (node < L) {
             /* Start loading the grandchildren (records 4p-1 .. 4p+2, contiguous) while this
@@ -476,21 +485,36 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
             float split = PX(v, node - 1, ph)[a];
             float d = s->q[a] - split;
             uint64_t near = 2 * node + (d >= 0);
-            prefetch_buckets(v, near);
-            /* The far child's cell: r2 only shrinks, so an entry already out of reach is never
-             * pushed. The recursive search makes the same decisions later, when it returns. */
+            /* The two children's cells and distances: the far one's (rf; rr before its own
+             * code, the bound of this node's record, which lies in that cell's boundary
+             * plane), and the near one's: this cell on the split axis's near side (the same
+             * distance cd), unless its own code moves it away from q. */
             v4 flo, fhi;
             float rr, rf;
             split_cell(v, ph, qv, near, a, split, &lo, &hi, &flo, &fhi, &rr, &rf);
-            stack[sp].lo = flo, stack[sp].hi = fhi;
+            float dn = near_code(v, ph, qv, near, &lo, &hi);
+            if (dn < 0) dn = cd;
+            /* VISITING ORDER: the child whose cell is closer first (q's side on a tie); the
+             * other waits on the stack with the record's bound rr. r2 only shrinks, so an
+             * entry already out of reach (rr, a bound of both the record and that child) is
+             * never pushed. The recursive search makes the same decisions. */
+            if (rf < dn) {
+                stack[sp].lo = lo, stack[sp].hi = hi;
+                stack[sp].rf = dn;
+                lo = flo, hi = fhi;
+                cd = rf;
+                near ^= 1;
+            } else {
+                stack[sp].lo = flo, stack[sp].hi = fhi;
+                stack[sp].rf = rf;
+                cd = dn;
+            }
             stack[sp].rr = rr;
-            stack[sp].rf = rf;
             stack[sp].node = (uint32_t)(near ^ 1);
             sp += !(rr >= s->r2);
-            /* The near child's cell: the same as this one on the split axis's near side, so
-             * only its own code can move it away from q. */
             node = near;
-            if (near_code(v, ph, qv, near, &lo, &hi) >= s->r2) goto pop;
+            prefetch_buckets(v, near);
+            if (cd >= s->r2) goto pop;
         }
         if (cnt) s->nodes++;
         knn_bucket(s, v, node, metric, filter, ph, cnt);
@@ -508,13 +532,18 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
             knn_consider(s, v, (node >> 1) - 1, metric, filter, ph, cnt);
             if (stack[sp].rf >= s->r2) continue;
             lo = stack[sp].lo, hi = stack[sp].hi;
+            cd = stack[sp].rf;
             break;
         }
     }
 }
 
+PM__INLINE void knn_iter(knn_state *s, const view *v, int metric, int filter, int ph, int cnt) {
+    knn_dfs(s, v, 1, v4_load3(s->lo), v4_load3(s->hi), s->rd, metric, filter, ph, cnt);
+}
+
 #define PM__KNN_REC(name, metric, filter, ph, cnt)                                        \
-    static void name(knn_state *s, const view *v, uint64_t node, v4 lo, v4 hi) {         \
+    static void name(knn_state *s, const view *v, uint64_t node, v4 lo, v4 hi, float cd) { \
         if (cnt) s->nodes++;                                                             \
         if (node >= v->L) {                                                              \
             knn_bucket(s, v, node, metric, filter, ph, cnt);                             \
@@ -532,16 +561,24 @@ PM__INLINE void knn_iter(knn_state *io, const view *v, int metric, int filter, i
         float split = PX(v, node - 1, ph)[a];                                            \
         float d = s->q[a] - split;                                                       \
         uint64_t near = 2 * node + (d >= 0);                                             \
-        prefetch_buckets(v, near);                                                       \
         const v4 qv = v4_load3(s->q);                                                    \
         v4 flo, fhi, nlo = lo, nhi = hi;                                                 \
         float rr, rf;                                                                    \
         split_cell(v, ph, qv, near, a, split, &nlo, &nhi, &flo, &fhi, &rr, &rf);         \
-        if (!(near_code(v, ph, qv, near, &nlo, &nhi) >= s->r2))                          \
-            name(s, v, near, nlo, nhi);                                                  \
+        float dn = near_code(v, ph, qv, near, &nlo, &nhi);                               \
+        if (dn < 0) dn = cd;                                                             \
+        if (rf < dn) { /* the closer cell first, as the iterative search */             \
+            v4 tlo = nlo, thi = nhi;                                                     \
+            float td = dn;                                                               \
+            nlo = flo, nhi = fhi, dn = rf;                                               \
+            flo = tlo, fhi = thi, rf = td;                                               \
+            near ^= 1;                                                                   \
+        }                                                                                \
+        prefetch_buckets(v, near);                                                       \
+        if (!(dn >= s->r2)) name(s, v, near, nlo, nhi, dn);                              \
         if (!(rr >= s->r2)) {                                                            \
             knn_consider(s, v, node - 1, metric, filter, ph, cnt);                       \
-            if (!(rf >= s->r2)) name(s, v, near ^ 1, flo, fhi);                          \
+            if (!(rf >= s->r2)) name(s, v, near ^ 1, flo, fhi, rf);                      \
         }                                                                                \
     }
 /* The recursive search, one instance per layout and counting choice like the iterative one,
@@ -599,7 +636,7 @@ static int knn_finish(knn_state *s, unsigned flags, pm_query_stats *stats) {
         stats->nodes_visited += s->nodes;
         stats->dist_evals += s->evals;
     }
-    if (flags & PM_SORT) {
+    if ((flags & PM_SORT) && !pm__knn_is_sorted(s->k)) {
         if (s->found <= PM__SORT_KEYS_MAX) pm__nb_sort_keys(s->out, s->found);
         else pm__nb_sort(s->out, s->found);
     }
@@ -630,11 +667,11 @@ int pm_kdtree_knn_recursive(const pm_kdtree *tree, const float q[3], unsigned k,
     if (s.rd >= s.r2) return 0; /* the whole tree is out of reach */
     view v = make_view(tree);
     if (!is_photon_layout(tree))
-        knn_rec_gen(&s, &v, 1, v4_load3(s.lo), v4_load3(s.hi));
+        knn_rec_gen(&s, &v, 1, v4_load3(s.lo), v4_load3(s.hi), s.rd);
     else if (stats)
-        knn_rec_ph_cnt(&s, &v, 1, v4_load3(s.lo), v4_load3(s.hi));
+        knn_rec_ph_cnt(&s, &v, 1, v4_load3(s.lo), v4_load3(s.hi), s.rd);
     else
-        knn_rec_ph(&s, &v, 1, v4_load3(s.lo), v4_load3(s.hi));
+        knn_rec_ph(&s, &v, 1, v4_load3(s.lo), v4_load3(s.hi), s.rd);
     return knn_finish(&s, flags, stats);
 }
 

@@ -51,8 +51,8 @@ cat <<'EOF'
 `render-mpi` renders one image over several MPI processes (ranks), on one machine or on
 many, and gives the image of the one-process `render` bit for bit (or, with partitioned photon
 maps, an image within 1% of it region by region). It takes `render`'s
-options (it is `render/app/main.c` compiled a second time; `render/mpi/dist.h` explains the
-seams) plus:
+options (it runs `render`'s own program, `render_main` of `render/app/app.h`, with its hooks;
+`render/mpi/dist.h` explains the seams) plus:
 
 | option | meaning |
 |---|---|

@@ -6,7 +6,9 @@
 # RESULTS_DIR (default docs/results) holds regions.csv, time_error.csv,
 # time_error_summary.txt, the *.time and *_plan.txt files, the images, and measurement.txt:
 # the commit, date and machine of the measurement, its settings and the references' info; and,
-# if present, media/ from scripts/media-results.sh (the media section, with its own stamp).
+# if present, media/ from scripts/media-results.sh (the media section, with its own stamp) and
+# equal_time/ from scripts/make-equal-time.sh (the section at the defaults, with its own stamp,
+# by scripts/gen-equal-time-md.sh).
 # Every figure and stamp in the document comes from those files, never from the checkout or
 # the clock at generation time, so the same files always give the same document (a test
 # regenerates it from the committed files and compares). --out FILE writes FILE instead of
@@ -181,6 +183,12 @@ EOF
     END { printf "%d of %d media region means are within their tolerance; the largest difference is %.2f%%, %s.\n", ok, n, 100 * m, w }' "$res/media/regions.csv"
   echo "The volumetric caustic has no path-traced reference (path tracing hardly finds its beam: \`docs/MEDIA.md\`);"
   echo "its deposited power is checked against a brute-force integral by the test media_volumetric_caustic_energy."
+fi
+if [ -f "$res/equal_time/runs.csv" ]; then
+  # Photon mapping at its defaults against path tracing at equal CPU time
+  # (scripts/make-equal-time.sh), with its own stamp.
+  echo
+  sh "$here/scripts/gen-equal-time-md.sh" "$res/equal_time"
 fi
 } > "$tmp"
 if [ "$doc" = - ]; then

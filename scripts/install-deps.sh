@@ -3,7 +3,7 @@
 #
 #   scripts/install-deps.sh [--bench | --ci | --mpi | --all]
 #
-# With no option: what `make test` and `make run` need (compiler, pkg-config, the three
+# With no option: what `make test` and `make run` need (compiler, pkg-config, the four
 # libraries, GNU time for the scripts' timings). --bench adds gnuplot (plots) and valgrind
 # (the cache profile of `make bench`); --ci adds clang with its OpenMP runtime and its
 # sanitizer runtimes (the clang and ThreadSanitizer builds of .ci/run); --mpi adds OpenMPI
@@ -16,9 +16,10 @@
 # every package a step needs is named here, never left to a recommendation.
 set -eu
 
-# Needed to build and test: compiler, pkg-config, the four libraries (OpenEXR: its C API,
-# OpenEXRCore, for --hdr x.exr), GNU time (/usr/bin/time).
-BASE="build-essential pkg-config libflann-dev libcjson-dev libpng-dev libopenexr-dev time"
+# Needed to build and test: compiler, pkg-config, the libraries (nanoflann is header-only,
+# raced in bench/ beside FLANN; OpenEXR: its C API, OpenEXRCore, for --hdr x.exr), GNU time
+# (/usr/bin/time).
+BASE="build-essential pkg-config libflann-dev libnanoflann-dev libcjson-dev libpng-dev libopenexr-dev time"
 # Needed by `make bench` and the plot scripts.
 BENCH="gnuplot-nox valgrind"
 # Needed by .ci/run: clang, its OpenMP runtime (libomp, with the Archer tool TSan uses) and

@@ -6,7 +6,9 @@
 #   scripts/make-reference.sh [SCENE_NAME ...]      default: cornell_spheres cornell_diffuse
 #
 # Environment: PM_BUILD_DIR (where `render` is; default build/release), REF_RES (image side,
-# default 256), REF_SPP_<name> (samples per pixel; defaults below), REF_THREADS (default 2).
+# default 256), REF_SPP_<name> (samples per pixel; defaults below), REF_THREADS (default 2),
+# REF_NICE (the niceness it runs at, default 10), REF_OUT (the directory, default
+# data/reference; make-equal-time.sh's 96x96 references go to data/reference/et96).
 #
 # For each scene it writes data/reference/NAME.pfm (linear), NAME.png (a look at it) and
 # NAME.info, a "key value" file with the scene file's SHA-256, the resolution, spp, seed and
@@ -24,7 +26,8 @@ bin="${PM_BUILD_DIR:-$here/build/release}/render"
 [ -x "$bin" ] || { echo "make-reference: $bin not found; run make first (or set PM_BUILD_DIR)" >&2; exit 2; }
 res="${REF_RES:-256}"
 threads="${REF_THREADS:-2}"
-out="$here/data/reference"
+nice="${REF_NICE:-10}"
+out="${REF_OUT:-$here/data/reference}"
 mkdir -p "$out"
 [ $# -gt 0 ] || set -- cornell_spheres cornell_diffuse
 for name in "$@"; do
@@ -37,7 +40,7 @@ for name in "$@"; do
   eval "spp=\${REF_SPP_$name:-$def_spp}"
   echo "make-reference: $name at ${res}x${res}, $spp spp (started $(date -u +%H:%M:%S) UTC)"
   t0=$(date +%s)
-  /usr/bin/time -f '%U %S' -o "$out/$name.time" nice -n 10 "$bin" "$scene" --mode path \
+  /usr/bin/time -f '%U %S' -o "$out/$name.time" nice -n "$nice" "$bin" "$scene" --mode path \
       --width "$res" --height "$res" --spp "$spp" --seed 1000 --threads "$threads" --quiet \
       --hdr "$out/$name.pfm.tmp.pfm" -o "$out/$name.png" > "$out/$name.log"
   mv "$out/$name.pfm.tmp.pfm" "$out/$name.pfm"
@@ -47,7 +50,7 @@ for name in "$@"; do
     echo "scene_sha256 $(sha256sum "$scene" | cut -d' ' -f1)"
     echo "width $res"
     echo "height $res"
-    echo "spp $spp"
+    echo "spp $(sed -n 's/^Rendering [0-9]*x[0-9]*, \([0-9]*\) spp.*/\1/p' "$out/$name.log")"
     echo "seed 1000"
     echo "cpu_seconds $cpu"
     echo "wall_seconds $((t1 - t0))"

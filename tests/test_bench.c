@@ -231,6 +231,13 @@ TEST(bench_quick_run_writes_checked_csvs) {
         EXPECT(atoi(at(&kq, r, "verified")) > 0 && atof(at(&kq, r, "qps")) > 0);
     }
     EXPECT(kq.nrows > 1 && kb.nrows > 1);
+    /* nanoflann raced in every cell, in both point orders (their rows are exact above). */
+    for (int r = 1; r < kb.nrows; r++)
+        EXPECT_MSG(!strncmp(at(&kb, r, "nanoflann"), "nanoflann_knn_", 14) &&
+                       atof(at(&kb, r, "nanoflann_qps")) > 0 &&
+                       !strncmp(at(&kb, r, "nanoflann_input"), "nanoflann_knn_", 14),
+                   "knn_best.csv row %d: no nanoflann ('%s')", r, at(&kb, r, "nanoflann"));
+    EXPECT(count_rows(&kq, "workload", "cluster", "index", "nanoflann", "variant", "knn_tree_order") > 0);
     /* The paired cost of PM_SORT: a median of at least 3 rounds, inside their range. */
     for (int r = 1; r < kb.nrows; r++) {
         double c = atof(at(&kb, r, "sort_cost")), lo = atof(at(&kb, r, "sort_cost_min")),

@@ -341,26 +341,28 @@ TEST(kdtree_degenerate_data_visits_bounded) {
 
 /* ---- the k-nearest heap step -------------------------------------------------------------- */
 
-/* The textbook sift-down that internal.h documents for a max-heap on dist2 (the larger child
- * moves up; ties between children go to the left one; a child equal to v stays below it),
- * written out here as the oracle. */
+/* The textbook sift-down that internal.h documents for a max-heap on the key (dist2, index)
+ * (the larger child moves up; keys are distinct), written out here as the oracle. */
+static int ref_gt(pm_neighbor a, pm_neighbor b) {
+    return a.dist2 > b.dist2 || (a.dist2 == b.dist2 && a.index > b.index);
+}
 static void ref_replace_top(pm_neighbor *h, unsigned n, pm_neighbor v) {
     unsigned i = 0;
     for (;;) {
         unsigned c = 2 * i + 1;
         if (c >= n) break;
-        if (c + 1 < n && h[c + 1].dist2 > h[c].dist2) c++;
-        if (!(h[c].dist2 > v.dist2)) break;
+        if (c + 1 < n && ref_gt(h[c + 1], h[c])) c++;
+        if (!ref_gt(h[c], v)) break;
         h[i] = h[c];
         i = c;
     }
     h[i] = v;
 }
 
-/* Oracle: the sift-down above. pm__heap_replace_top (which every k-nearest search calls for
- * each record entering a full heap, and whose choices fix which tied record a search returns,
- * kdtree.h TIES) must leave exactly the same array: heaps of 1..300 entries with few distinct
- * distances (many ties), +inf and 0 among them, each replaced 8 times. */
+/* Oracle: the sift-down above, on the key (dist2, index). pm__heap_replace_top (which the
+ * k-nearest searches with a large k call for each record entering a full heap) must leave
+ * exactly the same array: heaps of 1..300 entries with few distinct distances (many ties in
+ * dist2, broken by the index), +inf and 0 among them, each replaced 8 times. */
 TEST(kdtree_heap_replace_top_matches_sift_down) {
     kt_rng r = {12345};
     pm_neighbor a[300], b[300];
@@ -377,7 +379,7 @@ TEST(kdtree_heap_replace_top_matches_sift_down) {
         for (unsigned i = 1; i < n; i++) {
             unsigned j = i;
             pm_neighbor v = a[j];
-            while (j > 0 && a[(j - 1) / 2].dist2 < v.dist2) {
+            while (j > 0 && ref_gt(v, a[(j - 1) / 2])) {
                 a[j] = a[(j - 1) / 2];
                 j = (j - 1) / 2;
             }

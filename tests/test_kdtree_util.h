@@ -4,8 +4,9 @@
  * the same float expression as the tree, keeps those with dist2 < r2 (all of them when r2 is
  * +INFINITY, as kdtree.h documents) and sorts them. A k-NN answer is correct when it has
  * min(k, count) entries, distinct indices, each reported dist2 equals the recomputed one, and
- * its sorted dist2 list equals the oracle's first entries exactly (ties at the k-th distance
- * may be broken either way, kdtree.h). No tolerance: both sides compute the same floats.
+ * its sorted dist2 list equals the oracle's first entries exactly (which of the records tied at
+ * the k-th distance are returned is checked by test_kdtree_ties.c, against kdtree.h's rule).
+ * No tolerance: both sides compute the same floats.
  */
 #ifndef PM_TEST_KDTREE_UTIL_H
 #define PM_TEST_KDTREE_UTIL_H

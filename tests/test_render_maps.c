@@ -23,8 +23,10 @@
 #include "test.h"
 #include "test_render_run.h"
 
+/* shadow=true: the plan leaves shadow photons off by default (plan.h); these tests save and
+ * load all three surface maps, so they force them (a later --pm shadow=false still wins). */
 #define SMALL "--width 16 --height 16 --spp 1 --quiet --seed 3 --pm global_photons=3000 " \
-              "--pm caustic_photons=1500 --pm gather_rays=1"
+              "--pm caustic_photons=1500 --pm gather_rays=1 --pm shadow=true"
 
 static char g_out[1 << 16];
 
@@ -512,7 +514,8 @@ TEST(render_maps_other_tracer_version_is_refused_unless_forced) {
 
 /* ---- scenes with media: the volume maps (photon_maps.h MAP FILES) ------------------------- */
 
-#define MEDIA_FLAGS "--pm volume_photons=3000 --pm volume_caustic_photons=1500"
+/* shadow=false undoes SMALL's shadow=true: a scene with media has no shadow photons (plan.h). */
+#define MEDIA_FLAGS "--pm volume_photons=3000 --pm volume_caustic_photons=1500 --pm shadow=false"
 
 /* volumetric_caustic (a fog box, a glass sphere: all four maps but the shadow map) saved into
  * DIR "vmaps" with its traced image vtraced.pfm. */

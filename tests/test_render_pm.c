@@ -130,21 +130,21 @@ typedef struct expected_plan {
  *                    that, not "nothing occludes", is the reason shadow photons are off.
  * A new scene file without a row here fails the test. */
 static const expected_plan k_plans[] = {
-    {"cornell_box", 0, 1, 1, 1, "no specular surface", "", "", ""},
-    {"cornell_spheres", 1, 1, 1, 1, "", "", "", ""},
-    {"cornell_diffuse", 0, 1, 1, 1, "no specular surface", "", "", ""},
+    {"cornell_box", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
+    {"cornell_spheres", 1, 1, 0, 1, "", "", "the hint costs more than the shadow rays it saves", ""},
+    {"cornell_diffuse", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
     {"cornell_point", 0, 1, 0, 1, "no specular surface", "", "no area light", ""},
     {"sun_spheres", 1, 1, 0, 1, "", "", "no area light", ""},
     {"furnace", 0, 1, 0, 1, "no specular surface", "", "no area light", ""},
-    {"cornell_rect", 0, 1, 1, 1, "no specular surface", "", "", ""},
-    {"cornell_tungsten", 0, 1, 1, 1, "no specular surface", "", "", ""},
-    {"water_caustic", 1, 1, 1, 1, "", "", "", ""},
-    {"partition_thin", 0, 1, 1, 1, "no specular surface", "", "", ""},
-    {"partition_thick", 0, 1, 1, 1, "no specular surface", "", "", ""},
-    {"shelf_glass", 0, 1, 1, 1, "leads to a diffuse one: 0 of", "", "", ""},
-    {"pinhole_room", 0, 1, 1, 1, "no specular surface", "", "", ""},
-    {"glass_hole", 1, 1, 1, 1, "", "", "", ""},
-    {"glass_enclosed", 1, 1, 1, 1, "", "", "", ""},
+    {"cornell_rect", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
+    {"cornell_tungsten", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
+    {"water_caustic", 1, 1, 0, 1, "", "", "the hint costs more than the shadow rays it saves", ""},
+    {"partition_thin", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
+    {"partition_thick", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
+    {"shelf_glass", 0, 1, 0, 1, "leads to a diffuse one: 0 of", "", "the hint costs more than the shadow rays it saves", ""},
+    {"pinhole_room", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
+    {"glass_hole", 1, 1, 0, 1, "", "", "the hint costs more than the shadow rays it saves", ""},
+    {"glass_enclosed", 1, 1, 0, 1, "", "", "the hint costs more than the shadow rays it saves", ""},
     {"mirror_cage", 0, 0, 0, 0, "leads to a diffuse one: 0 of 8192", "no surface the lights reach stores photons, 0 of 8192", "no area light", "no global map"},
     {"black_box", 0, 0, 0, 0, "no specular surface", "no surface the lights reach stores photons", "no surface the lights reach stores photons", "no global map"},
     /* Media: shadow rays carry the transmittance there, so no shadow photons (plan.h). */
@@ -273,7 +273,8 @@ typedef struct physics_case {
  *                   floor lights the wall (global, found through the specular surface);
  *   open_plane      an area light over a plane: no occluder, nothing to interreflect;
  *   plane_sphere    the same with a diffuse sphere between: shadows, and the plane and
- *                   sphere light each other. */
+ *                   sphere light each other; shadow photons stay off all the same (their hint
+ *                   costs more than the shadow rays it saves: render_pm_plan_shadow_hint). */
 TEST(render_pm_plan_physics_cases) {
     static const physics_case cases[] = {
         {"sphere_sun",
@@ -312,7 +313,7 @@ TEST(render_pm_plan_physics_cases) {
          "\"objects\": [{\"type\": \"quad\", \"vertices\": [[-5,0,-5],[-5,0,5],[5,0,5],[5,0,-5]], \"material\": \"w\"},"
          "{\"type\": \"sphere\", \"center\": [0,1,0], \"radius\": 0.6, \"material\": \"w\"},"
          "{\"type\": \"quad\", \"vertices\": [[-1,3,-1],[1,3,-1],[1,3,1],[-1,3,1]], \"material\": \"e\"}]}",
-         0, 1, 1},
+         0, 1, 0},
     };
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
         const physics_case *pc = &cases[i];
@@ -330,6 +331,46 @@ TEST(render_pm_plan_physics_cases) {
         check_item(pc->name, "shadow", &p.shadow, pc->shadow, "");
         scene_free(&s);
     }
+}
+
+/* Oracle: plan.h, PLAN_SHADOW_HINT_NODES (measured: the shadow hint paid in no scene, so it is
+ * off unless forced). An area light over a plane with a sphere between: occluders, and the
+ * reason says so with its figures (the pilot's occluder count, the search's k, the BVH);
+ * photon_mapping.shadow=true (or --pm shadow=true) still turns it on, "forced". */
+TEST(render_pm_plan_shadow_hint) {
+    static const char *json =
+        "{" CAM8 ", \"materials\": {\"w\": {\"type\": \"lambert\", \"reflectance\": 0.5},"
+        "\"e\": {\"type\": \"lambert\", \"reflectance\": 0, \"emission\": 1}},"
+        "\"objects\": [{\"type\": \"quad\", \"vertices\": [[-5,0,-5],[-5,0,5],[5,0,5],[5,0,-5]], \"material\": \"w\"},"
+        "{\"type\": \"sphere\", \"center\": [0,1,0], \"radius\": 0.6, \"material\": \"w\"},"
+        "{\"type\": \"quad\", \"vertices\": [[-1,3,-1],[1,3,-1],[1,3,1],[-1,3,1]], \"material\": \"e\"}]}";
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, json, &e) == 0, "%s", e.msg);
+    photon_settings c;
+    photon_settings_defaults(&c);
+    render_plan p;
+    EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
+    EXPECT(!p.shadow.on);
+    char want[160];
+    snprintf(want, sizeof want, "its %d-photon search of the shadow map costs about %d BVH node visits",
+             c.k_shadow, PLAN_SHADOW_HINT_NODES);
+    char bvh_want[80]; /* two triangles a quad and the sphere */
+    snprintf(bvh_want, sizeof bvh_want, "(BVH depth %d, %d primitives)", s.accel.depth, s.ntris + s.nspheres);
+    EXPECT_EQ_INT(s.ntris + s.nspheres, 5);
+    EXPECT_MSG(strstr(p.shadow.reason, "area light with occluders (") && strstr(p.shadow.reason, want) &&
+                   strstr(p.shadow.reason, bvh_want) &&
+                   strstr(p.shadow.reason, "photon_mapping.shadow=true forces it"),
+               "%s", p.shadow.reason);
+    plan_free(&p);
+    char err[256];
+    ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "shadow=true", err, sizeof err), 0);
+    ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
+    EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
+    EXPECT_MSG(p.shadow.on && strcmp(p.shadow.reason, "forced by photon_mapping.shadow") == 0, "%s",
+               p.shadow.reason);
+    plan_free(&p);
+    scene_free(&s);
 }
 
 /* Oracle: the documented forcing (plan.h): a "photon_mapping" key or `--pm KEY=VALUE`
@@ -380,7 +421,7 @@ TEST(render_pm_plan_forced) {
     EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
     EXPECT(!p.caustics.on);
     EXPECT_MSG(strcmp(p.caustics.reason, "forced by photon_mapping.caustics") == 0, "%s", p.caustics.reason);
-    EXPECT(p.global.on && p.shadow.on && p.final_gather.on);
+    EXPECT(p.global.on && !p.shadow.on && p.final_gather.on);
     /* A later flag replaces the earlier one; global off takes final gathering with it. */
     ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "caustics=true", err, sizeof err), 0);
     ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "global=false", err, sizeof err), 0);
@@ -1396,7 +1437,8 @@ static void check_saved(const char *dir, const char *name, const pm_photon *want
  * bit-identical PFMs, and a different seed a different one. The image from the saved maps
  * equals the image of the run that traced them bit for bit. With 4000 caustic photons the
  * caustic pilot's stores join the caustic map (photon_trace.h, PILOT PHOTONS; the plan's
- * line says so): the saved caustic map holds them. */
+ * line says so): the saved caustic map holds them. Shadow photons are forced on (the plan
+ * leaves them off, plan.h) so the shadow map is saved and loaded too. */
 TEST(render_pm_save_load_round_trip) {
     static char out[65536];
     char dir[1024], extra[4096], a[1024], b[1024], c[1024], d[1024];
@@ -1405,7 +1447,7 @@ TEST(render_pm_save_load_round_trip) {
     snprintf(b, sizeof b, "%s/loaded.pfm", pm_test_tmpdir());
     snprintf(c, sizeof c, "%s/loaded_again.pfm", pm_test_tmpdir());
     snprintf(d, sizeof d, "%s/loaded_seed8.pfm", pm_test_tmpdir());
-    snprintf(extra, sizeof extra, "--seed 7 --pm caustic_photons=4000 --hdr '%s' --save-photons '%s'", a, dir);
+    snprintf(extra, sizeof extra, "--seed 7 --pm caustic_photons=4000 --pm shadow=true --hdr '%s' --save-photons '%s'", a, dir);
     int rc = render_tiny("cornell_spheres", extra, out, sizeof out);
     ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
     EXPECT_MSG(strstr(out, "Saved photon maps to"), "%s", out);
@@ -1421,6 +1463,7 @@ TEST(render_pm_save_load_round_trip) {
     ASSERT_MSG(photon_settings_parse(&cfg, s.photon_mapping, &e) == 0, "%s", e.msg);
     cfg.global_photons = cfg.caustic_photons = 4000;
     cfg.gather_rays = 4;
+    cfg.force_shadow = PLAN_ON; /* --pm shadow=true: the shadow map is saved and loaded too */
     render_plan plan;
     EXPECT_EQ_INT(plan_make(&s, &cfg, 0, &plan, NULL, 0), 0);
     ASSERT_MSG(plan.imp && plan.pilot, "table %p, pilot photons %p", (void *)plan.imp, (void *)plan.pilot);
@@ -1449,7 +1492,7 @@ TEST(render_pm_save_load_round_trip) {
     check_saved(dir, "caustic.pmap", m.caustic, m.ncaustic, PM_MAP_CAUSTIC, m.caustic_emitted, 0);
     check_saved(dir, "shadow.pmap", m.shadow, m.nshadow, PM_MAP_SHADOW, m.global_emitted, 0);
 
-    snprintf(extra, sizeof extra, "--seed 7 --pm caustic_photons=4000 --hdr '%s' --load-photons '%s'", b, dir);
+    snprintf(extra, sizeof extra, "--seed 7 --pm caustic_photons=4000 --pm shadow=true --hdr '%s' --load-photons '%s'", b, dir);
     rc = render_tiny("cornell_spheres", extra, out, sizeof out);
     ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
     snprintf(want, sizeof want, ": %zu global, %zu caustic, %zu shadow-map photons", m.nglobal,
@@ -1458,10 +1501,10 @@ TEST(render_pm_save_load_round_trip) {
                want, out);
     EXPECT_MSG(!strstr(out, "\nPhotons: "), "photons were traced, not loaded: %s", out);
     photon_maps_free(&m);
-    snprintf(extra, sizeof extra, "--seed 7 --pm caustic_photons=4000 --hdr '%s' --load-photons '%s'", c, dir);
+    snprintf(extra, sizeof extra, "--seed 7 --pm caustic_photons=4000 --pm shadow=true --hdr '%s' --load-photons '%s'", c, dir);
     rc = render_tiny("cornell_spheres", extra, out, sizeof out);
     ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
-    snprintf(extra, sizeof extra, "--seed 8 --pm caustic_photons=4000 --hdr '%s' --load-photons '%s'", d, dir);
+    snprintf(extra, sizeof extra, "--seed 8 --pm caustic_photons=4000 --pm shadow=true --hdr '%s' --load-photons '%s'", d, dir);
     rc = render_tiny("cornell_spheres", extra, out, sizeof out);
     ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
 

@@ -19,6 +19,8 @@
 #include "test.h"
 #include "../photonmap/common.h"
 #include "../render/image/film.h"
+#include "../render/run/checkpoint.h"
+#include "../render/run/passes.h"
 #include "test_render_run.h"
 
 #define FURNACE_PM                                                                         \
@@ -151,7 +153,8 @@ TEST(render_progressive_radius_schedule) {
  * ppm_radius=0.5, pass 0's global r^2 is (0.5 x the typical radius)^2, the typical radius
  * being what the plain render prints as the secondary-gather distance (4 significant digits:
  * relative 2e-3), and below the maximum radius it prints; the volume map's r^2 follows the
- * same recurrence as the surface maps (float precision). */
+ * same recurrence as the surface maps (float precision); and the render checkpointed after
+ * 1 pass and resumed to 3 is the 3 passes' image byte for byte. */
 TEST(render_progressive_start_radius_and_volume_schedule) {
     char out[65536];
     ASSERT_MSG(rt_render("'%s/data/scenes/cornell_fog.json' --mode pm --width 8 --height 8 --pm "
@@ -173,6 +176,18 @@ TEST(render_progressive_start_radius_and_volume_schedule) {
         double got = num_after(pl, "volume (r^2 ");
         EXPECT_MSG(fabs(got - v) <= 1e-6 * v, "pass %d: volume r^2 %.9g, expected %.9g", i, got, v);
     }
+    /* a resumed render starts its radii where the uninterrupted one did (the first pass it
+     * renders is not pass 0) */
+    ASSERT_MSG(rt_render("'%s/data/scenes/cornell_fog.json' --mode pm --width 8 --height 8 --pm "
+                         "global_photons=5000 --pm volume_photons=5000 --pass-spp 1",
+                         "--passes 1 --pm ppm_radius=0.5 --threads 2 --quiet --hdr w.pfm -o w.png --checkpoint w.ckpt",
+                         out, sizeof out) == 0, "%s", out);
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "'%s/render' '%s/data/scenes/cornell_fog.json' --resume w.ckpt --passes 3 --threads 1",
+             pm_test_build_dir(), pm_test_source_dir());
+    ASSERT_MSG(rt_run(cmd, out, sizeof out) == 0, "%s", out);
+    EXPECT_MSG(rt_same_file("w.pfm", "v.pfm") && rt_same_file("w.png", "v.png"),
+               "ppm_radius: resumed after 1 pass, the image differs from 3 passes at once");
 }
 
 /* Oracle: the budget rule, from what the program prints (never a speed). Path tracing with a
@@ -273,6 +288,7 @@ TEST(render_progressive_threads_bit_identical) {
                    "%s", out);
         ASSERT_MSG(rt_render(scenes[k], "--passes 3 --threads 2 --quiet --hdr two.pfm -o two.png", out, sizeof out) == 0,
                    "%s", out);
+        if (!strstr(out, ", 2 threads,")) SKIP("a build without OpenMP renders one thread");
         EXPECT_MSG(rt_same_file("one.pfm", "two.pfm") && rt_same_file("one.png", "two.png"),
                    "%s: 1 and 2 threads differ", k ? "path" : "pm");
     }
@@ -315,4 +331,64 @@ TEST(render_progressive_bad_input) {
         EXPECT_MSG(rc == 2 && strstr(out, "$.render.time"), "render.time %s: status %d: %s", fields[k], rc, out);
     }
     EXPECT_MSG(access(rt_path("bad.pfm"), F_OK) != 0, "an image was written");
+}
+
+/* Oracle: the state written, bit for bit, and the documented refusals. A version 2 checkpoint
+ * (a render in passes) reads back to the same passes and sums; truncated at several lengths or
+ * with a flipped byte it is refused (PM_EFORMAT, "truncated" / "checksum"); read as a state of
+ * fixed work it is refused with a message naming the kind (PM_EINVAL), and a version 1 file
+ * read as a render in passes likewise. */
+TEST(render_progressive_checkpoint_v2_file) {
+    pass_state ps, back;
+    ASSERT(pass_state_init(&ps, 5, 3) == 0);
+    for (int i = 0; i < 45; i++) {
+        ps.sum[i] = 0.1 * i - 1.0 / 3.0;
+        ps.sum2[i] = 0.01 * i * i + 1e-300;
+    }
+    ps.done = 7;
+    ckpt_info ci, got;
+    memset(&ci, 0, sizeof ci);
+    snprintf(ci.settings, sizeof ci.settings, "mode=pm; in passes");
+    memcpy(ci.args, "--passes\0" "7\0", 11);
+    ci.args_len = 11;
+    char err[512];
+    const char *p = rt_path("v2.ckpt");
+    ASSERT_MSG(ckpt_write_passes(p, &ci, &ps, 4, err, sizeof err) == 0, "%s", err);
+    ASSERT_MSG(ckpt_read_passes(p, &got, &back, err, sizeof err) == 0, "%s", err);
+    EXPECT(got.version == 2 && got.passes == 7 && back.done == 7 && back.width == 5 && back.height == 3);
+    EXPECT(memcmp(back.sum, ps.sum, 45 * sizeof(double)) == 0 && memcmp(back.sum2, ps.sum2, 45 * sizeof(double)) == 0);
+    EXPECT(strcmp(got.settings, ci.settings) == 0 && got.args_len == 11);
+    pass_state_free(&back);
+    ASSERT_MSG(ckpt_read(p, &got, NULL, err, sizeof err) == 0, "the arguments-only read: %s", err);
+    render_state rs;
+    EXPECT_EQ_INT(ckpt_read(p, &got, &rs, err, sizeof err), PM_EINVAL);
+    EXPECT_MSG(strstr(err, "a checkpoint of a render in passes"), "%s", err);
+    size_t n;
+    char *buf = rt_slurp(p, &n);
+    ASSERT(buf && n == 56 + strlen(ci.settings) + 11 + 15 * 48 + 8);
+    size_t cuts[] = {30, 60, n / 2, n - 1};
+    const char *q = rt_path("bad.ckpt");
+    for (size_t k = 0; k < sizeof cuts / sizeof cuts[0]; k++) {
+        FILE *f = fopen(q, "wb");
+        ASSERT(f);
+        fwrite(buf, 1, cuts[k], f);
+        fclose(f);
+        EXPECT_EQ_INT(ckpt_read_passes(q, &got, &back, err, sizeof err), PM_EFORMAT);
+        EXPECT_MSG(strstr(err, "truncated") || strstr(err, "not a render checkpoint"), "cut %zu: %s", cuts[k], err);
+    }
+    buf[n - 20] ^= 1;
+    FILE *f = fopen(q, "wb");
+    ASSERT(f);
+    fwrite(buf, 1, n, f);
+    fclose(f);
+    EXPECT_EQ_INT(ckpt_read_passes(q, &got, &back, err, sizeof err), PM_EFORMAT);
+    EXPECT_MSG(strstr(err, "checksum"), "%s", err);
+    free(buf);
+    /* a version 1 file (one pass of fixed work) read as a render in passes */
+    ASSERT(render_state_init(&rs, 5, 3, 4) == 0);
+    ASSERT_MSG(ckpt_write(q, &ci, &rs, err, sizeof err) == 0, "%s", err);
+    EXPECT_EQ_INT(ckpt_read_passes(q, &got, &back, err, sizeof err), PM_EINVAL);
+    EXPECT_MSG(strstr(err, "one pass of fixed work"), "%s", err);
+    render_state_free(&rs);
+    pass_state_free(&ps);
 }

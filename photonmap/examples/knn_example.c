@@ -40,7 +40,7 @@ int main(int argc, char **argv) {
     }
 
     pm_kdtree *tree;
-    pm_kdtree_config cfg = pm_kdtree_photon_config(8); /* buckets of 8 photons */
+    pm_kdtree_config cfg = pm_kdtree_photon_config(PM_KDTREE_BUCKET_DEFAULT); /* B = 32 */
     int rc = pm_kdtree_build(&tree, photons, N, &cfg, NULL);
     if (rc < 0) {
         fprintf(stderr, "build: %s\n", pm_strerror(rc));

@@ -1,5 +1,5 @@
 /* tools.h: `render --compare`, `render --tonemap` and `render --dump-scene` (tools.c), the strict number parsers
- * that main.c's options share with them, and the check of a mode name.
+ * that the options (options.c) share with them, and the check of a mode name.
  */
 #ifndef RENDER_TOOLS_H
 #define RENDER_TOOLS_H

@@ -21,9 +21,14 @@
  *   - Include (and pbrt-v4's Import) relative to the including file, WorldBegin/End,
  *     ObjectBegin/End/ObjectInstance (an instance is a copy of the object's shapes under the
  *     instance's transform).
+ *   - MakeNamedMedium "homogeneous" (sigma_a, sigma_s, scale, g) and MediumInterface, as far as
+ *     our media go (one level): the outside medium at Camera is our global "medium"; a shape
+ *     that light passes through (material "interface" or glass) with an inside medium gets it as
+ *     its interior_medium (our loader wants it closed: a sphere or a closed mesh); an outside
+ *     medium other than the camera's is warned about (ours is one medium around all objects).
  * Anything else is warned about with its file and line and skipped: unknown directives (with
  * their parameters), unknown parameters, textures (the material's default value is used),
- * media (MakeNamedMedium, MediumInterface), other shapes and materials (matte grey 0.5).
+ * other shapes and materials (matte grey 0.5).
  *
  * Handedness: pbrt's image right is up x forward, ours forward x up (data/scenes/README.md): a
  * pbrt camera built by LookAt alone sees the mirror image of what ours would. The converter

@@ -122,6 +122,17 @@ static int read_value(rd *r, int t, const pelem *el, unsigned long long index, d
     if (s >= end)
         return fail_at(r, r->pos, r->line, "truncated: the data ends inside %s %llu (the header says %llu)", el->name,
                        index, el->count);
+    if (is_int_type(t)) { /* counts and indices, most of a face list: digits, exactly, without strtod */
+        const char *q = s + (*s == '-' || *s == '+');
+        long long v = 0;
+        int nd = 0;
+        while (q < end && *q >= '0' && *q <= '9' && nd < 15) v = 10 * v + (*q++ - '0'), nd++;
+        if (nd > 0 && (q == end || *q == ' ' || *q == '\t' || *q == '\r' || *q == '\n')) {
+            *out = (double)(*s == '-' ? -v : v);
+            r->pos = (size_t)(q - r->buf);
+            return 0;
+        } /* anything else (a sign alone, a decimal point, letters): strtod says what it is */
+    }
     char *e;
     double v = strtod(s, &e);
     size_t tl = 0;
@@ -276,27 +287,43 @@ static int find_prop(const pelem *el, const char *name, int list) {
     return -1;
 }
 
-int ply_parse(const char *buf, size_t len, const char *name, mesh_data *m, char *err, size_t cap) {
-    memset(m, 0, sizeof *m);
-    rd r = {buf, len, 0, 0, 0, 0, name, err, cap};
-    pelem els[PLY_MAX_ELEMS];
-    int nels = 0, rc = parse_header(&r, els, &nels);
-    if (rc < 0) return rc;
-    /* The vertex element and its coordinates. */
+/* The vertex element of the header and where its coordinates and normals are. */
+typedef struct vlayout {
+    const pelem *ve;
+    int ix, iy, iz, inx, iny, inz, has_n;
+} vlayout;
+
+/* The state of reading the data: the triangles so far, one list's corners, the face number. */
+typedef struct reader {
+    rd r;
+    vlayout vl;
+    int nv;
+    tris t;
+    int *corner, ccap, face;
+} reader;
+
+/* ---- the header's elements --------------------------------------------------------------- */
+
+static int find_vertex(rd *r, const pelem *els, int nels, vlayout *vl) {
     const pelem *ve = NULL;
     for (int i = 0; i < nels; i++)
         if (strcmp(els[i].name, "vertex") == 0) {
-            if (ve) return fail_at(&r, 0, 0, "two vertex elements");
+            if (ve) return fail_at(r, 0, 0, "two vertex elements");
             ve = &els[i];
         }
-    if (!ve) return fail_at(&r, 0, 0, "no vertex element in the header");
-    int ix = find_prop(ve, "x", 0), iy = find_prop(ve, "y", 0), iz = find_prop(ve, "z", 0);
-    if (ix < 0 || iy < 0 || iz < 0) return fail_at(&r, 0, 0, "the vertex element has no x, y or z property");
-    int inx = find_prop(ve, "nx", 0), iny = find_prop(ve, "ny", 0), inz = find_prop(ve, "nz", 0);
-    int has_n = inx >= 0 && iny >= 0 && inz >= 0;
+    if (!ve) return fail_at(r, 0, 0, "no vertex element in the header");
+    vl->ve = ve;
+    vl->ix = find_prop(ve, "x", 0), vl->iy = find_prop(ve, "y", 0), vl->iz = find_prop(ve, "z", 0);
+    if (vl->ix < 0 || vl->iy < 0 || vl->iz < 0) return fail_at(r, 0, 0, "the vertex element has no x, y or z property");
+    vl->inx = find_prop(ve, "nx", 0), vl->iny = find_prop(ve, "ny", 0), vl->inz = find_prop(ve, "nz", 0);
+    vl->has_n = vl->inx >= 0 && vl->iny >= 0 && vl->inz >= 0;
     if (ve->count > PLY_MAX_VERTICES)
-        return fail_at(&r, 0, 0, "%llu vertices: more than this renderer's %d", ve->count, PLY_MAX_VERTICES);
-    /* Counts against the bytes left (a lying header fails here, before any allocation). */
+        return fail_at(r, 0, 0, "%llu vertices: more than this renderer's %d", ve->count, PLY_MAX_VERTICES);
+    return 0;
+}
+
+/* Counts against the bytes left (a lying header fails here, before any allocation). */
+static int check_counts(rd *r, const pelem *els, int nels) {
     double need = 0, nvals = 0;
     for (int i = 0; i < nels; i++) {
         double per = 0;
@@ -305,182 +332,223 @@ int ply_parse(const char *buf, size_t len, const char *name, mesh_data *m, char 
         need += (double)els[i].count * per;
         nvals += (double)els[i].count * els[i].nprops;
     }
-    if (r.ascii) need = 2 * nvals - 1;
-    if (need > (double)(len - r.pos))
-        return fail_at(&r, r.pos, 0, "truncated, or the header's counts are wrong: its elements need at least %.0f "
-                       "bytes of %s data, the file has %zu after the header", need, r.ascii ? "ASCII" : "binary",
-                       len - r.pos);
-    int nv = (int)ve->count;
+    if (r->ascii) need = 2 * nvals - 1;
+    if (need > (double)(r->len - r->pos))
+        return fail_at(r, r->pos, 0, "truncated, or the header's counts are wrong: its elements need at least %.0f "
+                       "bytes of %s data, the file has %zu after the header", need, r->ascii ? "ASCII" : "binary",
+                       r->len - r->pos);
+    return 0;
+}
+
+/* The vertex list of a face or tristrips element (*ilist -1 for other elements). */
+static int find_list(rd *r, const pelem *el, int is_f, int is_s, int *ilist) {
+    *ilist = -1;
+    if (is_f) {
+        *ilist = find_prop(el, "vertex_indices", 1);
+        if (*ilist < 0) *ilist = find_prop(el, "vertex_index", 1);
+        if (*ilist < 0) return fail_at(r, 0, 0, "the face element has no list vertex_indices (or vertex_index)");
+    } else if (is_s) {
+        *ilist = find_prop(el, "vertex_indices", 1);
+        if (*ilist < 0) return fail_at(r, 0, 0, "the tristrips element has no list vertex_indices");
+    }
+    if (*ilist >= 0 && !is_int_type(el->props[*ilist].type))
+        return fail_at(r, 0, 0, "element %s: vertex indices must have an integer type", el->name);
+    return 0;
+}
+
+/* ---- faces and strips to triangles -------------------------------------------------------- */
+
+/* A face's nc corners fanned into triangles. */
+static int add_face(tris *t, const int *corner, int nc, int face) {
+    for (int j = 2; j < nc; j++)
+        if (tris_add(t, corner[0], corner[j - 1], corner[j], face) < 0) return PM_ENOMEM;
+    return 0;
+}
+
+/* A triangle strip: restart at -1, alternate the winding. */
+static int add_strip(tris *t, const int *corner, int nc, int face) {
+    int run = 0;
+    for (int j = 0; j < nc; j++) {
+        if (corner[j] < 0) {
+            run = 0;
+            continue;
+        }
+        if (++run < 3) continue;
+        int a = corner[j - 2], b = corner[j - 1], c = corner[j];
+        if (a == b || b == c || a == c) continue; /* a stitch between strips */
+        if (run % 2 == 0 && tris_add(t, b, a, c, face) < 0) return PM_ENOMEM;
+        if (run % 2 == 1 && tris_add(t, a, b, c, face) < 0) return PM_ENOMEM;
+    }
+    return 0;
+}
+
+/* ---- the data ----------------------------------------------------------------------------- */
+
+/* List property p of item i of el, whose count starts at byte `at`; use: it is the vertex list
+ * of a face (is_f) or strip, whose triangles are added. */
+static int read_list(reader *x, const pelem *el, const pprop *p, unsigned long long i, int use, int is_f, size_t at) {
+    rd *r = &x->r;
+    double cnt, v;
+    int rc = read_value(r, p->count_type, el, i, &cnt);
+    if (rc < 0) return rc;
+    long at_line = r->line; /* the count's own line (ASCII) */
+    /* a list's length against the bytes left before anything is stored */
+    double left = (double)(r->len - r->pos), per = r->ascii ? 2 : k_tsize[p->type];
+    if (cnt < 0 || cnt * per > left + 1)
+        return fail_at(r, at, r->ascii ? at_line : 0, "%s %llu: a list of %.0f items, %s", el->name, i, cnt,
+                       cnt < 0 ? "a negative count" : "more than the bytes left hold (truncated?)");
+    int nc = (int)cnt;
+    if (use && nc > x->ccap) {
+        int *c2 = realloc(x->corner, (size_t)nc * sizeof *x->corner);
+        if (!c2) {
+            snprintf(r->err, r->cap, "%s: out of memory", r->name);
+            return PM_ENOMEM;
+        }
+        x->corner = c2;
+        x->ccap = nc;
+    }
+    for (int j = 0; j < nc && rc == 0; j++) {
+        size_t vat = r->pos;
+        rc = read_value(r, p->type, el, i, &v);
+        if (rc < 0 || !use) continue;
+        if (r->ascii) vat = r->pos; /* the line is what matters */
+        if (!is_f && v == -1) {
+            x->corner[j] = -1; /* a strip restart */
+        } else if (!(v >= 0 && v < x->nv)) {
+            rc = fail_at(r, vat, r->ascii ? r->line : 0, "%s %llu: vertex index %.0f out of range (%d vertices)",
+                         el->name, i, v, x->nv);
+        } else {
+            x->corner[j] = (int)v;
+        }
+    }
+    if (rc < 0 || !use) return rc;
+    if (is_f && nc < 3)
+        return fail_at(r, at, r->ascii ? at_line : 0, "face %llu: a face needs at least 3 corners, got %d", i, nc);
+    rc = is_f ? add_face(&x->t, x->corner, nc, x->face) : add_strip(&x->t, x->corner, nc, x->face);
+    if (rc == PM_ENOMEM) snprintf(r->err, r->cap, "%s: out of memory", r->name);
+    return rc;
+}
+
+/* Item i of element el: its scalars (a vertex's position and normal kept) and lists. */
+static int read_item(reader *x, const pelem *el, unsigned long long i, int is_f, int ilist, mesh_data *m) {
+    rd *r = &x->r;
+    const vlayout *vl = &x->vl;
+    int is_v = el == vl->ve, rc = 0;
+    double xyz[3] = {0, 0, 0}, nrm[3] = {0, 0, 0};
+    for (int k = 0; k < el->nprops && rc == 0; k++) {
+        const pprop *p = &el->props[k];
+        double v;
+        size_t at = r->pos;
+        if (p->count_type != T_NONE) {
+            rc = read_list(x, el, p, i, k == ilist, is_f, at);
+            continue;
+        }
+        rc = read_value(r, p->type, el, i, &v);
+        if (rc < 0 || !is_v) continue;
+        if (!isfinite(v) && (k == vl->ix || k == vl->iy || k == vl->iz ||
+                             (vl->has_n && (k == vl->inx || k == vl->iny || k == vl->inz))))
+            return fail_at(r, at, r->ascii ? r->line : 0, "vertex %llu: %s is not finite", i, p->name);
+        if (k == vl->ix) xyz[0] = v;
+        else if (k == vl->iy) xyz[1] = v;
+        else if (k == vl->iz) xyz[2] = v;
+        else if (k == vl->inx) nrm[0] = v;
+        else if (k == vl->iny) nrm[1] = v;
+        else if (k == vl->inz) nrm[2] = v;
+    }
+    if (rc < 0) return rc;
+    if (is_v) {
+        m->pos[i] = v3(xyz[0], xyz[1], xyz[2]);
+        if (vl->has_n) m->nrm[i] = v3(nrm[0], nrm[1], nrm[2]);
+    }
+    return 0;
+}
+
+/* Every element's items in order, then nothing but (ASCII) white space after the last. */
+static int read_elements(reader *x, const pelem *els, int nels, mesh_data *m) {
+    rd *r = &x->r;
+    r->line++; /* the first data line follows end_header */
+    for (int ei = 0; ei < nels; ei++) {
+        const pelem *el = &els[ei];
+        int is_f = strcmp(el->name, "face") == 0, is_s = strcmp(el->name, "tristrips") == 0, ilist;
+        int rc = find_list(r, el, is_f, is_s, &ilist);
+        if (rc < 0) return rc;
+        for (unsigned long long i = 0; i < el->count; i++) {
+            if ((rc = read_item(x, el, i, is_f, ilist, m)) < 0) return rc;
+            if (is_f || is_s) x->face++;
+        }
+    }
+    size_t p = r->pos; /* what follows the last element */
+    if (r->ascii)
+        while (p < r->len && (r->buf[p] == ' ' || r->buf[p] == '\t' || r->buf[p] == '\r' || r->buf[p] == '\n')) p++;
+    if (p < r->len)
+        return fail_at(r, p, 0, "%zu bytes after the last element (the header's counts are wrong, or not a PLY "
+                       "file)", r->len - p);
+    return 0;
+}
+
+/* The triangles with an area become the mesh's (degenerate faces: skipped and counted,
+ * mesh.h), with the vertex normals of the file where it has them. */
+static int finish_mesh(reader *x, mesh_data *m) {
+    rd *r = &x->r;
+    tris *t = &x->t;
+    int out = 0, rc = 0;
+    for (int k = 0; k < t->n; k++) {
+        const int *v = t->v[k];
+        triangle tr;
+        if (triangle_make(&tr, m->pos[v[0]], m->pos[v[1]], m->pos[v[2]], 0) < 0) {
+            if (m->nskipped++ == 0) snprintf(m->first_skip, sizeof m->first_skip, "face %d", t->face[k]);
+            continue;
+        }
+        memmove(t->v[out++], v, sizeof t->v[0]);
+    }
+    if (out == 0)
+        return m->nskipped ? fail_at(r, (size_t)-1, 0, "empty mesh: all %ld faces are degenerate (zero area; the first at %s)",
+                                     m->nskipped, m->first_skip)
+                           : fail_at(r, (size_t)-1, 0, "empty mesh: no face");
+    m->tri = t->v;
+    t->v = NULL;
+    m->ntris = out;
+    m->tri_group = malloc((size_t)out * sizeof *m->tri_group);
+    if (x->vl.has_n) m->tri_n = malloc((size_t)out * sizeof *m->tri_n);
+    if (!m->tri_group || (x->vl.has_n && !m->tri_n)) {
+        rc = PM_ENOMEM;
+        snprintf(r->err, r->cap, "%s: out of memory", r->name);
+    } else {
+        for (int k = 0; k < out; k++) {
+            m->tri_group[k] = -1;
+            if (x->vl.has_n) /* a zero normal cannot shade: left to mesh_smooth_normals */
+                for (int c = 0; c < 3; c++) m->tri_n[k][c] = v3_iszero(m->nrm[m->tri[k][c]]) ? -1 : m->tri[k][c];
+        }
+    }
+    return rc;
+}
+
+int ply_parse(const char *buf, size_t len, const char *name, mesh_data *m, char *err, size_t cap) {
+    memset(m, 0, sizeof *m);
+    reader x;
+    memset(&x, 0, sizeof x);
+    x.r = (rd){buf, len, 0, 0, 0, 0, name, err, cap};
+    pelem els[PLY_MAX_ELEMS];
+    int nels = 0, rc = parse_header(&x.r, els, &nels);
+    if (rc == 0) rc = find_vertex(&x.r, els, nels, &x.vl);
+    if (rc == 0) rc = check_counts(&x.r, els, nels);
+    if (rc < 0) return rc;
+    int nv = x.nv = (int)x.vl.ve->count;
     m->npos = nv;
     m->pos = malloc((size_t)(nv ? nv : 1) * sizeof *m->pos);
-    if (has_n) {
+    if (x.vl.has_n) {
         m->nnrm = nv;
         m->nrm = malloc((size_t)(nv ? nv : 1) * sizeof *m->nrm);
     }
-    tris t = {0};
-    int *corner = NULL, ccap = 0, face = 0;
-    if (!m->pos || (has_n && !m->nrm)) {
+    if (!m->pos || (x.vl.has_n && !m->nrm)) {
         rc = PM_ENOMEM;
         snprintf(err, cap, "%s: out of memory", name);
     }
-    r.line++; /* the first data line follows end_header */
-    for (int ei = 0; ei < nels && rc == 0; ei++) {
-        const pelem *el = &els[ei];
-        int is_v = el == ve, is_f = strcmp(el->name, "face") == 0, is_s = strcmp(el->name, "tristrips") == 0;
-        int ilist = -1;
-        if (is_f) {
-            ilist = find_prop(el, "vertex_indices", 1);
-            if (ilist < 0) ilist = find_prop(el, "vertex_index", 1);
-            if (ilist < 0) {
-                rc = fail_at(&r, 0, 0, "the face element has no list vertex_indices (or vertex_index)");
-                break;
-            }
-        } else if (is_s) {
-            ilist = find_prop(el, "vertex_indices", 1);
-            if (ilist < 0) {
-                rc = fail_at(&r, 0, 0, "the tristrips element has no list vertex_indices");
-                break;
-            }
-        }
-        if (ilist >= 0 && !is_int_type(el->props[ilist].type)) {
-            rc = fail_at(&r, 0, 0, "element %s: vertex indices must have an integer type", el->name);
-            break;
-        }
-        for (unsigned long long i = 0; i < el->count && rc == 0; i++) {
-            double xyz[3] = {0, 0, 0}, nrm[3] = {0, 0, 0};
-            for (int k = 0; k < el->nprops && rc == 0; k++) {
-                const pprop *p = &el->props[k];
-                double v;
-                size_t at = r.pos;
-                long at_line = r.line;
-                if (p->count_type == T_NONE) {
-                    rc = read_value(&r, p->type, el, i, &v);
-                    if (rc < 0 || !is_v) continue;
-                    if (!isfinite(v) && (k == ix || k == iy || k == iz || (has_n && (k == inx || k == iny || k == inz)))) {
-                        rc = fail_at(&r, at, r.ascii ? r.line : 0, "vertex %llu: %s is not finite", i, p->name);
-                        break;
-                    }
-                    if (k == ix) xyz[0] = v;
-                    else if (k == iy) xyz[1] = v;
-                    else if (k == iz) xyz[2] = v;
-                    else if (k == inx) nrm[0] = v;
-                    else if (k == iny) nrm[1] = v;
-                    else if (k == inz) nrm[2] = v;
-                    continue;
-                }
-                double cnt;
-                rc = read_value(&r, p->count_type, el, i, &cnt);
-                if (rc < 0) break;
-                at_line = r.line; /* the count's own line (ASCII) */
-                /* a list's length against the bytes left before anything is stored */
-                double left = (double)(r.len - r.pos), per = r.ascii ? 2 : k_tsize[p->type];
-                if (cnt < 0 || cnt * per > left + 1) {
-                    rc = fail_at(&r, at, r.ascii ? at_line : 0, "%s %llu: a list of %.0f items, %s", el->name, i, cnt,
-                                 cnt < 0 ? "a negative count" : "more than the bytes left hold (truncated?)");
-                    break;
-                }
-                int nc = (int)cnt, use = k == ilist;
-                if (use && nc > ccap) {
-                    int *c2 = realloc(corner, (size_t)nc * sizeof *corner);
-                    if (!c2) {
-                        rc = PM_ENOMEM;
-                        snprintf(err, cap, "%s: out of memory", name);
-                        break;
-                    }
-                    corner = c2;
-                    ccap = nc;
-                }
-                for (int j = 0; j < nc && rc == 0; j++) {
-                    size_t vat = r.pos;
-                    rc = read_value(&r, p->type, el, i, &v);
-                    if (rc < 0 || !use) continue;
-                    if (r.ascii) vat = r.pos; /* the line is what matters */
-                    if (is_s && v == -1) {
-                        corner[j] = -1; /* a strip restart */
-                    } else if (!(v >= 0 && v < nv)) {
-                        rc = fail_at(&r, vat, r.ascii ? r.line : 0, "%s %llu: vertex index %.0f out of range (%d vertices)",
-                                     el->name, i, v, nv);
-                    } else {
-                        corner[j] = (int)v;
-                    }
-                }
-                if (rc < 0 || !use) continue;
-                if (is_f) {
-                    if (nc < 3) {
-                        rc = fail_at(&r, at, r.ascii ? at_line : 0, "face %llu: a face needs at least 3 corners, got %d",
-                                     i, nc);
-                        break;
-                    }
-                    for (int j = 2; j < nc && rc == 0; j++)
-                        if (tris_add(&t, corner[0], corner[j - 1], corner[j], face) < 0) rc = PM_ENOMEM;
-                } else { /* tristrips: restart at -1, alternate the winding */
-                    int run = 0;
-                    for (int j = 0; j < nc && rc == 0; j++) {
-                        if (corner[j] < 0) {
-                            run = 0;
-                            continue;
-                        }
-                        if (++run < 3) continue;
-                        int a = corner[j - 2], b = corner[j - 1], c = corner[j];
-                        if (a == b || b == c || a == c) continue; /* a stitch between strips */
-                        if (run % 2 == 0 && tris_add(&t, b, a, c, face) < 0) rc = PM_ENOMEM;
-                        if (run % 2 == 1 && tris_add(&t, a, b, c, face) < 0) rc = PM_ENOMEM;
-                    }
-                }
-                if (rc == PM_ENOMEM) snprintf(err, cap, "%s: out of memory", name);
-            }
-            if (rc < 0) break;
-            if (is_v) {
-                m->pos[i] = v3(xyz[0], xyz[1], xyz[2]);
-                if (has_n) m->nrm[i] = v3(nrm[0], nrm[1], nrm[2]);
-            }
-            if (is_f || is_s) face++;
-        }
-    }
-    free(corner);
-    if (rc == 0) { /* what follows the last element */
-        size_t p = r.pos;
-        if (r.ascii)
-            while (p < len && (buf[p] == ' ' || buf[p] == '\t' || buf[p] == '\r' || buf[p] == '\n')) p++;
-        if (p < len)
-            rc = fail_at(&r, p, 0, "%zu bytes after the last element (the header's counts are wrong, or not a PLY "
-                         "file)", len - p);
-    }
-    /* Degenerate faces: skipped and counted (mesh.h). */
-    int out = 0;
-    for (int k = 0; k < t.n && rc == 0; k++) {
-        const int *v = t.v[k];
-        triangle tr;
-        if (triangle_make(&tr, m->pos[v[0]], m->pos[v[1]], m->pos[v[2]], 0) < 0) {
-            if (m->nskipped++ == 0) snprintf(m->first_skip, sizeof m->first_skip, "face %d", t.face[k]);
-            continue;
-        }
-        memmove(t.v[out++], v, sizeof t.v[0]);
-    }
-    free(t.face);
-    if (rc == 0 && out == 0) {
-        rc = m->nskipped ? fail_at(&r, (size_t)-1, 0, "empty mesh: all %ld faces are degenerate (zero area; the first at %s)",
-                                   m->nskipped, m->first_skip)
-                         : fail_at(&r, (size_t)-1, 0, "empty mesh: no face");
-    }
-    if (rc == 0) {
-        m->tri = t.v;
-        t.v = NULL;
-        m->ntris = out;
-        m->tri_group = malloc((size_t)out * sizeof *m->tri_group);
-        if (has_n) m->tri_n = malloc((size_t)out * sizeof *m->tri_n);
-        if (!m->tri_group || (has_n && !m->tri_n)) {
-            rc = PM_ENOMEM;
-            snprintf(err, cap, "%s: out of memory", name);
-        } else {
-            for (int k = 0; k < out; k++) {
-                m->tri_group[k] = -1;
-                if (has_n) /* a zero normal cannot shade: left to mesh_smooth_normals */
-                    for (int c = 0; c < 3; c++) m->tri_n[k][c] = v3_iszero(m->nrm[m->tri[k][c]]) ? -1 : m->tri[k][c];
-            }
-        }
-    }
-    free(t.v);
+    if (rc == 0) rc = read_elements(&x, els, nels, m);
+    free(x.corner);
+    if (rc == 0) rc = finish_mesh(&x, m);
+    free(x.t.face);
+    free(x.t.v);
     if (rc < 0) mesh_free(m);
     return rc;
 }

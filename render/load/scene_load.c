@@ -6,7 +6,7 @@
  * loaded shapes (bounds, the lights of emissive surfaces, the BVH) is scene_prepare's, in
  * scene.c.
  */
-#include "scene/scene.h"
+#include "load/scene_load_internal.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -16,13 +16,8 @@
 #include "load/import.h"
 #include "photons/photon_settings.h"
 
-#define P_MAX 256
-
-#define TRY(x) JSON_TRY(x)
-
-
 /* Append one element of size sz to *arr (count *n, capacity *cap). */
-static int push(void **arr, int *n, int *cap, size_t sz, const void *elem) {
+int sl_push(void **arr, int *n, int *cap, size_t sz, const void *elem) {
     if (*n == *cap) {
         int nc = *cap ? 2 * *cap : 16;
         void *na = realloc(*arr, (size_t)nc * sz);
@@ -35,12 +30,6 @@ static int push(void **arr, int *n, int *cap, size_t sz, const void *elem) {
     return 0;
 }
 
-typedef struct {
-    int tcap, scap, mcap, lcap; /* capacities of tris, spheres, mats, lights */
-    int tocap, socap; /* capacities of tri_obj, sphere_obj */
-    int obj;          /* index in $.objects of the object being loaded */
-} caps;
-
 static int check_unit_rgb(rgb c, const char *path, const char *key, json_err *e) {
     if (c.x < 0 || c.y < 0 || c.z < 0 || c.x > 1 || c.y > 1 || c.z > 1)
         return json_fail(e, PM_EINVAL, "%s.%s: each component must be in [0, 1] (got [%g, %g, %g])",
@@ -48,7 +37,7 @@ static int check_unit_rgb(rgb c, const char *path, const char *key, json_err *e)
     return 0;
 }
 
-static int check_nonneg_rgb(rgb c, const char *path, const char *key, json_err *e) {
+int sl_check_nonneg_rgb(rgb c, const char *path, const char *key, json_err *e) {
     if (c.x < 0 || c.y < 0 || c.z < 0)
         return json_fail(e, PM_EINVAL, "%s.%s: must not be negative (got [%g, %g, %g])", path, key,
                          c.x, c.y, c.z);
@@ -59,21 +48,10 @@ static int check_nonneg_rgb(rgb c, const char *path, const char *key, json_err *
  * Not a point light's intensity or power: the light they give scales with 1 / length^2, so
  * their range depends on the scene's units (a film value that overflows is counted). */
 static int check_light_rgb(rgb c, const char *path, const char *key, json_err *e) {
-    TRY(check_nonneg_rgb(c, path, key, e));
+    TRY(sl_check_nonneg_rgb(c, path, key, e));
     if (v3_maxabs(c) > SCENE_RADIANCE_MAX)
         return json_fail(e, PM_EINVAL, "%s.%s: %g is outside the supported range, 0 to %g (the "
                          "image is stored in 32-bit floats)", path, key, v3_maxabs(c), SCENE_RADIANCE_MAX);
-    return 0;
-}
-
-/* A medium's coefficient (per unit length): in [0, 1 / SCENE_LENGTH_MIN], a mean free path no
- * shorter than the shortest length the scene may have. */
-static int check_sigma_rgb(rgb c, const char *path, const char *key, json_err *e) {
-    TRY(check_nonneg_rgb(c, path, key, e));
-    if (v3_maxabs(c) > 1 / SCENE_LENGTH_MIN)
-        return json_fail(e, PM_EINVAL, "%s.%s: %g is outside the supported range, 0 to %g per unit "
-                         "length (a mean free path of at least %g, the shortest supported length)",
-                         path, key, v3_maxabs(c), 1 / SCENE_LENGTH_MIN, SCENE_LENGTH_MIN);
     return 0;
 }
 
@@ -105,7 +83,7 @@ static int check_point_lights(const scene *s, const cJSON *lights, json_err *e) 
 }
 
 /* A point (key NULL: path names it): every coordinate within SCENE_LENGTH_MAX. */
-static int check_point(vec3 v, const char *path, const char *key, json_err *e) {
+int sl_check_point(vec3 v, const char *path, const char *key, json_err *e) {
     if (!(v3_maxabs(v) <= SCENE_LENGTH_MAX))
         return json_fail(e, PM_EINVAL, "%s%s%s: [%g, %g, %g] is outside the supported range of "
                          "coordinates, -%g to %g", path, key ? "." : "", key ? key : "", v.x, v.y,
@@ -113,14 +91,6 @@ static int check_point(vec3 v, const char *path, const char *key, json_err *e) {
     return 0;
 }
 
-
-/* The known keys of each object of the format (json_check_keys: any other key is an error
- * that suggests the nearest of these). "comment" is allowed everywhere, as free text. */
-#define KEYS(obj, path, what, ...)                                                         \
-    do {                                                                                    \
-        static const char *const k__[] = {__VA_ARGS__, "comment"};                          \
-        TRY(json_check_keys(obj, path, k__, sizeof k__ / sizeof *k__, what, e));            \
-    } while (0)
 
 static int load_camera(scene *s, const cJSON *root, json_err *e) {
     const cJSON *c;
@@ -130,7 +100,7 @@ static int load_camera(scene *s, const cJSON *root, json_err *e) {
          "sensor_width_mm", "width", "height", "spp");
     vec3 eye, look, fwd, up = v3(0, 1, 0);
     TRY(json_vec3(c, P, "eye", 1, &eye, e));
-    TRY(check_point(eye, P, "eye", e));
+    TRY(sl_check_point(eye, P, "eye", e));
     int has_look = json_get(c, "look_at") != NULL, has_fwd = json_get(c, "forward") != NULL;
     if (has_look && has_fwd)
         return json_fail(e, PM_EINVAL, "%s: give either look_at or forward, not both", P);
@@ -138,7 +108,7 @@ static int load_camera(scene *s, const cJSON *root, json_err *e) {
         return json_fail(e, PM_EINVAL, "%s.look_at: missing (required, or give forward)", P);
     if (has_look) {
         TRY(json_vec3(c, P, "look_at", 1, &look, e));
-        TRY(check_point(look, P, "look_at", e));
+        TRY(sl_check_point(look, P, "look_at", e));
         fwd = v3_sub(look, eye);
     } else {
         TRY(json_vec3(c, P, "forward", 1, &fwd, e));
@@ -263,225 +233,6 @@ static int load_material(material *m, const cJSON *it, const char *P, json_err *
     return 0;
 }
 
-static int find_material(const scene *s, const cJSON *obj, const char *P, int *out, json_err *e) {
-    const char *name;
-    TRY(json_string(obj, P, "material", 1, &name, e));
-    for (int i = 0; i < s->nmats; i++)
-        if (strcmp(s->mats[i].name, name) == 0) {
-            *out = i;
-            return 0;
-        }
-    return json_fail(e, PM_EINVAL, "%s.material: unknown material \"%s\"", P, name);
-}
-
-static int add_tri(scene *s, caps *cp, vec3 a, vec3 b, vec3 c, int mat, const char *P,
-                   json_err *e) {
-    triangle t;
-    TRY(check_point(a, P, NULL, e));
-    TRY(check_point(b, P, NULL, e));
-    TRY(check_point(c, P, NULL, e));
-    double longest = fmax(v3_len(v3_sub(b, a)), fmax(v3_len(v3_sub(c, b)), v3_len(v3_sub(a, c))));
-    if (longest > 0 && longest < SCENE_LENGTH_MIN)
-        return json_fail(e, PM_EINVAL, "%s: a triangle %g across is below the supported range of "
-                         "lengths, %g to %g", P, longest, SCENE_LENGTH_MIN, SCENE_LENGTH_MAX);
-    if (triangle_make(&t, a, b, c, mat) < 0)
-        return json_fail(e, PM_EINVAL, "%s: degenerate triangle (zero area: repeated or collinear vertices)", P);
-    int n = s->ntris;
-    if (push((void **)&s->tris, &s->ntris, &cp->tcap, sizeof t, &t) < 0 ||
-        push((void **)&s->tri_obj, &n, &cp->tocap, sizeof cp->obj, &cp->obj) < 0)
-        return json_fail(e, PM_ENOMEM, "out of memory");
-    return 0;
-}
-
-/* Read exactly n points from key into v. */
-static int read_points(const cJSON *obj, const char *P, const char *key, int n, vec3 *v,
-                       json_err *e) {
-    const cJSON *arr;
-    TRY(json_array(obj, P, key, 1, &arr, e));
-    if (cJSON_GetArraySize(arr) != n)
-        return json_fail(e, PM_EINVAL, "%s.%s: expected %d points, got %d", P, key, n,
-                         cJSON_GetArraySize(arr));
-    char p[P_MAX], pk[P_MAX];
-    json_path_key(pk, sizeof pk, P, key);
-    for (int i = 0; i < n; i++) {
-        json_path_index(p, sizeof p, pk, i);
-        TRY(json_item_vec3(cJSON_GetArrayItem(arr, i), p, &v[i], e));
-    }
-    return 0;
-}
-
-/* Corner normals of an inline mesh's nt triangles (tv, indices into v; vn: the given normals
- * or NULL), the scene's triangles first.. first+nt-1: mesh_smooth_normals as for mesh files. */
-static int inline_smooth(scene *s, int first, vec3 *v, int nv, vec3 *vn, int (*tv)[3], int nt, json_err *e) {
-    mesh_data md;
-    memset(&md, 0, sizeof md);
-    md.pos = v;
-    md.npos = nv;
-    md.nrm = vn;
-    md.nnrm = vn ? nv : 0;
-    md.tri = tv;
-    md.tri_n = vn ? tv : NULL;
-    md.ntris = nt;
-    if (mesh_smooth_normals(&md, 0) < 0) return json_fail(e, PM_ENOMEM, "out of memory");
-    vec3(*ns)[3] = realloc(s->tri_ns, (size_t)s->ntris * sizeof *ns);
-    if (!ns) {
-        free(md.corner_n);
-        return json_fail(e, PM_ENOMEM, "out of memory");
-    }
-    s->tri_ns = ns;
-    for (int t = s->ntri_ns; t < first; t++) ns[t][0] = ns[t][1] = ns[t][2] = s->tris[t].n;
-    memcpy(ns + first, md.corner_n, (size_t)nt * sizeof *ns);
-    s->ntri_ns = s->ntris;
-    free(md.corner_n);
-    return 0;
-}
-
-/* A mesh from a file (import.h): its triangles, their materials (usemtl names or "material")
- * and, when smooth, their corner normals in s->tri_ns. */
-static int load_mesh_file(scene *s, caps *cp, const cJSON *o, const char *P, json_err *e) {
-    mesh_data m;
-    int smooth, usemtl, def = -1, rc = 0;
-    TRY(mesh_object_read(o, P, &m, &smooth, &usemtl, e));
-    if (json_get(o, "material")) rc = find_material(s, o, P, &def, e);
-    int *gmat = calloc((size_t)m.ngroups + 1, sizeof *gmat);
-    if (!gmat) rc = json_fail(e, PM_ENOMEM, "out of memory");
-    for (int g = 0; g < m.ngroups && rc == 0 && usemtl; g++) {
-        gmat[g] = -1;
-        for (int i = 0; i < s->nmats; i++)
-            if (strcmp(s->mats[i].name, m.groups[g]) == 0) gmat[g] = i;
-        if (gmat[g] < 0)
-            rc = json_fail(e, PM_EINVAL, "%s.file: usemtl \"%s\" names no material in $.materials", P, m.groups[g]);
-    }
-    int first = s->ntris;
-    for (int t = 0; t < m.ntris && rc == 0; t++) {
-        int g = m.tri_group[t], mat = usemtl && g >= 0 ? gmat[g] : def;
-        if (mat < 0) {
-            rc = json_fail(e, PM_EINVAL, "%s.material: missing (required for the faces before any usemtl)", P);
-            break;
-        }
-        rc = add_tri(s, cp, m.pos[m.tri[t][0]], m.pos[m.tri[t][1]], m.pos[m.tri[t][2]], mat, P, e);
-    }
-    if (rc == 0 && smooth) { /* corner normals for every triangle so far; flat ones get n */
-        vec3(*ns)[3] = realloc(s->tri_ns, (size_t)s->ntris * sizeof *ns);
-        if (!ns) {
-            rc = json_fail(e, PM_ENOMEM, "out of memory");
-        } else {
-            s->tri_ns = ns;
-            for (int t = s->ntri_ns; t < first; t++) ns[t][0] = ns[t][1] = ns[t][2] = s->tris[t].n;
-            memcpy(ns + first, m.corner_n, (size_t)m.ntris * sizeof *ns);
-            s->ntri_ns = s->ntris;
-        }
-    }
-    free(gmat);
-    mesh_free(&m);
-    return rc;
-}
-
-static int load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_err *e) {
-    if (!cJSON_IsObject(o))
-        return json_fail(e, PM_EINVAL, "%s: expected an object, got %s", P, json_type_name(o));
-    const char *type;
-    int mat;
-    TRY(json_string(o, P, "type", 1, &type, e));
-    if (strcmp(type, "sphere") == 0) {
-        KEYS(o, P, "a sphere", "type", "name", "center", "radius", "material", "interior_medium");
-        sphere sp;
-        TRY(json_vec3(o, P, "center", 1, &sp.c, e));
-        TRY(check_point(sp.c, P, "center", e));
-        TRY(json_number(o, P, "radius", 1, &sp.r, e));
-        if (!(sp.r > 0))
-            return json_fail(e, PM_EINVAL, "%s.radius: must be positive, got %g", P, sp.r);
-        if (!(sp.r >= SCENE_LENGTH_MIN && sp.r <= SCENE_LENGTH_MAX))
-            return json_fail(e, PM_EINVAL, "%s.radius: %g is outside the supported range of "
-                             "lengths, %g to %g", P, sp.r, SCENE_LENGTH_MIN, SCENE_LENGTH_MAX);
-        TRY(find_material(s, o, P, &mat, e));
-        sp.mat = mat;
-        sp.light = -1;
-        int n = s->nspheres;
-        if (push((void **)&s->spheres, &s->nspheres, &cp->scap, sizeof sp, &sp) < 0 ||
-            push((void **)&s->sphere_obj, &n, &cp->socap, sizeof cp->obj, &cp->obj) < 0)
-            return json_fail(e, PM_ENOMEM, "out of memory");
-    } else if (strcmp(type, "triangle") == 0 || strcmp(type, "quad") == 0) {
-        int nv = strcmp(type, "quad") == 0 ? 4 : 3; /* a quad is the fan (0 1 2) (0 2 3) */
-        KEYS(o, P, nv == 4 ? "a quad" : "a triangle", "type", "name", "vertices", "material",
-             "interior_medium");
-        vec3 v[4];
-        TRY(read_points(o, P, "vertices", nv, v, e));
-        TRY(find_material(s, o, P, &mat, e));
-        for (int i = 1; i + 1 < nv; i++) TRY(add_tri(s, cp, v[0], v[i], v[i + 1], mat, P, e));
-    } else if (strcmp(type, "mesh") == 0 && json_get(o, "file")) {
-        KEYS(o, P, "a mesh from a file", "type", "name", "file", "material", "usemtl", "transform", "smooth",
-             "recompute_normals", "flip", "interior_medium", "vertices", "triangles"); /* import.c: not both */
-        return load_mesh_file(s, cp, o, P, e);
-    } else if (strcmp(type, "mesh") == 0) {
-        KEYS(o, P, "a mesh", "type", "name", "vertices", "triangles", "normals", "smooth", "material", "interior_medium",
-             "file");
-        const cJSON *va, *ta;
-        TRY(json_array(o, P, "vertices", 1, &va, e));
-        TRY(json_array(o, P, "triangles", 1, &ta, e));
-        TRY(find_material(s, o, P, &mat, e));
-        int nv = cJSON_GetArraySize(va), nt = cJSON_GetArraySize(ta);
-        if (nt == 0) return json_fail(e, PM_EINVAL, "%s.triangles: empty mesh", P);
-        vec3 *v = malloc((size_t)(nv > 0 ? nv : 1) * sizeof *v);
-        if (!v) return json_fail(e, PM_ENOMEM, "out of memory");
-        char pk[P_MAX], p[P_MAX];
-        int rc = 0, i = 0;
-        json_path_key(pk, sizeof pk, P, "vertices");
-        for (const cJSON *it = va->child; it && rc == 0; it = it->next, i++) {
-            json_path_index(p, sizeof p, pk, i);
-            rc = json_item_vec3(it, p, &v[i], e);
-        }
-        /* smooth shading (the normals given per vertex, else made as for mesh files) */
-        int smooth = 0;
-        vec3 *vn = NULL;
-        if (rc == 0) rc = json_bool(o, P, "smooth", 0, &smooth, e);
-        const cJSON *na = json_get(o, "normals");
-        if (rc == 0 && na && !smooth)
-            rc = json_fail(e, PM_EINVAL, "%s.normals: used only with \"smooth\": true", P);
-        if (rc == 0 && na && (!cJSON_IsArray(na) || cJSON_GetArraySize(na) != nv))
-            rc = json_fail(e, PM_EINVAL, "%s.normals: expected one normal per vertex (%d)", P, nv);
-        if (rc == 0 && na) {
-            vn = malloc((size_t)(nv > 0 ? nv : 1) * sizeof *vn);
-            if (!vn) rc = json_fail(e, PM_ENOMEM, "out of memory");
-            json_path_key(pk, sizeof pk, P, "normals");
-            i = 0;
-            for (const cJSON *it = na->child; it && rc == 0; it = it->next, i++) {
-                json_path_index(p, sizeof p, pk, i);
-                rc = json_item_vec3(it, p, &vn[i], e);
-                if (rc == 0 && v3_iszero(vn[i])) rc = json_fail(e, PM_EINVAL, "%s: a zero normal", p);
-            }
-        }
-        int (*tv)[3] = smooth && rc == 0 ? malloc((size_t)nt * sizeof *tv) : NULL;
-        if (smooth && rc == 0 && !tv) rc = json_fail(e, PM_ENOMEM, "out of memory");
-        int first = s->ntris;
-        json_path_key(pk, sizeof pk, P, "triangles");
-        i = 0;
-        for (const cJSON *it = ta->child; it && rc == 0; it = it->next, i++) {
-            json_path_index(p, sizeof p, pk, i);
-            vec3 idx;
-            rc = json_item_vec3(it, p, &idx, e);
-            if (rc < 0) break;
-            double ix[3] = {idx.x, idx.y, idx.z};
-            for (int k = 0; k < 3 && rc == 0; k++)
-                if (ix[k] != floor(ix[k]) || ix[k] < 0 || ix[k] >= nv)
-                    rc = json_fail(e, PM_EINVAL, "%s[%d]: vertex index %g is not an integer in [0, %d)",
-                                   p, k, ix[k], nv);
-            if (rc == 0) rc = add_tri(s, cp, v[(int)ix[0]], v[(int)ix[1]], v[(int)ix[2]], mat, p, e);
-            if (rc == 0 && tv)
-                for (int k = 0; k < 3; k++) tv[i][k] = (int)ix[k];
-        }
-        if (rc == 0 && smooth) rc = inline_smooth(s, first, v, nv, vn, tv, nt, e);
-        free(tv);
-        free(vn);
-        free(v);
-        return rc;
-    } else {
-        return json_fail(e, PM_EINVAL,
-                         "%s.type: unknown object type \"%s\" (sphere, triangle, quad, mesh)", P, type);
-    }
-    return 0;
-}
-
 static int load_light(scene *s, caps *cp, const cJSON *o, const char *P, json_err *e) {
     if (!cJSON_IsObject(o))
         return json_fail(e, PM_EINVAL, "%s: expected an object, got %s", P, json_type_name(o));
@@ -494,17 +245,17 @@ static int load_light(scene *s, caps *cp, const cJSON *o, const char *P, json_er
         KEYS(o, P, "a point light", "type", "position", "intensity", "power");
         l.type = LIGHT_POINT;
         TRY(json_vec3(o, P, "position", 1, &l.pos, e));
-        TRY(check_point(l.pos, P, "position", e));
+        TRY(sl_check_point(l.pos, P, "position", e));
         int has_i = json_get(o, "intensity") != NULL, has_p = json_get(o, "power") != NULL;
         if (has_i == has_p)
             return json_fail(e, PM_EINVAL, "%s: give exactly one of intensity (W/sr) or power (W)", P);
         if (has_i) {
             TRY(json_rgb(o, P, "intensity", 1, &l.intensity, e));
-            TRY(check_nonneg_rgb(l.intensity, P, "intensity", e));
+            TRY(sl_check_nonneg_rgb(l.intensity, P, "intensity", e));
         } else {
             rgb pw;
             TRY(json_rgb(o, P, "power", 1, &pw, e));
-            TRY(check_nonneg_rgb(pw, P, "power", e));
+            TRY(sl_check_nonneg_rgb(pw, P, "power", e));
             l.intensity = v3_scale(pw, 1.0 / (4 * M_PI));
         }
     } else if (strcmp(type, "directional") == 0) {
@@ -521,7 +272,7 @@ static int load_light(scene *s, caps *cp, const cJSON *o, const char *P, json_er
                          "%s.type: unknown light type \"%s\" (point, directional; area lights are "
                          "objects with an emissive material)", P, type);
     }
-    if (push((void **)&s->lights, &s->nlights, &cp->lcap, sizeof l, &l) < 0)
+    if (sl_push((void **)&s->lights, &s->nlights, &cp->lcap, sizeof l, &l) < 0)
         return json_fail(e, PM_ENOMEM, "out of memory");
     return 0;
 }
@@ -593,138 +344,8 @@ static int load_settings(scene *s, const cJSON *root, json_err *e) {
 /* "comment" is allowed in every object of the format, also in the maps of named materials
  * and media, where a text under that key is a comment, not a material or medium (an object
  * under it is one named "comment"). */
-static int is_comment(const cJSON *it) {
+int sl_is_comment(const cJSON *it) {
     return it->string && strcmp(it->string, "comment") == 0 && cJSON_IsString(it);
-}
-
-/* $.media: named homogeneous media (medium.h). */
-static int load_media(scene *s, const cJSON *root, json_err *e) {
-    const cJSON *ms;
-    TRY(json_object(root, "$", "media", 0, &ms, e));
-    int n = ms ? cJSON_GetArraySize(ms) : 0;
-    if (n == 0) return 0;
-    s->media = calloc((size_t)n, sizeof *s->media);
-    if (!s->media) return json_fail(e, PM_ENOMEM, "out of memory");
-    char P[P_MAX];
-    for (const cJSON *it = ms->child; it; it = it->next) {
-        if (is_comment(it)) continue;
-        medium *m = &s->media[s->nmedia];
-        json_path_key(P, sizeof P, "$.media", it->string ? it->string : "?");
-        if (!cJSON_IsObject(it))
-            return json_fail(e, PM_EINVAL, "%s: expected an object, got %s", P, json_type_name(it));
-        if (strlen(it->string) >= sizeof m->name)
-            return json_fail(e, PM_EINVAL, "%s: medium name too long (max %d characters)", P,
-                             (int)sizeof m->name - 1);
-        snprintf(m->name, sizeof m->name, "%s", it->string);
-        KEYS(it, P, "a medium", "sigma_a", "sigma_s", "g");
-        TRY(json_rgb(it, P, "sigma_a", 0, &m->sigma_a, e));
-        TRY(check_sigma_rgb(m->sigma_a, P, "sigma_a", e));
-        TRY(json_rgb(it, P, "sigma_s", 0, &m->sigma_s, e));
-        TRY(check_sigma_rgb(m->sigma_s, P, "sigma_s", e));
-        TRY(json_number(it, P, "g", 0, &m->g, e));
-        if (!(m->g > -1 && m->g < 1))
-            return json_fail(e, PM_EINVAL, "%s.g: must be in (-1, 1), got %g", P, m->g);
-        m->sigma_t = v3_add(m->sigma_a, m->sigma_s);
-        s->nmedia++;
-    }
-    return 0;
-}
-
-/* The index of the medium named by the string at obj.key, in *out. */
-static int find_medium(const scene *s, const cJSON *obj, const char *P, const char *key, int *out,
-                       json_err *e) {
-    const char *name;
-    TRY(json_string(obj, P, key, 1, &name, e));
-    for (int i = 0; i < s->nmedia; i++)
-        if (strcmp(s->media[i].name, name) == 0) {
-            *out = i;
-            return 0;
-        }
-    return json_fail(e, PM_EINVAL, "%s.%s: unknown medium \"%s\" (not in $.media)", P, key, name);
-}
-
-/* x rounded to float (the closedness check's tolerance, below). */
-static double as_float(double x) {
-    float f = (float)x;
-    return (double)f;
-}
-
-/* Edge order for the closedness check: the 6 coordinates of a directed edge. */
-static int edge_cmp(const void *a, const void *b) {
-    const double *x = a, *y = b;
-    for (int k = 0; k < 6; k++)
-        if (x[k] != y[k]) return x[k] < y[k] ? -1 : 1;
-    return 0;
-}
-
-/* Triangles first..s->ntris-1 bound a medium only if they form a closed, consistently wound
- * surface whose normals point out: each directed edge (by vertex position) appears once and
- * its reverse once, and the enclosed signed volume is positive. A triangle keeps v0 and two
- * edge vectors, so its other corners come back as v0 + e, which can miss the loaded vertex by
- * a rounding of the double: positions are compared rounded to float (vertices closer than
- * float precision count as one, which only makes the check more lenient). */
-static int check_closed(const scene *s, int first, const char *P, json_err *e) {
-    int nt = s->ntris - first;
-    if (nt < 4)
-        return json_fail(e, PM_EINVAL, "%s.interior_medium: a medium needs a closed surface "
-                         "(this one has %d triangles)", P, nt);
-    double(*ed)[6] = malloc((size_t)nt * 3 * sizeof *ed);
-    if (!ed) return json_fail(e, PM_ENOMEM, "out of memory");
-    double vol = 0;
-    for (int t = 0; t < nt; t++) {
-        const triangle *tr = &s->tris[first + t];
-        vec3 v[3] = {tr->v0, v3_add(tr->v0, tr->e1), v3_add(tr->v0, tr->e2)};
-        vol += v3_dot(v[0], v3_cross(v[1], v[2])) / 6;
-        for (int k = 0; k < 3; k++) {
-            vec3 a = v[k], b = v[(k + 1) % 3];
-            double *d = ed[3 * t + k];
-            const double c[6] = {a.x, a.y, a.z, b.x, b.y, b.z};
-            for (int j = 0; j < 6; j++) d[j] = as_float(c[j]);
-        }
-    }
-    int n = 3 * nt, bad = 0;
-    qsort(ed, (size_t)n, sizeof *ed, edge_cmp);
-    for (int i = 0; i < n && !bad; i++) {
-        double rev[6] = {ed[i][3], ed[i][4], ed[i][5], ed[i][0], ed[i][1], ed[i][2]};
-        if (i + 1 < n && edge_cmp(ed[i], ed[i + 1]) == 0) bad = 1; /* an edge used twice one way */
-        else if (!bsearch(rev, ed, (size_t)n, sizeof *ed, edge_cmp)) bad = 2; /* an open edge */
-    }
-    free(ed);
-    if (bad)
-        return json_fail(e, PM_EINVAL, "%s.interior_medium: a medium needs a closed surface, "
-                         "consistently wound (%s)", P,
-                         bad == 1 ? "an edge is shared by faces of the same winding"
-                                  : "an edge belongs to one face only: the mesh is open");
-    if (!(vol > 0))
-        return json_fail(e, PM_EINVAL, "%s.interior_medium: the surface's normals point inward "
-                         "(reverse the winding so the front side is the outside)", P);
-    return 0;
-}
-
-/* An object's "interior_medium": spheres and closed meshes only. */
-static int load_interior_medium(scene *s, const cJSON *o, const char *P, int obj, int first_tri,
-                                json_err *e) {
-    if (!json_get(o, "interior_medium")) return 0;
-    int med;
-    TRY(find_medium(s, o, P, "interior_medium", &med, e));
-    const char *type = json_get(o, "type")->valuestring;
-    if (strcmp(type, "triangle") == 0 || strcmp(type, "quad") == 0)
-        return json_fail(e, PM_EINVAL, "%s.interior_medium: a %s is open and cannot bound a medium "
-                         "(use a sphere or a closed mesh)", P, type);
-    if (strcmp(type, "mesh") == 0) TRY(check_closed(s, first_tri, P, e));
-    s->obj_medium[obj] = med;
-    return 0;
-}
-
-/* Which medium the camera is in: the side of the nearest surface a ray from the eye meets
- * (the rule of medium.h); the global medium when it meets nothing. */
-static void find_camera_medium(scene *s) {
-    s->camera_medium = s->global_medium;
-    if (s->nmedia == 0) return;
-    ray r = {s->cam.eye, s->cam.forward};
-    hit h;
-    if (scene_intersect(s, r, INFINITY, &h))
-        s->camera_medium = scene_medium_after(s, &h, v3_neg(r.d));
 }
 
 static int from_json(scene *s, const cJSON *root, json_err *e) {
@@ -740,13 +361,13 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
     if (!(s->medium_ior > 0))
         return json_fail(e, PM_EINVAL, "$.medium_ior: must be positive, got %g", s->medium_ior);
     s->global_medium = -1;
-    TRY(load_media(s, root, e));
-    if (json_get(root, "medium")) TRY(find_medium(s, root, "$", "medium", &s->global_medium, e));
+    TRY(sl_load_media(s, root, e));
+    if (json_get(root, "medium")) TRY(sl_find_medium(s, root, "$", "medium", &s->global_medium, e));
     const cJSON *mats, *objs, *lights, *pm;
     TRY(json_object(root, "$", "materials", 1, &mats, e));
     char p[P_MAX];
     for (const cJSON *it = mats->child; it; it = it->next) {
-        if (is_comment(it)) continue;
+        if (sl_is_comment(it)) continue;
         material m;
         json_path_key(p, sizeof p, "$.materials", it->string ? it->string : "?");
         if (it->string && strlen(it->string) >= sizeof m.name)
@@ -757,7 +378,7 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
             m.ior = s->medium_ior;
             s->has_null = 1;
         }
-        if (push((void **)&s->mats, &s->nmats, &cp.mcap, sizeof m, &m) < 0)
+        if (sl_push((void **)&s->mats, &s->nmats, &cp.mcap, sizeof m, &m) < 0)
             return json_fail(e, PM_ENOMEM, "out of memory");
     }
     TRY(json_array(root, "$", "objects", 1, &objs, e));
@@ -770,8 +391,8 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
         json_path_index(p, sizeof p, "$.objects", i);
         cp.obj = i;
         int first_tri = s->ntris;
-        TRY(load_object(s, &cp, it, p, e));
-        TRY(load_interior_medium(s, it, p, i, first_tri, e));
+        TRY(sl_load_object(s, &cp, it, p, e));
+        TRY(sl_load_interior_medium(s, it, p, i, first_tri, e));
     }
     TRY(json_array(root, "$", "lights", 0, &lights, e));
     i = 0;
@@ -790,7 +411,7 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
     }
     TRY(scene_prepare(s, e));
     TRY(check_point_lights(s, lights, e));
-    find_camera_medium(s);
+    sl_find_camera_medium(s);
     return 0;
 }
 

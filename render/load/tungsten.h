@@ -32,7 +32,9 @@
  * "phase_function" "isotropic" or "henyey_greenstein" with "g"; "max_bounces" only at or above
  * the integrator's). A medium is named in $.media or written inline where it is used (it is then
  * named after its JSON path). The camera's "medium" becomes our global "medium" (the one
- * between objects); a primitive's "int_medium" its interior_medium (a closed primitive only);
+ * between objects); a primitive's "int_medium" its interior_medium (a closed primitive only;
+ * quads that light passes through are merged, one mesh per medium and bsdf, so that the quads
+ * of a box bound their medium together: the loader then checks that the mesh is closed);
  * its "ext_medium", if given, must be the camera's medium (ours has one medium around all
  * objects). Tungsten changes the medium only at a surface that names one, so a glass primitive
  * that names none keeps the medium around it inside: it gets the global medium as its

@@ -1,12 +1,13 @@
 /* dist.h: the distributed renderer `render-mpi`: one render spread over MPI processes
  * (ranks), on one machine or many, giving the image of the one-process `render` bit for bit.
  *
- * HOW IT IS BUILT. render-mpi is render/main.c compiled a second time with mpicc and
- * -Dmain=render_main -Drender_image_ctl=dist_render_image_ctl (Makefile, MPI=1), linked
- * with the files of render/mpi/. So it parses the same options and runs the same scene loading,
- * preprocessing and output code; render_mpi.c's main wraps it, and the two seams are the
- * image loop (dist_render_image_ctl, below) and the photon passes (photon_trace.h's
- * trace_dist, set by dist_init). The default build never sees mpi.h.
+ * HOW IT IS BUILT. render-mpi is the files of render/mpi/, compiled with mpicc (Makefile,
+ * MPI=1) and linked with the renderer's objects: render_mpi.c's main calls render's own
+ * program, render_main (app/app.h), with hooks. So it parses the same options and runs the
+ * same scene loading, preprocessing and output code, and the two seams are the image loop
+ * (dist_render_image_ctl and the pass hooks below, handed over as render_hooks) and the
+ * photon passes (photon_trace.h's trace_dist, set by dist_init). The default build never
+ * sees mpi.h.
  *
  * PHOTON PASS. Every rank loads the scene and plans alike. Each pass runs in rounds: rank r
  * traces batch r of the round, an all-gather gives every rank all the batches, and every
@@ -89,7 +90,7 @@ void *dist_irr_malloc(size_t n);
 void *dist_irr_calloc(size_t n, size_t m);
 /* What render_main returned on this rank: finishes MPI and returns the exit status. */
 int dist_finish(int rc);
-/* The image loop of a distributed render (see above), called by main.c in place of
+/* The image loop of a distributed render (see above), called by render_main in place of
  * render_image_ctl. On ranks > 0 it does not return: they exit once their tiles are sent.
  * With a control (a checkpointed, snapshotted or resumed render), rank 0 renders into
  * ctl->state, skipping its complete tiles, and makes ctl's pauses between chunks (dist.c,
@@ -98,7 +99,7 @@ int dist_finish(int rc);
 int dist_render_image_ctl(const scene *s, const integrator *it, const render_job *job,
                           const render_control *ctl, film *out);
 
-/* RENDERING IN PASSES (run/passes.h; replicated mode only, main.c refuses partitioned). Every
+/* RENDERING IN PASSES (run/passes.h; replicated mode only, render_mpi.c's hook refuses partitioned). Every
  * rank runs the pass loop in lockstep: before each pass dist_pass_agree gives every rank rank
  * 0's decision to render it (the budget, a signal and the pass count are rank 0's), so all
  * ranks call begin_pass (whose photon passes exchange batches as above) and the pass's image

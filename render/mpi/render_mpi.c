@@ -3,7 +3,8 @@
  *   mpirun -np N render-mpi SCENE.json [render's options] [--pm distributed=replicated]
  *
  * It starts MPI, takes the options that only a distributed render has, and runs render's own
- * main (render/main.c, compiled as render_main) on every rank. What it changes in the
+ * program (render_main, render/app/app.h) on every rank, with the hooks of a distributed
+ * render: dist.c's image loops and pass agreement, and passes refused when partitioned. What it changes in the
  * arguments, per rank (added ones go first, so that a last option missing its value gets
  * render's own message):
  *   - --threads: when not given, the cores of the node divided among the ranks on it (OpenMP
@@ -21,10 +22,9 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "app/app.h"
 #include "run/checkpoint.h"
 #include "dist.h"
-
-int render_main(int argc, char **argv);
 
 static void usage_mpi(void) {
     printf("\nrender-mpi (the same options, run under mpirun):\n"
@@ -156,9 +156,16 @@ int main(int argc, char **argv) {
     for (int k = 0; k < nadd; k++) av[at + k] = added[k];
     ac += nadd;
     av[ac] = NULL;
+    /* render's program with dist.c's image loops (app/app.h); passes only when replicated. */
+    render_hooks hooks = {dist_render_image_ctl, dist_pass_image, dist_pass_agree, dist_passes_end, NULL};
+    if (dist_partitioned()) /* each pass would partition fresh maps */
+        hooks.no_passes = "render-mpi: rendering in passes (--time, --passes, --only-pass or the "
+                          "scene's render.time) is not available with --pm distributed=partitioned (each "
+                          "pass would partition fresh maps); use the replicated mode, or --spp for one "
+                          "pass of fixed work";
     /* A tool's output is rank 0's (the others' stdout is discarded; two ranks would write
      * --tonemap's file twice). */
-    int rc = tool && rank > 0 ? 0 : render_main(ac, av);
+    int rc = tool && rank > 0 ? 0 : render_main(ac, av, &hooks);
     free(av);
     if (help && rank == 0) usage_mpi();
     if (settings && rank == 0 && rc == 0) settings_mpi(argv[1][15] == '=');

@@ -49,65 +49,23 @@
  *
  * Threads: li only reads the maps; each thread has its own scratch (estimate buffers).
  */
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "photonmap/common.h"
-#include "photonmap/estimate.h"
-#include "integrators/direct.h"
-#include "guiding/gather_guide.h"
-#include "guiding/guide.h"
-#include "integrators/integrator.h"
-#include "photonmap/irradiance.h"
-#include "photonmap/kdtree.h"
-#include "photonmap/photon.h"
-#include "photon_mapping/photon_lookup.h"
-#include "photons/photon_maps.h"
-#include "photon_mapping/photon_sides.h"
-#include "photons/photon_trace.h"
-#include "photon_mapping/plan.h"
-#include "photon_mapping/pm_volume.h"
-#include "base/stats.h"
+#include "photon_mapping/pm_internal.h"
 
-typedef struct mapper_state {
-    photon_settings cfg;
-    render_plan plan;
-    int preview, direct_vis;
-    int max_depth, rr_depth;
-    photon_maps maps;
-    pm_kdtree *tg, *tc, *ts; /* global, caustic, shadow trees (NULL when absent/empty) */
-    pmv_state vol; /* participating media: volume maps and ray marching (pm_volume.h) */
-    side_cache sides; /* precomputed irradiance that keeps to each query's side (photon_sides.h) */
-    side_map caus_side; /* the caustic map's estimates keep to the query's side (photon_sides.h) */
-    gather_guide gg; /* the opening the gathers aim a share of their rays at (gather_guide.h) */
-    float r2_global, r2_caustic, r2_shadow, r2_lookup;
-    size_t nglobal_all, ncaustic_all; /* photons in the whole maps (all processes' parts) */
-    double sec_dist;
-    pm_estimate_options caus_opt, glob_opt;
-    unsigned kmax;
-    int st_emission_rays;
-    /* Progressive passes (mapper_begin_pass): the pass whose maps are built, its seed, its
-     * squared radii's factor against pass 0's, pass 0's radii and volume radii. */
-    int pass, progressive; /* progressive: ppm_radius applies (a render in passes) */
-    int made;              /* preprocess ran once: the plan's parts and messages are done */
-    uint64_t pass_seed;
-    double r2_scale, t_trace, t_trees, t_irr; /* the last pass's times (seconds) */
-    map_radii rad0;
-    float *vol_r2_0; /* 3 per medium: ms, caus, all */
-    int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
-        st_global_est, st_lookup_miss, st_side_rays, st_side_again;
-} mapper_state;
 
 typedef struct mapper_scratch {
     void *est;
     pm_neighbor *nb;
     const sample_id *id; /* the camera sample being traced (for the lookup hook) */
+    pm_sample_caustics *pc; /* the sample pilot's tally of camera-level caustics, else NULL */
 } mapper_scratch;
 
-/* A distributed render's lookups (photon_lookup.h); NULL in one process. */
-static const photon_lookup_hook *g_lookup;
+const photon_lookup_hook *pm__lookup;
 
-void photon_lookup_set_hook(const photon_lookup_hook *h) { g_lookup = h; }
+void photon_lookup_set_hook(const photon_lookup_hook *h) { pm__lookup = h; }
 
 /* ---- helpers ------------------------------------------------------------------------------ */
 
@@ -150,12 +108,12 @@ static rgb map_estimate(const pm_kdtree *t, const side_map *sm, const pm_estimat
  * or through the lookup hook (the irradiance of all processes' parts, times the BRDF). */
 static rgb estimate_at(const mapper_state *st, int which, vec3 x, vec3 ns, rgb albedo,
                        mapper_scratch *sc) {
-    if (!g_lookup)
+    if (!pm__lookup)
         return which == PHOTON_LOOKUP_CAUSTIC
                    ? map_estimate(st->tc, &st->caus_side, &st->caus_opt, x, ns, albedo, sc->est)
                    : map_estimate(st->tg, NULL, &st->glob_opt, x, ns, albedo, sc->est);
     double e[3];
-    g_lookup->estimate(g_lookup->user, sc->id, which, x, ns, e);
+    pm__lookup->estimate(pm__lookup->user, sc->id, which, x, ns, e);
     return v3(albedo.x * e[0] / M_PI, albedo.y * e[1] / M_PI, albedo.z * e[2] / M_PI);
 }
 
@@ -524,7 +482,14 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
                                      : v3s(0);
             } else {
                 Ld = direct_light(st, s, m, &h, ns, wo, g, sc);
-                if (cw > 0) Ld = v3_add(Ld, v3_scale(caustics_at(st, s, m, &h, ns, wo, sc), cw));
+                if (cw > 0) {
+                    rgb Lc = caustics_at(st, s, m, &h, ns, wo, sc);
+                    Ld = v3_add(Ld, v3_scale(Lc, cw));
+                    if (sc->pc && st->ncaustic_all) {
+                        sc->pc->L = v3_add(sc->pc->L, v3_mul(beta, Lc));
+                        sc->pc->n++;
+                    }
+                }
                 if (st->plan.final_gather.on) {
                     double share = fmin(1.0, v3_maxc(beta));
                     int n = (int)ceil(st->cfg.gather_rays * share);
@@ -592,7 +557,7 @@ static rgb mapper_li(const integrator *self, const scene *s, ray r, rng *g, cons
     const mapper_state *st = self->data;
     if (scratch) ((mapper_scratch *)scratch)->id = id;
     int m = st->cfg.emission_strata;
-    if (m <= 0 || !id || id->strata <= 0)
+    if (m <= 0 || !id || id->strata <= 0 || (st->emit.mask && id->pixel < st->emit.pixels && !st->emit.mask[id->pixel]))
         return eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_ALL, s->camera_medium, g, scratch);
     rgb L = eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_SHADE, s->camera_medium, g, scratch);
     rgb E = v3s(0);
@@ -611,7 +576,7 @@ static rgb mapper_li(const integrator *self, const scene *s, ray r, rng *g, cons
 
 static void *mapper_thread_begin(const integrator *self) {
     const mapper_state *st = self->data;
-    mapper_scratch *sc = malloc(sizeof *sc);
+    mapper_scratch *sc = calloc(1, sizeof *sc);
     if (!sc) return NULL;
     sc->est = malloc(pm_estimate_scratch_bytes(st->kmax));
     sc->nb = malloc((size_t)st->cfg.k_shadow * sizeof *sc->nb);
@@ -627,12 +592,71 @@ static void mapper_thread_end(const integrator *self, void *scratch) {
     free(sc);
 }
 
+/* ---- the cheap sample (pm_sample.h): the photon mapper's side ---------------------------- */
+
+/* Scratch for the preprocess's own camera rays (the emission mask, the sample pilot). */
+static void *sample_scratch_new(void *user) {
+    const mapper_state *st = user;
+    mapper_scratch *sc = calloc(1, sizeof *sc);
+    if (!sc) return NULL;
+    sc->est = malloc(pm_estimate_scratch_bytes(st->kmax));
+    sc->nb = malloc((size_t)st->cfg.k_shadow * sizeof *sc->nb);
+    if (!sc->est || !sc->nb) {
+        free(sc->est);
+        free(sc->nb);
+        free(sc);
+        return NULL;
+    }
+    return sc;
+}
+
+static void sample_scratch_free(void *user, void *scratch) {
+    (void)user;
+    mapper_scratch *sc = scratch;
+    if (!sc) return;
+    free(sc->est);
+    free(sc->nb);
+    free(sc);
+}
+
+/* An eye ray for pm_sample.c: emission alone, or the shading alone with caustics at weight 1
+ * tallied into pc (eye_radiance adds the camera path's caustics to sc->pc). */
+static rgb sample_eye(void *user, ray r, int emit, rng *g, void *scratch, pm_sample_caustics *pc) {
+    const mapper_state *st = user;
+    mapper_scratch *sc = scratch;
+    const scene *s = st->scene;
+    sc->pc = pc;
+    rgb L = eye_radiance(st, s, r, 0, v3s(1), emit ? 0 : 1.0, emit ? EYE_EMIT : EYE_SHADE, s->camera_medium, g, sc);
+    sc->pc = NULL;
+    return L;
+}
+
+/* The emission mask and the sample pilot, once (pass 0's preprocess), and their plan lines. */
+static int sample_decide(mapper_state *st, const scene *s, char *err, size_t errcap) {
+    st->scene = s;
+    const char *no_pilot = !st->plan.final_gather.on || st->direct_vis ? "no final gather"
+                           : !st->sides.irr ? "no precomputed irradiance to gather from"
+                           : pm__lookup ? "partitioned render-mpi: its lookups are shared between processes"
+                                      : NULL;
+    pm_sample_host h = {s, &st->cfg, st->st_lookup, st->st_caustic, st->ncaustic_all > 0, no_pilot, st,
+                        sample_scratch_new, sample_scratch_free, sample_eye};
+    int rc = pm_emission_mask_build(&h, &st->emit, st->emit_reason, sizeof st->emit_reason, err, errcap);
+    if (rc < 0) return rc;
+    if (st->cfg.emission_strata <= 0)
+        snprintf(st->emit_reason, sizeof st->emit_reason, "none (photon_mapping.emission_strata is 0): "
+                 "a sample's own path collects emission");
+    pm_sample_pilot(&h, st->explicit_gather, st->explicit_secondary, st->explicit_stride, st->emit.var,
+                    st->sample_reason, sizeof st->sample_reason);
+    return 0;
+}
+
 static void mapper_destroy(integrator *self) {
     mapper_state *st = self->data;
     if (!st) return;
     side_cache_free(&st->sides);
     side_map_free(&st->caus_side);
     gather_guide_free(&st->gg);
+    pm_emission_mask_free(&st->emit);
     pmv_free(&st->vol);
     pm_kdtree_free(st->tg);
     pm_kdtree_free(st->tc);
@@ -647,11 +671,9 @@ static void mapper_destroy(integrator *self) {
 
 enum { BUCKET_GLOBAL = 1, BUCKET_CAUSTIC = 8, BUCKET_SHADOW = 8 };
 
-/* Progressive passes (defined below, with mapper_begin_pass). */
-static void pass_radii(mapper_state *st, map_radii *rad);
-static int pass_volume_radii(mapper_state *st, const scene *s);
+/* Progressive passes: pm_passes.c (pm__pass_radii, pm__begin_pass). */
 
-static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
+int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
     mapper_state *st = self->data;
     if (!st->made) plan_print(&st->plan, stdout);
     fflush(stdout);
@@ -674,7 +696,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         sp.settings.seed = st->pass_seed;
         if ((rc = pmv_trace(&st->vol, &sp, &st->cfg, &st->plan, m, err, errcap)) < 0) return rc;
         if (!loaded) m->stamp = stamp;
-        if ((rc = pass_volume_radii(st, s)) < 0) return rc;
+        if ((rc = pm__pass_volume_radii(st, s)) < 0) return rc;
     } else if (st->cfg.load_dir[0]) {
         if ((rc = photon_maps_load(m, st->cfg.load_dir, &stamp, st->cfg.force_load, err, errcap)) < 0)
             return rc;
@@ -723,8 +745,8 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     photon_maps_radii(s, m, &st->cfg, &rad);
     st->nglobal_all = m->part ? m->whole_global : m->nglobal;
     st->ncaustic_all = m->part ? m->whole_caustic : m->ncaustic;
-    pass_radii(st, &rad); /* progressive passes: pass 0's radii, shrunk */
-    if (g_lookup && (rc = g_lookup->partition(g_lookup->user, m, err, errcap)) < 0) return rc;
+    pm__pass_radii(st, &rad); /* progressive passes: pass 0's radii, shrunk */
+    if (pm__lookup && (rc = pm__lookup->partition(pm__lookup->user, m, err, errcap)) < 0) return rc;
 
     t0 = stats_now();
     if ((rc = photon_tree_build_global(&st->tg, m, BUCKET_GLOBAL, err, errcap)) < 0 ||
@@ -755,7 +777,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     st->t_irr = 0;
     if (st->nglobal_all && !st->direct_vis) {
         t0 = stats_now();
-        rc = g_lookup ? g_lookup->side_build(g_lookup->user, &st->sides, s, st->tg,
+        rc = pm__lookup ? pm__lookup->side_build(pm__lookup->user, &st->sides, s, st->tg,
                                              st->tg ? pm_kdtree_records(st->tg) : NULL, m->nglobal,
                                              (unsigned)st->cfg.k_global, st->r2_global, err, errcap)
                       : side_cache_build(&st->sides, s, st->tg, pm_kdtree_records(st->tg), m->global_path,
@@ -780,7 +802,7 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
         const char *why = !st->plan.final_gather.on || st->direct_vis ? "no final gather"
                           : !st->sides.irr                             ? "no precomputed irradiance to probe"
                           : st->vol.on ? "participating media: its probes do not march"
-                          : g_lookup   ? "partitioned render-mpi: its probes would read one process's records"
+                          : pm__lookup   ? "partitioned render-mpi: its probes would read one process's records"
                                        : NULL;
         gather_guide_probe probe = {st, gg_found, gg_read};
         if ((rc = gather_guide_plan(&st->gg, s, st->cfg.force_gather_guide, why, &probe, err, errcap)) < 0)
@@ -788,164 +810,19 @@ static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t
     }
     stats_time_add("Time/Gather guide pilot", stats_now() - t0);
     printf("  gather guide: %s\n", st->gg.reason);
+    t0 = stats_now();
+    if ((rc = sample_decide(st, s, err, errcap)) < 0) return rc;
+    stats_time_add("Time/Sample pilot and emission mask", stats_now() - t0);
+    printf("  sample: %s\n", st->sample_reason);
+    printf("  emission rays: %s\n", st->emit_reason);
     st->made = 1;
-    if (g_lookup) {
+    if (pm__lookup) {
         const pm_kdtree *trees[2] = {st->tg, st->tc};
         pm_estimate_options opts[2] = {st->glob_opt, st->caus_opt};
-        g_lookup->ready(g_lookup->user, trees, opts);
+        pm__lookup->ready(pm__lookup->user, trees, opts);
     }
     fflush(stdout);
     return 0;
-}
-
-/* ---- progressive passes ------------------------------------------------------------------ */
-
-/* Progressive photon mapping (README.md, "Progressive photon mapping"): a render in passes
- * (run/passes.h) calls mapper_begin_pass before pass p >= 1. The pass traces fresh maps with
- * its own seed (global, caustic, shadow, volume; the plan's pilot photons joined pass 0 only),
- * builds its own trees, precomputed irradiance and caustic side map, and caps every estimate
- * at pass 0's radius^2 times ppm_r2_scale(p) (Knaus and Zwicker 2011). The plan, the
- * importance table and the guides are pass 0's. */
-
-/* prod_{j=1..p} (j + alpha) / (j + 1): r^2 of pass p (0-based) over r^2 of pass 0, from
- * r^2_{i+1} = r^2_i (i + alpha) / (i + 1) with the first pass i = 1. */
-static double ppm_r2_scale(int pass, double alpha) {
-    double f = 1;
-    for (int j = 1; j <= pass; j++) f *= (j + alpha) / (j + 1);
-    return f;
-}
-
-/* Pass 0 keeps its radii; a later pass takes them, scaled, in place of its own. The shadow
- * query (a hint that never changes the mean) and the typical radius (which decides where
- * secondary gathers run, an unbiased choice) stay as the pass finds them or as pass 0 had. */
-static void pass_radii(mapper_state *st, map_radii *rad) {
-    if (!st->pass && st->progressive && st->cfg.ppm_radius > 0) {
-        /* ppm_radius: the first radii, f times a k-photon estimate's radius at the map's mean
-         * density over the diffuse area: typical^2 = k_g A / (pi n_g) for the global map (from
-         * photon_maps_radii), and k_c A / (pi n_c) = typical^2 (k_c n_g) / (k_g n_c) for the
-         * caustic map; never above the maximum radii. */
-        double f = st->cfg.ppm_radius, t2 = rad->typical * rad->typical;
-        double g = f * rad->typical;
-        if (isfinite(g) && g < rad->global) rad->global = g;
-        if (st->ncaustic_all && st->nglobal_all) {
-            double c = f * sqrt(t2 * st->cfg.k_caustic * (double)st->nglobal_all /
-                                ((double)st->cfg.k_global * (double)st->ncaustic_all));
-            if (isfinite(c) && c < rad->caustic) rad->caustic = c;
-        }
-        rad->r2_global = (float)(rad->global * rad->global);
-        rad->r2_caustic = (float)(rad->caustic * rad->caustic);
-        if (rad->r2_lookup > rad->r2_global) rad->r2_lookup = rad->r2_global;
-    }
-    if (!st->pass) {
-        st->rad0 = *rad;
-        return;
-    }
-    double f = st->r2_scale, sf = sqrt(f);
-    const map_radii *r0 = &st->rad0;
-    rad->global = r0->global * sf;
-    rad->caustic = r0->caustic * sf;
-    rad->typical = r0->typical;
-    rad->r2_global = (float)((double)r0->r2_global * f);
-    rad->r2_caustic = (float)((double)r0->r2_caustic * f);
-    rad->r2_lookup = (float)((double)r0->r2_lookup * f);
-}
-
-/* The same for the volume maps of each medium (pm_volume.h): pass 0's r^2 (where pass 0 had
- * photons) times the pass's factor. */
-static int pass_volume_radii(mapper_state *st, const scene *s) {
-    pmv_state *v = &st->vol;
-    if (!v->on || s->nmedia <= 0 || !v->ms) return 0;
-    pmv_map *maps[3] = {v->ms, v->caus, v->all};
-    if (!st->pass) {
-        free(st->vol_r2_0);
-        st->vol_r2_0 = malloc((size_t)s->nmedia * 3 * sizeof *st->vol_r2_0);
-        if (!st->vol_r2_0) return PM_ENOMEM;
-        for (int md = 0; md < s->nmedia; md++)
-            for (int k = 0; k < 3; k++) st->vol_r2_0[3 * md + k] = maps[k][md].r2;
-        return 0;
-    }
-    for (int md = 0; md < s->nmedia && st->vol_r2_0; md++)
-        for (int k = 0; k < 3; k++) {
-            float r0 = st->vol_r2_0[3 * md + k];
-            if (isfinite(r0)) maps[k][md].r2 = (float)((double)r0 * st->r2_scale);
-        }
-    return 0;
-}
-
-/* Free the volume trees of a pass (pmv_trace allocates them anew); the rest of v stays. */
-static void drop_volume_maps(pmv_state *v) {
-    pmv_map *maps[3] = {v->ms, v->caus, v->all};
-    for (int k = 0; k < 3; k++) {
-        for (int md = 0; maps[k] && md < v->nmedia; md++) {
-            pm_kdtree_free(maps[k][md].t);
-            free(maps[k][md].a);
-        }
-        free(maps[k]);
-    }
-    v->ms = v->caus = v->all = NULL;
-    v->n_ms = v->n_caus = v->n_all = 0;
-}
-
-static int mapper_preprocess(integrator *self, const scene *s, char *err, size_t errcap);
-
-/* One line per pass on stdout: the maps, what building them cost, and the radii. */
-static void print_pass(const mapper_state *st, int pass) {
-    printf("Pass %d: photons %zu global, %zu caustic", pass, st->nglobal_all, st->ncaustic_all);
-    if (st->vol.on) {
-        double r2v = 0; /* the largest r^2 of the media's multiple-scattering maps */
-        for (int md = 0; st->vol.ms && md < st->vol.nmedia; md++)
-            if (st->vol.ms[md].n && (double)st->vol.ms[md].r2 > r2v) r2v = (double)st->vol.ms[md].r2;
-        printf(", %zu volume (r^2 %.9g), %zu volume-caustic", st->vol.n_all, r2v, st->vol.n_caus);
-    }
-    printf("; trace %.3f s, kd-trees %.3f s, irradiance %.3f s; r^2 global %.9g, caustic %.9g "
-           "(pass 0's x %.9g)\n",
-           st->t_trace, st->t_trees, st->t_irr, (double)st->r2_global, (double)st->r2_caustic,
-           st->r2_scale);
-    fflush(stdout);
-}
-
-static int mapper_begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, char *err,
-                             size_t errcap) {
-    mapper_state *st = self->data;
-    /* Pass 0 is what preprocess made, unless ppm_radius asks for other first radii: then it
-     * is made again (the same photons) with them. */
-    int again = pass == 0 && !st->progressive && st->cfg.ppm_radius > 0;
-    st->progressive = 1;
-    if (pass == st->pass && !again) {
-        print_pass(st, pass);
-        return 0;
-    }
-    if (g_lookup) {
-        snprintf(err, errcap, "progressive passes (--time, --passes) are not available with --pm "
-                 "distributed=partitioned: every pass would partition fresh maps (use the "
-                 "replicated mode)");
-        return PM_EINVAL;
-    }
-    if (st->cfg.load_dir[0]) {
-        snprintf(err, errcap, "load_photons (--load-photons %s) fixes the photon maps, but each "
-                 "progressive pass traces its own: render one pass (no --time or --passes) or "
-                 "leave the maps out", st->cfg.load_dir);
-        return PM_EINVAL;
-    }
-    side_cache_free(&st->sides);
-    side_map_free(&st->caus_side);
-    pm_kdtree_free(st->tg);
-    pm_kdtree_free(st->tc);
-    pm_kdtree_free(st->ts);
-    st->tg = st->tc = st->ts = NULL;
-    drop_volume_maps(&st->vol);
-    int nmedia = st->maps.nmedia;
-    photon_maps_free(&st->maps);
-    st->maps.nmedia = nmedia;
-    st->pass = pass;
-    st->pass_seed = seed;
-    st->r2_scale = ppm_r2_scale(pass, st->cfg.ppm_alpha);
-    int progress = st->cfg.progress;
-    st->cfg.progress = 0; /* one line per pass instead of the tracer's bars */
-    int rc = mapper_preprocess(self, s, err, errcap);
-    st->cfg.progress = progress;
-    if (rc == 0) print_pass(st, pass);
-    return rc;
 }
 
 /* ---- create -------------------------------------------------------------------------------- */
@@ -964,6 +841,9 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
         return rc;
     }
     st->preview = preview;
+    st->explicit_gather = json_get(s->photon_mapping, "gather_rays") != NULL;
+    st->explicit_secondary = json_get(s->photon_mapping, "secondary_rays") != NULL;
+    st->explicit_stride = json_get(s->photon_mapping, "caustic_stride") != NULL;
     if ((rc = plan_make(s, &st->cfg, preview, &st->plan, err, errcap)) < 0) {
         free(st);
         return rc;
@@ -1001,12 +881,12 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
     st->pass_seed = s->settings.seed;
     st->r2_scale = 1;
     it->data = st;
-    it->preprocess = mapper_preprocess;
+    it->preprocess = pm__preprocess;
     it->thread_begin = mapper_thread_begin;
     it->thread_end = mapper_thread_end;
     it->li = mapper_li;
     it->destroy = mapper_destroy;
-    it->begin_pass = mapper_begin_pass;
+    it->begin_pass = pm__begin_pass;
     return 0;
 }
 

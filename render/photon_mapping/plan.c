@@ -254,7 +254,7 @@ static void plan_global(const scene *s, const pilot_result *r, render_plan *p) {
     set(&p->global, 0, "%s", buf);
 }
 
-static void plan_shadow(const scene *s, const pilot_result *r, render_plan *p) {
+static void plan_shadow(const scene *s, const photon_settings *cfg, const pilot_result *r, render_plan *p) {
     int area = 0;
     for (int i = 0; i < s->nlights; i++) area += s->lights[i].type == LIGHT_AREA && v3_maxc(s->lights[i].power) > 0;
     if (!area) {
@@ -270,14 +270,20 @@ static void plan_shadow(const scene *s, const pilot_result *r, render_plan *p) {
         set(&p->shadow, 0, "no diffuse surface%s", "");
         return;
     }
-    char mats[128], buf[300];
+    char mats[128], buf[480];
     if (r->g.occluder.total > 0) {
+        /* Occluders, so shadow photons could answer some shadow tests; but the answer costs
+         * more than the test it saves (PLAN_SHADOW_HINT_NODES in plan.h): off unless forced. */
         top_mats(s, &r->g.occluder, mats, sizeof mats);
         snprintf(buf, sizeof buf,
-                 "area light with occluders: %llu of %llu pilot photons reach a diffuse surface "
-                 "behind their first hit; occluders %s",
-                 r->g.occluder.total, (unsigned long long)r->g_emitted, mats);
-        set(&p->shadow, 1, "%s", buf);
+                 "area light with occluders (%llu of %llu pilot photons reach a diffuse surface "
+                 "behind their first hit; occluders %s), but the hint costs more than the shadow "
+                 "rays it saves: its %d-photon search of the shadow map costs about %d BVH node "
+                 "visits, a shadow ray far fewer (BVH depth %d, %d primitives); "
+                 "photon_mapping.shadow=true forces it",
+                 r->g.occluder.total, (unsigned long long)r->g_emitted, mats, cfg->k_shadow,
+                 PLAN_SHADOW_HINT_NODES, s->accel.depth, prim_count(s));
+        set(&p->shadow, 0, "%s", buf);
         return;
     }
     top_mats(s, &r->g.first_hits, mats, sizeof mats);
@@ -559,7 +565,7 @@ int plan_make(const scene *s, const photon_settings *c, int preview, render_plan
         p->pilot = r.g.kept; /* both pilots' stores */
         plan_caustics(s, &r, p);
         plan_global(s, &r, p);
-        plan_shadow(s, &r, p);
+        plan_shadow(s, c, &r, p);
         set(&p->volume, 0, "no participating medium in the scene: no volume photon map%s", "");
         set(&p->volume_caustics, 0, "no participating medium in the scene%s", "");
     }

@@ -66,10 +66,12 @@ static const setting_def k_settings[] = {
      "filter of the caustic estimate: none (a disc), cone, gauss or hull (convex hull)"},
     {"gather_rays", ST_INT, F(gather_rays), 4, 0, 100000,
      "final-gather rays per camera sample at a diffuse surface (scaled by the path's "
-     "throughput after glass, at least 1)"},
+     "throughput after glass, at least 1); absent, the plan's sample pilot picks 1, 2 or 4 (with "
+     "secondary_rays 1, 1 or 2) by variance x cost and prints it (\"sample:\"); the default "
+     "here is used where no pilot runs"},
     {"secondary_rays", ST_INT, F(secondary_rays), 2, 0, 100000,
      "rays of a secondary gather, made where a gather ray hits a surface closer than "
-     "secondary_distance"},
+     "secondary_distance; absent, the sample pilot picks it with gather_rays"},
     {"secondary_distance", ST_NUMBER, F(secondary_distance), 0, 0, INFINITY,
      "0: the radius of a k_global estimate at the global map's mean density"},
     {"split_depth", ST_INT, F(split_depth), 2, 0, 16,
@@ -77,10 +79,11 @@ static const setting_def k_settings[] = {
      "(weighted) instead of choosing one"},
     {"caustic_stride", ST_INT, F(caustic_stride), 2, 1, 64,
      "the caustic map is read at one camera sample in c x c strata (a stratified subset, "
-     "weighted c^2; 1: at every sample)"},
+     "weighted c^2; 1: at every sample); absent, the sample pilot picks it, 1 to 4 (\"sample:\")"},
     {"emission_strata", ST_INT, F(emission_strata), 2, 0, 16,
      "emission seen by the camera (directly or through mirrors and glass) comes from m x m "
-     "extra emission-only rays per sample; 0: from the sample's own path"},
+     "extra emission-only rays per sample, at the pixels where probe rays see an emitter (the "
+     "plan's \"emission rays:\" line); elsewhere, and with 0, from the sample's own path"},
     {"max_emitted_factor", ST_NUMBER, F(max_emitted_factor), 64, 1, 1e9,
      "a photon pass gives up, with a message, after emitting this many times its target "
      "without storing it"},
@@ -292,13 +295,22 @@ static const char *type_name(setting_type t) {
     return "?";
 }
 
+/* v in the fewest significant digits (15 to 17) that read back as v exactly, so a documented
+ * default such as 2/3 written into a scene gives the default itself. */
+static void exact_text(double v, char *buf, size_t cap) {
+    for (int digits = 15; digits <= 17; digits++) {
+        snprintf(buf, cap, "%.*g", digits, v);
+        if (strtod(buf, NULL) == v) return;
+    }
+}
+
 static void default_text(const setting_def *d, char *buf, size_t cap) {
     switch (d->type) {
     case ST_FORCE: snprintf(buf, cap, "automatic"); break;
     case ST_BOOL: snprintf(buf, cap, "%s", d->def != 0 ? "true" : "false"); break;
     case ST_INT:
     case ST_LONG:
-    case ST_NUMBER: snprintf(buf, cap, "%.15g", d->def); break;
+    case ST_NUMBER: exact_text(d->def, buf, cap); break;
     case ST_FILTER: snprintf(buf, cap, "\"%s\"", caustic_filter_name((int)d->def)); break;
     case ST_DIR:
     case ST_TEXT: snprintf(buf, cap, "none"); break;

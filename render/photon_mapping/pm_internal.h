@@ -1,0 +1,79 @@
+/* pm_internal.h: the photon-mapping integrator's state, shared by its files (photonmapper.c,
+ * the camera sample and preprocess; pm_passes.c, the progressive passes). Not an interface:
+ * nothing outside photon_mapping/ includes it.
+ */
+#ifndef RENDER_PM_INTERNAL_H
+#define RENDER_PM_INTERNAL_H
+
+
+#include "base/json.h"
+#include "base/rng.h"
+
+#include "photonmap/common.h"
+#include "photonmap/estimate.h"
+#include "integrators/direct.h"
+#include "guiding/gather_guide.h"
+#include "guiding/guide.h"
+#include "integrators/integrator.h"
+#include "photonmap/irradiance.h"
+#include "photonmap/kdtree.h"
+#include "photonmap/photon.h"
+#include "photon_mapping/photon_lookup.h"
+#include "photons/photon_maps.h"
+#include "photon_mapping/photon_sides.h"
+#include "photons/photon_trace.h"
+#include "photon_mapping/plan.h"
+#include "photon_mapping/pm_sample.h"
+#include "photon_mapping/pm_volume.h"
+#include "base/stats.h"
+
+typedef struct mapper_state {
+    photon_settings cfg;
+    render_plan plan;
+    int preview, direct_vis;
+    int max_depth, rr_depth;
+    photon_maps maps;
+    pm_kdtree *tg, *tc, *ts; /* global, caustic, shadow trees (NULL when absent/empty) */
+    pmv_state vol; /* participating media: volume maps and ray marching (pm_volume.h) */
+    side_cache sides; /* precomputed irradiance that keeps to each query's side (photon_sides.h) */
+    side_map caus_side; /* the caustic map's estimates keep to the query's side (photon_sides.h) */
+    gather_guide gg; /* the opening the gathers aim a share of their rays at (gather_guide.h) */
+    float r2_global, r2_caustic, r2_shadow, r2_lookup;
+    size_t nglobal_all, ncaustic_all; /* photons in the whole maps (all processes' parts) */
+    double sec_dist;
+    pm_estimate_options caus_opt, glob_opt;
+    unsigned kmax;
+    int st_emission_rays;
+    /* Emission-only rays (emission_strata) only where the camera may see an emitter (pm_sample.h;
+     * emit.mask NULL: at every pixel). */
+    pm_emission_mask emit;
+    const scene *scene; /* for pm_sample.c's eye rays (sample_eye), during the preprocess */
+    int explicit_gather, explicit_secondary, explicit_stride; /* set in the scene or by --pm: kept */
+    char sample_reason[480], emit_reason[320]; /* the plan's "sample:" and "emission rays:" lines */
+    /* Progressive passes (mapper_begin_pass): the pass whose maps are built, its seed, its
+     * squared radii's factor against pass 0's, pass 0's radii and volume radii. */
+    int pass, progressive; /* progressive: ppm_radius applies (a render in passes) */
+    int made;              /* preprocess ran once: the plan's parts and messages are done */
+    uint64_t pass_seed;
+    double r2_scale, t_trace, t_trees, t_irr; /* the last pass's times (seconds) */
+    map_radii rad0;
+    float *vol_r2_0; /* 3 per medium: ms, caus, all */
+    int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
+        st_global_est, st_lookup_miss, st_side_rays, st_side_again;
+} mapper_state;
+
+/* A distributed render's lookups (photon_lookup.h); NULL in one process. */
+extern const photon_lookup_hook *pm__lookup;
+
+/* photonmapper.c: trace the maps of st->pass (pass 0 at first) and build what reads them. */
+int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap);
+
+/* pm_passes.c: the radii of the pass being built (pass 0: records them as the start, with
+ * ppm_radius applied in a progressive render), the same for each medium's volume maps, and
+ * the integrator's begin_pass hook (integrator.h). */
+void pm__pass_radii(mapper_state *st, map_radii *rad);
+int pm__pass_volume_radii(mapper_state *st, const scene *s);
+int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, char *err,
+                   size_t errcap);
+
+#endif /* RENDER_PM_INTERNAL_H */

@@ -1,0 +1,165 @@
+/* pm_passes.c: progressive photon mapping, the photon mapper's passes (README.md,
+ * "Progressive photon mapping"; run/passes.h runs them). */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "photon_mapping/pm_internal.h"
+
+/* Progressive photon mapping (README.md, "Progressive photon mapping"): a render in passes
+ * (run/passes.h) calls pm__begin_pass before pass p >= 1. The pass traces fresh maps with
+ * its own seed (global, caustic, shadow, volume; the plan's pilot photons joined pass 0 only),
+ * builds its own trees, precomputed irradiance and caustic side map, and caps every estimate
+ * at pass 0's radius^2 times ppm_r2_scale(p) (Knaus and Zwicker 2011). The plan, the
+ * importance table and the guides are pass 0's. */
+
+/* prod_{j=1..p} (j + alpha) / (j + 1): r^2 of pass p (0-based) over r^2 of pass 0, from
+ * r^2_{i+1} = r^2_i (i + alpha) / (i + 1) with the first pass i = 1. */
+static double ppm_r2_scale(int pass, double alpha) {
+    double f = 1;
+    for (int j = 1; j <= pass; j++) f *= (j + alpha) / (j + 1);
+    return f;
+}
+
+/* Pass 0 keeps its radii; a later pass takes them, scaled, in place of its own. The shadow
+ * query (a hint that never changes the mean) and the typical radius (which decides where
+ * secondary gathers run, an unbiased choice) stay as the pass finds them or as pass 0 had. */
+/* ppm_radius: the first radii, f times a k-photon estimate's radius at the map's mean density
+ * over the diffuse area: typical^2 = k_g A / (pi n_g) for the global map (from
+ * photon_maps_radii), and k_c A / (pi n_c) = typical^2 (k_c n_g) / (k_g n_c) for the caustic
+ * map; never above the maximum radii. From pass 0's radii and photon counts. */
+static void start_radii(const mapper_state *st, map_radii *rad) {
+    {
+        double f = st->cfg.ppm_radius, t2 = rad->typical * rad->typical;
+        double g = f * rad->typical;
+        if (isfinite(g) && g < rad->global) rad->global = g;
+        if (st->ncaustic_all && st->nglobal_all) {
+            double c = f * sqrt(t2 * st->cfg.k_caustic * (double)st->nglobal_all /
+                                ((double)st->cfg.k_global * (double)st->ncaustic_all));
+            if (isfinite(c) && c < rad->caustic) rad->caustic = c;
+        }
+        rad->r2_global = (float)(rad->global * rad->global);
+        rad->r2_caustic = (float)(rad->caustic * rad->caustic);
+        if (rad->r2_lookup > rad->r2_global) rad->r2_lookup = rad->r2_global;
+    }
+}
+
+void pm__pass_radii(mapper_state *st, map_radii *rad) {
+    if (!st->pass) {
+        if (st->progressive && st->cfg.ppm_radius > 0) start_radii(st, rad);
+        st->rad0 = *rad;
+        return;
+    }
+    double f = st->r2_scale, sf = sqrt(f);
+    const map_radii *r0 = &st->rad0;
+    rad->global = r0->global * sf;
+    rad->caustic = r0->caustic * sf;
+    rad->typical = r0->typical;
+    rad->r2_global = (float)((double)r0->r2_global * f);
+    rad->r2_caustic = (float)((double)r0->r2_caustic * f);
+    rad->r2_lookup = (float)((double)r0->r2_lookup * f);
+}
+
+/* The same for the volume maps of each medium (pm_volume.h): pass 0's r^2 (where pass 0 had
+ * photons) times the pass's factor. */
+int pm__pass_volume_radii(mapper_state *st, const scene *s) {
+    pmv_state *v = &st->vol;
+    if (!v->on || s->nmedia <= 0 || !v->ms) return 0;
+    pmv_map *maps[3] = {v->ms, v->caus, v->all};
+    if (!st->pass) {
+        free(st->vol_r2_0);
+        st->vol_r2_0 = malloc((size_t)s->nmedia * 3 * sizeof *st->vol_r2_0);
+        if (!st->vol_r2_0) return PM_ENOMEM;
+        for (int md = 0; md < s->nmedia; md++)
+            for (int k = 0; k < 3; k++) st->vol_r2_0[3 * md + k] = maps[k][md].r2;
+        return 0;
+    }
+    for (int md = 0; md < s->nmedia && st->vol_r2_0; md++)
+        for (int k = 0; k < 3; k++) {
+            float r0 = st->vol_r2_0[3 * md + k];
+            if (isfinite(r0)) maps[k][md].r2 = (float)((double)r0 * st->r2_scale);
+        }
+    return 0;
+}
+
+/* Free the volume trees of a pass (pmv_trace allocates them anew); the rest of v stays. */
+static void drop_volume_maps(pmv_state *v) {
+    pmv_map *maps[3] = {v->ms, v->caus, v->all};
+    for (int k = 0; k < 3; k++) {
+        for (int md = 0; maps[k] && md < v->nmedia; md++) {
+            pm_kdtree_free(maps[k][md].t);
+            free(maps[k][md].a);
+        }
+        free(maps[k]);
+    }
+    v->ms = v->caus = v->all = NULL;
+    v->n_ms = v->n_caus = v->n_all = 0;
+}
+
+/* One line per pass on stdout: the maps, what building them cost, and the radii. */
+static void print_pass(const mapper_state *st, int pass) {
+    printf("Pass %d: photons %zu global, %zu caustic", pass, st->nglobal_all, st->ncaustic_all);
+    if (st->vol.on) {
+        double r2v = 0; /* the largest r^2 of the media's multiple-scattering maps */
+        for (int md = 0; st->vol.ms && md < st->vol.nmedia; md++)
+            if (st->vol.ms[md].n && (double)st->vol.ms[md].r2 > r2v) r2v = (double)st->vol.ms[md].r2;
+        printf(", %zu volume (r^2 %.9g), %zu volume-caustic", st->vol.n_all, r2v, st->vol.n_caus);
+    }
+    printf("; trace %.3f s, kd-trees %.3f s, irradiance %.3f s; r^2 global %.9g, caustic %.9g "
+           "(pass 0's x %.9g)\n",
+           st->t_trace, st->t_trees, st->t_irr, (double)st->r2_global, (double)st->r2_caustic,
+           st->r2_scale);
+    fflush(stdout);
+}
+
+int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, char *err,
+                             size_t errcap) {
+    mapper_state *st = self->data;
+    /* Pass 0 is what preprocess made, unless ppm_radius asks for other first radii: then it
+     * is made again (the same photons) with them. */
+    int again = pass == 0 && !st->progressive && st->cfg.ppm_radius > 0;
+    if (!st->progressive && st->cfg.filter == CAUSTIC_FILTER_HULL && st->ncaustic_all)
+        fprintf(stderr, "render: note: filter hull divides by the photons' hull, not by the "
+                "shrinking disc: the caustics of progressive passes converge with the cone or none "
+                "(README.md, Progressive photon mapping)\n");
+    /* The first call (pass 0, or the first pass of a resumed render: preprocess made pass 0
+     * and its counts are still here): pass 0's radii become the progressive start. */
+    if (!st->progressive && st->cfg.ppm_radius > 0 && st->pass == 0) start_radii(st, &st->rad0);
+    st->progressive = 1;
+    if (pass == st->pass && !again) {
+        print_pass(st, pass);
+        return 0;
+    }
+    if (pm__lookup) {
+        snprintf(err, errcap, "progressive passes (--time, --passes) are not available with --pm "
+                 "distributed=partitioned: every pass would partition fresh maps (use the "
+                 "replicated mode)");
+        return PM_EINVAL;
+    }
+    if (st->cfg.load_dir[0]) {
+        snprintf(err, errcap, "load_photons (--load-photons %s) fixes the photon maps, but each "
+                 "progressive pass traces its own: render one pass (no --time or --passes) or "
+                 "leave the maps out", st->cfg.load_dir);
+        return PM_EINVAL;
+    }
+    side_cache_free(&st->sides);
+    side_map_free(&st->caus_side);
+    pm_kdtree_free(st->tg);
+    pm_kdtree_free(st->tc);
+    pm_kdtree_free(st->ts);
+    st->tg = st->tc = st->ts = NULL;
+    drop_volume_maps(&st->vol);
+    int nmedia = st->maps.nmedia;
+    photon_maps_free(&st->maps);
+    st->maps.nmedia = nmedia;
+    st->pass = pass;
+    st->pass_seed = seed;
+    st->r2_scale = ppm_r2_scale(pass, st->cfg.ppm_alpha);
+    int progress = st->cfg.progress;
+    st->cfg.progress = 0; /* one line per pass instead of the tracer's bars */
+    int rc = pm__preprocess(self, s, err, errcap);
+    st->cfg.progress = progress;
+    if (rc == 0) print_pass(st, pass);
+    return rc;
+}
+

@@ -1,0 +1,287 @@
+/* pm_sample.c: the photon mapper's camera sample, decided before rendering; see pm_sample.h.
+ *
+ * The emission mask (pm_emission_mask_build) and the sample pilot (pm_sample_pilot, THE SAMPLE
+ * PILOT below) trace their camera rays through the photon mapper's own eye-ray code (the
+ * host's eye callback), so they measure exactly the sample the render will take. Why each
+ * exists and what it saved: docs/PROFILE.md.
+ */
+#include "photon_mapping/pm_sample.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "base/stats.h"
+#include "photonmap/common.h"
+#include "scene/camera.h"
+
+/* Probe rays per pixel side of the emission mask, and its stream. */
+enum { EMIT_PROBE = 4 };
+#define EMIT_SEED 0x656d6974ULL /* "emit" */
+
+/* Emission-only rays only where the camera sees emitters. A pixel is marked when one of
+ * EMIT_PROBE x EMIT_PROBE emission-only rays through fixed points of it, or of one of its eight
+ * neighbours (the probes can miss a light's edge that crosses a pixel between them), finds
+ * emission, directly or through mirrors and glass. Marked pixels take their emission from
+ * emission_strata^2 extra rays per sample (photonmapper.c, mapper_li); the others from the sample's own path,
+ * as with emission_strata 0. Either way each part of the pixel integral is estimated without
+ * bias, so a pixel the probes miss (a light seen through glass in a sliver of it) keeps its
+ * expected value and only loses the extra antialiasing. The probes use fixed streams (the
+ * scene's seed, the pixel), so the mask is the same for any thread count and under
+ * render-mpi. Cost: 16 rays a pixel, once; on cornell_box at 16 spp it saves the 64
+ * emission-only rays per pixel of the 90% of pixels that see no light. */
+int pm_emission_mask_build(const pm_sample_host *h, pm_emission_mask *em, char *reason, size_t cap, char *err,
+                           size_t errcap) {
+    const scene *s = h->s;
+    memset(em, 0, sizeof *em);
+    int W = s->cam.width, H = s->cam.height;
+    size_t n = (size_t)W * (size_t)H;
+    unsigned char *seen = calloc(n ? n : 1, 1), *mask = calloc(n ? n : 1, 1);
+    float *pvar = calloc(n ? n : 1, sizeof *pvar); /* the probes' luminance variance, per pixel */
+    int fail = 0;
+    if (!seen || !mask || !pvar) fail = 1;
+    if (!fail) {
+#ifdef _OPENMP
+#pragma omp parallel reduction(| : fail)
+#endif
+        {
+            void *sc = h->scratch_new(h->user);
+            if (!sc) fail = 1;
+#ifdef _OPENMP
+#pragma omp for schedule(dynamic, 64)
+#endif
+            for (long p = 0; p < (long)n; p++) {
+                if (!sc) continue;
+                rng g = rng_stream(s->settings.seed ^ EMIT_SEED, (uint64_t)p, 0);
+                double x = (double)(p % W), y = (double)(p / W), sum = 0, sum2 = 0;
+                for (int k = 0; k < EMIT_PROBE * EMIT_PROBE; k++) {
+                    ray re = camera_ray(&s->cam, x + (k % EMIT_PROBE + 0.5) / EMIT_PROBE,
+                                        y + (k / EMIT_PROBE + 0.5) / EMIT_PROBE);
+                    rgb E = h->eye(h->user, re, 1, &g, sc, NULL);
+                    double l = rgb_lum(E);
+                    if (v3_maxc(E) > 0) seen[p] = 1;
+                    if (isfinite(l)) {
+                        sum += l;
+                        sum2 += l * l;
+                    }
+                }
+                const double np = EMIT_PROBE * EMIT_PROBE;
+                pvar[p] = seen[p] ? (float)fmax(0.0, (sum2 - sum * sum / np) / (np - 1)) : 0.0f;
+            }
+            if (sc) h->scratch_free(h->user, sc);
+        }
+    }
+    if (fail) {
+        free(seen);
+        free(mask);
+        free(pvar);
+        snprintf(err, errcap, "emission mask: out of memory");
+        return PM_ENOMEM;
+    }
+    size_t marked = 0;
+    for (int y = 0; y < H; y++)
+        for (int x = 0; x < W; x++) {
+            int any = 0;
+            for (int dy = -1; dy <= 1 && !any; dy++)
+                for (int dx = -1; dx <= 1 && !any; dx++) {
+                    int xx = x + dx, yy = y + dy;
+                    any = xx >= 0 && yy >= 0 && xx < W && yy < H && seen[(size_t)yy * (size_t)W + (size_t)xx];
+                }
+            mask[(size_t)y * (size_t)W + (size_t)x] = (unsigned char)any;
+            marked += (size_t)any;
+        }
+    /* The variance a sample's emission adds to a pixel, over the image (in pixel order, so the
+     * same for any thread count): the probes' variance over the m x m emission-only rays of a
+     * marked pixel's sample (the sample pilot adds it to every candidate's: it costs them
+     * nothing, but it falls with the samples a pixel gets). */
+    double vsum = 0;
+    int m = h->cfg->emission_strata;
+    for (size_t p = 0; p < n; p++) vsum += pvar[p];
+    em->var = n ? vsum / (double)n / (m > 0 ? (double)m * m : 1.0) : 0;
+    free(pvar);
+    free(seen);
+    em->mask = mask;
+    em->pixels = n;
+    em->marked = marked;
+    snprintf(reason, cap,
+             "%dx%d emission-only rays per sample at %zu of %zu pixels, where %dx%d probe rays of "
+             "the pixel or a neighbour see an emitter; elsewhere a sample's own path collects emission",
+             m, m, marked, n, EMIT_PROBE, EMIT_PROBE);
+    return 0;
+}
+
+void pm_emission_mask_free(pm_emission_mask *m) {
+    free(m->mask);
+    memset(m, 0, sizeof *m);
+}
+
+/* THE SAMPLE PILOT: which gather_rays, secondary_rays and caustic_stride a camera sample gets.
+ * Candidates (gather_rays, secondary_rays): k_pilot_cand below; strides 1 to PILOT_MAX_STRIDE.
+ * Each (gather, secondary) candidate renders the same PILOT_SIDE x PILOT_SIDE pixels spread
+ * over the image, PILOT_SPP jittered samples in each, with the same random streams for every
+ * candidate (common random numbers, so the streams do not decide the comparison), caustics
+ * read at every sample. Its variance is the mean over pixels of the sample variance of the
+ * shaded luminance inside a pixel (the noise a pixel average keeps; the differences between
+ * pixels are the image, not noise). Its cost is the work the samples did, counted, not timed,
+ * so the choice is the same on any machine, load or thread count, and deterministic for a
+ * seed: BVH nodes visited and primitive tests, plus PILOT_LOOKUP_COST per irradiance lookup
+ * and PILOT_CAUSTIC_COST per caustic estimate.
+ * A stride c reads the camera path's caustics at one stratum in c x c, weighted c^2, at a
+ * random offset per pixel (caustic_weight): those estimates cost 1/c^2, and the pixel's
+ * caustic part is the mean over (S/c)^2 strata instead of S^2, which adds (c^2 - 1) times the
+ * variance of the caustic part between a pixel's samples (measured by the pilot too) to a
+ * sample's variance. The emission the camera sees adds the same variance to every candidate
+ * (pm_emission_mask_build measures it: on cornell_box the light's edges are most of the image's
+ * error at equal time), and it falls with the samples a pixel gets, so it favours the cheaper
+ * samples; it is added to each. A stride applies only where the strata (sqrt of spp) reach it, so the
+ * strides above the render's strata are not candidates.
+ * Of all (gather, secondary, stride) the lowest variance x cost, the time a pixel needs for a
+ * given error, wins. The pilot's work is taken back out of the statistics, so they count the render only. */
+#define PILOT_SEED 0x73616d706c65ULL /* "sample" */
+enum { PILOT_SIDE = 16, PILOT_SPP = 4, PILOT_MAX_STRIDE = 4 };
+/* Cost of one irradiance lookup and one caustic estimate in BVH node visits (plan.h has the
+ * shadow map's: 150). Measured by perf (docs/PROFILE.md; 96x96, one thread): on cornell_box an
+ * irradiance lookup of the side cache took 0.9 us (nearest candidate first) and the rest of
+ * the render 34 ns per BVH node visited (rays, shading, everything); on cornell_spheres 5.4 us
+ * a caustic estimate (60 photons, cone filter) and 37 ns per node visit: 30 and 150 visits. */
+#define PILOT_LOOKUP_COST 30.0
+#define PILOT_CAUSTIC_COST 150.0
+static const int k_pilot_cand[][2] = {{1, 1}, {2, 1}, {4, 2}};
+#define PILOT_NCAND ((int)(sizeof k_pilot_cand / sizeof *k_pilot_cand))
+
+typedef struct pilot_figures {
+    double var, varc;  /* mean within-pixel variance of a sample, of its caustic part */
+    double work, caus; /* per sample: work without the camera path's caustics, those estimates */
+} pilot_figures;
+
+static void pilot_run(const pm_sample_host *h, void *sc, pilot_figures *f) {
+    const scene *s = h->s;
+    int W = s->cam.width, H = s->cam.height;
+    static const int cost_ids[] = {STAT_BVH_NODES, STAT_TRI_TESTS, STAT_SPHERE_TESTS};
+    uint64_t w0 = 0, w1 = 0, l0 = stats_total(h->st_lookup), k0 = stats_total(h->st_caustic);
+    for (size_t i = 0; i < sizeof cost_ids / sizeof *cost_ids; i++) w0 += stats_total(cost_ids[i]);
+    double vsum = 0, vcsum = 0;
+    uint64_t ncam = 0;
+    for (int py = 0; py < PILOT_SIDE; py++)
+        for (int px = 0; px < PILOT_SIDE; px++) {
+            int x = (int)((px + 0.5) * W / PILOT_SIDE), y = (int)((py + 0.5) * H / PILOT_SIDE);
+            uint64_t pixel = (uint64_t)y * (uint64_t)W + (uint64_t)x;
+            double sum = 0, sum2 = 0, csum = 0, csum2 = 0;
+            for (int k = 0; k < PILOT_SPP; k++) {
+                rng g = rng_stream(s->settings.seed ^ PILOT_SEED, pixel, (uint64_t)k);
+                double u = rng_uniform(&g), v = rng_uniform(&g);
+                ray r = camera_ray(&s->cam, x + (k % 2 + u) / 2, y + (k / 2 + v) / 2);
+                pm_sample_caustics pc = {v3s(0), 0};
+                rgb L = h->eye(h->user, r, 0, &g, sc, &pc);
+                double l = rgb_lum(L), lc = rgb_lum(pc.L);
+                if (!isfinite(l) || !isfinite(lc)) l = lc = 0;
+                sum += l;
+                sum2 += l * l;
+                csum += lc;
+                csum2 += lc * lc;
+                ncam += pc.n;
+            }
+            vsum += fmax(0.0, (sum2 - sum * sum / PILOT_SPP) / (PILOT_SPP - 1));
+            vcsum += fmax(0.0, (csum2 - csum * csum / PILOT_SPP) / (PILOT_SPP - 1));
+        }
+    for (size_t i = 0; i < sizeof cost_ids / sizeof *cost_ids; i++) w1 += stats_total(cost_ids[i]);
+    double n = (double)PILOT_SIDE * PILOT_SIDE * PILOT_SPP;
+    double ncaus = (double)(stats_total(h->st_caustic) - k0);
+    f->var = vsum / (PILOT_SIDE * PILOT_SIDE);
+    f->varc = vcsum / (PILOT_SIDE * PILOT_SIDE);
+    f->caus = (double)ncam / n;
+    f->work = ((double)(w1 - w0) + PILOT_LOOKUP_COST * (double)(stats_total(h->st_lookup) - l0) +
+               PILOT_CAUSTIC_COST * (ncaus - (double)ncam)) / n;
+}
+
+void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, int explicit_c, double emit_var,
+                     char *reason, size_t cap) {
+    const scene *s = h->s;
+    photon_settings *cfg = h->cfg;
+    int cand[PILOT_NCAND][2], nc = 0;
+    for (int i = 0; i < PILOT_NCAND; i++) { /* an explicit setting replaces the candidates' own */
+        int g = explicit_g ? cfg->gather_rays : k_pilot_cand[i][0];
+        int sr = explicit_s ? cfg->secondary_rays : k_pilot_cand[i][1];
+        int dup = 0;
+        for (int j = 0; j < nc; j++) dup |= cand[j][0] == g && cand[j][1] == sr;
+        if (!dup) {
+            cand[nc][0] = g;
+            cand[nc][1] = sr;
+            nc++;
+        }
+    }
+    int strata = 1;
+    while ((strata + 1) * (strata + 1) <= s->cam.spp) strata++;
+    int cmin = explicit_c || !h->caustics ? cfg->caustic_stride : 1;
+    int cmax = explicit_c || !h->caustics ? cfg->caustic_stride
+               : strata < PILOT_MAX_STRIDE ? (strata > 1 ? strata : 1) : PILOT_MAX_STRIDE;
+    const char *why = explicit_g && explicit_s && cmin == cmax ? "set by photon_mapping (or --pm)"
+                      : h->no_pilot;
+    if (why) {
+        snprintf(reason, cap,
+                 "gather_rays %d, secondary_rays %d, caustic_stride %d (%s)", cfg->gather_rays,
+                 cfg->secondary_rays, cfg->caustic_stride, why);
+        return;
+    }
+    void *sc = h->scratch_new(h->user);
+    if (!sc) {
+        snprintf(reason, cap,
+                 "gather_rays %d, secondary_rays %d, caustic_stride %d (no pilot: out of memory)",
+                 cfg->gather_rays, cfg->secondary_rays, cfg->caustic_stride);
+        return;
+    }
+    /* every counter the pilot's samples can touch, to take them back out afterwards */
+    int undo[STATS_MAX], nundo = 0;
+    for (int id = 0; id < STATS_MAX; id++)
+        if (stats_name(id)) undo[nundo++] = id;
+    uint64_t before[STATS_MAX];
+    for (int i = 0; i < nundo; i++) before[i] = stats_total(undo[i]);
+    pilot_figures fig[PILOT_NCAND];
+    int keep_g = cfg->gather_rays, keep_s = cfg->secondary_rays;
+    for (int c = 0; c < nc; c++) {
+        cfg->gather_rays = cand[c][0];
+        cfg->secondary_rays = cand[c][1];
+        pilot_run(h, sc, &fig[c]);
+    }
+    for (int i = 0; i < nundo; i++) stat_add(undo[i], before[i] - stats_total(undo[i])); /* mod 2^64 */
+    h->scratch_free(h->user, sc);
+    cfg->gather_rays = keep_g;
+    cfg->secondary_rays = keep_s;
+    /* the scores of (candidate, stride); a black image (all 0) falls to the cheapest */
+    int bc = 0, bs = cmin;
+    double best = INFINITY, bestcost = INFINITY;
+    for (int c = 0; c < nc; c++)
+        for (int k = cmin; k <= cmax; k++) {
+            double k2 = (double)k * k, var = fig[c].var + (k2 - 1) * fig[c].varc + emit_var;
+            double cost = fig[c].work + PILOT_CAUSTIC_COST * fig[c].caus / k2, score = var * cost;
+            if (score < best || (score == best && cost < bestcost)) {
+                best = score;
+                bestcost = cost;
+                bc = c;
+                bs = k;
+            }
+        }
+    cfg->gather_rays = cand[bc][0];
+    cfg->secondary_rays = cand[bc][1];
+    cfg->caustic_stride = bs;
+    size_t len = (size_t)snprintf(reason, cap,
+                                  "gather_rays %d, secondary_rays %d, caustic_stride %d (pilot of %d camera "
+                                  "samples at %d pixels: lowest variance x cost of",
+                                  cand[bc][0], cand[bc][1], bs, PILOT_SIDE * PILOT_SIDE * PILOT_SPP,
+                                  PILOT_SIDE * PILOT_SIDE);
+    for (int c = 0; c < nc && len < cap; c++) {
+        double k2 = (double)bs * bs;
+        len += (size_t)snprintf(reason + len, cap - len,
+                                " %d/%d/%d %.3g x %.0f%s", cand[c][0], cand[c][1], bs,
+                                fig[c].var + (k2 - 1) * fig[c].varc + emit_var, fig[c].work + PILOT_CAUSTIC_COST * fig[c].caus / k2,
+                                c + 1 < nc ? "," : "");
+    }
+    if (len < cap)
+        len += (size_t)snprintf(reason + len, cap - len,
+                                "; the variances include %.3g of the emission the camera sees", emit_var);
+    if (len < cap && cmax > cmin)
+        len += (size_t)snprintf(reason + len, cap - len,
+                                "; strides %d to %d weighed", cmin, cmax);
+    if (len < cap) snprintf(reason + len, cap - len, ")");
+}

@@ -1,0 +1,67 @@
+/* pm_sample.h: the photon mapper's camera sample, decided once before rendering (pm_sample.c):
+ * where its emission-only rays go (the emission mask: the pixels where probe rays see an
+ * emitter) and how much work a sample does (the sample pilot: gather_rays, secondary_rays and
+ * caustic_stride by variance x cost). The plan's "emission rays:" and "sample:" lines.
+ *
+ * The photon mapper (photonmapper.c) lends its eye rays through pm_sample_host, so this file
+ * traces nothing of its own. Both use fixed random streams (the scene's seed, the pixel), so
+ * the mask and the choice are the same for any thread count, and the pilot counts work instead
+ * of timing it, so its choice is the same on any machine. The mask is owned by the caller
+ * (pm_emission_mask_free). */
+#ifndef RENDER_PM_SAMPLE_H
+#define RENDER_PM_SAMPLE_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "base/rng.h"
+#include "base/vec.h"
+#include "photons/photon_settings.h"
+#include "scene/scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The caustic light a camera path took at weight 1 (already times the path's throughput), and
+ * how many caustic estimates that took: the pilot's tally of one sample. */
+typedef struct pm_sample_caustics {
+    rgb L;
+    uint64_t n;
+} pm_sample_caustics;
+
+/* What the mask and the pilot borrow from the photon mapper. */
+typedef struct pm_sample_host {
+    const scene *s;
+    photon_settings *cfg;       /* read; the pilot sets gather_rays, secondary_rays, caustic_stride */
+    int st_lookup, st_caustic;  /* the ids of the irradiance-lookup and caustic-estimate counters */
+    int caustics;               /* the scene has a caustic map */
+    const char *no_pilot;       /* why the pilot cannot run (no final gather, ...), or NULL */
+    void *user;
+    void *(*scratch_new)(void *user); /* a thread's scratch for eye rays (NULL: out of memory) */
+    void (*scratch_free)(void *user, void *scratch);
+    /* Radiance along a camera ray: emit = 1 the emission it meets alone (directly, mirrors,
+     * glass), emit = 0 the shading alone, caustics read at weight 1 and tallied into pc. */
+    rgb (*eye)(void *user, ray r, int emit, rng *g, void *scratch, pm_sample_caustics *pc);
+} pm_sample_host;
+
+typedef struct pm_emission_mask {
+    unsigned char *mask; /* one byte per pixel (y * width + x): 1 = emission-only rays there */
+    size_t pixels, marked;
+    double var; /* a sample's emission variance over m x m rays, the image's mean */
+} pm_emission_mask;
+
+/* Build the mask of h->s's image (4 x 4 probe rays a pixel, in parallel) and write the
+ * "emission rays:" reason. 0, or PM_ENOMEM with a message in err. */
+int pm_emission_mask_build(const pm_sample_host *h, pm_emission_mask *m, char *reason, size_t cap, char *err,
+                           size_t errcap);
+void pm_emission_mask_free(pm_emission_mask *m);
+/* The sample pilot: sets h->cfg's gather_rays, secondary_rays and caustic_stride (those the
+ * user did not set: explicit_*) and writes the "sample:" reason. emit_var: the mask's var. */
+void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, int explicit_c, double emit_var,
+                     char *reason, size_t cap);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_PM_SAMPLE_H */

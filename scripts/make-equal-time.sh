@@ -1,0 +1,155 @@
+#!/bin/sh
+# make-equal-time.sh: photon mapping at its defaults against path tracing at equal CPU time,
+# on shipped scenes, small images; writes docs/results/equal_time/ (CSV and a stamp) for
+# scripts/gen-results-md.sh.
+#
+#   scripts/make-equal-time.sh [--quick]
+#
+# The protocol, scaled down from the full one (10, 30, 100, 300 s at the scenes' own size) to
+# what 2 shared cores allow: ET_RES x ET_RES pixels (default 96), budgets ET_BUDGETS in
+# CPU-seconds (default "4 12 40": 2, 6 and 20 s of wall time on 2 idle cores), ET_THREADS
+# threads (default 2). Each mode renders at each budget once, with no flag but --spp, --seed,
+# the size and the threads: `render SCENE --mode pm` at its defaults (the plan's choices) and
+# `render SCENE --mode path`.
+#
+# Equal time without a time budget: each mode is first timed at two sample counts (CPU time
+# of the whole process, user + sys: the photon pass and the plan's pilots count), a line
+# cpu = a + b spp is fitted, and each budget's spp is (budget - a) / b, at least 1. The CSV
+# keeps the CPU time each run really took beside its budget (a shared machine makes them
+# differ), and gen-results-md.sh compares the runs by the time they took, never by the
+# budget.
+#
+# Error: RMSE against data/reference/et96/NAME.pfm (ET_REF_DIR; scripts/make-reference.sh with
+# REF_RES=ET_RES REF_OUT=data/reference/et96; its spp is read from NAME.info). The reference is itself a path tracer with N_ref samples,
+# so with independent seeds MSE(run) = E^2 + c / N_ref; gen-results-md.sh fits c from the
+# path-traced runs (MSE = c (1/spp + 1/N_ref)) and subtracts c / N_ref from every run (the
+# corrected RMSE), then gives path tracing's CPU time for each photon-mapping run's error
+# from the fits (the time-to-equal-error ratio).
+#
+# Output (ET_OUT, default docs/results/equal_time): runs.csv (scene, mode, budget_cpu_s,
+# spp, cpu_s, wall_s, rmse, ref_spp), calib.csv (the timing runs), plan_SCENE.txt (the pm
+# plan lines as printed), measurement.txt (commit stamp, date, machine, protocol).
+# --quick: one scene, budgets "1 3", into build/equal-time-quick (to try the script).
+#
+# Progressive photon mapping (render --passes N: each pass traces fresh maps, radii shrink):
+# for ET_PROG_SCENES (default "cornell_spheres water_caustic"), `render --mode pm --passes N
+# --pass-spp ET_PROG_SPP` (default 16) for N in ET_PROG_PASSES (default "1 4 16"), rows of mode
+# pm_passes whose budget column is N, for the error-against-time slope.
+#
+# Before and after: with ET_BEFORE_BIN=PATH (a render binary of an older commit) and
+# ET_BEFORE_NAME=TEXT (its commit, for the document), pm runs of that binary at each budget
+# are added as mode pm_before (its own timing runs).
+#
+# Environment: PM_BUILD_DIR (default build/release), ET_SCENES (default "cornell_box
+# cornell_spheres water_caustic").
+set -eu
+here=$(cd "$(dirname "$0")/.." && pwd)
+bin="${PM_BUILD_DIR:-$here/build/release}/render"
+res="${ET_RES:-96}"
+threads="${ET_THREADS:-2}"
+budgets="${ET_BUDGETS:-4 12 40}"
+scenes="${ET_SCENES:-cornell_box cornell_spheres water_caustic}"
+out="${ET_OUT:-$here/docs/results/equal_time}"
+refdir="${ET_REF_DIR:-$here/data/reference/et96}"
+case "${1:-}" in
+  -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
+  --quick) budgets="1 3"; scenes="${ET_SCENES:-cornell_box}"; out="$here/build/equal-time-quick" ;;
+  "") ;;
+  *) echo "make-equal-time: unknown option '$1' (see --help)" >&2; exit 2 ;;
+esac
+[ -x "$bin" ] || { echo "make-equal-time: $bin not found; run make first" >&2; exit 2; }
+. "$here/scripts/commit-stamp.sh"
+stamp=$(commit_stamp "$here" "$bin") || exit 2
+
+info() { awk -v k="$2" '$1 == k { print $2 }' "$refdir/$1.info"; }
+for name in $scenes; do
+  scene="$here/data/scenes/$name.json"
+  [ -f "$refdir/$name.pfm" ] && [ -f "$refdir/$name.info" ] || {
+    echo "make-equal-time: no reference for $name in $refdir: REF_RES=$res REF_OUT=$refdir scripts/make-reference.sh $name" >&2; exit 2; }
+  [ "$(info "$name" width)" = "$res" ] || {
+    echo "make-equal-time: $refdir/$name is $(info "$name" width) wide, not $res: REF_RES=$res REF_OUT=$refdir scripts/make-reference.sh $name" >&2; exit 2; }
+  [ "$(info "$name" scene_sha256)" = "$(sha256sum "$scene" | cut -d' ' -f1)" ] || {
+    echo "make-equal-time: $scene changed since its reference was rendered" >&2; exit 2; }
+done
+
+# The images are scratch; the CSVs are written as the runs end into $out.partial (kept if the
+# script stops, so a failed run is not lost), which replaces $out's files at the end.
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+mkdir -p "$out.partial"
+ln -s "$out.partial" "$work/out"
+echo "scene,mode,spp,cpu_s,wall_s" > "$work/out/calib.csv"
+echo "scene,mode,budget_cpu_s,spp,cpu_s,wall_s,rmse,ref_spp" > "$work/out/runs.csv"
+
+before="${ET_BEFORE_BIN:-}"
+prog_scenes="${ET_PROG_SCENES-cornell_spheres water_caustic}"
+prog_passes="${ET_PROG_PASSES:-1 4 16}"
+prog_spp="${ET_PROG_SPP:-16}"
+[ -z "$before" ] || [ -x "$before" ] || { echo "make-equal-time: ET_BEFORE_BIN=$before is not a program" >&2; exit 2; }
+
+# run NAME MODE SPP SEED [FLAGS...]: render; sets cpu, wall, spp_used; the image is
+# $work/img.pfm. Mode pm_before runs $before in mode pm. SPP "-": no --spp (passes).
+run() {
+  r_name=$1 r_mode=$2 r_spp=$3 r_seed=$4
+  shift 4
+  r_bin=$bin
+  [ "$r_mode" = pm_before ] && r_bin=$before r_mode=pm
+  [ "$r_spp" = - ] || set -- --spp "$r_spp" "$@"
+  /usr/bin/time -f '%U %S %e' -o "$work/time" "$r_bin" "$here/data/scenes/$r_name.json" --mode "$r_mode" \
+      --width "$res" --height "$res" --seed "$r_seed" --threads "$threads" --quiet \
+      --hdr "$work/img.pfm" -o "$work/img.png" "$@" > "$work/log" 2> "$work/err" || {
+    echo "make-equal-time: $r_name $r_mode $r_spp spp failed:" >&2; cat "$work/err" >&2; exit 1; }
+  cpu=$(awk '{ printf "%.2f", $1 + $2 }' "$work/time")
+  wall=$(awk '{ print $3 }' "$work/time")
+  spp_used=$(sed -n 's/^Rendering [0-9]*x[0-9]*, \([0-9]*\) spp.*/\1/p' "$work/log")
+}
+
+for name in $scenes; do
+  refspp=$(info "$name" spp)
+  for mode in pm path ${before:+pm_before}; do
+    # timing: two sample counts, a line through them
+    case $mode in path) s1=16 s2=400 ;; *) s1=4 s2=144 ;; esac
+    run "$name" $mode $s1 7
+    c1=$cpu; echo "$name,$mode,$spp_used,$cpu,$wall" >> "$work/out/calib.csv"
+    [ $mode = pm ] && grep -E '^  [a-z ]+: ' "$work/log" > "$work/out/plan_$name.txt"
+    run "$name" $mode $s2 8
+    c2=$cpu; echo "$name,$mode,$spp_used,$cpu,$wall" >> "$work/out/calib.csv"
+    seed=100
+    for b in $budgets; do
+      spp=$(awk -v b="$b" -v c1="$c1" -v c2="$c2" -v s1=$s1 -v s2=$s2 \
+        'BEGIN { k = (c2 - c1) / (s2 - s1); if (k <= 0) k = 1e-9; a = c1 - k * s1; n = int((b - a) / k); print n < 1 ? 1 : n }')
+      seed=$((seed + 1))
+      run "$name" $mode "$spp" $seed
+      rmse=$("$bin" --compare "$work/img.pfm" "$refdir/$name.pfm" | awk '$1 == "rmse" { print $2 }')
+      echo "$name,$mode,$b,$spp_used,$cpu,$wall,$rmse,$refspp" >> "$work/out/runs.csv"
+      echo "make-equal-time: $name $mode budget $b CPU-s (timing: $s1 spp $c1, $s2 spp $c2 CPU-s): $spp_used spp, $cpu CPU-s, $wall s, RMSE $rmse" >&2
+    done
+  done
+done
+for name in $prog_scenes; do
+  case " $scenes " in *" $name "*) ;; *) continue ;; esac
+  refspp=$(info "$name" spp)
+  for n in $prog_passes; do
+    run "$name" pm - 7 --passes "$n" --pass-spp "$prog_spp"
+    grep -E '^Pass 0:' "$work/log" | head -1 > "$work/out/passes_$name.txt"
+    rmse=$("$bin" --compare "$work/img.pfm" "$refdir/$name.pfm" | awk '$1 == "rmse" { print $2 }')
+    echo "$name,pm_passes,$n,$((n * spp_used)),$cpu,$wall,$rmse,$refspp" >> "$work/out/runs.csv"
+    echo "make-equal-time: $name pm --passes $n --pass-spp $prog_spp: $cpu CPU-s, RMSE $rmse" >&2
+  done
+done
+{
+  echo "commit $stamp"
+  [ -z "$before" ] || echo "before ${ET_BEFORE_NAME:-$before}"
+  echo "prog_spp $prog_spp"
+  echo "date $(date -u '+%Y-%m-%d %H:%M UTC')"
+  echo "machine $(nproc) cores, $(awk -F': ' '/model name/ { print $2; exit }' /proc/cpuinfo)"
+  echo "load $(cut -d' ' -f1-3 /proc/loadavg) (1, 5, 15 min, at the end)"
+  echo "resolution $res"
+  echo "threads $threads"
+  echo "budgets $budgets"
+  for name in $scenes; do echo "ref_$name $(info "$name" spp) spp, seed $(info "$name" seed), $(info "$name" cpu_seconds) CPU-s, commit $(info "$name" commit)"; done
+} > "$work/out/measurement.txt"
+mkdir -p "$out"
+cp "$out.partial/"* "$out/"
+rm -rf "$out.partial"
+echo "make-equal-time: wrote $out" >&2
