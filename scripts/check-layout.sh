@@ -18,13 +18,9 @@ include load/scene_load.c photons/photon_settings.h
 file guiding/guide.c 814
 file photon_mapping/photonmapper.c 902
 file photon_mapping/plan.c 604
-file photons/photon_trace.c 1154
 file mpi/dist.c 903
 file mpi/lookup.c 1107
-func photons/photon_trace.c photon_trace 208
-func photons/photon_trace.c run_pass 205
 func mpi/lookup.c hook_side_build 202
-func photons/volume.c vol_trace_pass 160
 func photon_mapping/photon_sides.c side_cache_build 153
 func guiding/gather_guide.c gather_guide_plan 147
 func photon_mapping/pm_volume.c pmv_trace 133

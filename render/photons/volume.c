@@ -3,7 +3,10 @@
  * flight in the current medium, a volume store and an HG bounce at each scattering event, a
  * surface store and a material bounce at each diffuse surface, a medium change at each null
  * surface) into its batch's buffer; vol_trace_pass runs rounds of batches on the threads and
- * merges them in photon order, cutting each map at its target by whole photon paths.
+ * merges them in photon order, cutting each map at its target by whole photon paths. What the
+ * walk and the pass share with the surfaces' tracer, photon_trace.c, is photon_path.h's (the
+ * walk's state: bounces, kinds, the refraction chain, the path-length cut) and photon_pass.h's
+ * (the caustic pass's aim, the distributed exchange, the budgets' messages).
  *
  * A change here that changes any stored photon (which photons are stored, their power,
  * position, direction or kind) must bump PHOTON_TRACE_VERSION in photon_maps.h in the same
@@ -21,24 +24,19 @@
 #endif
 
 #include "scene/medium.h"
+#include "photons/photon_pass.h"
+#include "photons/photon_path.h"
 #include "photons/photon_trace.h"
 #include "photonmap/common.h"
 #include "photons/projmap.h"
 #include "base/rng.h"
 
-enum { WHERE_SURFACE, WHERE_VOLUME };
-
-/* A stored photon before the power is divided by the map's emitted count. */
-typedef struct vrec {
-    uint64_t index; /* photon index in the pass */
-    float pos[3], power[3], dir[3], nrm[3];
-    int kind, where, med;
-} vrec;
-
-_Static_assert(sizeof(vrec) == VOL_RECORD_BYTES, "VOL_RECORD_BYTES in volume.h");
+/* Records are photon_pass.h's pass_rec, before the power is divided by the map's emitted
+ * count: a volume photon's has its medium, a surface photon's medium -1. The memory budget
+ * counts each as VOL_RECORD_BYTES (volume.h). */
 
 typedef struct vbuf {
-    vrec *r;
+    pass_rec *r;
     size_t n, cap;
     size_t max_n;    /* the memory budget's share of this batch, in records */
     vol_pilot pilot; /* this batch's counts */
@@ -51,18 +49,11 @@ typedef struct vctx {
     const scene *s;
     const vol_pass_opts *o;
     int keep_surface, keep_volume, counting;
-    projmap *proj;    /* caustic pass with projection maps: one per light, else NULL */
-    distrib1d choose; /* with proj: lights by power times active fraction */
-    double wsum;      /* with proj: the sum of those weights (mean-channel power) */
+    projmap *proj; /* caustic pass with projection maps: one per light (aim.proj), else NULL */
+    pass_aim aim;  /* with proj: lights by power times active fraction (photon_pass.h) */
 } vctx;
 
-static void to3(float f[3], vec3 v) {
-    f[0] = (float)v.x;
-    f[1] = (float)v.y;
-    f[2] = (float)v.z;
-}
-
-static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kind, int where, int med) {
+static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kind, int med) {
     if (b->fail || b->over) return;
     if (b->n >= b->max_n) { /* the memory budget: this photon's path is not kept */
         b->over = 1;
@@ -71,7 +62,7 @@ static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kin
     if (b->n == b->cap) {
         size_t nc = b->cap ? 2 * b->cap : 1024;
         if (nc > b->max_n) nc = b->max_n;
-        vrec *nr = realloc(b->r, nc * sizeof *nr);
+        pass_rec *nr = realloc(b->r, nc * sizeof *nr);
         if (!nr) {
             b->fail = 1;
             return;
@@ -79,15 +70,9 @@ static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kin
         b->r = nr;
         b->cap = nc;
     }
-    vrec *v = &b->r[b->n++];
-    v->index = i;
-    to3(v->pos, p);
-    to3(v->power, power);
-    to3(v->dir, d);
-    to3(v->nrm, n);
-    v->kind = kind;
-    v->where = where;
-    v->med = med;
+    pass_rec *v = &b->r[b->n++];
+    pass_rec_set(v, i, p, power, d, n, kind, 1);
+    v->medium = (int16_t)med;
 }
 
 /* Roulette on a throughput factor w: survive with q = min(1, max channel), power * w / q. */
@@ -109,11 +94,9 @@ static int clampi(int v, int n) { return v < 0 || v >= n ? n - 1 : v; }
 static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
     const scene *s = c->s;
     const int caustic_pass = c->o->caustic_pass;
-    int max_depth = c->o->max_depth;
-    if (c->o->max_bounces > 0 && c->o->max_bounces < max_depth) max_depth = c->o->max_bounces;
     rng g = rng_stream(c->o->seed, i, caustic_pass ? 8 : 7);
     double pl, u[4];
-    int li = distrib1d_sample(c->proj ? &c->choose : &s->light_distrib, rng_uniform(&g), &pl);
+    int li = distrib1d_sample(c->proj ? &c->aim.choose : &s->light_distrib, rng_uniform(&g), &pl);
     for (int k = 0; k < 4; k++) u[k] = rng_uniform(&g);
     b->pilot.emitted++;
     if (!(pl > 0)) return;
@@ -124,15 +107,11 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
     rgb power = v3_scale(s->lights[li].power, (c->proj ? c->proj[li].fraction : 1.0) / pl);
     if (v3_iszero(power)) return;
     ray r = {v3_iszero(nl) ? p : scene_offset(c->s, p, nl, d), d};
-    /* specular: a specular bounce so far; scattered: a diffuse bounce or a scattering event;
-     * in_medium_scatter: a scattering event so far. med -2: not known until the first hit. */
-    int med = -2, specular = 0, scattered = 0, vscattered = 0, crossings = 0, spec_mat = -1;
-    /* The index around the light and where the photon is (set at refractions): surface photons
-     * are stored with power (n_src / n_here)^2, material_radiance_scale in material.h; volume
-     * photons are not (pm_volume.c scales their estimates per medium). */
-    double n_src = 0, n_here = 0;
-    int depth = 0;
-    for (; depth <= max_depth && !b->over;) {
+    /* pp: the walk's state (photon_path.h); vscattered: a scattering event so far. med -2:
+     * not known until the first hit. */
+    photon_path pp = path_start(c->o->max_depth, c->o->max_bounces);
+    int med = -2, vscattered = 0, crossings = 0, spec_mat = -1;
+    while (pp.depth <= pp.max_depth && !b->over) {
         hit h;
         int got = scene_intersect(s, r, INFINITY, &h);
         if (med == -2) med = got ? scene_medium_after(s, &h, v3_neg(r.d)) : s->global_medium;
@@ -142,19 +121,19 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
             if (medium_sample_distance(&s->media[med], got ? h.t : INFINITY, uc, ud, &t, &w)) {
                 if (v3_iszero(w)) return; /* sigma_s = 0: absorbed, nothing scatters */
                 vec3 x = ray_at(r, t);
-                int kind = scattered ? PM_KIND_INDIRECT : specular ? PM_KIND_CAUSTIC : PM_KIND_DIRECT;
+                int kind = path_kind(&pp);
                 b->pilot.events[clampi(med, VOL_PILOT_MEDIA)][kind]++;
                 if (kind == PM_KIND_CAUSTIC) b->pilot.caustic_by_mat[clampi(spec_mat, VOL_PILOT_MATS)]++;
                 if (c->keep_volume && (!caustic_pass || kind == PM_KIND_CAUSTIC) && inside(c->o, x))
-                    push(b, i, x, v3_mul(power, w), r.d, v3s(0), kind, WHERE_VOLUME, med);
+                    push(b, i, x, v3_mul(power, w), r.d, v3s(0), kind, med);
                 if (caustic_pass) return; /* not L S+ any more */
-                scattered = vscattered = 1;
+                pp.scattered = vscattered = 1;
                 if (!survive(&power, w, &g)) return;
                 vec3 nd;
                 hg_sample(s->media[med].g, r.d, rng_uniform(&g), rng_uniform(&g), &nd);
                 r.o = x;
                 r.d = nd;
-                depth++;
+                pp.depth++;
                 continue;
             }
             power = v3_mul(power, w);
@@ -163,7 +142,7 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
         if (!got) return;
         const material *m = scene_material(s, &h);
         if (m->kind == MAT_NULL) {
-            if (++crossings > 4 * max_depth + 1024) return;
+            if (++crossings > 4 * pp.max_depth + 1024) return;
             med = scene_medium_after(s, &h, r.d);
             r.o = scene_offset(c->s, h.p, h.ng, r.d);
             continue;
@@ -172,18 +151,17 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
         double wl[LOBE_COUNT];
         material_weights(m, wo, h.ng, s->medium_ior, wl);
         if (wl[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0) {
-            int kind = scattered ? PM_KIND_INDIRECT : specular ? PM_KIND_CAUSTIC : PM_KIND_DIRECT;
+            int kind = path_kind(&pp);
             if (kind == PM_KIND_DIRECT) b->pilot.surf_direct++;
             if (kind == PM_KIND_CAUSTIC) b->pilot.surf_caustic++;
             if (kind == PM_KIND_INDIRECT) b->pilot.surf_indirect++;
             if (vscattered) b->pilot.surf_after_scatter++;
-            vec3 ns = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
-            /* The global map has no caustic kind (photon_trace.h): L S+ D counts as indirect. */
-            rgb ps = v3_scale(power, material_radiance_scale(n_src, n_here));
+            vec3 ns = path_arrival_normal(wo, h.ng);
+            rgb ps = v3_scale(power, path_store_scale(&pp));
             if (c->keep_surface && !caustic_pass)
-                push(b, i, h.p, ps, r.d, ns, kind == PM_KIND_DIRECT ? kind : PM_KIND_INDIRECT, WHERE_SURFACE, -1);
+                push(b, i, h.p, ps, r.d, ns, path_global_kind(&pp), -1);
             if (c->keep_surface && caustic_pass && kind == PM_KIND_CAUSTIC)
-                push(b, i, h.p, ps, r.d, ns, kind, WHERE_SURFACE, -1);
+                push(b, i, h.p, ps, r.d, ns, kind, -1);
         }
         bsdf_sample bs;
         double ul = rng_uniform(&g), u1 = rng_uniform(&g), u2 = rng_uniform(&g);
@@ -191,26 +169,22 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
         if (bs.lobe == LOBE_TRANSMIT && !bs.tir && m->kind != MAT_NULL) {
             double n1, n2;
             material_indices(m, wo, h.ng, s->medium_ior, &n1, &n2);
-            if (!(n_src > 0)) n_src = n1;
-            else if (n1 != n_here) n_src *= n1 / n_here; /* a broken chain (photon_trace.c) */
-            n_here = n2;
+            path_refract(&pp, n1, n2);
         }
         if (bs.lobe == LOBE_DIFFUSE) {
             if (caustic_pass) return;
-            scattered = 1;
-        } else if (!specular) {
-            specular = 1;
+            pp.scattered = 1;
+        } else if (!pp.specular) {
+            pp.specular = 1;
             spec_mat = h.mat;
         }
         if (!survive(&power, bs.weight, &g)) return;
         med = scene_medium_after(s, &h, bs.wi);
         r.o = scene_offset(c->s, h.p, h.ng, bs.wi);
         r.d = bs.wi;
-        depth++;
+        pp.depth++;
     }
-    /* Still alive after the last bounce allowed by max_bounces: the path-length budget cut it. */
-    if (depth > max_depth && !b->over && c->o->max_bounces > 0 && c->o->max_bounces < c->o->max_depth)
-        b->cut++;
+    if (!b->over && path_cut(&pp)) b->cut++; /* still alive: the path-length budget cut it */
 }
 
 static void pilot_add(vol_pilot *a, const vol_pilot *b) {
@@ -228,16 +202,16 @@ static void pilot_add(vol_pilot *a, const vol_pilot *b) {
 typedef struct vmap {
     int keep;
     long target;
-    vrec *r;
+    pass_rec *r;
     size_t n, cap;
     uint64_t cut; /* photons [0, cut) kept; UINT64_MAX: not cut yet */
 } vmap;
 
-static int vmap_take(vmap *m, const vrec *v) {
+static int vmap_take(vmap *m, const pass_rec *v) {
     if (!m->keep || v->index >= m->cut) return 0;
     if (m->n == m->cap) {
         size_t nc = m->cap ? 2 * m->cap : 4096;
-        vrec *nr = realloc(m->r, nc * sizeof *nr);
+        pass_rec *nr = realloc(m->r, nc * sizeof *nr);
         if (!nr) return PM_ENOMEM;
         m->r = nr;
         m->cap = nc;
@@ -260,13 +234,13 @@ static int vmap_finish(vmap *m, uint64_t emitted, pm_photon **out, short **med, 
             free(ph);
             return PM_ENOMEM;
         }
-        for (size_t k = 0; k < m->n; k++) (*med)[k] = (short)m->r[k].med;
+        for (size_t k = 0; k < m->n; k++) (*med)[k] = m->r[k].medium;
     }
     float sc = (float)(1.0 / (double)*ne);
     for (size_t k = 0; k < m->n; k++) {
-        const vrec *v = &m->r[k];
+        const pass_rec *v = &m->r[k];
         float pw[3] = {v->power[0] * sc, v->power[1] * sc, v->power[2] * sc};
-        pm_photon_init(&ph[k], v->pos, pw, v->dir, v->where == WHERE_SURFACE ? v->nrm : NULL, v->kind);
+        pm_photon_init(&ph[k], v->pos, pw, v->dir, v->medium < 0 ? v->normal : NULL, v->kind);
     }
     *out = ph;
     *n = m->n;
@@ -278,14 +252,6 @@ void vol_pass_free(vol_pass_result *r) {
     free(r->volume);
     free(r->volume_medium);
     memset(r, 0, sizeof *r);
-}
-
-/* The message of a map that stopped short of its target (photon_trace.c's wording). */
-static void say_short(const char *title, const vmap *m, uint64_t n_e, const char *budget, const char *why) {
-    fprintf(stderr,
-            "photon tracing: %s: only %zu of %ld photons stored after %llu emitted; stopped by "
-            "the %s (%s)\n",
-            title, m->n, m->target, (unsigned long long)n_e, budget, why);
 }
 
 /* ---- distributed passes (volume.h; render/mpi/) ---------------------------------------------- */
@@ -312,7 +278,7 @@ static int vol_exchange(vbuf *bufs, int nb) {
     size_t bytes = 0;
     int mine = 0;
     for (int b = d->part; b < nb; b += d->nparts) {
-        bytes += sizeof(vbatch_head) + bufs[b].n * sizeof(vrec);
+        bytes += sizeof(vbatch_head) + bufs[b].n * sizeof(pass_rec);
         mine++;
     }
     char *out = malloc(bytes ? bytes : 1);
@@ -337,17 +303,16 @@ static int vol_exchange(vbuf *bufs, int nb) {
         if (!out) continue;
         memcpy(out + off, &h, sizeof h);
         off += sizeof h;
-        if (bf->n) memcpy(out + off, bf->r, bf->n * sizeof(vrec));
-        off += bf->n * sizeof(vrec);
+        if (bf->n) memcpy(out + off, bf->r, bf->n * sizeof(pass_rec));
+        off += bf->n * sizeof(pass_rec);
     }
     /* This process's own failure: said before the exchange tells every process of it. */
     if (own_fail && d->failed)
         d->failed(d->user, "out of memory while tracing photons (a pass of the media)");
-    size_t *sizes = calloc((size_t)d->nparts, sizeof *sizes);
+    size_t *sizes = NULL;
     char *all = NULL;
-    int rc = !sizes ? -1
-             : out ? d->allgather(d->user, out, off, (void **)&all, sizes)
-                   : d->allgather(d->user, failed, (size_t)mine * sizeof *failed, (void **)&all, sizes);
+    int rc = out ? pass_allgather(d, out, off, (void **)&all, &sizes)
+                 : pass_allgather(d, failed, (size_t)mine * sizeof *failed, (void **)&all, &sizes);
     free(out);
     if (rc < 0) {
         free(sizes);
@@ -364,7 +329,7 @@ static int vol_exchange(vbuf *bufs, int nb) {
             off += sizeof h;
             vbuf *bf = &bufs[h.b];
             if (h.cap != bf->cap) { /* the tracing process's capacity */
-                vrec *nr = realloc(bf->r, (h.cap ? h.cap : 1) * sizeof *nr);
+                pass_rec *nr = realloc(bf->r, (h.cap ? h.cap : 1) * sizeof *nr);
                 if (!nr) rc = PM_ENOMEM;
                 else {
                     bf->r = nr;
@@ -372,8 +337,8 @@ static int vol_exchange(vbuf *bufs, int nb) {
                 }
             }
             bf->n = rc == 0 ? h.n : 0;
-            if (bf->n) memcpy(bf->r, all + off, h.n * sizeof(vrec));
-            off += h.n * sizeof(vrec);
+            if (bf->n) memcpy(bf->r, all + off, h.n * sizeof(pass_rec));
+            off += h.n * sizeof(pass_rec);
             bf->stop = h.stop;
             bf->cut = h.cut;
             bf->fail = h.fail || rc < 0;
@@ -386,158 +351,171 @@ static int vol_exchange(vbuf *bufs, int nb) {
     return rc;
 }
 
+/* A pass while it runs: vol_trace_pass's state, shared by its steps. */
+typedef struct vpass {
+    vctx c;
+    vmap ms, mv; /* the surface and volume maps */
+    vbuf bufs[VOL_ROUND];
+    int nthreads;
+    uint64_t emitted, max_emitted, cut;
+    const trace_dist *dist; /* a distributed pass (vol_set_dist), or NULL */
+    const char *stop;       /* the budget that stopped the pass (NULL: none) */
+    char why[160];          /* and what it saw */
+} vpass;
+
+/* One round of VOL_ROUND batches on the threads (each batch in its own buffer), exchanged in a
+ * distributed pass, and merged into the maps in photon order. 0: go on; 1: a budget stopped
+ * the pass (p->stop); PM_ENOMEM. */
+static int vol_round(vpass *p) {
+    const vol_pass_opts *o = p->c.o;
+    vbuf *bufs = p->bufs;
+    uint64_t start = p->emitted, max_emitted = p->max_emitted;
+    int nb = VOL_ROUND, rc = 0;
+    /* The memory budget (max_memory_bytes): the maps' buffers between rounds, and within a
+     * round each batch's buffer at most its share of what the maps leave, so the stop is
+     * the same for any thread count. */
+    size_t held = (p->ms.cap + p->mv.cap) * VOL_RECORD_BYTES, room = SIZE_MAX;
+    for (int b = 0; b < nb; b++) held += bufs[b].cap * VOL_RECORD_BYTES;
+    if (o->max_memory_bytes > 0 && !p->c.counting) {
+        if (held > o->max_memory_bytes) {
+            p->stop = "photon_mapping.max_memory_mb budget";
+            snprintf(p->why, sizeof p->why, "%.2f MiB of photon buffers", (double)held / (1 << 20));
+            return 1;
+        }
+        room = (o->max_memory_bytes - (p->ms.cap + p->mv.cap) * VOL_RECORD_BYTES) / VOL_ROUND / VOL_RECORD_BYTES;
+    }
+    const trace_dist *dist = p->dist;
+    const vctx *c = &p->c;
+#ifdef _OPENMP
+#pragma omp parallel for num_threads(p->nthreads) schedule(dynamic, 1)
+#endif
+    for (int b = 0; b < nb; b++) {
+        vbuf *bf = &bufs[b];
+        /* A distributed pass (vol_set_dist): another process traces this batch. */
+        if (dist && b % dist->nparts != dist->part) continue;
+        bf->n = 0;
+        bf->over = 0;
+        bf->stop = UINT64_MAX;
+        bf->cut = 0;
+        bf->max_n = room;
+        memset(&bf->pilot, 0, sizeof bf->pilot);
+        uint64_t lo = start + (uint64_t)b * VOL_BATCH, hi = lo + VOL_BATCH;
+        if (hi > max_emitted) hi = max_emitted;
+        for (uint64_t i = lo; i < hi && !bf->over; i++) {
+            trace_photon(c, i, bf);
+            if (bf->over) { /* photon i is not whole: drop its records, end the batch here */
+                while (bf->n > 0 && bf->r[bf->n - 1].index == i) bf->n--;
+                bf->stop = i;
+            }
+        }
+    }
+    if (dist && vol_exchange(bufs, nb) < 0) return PM_ENOMEM;
+    uint64_t end = start + (uint64_t)nb * VOL_BATCH;
+    for (int b = 0; b < nb && rc == 0; b++) {
+        if (bufs[b].fail) rc = PM_ENOMEM;
+        if (o->pilot) pilot_add(o->pilot, &bufs[b].pilot);
+        p->cut += bufs[b].cut;
+        for (size_t k = 0; k < bufs[b].n && rc == 0; k++) {
+            const pass_rec *v = &bufs[b].r[k];
+            rc = vmap_take(v->medium < 0 ? &p->ms : &p->mv, v);
+        }
+        if (bufs[b].over) { /* the photons before it are whole; none after it counts */
+            end = bufs[b].stop;
+            p->stop = "photon_mapping.max_memory_mb budget";
+            snprintf(p->why, sizeof p->why, "a batch of photons outgrew its share of the budget, "
+                     "%.2f MiB, at photon %llu", (double)(room * VOL_RECORD_BYTES) / (1 << 20),
+                     (unsigned long long)bufs[b].stop);
+            break;
+        }
+    }
+    if (rc < 0) return rc;
+    p->emitted = end < max_emitted ? end : max_emitted;
+    if (p->stop) return 1;
+    /* A map that stored nothing in its first VOL_EMPTY_PHOTONS photons stays empty. */
+    if (p->emitted >= VOL_EMPTY_PHOTONS) {
+        if (p->ms.cut == UINT64_MAX && p->ms.n == 0) p->ms.cut = p->emitted;
+        if (p->mv.cut == UINT64_MAX && p->mv.n == 0) p->mv.cut = p->emitted;
+    }
+    return 0;
+}
+
+/* The pass's end: its messages (BUDGETS in volume.h), PM_EEMPTY for a pass that stored
+ * nothing, else rc. */
+static int vol_report(vpass *p, vol_pass_result *res, int rc) {
+    const vol_pass_opts *o = p->c.o;
+    const char *title_s = o->caustic_pass ? "Tracing caustic photons" : "Tracing global photons";
+    const char *title_v = o->caustic_pass ? "Tracing volume-caustic photons" : "Tracing volume photons";
+    res->emitted = p->emitted;
+    res->cut = p->cut;
+    res->surface_short = p->ms.keep && p->ms.cut == UINT64_MAX;
+    res->volume_short = p->mv.keep && p->mv.cut == UINT64_MAX;
+    if (!p->stop && p->emitted >= p->max_emitted) {
+        p->stop = o->max_emitted_budget ? o->max_emitted_budget : "photon_mapping.max_emitted budget";
+        snprintf(p->why, sizeof p->why, "%llu photons emitted", (unsigned long long)p->max_emitted);
+    }
+    if (rc != 0 || o->pilot) return rc;
+    if (p->cut > 0) pass_say_cut(NULL, p->c.keep_volume ? title_v : title_s, p->cut, o->max_bounces);
+    if ((p->ms.keep || p->mv.keep) && p->ms.n == 0 && p->mv.n == 0) {
+        char stopped[96];
+        snprintf(stopped, sizeof stopped, "the %s", p->stop ? p->stop : "");
+        pass_say_empty(res->msg, sizeof res->msg, p->mv.keep ? title_v : title_s, p->emitted, "surface or medium",
+                       p->stop ? stopped : NULL);
+        return PM_EEMPTY;
+    }
+    const char *budget = p->stop ? p->stop : "?";
+    if (res->surface_short) pass_say_short(NULL, title_s, p->ms.n, p->ms.target, p->emitted, "", budget, p->why);
+    if (res->volume_short) pass_say_short(NULL, title_v, p->mv.n, p->mv.target, p->emitted, "", budget, p->why);
+    return 0;
+}
+
 int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res) {
     memset(res, 0, sizeof *res);
     if (s->nlights == 0 || s->light_distrib.n == 0) return PM_EINVAL;
     if (!(o->max_emitted >= 1) || o->max_depth < 0 || o->surface_target < 0 || o->volume_target < 0 ||
         o->max_bounces < 0)
         return PM_EINVAL;
-    vctx c = {s, o, o->surface_target > 0 && !o->pilot, o->volume_target > 0 && !o->pilot, o->pilot != NULL,
-              NULL, {0}, 0};
-    const char *title_s = o->caustic_pass ? "Tracing caustic photons" : "Tracing global photons";
-    const char *title_v = o->caustic_pass ? "Tracing volume-caustic photons" : "Tracing volume photons";
-    const char *emit_budget = o->max_emitted_budget ? o->max_emitted_budget : "photon_mapping.max_emitted budget";
+    vpass *p = calloc(1, sizeof *p);
+    if (!p) return PM_ENOMEM;
+    vctx *c = &p->c;
+    c->s = s;
+    c->o = o;
+    c->keep_surface = o->surface_target > 0 && !o->pilot;
+    c->keep_volume = o->volume_target > 0 && !o->pilot;
+    c->counting = o->pilot != NULL;
     if (o->caustic_pass && o->projection_cells > 0) {
-        double *w = malloc((size_t)s->nlights * sizeof *w);
-        if (!w || projmap_build_all(s, o->projection_cells, &c.proj) < 0) {
-            free(w);
-            return PM_ENOMEM;
-        }
-        for (int i = 0; i < s->nlights; i++) {
-            rgb pw = s->lights[i].power;
-            w[i] = (pw.x + pw.y + pw.z) / 3 * c.proj[i].fraction;
-            c.wsum += w[i];
-        }
-        int rc0 = c.wsum > 0 ? distrib1d_init(&c.choose, w, s->nlights) : PM_EINVAL;
-        free(w);
-        if (rc0 < 0) { /* no light faces a specular object: nothing to aim at */
-            projmap_free_all(c.proj, s->nlights);
-            c.proj = NULL;
+        int rc0 = pass_aim_build(s, o->projection_cells, &c->aim);
+        if (rc0 < 0 || !c->aim.chosen) { /* no light faces a specular object: nothing to aim at */
+            pass_aim_free(&c->aim);
+            free(p);
             return rc0 == PM_ENOMEM ? rc0 : 0; /* empty maps: nothing can reach a specular object */
         }
+        c->proj = c->aim.proj;
     }
-    vmap ms = {c.keep_surface, o->surface_target, NULL, 0, 0, c.keep_surface ? UINT64_MAX : 0};
-    vmap mv = {c.keep_volume, o->volume_target, NULL, 0, 0, c.keep_volume ? UINT64_MAX : 0};
-    vbuf bufs[VOL_ROUND];
-    memset(bufs, 0, sizeof bufs);
-    int nthreads = 1;
+    vmap ms = {c->keep_surface, o->surface_target, NULL, 0, 0, c->keep_surface ? UINT64_MAX : 0};
+    vmap mv = {c->keep_volume, o->volume_target, NULL, 0, 0, c->keep_volume ? UINT64_MAX : 0};
+    p->ms = ms;
+    p->mv = mv;
+    p->nthreads = 1;
 #ifdef _OPENMP
-    nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
+    p->nthreads = o->threads > 0 ? o->threads : omp_get_max_threads();
 #endif
-    uint64_t emitted = 0, max_emitted = (uint64_t)o->max_emitted, cut = 0;
+    p->max_emitted = (uint64_t)o->max_emitted;
+    p->dist = g_vdist && !o->pilot ? g_vdist : NULL;
     int rc = 0;
-    const trace_dist *dist = g_vdist && !o->pilot ? g_vdist : NULL;
-    /* The budget that stopped the pass (NULL: none) and what it saw. */
-    const char *stop = NULL;
-    char why[160] = "";
-    while (emitted < max_emitted && (c.counting || ms.cut == UINT64_MAX || mv.cut == UINT64_MAX)) {
-        uint64_t start = emitted;
-        int nb = VOL_ROUND;
-        /* The memory budget (max_memory_bytes): the maps' buffers between rounds, and within a
-         * round each batch's buffer at most its share of what the maps leave, so the stop is
-         * the same for any thread count. */
-        size_t held = (ms.cap + mv.cap) * sizeof(vrec), room = SIZE_MAX;
-        for (int b = 0; b < nb; b++) held += bufs[b].cap * sizeof(vrec);
-        if (o->max_memory_bytes > 0 && !c.counting) {
-            if (held > o->max_memory_bytes) {
-                stop = "photon_mapping.max_memory_mb budget";
-                snprintf(why, sizeof why, "%.2f MiB of photon buffers", (double)held / (1 << 20));
-                break;
-            }
-            room = (o->max_memory_bytes - (ms.cap + mv.cap) * sizeof(vrec)) / VOL_ROUND / sizeof(vrec);
-        }
-        (void)nthreads;
-#ifdef _OPENMP
-#pragma omp parallel for num_threads(nthreads) schedule(dynamic, 1)
-#endif
-        for (int b = 0; b < nb; b++) {
-            vbuf *bf = &bufs[b];
-            /* A distributed pass (vol_set_dist): another process traces this batch. */
-            if (dist && b % dist->nparts != dist->part) continue;
-            bf->n = 0;
-            bf->over = 0;
-            bf->stop = UINT64_MAX;
-            bf->cut = 0;
-            bf->max_n = room;
-            memset(&bf->pilot, 0, sizeof bf->pilot);
-            uint64_t lo = start + (uint64_t)b * VOL_BATCH, hi = lo + VOL_BATCH;
-            if (hi > max_emitted) hi = max_emitted;
-            for (uint64_t i = lo; i < hi && !bf->over; i++) {
-                trace_photon(&c, i, bf);
-                if (bf->over) { /* photon i is not whole: drop its records, end the batch here */
-                    while (bf->n > 0 && bf->r[bf->n - 1].index == i) bf->n--;
-                    bf->stop = i;
-                }
-            }
-        }
-        if (dist && vol_exchange(bufs, nb) < 0) {
-            rc = PM_ENOMEM;
-            break;
-        }
-        uint64_t end = start + (uint64_t)nb * VOL_BATCH;
-        for (int b = 0; b < nb && rc == 0; b++) {
-            if (bufs[b].fail) rc = PM_ENOMEM;
-            if (o->pilot) pilot_add(o->pilot, &bufs[b].pilot);
-            cut += bufs[b].cut;
-            for (size_t k = 0; k < bufs[b].n && rc == 0; k++) {
-                const vrec *v = &bufs[b].r[k];
-                rc = vmap_take(v->where == WHERE_SURFACE ? &ms : &mv, v);
-            }
-            if (bufs[b].over) { /* the photons before it are whole; none after it counts */
-                end = bufs[b].stop;
-                stop = "photon_mapping.max_memory_mb budget";
-                snprintf(why, sizeof why, "a batch of photons outgrew its share of the budget, "
-                         "%.2f MiB, at photon %llu", (double)(room * sizeof(vrec)) / (1 << 20),
-                         (unsigned long long)bufs[b].stop);
-                break;
-            }
-        }
-        if (rc < 0) break;
-        emitted = end < max_emitted ? end : max_emitted;
-        if (stop) break;
-        /* A map that stored nothing in its first VOL_EMPTY_PHOTONS photons stays empty. */
-        if (emitted >= VOL_EMPTY_PHOTONS) {
-            if (ms.cut == UINT64_MAX && ms.n == 0) ms.cut = emitted;
-            if (mv.cut == UINT64_MAX && mv.n == 0) mv.cut = emitted;
-        }
+    while (p->emitted < p->max_emitted && (c->counting || p->ms.cut == UINT64_MAX || p->mv.cut == UINT64_MAX)) {
+        rc = vol_round(p);
+        if (rc != 0) break;
     }
-    for (int b = 0; b < VOL_ROUND; b++) free(bufs[b].r);
-    if (c.proj) {
-        projmap_free_all(c.proj, s->nlights);
-        distrib1d_free(&c.choose);
-    }
-    res->emitted = emitted;
-    res->cut = cut;
-    res->surface_short = ms.keep && ms.cut == UINT64_MAX;
-    res->volume_short = mv.keep && mv.cut == UINT64_MAX;
-    if (!stop && emitted >= max_emitted) {
-        stop = emit_budget;
-        snprintf(why, sizeof why, "%llu photons emitted", (unsigned long long)max_emitted);
-    }
-    if (rc == 0 && !o->pilot) {
-        if (cut > 0)
-            fprintf(stderr,
-                    "photon tracing: %s: %llu photon paths were cut by the path-length budget "
-                    "(photon_mapping.max_bounces = %d)\n",
-                    c.keep_volume ? title_v : title_s, (unsigned long long)cut, o->max_bounces);
-        if ((ms.keep || mv.keep) && ms.n == 0 && mv.n == 0) {
-            snprintf(res->msg, sizeof res->msg,
-                     "photon tracing: %s: no photon stored after %llu emitted: the lights reach no "
-                     "surface or medium that stores photons (do they face anything? are they "
-                     "enclosed by mirrors or glass only?)%s%s",
-                     mv.keep ? title_v : title_s, (unsigned long long)emitted,
-                     stop ? "; stopped by the " : "", stop ? stop : "");
-            rc = PM_EEMPTY;
-        } else {
-            if (res->surface_short) say_short(title_s, &ms, emitted, stop ? stop : "?", why);
-            if (res->volume_short) say_short(title_v, &mv, emitted, stop ? stop : "?", why);
-        }
-    }
-    if (rc == 0) rc = vmap_finish(&ms, emitted, &res->surface, NULL, &res->nsurface, &res->surface_emitted);
+    if (rc > 0) rc = 0;
+    for (int b = 0; b < VOL_ROUND; b++) free(p->bufs[b].r);
+    pass_aim_free(&c->aim);
+    rc = vol_report(p, res, rc);
+    if (rc == 0) rc = vmap_finish(&p->ms, p->emitted, &res->surface, NULL, &res->nsurface, &res->surface_emitted);
     if (rc == 0)
-        rc = vmap_finish(&mv, emitted, &res->volume, &res->volume_medium, &res->nvolume, &res->volume_emitted);
-    free(ms.r);
-    free(mv.r);
+        rc = vmap_finish(&p->mv, p->emitted, &res->volume, &res->volume_medium, &res->nvolume, &res->volume_emitted);
+    free(p->ms.r);
+    free(p->mv.r);
+    free(p);
     if (rc < 0) {
         char msg[sizeof res->msg];
         memcpy(msg, res->msg, sizeof msg);

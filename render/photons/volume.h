@@ -64,6 +64,10 @@
  * PILOT. With a vol_pilot the pass keeps nothing and counts what the photons do (the plan's
  * evidence, plan.h).
  *
+ * CODE. volume.c has the walk through media and the round driver; the walk's state (bounces,
+ * kinds, the refraction chain, the path-length cut) is photon_path.h's and the caustic pass's
+ * aim, the exchange and the budgets' messages photon_pass.h's, shared with photon_trace.c.
+ *
  * Ownership: the caller frees the result's arrays (vol_pass_free, or free() on vol_photons).
  */
 #ifndef RENDER_VOLUME_H
@@ -84,7 +88,11 @@ extern "C" {
 #define VOL_EMPTY_PHOTONS 131072
 #define VOL_PILOT_MEDIA 16 /* media counted separately; the last slot collects any beyond */
 #define VOL_PILOT_MATS 64  /* materials counted separately; the last slot collects any beyond */
-#define VOL_RECORD_BYTES 72 /* a stored photon while tracing (the memory budget counts these) */
+/* The memory budget's count of bytes per stored photon while tracing. The records are
+ * photon_pass.h's pass_rec (64 bytes), shared with the surfaces' tracer; the budget still
+ * counts 72, the size of this tracer's own record before, so that a budget stops a pass at
+ * the photon it did and the maps (and their files' tracer version) stay the same. */
+#define VOL_RECORD_BYTES 72
 
 typedef struct vol_photons {
     pm_photon *photons;

@@ -1,0 +1,183 @@
+/* photon_pass.h: running a photon pass, the part both photon tracers share (photon_trace.c for
+ * surfaces, volume.c for media; the per-photon walks are theirs, photon_path.h the state the
+ * walks share). Internal to photons/: the tracers' own headers say what a pass does.
+ *
+ *   records   a stored photon while tracing (pass_rec: full precision, tagged with the index
+ *             of the emitted photon it came from) and a growable buffer of them (pass_buf),
+ *             pushed, merged in photon order from per-thread buffers, and cut at a target by
+ *             whole photon paths (the cut at the target, PASS BUDGETS in photon_trace.h);
+ *   aim       the caustic passes' projection maps and the light choice by power times each
+ *             light's active fraction (CAUSTIC PROJECTION MAP in photon_trace.h);
+ *   driver    pass_run: a surface pass (photon_trace.h) in batches of PT_BATCH on the threads,
+ *             each photon traced by the pass's walk (pass_ctx.walk), with the budgets and,
+ *             after photon_trace_set_dist, the distributed rounds (photon_rounds.c);
+ *   exchange  pass_allgather, every distributed exchange of both tracers (trace_dist);
+ *   messages  the texts on stderr and in err that both tracers print alike.
+ */
+#ifndef RENDER_PHOTON_PASS_H
+#define RENDER_PHOTON_PASS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "photons/photon_trace.h"
+#include "photons/projmap.h"
+#include "scene/scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- records ---- */
+
+typedef struct pass_rec {
+    uint64_t index; /* emitted photon it came from: the merge key */
+    float pos[3], power[3], dir[3], normal[3];
+    int16_t kind;   /* PM_KIND_* */
+    int16_t medium; /* a volume photon's medium (index into scene.media); -1: a surface photon */
+    float rel; /* p(l, u) / p_l of its emission under the pass's importance table (1: none) */
+} pass_rec;
+
+typedef struct pass_buf {
+    pass_rec *v;
+    size_t n, cap;
+} pass_buf;
+
+int pass_buf_push(pass_buf *b, const pass_rec *p);
+/* Merge the per-thread buffers (each sorted by index) onto the end of out in index order, and
+ * empty them. cap_max (0: none): out's capacity never grows past it by doubling. */
+int pass_buf_merge_capped(pass_buf *out, pass_buf *bufs, int nb, size_t cap_max);
+static inline int pass_buf_merge(pass_buf *out, pass_buf *bufs, int nb) { return pass_buf_merge_capped(out, bufs, nb, 0); }
+/* Keep the records of the first photons whose records reach `target` (each photon whole) and
+ * return how many photons that is (n_e when the target is not passed); the shadow buffer (or
+ * NULL) keeps the records of the same photons. */
+uint64_t pass_cut_at_target(pass_buf *main_buf, pass_buf *shadow_buf, long target, uint64_t n_e);
+/* A surface photon's record (medium -1); a volume photon sets medium after it. */
+void pass_rec_set(pass_rec *f, uint64_t idx, vec3 p, rgb power, vec3 d, vec3 n, int kind, double rel);
+
+/* ---- aim ---- */
+
+typedef struct pass_aim {
+    projmap *proj;     /* one per light (NULL: not built) */
+    distrib1d choose;  /* lights by power x active fraction, when some light has one */
+    int chosen;        /* choose was built (wsum > 0) */
+    double wsum, psum; /* sums of mean-channel power x fraction, and of power */
+    int nl;
+} pass_aim;
+/* 0, or a negative PM_E* code; with aim->chosen 0, no light can reach a specular object. */
+int pass_aim_build(const scene *s, int cells, pass_aim *a);
+void pass_aim_free(pass_aim *a);
+
+/* ---- driver (surface passes) ---- */
+
+typedef struct pass_ctx pass_ctx;
+/* The walk of photon i: stores into gb (global or caustic) and sb (shadow); sets bit 0 of
+ * *first_specular for a caustic-pass photon whose first hit is specular and bit 1 for a path
+ * cut by the path-length budget. 0, PM_ENOMEM or PASS_OVER_BUDGET (pass_store). */
+typedef int (*pass_walk)(const pass_ctx *c, uint64_t i, pass_buf *gb, pass_buf *sb, int *first_specular);
+#define PASS_OVER_BUDGET 1
+
+struct pass_ctx {
+    const scene *s;
+    const trace_opts *o;
+    pass_walk walk;
+    int caustic_pass;
+    int want_global, want_shadow;
+    distrib1d choose; /* light choice for this pass */
+    rgb *light_scale; /* per light: power / p_light (times the projection fraction) */
+    projmap *proj;    /* caustic pass: one per light */
+    const struct importance *imp; /* global pass: importance-driven emission, or NULL */
+    int imp_rel_only;      /* a pilot: emit by power, and only record rel under imp */
+    const pass_buf *tail;  /* pilot stores that follow the pass's own in the main map, or NULL */
+    uint64_t tail_emitted; /* the pilot photons those stores came from */
+    double shift[6];
+    /* The memory budget inside a batch (one process; PASS BUDGETS in photon_trace.h): the
+     * records the batch may store (0: no cap), and the count so far, shared by its threads. */
+    uint64_t batch_cap;
+    uint64_t *batch_records;
+};
+
+/* Store a record of the batch: PM_ENOMEM, PASS_OVER_BUDGET once the batch's records (all
+ * threads') pass its cap, or 0. */
+int pass_store(const pass_ctx *c, pass_buf *b, const pass_rec *fp);
+
+/* What a pass gives back besides its buffers. */
+typedef struct pass_out {
+    uint64_t emitted, first_specular;
+    int runaway;
+    size_t whole[2]; /* the whole pass's counts, main and shadow (a partitioned pass keeps a part) */
+} pass_out;
+/* Run one surface pass until `target` photons are in main_buf or a budget stops it (PASS
+ * BUDGETS in photon_trace.h). 0, PM_ENOMEM, or PM_EEMPTY (message in err). */
+int pass_run(pass_ctx *c, long target, pass_buf *main_buf, pass_buf *shadow_buf, pass_out *out,
+             const char *title, char *err, size_t errcap);
+
+/* The distributed setting of surface passes (photon_trace_set_dist), and whether a pass is a
+ * partitioned one (a pilot pass is always replicated). */
+const trace_dist *pass_dist(void);
+int pass_partitioned(const pass_ctx *c);
+
+/* Trace photons start .. start + PT_BATCH - 1 on nthreads threads into the per-thread buffers
+ * (thread t: tg[t] and ts[t]). 0; bit 0 set on failure (out of memory), bit 1 when the batch's
+ * records passed c->batch_cap (the batch is then incomplete). *nfirst gains the batch's
+ * first-specular photons, and its cut paths in the high 32 bits. */
+int pass_trace_batch(const pass_ctx *c, uint64_t start, pass_buf *tg, pass_buf *ts, int nthreads,
+                     uint64_t *nfirst);
+
+/* ---- distributed rounds (photon_rounds.c) ---- */
+
+typedef struct pass_batch_count {
+    uint64_t nmain, nshadow;
+} pass_batch_count;
+/* The exchanged bytes of the current round: batch j of it starts at photon start + j PT_BATCH;
+ * `next` is the batch to hand out, at byte `off`. target, stored and limit are the pass's,
+ * for sizing the rounds. A partitioned pass keeps each batch's counts in bc. */
+typedef struct pass_rounds {
+    uint64_t start;
+    int nbatch, next;
+    char *all;
+    size_t *sizes, off;
+    long target;
+    const pass_buf *stored;
+    double limit;
+    pass_batch_count *bc;
+    size_t nbc, capbc;
+} pass_rounds;
+void pass_rounds_free(pass_rounds *rb);
+/* Batch [n_e, n_e + PT_BATCH) of a distributed pass: a replicated pass's records into tg[0] and
+ * ts[0]; a partitioned pass's counts into rb->bc and the count-only buffers main_buf and
+ * shadow_buf (NULL: none). 0, 1 on failure anywhere, 2 when the batch passed the memory
+ * budget (every process stops there). */
+int pass_dist_batch(const pass_ctx *c, pass_rounds *rb, uint64_t n_e, pass_buf *tg, pass_buf *ts, int nthreads,
+                    uint64_t *nfirst, pass_buf *main_buf, pass_buf *shadow_buf);
+/* The end of a partitioned pass (photon_trace.h, trace_dist.partitioned): the cut at the
+ * target found by tracing its batch again, then this process's part of the main map traced
+ * again into out. Sets vm, vs and *n_e to the whole pass's figures. Every process returns the
+ * same: 0, or PM_ENOMEM if any failed. */
+int pass_part_finish(const pass_ctx *c, pass_rounds *rb, long target, uint64_t *n_e, pass_buf *vm, pass_buf *vs,
+                     pass_buf *out, pass_buf *tg, pass_buf *ts, int nthreads);
+
+/* ---- exchange ---- */
+
+/* Every process's bytes in part order: d->allgather, with *all (malloc'd) and *sizes (calloc'd,
+ * nparts; reused when non-NULL) for the caller to free. 0, or -1 on failure anywhere. */
+int pass_allgather(const trace_dist *d, const void *mine, size_t nbytes, void **all, size_t **sizes);
+
+/* ---- messages ---- */
+
+/* "[render: FILE: ]photon tracing: TITLE: N photon paths were cut by the path-length budget
+ * (photon_mapping.max_bounces = B)" on stderr (file NULL or "": no prefix). */
+void pass_say_cut(const char *file, const char *title, uint64_t cut, int max_bounces);
+/* "[render: FILE: ]photon tracing: TITLE: only N of T photons stored after E emitted[WITH];
+ * stopped by the BUDGET (WHY)" on stderr. */
+void pass_say_short(const char *file, const char *title, size_t n, long target, uint64_t n_e, const char *with,
+                    const char *budget, const char *why);
+/* The message of a pass that stored nothing: the lights reach no PLACES that stores photons,
+ * and "; stopped by STOPPED" when stopped is non-NULL. */
+void pass_say_empty(char *err, size_t errcap, const char *title, uint64_t n_e, const char *places,
+                    const char *stopped);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_PHOTON_PASS_H */

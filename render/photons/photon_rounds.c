@@ -1,0 +1,305 @@
+/* photon_rounds.c: the batches of a surface pass (photon_pass.h) and, for a distributed pass
+ * (photon_trace_set_dist, DISTRIBUTED PASSES in photon_trace.h), its rounds of batches: each
+ * process traces its batches of a round, the exchange gives every process every batch, and a
+ * partitioned pass exchanges only counts and traces again the batches holding its part.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "photonmap/common.h"
+#include "photons/photon_pass.h"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+/* Trace photons start .. start + PT_BATCH - 1 on nthreads threads into the per-thread buffers
+ * (thread t: tg[t] and ts[t]). 0; bit 0 set on failure (out of memory), bit 1 when the batch's
+ * records passed c->batch_cap (the batch is then incomplete). */
+int pass_trace_batch(const pass_ctx *c, uint64_t start, pass_buf *tg, pass_buf *ts, int nthreads,
+                     uint64_t *nfirst_out) {
+    int fail = 0;
+    uint64_t nfirst = 0;
+    (void)nthreads; /* read by OpenMP only */
+#ifdef _OPENMP
+/* monotonic: each thread must get its chunks in increasing order, because pass_buf_merge takes
+ * every per-thread buffer as sorted by photon index. OpenMP 5 makes plain dynamic
+ * nonmonotonic, and LLVM's libomp then steals chunks from the other threads' far ends, which
+ * made the maps depend on the thread count in clang builds. */
+#pragma omp parallel for num_threads(nthreads) schedule(monotonic : dynamic, 64) reduction(| : fail) \
+    reduction(+ : nfirst)
+#endif
+    for (int k = 0; k < PT_BATCH; k++) {
+        int t = 0, fs = 0;
+#ifdef _OPENMP
+        t = omp_get_thread_num();
+#endif
+        /* Without a global map the shadow photons are the pass's main output. */
+        int r = c->walk(c, start + (uint64_t)k, &tg[t], c->want_global ? &ts[t] : &tg[t], &fs);
+        if (r < 0) fail |= 1;
+        if (r == PASS_OVER_BUDGET) fail |= 2;
+        /* fs bit 0: first hit specular (caustic pass); bit 1: cut by the path-length budget,
+         * counted in the high half so that one word carries both through the exchange. */
+        nfirst += (uint64_t)(fs & 1) + ((uint64_t)(fs >> 1) << 32);
+    }
+    *nfirst_out += nfirst;
+    return fail;
+}
+
+static const trace_dist *g_dist;
+
+void photon_trace_set_dist(const trace_dist *d) { g_dist = d; }
+
+/* A partitioned distributed pass (photon_trace.h); a pilot pass is always replicated (its
+ * evidence counts each photon traced once). */
+int pass_partitioned(const pass_ctx *c) { return g_dist && g_dist->partitioned && !c->o->pilot; }
+
+const trace_dist *pass_dist(void) { return g_dist; }
+
+/* A distributed pass: trace a batch (pass_trace_batch), through the test hook; and say this
+ * process's own failure before the exchange tells every process (trace_dist.failed). */
+static int dist_trace(const trace_dist *d, const pass_ctx *c, uint64_t start, pass_buf *tg, pass_buf *ts,
+                      int nthreads, uint64_t *nfirst) {
+    if (c->batch_records) *c->batch_records = 0; /* the memory budget counts each batch anew */
+    int fail = pass_trace_batch(c, start, tg, ts, nthreads, nfirst);
+    return d->test_fail && d->test_fail(d->user) ? 1 : fail;
+}
+static void dist_failed(const trace_dist *d, const pass_ctx *c, int again) {
+    char what[128];
+    snprintf(what, sizeof what, "out of memory while tracing photons (the %s pass%s)",
+             c->caustic_pass ? "caustic" : c->want_global ? "global" : "shadow",
+             again ? ", tracing this process's part of the map again" : "");
+    if (d->failed) d->failed(d->user, what);
+}
+
+/* One batch as exchanged: this head in the room of one photon record, then nmain main-buffer
+ * and nshadow shadow-buffer photons in index order. A process that failed sends only a head
+ * with fail set. */
+typedef struct batch_head {
+    uint64_t nmain, nshadow, nfirst, fail;
+} batch_head;
+
+#define ROUND_MAX_PER_PART 16
+
+/* Batches per process in the round that begins at photon `start`: 1 at first; then as many as
+ * still fit in every process's share of the batches the pass needs at the rate stored so far
+ * (and of the emission budget), at most ROUND_MAX_PER_PART. Fewer rounds mean fewer waits
+ * for the slowest process; the last rounds shrink to one batch each, so at most
+ * nparts - 1 batches are traced past the stopping point. Every process computes the same
+ * number from the same bookkeeping. */
+static int round_batches(const pass_rounds *rb, uint64_t start, int nparts) {
+    uint64_t done = start / PT_BATCH;
+    if (!rb->stored || done == 0 || rb->stored->n == 0) return 1;
+    double left = ((double)rb->target - (double)rb->stored->n) * (double)done / (double)rb->stored->n;
+    double budget = (rb->limit - (double)start) / PT_BATCH;
+    if (budget < left) left = budget;
+    double m = floor(left / nparts);
+    return m < 1 ? 1 : m > ROUND_MAX_PER_PART ? ROUND_MAX_PER_PART : (int)m;
+}
+
+/* A round: trace this process's batches of the round that begins at photon `start`, exchange.
+ * Process p traces the round's batches p m .. p m + m - 1, so the exchange, in process order,
+ * is in batch order. 1 on failure here or (seen in the exchange) anywhere. */
+static int dist_round(const pass_ctx *c, pass_rounds *rb, uint64_t start, pass_buf *tg, pass_buf *ts,
+                      int nthreads) {
+    const trace_dist *d = g_dist;
+    int per = round_batches(rb, start, d->nparts);
+    size_t *sizes = rb->sizes ? rb->sizes : calloc((size_t)d->nparts, sizeof *sizes);
+    free(rb->all);
+    rb->all = NULL;
+    rb->sizes = sizes;
+    rb->next = rb->nbatch = 0;
+    rb->off = 0;
+    pass_buf out = {0}; /* this process's blocks: head, then its photons, per batch */
+    batch_head *heads = NULL; /* a partitioned pass: the heads alone */
+    int fail = !sizes, part = pass_partitioned(c);
+    if (part && !(heads = calloc((size_t)per, sizeof *heads))) fail = 1;
+    /* The memory budget inside the batches (pass_run sets the records still allowed): each of
+     * this process's `per` batches of the round may store its share, so the round's records
+     * stay within what is left. c is pass_run's own (not const there). */
+    uint64_t allowance = c->batch_cap;
+    if (allowance) ((pass_ctx *)c)->batch_cap = allowance / (uint64_t)per > 0 ? allowance / (uint64_t)per : 1;
+    for (int j = 0; j < per && !fail; j++) {
+        batch_head h = {0, 0, 0, 0};
+        pass_buf m = {0}, sh = {0};
+        uint64_t first = start + ((uint64_t)d->part * (uint64_t)per + (uint64_t)j) * PT_BATCH;
+        h.fail = (uint64_t)dist_trace(d, c, first, tg, ts, nthreads, &h.nfirst);
+        if (part) { /* counts only: the photons are traced again by the process keeping them */
+            for (int t = 0; t < nthreads; t++) {
+                h.nmain += tg[t].n;
+                h.nshadow += ts[t].n;
+                tg[t].n = ts[t].n = 0;
+            }
+            heads[j] = h;
+            fail = (int)h.fail;
+            continue;
+        }
+        if (pass_buf_merge(&m, tg, nthreads) < 0 || pass_buf_merge(&sh, ts, nthreads) < 0) h.fail = 1;
+        h.nmain = m.n;
+        h.nshadow = sh.n;
+        /* The head takes half a photon record's room (pass_rec is 8-byte aligned, 64 bytes). */
+        pass_rec head[1];
+        memset(head, 0, sizeof head);
+        memcpy(head, &h, sizeof h);
+        if (!h.fail && pass_buf_push(&out, head) < 0) h.fail = 1;
+        for (size_t i = 0; !h.fail && i < m.n; i++) h.fail = pass_buf_push(&out, &m.v[i]) < 0;
+        for (size_t i = 0; !h.fail && i < sh.n; i++) h.fail = pass_buf_push(&out, &sh.v[i]) < 0;
+        free(m.v);
+        free(sh.v);
+        for (int t = 0; t < nthreads; t++) tg[t].n = ts[t].n = 0;
+        fail = (int)h.fail;
+    }
+    if (allowance) ((pass_ctx *)c)->batch_cap = allowance;
+    /* fail 2: a batch passed the memory budget (no error): every process stops there. */
+    batch_head failed = {0, 0, 0, fail == 2 ? 2 : 1};
+    if (fail && fail != 2) dist_failed(d, c, 0);
+    const void *mine = fail ? (const void *)&failed : part ? (const void *)heads : (const void *)out.v;
+    size_t nbytes = fail ? sizeof failed : part ? (size_t)per * sizeof *heads : out.n * sizeof(pass_rec);
+    int rc = pass_allgather(d, mine, nbytes, (void **)&rb->all, &rb->sizes);
+    free(out.v);
+    free(heads);
+    if (rc < 0) return 1;
+    rb->start = start;
+    rb->nbatch = d->nparts * per;
+    return 0;
+}
+
+/* Batch [n_e, n_e + PT_BATCH) of a distributed pass into tg[0] and ts[0] (the other buffers
+ * stay empty, so pass_run merges them as it merges its own), from the current round, or from
+ * a new one when that is used up. 1 on failure anywhere. */
+static int dist_batch(const pass_ctx *c, pass_rounds *rb, uint64_t n_e, pass_buf *tg, pass_buf *ts,
+                      int nthreads, uint64_t *nfirst, uint64_t *counts) {
+    if (!rb->all || rb->next == rb->nbatch || rb->start + (uint64_t)rb->next * PT_BATCH != n_e)
+        if (dist_round(c, rb, n_e, tg, ts, nthreads)) return 1;
+    batch_head h;
+    memcpy(&h, rb->all + rb->off, sizeof h);
+    if (h.fail) return h.fail == 2 ? 2 : 1;
+    if (counts) { /* a partitioned pass: the batch's counts, from its head alone */
+        counts[0] = h.nmain;
+        counts[1] = h.nshadow;
+        *nfirst += h.nfirst;
+        rb->off += sizeof h;
+        rb->next++;
+        return 0;
+    }
+    const pass_rec *p = (const pass_rec *)(rb->all + rb->off) + 1; /* after the head's slot */
+    for (uint64_t i = 0; i < h.nmain; i++)
+        if (pass_buf_push(&tg[0], &p[i]) < 0) return 1;
+    for (uint64_t i = 0; i < h.nshadow; i++)
+        if (pass_buf_push(&ts[0], &p[h.nmain + i]) < 0) return 1;
+    *nfirst += h.nfirst;
+    rb->off += (size_t)(1 + h.nmain + h.nshadow) * sizeof(pass_rec);
+    rb->next++;
+    return 0;
+}
+
+/* A partitioned pass: the bookkeeping's counts stand for the buffers. vgrow adds k photons
+ * to a count-only buffer (v stays NULL) and grows its capacity as pass_buf_merge would, so the
+ * memory budget stops the pass where one process would. */
+static void vgrow(pass_buf *b, uint64_t k) {
+    if (b->n + k > b->cap) {
+        size_t nc = b->cap ? b->cap : 1024;
+        while (nc < b->n + k) nc *= 2;
+        b->cap = nc;
+    }
+    b->n += (size_t)k;
+}
+
+int pass_dist_batch(const pass_ctx *c, pass_rounds *rb, uint64_t n_e, pass_buf *tg, pass_buf *ts, int nthreads,
+                    uint64_t *nfirst, pass_buf *main_buf, pass_buf *shadow_buf) {
+    if (!pass_partitioned(c)) return dist_batch(c, rb, n_e, tg, ts, nthreads, nfirst, NULL);
+    uint64_t cnt[2] = {0, 0};
+    int fail = dist_batch(c, rb, n_e, tg, ts, nthreads, nfirst, cnt);
+    if (!fail && rb->nbc == rb->capbc) {
+        size_t nc = rb->capbc ? 2 * rb->capbc : 64;
+        pass_batch_count *nv = realloc(rb->bc, nc * sizeof *nv);
+        if (nv) {
+            rb->bc = nv;
+            rb->capbc = nc;
+        }
+    }
+    if (!fail && rb->nbc < rb->capbc) {
+        rb->bc[rb->nbc].nmain = cnt[0];
+        rb->bc[rb->nbc++].nshadow = cnt[1];
+        vgrow(main_buf, cnt[0]);
+        if (shadow_buf) vgrow(shadow_buf, cnt[1]);
+    } else if (fail != 2) { /* 2: over the memory budget (pass_run) */
+        fail = 1;
+    }
+    return fail;
+}
+
+void pass_rounds_free(pass_rounds *rb) {
+    free(rb->all);
+    free(rb->sizes);
+    free(rb->bc);
+    rb->all = NULL;
+    rb->sizes = NULL;
+    rb->bc = NULL;
+}
+
+/* The end of a partitioned pass whose nb batches stored bc[b] photons each (vm, vs: the
+ * counts of the main and shadow buffers). The cut of pass_cut_at_target, found by tracing the
+ * batch that holds the target-th store again (every process does it: the same photons); then
+ * this process traces again the batches that hold its part of the main buffer's stores and
+ * keeps that part in `out`. Sets vm, vs and *n_e to the whole pass's figures. Every process
+ * returns the same: 0, or PM_ENOMEM if any failed (one all-gather of 8 bytes). */
+int pass_part_finish(const pass_ctx *c, pass_rounds *rb, long target, uint64_t *n_e,
+                       pass_buf *vm, pass_buf *vs, pass_buf *out, pass_buf *tg, pass_buf *ts, int nthreads) {
+    const trace_dist *d = g_dist;
+    pass_batch_count *bc = rb->bc;
+    size_t nb = rb->nbc, ncut = nb;
+    int fail = 0;
+    uint64_t dummy = 0;
+    if (target > 0 && vm->n > (size_t)target) {
+        uint64_t before = 0, sbefore = 0;
+        size_t b = 0;
+        while (b < nb && before + bc[b].nmain < (uint64_t)target) {
+            before += bc[b].nmain;
+            sbefore += bc[b++].nshadow;
+        }
+        pass_buf m = {0}, sh = {0};
+        fail = b == nb || dist_trace(d, c, (uint64_t)b * PT_BATCH, tg, ts, nthreads, &dummy) ||
+               pass_buf_merge(&m, tg, nthreads) < 0 || pass_buf_merge(&sh, ts, nthreads) < 0 ||
+               m.n != bc[b].nmain;
+        if (!fail) {
+            size_t k = (size_t)((uint64_t)target - before);
+            uint64_t last = m.v[k - 1].index;
+            while (k < m.n && m.v[k].index == last) k++;
+            size_t j = 0;
+            while (j < sh.n && sh.v[j].index <= last) j++;
+            bc[b].nmain = k;
+            vm->n = (size_t)(before + k);
+            if (vs) vs->n = (size_t)(sbefore + j);
+            *n_e = last + 1;
+            ncut = b + 1;
+        }
+        free(m.v);
+        free(sh.v);
+    }
+    /* The whole map is the pass's n stores, then the joining pilot's (c->tail, PILOT PHOTONS in
+     * photon_trace.h), as one process orders them. */
+    uint64_t n = vm->n, nall = n + (c->tail ? c->tail->n : 0), lo = nall * (uint64_t)d->part / (uint64_t)d->nparts,
+             hi = nall * (uint64_t)(d->part + 1) / (uint64_t)d->nparts, at = 0;
+    for (size_t b = 0; b < ncut && !fail && at < hi; at += bc[b++].nmain) {
+        if (at + bc[b].nmain <= lo || bc[b].nmain == 0) continue;
+        pass_buf m = {0};
+        fail = dist_trace(d, c, (uint64_t)b * PT_BATCH, tg, ts, nthreads, &dummy) ||
+               pass_buf_merge(&m, tg, nthreads) < 0 || m.n < bc[b].nmain;
+        for (int t = 0; t < nthreads; t++) ts[t].n = 0;
+        uint64_t i0 = lo > at ? lo - at : 0, i1 = hi - at < bc[b].nmain ? hi - at : bc[b].nmain;
+        for (uint64_t i = i0; !fail && i < i1; i++) fail = pass_buf_push(out, &m.v[i]) < 0;
+        free(m.v);
+    }
+    for (uint64_t i = lo > n ? lo : n; !fail && i < hi; i++) fail = pass_buf_push(out, &c->tail->v[i - n]) < 0;
+    if (fail) dist_failed(d, c, 1);
+    uint64_t f = (uint64_t)fail, *all = NULL;
+    size_t *sizes = NULL;
+    if (pass_allgather(d, &f, sizeof f, (void **)&all, &sizes) < 0) fail = 1;
+    for (int p = 0; all && p < d->nparts; p++) fail |= all[p] != 0;
+    free(all);
+    free(sizes);
+    return fail ? PM_ENOMEM : 0;
+}
