@@ -638,15 +638,15 @@ static int sample_decide(mapper_state *st, const scene *s, char *err, size_t err
                            : !st->sides.irr ? "no precomputed irradiance to gather from"
                            : pm__lookup ? "partitioned render-mpi: its lookups are shared between processes"
                                       : NULL;
-    pm_sample_host h = {s, &st->cfg, st->st_lookup, st->st_caustic, st->ncaustic_all > 0, no_pilot, st,
-                        sample_scratch_new, sample_scratch_free, sample_eye};
+    pm_sample_host h = {s, &st->cfg, st->st_lookup, st->st_caustic, st->ncaustic_all > 0, no_pilot,
+                        pm__lookup != NULL, st, sample_scratch_new, sample_scratch_free, sample_eye};
     int rc = pm_emission_mask_build(&h, &st->emit, st->emit_reason, sizeof st->emit_reason, err, errcap);
     if (rc < 0) return rc;
     if (st->cfg.emission_strata <= 0)
         snprintf(st->emit_reason, sizeof st->emit_reason, "none (photon_mapping.emission_strata is 0): "
                  "a sample's own path collects emission");
     pm_sample_pilot(&h, st->explicit_gather, st->explicit_secondary, st->explicit_stride, st->emit.var,
-                    st->sample_reason, sizeof st->sample_reason);
+                    st->sample_reason, sizeof st->sample_reason, &st->sample_work);
     return 0;
 }
 
@@ -672,6 +672,53 @@ static void mapper_destroy(integrator *self) {
 enum { BUCKET_GLOBAL = 1, BUCKET_CAUSTIC = 8, BUCKET_SHADOW = 8 };
 
 /* Progressive passes: pm_passes.c (pm__pass_radii, pm__begin_pass). */
+
+/* What reads the maps at the pass's radii: the caustic side map, the estimates' options and
+ * the precomputed irradiance (side cache). pm_passes.c calls it again when a progressive
+ * render's first radii differ from the plain render's (ppm_radius), without tracing again. */
+int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, char *err, size_t errcap) {
+    int rc;
+    double t0;
+    if ((rc = side_map_init(&st->caus_side, s, st->tc, st->maps.ncaustic, rad->r2_caustic, err, errcap)) < 0) return rc;
+    st->r2_global = rad->r2_global;
+    st->r2_caustic = rad->r2_caustic;
+    st->r2_lookup = rad->r2_lookup;
+    st->r2_shadow = rad->r2_shadow;
+    st->sec_dist = st->cfg.secondary_distance > 0 ? st->cfg.secondary_distance : rad->typical;
+    if (!st->made)
+    printf("Radii: global estimate %.4g, caustic estimate %.4g, secondary gather below %.4g, "
+           "shadow-map query %.4g\n",
+           rad->global, rad->caustic, st->sec_dist, rad->shadow);
+
+    pm_estimator kinds[] = {PM_EST_DISC, PM_EST_CONE, PM_EST_GAUSS, PM_EST_HULL};
+    pm_estimate_options_init(&st->caus_opt, kinds[st->cfg.filter], (unsigned)st->cfg.k_caustic);
+    st->caus_opt.max_dist2 = st->r2_caustic;
+    st->caus_opt.reject_behind = 1;
+    pm_estimate_options_init(&st->glob_opt, PM_EST_DISC, (unsigned)st->cfg.k_global);
+    st->glob_opt.max_dist2 = st->r2_global;
+    st->glob_opt.reject_behind = 1;
+
+    st->t_irr = 0;
+    if (st->nglobal_all && !st->direct_vis) {
+        t0 = stats_now();
+        rc = pm__lookup ? pm__lookup->side_build(pm__lookup->user, &st->sides, s, st->tg,
+                                             st->tg ? pm_kdtree_records(st->tg) : NULL, st->maps.nglobal,
+                                             (unsigned)st->cfg.k_global, st->r2_global, err, errcap)
+                      : side_cache_build(&st->sides, s, st->tg, pm_kdtree_records(st->tg), st->maps.global_path,
+                                         st->maps.nglobal, (unsigned)st->cfg.k_global, st->r2_global, err, errcap);
+        if (rc < 0) return rc;
+        stat_add(st->st_side_rays, st->sides.rays_first + st->sides.rays_second);
+        stat_add(st->st_side_again, st->sides.researched);
+        st->t_irr = stats_now() - t0;
+        stats_time_add("Time/Precomputed irradiance", st->t_irr);
+        if (!st->made)
+        printf("Precomputed irradiance at %zu of %zu global photons (%zu estimates searched again "
+               "for a hidden neighbour; %zu of too few photon paths to be read: the light there is "
+               "computed)\n",
+               st->sides.n, st->nglobal_all, st->sides.researched, st->sides.sparse);
+    }
+    return 0;
+}
 
 int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
     mapper_state *st = self->data;
@@ -753,46 +800,9 @@ int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
         (rc = photon_tree_build(&st->tc, m->caustic, m->ncaustic, BUCKET_CAUSTIC, err, errcap)) < 0 ||
         (rc = photon_tree_build(&st->ts, m->shadow, m->nshadow, BUCKET_SHADOW, err, errcap)) < 0)
         return rc;
-    if ((rc = side_map_init(&st->caus_side, s, st->tc, m->ncaustic, rad.r2_caustic, err, errcap)) < 0) return rc;
     st->t_trees = stats_now() - t0;
     stats_time_add("Time/Photon kd-trees", st->t_trees);
-    st->r2_global = rad.r2_global;
-    st->r2_caustic = rad.r2_caustic;
-    st->r2_lookup = rad.r2_lookup;
-    st->r2_shadow = rad.r2_shadow;
-    st->sec_dist = st->cfg.secondary_distance > 0 ? st->cfg.secondary_distance : rad.typical;
-    if (!st->made)
-    printf("Radii: global estimate %.4g, caustic estimate %.4g, secondary gather below %.4g, "
-           "shadow-map query %.4g\n",
-           rad.global, rad.caustic, st->sec_dist, rad.shadow);
-
-    pm_estimator kinds[] = {PM_EST_DISC, PM_EST_CONE, PM_EST_GAUSS, PM_EST_HULL};
-    pm_estimate_options_init(&st->caus_opt, kinds[st->cfg.filter], (unsigned)st->cfg.k_caustic);
-    st->caus_opt.max_dist2 = st->r2_caustic;
-    st->caus_opt.reject_behind = 1;
-    pm_estimate_options_init(&st->glob_opt, PM_EST_DISC, (unsigned)st->cfg.k_global);
-    st->glob_opt.max_dist2 = st->r2_global;
-    st->glob_opt.reject_behind = 1;
-
-    st->t_irr = 0;
-    if (st->nglobal_all && !st->direct_vis) {
-        t0 = stats_now();
-        rc = pm__lookup ? pm__lookup->side_build(pm__lookup->user, &st->sides, s, st->tg,
-                                             st->tg ? pm_kdtree_records(st->tg) : NULL, m->nglobal,
-                                             (unsigned)st->cfg.k_global, st->r2_global, err, errcap)
-                      : side_cache_build(&st->sides, s, st->tg, pm_kdtree_records(st->tg), m->global_path,
-                                         m->nglobal, (unsigned)st->cfg.k_global, st->r2_global, err, errcap);
-        if (rc < 0) return rc;
-        stat_add(st->st_side_rays, st->sides.rays_first + st->sides.rays_second);
-        stat_add(st->st_side_again, st->sides.researched);
-        st->t_irr = stats_now() - t0;
-        stats_time_add("Time/Precomputed irradiance", st->t_irr);
-        if (!st->made)
-        printf("Precomputed irradiance at %zu of %zu global photons (%zu estimates searched again "
-               "for a hidden neighbour; %zu of too few photon paths to be read: the light there is "
-               "computed)\n",
-               st->sides.n, st->nglobal_all, st->sides.researched, st->sides.sparse);
-    }
+    if ((rc = pm__build_estimates(st, s, &rad, err, errcap)) < 0) return rc;
     if (st->made) { /* the gather guide is the plan's: made once, on pass 0 */
         fflush(stdout);
         return 0;

@@ -29,6 +29,7 @@
 #include "photons/photon_trace.h"
 #include "photons/volume.h"
 #include "base/rng.h"
+#include "base/stats.h"
 #include "base/sampling.h"
 
 /* ---- probes ------------------------------------------------------------------------------ */
@@ -81,7 +82,13 @@ typedef struct pilot_result {
     trace_pilot g, c;                     /* evidence of the global and the caustic pilot */
     uint64_t g_emitted, c_emitted;        /* pilot photons emitted by each */
     size_t g_stored;                      /* photons the global pilot stored */
+    double g_work, c_work;                /* their counted work (pilot_work) */
 } pilot_result;
+
+/* The counted work so far: BVH nodes visited and primitive tests (the sample pilot's units). */
+static double pilot_work(void) {
+    return (double)(stats_total(STAT_BVH_NODES) + stats_total(STAT_TRI_TESTS) + stats_total(STAT_SPHERE_TESTS));
+}
 
 /* Test hook: PM_PLAN_TEST_ENOMEM=PILOT (global, caustic or volume) makes that pilot pass fail
  * as if photon_trace (vol_trace_pass for volume) had run out of memory, so the tests see the
@@ -150,7 +157,9 @@ static int run_pilot(const scene *s, const photon_settings *cfg, const importanc
     o.global = o.shadow = 1;
     o.global_target = 1L << 40; /* never reached: the emission budget ends the pilot */
     char why[256] = "";
+    double w0 = pilot_work();
     int rc = test_enomem("global") ? PM_ENOMEM : photon_trace(s, &o, &m, why, sizeof why);
+    r->g_work = pilot_work() - w0;
     if ((rc = pilot_failed(rc, r->g.emitted, PLAN_PILOT_PHOTONS, "global photon", why, err, errcap)) < 0) {
         pilot_photons_free(r->g.kept);
         r->g.kept = NULL;
@@ -170,7 +179,9 @@ static int run_pilot(const scene *s, const photon_settings *cfg, const importanc
     r->c.keep = 1;
     r->c.kept = r->g.kept; /* its stores are added to the global pilot's kept photons */
     why[0] = 0;
+    w0 = pilot_work();
     rc = test_enomem("caustic") ? PM_ENOMEM : photon_trace(s, &o, &m, why, sizeof why);
+    r->c_work = pilot_work() - w0;
     r->g.kept = r->c.kept; /* created here if the global pilot kept none */
     if ((rc = pilot_failed(rc, r->c.emitted, PLAN_PILOT_PHOTONS, "caustic photon", why, err, errcap)) < 0) {
         pilot_photons_free(r->g.kept);
@@ -563,6 +574,8 @@ int plan_make(const scene *s, const photon_settings *c, int preview, render_plan
             return rc;
         }
         p->pilot = r.g.kept; /* both pilots' stores */
+        p->work_emit[0] = r.g_emitted ? r.g_work / (double)r.g_emitted : 0;
+        p->work_emit[1] = r.c_emitted ? r.c_work / (double)r.c_emitted : 0;
         plan_caustics(s, &r, p);
         plan_global(s, &r, p);
         plan_shadow(s, c, &r, p);

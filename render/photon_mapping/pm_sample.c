@@ -195,8 +195,29 @@ static void pilot_run(const pm_sample_host *h, void *sc, pilot_figures *f) {
                PILOT_CAUSTIC_COST * (ncaus - (double)ncam)) / n;
 }
 
+/* Run the pilot's samples once at cfg's settings for their counted work alone (the counters
+ * taken back out); 0 when out of memory. */
+static double work_of_current(const pm_sample_host *h) {
+    void *sc = h->scratch_new(h->user);
+    if (!sc) return 0;
+    int undo[STATS_MAX], nundo = 0;
+    uint64_t before[STATS_MAX];
+    for (int id = 0; id < STATS_MAX; id++)
+        if (stats_name(id)) undo[nundo++] = id;
+    for (int i = 0; i < nundo; i++) before[i] = stats_total(undo[i]);
+    pilot_figures f;
+    pilot_run(h, sc, &f);
+    for (int i = 0; i < nundo; i++) stat_add(undo[i], before[i] - stats_total(undo[i])); /* mod 2^64 */
+    h->scratch_free(h->user, sc);
+    int strata = 1, c = h->cfg->caustic_stride > 1 ? h->cfg->caustic_stride : 1;
+    while ((strata + 1) * (strata + 1) <= h->s->cam.spp) strata++;
+    if (c > strata) c = strata;
+    return f.work + PILOT_CAUSTIC_COST * f.caus / ((double)c * c);
+}
+
 void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, int explicit_c, double emit_var,
-                     char *reason, size_t cap) {
+                     char *reason, size_t cap, double *work) {
+    *work = 0;
     const scene *s = h->s;
     photon_settings *cfg = h->cfg;
     int cand[PILOT_NCAND][2], nc = 0;
@@ -222,6 +243,7 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
         snprintf(reason, cap,
                  "gather_rays %d, secondary_rays %d, caustic_stride %d (%s)", cfg->gather_rays,
                  cfg->secondary_rays, cfg->caustic_stride, why);
+        if (!h->no_probe) *work = work_of_current(h);
         return;
     }
     void *sc = h->scratch_new(h->user);
@@ -265,6 +287,7 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
     cfg->gather_rays = cand[bc][0];
     cfg->secondary_rays = cand[bc][1];
     cfg->caustic_stride = bs;
+    *work = bestcost;
     size_t len = (size_t)snprintf(reason, cap,
                                   "gather_rays %d, secondary_rays %d, caustic_stride %d (pilot of %d camera "
                                   "samples at %d pixels: lowest variance x cost of",
