@@ -72,10 +72,13 @@ typedef struct mapper_state {
 /* A distributed render's lookups (photon_lookup.h); NULL in one process. */
 extern const photon_lookup_hook *pm__lookup;
 
-/* photonmapper.c: trace the maps of st->pass (pass 0 at first) and build what reads them. */
+/* pm_preprocess.c: trace the maps of st->pass (pass 0 at first) and build what reads them. */
 int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap);
 
-/* photonmapper.c: the caustic side map, the estimates' options and the precomputed
+/* photonmapper.c: the gather guide and the camera sample, decided once on pass 0. */
+int pm__decide_sample(mapper_state *st, const scene *s, char *err, size_t errcap);
+
+/* pm_preprocess.c: the caustic side map, the estimates' options and the precomputed
  * irradiance of st's maps at the radii rad (the readers; st->sides and st->caus_side empty). */
 int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, char *err, size_t errcap);
 

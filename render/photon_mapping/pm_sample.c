@@ -158,9 +158,7 @@ typedef struct pilot_figures {
 static void pilot_run(const pm_sample_host *h, void *sc, pilot_figures *f) {
     const scene *s = h->s;
     int W = s->cam.width, H = s->cam.height;
-    static const int cost_ids[] = {STAT_BVH_NODES, STAT_TRI_TESTS, STAT_SPHERE_TESTS};
-    uint64_t w0 = 0, w1 = 0, l0 = stats_total(h->st_lookup), k0 = stats_total(h->st_caustic);
-    for (size_t i = 0; i < sizeof cost_ids / sizeof *cost_ids; i++) w0 += stats_total(cost_ids[i]);
+    uint64_t w0 = stats_trace_work(), l0 = stats_total(h->st_lookup), k0 = stats_total(h->st_caustic);
     double vsum = 0, vcsum = 0;
     uint64_t ncam = 0;
     for (int py = 0; py < PILOT_SIDE; py++)
@@ -185,7 +183,7 @@ static void pilot_run(const pm_sample_host *h, void *sc, pilot_figures *f) {
             vsum += fmax(0.0, (sum2 - sum * sum / PILOT_SPP) / (PILOT_SPP - 1));
             vcsum += fmax(0.0, (csum2 - csum * csum / PILOT_SPP) / (PILOT_SPP - 1));
         }
-    for (size_t i = 0; i < sizeof cost_ids / sizeof *cost_ids; i++) w1 += stats_total(cost_ids[i]);
+    uint64_t w1 = stats_trace_work();
     double n = (double)PILOT_SIDE * PILOT_SIDE * PILOT_SPP;
     double ncaus = (double)(stats_total(h->st_caustic) - k0);
     f->var = vsum / (PILOT_SIDE * PILOT_SIDE);
