@@ -297,7 +297,8 @@ TEST(render_progressive_threads_bit_identical) {
 /* Oracle: photons per pass (pm_passes.c, PHOTONS PER PASS). (a) ppm_photons=0.25 on targets
  * of 8000: passes 1 and 2 store 2000 of each map, plus at most the last photon path's stores
  * (a path's stores are kept together: 64 is far above the few a path leaves), and pass 0 the
- * whole targets. (b) At the default the fraction printed is the documented rule applied to
+ * whole targets; a later pass's estimates read k f photons, at least 32 global and 8 caustic
+ * (k_global 100 -> 32, k_caustic 60 -> 15). (b) At the default the fraction printed is the documented rule applied to
  * the counted work the same line prints: clamp(0.15 W_r / W_p, 1/64, 1) (3 significant
  * digits printed: relative 5e-3 plus the fraction's own 4), and the next pass's maps hold
  * that fraction of the targets; the same fraction for 1 and 2 threads (counted work, never
@@ -314,6 +315,11 @@ TEST(render_progressive_photons_per_pass) {
         double g = num_after(l, key), c = num_after(l, "global, "), want = p ? 2000 : 8000;
         EXPECT_MSG(g >= want && g <= want + 64 && c >= want && c <= want + 64,
                    "pass %d: %g global, %g caustic photons, expected %g (+ one path's stores)", p, g, c, want);
+        if (p) { /* k f photons an estimate, at least 32 global and 8 caustic: 25 -> 32, 15 */
+            double kg = num_after(l, "estimates of "), kc = num_after(l, " global and ");
+            EXPECT_MSG(kg == 32 && kc == 15, "pass %d: estimates of %g global and %g caustic photons, expected 32 and 15",
+                       p, kg, kc);
+        }
     }
     double frac[2];
     for (int t = 0; t < 2; t++) {

@@ -62,6 +62,7 @@ typedef struct mapper_state {
      * pass 0's counted photon work at them, the fraction later passes trace, and why. */
     double sample_work, photon_work0, pass_fraction;
     long target0[4];
+    int k0[2]; /* the settings' k_global, k_caustic (a later pass reads fewer: pass_targets) */
     int fraction_made;
     char fraction_reason[320];
     float *vol_r2_0; /* 3 per medium: ms, caus, all */

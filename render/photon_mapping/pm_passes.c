@@ -149,8 +149,21 @@ static void choose_fraction(mapper_state *st, const scene *s) {
     st->fraction_made = 1;
 }
 
-/* The settings' targets for pass p: pass 0's whole, a later pass's fraction of them. */
+/* The settings' targets for pass p: pass 0's whole, a later pass's fraction of them. The
+ * estimates of a later pass read k f photons (k_global and k_caustic; at least PPM_K_MIN):
+ * with f of the photons, the k f-th neighbour is about as far as pass 0's k-th, so a pass's
+ * estimates cover the same discs as the plain render's: caustics as sharp, irradiance as
+ * local (with all k photons the discs would widen by 1/sqrt(f), blurring caustics and
+ * reading low near edges, and the Knaus-Zwicker caps take many thousands of passes to undo
+ * that), while the mean of the passes keeps their noise down. */
+static const int PPM_K_MIN[2] = {32, 8};
 static void pass_targets(mapper_state *st, int pass) {
+    int *k[2] = {&st->cfg.k_global, &st->cfg.k_caustic};
+    for (int i = 0; i < 2; i++) {
+        if (!st->k0[i]) st->k0[i] = *k[i];
+        long kf = llround(st->k0[i] * st->pass_fraction), lo = st->k0[i] < PPM_K_MIN[i] ? st->k0[i] : PPM_K_MIN[i];
+        *k[i] = !pass || kf >= st->k0[i] ? st->k0[i] : kf < lo ? (int)lo : (int)kf;
+    }
     long *dst[4] = {&st->cfg.global_photons, &st->cfg.caustic_photons, &st->cfg.volume_photons,
                     &st->cfg.volume_caustic_photons};
     for (int i = 0; i < 4; i++) {
@@ -186,7 +199,9 @@ static void print_pass(const mapper_state *st, int pass) {
            "(pass 0's x %.9g)",
            st->t_trace, st->t_trees, st->t_irr, (double)st->r2_global, (double)st->r2_caustic,
            st->r2_scale);
-    if (pass > 0) printf("; %.4g of the photon targets (%s)", st->pass_fraction, st->fraction_reason);
+    if (pass > 0)
+        printf("; %.4g of the photon targets, estimates of %d global and %d caustic photons (%s)",
+               st->pass_fraction, st->cfg.k_global, st->cfg.k_caustic, st->fraction_reason);
     printf("\n");
     fflush(stdout);
 }
