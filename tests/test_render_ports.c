@@ -1,0 +1,445 @@
+/* test_render_ports.c: photon ports (render/scene/port.h, render/photons/ports.h): openings the
+ * scene declares, through which a share of the global photons is aimed, the rest emitted as
+ * before, each photon's power divided by the mixture's density over the ordinary one.
+ *
+ * Oracles:
+ * - analytic: a Lambertian sphere lamp in a closed black box with a square hole in its floor,
+ *   over a white plane. The flux a uniform sphere of radiance L and radius r sends across any
+ *   region of a plane that does not cut it is pi L r^2 Omega, Omega the region's solid angle
+ *   from the centre (its irradiance on the plane is pi L (r / D)^2 cos theta); for a square of
+ *   half-side b on the axis at distance h, Omega = 4 asin(b^2 / (b^2 + h^2)). So the photons
+ *   stored on the plane carry pi L r^2 Omega_hole in all, and those in a central patch every
+ *   point of which sees the whole lamp through the hole carry pi L r^2 Omega_patch. Traced
+ *   with the hole declared as a port and without: both within 4 standard errors (the photons'
+ *   own, as if independent; Halton points do better) plus 0.5% (the RGBE photon powers); and
+ *   with a plan's pilot photons (emitted by power) joining the port pass.
+ * - the definition: the mixture's direction density from a point light, by a chi-square over
+ *   4096 bins of the sphere against p(d) = ((1 - a) + a ratio(d)) / (4 pi), integrated over
+ *   each bin on a 48 x 48 grid; for area, sphere and directional lights, the photons weighted
+ *   by 1 / rel in bins of the light's own sample space u (light.h), where the ordinary
+ *   emission is uniform: each bin's weighted share must be the bin's volume (chi-square); the
+ *   port weights of each light and the lights' port shares each sum to one.
+ * - bad ports: each wrong field named by its JSON path, and render exits 2.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "test.h"
+#include "../photonmap/common.h"
+#include "../photonmap/photon.h"
+#include "../render/base/rng.h"
+#include "../render/base/sampling.h"
+#include "../render/photons/importance.h"
+#include "../render/photons/photon_maps.h"
+#include "../render/photons/photon_trace.h"
+#include "../render/photons/ports.h"
+#include "../render/scene/scene.h"
+
+/* ---- the analytic case ---------------------------------------------------------------------- */
+
+#define LAMP_R 0.05
+#define HOLE_B 0.2  /* the hole's half-side, in the box's floor at y = -1 (1 below the lamp) */
+#define PLANE_H 3.0 /* the white plane at y = -3 */
+#define PATCH_B 0.2 /* the central patch's half-side on the plane */
+
+static const char *BOX_SCENE_FMT =
+    "{\"camera\": {\"eye\": [0, -2, 4], \"look_at\": [0, -3, 0], \"fov_deg\": 60, \"width\": 8, \"height\": 8},"
+    " \"materials\": {\"black\": {\"type\": \"lambert\", \"reflectance\": 0},"
+    "  \"white\": {\"type\": \"lambert\", \"reflectance\": 0.5},"
+    "  \"lamp\": {\"type\": \"lambert\", \"reflectance\": 0, \"emission\": 1}},"
+    " \"objects\": ["
+    "  {\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 0.05, \"material\": \"lamp\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-1, 1, -1], [1, 1, -1], [1, 1, 1], [-1, 1, 1]], \"material\": \"black\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-1, -1, -1], [-1, 1, -1], [-1, 1, 1], [-1, -1, 1]], \"material\": \"black\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[1, -1, -1], [1, -1, 1], [1, 1, 1], [1, 1, -1]], \"material\": \"black\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1]], \"material\": \"black\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-1, -1, 1], [-1, 1, 1], [1, 1, 1], [1, -1, 1]], \"material\": \"black\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-1, -1, 0.2], [1, -1, 0.2], [1, -1, 1], [-1, -1, 1]], \"material\": \"black\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-1, -1, -1], [1, -1, -1], [1, -1, -0.2], [-1, -1, -0.2]], \"material\": \"black\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[0.2, -1, -0.2], [1, -1, -0.2], [1, -1, 0.2], [0.2, -1, 0.2]], \"material\": \"black\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-1, -1, -0.2], [-0.2, -1, -0.2], [-0.2, -1, 0.2], [-1, -1, 0.2]], \"material\": \"black\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-3, -3, -3], [-3, -3, 3], [3, -3, 3], [3, -3, -3]], \"material\": \"white\"}]"
+    "%s}";
+
+static const char *BOX_PORT =
+    ", \"ports\": [{\"type\": \"quad\", \"corner\": [-0.2, -1, -0.2], \"edge1\": [0.4, 0, 0], \"edge2\": [0, 0, 0.4]}]";
+
+static double square_solid_angle(double b, double h) { return 4 * asin(b * b / (b * b + h * h)); }
+
+typedef struct flux_est {
+    double mean, se; /* the flux and its standard error, per channel 0 */
+    size_t n;        /* photons that made it */
+} flux_est;
+
+/* The stored photons on the plane (within half-side `half` of the axis): the flux, and its
+ * standard error from the photons' powers (X_i = N P_i per emitted photon, zero for most). */
+static flux_est plane_flux(const photon_maps *m, double half) {
+    flux_est f = {0, 0, 0};
+    double s2 = 0, N = (double)m->global_emitted;
+    for (size_t k = 0; k < m->nglobal; k++) {
+        const pm_photon *p = &m->global[k];
+        if (fabs(p->pos[1] + PLANE_H) > 1e-3 || fabs(p->pos[0]) > half || fabs(p->pos[2]) > half) continue;
+        float pw[3];
+        pm_rgbe_decode(p->power, pw);
+        f.mean += pw[0];
+        s2 += (double)pw[0] * pw[0];
+        f.n++;
+    }
+    f.se = sqrt(fmax(0, s2 - f.mean * f.mean / N));
+    return f;
+}
+
+static void check_box(int with_port, long target, uint64_t pilot) {
+    char text[8192];
+    snprintf(text, sizeof text, BOX_SCENE_FMT, with_port ? BOX_PORT : "");
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, text, &e) == 0, "%s", e.msg);
+    ASSERT_EQ_INT(s.nports, with_port ? 1 : 0);
+    trace_opts o;
+    trace_opts_init(&o, &s);
+    o.global = 1;
+    o.global_target = target;
+    o.max_emitted_factor = 1e4;
+    o.quiet = 1;
+    o.seed = 7;
+    photon_maps m;
+    memset(&m, 0, sizeof m);
+    char err[512] = "";
+    trace_pilot tp;
+    memset(&tp, 0, sizeof tp);
+    if (pilot) { /* a plan's pilot (plan.c): by power, its stores kept to join the pass */
+        trace_opts po = o;
+        po.pilot = &tp;
+        tp.keep = 1;
+        po.max_emitted = (double)pilot;
+        /* Above the ~1.2% of the pilot that passes the hole, below where the pass would give
+         * up on its target (pass_stops: twice the emission budget at the rate seen). */
+        po.global_target = (long)(pilot / 50);
+        int rc = photon_trace(&s, &po, &m, err, sizeof err);
+        ASSERT_MSG(rc == 0 && tp.kept, "pilot: %d %s", rc, err);
+        photon_maps_free(&m);
+        memset(&m, 0, sizeof m);
+        o.reuse = tp.kept;
+        o.seed = 8;
+        const char *why = "";
+        ASSERT_MSG(pilot_photons_joining(tp.kept, &o, 0, NULL, NULL, &why), "the pilot does not join: %s", why);
+    }
+    int rc = photon_trace(&s, &o, &m, err, sizeof err);
+    pilot_photons_free(tp.kept);
+    ASSERT_MSG(rc == 0, "photon_trace: %d %s", rc, err);
+    if (pilot) EXPECT_MSG(m.pilot_emitted[0] == tp.emitted && tp.emitted >= pilot, "the pilot's %llu photons did not join (%llu)",
+                          (unsigned long long)tp.emitted, (unsigned long long)m.pilot_emitted[0]);
+    double L = 1, base = M_PI * L * LAMP_R * LAMP_R;
+    double want_all = base * square_solid_angle(HOLE_B, 1.0);
+    double want_patch = base * square_solid_angle(PATCH_B, PLANE_H);
+    flux_est all = plane_flux(&m, PLANE_H), patch = plane_flux(&m, PATCH_B);
+    printf("    %s port%s: %llu emitted, %zu stored; through the hole %.6g (exact %.6g, %+.2f%%, se %.2f%%); "
+           "patch %.6g (exact %.6g, %+.2f%%, se %.2f%%, %zu photons)\n",
+           with_port ? "with a" : "without a", pilot ? " and a pilot's photons joining" : "",
+           (unsigned long long)m.global_emitted, m.nglobal, all.mean, want_all,
+           100 * (all.mean / want_all - 1), 100 * all.se / want_all, patch.mean, want_patch,
+           100 * (patch.mean / want_patch - 1), 100 * patch.se / want_patch, patch.n);
+    /* The test has power: a 10% error would show. */
+    EXPECT_MSG(all.se < 0.02 * want_all && patch.se < 0.025 * want_patch, "standard errors %.3g, %.3g too large",
+               all.se / want_all, patch.se / want_patch);
+    EXPECT_MSG(fabs(all.mean - want_all) < 4 * all.se + 0.005 * want_all, "through the hole: %.6g, exact %.6g",
+               all.mean, want_all);
+    EXPECT_MSG(fabs(patch.mean - want_patch) < 4 * patch.se + 0.005 * want_patch, "patch: %.6g, exact %.6g",
+               patch.mean, want_patch);
+    photon_maps_free(&m);
+    scene_free(&s);
+}
+
+TEST(render_ports_analytic_hole_with_port) { check_box(1, PM_TEST_SANITIZED ? 4000 : 40000, 0); }
+TEST(render_ports_analytic_hole_without_port) { check_box(0, PM_TEST_SANITIZED ? 4000 : 25000, 0); }
+/* The pilot's photons, emitted by power, join the port pass by the balance heuristic (their rel
+ * is the mixture's too): 400,000 of them, about 4,900 through the hole. */
+TEST(render_ports_analytic_hole_with_port_and_pilot) {
+    check_box(1, PM_TEST_SANITIZED ? 4000 : 40000, PM_TEST_SANITIZED ? 40000 : 400000);
+}
+
+/* ---- the mixture's density ------------------------------------------------------------------ */
+
+/* The mixture as photon_trace.c samples it (ports_mix), from independent uniforms: the light,
+ * origin, direction and rel of one photon; 0 when it carries nothing. */
+static int mix_sample(const photon_ports *pp, const scene *s, rng *g, int *l, vec3 *x, vec3 *d, double *rel) {
+    double a = pp->a, h = rng_uniform(g), ul = rng_uniform(g);
+    double u[4] = {rng_uniform(g), rng_uniform(g), rng_uniform(g), rng_uniform(g)};
+    vec3 n;
+    if (h < a) {
+        if (!ports_sample(pp, ul, h / a, u, l, x, &n, d)) return 0;
+        double r = ports_ratio(pp, *l, *x, *d);
+        if (!(r > 0)) return 0;
+        *rel = a * r + (1 - a);
+        return 1;
+    }
+    double pl;
+    *l = distrib1d_sample(&s->light_distrib, ul, &pl);
+    light_sample_le(s, *l, u, x, &n, d);
+    *rel = a * ports_ratio(pp, *l, *x, *d) + (1 - a);
+    return 1;
+}
+
+static const char *POINT_SCENE =
+    "{\"camera\": {\"eye\": [0, 0, 5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+    " \"materials\": {\"grey\": {\"type\": \"lambert\", \"reflectance\": 0.5}},"
+    " \"objects\": [{\"type\": \"quad\", \"vertices\": [[-9, -9, -9], [9, -9, -9], [9, -9, 9], [-9, -9, 9]],"
+    "  \"material\": \"grey\"}],"
+    " \"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": 1}],"
+    " \"ports\": [{\"type\": \"quad\", \"corner\": [-0.3, -1, -0.3], \"edge1\": [0.6, 0, 0], \"edge2\": [0, 0, 0.6]},"
+    "  {\"type\": \"disc\", \"center\": [1.5, 0.5, 0], \"normal\": [-1, 0, 0.3], \"radius\": 0.4}],"
+    " \"port_fraction\": 0.6}";
+
+/* The direction d of bin (i, j) at fractions (fa, fb) inside it: d.x uniform in [-1, 1]
+ * (equal-area bins of the sphere), phi about the x axis. */
+static vec3 bin_dir(int i, int j, int nb, double fa, double fb) {
+    double z = -1 + 2 * (i + fa) / nb, phi = 2 * M_PI * (j + fb) / nb, r = sqrt(fmax(0, 1 - z * z));
+    return v3(z, r * cos(phi), r * sin(phi));
+}
+
+/* Oracle: the definition of the mixture's density, p(d) = ((1 - a) + a ratio(d)) / (4 pi) for
+ * a point light (p_def = 1 / (4 pi)); two ports, a quad and a tilted disc. 400,000 photons in
+ * 64 x 64 equal-area bins against that density integrated over each bin (48 x 48 midpoints):
+ * the chi-square statistic over 4095 degrees of freedom must stay below df + 5 sqrt(2 df). The
+ * port branch's density must integrate to 1 (each port's does): the midpoint grid's own error
+ * at the ports' edges falls as 1 / grid (measured +0.71% at 16 x 16, +0.22% at 48 x 48), so the
+ * tolerance is 0.5%. */
+TEST(render_ports_point_light_density_histogram) {
+    enum { NB = 64, SUB = 48 };
+    const long N = PM_TEST_SANITIZED ? 100000 : 400000;
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, POINT_SCENE, &e) == 0, "%s", e.msg);
+    photon_ports pp;
+    ASSERT_EQ_INT(ports_build(&pp, &s), 0);
+    ASSERT(pp.on);
+    EXPECT_NEAR(pp.a, 0.6, 1e-12);
+    static double cnt[NB * NB], want[NB * NB];
+    memset(cnt, 0, sizeof cnt);
+    rng g = rng_stream(11, 0, 0);
+    long ok = 0;
+    for (long k = 0; k < N; k++) {
+        int l;
+        vec3 x, d;
+        double rel;
+        if (!mix_sample(&pp, &s, &g, &l, &x, &d, &rel)) continue;
+        ok++;
+        double phi = atan2(d.z, d.y);
+        if (phi < 0) phi += 2 * M_PI;
+        int i = (int)((d.x + 1) / 2 * NB), j = (int)(phi / (2 * M_PI) * NB);
+        i = i < 0 ? 0 : i >= NB ? NB - 1 : i;
+        j = j < 0 ? 0 : j >= NB ? NB - 1 : j;
+        cnt[i * NB + j]++;
+    }
+    EXPECT_EQ_INT((int)ok, (int)N); /* a point light emits every direction: no photon is dropped */
+    double total = 0, chi2 = 0, port_mass = 0;
+    for (int i = 0; i < NB; i++)
+        for (int j = 0; j < NB; j++) {
+            double sum = 0;
+            for (int a = 0; a < SUB; a++)
+                for (int b = 0; b < SUB; b++) {
+                    double r = ports_ratio(&pp, 0, s.lights[0].pos, bin_dir(i, j, NB, (a + 0.5) / SUB, (b + 0.5) / SUB));
+                    sum += (1 - pp.a) + pp.a * r;
+                    port_mass += r;
+                }
+            want[i * NB + j] = sum / (SUB * SUB) / (NB * NB); /* the bin's probability */
+            total += want[i * NB + j];
+        }
+    port_mass /= (double)NB * NB * SUB * SUB; /* the port branch's density integrates to 1 */
+    for (int b = 0; b < NB * NB; b++) {
+        double w = want[b] * (double)ok;
+        chi2 += (cnt[b] - w) * (cnt[b] - w) / w;
+    }
+    double df = NB * NB - 1, bound = df + 5 * sqrt(2 * df);
+    printf("    point light, two ports, a = %.2f: chi-square %.1f over %.0f degrees of freedom (bound %.0f); "
+           "the density integrates to %.5f, its port branch to %.5f\n",
+           pp.a, chi2, df, bound, total, port_mass);
+    EXPECT_NEAR(total, 1.0, 0.003);
+    EXPECT_NEAR(port_mass, 1.0, 0.005);
+    EXPECT_MSG(chi2 < bound, "chi-square %.1f above %.0f", chi2, bound);
+    ports_free(&pp);
+    scene_free(&s);
+}
+
+/* Scenes for the u-space check: an area light (a one-sided quad, two lights), a two-sided
+ * one, a sphere lamp and a directional light, each with ports in front of it. */
+static const char *U_SCENES[] = {
+    "{\"camera\": {\"eye\": [0, 0, 5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+    " \"materials\": {\"grey\": {\"type\": \"lambert\", \"reflectance\": 0.5},"
+    "  \"lamp\": {\"type\": \"lambert\", \"reflectance\": 0, \"emission\": [4, 2, 1]}},"
+    " \"objects\": [{\"type\": \"quad\", \"vertices\": [[-9, -3, -9], [9, -3, -9], [9, -3, 9], [-9, -3, 9]], \"material\": \"grey\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-0.5, 1, -0.5], [0.5, 1, -0.5], [0.5, 1, 0.5], [-0.5, 1, 0.5]], \"material\": \"lamp\"}],"
+    " \"ports\": [{\"type\": \"quad\", \"corner\": [0.2, 0, -0.1], \"edge1\": [0.2, 0, 0], \"edge2\": [0, 0, 0.2]},"
+    "  {\"type\": \"disc\", \"center\": [-1, -0.5, 0.5], \"normal\": [0, 1, 0], \"radius\": 0.3}]}",
+    "{\"camera\": {\"eye\": [0, 0, 5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+    " \"materials\": {\"grey\": {\"type\": \"lambert\", \"reflectance\": 0.5},"
+    "  \"lamp\": {\"type\": \"lambert\", \"reflectance\": 0, \"emission\": 3, \"two_sided\": true}},"
+    " \"objects\": [{\"type\": \"quad\", \"vertices\": [[-9, -3, -9], [9, -3, -9], [9, -3, 9], [-9, -3, 9]], \"material\": \"grey\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-0.5, 1, -0.5], [0.5, 1, -0.5], [0.5, 1, 0.5], [-0.5, 1, 0.5]], \"material\": \"lamp\"}],"
+    " \"ports\": [{\"type\": \"quad\", \"corner\": [-0.2, 2, -0.2], \"edge1\": [0.4, 0, 0], \"edge2\": [0, 0, 0.4]},"
+    "  {\"type\": \"disc\", \"center\": [0, 0, 0], \"normal\": [0, 1, 0], \"radius\": 0.2}], \"port_fraction\": 0.8}",
+    "{\"camera\": {\"eye\": [0, 0, 5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+    " \"materials\": {\"grey\": {\"type\": \"lambert\", \"reflectance\": 0.5},"
+    "  \"lamp\": {\"type\": \"lambert\", \"reflectance\": 0, \"emission\": 1}},"
+    " \"objects\": [{\"type\": \"quad\", \"vertices\": [[-9, -3, -9], [9, -3, -9], [9, -3, 9], [-9, -3, 9]], \"material\": \"grey\"},"
+    "  {\"type\": \"sphere\", \"center\": [0, 1, 0], \"radius\": 0.3, \"material\": \"lamp\"}],"
+    " \"ports\": [{\"type\": \"disc\", \"center\": [0.3, 0, 0], \"normal\": [0, 1, 0], \"radius\": 0.25}], \"port_fraction\": 0.3}",
+    "{\"camera\": {\"eye\": [0, 0, 5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+    " \"materials\": {\"grey\": {\"type\": \"lambert\", \"reflectance\": 0.5}},"
+    " \"objects\": [{\"type\": \"quad\", \"vertices\": [[-2, -1, -2], [2, -1, -2], [2, -1, 2], [-2, -1, 2]], \"material\": \"grey\"}],"
+    " \"lights\": [{\"type\": \"directional\", \"direction\": [0.3, -1, 0.1], \"irradiance\": 2}],"
+    " \"ports\": [{\"type\": \"quad\", \"corner\": [-0.4, 0, -0.2], \"edge1\": [0.5, 0, 0], \"edge2\": [0, 0.1, 0.3]}]}",
+};
+
+/* Oracle: the ordinary emission is uniform over each light's sample space u (light.h), with
+ * the light chosen by power, so the share of photons in a box of u of light l is p_l times the
+ * box's volume. Photons from the mixture, each counted 1 / rel (the power it carries relative
+ * to an ordinary photon), must give the same shares: in 16 x 16 bins over the direction's two
+ * numbers (u[2], u[3]; a directional light: the disc point's u[0], u[1]) per light, each bin's
+ * weighted share against p_l / 256, as a chi-square with the bins' own standard errors (bound
+ * df + 5 sqrt(2 df)). The weighted shares add up to 1 within 4 standard errors (port photons
+ * that leave the back of the sphere lamp are dropped: they count 0, and the ordinary emission
+ * never gives such a photon), each light's port weights end at 1 and the port shares q_l / p_l,
+ * weighted by p_l, sum to 1. */
+TEST(render_ports_mixture_unbiased_in_light_space) {
+    enum { G = 16 };
+    const long N = PM_TEST_SANITIZED ? 50000 : 300000;
+    for (size_t sc = 0; sc < sizeof U_SCENES / sizeof *U_SCENES; sc++) {
+        scene s;
+        json_err e;
+        ASSERT_MSG(scene_load_text(&s, U_SCENES[sc], &e) == 0, "scene %zu: %s", sc, e.msg);
+        photon_ports pp;
+        ASSERT_EQ_INT(ports_build(&pp, &s), 0);
+        ASSERT_MSG(pp.on, "scene %zu: ports off", sc);
+        double qsum = 0;
+        for (int l = 0; l < s.nlights; l++) {
+            qsum += pp.q_p[l] * distrib1d_prob(&s.light_distrib, l);
+            EXPECT_NEAR(pp.wcdf[(size_t)l * (size_t)(pp.np + 1) + (size_t)pp.np], 1.0, 1e-12);
+        }
+        EXPECT_NEAR(qsum, 1.0, 1e-12);
+        int nb = s.nlights * G * G;
+        double *w1 = calloc((size_t)nb, sizeof *w1), *w2 = calloc((size_t)nb, sizeof *w2);
+        ASSERT(w1 && w2);
+        rng g = rng_stream(12, sc, 0);
+        double tot = 0, tot2 = 0;
+        long dropped = 0;
+        for (long k = 0; k < N; k++) {
+            int l;
+            vec3 x, d;
+            double rel, u[4];
+            if (!mix_sample(&pp, &s, &g, &l, &x, &d, &rel)) {
+                dropped++;
+                continue;
+            }
+            ASSERT_MSG(importance_invert_le(&s, l, x, d, u), "scene %zu: a photon the light cannot emit", sc);
+            int dirl = s.lights[l].type == LIGHT_DIRECTIONAL;
+            double a = dirl ? u[0] : u[2], b = dirl ? u[1] : u[3];
+            int i = (int)(a * G), j = (int)(b * G);
+            i = i < 0 ? 0 : i >= G ? G - 1 : i;
+            j = j < 0 ? 0 : j >= G ? G - 1 : j;
+            int bin = (l * G + i) * G + j;
+            w1[bin] += 1 / rel;
+            w2[bin] += 1 / (rel * rel);
+            tot += 1 / rel;
+            tot2 += 1 / (rel * rel);
+        }
+        double chi2 = 0;
+        int df = 0;
+        for (int b = 0; b < nb; b++) {
+            double want = distrib1d_prob(&s.light_distrib, b / (G * G)) / (G * G);
+            double m = w1[b] / N, var = (w2[b] / N - m * m) / N;
+            if (!(var > 0)) continue;
+            chi2 += (m - want) * (m - want) / var;
+            df++;
+        }
+        double se = sqrt((tot2 / N - (tot / N) * (tot / N)) / N), bound = df + 5 * sqrt(2.0 * df);
+        printf("    scene %zu (%s light%s, a = %.2f): weighted total %.5f (se %.5f), chi-square %.1f over %d bins "
+               "(bound %.0f), %ld photons dropped\n",
+               sc, s.lights[0].type == LIGHT_AREA ? "area" : s.lights[0].type == LIGHT_SPHERE ? "sphere" : "directional",
+               s.lights[0].two_sided ? ", two-sided" : "", pp.a, tot / N, se, chi2, df, bound, dropped);
+        EXPECT_MSG(fabs(tot / N - 1) < 4 * se, "scene %zu: weighted total %.5f", sc, tot / N);
+        EXPECT_MSG(df > nb / 2 && chi2 < bound, "scene %zu: chi-square %.1f over %d bins", sc, chi2, df);
+        free(w1);
+        free(w2);
+        ports_free(&pp);
+        scene_free(&s);
+    }
+}
+
+/* ---- bad input -------------------------------------------------------------------------------- */
+
+/* Oracle: the format (data/scenes/README.md, "ports"): each mistake names its JSON path. */
+TEST(render_ports_bad_input_errors) {
+    static const struct {
+        const char *ports, *want;
+    } cases[] = {
+        {"\"ports\": {}", "$.ports: expected an array"},
+        {"\"ports\": []", "$.ports: empty"},
+        {"\"ports\": [3]", "$.ports[0]: expected an object"},
+        {"\"ports\": [{\"corner\": [0, 0, 0]}]", "$.ports[0].type"},
+        {"\"ports\": [{\"type\": \"hole\"}]", "$.ports[0].type: unknown port type \"hole\" (quad, disc)"},
+        {"\"ports\": [{\"type\": \"quad\", \"corner\": [0, 0, 0], \"edge1\": [1, 0, 0]}]", "$.ports[0].edge2"},
+        {"\"ports\": [{\"type\": \"quad\", \"corner\": [0, 0], \"edge1\": [1, 0, 0], \"edge2\": [0, 1, 0]}]",
+         "$.ports[0].corner"},
+        {"\"ports\": [{\"type\": \"quad\", \"corner\": [0, 0, 0], \"edge1\": [1, 0, 0], \"edge2\": [2, 0, 0]}]",
+         "$.ports[0]: edge1 and edge2 are parallel"},
+        {"\"ports\": [{\"type\": \"quad\", \"corner\": [0, 0, 0], \"edge1\": [0, 0, 0], \"edge2\": [2, 0, 0]}]",
+         "$.ports[0].edge1: must not be zero"},
+        {"\"ports\": [{\"type\": \"quad\", \"corner\": [0, 0, 1e300], \"edge1\": [1, 0, 0], \"edge2\": [0, 1, 0]}]",
+         "$.ports[0].corner: [0, 0, 1e+300] is outside the supported range"},
+        {"\"ports\": [{\"type\": \"quad\", \"corner\": [0, 0, 0], \"edge1\": [1, 0, 0], \"edge2\": [0, 1, 0], "
+         "\"edge3\": [1, 1, 1]}]",
+         "$.ports[0].edge3: unknown key"},
+        {"\"ports\": [{\"type\": \"disc\", \"center\": [0, 0, 0], \"normal\": [0, 1, 0], \"radius\": -1}]",
+         "$.ports[0].radius: must be positive"},
+        {"\"ports\": [{\"type\": \"disc\", \"center\": [0, 0, 0], \"normal\": [0, 0, 0], \"radius\": 1}]",
+         "$.ports[0].normal: must not be zero"},
+        {"\"ports\": [{\"type\": \"disc\", \"center\": [0, 0, 0], \"normal\": [0, 1, 0]}]", "$.ports[0].radius"},
+        {"\"ports\": [{\"type\": \"disc\", \"center\": [0, 0, 0], \"normal\": [0, 1, 0], \"radius\": 1, "
+         "\"radus\": 1}]",
+         "$.ports[0].radus: unknown key"},
+        {"\"port_fraction\": 0.5", "$.port_fraction: given without $.ports"},
+        {"\"ports\": [{\"type\": \"disc\", \"center\": [0, 0, 0], \"normal\": [0, 1, 0], \"radius\": 1}], "
+         "\"port_fraction\": 1",
+         "$.port_fraction: must be at least 0 and below 1"},
+        {"\"ports\": [{\"type\": \"disc\", \"center\": [0, 0, 0], \"normal\": [0, 1, 0], \"radius\": 1}], "
+         "\"port_fraction\": \"half\"",
+         "$.port_fraction"},
+        {"\"prots\": []", "$.prots: unknown key (did you mean \"ports\"?)"},
+    };
+    for (size_t k = 0; k < sizeof cases / sizeof *cases; k++) {
+        char text[4096];
+        snprintf(text, sizeof text,
+                 "{\"camera\": {\"eye\": [0, 0, 5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+                 " \"materials\": {\"m\": {\"type\": \"lambert\", \"reflectance\": 0.5, \"emission\": 1}},"
+                 " \"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"m\"}], %s}",
+                 cases[k].ports);
+        scene s;
+        json_err e;
+        int rc = scene_load_text(&s, text, &e);
+        EXPECT_MSG(rc < 0, "case %zu (%s) loaded", k, cases[k].ports);
+        if (rc < 0) {
+            EXPECT_MSG(strstr(e.msg, cases[k].want) != NULL, "case %zu: \"%s\", want \"%s\"", k, e.msg, cases[k].want);
+        } else {
+            scene_free(&s);
+        }
+    }
+    /* And the render program: the file named, exit 2. */
+    char path[1024], cmd[4096], out[4096];
+    snprintf(path, sizeof path, "%s/bad_port.json", pm_test_tmpdir());
+    FILE *f = fopen(path, "w");
+    ASSERT(f);
+    fprintf(f, "{\"camera\": {\"eye\": [0, 0, 5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+               " \"materials\": {\"m\": {\"type\": \"lambert\", \"reflectance\": 0.5, \"emission\": 1}},"
+               " \"objects\": [{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"m\"}],"
+               " \"ports\": [{\"type\": \"disc\", \"center\": [0, 0, 0], \"normal\": [0, 1, 0], \"radius\": 0}]}\n");
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' '%s' --mode pm --width 4 --height 4 --spp 1 --quiet 2>&1",
+             pm_test_tmpdir(), pm_test_build_dir(), path);
+    int rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_EQ_INT(rc, 2);
+    EXPECT_MSG(strstr(out, "bad_port.json") && strstr(out, "$.ports[0].radius: must be positive"), "%s", out);
+}
