@@ -443,3 +443,71 @@ TEST(render_ports_bad_input_errors) {
     EXPECT_EQ_INT(rc, 2);
     EXPECT_MSG(strstr(out, "bad_port.json") && strstr(out, "$.ports[0].radius: must be positive"), "%s", out);
 }
+
+/* ---- the plan's line -------------------------------------------------------------------------- */
+
+static int load_file(scene *s, const char *name) {
+    char path[1024];
+    json_err e;
+    snprintf(path, sizeof path, "%s/data/scenes/%s", pm_test_source_dir(), name);
+    int rc = scene_load(s, path, &e);
+    if (rc < 0) printf("    %s: %s\n", name, e.msg);
+    return rc;
+}
+
+/* Oracle: the scene's geometry. pinhole_room_ports.json declares the 10 x 10 hole at
+ * (500, 300, 500): the plan's reason names it, and the share of the lamp's power it says passes
+ * the hole matches the form factor from the lamp (200 x 200, 699.9 above) to the hole, by
+ * quadrature over 32 x 32 points of the lamp and 8 x 8 of the hole, within 3% (the estimate
+ * uses 3 points of each lamp triangle and 4 of the hole). Without ports, with port_fraction 0,
+ * with the port behind the lamp (a one-sided lamp facing down) and in a scene with media, the
+ * reason says why they are off. */
+TEST(render_ports_plan_reason) {
+    scene s;
+    char why[1024];
+    ASSERT_EQ_INT(load_file(&s, "pinhole_room_ports.json"), 0);
+    ASSERT_EQ_INT(ports_plan(&s, why, sizeof why), 1);
+    printf("    pinhole_room_ports: photon ports: on (%s)\n", why);
+    EXPECT_MSG(strstr(why, "0.5 of the global photons aimed through 1 port ($.ports[0] quad of area 100 at "
+                           "(500, 300, 500))") != NULL, "%s", why);
+    photon_ports pp;
+    ASSERT_EQ_INT(ports_build(&pp, &s), 0);
+    double ff = 0;
+    enum { NL = 32, NH = 8 };
+    for (int i = 0; i < NL * NL; i++)
+        for (int j = 0; j < NH * NH; j++) {
+            vec3 x = v3(400 + 200 * (i % NL + 0.5) / NL, 999.9, 400 + 200 * (i / NL + 0.5) / NL);
+            vec3 y = v3(495 + 10 * (j % NH + 0.5) / NH, 300, 495 + 10 * (j / NH + 0.5) / NH);
+            vec3 d = v3_sub(y, x);
+            double d2 = v3_len2(d), c = -d.y / sqrt(d2); /* both normals along y */
+            ff += c * c / d2;
+        }
+    ff *= (200.0 * 200 / (NL * NL)) * (100.0 / (NH * NH)) / (M_PI * 200 * 200);
+    printf("    share of the lamp's power through the hole: ports.h's estimate %.5g, quadrature %.5g (%+.2f%%)\n",
+           pp.flux, ff, 100 * (pp.flux / ff - 1));
+    EXPECT_MSG(fabs(pp.flux / ff - 1) < 0.03, "estimate %.5g, quadrature %.5g", pp.flux, ff);
+    ports_free(&pp);
+    s.port_fraction = 0;
+    EXPECT_EQ_INT(ports_plan(&s, why, sizeof why), 0);
+    EXPECT_MSG(strcmp(why, "1 declared, but port_fraction is 0") == 0, "%s", why);
+    s.port_fraction = 0.5;
+    s.ports[0] = port_quad(v3(495, 1200, 495), v3(10, 0, 0), v3(0, 0, 10)); /* above the lamp */
+    EXPECT_EQ_INT(ports_plan(&s, why, sizeof why), 0);
+    EXPECT_MSG(strcmp(why, "1 declared, but no light faces them") == 0, "%s", why);
+    scene_free(&s);
+    ASSERT_EQ_INT(load_file(&s, "pinhole_room.json"), 0);
+    EXPECT_EQ_INT(ports_plan(&s, why, sizeof why), 0);
+    EXPECT_MSG(strcmp(why, "none declared in the scene ($.ports)") == 0, "%s", why);
+    scene_free(&s);
+    static const char *fog =
+        "{\"camera\": {\"eye\": [0, 0, 5], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
+        " \"materials\": {\"m\": {\"type\": \"lambert\", \"reflectance\": 0.5, \"emission\": 1}},"
+        " \"media\": {\"fog\": {\"sigma_a\": 0.01, \"sigma_s\": 0.1}}, \"medium\": \"fog\","
+        " \"objects\": [{\"type\": \"quad\", \"vertices\": [[-1, 1, -1], [1, 1, -1], [1, 1, 1], [-1, 1, 1]], \"material\": \"m\"}],"
+        " \"ports\": [{\"type\": \"disc\", \"center\": [0, 0, 0], \"normal\": [0, 1, 0], \"radius\": 0.5}]}";
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, fog, &e) == 0, "%s", e.msg);
+    EXPECT_EQ_INT(ports_plan(&s, why, sizeof why), 0);
+    EXPECT_MSG(strstr(why, "the scene has media") != NULL, "%s", why);
+    scene_free(&s);
+}

@@ -11,28 +11,28 @@
 #include "photons/photon_pass.h"
 #include "base/sampling.h"
 
-/* The points of a port the weights are averaged over: its centre and 4 points of its edge. */
-static int port_points(const port *pt, vec3 out[5]) {
-    out[0] = pt->c;
+/* The points of a port the weights are averaged over: the 2 x 2 Gauss points of a quad (exact
+ * for a bicubic), 4 points at r / sqrt 2 on a disc (exact for a quadratic in the radius). */
+static int port_points(const port *pt, vec3 out[4]) {
     if (pt->type == PORT_QUAD) {
-        out[1] = pt->corner;
-        out[2] = v3_add(pt->corner, pt->e1);
-        out[3] = v3_add(pt->corner, pt->e2);
-        out[4] = v3_add(out[2], pt->e2);
+        const double g[2] = {0.5 - 0.5 / sqrt(3.0), 0.5 + 0.5 / sqrt(3.0)};
+        for (int k = 0; k < 4; k++)
+            out[k] = v3_add(pt->corner, v3_add(v3_scale(pt->e1, g[k & 1]), v3_scale(pt->e2, g[k >> 1])));
     } else {
         vec3 a, b;
         v3_basis(pt->n, &a, &b);
-        out[1] = v3_madd(pt->c, a, pt->r);
-        out[2] = v3_madd(pt->c, a, -pt->r);
-        out[3] = v3_madd(pt->c, b, pt->r);
-        out[4] = v3_madd(pt->c, b, -pt->r);
+        double r = pt->r / sqrt(2.0);
+        out[0] = v3_madd(pt->c, a, r);
+        out[1] = v3_madd(pt->c, a, -r);
+        out[2] = v3_madd(pt->c, b, r);
+        out[3] = v3_madd(pt->c, b, -r);
     }
-    return 5;
+    return 4;
 }
 
 /* g_lk of ports.h and, in *per_unit, what turns a sum of them into a share of the power. */
 static double weight(const scene *s, const light *L, const port *pt, double *per_unit) {
-    vec3 xs[4], ys[5];
+    vec3 xs[3], ys[4];
     int nx = 1, ny = port_points(pt, ys);
     vec3 nl = v3s(0);
     int cosine = 0;
@@ -40,11 +40,11 @@ static double weight(const scene *s, const light *L, const port *pt, double *per
     switch (L->type) {
     case LIGHT_AREA: {
         const triangle *tr = &s->tris[L->tri];
-        xs[0] = tr->v0;
-        xs[1] = v3_add(tr->v0, tr->e1);
-        xs[2] = v3_add(tr->v0, tr->e2);
-        xs[3] = v3_add(tr->v0, v3_scale(v3_add(tr->e1, tr->e2), 1.0 / 3));
-        nx = 4;
+        /* the edge midpoints: exact for a quadratic over the triangle */
+        xs[0] = v3_add(tr->v0, v3_scale(tr->e1, 0.5));
+        xs[1] = v3_add(tr->v0, v3_scale(tr->e2, 0.5));
+        xs[2] = v3_add(tr->v0, v3_scale(v3_add(tr->e1, tr->e2), 0.5));
+        nx = 3;
         nl = tr->n;
         cosine = 1;
         *per_unit = L->two_sided ? 1 / (2 * M_PI) : 1 / M_PI;
@@ -243,15 +243,15 @@ void ports_mix(const pass_ctx *c, uint64_t i, int *li, vec3 *p, vec3 *n, vec3 *d
 
 void ports_describe(const photon_ports *pp, const scene *s, char *buf, size_t cap) {
     if (!s->nports) {
-        snprintf(buf, cap, "photon ports: none declared");
+        snprintf(buf, cap, "none declared in the scene ($.ports)");
         return;
     }
     if (!pp->on) {
-        snprintf(buf, cap, "photon ports: off (%d declared; %s)", s->nports,
+        snprintf(buf, cap, "%d declared, but %s", s->nports,
                  !(s->port_fraction > 0) ? "port_fraction is 0" : "no light faces them");
         return;
     }
-    size_t n = (size_t)snprintf(buf, cap, "photon ports: on, %.3g of the global photons aimed through %d port%s (",
+    size_t n = (size_t)snprintf(buf, cap, "%.3g of the global photons aimed through %d port%s (",
                                 pp->a, s->nports, s->nports == 1 ? "" : "s");
     for (int k = 0; k < s->nports && k < 4 && n < cap; k++) {
         const port *pt = &s->ports[k];
@@ -260,6 +260,21 @@ void ports_describe(const photon_ports *pp, const scene *s, char *buf, size_t ca
     }
     if (n < cap && s->nports > 4) n += (size_t)snprintf(buf + n, cap - n, "; ...");
     if (n < cap)
-        snprintf(buf + n, cap - n, "): about %.3g%% of the lights' power passes them, which ordinary emission "
-                 "would send there", 100 * pp->flux);
+        snprintf(buf + n, cap - n, "): about %.3g%% of the lights' power passes them (estimated at a few points), "
+                 "the share ordinary emission would send there", 100 * pp->flux);
+}
+
+int ports_plan(const scene *s, char *buf, size_t cap) {
+    photon_ports pp;
+    int rc = ports_build(&pp, s);
+    if (rc < 0) return rc;
+    ports_describe(&pp, s, buf, cap);
+    int on = pp.on;
+    if (s->nports && scene_has_media(s)) {
+        snprintf(buf, cap, "%d declared, but the scene has media, whose photon tracer does not aim through "
+                 "ports", s->nports);
+        on = 0;
+    }
+    ports_free(&pp);
+    return on;
 }

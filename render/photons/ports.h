@@ -31,10 +31,10 @@
  * direction density 0, and so does the true light.
  *
  * THE WEIGHTS. w_lk is port k's share of light l's estimated flux through the ports, g_lk =
- * the mean over 4 points of the light (its corners and centroid; a sphere's centre; a point
- * light's position) and 5 of the port (centre and 4 points of its edge) of A_k |cos_k|
- * cos_l / (t^2 + A_k) (cos_l: 1 for point and sphere lights; the port's projected area
- * A_k |cos_k| for directional lights), and q_l is proportional to p_l times the fraction of
+ * the mean over 3 points of the light (a triangle's edge midpoints; a sphere's centre; a point
+ * light's position) and 4 of the port (a quad's 2 x 2 Gauss points, a disc's 4 points at
+ * r / sqrt 2) of A_k |cos_k| cos_l / (t^2 + A_k) (cos_l: 1 for point and sphere lights; the
+ * port's projected area A_k |cos_k| for directional lights), and q_l is proportional to p_l times the fraction of
  * its power that this estimate says passes the ports (at most 1). A light that sees no port
  * has q_l = 0 and only ordinary photons. Good weights lower the noise; no weight changes the
  * mean.
@@ -94,9 +94,16 @@ struct pass_ctx;
 void ports_mix(const struct pass_ctx *c, uint64_t i, int *li, vec3 *p, vec3 *n, vec3 *d, rgb *power,
                double *rel);
 
-/* One line for the plan: the ports, the fraction and the estimated flux share through them,
- * or why they are not used. */
+/* The plan's reason (the text in "photon ports: on (...)"): the ports, the fraction and the
+ * estimated share of the power through them, or why they are not used. */
 void ports_describe(const photon_ports *pp, const scene *s, char *buf, size_t cap);
+
+/* For the plan (photon_mapping/plan.c): 1 when the global pass will aim through ports, 0 when
+ * not (no ports, port_fraction 0, no light faces them, or a scene with media, whose tracer
+ * does not use them), with the reason in buf (ports_describe); PM_ENOMEM. The plan prints
+ *   photon ports: on (0.5 of the global photons aimed through 1 port ($.ports[0] quad of area
+ *   100 at (500, 300, 500)): about 0.0247% of the lights' power passes them ...) */
+int ports_plan(const scene *s, char *buf, size_t cap);
 
 #ifdef __cplusplus
 }
