@@ -12,7 +12,12 @@
  *   point of which sees the whole lamp through the hole carry pi L r^2 Omega_patch. Traced
  *   with the hole declared as a port and without: both within 4 standard errors (the photons'
  *   own, as if independent; Halton points do better) plus 0.5% (the RGBE photon powers); and
- *   with a plan's pilot photons (emitted by power) joining the port pass.
+ *   with a plan's pilot photons (emitted by power) joining the port pass. With the box's
+ *   ceiling white, the light that reaches the plane after a bounce off it (the photons of kind
+ *   INDIRECT) against a quadrature of the ceiling's radiosity through the hole, the lamp
+ *   blocking what passes it: the ceiling's photons aim at the hole too (ports.h, BOUNCES).
+ * - bounces: ports_scatter's weights restore the cosine density (chi-square over bins where it
+ *   is uniform), from points that aim and from one on the port's dark side, which never does.
  * - the definition: the mixture's direction density from a point light, by a chi-square over
  *   4096 bins of the sphere against p(d) = ((1 - a) + a ratio(d)) / (4 pi), integrated over
  *   each bin on a 48 x 48 grid; for area, sphere and directional lights, the photons weighted
@@ -48,10 +53,11 @@ static const char *BOX_SCENE_FMT =
     "{\"camera\": {\"eye\": [0, -2, 4], \"look_at\": [0, -3, 0], \"fov_deg\": 60, \"width\": 8, \"height\": 8},"
     " \"materials\": {\"black\": {\"type\": \"lambert\", \"reflectance\": 0},"
     "  \"white\": {\"type\": \"lambert\", \"reflectance\": 0.5},"
+    "  \"ceiling\": {\"type\": \"lambert\", \"reflectance\": 0.8},"
     "  \"lamp\": {\"type\": \"lambert\", \"reflectance\": 0, \"emission\": 1}},"
     " \"objects\": ["
     "  {\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 0.05, \"material\": \"lamp\"},"
-    "  {\"type\": \"quad\", \"vertices\": [[-1, 1, -1], [1, 1, -1], [1, 1, 1], [-1, 1, 1]], \"material\": \"black\"},"
+    "  {\"type\": \"quad\", \"vertices\": [[-1, 1, -1], [1, 1, -1], [1, 1, 1], [-1, 1, 1]], \"material\": \"%s\"},"
     "  {\"type\": \"quad\", \"vertices\": [[-1, -1, -1], [-1, 1, -1], [-1, 1, 1], [-1, -1, 1]], \"material\": \"black\"},"
     "  {\"type\": \"quad\", \"vertices\": [[1, -1, -1], [1, -1, 1], [1, 1, 1], [1, 1, -1]], \"material\": \"black\"},"
     "  {\"type\": \"quad\", \"vertices\": [[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1]], \"material\": \"black\"},"
@@ -75,12 +81,13 @@ typedef struct flux_est {
 
 /* The stored photons on the plane (within half-side `half` of the axis): the flux, and its
  * standard error from the photons' powers (X_i = N P_i per emitted photon, zero for most). */
-static flux_est plane_flux(const photon_maps *m, double half) {
+static flux_est plane_flux(const photon_maps *m, double half, int kind) {
     flux_est f = {0, 0, 0};
     double s2 = 0, N = (double)m->global_emitted;
     for (size_t k = 0; k < m->nglobal; k++) {
         const pm_photon *p = &m->global[k];
         if (fabs(p->pos[1] + PLANE_H) > 1e-3 || fabs(p->pos[0]) > half || fabs(p->pos[2]) > half) continue;
+        if (pm_photon_kind(p) != kind) continue;
         float pw[3];
         pm_rgbe_decode(p->power, pw);
         f.mean += pw[0];
@@ -91,9 +98,35 @@ static flux_est plane_flux(const photon_maps *m, double half) {
     return f;
 }
 
-static void check_box(int with_port, long target, uint64_t pilot) {
+/* The flux the box's white ceiling (y = 1, reflectance CEIL_RHO, lit by the lamp with
+ * irradiance pi L r^2 cos / D^2) sends through the hole, by midpoint quadrature over n x n points
+ * of the ceiling and n/4 x n/4 of the hole, the lamp sphere blocking what passes it. */
+#define CEIL_RHO 0.8
+static double ceiling_flux(int n) {
+    int nh = n / 4;
+    double sum = 0, base = M_PI * LAMP_R * LAMP_R;
+    for (int i = 0; i < n * n; i++) {
+        vec3 x = v3(-1 + 2 * (i % n + 0.5) / n, 1, -1 + 2 * (i / n + 0.5) / n);
+        double D2 = v3_len2(x), E = base / D2 * (1 / sqrt(D2)); /* cos at the ceiling: 1 / D */
+        double B = CEIL_RHO * E / M_PI;
+        for (int j = 0; j < nh * nh; j++) {
+            vec3 y = v3(-HOLE_B + 2 * HOLE_B * (j % nh + 0.5) / nh, -1, -HOLE_B + 2 * HOLE_B * (j / nh + 0.5) / nh);
+            vec3 d = v3_sub(y, x);
+            double d2 = v3_len2(d);
+            /* the segment's nearest point to the lamp's centre */
+            double tt = -v3_dot(x, d) / d2;
+            tt = tt < 0 ? 0 : tt > 1 ? 1 : tt;
+            if (v3_len2(v3_madd(x, d, tt)) <= LAMP_R * LAMP_R) continue;
+            double c = 2 / sqrt(d2); /* both planes are horizontal, 2 apart */
+            sum += B * c * c / d2;
+        }
+    }
+    return sum * (4.0 / (n * n)) * (4 * HOLE_B * HOLE_B / (nh * nh));
+}
+
+static void check_box(int with_port, int white_ceiling, long target, uint64_t pilot) {
     char text[8192];
-    snprintf(text, sizeof text, BOX_SCENE_FMT, with_port ? BOX_PORT : "");
+    snprintf(text, sizeof text, BOX_SCENE_FMT, white_ceiling ? "ceiling" : "black", with_port ? BOX_PORT : "");
     scene s;
     json_err e;
     ASSERT_MSG(scene_load_text(&s, text, &e) == 0, "%s", e.msg);
@@ -133,10 +166,11 @@ static void check_box(int with_port, long target, uint64_t pilot) {
     if (pilot) EXPECT_MSG(m.pilot_emitted[0] == tp.emitted && tp.emitted >= pilot, "the pilot's %llu photons did not join (%llu)",
                           (unsigned long long)tp.emitted, (unsigned long long)m.pilot_emitted[0]);
     double L = 1, base = M_PI * L * LAMP_R * LAMP_R;
-    double want_all = base * square_solid_angle(HOLE_B, 1.0);
+    double want_all = base * square_solid_angle(HOLE_B, 1.0), ind = 0;
     double want_patch = base * square_solid_angle(PATCH_B, PLANE_H);
-    flux_est all = plane_flux(&m, PLANE_H), patch = plane_flux(&m, PATCH_B);
-    printf("    %s port%s: %llu emitted, %zu stored; through the hole %.6g (exact %.6g, %+.2f%%, se %.2f%%); "
+    flux_est all = plane_flux(&m, PLANE_H, PM_KIND_DIRECT), patch = plane_flux(&m, PATCH_B, PM_KIND_DIRECT);
+    flux_est bounced = plane_flux(&m, PLANE_H, PM_KIND_INDIRECT);
+    printf("    %s port%s: %llu emitted, %zu stored; straight through the hole %.6g (exact %.6g, %+.2f%%, se %.2f%%); "
            "patch %.6g (exact %.6g, %+.2f%%, se %.2f%%, %zu photons)\n",
            with_port ? "with a" : "without a", pilot ? " and a pilot's photons joining" : "",
            (unsigned long long)m.global_emitted, m.nglobal, all.mean, want_all,
@@ -149,16 +183,33 @@ static void check_box(int with_port, long target, uint64_t pilot) {
                all.mean, want_all);
     EXPECT_MSG(fabs(patch.mean - want_patch) < 4 * patch.se + 0.005 * want_patch, "patch: %.6g, exact %.6g",
                patch.mean, want_patch);
+    if (white_ceiling) { /* and what the ceiling sends through the hole */
+        double coarse = ceiling_flux(96);
+        ind = ceiling_flux(192);
+        printf("    after a bounce off the ceiling: %.6g (quadrature %.6g, at half the points %.6g; %+.2f%%, se %.2f%%, "
+               "%zu photons)\n",
+               bounced.mean, ind, coarse, 100 * (bounced.mean / ind - 1), 100 * bounced.se / ind, bounced.n);
+        EXPECT_MSG(fabs(coarse / ind - 1) < 0.002, "quadrature: %.6g against %.6g", coarse, ind);
+        EXPECT_MSG(bounced.se < 0.04 * ind, "standard error %.3g too large", bounced.se / ind);
+        EXPECT_MSG(fabs(bounced.mean - ind) < 4 * bounced.se + 0.005 * ind, "after a bounce: %.6g, quadrature %.6g",
+                   bounced.mean, ind);
+    } else {
+        EXPECT_MSG(bounced.n == 0, "%zu photons bounced onto the plane (only black surfaces)", bounced.n);
+    }
     photon_maps_free(&m);
     scene_free(&s);
 }
 
-TEST(render_ports_analytic_hole_with_port) { check_box(1, PM_TEST_SANITIZED ? 4000 : 40000, 0); }
-TEST(render_ports_analytic_hole_without_port) { check_box(0, PM_TEST_SANITIZED ? 4000 : 25000, 0); }
+TEST(render_ports_analytic_hole_with_port) { check_box(1, 0, PM_TEST_SANITIZED ? 4000 : 40000, 0); }
+TEST(render_ports_analytic_hole_without_port) { check_box(0, 0, PM_TEST_SANITIZED ? 4000 : 25000, 0); }
+/* The box's ceiling white: light reaches the hole straight from the lamp and after a bounce
+ * off the ceiling (ports.h, BOUNCES: the ceiling's photons aim at the hole too). */
+TEST(render_ports_analytic_hole_bounce_with_port) { check_box(1, 1, PM_TEST_SANITIZED ? 8000 : 80000, 0); }
+TEST(render_ports_analytic_hole_bounce_without_port) { check_box(0, 1, PM_TEST_SANITIZED ? 25000 : 250000, 0); }
 /* The pilot's photons, emitted by power, join the port pass by the balance heuristic (their rel
  * is the mixture's too): 400,000 of them, about 4,900 through the hole. */
 TEST(render_ports_analytic_hole_with_port_and_pilot) {
-    check_box(1, PM_TEST_SANITIZED ? 4000 : 40000, PM_TEST_SANITIZED ? 40000 : 400000);
+    check_box(1, 0, PM_TEST_SANITIZED ? 4000 : 40000, PM_TEST_SANITIZED ? 40000 : 400000);
 }
 
 /* ---- the mixture's density ------------------------------------------------------------------ */
@@ -350,7 +401,8 @@ TEST(render_ports_mixture_unbiased_in_light_space) {
         int df = 0;
         for (int b = 0; b < nb; b++) {
             double want = distrib1d_prob(&s.light_distrib, b / (G * G)) / (G * G);
-            double m = w1[b] / N, var = (w2[b] / N - m * m) / N;
+            /* Pearson's form, as in render_ports_bounce_density */
+            double m = w1[b] / N, var = (w1[b] > 0 ? w2[b] / w1[b] * want - want * want : 0) / N;
             if (!(var > 0)) continue;
             chi2 += (m - want) * (m - want) / var;
             df++;
@@ -509,5 +561,83 @@ TEST(render_ports_plan_reason) {
     ASSERT_MSG(scene_load_text(&s, fog, &e) == 0, "%s", e.msg);
     EXPECT_EQ_INT(ports_plan(&s, why, sizeof why), 0);
     EXPECT_MSG(strstr(why, "the scene has media") != NULL, "%s", why);
+    scene_free(&s);
+}
+
+/* ---- bounces aimed at the ports ----------------------------------------------------------------- */
+
+/* Oracle: the cosine density, which ports_scatter's weight k must restore: under it sin^2 theta
+ * and phi are uniform, so 32 x 32 bins over (sin^2 theta, phi) each hold 1/1024 of the weighted
+ * photons (chi-square against the bins' own variances, bound df + 5 sqrt(2 df)), and the weights
+ * average 1 within 4 standard errors (a direction below the horizon counts 0). On
+ * pinhole_room_ports: a point of the big room's ceiling above the hole (it aims), a point 10
+ * above the hole's plane whose horizon cuts the hole (it aims, and the part of the hole below
+ * its horizon carries nothing), and a point on the small room's floor under the hole, on the
+ * port's dark side: it never aims (k = 1, the cosine direction itself). */
+TEST(render_ports_bounce_density) {
+    enum { G = 32 };
+    const long N = PM_TEST_SANITIZED ? 50000 : 400000;
+    scene s;
+    ASSERT_EQ_INT(load_file(&s, "pinhole_room_ports.json"), 0);
+    photon_ports pp;
+    ASSERT_EQ_INT(ports_build(&pp, &s), 0);
+    ASSERT(pp.on && pp.side[0] != 0);
+    const struct {
+        const char *name;
+        vec3 x, n;
+        int aims;
+    } cases[] = {{"the big room's ceiling", {520, 1000, 470}, {0, -1, 0}, 1},
+                 {"a wall whose horizon cuts the hole", {499, 310, 500}, {1, 0, 0}, 1},
+                 {"the small room's floor", {500, 0, 500}, {0, 1, 0}, 0}};
+    static double w1[G * G], w2[G * G];
+    for (int c = 0; c < 3; c++) {
+        memset(w1, 0, sizeof w1);
+        memset(w2, 0, sizeof w2);
+        rng g = rng_stream(13, (uint64_t)c, 0);
+        vec3 a, b;
+        v3_basis(cases[c].n, &a, &b);
+        double tot = 0, tot2 = 0;
+        long aimed = 0, not_one = 0;
+        for (long k = 0; k < N; k++) {
+            vec3 nd;
+            double u1 = rng_uniform(&g), u2 = rng_uniform(&g);
+            double wk = ports_scatter(&pp, cases[c].x, cases[c].n, &g, u1, u2, &nd);
+            tot += wk;
+            tot2 += wk * wk;
+            if (wk != 1) not_one++;
+            if (!(wk > 0)) continue;
+            double ct = v3_dot(nd, cases[c].n), phi = atan2(v3_dot(nd, b), v3_dot(nd, a));
+            if (phi < 0) phi += 2 * M_PI;
+            double t_ = 0, cr;
+            if (port_cross(&s.ports[0], cases[c].x, nd, &t_, &cr)) aimed++;
+            int i = (int)((1 - ct * ct) * G), j = (int)(phi / (2 * M_PI) * G);
+            i = i < 0 ? 0 : i >= G ? G - 1 : i;
+            j = j < 0 ? 0 : j >= G ? G - 1 : j;
+            w1[i * G + j] += wk;
+            w2[i * G + j] += wk * wk;
+        }
+        double chi2 = 0, want = 1.0 / (G * G);
+        int df = 0;
+        for (int k = 0; k < G * G; k++) {
+            /* Pearson's form: the bin's variance at its expected share (the observed share
+             * would understate the variance of low bins and inflate the statistic). */
+            double m = w1[k] / N, var = (w1[k] > 0 ? w2[k] / w1[k] * want - want * want : 0) / N;
+            if (!(var > 0)) continue;
+            chi2 += (m - want) * (m - want) / var;
+            df++;
+        }
+        double mean = tot / N, se = sqrt((tot2 / N - mean * mean) / N), bound = df + 5 * sqrt(2.0 * df);
+        printf("    %s: %.1f%% of the directions cross the hole, weights average %.5f (se %.5f), chi-square %.1f "
+               "over %d bins (bound %.0f)\n",
+               cases[c].name, 100.0 * aimed / N, mean, se, chi2, df, bound);
+        if (cases[c].aims) {
+            EXPECT_MSG(aimed > N / 4, "%s: only %ld of %ld directions cross the hole", cases[c].name, aimed, N);
+            EXPECT_MSG(fabs(mean - 1) < 4 * se, "%s: weights average %.5f", cases[c].name, mean);
+            EXPECT_MSG(df > G * G / 2 && chi2 < bound, "%s: chi-square %.1f over %d", cases[c].name, chi2, df);
+        } else {
+            EXPECT_MSG(not_one == 0, "%s: %ld weights are not 1", cases[c].name, not_one);
+        }
+    }
+    ports_free(&pp);
     scene_free(&s);
 }

@@ -118,11 +118,13 @@ static int scatter(const pass_ctx *c, photon_path *pp, const material *m, const 
     vec3 nd;
     if (u < pd) {
         if (c->caustic_pass) return 0; /* L S* D D...: not a caustic any more */
-        nd = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
-        if (v3_dot(nd, ns) <= 0) return 0; /* below the real surface: absorbed */
+        double k = 1; /* a share aimed through the ports (ports.h): k = cosine pdf / mixture's */
+        if (c->ports) k = ports_scatter(c->ports, h->p, nsh, g, u1, u2, &nd);
+        else nd = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
+        if (!(k > 0) || v3_dot(nd, ns) <= 0) return 0; /* below the real surface: absorbed */
         /* f cos / pdf = pi f for cosine sampling; branch weight over its probability. */
         rgb f = material_diffuse_f(m, nsh, wo, nd);
-        *P = v3_scale(v3_mul(*P, f), M_PI * w[LOBE_DIFFUSE] / pd);
+        *P = v3_scale(v3_mul(*P, f), M_PI * k * w[LOBE_DIFFUSE] / pd);
         pp->scattered = 1;
     } else if (u < pd + pr) {
         nd = material_reflect_shaded(*d, ns, nsh);

@@ -9,6 +9,7 @@
 #include "photonmap/common.h"
 #include "photons/importance.h"
 #include "photons/photon_pass.h"
+#include "base/rng.h"
 #include "base/sampling.h"
 
 /* The points of a port the weights are averaged over: the 2 x 2 Gauss points of a quad (exact
@@ -68,6 +69,23 @@ static double weight(const scene *s, const light *L, const port *pt, double *per
     return g / (nx * ny);
 }
 
+/* +1 when light L lies on the side of port pt's normal, -1 behind it (a directional light:
+ * the side its light comes from), 0 in its plane. */
+static double light_side(const scene *s, const light *L, const port *pt) {
+    double v;
+    switch (L->type) {
+    case LIGHT_AREA: {
+        const triangle *tr = &s->tris[L->tri];
+        v = v3_dot(v3_sub(v3_add(tr->v0, v3_scale(v3_add(tr->e1, tr->e2), 1.0 / 3)), pt->c), pt->n);
+        break;
+    }
+    case LIGHT_SPHERE: v = v3_dot(v3_sub(s->spheres[L->sphere].c, pt->c), pt->n); break;
+    case LIGHT_POINT: v = v3_dot(v3_sub(L->pos, pt->c), pt->n); break;
+    default: v = -v3_dot(L->dir, pt->n); break;
+    }
+    return v > 0 ? 1 : v < 0 ? -1 : 0;
+}
+
 int ports_build(photon_ports *pp, const scene *s) {
     memset(pp, 0, sizeof *pp);
     pp->s = s;
@@ -78,8 +96,10 @@ int ports_build(photon_ports *pp, const scene *s) {
     int np = s->nports;
     pp->wcdf = calloc((size_t)s->nlights * (size_t)(np + 1), sizeof *pp->wcdf);
     pp->q_p = calloc((size_t)s->nlights, sizeof *pp->q_p);
-    double *ql = calloc((size_t)s->nlights, sizeof *ql);
-    if (!pp->wcdf || !pp->q_p || !ql) {
+    pp->side = calloc((size_t)np, sizeof *pp->side);
+    double *ql = calloc((size_t)s->nlights, sizeof *ql), *sd = calloc((size_t)np, sizeof *sd);
+    if (!pp->wcdf || !pp->q_p || !pp->side || !ql || !sd) {
+        free(sd);
         free(ql);
         ports_free(pp);
         return PM_ENOMEM;
@@ -95,7 +115,11 @@ int ports_build(photon_ports *pp, const scene *s) {
         double F = fmin(1, sum * per_unit), p_l = distrib1d_prob(&s->light_distrib, l);
         ql[l] = sum > 0 && p_l > 0 ? p_l * F : 0;
         pp->flux += ql[l];
+        for (int k = 0; k < np; k++) /* the side of port k this light's weight comes from */
+            sd[k] += ql[l] * (row[k + 1] - row[k]) * light_side(s, &s->lights[l], &s->ports[k]);
     }
+    for (int k = 0; k < np; k++) pp->side[k] = (signed char)(sd[k] > 0 ? 1 : sd[k] < 0 ? -1 : 0);
+    free(sd);
     if (pp->flux > 0) {
         for (int l = 0; l < s->nlights; l++) {
             double p_l = distrib1d_prob(&s->light_distrib, l);
@@ -116,6 +140,7 @@ int ports_build(photon_ports *pp, const scene *s) {
 void ports_free(photon_ports *pp) {
     free(pp->wcdf);
     free(pp->q_p);
+    free(pp->side);
     if (pp->on) distrib1d_free(&pp->light);
     memset(pp, 0, sizeof *pp);
 }
@@ -208,6 +233,59 @@ int ports_sample(const photon_ports *pp, double ul, double uk, const double u[4]
     }
     *n = nx;
     return 1;
+}
+
+/* The ports x may aim at from a diffuse bounce (BOUNCES in ports.h), with their weights
+ * (summing to 1) in w; how many. */
+static int bounce_ports(const photon_ports *pp, vec3 x, vec3 nsh, double *w) {
+    const scene *s = pp->s;
+    double sum = 0;
+    for (int k = 0; k < pp->np; k++) {
+        const port *pt = &s->ports[k];
+        vec3 v = v3_sub(pt->c, x);
+        double t2 = v3_len2(v);
+        w[k] = 0;
+        if (!pp->side[k] || !(t2 > 0) || pp->side[k] * v3_dot(v, pt->n) >= 0 || v3_dot(v, nsh) <= 0) continue;
+        w[k] = pt->area * fabs(v3_dot(v, pt->n)) / sqrt(t2) / (t2 + pt->area);
+        sum += w[k];
+    }
+    if (!(sum > 0) || !isfinite(sum)) return 0;
+    for (int k = 0; k < pp->np; k++) w[k] /= sum;
+    return 1;
+}
+
+double ports_scatter(const photon_ports *pp, vec3 x, vec3 nsh, rng *g, double u1, double u2, vec3 *nd) {
+    double w[256]; /* PORTS_MAX of scene_ports.c */
+    if (pp->np > 256 || !bounce_ports(pp, x, nsh, w)) {
+        *nd = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
+        return 1;
+    }
+    const scene *s = pp->s;
+    double a = pp->a, uc = rng_uniform(g);
+    if (uc < a) {
+        double uk = uc / a, acc = 0;
+        int k = 0;
+        for (; k < pp->np - 1; k++) {
+            acc += w[k];
+            if (uk < acc && w[k] > 0) break;
+        }
+        while (k > 0 && !(w[k] > 0)) k--; /* rounding past the last port with weight */
+        vec3 v = v3_sub(port_sample(&s->ports[k], u1, u2), x);
+        double t = v3_len(v);
+        if (!(t > 0)) return 0;
+        *nd = v3_scale(v, 1 / t);
+    } else {
+        *nd = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
+    }
+    double cs = v3_dot(*nd, nsh);
+    if (!(cs > 0)) return 0;
+    double pport = 0;
+    for (int k = 0; k < pp->np; k++) {
+        double t, ck;
+        if (w[k] > 0 && port_cross(&s->ports[k], x, *nd, &t, &ck)) pport += w[k] * t * t / (s->ports[k].area * ck);
+    }
+    double pc = cs / M_PI;
+    return pc / ((1 - a) * pc + a * pport);
 }
 
 void ports_mix(const pass_ctx *c, uint64_t i, int *li, vec3 *p, vec3 *n, vec3 *d, rgb *power, double *rel) {
