@@ -52,7 +52,7 @@
  * a(x) >= 0 that depends only on x, as this one does.
  *
  * WHERE. The surface tracer's global pass (photon_trace.c, which calls ports_mix after its own
- * emission) and the photons of its pilot, whose rel is computed the same way so they can join
+ * emission and ports_scatter at diffuse bounces) and the photons of its pilot, whose rel is computed the same way so they can join
  * the pass (pilot_photons_joining). The caustic pass keeps its projection maps, and the media's
  * tracer (volume.c) ignores ports.
  *
