@@ -353,7 +353,7 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
     if (!cJSON_IsObject(root))
         return json_fail(e, PM_EINVAL, "$: expected an object, got %s", json_type_name(root));
     KEYS(root, "$", "a scene", "camera", "materials", "objects", "lights", "medium_ior", "media",
-         "medium", "render", "image", "photon_mapping", "description");
+         "medium", "render", "image", "photon_mapping", "description", "ports", "port_fraction");
     TRY(load_camera(s, root, e));
     TRY(load_settings(s, root, e));
     s->medium_ior = 1.0;
@@ -400,6 +400,7 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
         json_path_index(p, sizeof p, "$.lights", i);
         TRY(load_light(s, &cp, it, p, e));
     }
+    TRY(sl_load_ports(s, root, e));
     TRY(json_object(root, "$", "photon_mapping", 0, &pm, e));
     if (pm) {
         /* Checked here, whatever will read it (any mode, render --dump-scene, render-mpi): a

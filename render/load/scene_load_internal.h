@@ -1,6 +1,6 @@
 /* scene_load_internal.h: what the files of the JSON scene loader share (scene_load.c the
  * document, camera, materials, lights and settings; scene_objects.c the objects;
- * scene_media.c the media); not for use outside render/load/scene_*.c.
+ * scene_media.c the media; scene_ports.c the photon ports); not for use outside render/load/scene_*.c.
  */
 #ifndef RENDER_SCENE_LOAD_INTERNAL_H
 #define RENDER_SCENE_LOAD_INTERNAL_H
@@ -53,5 +53,10 @@ int sl_find_medium(const scene *s, const cJSON *obj, const char *P, const char *
 int sl_load_interior_medium(scene *s, const cJSON *o, const char *P, int obj, int first_tri, json_err *e);
 /* Which medium the camera is in (the rule of medium.h). */
 void sl_find_camera_medium(scene *s);
+
+/* ---- scene_ports.c ------------------------------------------------------------------------- */
+
+/* $.ports and $.port_fraction: the photon ports (port.h). */
+int sl_load_ports(scene *s, const cJSON *root, json_err *e);
 
 #endif /* RENDER_SCENE_LOAD_INTERNAL_H */

@@ -88,6 +88,7 @@ struct pass_ctx {
     projmap *proj;    /* caustic pass: one per light */
     const struct importance *imp; /* global pass: importance-driven emission, or NULL */
     int imp_rel_only;      /* a pilot: emit by power, and only record rel under imp */
+    const struct photon_ports *ports; /* global pass: emission through photon ports (ports.h), or NULL */
     const pass_buf *tail;  /* pilot stores that follow the pass's own in the main map, or NULL */
     uint64_t tail_emitted; /* the pilot photons those stores came from */
     double shift[6];

@@ -16,6 +16,7 @@
 #include "photons/importance.h"
 #include "photons/photon_pass.h"
 #include "photons/photon_path.h"
+#include "photons/ports.h"
 #include "photons/projmap.h"
 #include "base/rng.h"
 #include "base/sampling.h"
@@ -34,8 +35,8 @@ struct pilot_photons {
 
 /* The photon's light, origin, normal, direction, and power before the pass's division (the
  * per-photon denominator is applied at packing, see pack); *rel its p(l, u) / p_l. */
-static void emit_photon(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *p, vec3 *n, vec3 *d,
-                        rgb *power, double *rel) {
+static void emit_ordinary(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *p, vec3 *n, vec3 *d,
+                          rgb *power, double *rel) {
     double u0 = sample_halton(i, 0, c->shift);
     double pl;
     double u[4] = {sample_halton(i, 1, c->shift), sample_halton(i, 2, c->shift), sample_halton(i, 3, c->shift),
@@ -56,6 +57,13 @@ static void emit_photon(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *p,
     }
     light_sample_le(c->s, *li, u, p, n, d);
     *power = c->light_scale[*li];
+}
+
+/* The same, with a share of the photons aimed through the scene's photon ports (ports.h). */
+static void emit_photon(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *p, vec3 *n, vec3 *d,
+                        rgb *power, double *rel) {
+    emit_ordinary(c, i, g, li, p, n, d, power, rel);
+    if (c->ports) ports_mix(c, i, li, p, n, d, power, rel);
 }
 
 static double maxc_prod(double w, rgb t, rgb P) {
@@ -110,11 +118,13 @@ static int scatter(const pass_ctx *c, photon_path *pp, const material *m, const 
     vec3 nd;
     if (u < pd) {
         if (c->caustic_pass) return 0; /* L S* D D...: not a caustic any more */
-        nd = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
-        if (v3_dot(nd, ns) <= 0) return 0; /* below the real surface: absorbed */
+        double k = 1; /* a share aimed through the ports (ports.h): k = cosine pdf / mixture's */
+        if (c->ports) k = ports_scatter(c->ports, h->p, nsh, g, u1, u2, &nd);
+        else nd = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
+        if (!(k > 0) || v3_dot(nd, ns) <= 0) return 0; /* below the real surface: absorbed */
         /* f cos / pdf = pi f for cosine sampling; branch weight over its probability. */
         rgb f = material_diffuse_f(m, nsh, wo, nd);
-        *P = v3_scale(v3_mul(*P, f), M_PI * w[LOBE_DIFFUSE] / pd);
+        *P = v3_scale(v3_mul(*P, f), M_PI * k * w[LOBE_DIFFUSE] / pd);
         pp->scattered = 1;
     } else if (u < pd + pr) {
         nd = material_reflect_shaded(*d, ns, nsh);
@@ -389,8 +399,13 @@ static int global_pass(trace_run *t) {
         target = (long)have < target ? target - (long)have : 1;
     }
     pass_out po = {0};
-    int rc = pass_run(&c, target, o->global ? &t->gbuf : &t->sbuf, o->global ? &t->sbuf : NULL, &po,
+    photon_ports ports;
+    int rc = ports_build(&ports, s);
+    c.ports = ports.on ? &ports : NULL;
+    if (rc == 0)
+        rc = pass_run(&c, target, o->global ? &t->gbuf : &t->sbuf, o->global ? &t->sbuf : NULL, &po,
                       o->global ? "Tracing global photons" : "Tracing shadow photons", t->err, t->errcap);
+    ports_free(&ports);
     t->m->global_emitted = po.emitted;
     t->m->global_runaway = po.runaway;
     t->wg[0] = po.whole[0];

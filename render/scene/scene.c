@@ -208,6 +208,7 @@ void scene_free(scene *s) {
     free(s->tri_ns);
     free(s->media);
     free(s->obj_medium);
+    free(s->ports);
     free(s->lights);
     distrib1d_free(&s->light_distrib);
     bvh_free(&s->accel);

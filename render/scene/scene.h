@@ -52,6 +52,7 @@
 #include "scene/light.h"
 #include "scene/material.h"
 #include "scene/medium.h"
+#include "scene/port.h"
 #include "base/sampling.h"
 #include "scene/shapes.h"
 #include "base/vec.h"
@@ -107,6 +108,9 @@ typedef struct scene {
     int *obj_medium;         /* per object of $.objects: its interior_medium, or -1 */
     int nobj;
     int has_null;            /* some surface has the "null" (invisible interface) material */
+    port *ports;             /* photon ports ($.ports; port.h), nports of them, or NULL */
+    int nports;
+    double port_fraction;    /* $.port_fraction: the share of photons aimed through the ports */
     vec3 bounds_lo, bounds_hi;
     vec3 bsphere_c; /* bounding sphere of all geometry */
     double bsphere_r;

@@ -1,0 +1,133 @@
+/* ports.h: photon emission through photon ports (scene/port.h: openings the scene declares in
+ * $.ports), in a defensive mixture with the ordinary emission, so the estimate stays unbiased.
+ *
+ * WHY. A room lit through a 10 x 10 hole (data/scenes/pinhole_room.json) gets about 4 of
+ * 200,000 global photons when photons are emitted by power alone. Aiming a share of them at
+ * the hole puts thousands inside, each carrying its true share of the power.
+ *
+ * THE MIXTURE. A photon of light l leaves x in direction d (for a directional light: from the
+ * point x of its emission disc, light.h). The ordinary emission has the density
+ *     p_def(l, x, d) = p_l p_x(x) p_d(d | x)
+ * (p_l the light's power share, p_x uniform over the light, p_d cosine-weighted about the
+ * normal; uniform over the sphere for a point light; a directional light's d is fixed and x
+ * uniform over its disc). With a = $.port_fraction (default 0.5, 0 <= a < 1) a photon is, with
+ * probability 1 - a, emitted as before (importance emission included, importance.h), and with
+ * probability a through a port: a light l with probability q_l, a point x of it uniform as
+ * before, a port k with probability w_lk, a point y uniform on port k, d = (y - x) / |y - x|
+ * (a directional light: y first, and x where the line through y along the light's direction
+ * meets its disc). In solid angle at x that direction has the density t^2 / (A_k cos_k) (t the
+ * distance to the port, cos_k the angle to its normal; a directional light: 1 / (A_k cos_k)
+ * per unit area of the disc), summed over every port the ray crosses, so the mixture's density
+ * is
+ *     p(l, x, d) = a q_l p_x(x) sum_k w_lk pdf_k(d | x) + (1 - a) p_base(l, x, d),
+ * and a photon's power is the ordinary photon's divided by rel = p / p_def:
+ *     rel = a (q_l / p_l) sum_k w_lk pdf_k(d | x) / p_d(d | x) + (1 - a) rel_base,
+ * where rel_base is importance.h's rel (1 without importance emission). Every photon of either
+ * branch gets this rel (the ordinary ones too: a ray that happens to cross a port is as likely
+ * from the port branch), so for any a, any weights and any ports the estimate keeps its mean;
+ * rel >= 1 - a bounds a photon's power by 1 / (1 - a) times the ordinary one's. A port photon
+ * whose direction the light does not emit into (behind a one-sided light, or a disc point
+ * outside a directional light's disc) carries nothing: the ordinary emission gives that
+ * direction density 0, and so does the true light.
+ *
+ * THE WEIGHTS. w_lk is port k's share of light l's estimated flux through the ports, g_lk =
+ * the mean over 3 points of the light (a triangle's edge midpoints; a sphere's centre; a point
+ * light's position) and 4 of the port (a quad's 2 x 2 Gauss points, a disc's 4 points at
+ * r / sqrt 2) of A_k |cos_k| cos_l / (t^2 + A_k) (cos_l: 1 for point and sphere lights; the
+ * port's projected area A_k |cos_k| for directional lights), and q_l is proportional to p_l times the fraction of
+ * its power that this estimate says passes the ports (at most 1). A light that sees no port
+ * has q_l = 0 and only ordinary photons. Good weights lower the noise; no weight changes the
+ * mean.
+ *
+ * BOUNCES. Light that enters an opening after a bounce (pinhole_room: about a third of what
+ * enters the hole) cannot be aimed at by emission: only the ordinary photons carry it, a handful,
+ * each with the power of thousands of port photons, and the room's estimates read them as
+ * splotches (pinhole_room with emission ports alone: walls -18% to +42% over 6 seeds, against
+ * -2.4% to +2.3% without ports). So the diffuse bounces aim too: at a point x on a port's lit
+ * side (the side its lights' weight comes from, ports_build) that sees the port's centre above
+ * its horizon, a diffuse photon is scattered with probability a toward a uniform point of one
+ * such port (chosen by A_k |cos_k| / (t^2 + A_k)), else cosine-weighted, and its weight
+ * f cos / p uses the mixture's density p = (1 - a) cos / pi + a sum_k w_k t^2 / (A_k cos_k). A
+ * point on the dark side (inside the room) never aims out through the port. Unbiased for any
+ * a(x) >= 0 that depends only on x, as this one does.
+ *
+ * WHERE. The surface tracer's global pass (photon_trace.c, which calls ports_mix after its own
+ * emission and ports_scatter at diffuse bounces) and the photons of its pilot, whose rel is computed the same way so they can join
+ * the pass (pilot_photons_joining). The caustic pass keeps its projection maps, and the media's
+ * tracer (volume.c) ignores ports.
+ *
+ * Ownership: ports_build fills a photon_ports with malloc'd arrays, ports_free frees them; a
+ * built table is read-only and may be used from any number of threads.
+ */
+#ifndef RENDER_PORTS_H
+#define RENDER_PORTS_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "scene/scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct photon_ports {
+    const scene *s;
+    int on;         /* 0: the scene has no ports, a = 0, or no light sees a port */
+    double a;       /* the share of photons emitted through the ports */
+    int nl, np;
+    double *wcdf;   /* nl x (np + 1): per light, the cumulative port weights w_lk (0 .. 1) */
+    double *q_p;    /* per light: q_l / p_l */
+    distrib1d light; /* lights by q_l */
+    double flux;    /* sum_l p_l F_l: the share of the lights' power the weights say passes the ports */
+    signed char *side; /* per port: +1 or -1, the side of its normal the light comes from; 0: none */
+} photon_ports;
+
+/* 0 (pp->on says whether ports are used), or PM_ENOMEM. */
+int ports_build(photon_ports *pp, const scene *s);
+void ports_free(photon_ports *pp);
+
+/* sum_k w_lk pdf_k(d | x) / p_d(d | x) times q_l / p_l: the port branch's density over the
+ * ordinary one for the photon (l, x, d); 0 when no port is crossed, and also when the
+ * ordinary emission cannot give it (so callers drop such photons). */
+double ports_ratio(const photon_ports *pp, int l, vec3 x, vec3 d);
+
+/* The port branch: a photon from uniform numbers (ul, uk: the light and the port; u[0..1]
+ * the point on the light, u[2..3] the point on the port). Returns 1 with the light, origin,
+ * origin's normal (zero for point and directional lights), direction; 0 when the photon
+ * carries nothing. */
+int ports_sample(const photon_ports *pp, double ul, double uk, const double u[4], int *l, vec3 *x, vec3 *n,
+                 vec3 *d);
+
+struct pass_ctx;
+/* A diffuse bounce at x (nsh: the shading normal on the side the photon leaves from): with
+ * probability a toward a uniform point of a port that x sees from the port's lit side (BOUNCES
+ * above), else cosine-weighted about nsh, with u1, u2 (and one more number from g when some port
+ * is eligible). The direction in *nd; returns cos / pi over the mixture's density there
+ * (multiply the cosine-sampled weight pi f by it), 0 when the direction carries nothing. With
+ * no eligible port: the cosine direction and 1. */
+struct rng;
+double ports_scatter(const photon_ports *pp, vec3 x, vec3 nsh, struct rng *g, double u1, double u2, vec3 *nd);
+
+/* photon_trace.c's hook: after its own emission of photon i (*li, *p, *n, *d, *power, *rel),
+ * with probability a (Halton dimension 5) replace the photon by a port photon; either way set
+ * *rel to the mixture's (above). A pilot (c->o->pilot) keeps its own photon and only gets the
+ * rel. */
+void ports_mix(const struct pass_ctx *c, uint64_t i, int *li, vec3 *p, vec3 *n, vec3 *d, rgb *power,
+               double *rel);
+
+/* The plan's reason (the text in "photon ports: on (...)"): the ports, the fraction and the
+ * estimated share of the power through them, or why they are not used. */
+void ports_describe(const photon_ports *pp, const scene *s, char *buf, size_t cap);
+
+/* For the plan (photon_mapping/plan.c): 1 when the global pass will aim through ports, 0 when
+ * not (no ports, port_fraction 0, no light faces them, or a scene with media, whose tracer
+ * does not use them), with the reason in buf (ports_describe); PM_ENOMEM. The plan prints
+ *   photon ports: on (0.5 of the global photons aimed through 1 port ($.ports[0] quad of area
+ *   100 at (500, 300, 500)): about 0.0247% of the lights' power passes them ...) */
+int ports_plan(const scene *s, char *buf, size_t cap);
+
+#ifdef __cplusplus
+}
+#endif
+#endif /* RENDER_PORTS_H */
