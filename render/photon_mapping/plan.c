@@ -530,6 +530,10 @@ int plan_make(const scene *s, const photon_settings *c, int preview, render_plan
         plan__set(&p->final_gather, 1,
             "indirect diffuse by gather rays reading precomputed irradiance of the global map%s", "");
     plan__emission(s, c, p, tab);
+    if ((rc = plan__ports(s, p, err, errcap)) < 0) {
+        plan_free(p);
+        return rc;
+    }
     /* usable: the photon mapper samples lights unless it shows the global map directly */
     p->guide = guide_light_plan(s, c->force_light_guide, !((preview || !p->final_gather.on) && p->global.on),
                                 &p->light_guide.on, p->light_guide.reason, sizeof p->light_guide.reason, NULL);
@@ -539,11 +543,11 @@ int plan_make(const scene *s, const photon_settings *c, int preview, render_plan
 
 void plan_print(const render_plan *p, FILE *f) {
     const plan_item *it[] = {&p->caustics, &p->global, &p->shadow, &p->final_gather, &p->volume,
-                             &p->volume_caustics, &p->emission, &p->light_guide};
+                             &p->volume_caustics, &p->emission, &p->ports, &p->light_guide};
     static const char *name[] = {"caustics", "global", "shadow photons", "final gather", "volume",
-                                 "volume caustics", "photon emission", "light guide"};
+                                 "volume caustics", "photon emission", "photon ports", "light guide"};
     fprintf(f, "Plan:\n");
-    for (int i = 0; i < 8; i++)
+    for (int i = 0; i < 9; i++)
         fprintf(f, "  %s: %s (%s)\n", name[i],
                 i == 6 ? (it[i]->on ? "importance" : "by power") : it[i]->on ? "on" : "off", it[i]->reason);
 }

@@ -95,6 +95,7 @@ typedef struct plan_item {
 typedef struct render_plan {
     plan_item caustics, global, shadow, final_gather, volume, volume_caustics;
     plan_item emission; /* on: importance-driven emission of the global pass (importance.h) */
+    plan_item ports;    /* on: the global pass aims a share of its photons through the scene's ports (ports.h) */
     struct importance *imp; /* emission on: the table for trace_opts.importance (owned) */
     pilot_photons *pilot;   /* the pilots' photons for trace_opts.reuse (owned; NULL when none
                                join a map the plan traces) */

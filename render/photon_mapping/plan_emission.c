@@ -1,12 +1,15 @@
 /* plan_emission.c: the plan's "photon emission" line (plan.h): whether the global pass
  * emits by importance (importance.h: toward what the camera sees) or by power, from the
- * importance table built before the pilot, which the pilot's photons already use. */
+ * importance table built before the pilot, which the pilot's photons already use; and its
+ * "photon ports" line (ports.h). */
 #include <stdio.h>
 #include <stdlib.h>
 
 #include "photon_mapping/plan.h"
 #include "photon_mapping/plan_internal.h"
 #include "photons/importance.h"
+#include "photons/ports.h"
+#include "photonmap/common.h"
 
 /* The importance table of the scene's settings (importance.h), or NULL: none asked for, maps
  * loaded, media, or out of memory (the emission line says which). */
@@ -72,3 +75,14 @@ void plan__emission(const scene *s, const photon_settings *c, render_plan *p, im
     free(tab);
 }
 
+
+/* The ports line (ports.h): whether the global pass aims through the scene's ports, and why. */
+int plan__ports(const scene *s, render_plan *p, char *err, size_t errcap) {
+    int on = ports_plan(s, p->ports.reason, sizeof p->ports.reason);
+    if (on < 0) {
+        snprintf(err, errcap, "plan: photon ports: %s", pm_strerror(on));
+        return on;
+    }
+    p->ports.on = on;
+    return 0;
+}

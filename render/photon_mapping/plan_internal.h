@@ -13,4 +13,7 @@ struct importance *plan__make_importance(const scene *s, const photon_settings *
 /* The emission line from that table: kept in p->imp when used, freed otherwise. */
 void plan__emission(const scene *s, const photon_settings *c, render_plan *p, struct importance *tab);
 
+/* The ports line: p->ports from ports_plan; PM_ENOMEM with a message (plan_emission.c). */
+int plan__ports(const scene *s, render_plan *p, char *err, size_t errcap);
+
 #endif /* RENDER_PLAN_INTERNAL_H */
