@@ -97,7 +97,7 @@ TEST(render_media_closed_check_any_box) {
             if (skip < 0) {
                 EXPECT_MSG(rc == 0, "box %zu: %s", i, e.msg);
             } else {
-                EXPECT_MSG(rc != 0 && strstr(e.msg, "the mesh is open"), "box %zu without face %d: rc %d, '%s'",
+                EXPECT_MSG(rc != 0 && strstr(e.msg, "the boundary is open"), "box %zu without face %d: rc %d, '%s'",
                            i, skip, rc, e.msg);
             }
             if (rc == 0) scene_free(&s);
@@ -168,11 +168,11 @@ TEST(render_media_scene_format) {
          "$.objects[1].interior_medium: unknown medium \"smog\""},
         {"\"fog\": {}", "", "\"x\": {\"type\": \"lambert\", \"reflectance\": 0}",
          "{\"type\": \"quad\", \"vertices\": [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], \"material\": \"white\", \"interior_medium\": \"fog\"}",
-         "$.objects[1].interior_medium: a quad is open"},
+         "$.media.fog: the surfaces around the medium \"fog\" do not close it: the edge (0, 0, 0)-(1, 0, 0) of $.objects[1] belongs to one face only"},
         {"\"fog\": {}", "", "\"x\": {\"type\": \"lambert\", \"reflectance\": 0}", o1,
-         "$.objects[1].interior_medium: a medium needs a closed surface, consistently wound (an edge belongs to one face only"},
+         "$.media.fog: the surfaces around the medium \"fog\" do not close it: the edge (-1, 1, -1)-(1, 1, -1) of $.objects[1] belongs to one face only"},
         {"\"fog\": {}", "", "\"x\": {\"type\": \"lambert\", \"reflectance\": 0}", o2,
-         "$.objects[1].interior_medium: the surface's normals point inward"},
+         "$.media.fog: the surfaces around the medium \"fog\" enclose a volume of -8: their sides are swapped"},
         {"\"fog\": {}", "", "\"x\": {\"type\": \"null\", \"emission\": 1}", sph,
          "$.materials.x.emission: a null (invisible) surface cannot emit"},
     };

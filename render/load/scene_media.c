@@ -180,9 +180,9 @@ static int closure_fail(const scene *s, int m, const edge_rec *e, int kind, doub
     json_path_key(P, sizeof P, "$.media", s->media[m].name);
     if (kind == 0)
         return json_fail(err, PM_EINVAL, "%s: the surfaces around the medium \"%s\" enclose a volume of %g: their "
-                         "sides are swapped (the medium is on the front side of surfaces that bound it from outside; "
-                         "give it as interior_medium of surfaces whose normals point out of it)", P,
-                         s->media[m].name, vol);
+                         "sides are swapped, or the medium is unbounded (it is interior_medium of surfaces whose "
+                         "normals point out of it; a medium around everything is the global \"medium\", the "
+                         "camera's in a Tungsten scene)", P, s->media[m].name, vol);
     return json_fail(err, PM_EINVAL, "%s: the surfaces around the medium \"%s\" do not close it: the edge (%g, %g, "
                      "%g)-(%g, %g, %g) of $.objects[%d] %s (a medium needs a closed boundary: every edge shared by "
                      "two of the faces that have it on one side, or by a surface that names no medium)", P,
