@@ -805,7 +805,7 @@ TEST(tungsten_unsupported_is_an_error_naming_path) {
          "$.media[0].sigma_s: textures are not supported"},
         {"{\"type\": \"quad\", \"bsdf\": \"w\"}", ", \"media\": [{\"name\": \"f\", \"type\": \"homogeneous\", \"max_bounces\": 3}]",
          "$.media[0].max_bounces: 3, below the integrator's max_bounces (64)"},
-        {"{\"type\": \"sphere\", \"bsdf\": \"w\", \"ext_medium\": \"f\"}", ", \"media\": [{\"name\": \"f\", \"type\": \"homogeneous\"}]",
+        {"{\"type\": \"sphere\", \"bsdf\": {\"type\": \"dielectric\"}, \"ext_medium\": \"f\"}", ", \"media\": [{\"name\": \"f\", \"type\": \"homogeneous\"}]",
          "$.media.f: the surfaces around the medium \"f\" enclose a volume of -4.18879: their sides are swapped, or the medium is unbounded"}, /* f outside a sphere: unbounded, not the camera's */
         {"{\"type\": \"quad\", \"bsdf\": {\"type\": \"dielectric\"}, \"int_medium\": \"f\"}",
          ", \"media\": [{\"name\": \"f\", \"type\": \"homogeneous\"}]",

@@ -145,8 +145,9 @@ static int push_face(closure *c, const scene *s, int t, int flip) {
     return 0;
 }
 
-/* Close the open edges of c with keep surfaces (MEDIUM_IFACE_KEEP: walls that name no medium)
- * that share them, each turned to continue the boundary's winding, until none is added. */
+/* Close the open edges of c with opaque surfaces and those that keep the medium
+ * (MEDIUM_IFACE_KEEP: walls that name no medium) that share them, each turned to continue
+ * the boundary's winding, until none is added. */
 static int close_with_keep(closure *c, const scene *s) {
     for (int added = 1; added;) {
         added = 0;
@@ -185,28 +186,34 @@ static int closure_fail(const scene *s, int m, const edge_rec *e, int kind, doub
                          "camera's in a Tungsten scene)", P, s->media[m].name, vol);
     return json_fail(err, PM_EINVAL, "%s: the surfaces around the medium \"%s\" do not close it: the edge (%g, %g, "
                      "%g)-(%g, %g, %g) of $.objects[%d] %s (a medium needs a closed boundary: every edge shared by "
-                     "two of the faces that have it on one side, or by a surface that names no medium)", P,
+                     "two of the faces that have it on one side, or by an opaque surface)", P,
                      s->media[m].name, e->c[0], e->c[1], e->c[2], e->c[3], e->c[4], e->c[5], s->tri_obj[e->tri],
                      kind == 1 ? "is shared by two faces that wind the same way around it"
                                : "belongs to one face only: the boundary is open");
 }
 
-/* Medium m's boundary: every face with m on one side (oriented out of m) plus the keep
- * surfaces that close it; then each directed edge once and its reverse once, and a positive
- * enclosed volume. Spheres are closed and only add their volume. */
+/* Can light cross this material (so a medium can leak through a gap next to it)? */
+static int crossable(const scene *s, int mat) {
+    return s->mats[mat].kind == MAT_NULL || s->mats[mat].transparency > 0;
+}
+
+/* Medium m's boundary: every surface light can cross with m on one side (oriented out of m),
+ * plus the opaque surfaces and those that keep the medium that close it (a ray cannot leave
+ * through an opaque wall, whatever media it names); then each directed edge once and its
+ * reverse once, and a positive enclosed volume. Spheres are closed and only add their volume. */
 static int check_medium_closed(const scene *s, int m, closure *c, json_err *err) {
     int any = 0;
     c->n = 0, c->vol = 0;
     memset(c->used, 0, (size_t)(s->ntris > 0 ? s->ntris : 1));
     for (int t = 0; t < s->ntris; t++) {
         int o = s->tri_obj[t], in = scene_object_side_medium(s, o, 0), out = scene_object_side_medium(s, o, 1);
-        if (in == -2 || (in == m) == (out == m)) continue;
+        if (in == -2 || (in == m) == (out == m) || !crossable(s, s->tris[t].mat)) continue;
         if (push_face(c, s, t, out == m) < 0) return json_fail(err, PM_ENOMEM, "out of memory");
         any = 1;
     }
     for (int k = 0; k < s->nspheres; k++) {
         int o = s->sphere_obj[k], in = scene_object_side_medium(s, o, 0), out = scene_object_side_medium(s, o, 1);
-        if (in == -2 || (in == m) == (out == m)) continue;
+        if (in == -2 || (in == m) == (out == m) || !crossable(s, s->spheres[k].mat)) continue;
         double r = s->spheres[k].r, v = 4 * M_PI / 3 * r * r * r;
         c->vol += in == m ? v : -v;
         any = 1;
@@ -224,14 +231,14 @@ static int check_medium_closed(const scene *s, int m, closure *c, json_err *err)
 }
 
 /* Every medium but the global one (it is the unbounded space between objects) must be closed
- * by the surfaces around it together (medium.h). */
+ * by the surfaces around it together (medium.h): those light crosses, closed by opaque walls. */
 int sl_check_media_closed(scene *s, json_err *e) {
     if (s->nmedia == 0) return 0;
     closure c = {0};
     c.used = malloc((size_t)(s->ntris > 0 ? s->ntris : 1));
     int rc = c.used ? 0 : json_fail(e, PM_ENOMEM, "out of memory");
     for (int t = 0; t < s->ntris && rc == 0; t++) {
-        if (scene_object_side_medium(s, s->tri_obj[t], 0) != -2) continue;
+        if (scene_object_side_medium(s, s->tri_obj[t], 0) != -2 && crossable(s, s->tris[t].mat)) continue;
         edge_rec *n = realloc(c.ke, (size_t)(c.nk + 3) * sizeof *n);
         if (!n) {
             rc = json_fail(e, PM_ENOMEM, "out of memory");

@@ -359,13 +359,17 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
     /* Media (tungsten.h): a primitive that names int_medium or ext_medium is an interface
      * (the one it does not name: no medium); one that names neither keeps the ray's medium. */
     const cJSON *im = json_get(p, "int_medium"), *xm = json_get(p, "ext_medium");
-    int imed, xmed, declared = im || xm;
+    int imed, xmed, passes = invisible || (strcmp(b.type, "dielectric") == 0 && b.refract);
+    int declared = (im || xm) && passes;
     char mp[P_MAX];
     json_path_key(mp, sizeof mp, P, "int_medium");
     TRY(tg_medium_ref(c, im, mp, &imed, e));
     json_path_key(mp, sizeof mp, P, "ext_medium");
     TRY(tg_medium_ref(c, xm, mp, &xmed, e));
-    if (invisible && emits && declared)
+    /* Tungsten uses the media of a surface light cannot cross only for what it emits: an
+     * emitter's ext_medium is all around it; otherwise such a surface keeps the ray's. */
+    if (!passes && emits && xmed >= 0) imed = xmed, declared = 1;
+    if (invisible && emits && (im || xm))
         return json_fail(e, PM_EINVAL, "%s.emission: an emitting \"%s\" medium boundary is not supported", P, b.type);
     if (invisible && !emits && !declared) return 0; /* changes nothing: dropped (tungsten.h) */
     if (invisible && !emits) {
@@ -426,7 +430,7 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
     if (pname) cJSON_AddStringToObject(obj, "name", pname);
     if (declared) {
         cJSON_AddItemToObject(obj, "interior_medium", imed >= 0 ? cJSON_CreateString(c->mnames[imed]) : cJSON_CreateNull());
-        cJSON_AddItemToObject(obj, "exterior_medium", xmed >= 0 ? cJSON_CreateString(c->mnames[xmed]) : cJSON_CreateNull());
+        if (xmed >= 0) cJSON_AddStringToObject(obj, "exterior_medium", c->mnames[xmed]); /* else the camera's */
     }
     cJSON_AddItemToArray(c->objs, obj);
     return add_material(c, mat, &b, emits ? Le : v3s(0), e);
