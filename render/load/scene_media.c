@@ -186,7 +186,8 @@ static int closure_fail(const scene *s, int m, const edge_rec *e, int kind, doub
                          "camera's in a Tungsten scene)", P, s->media[m].name, vol);
     return json_fail(err, PM_EINVAL, "%s: the surfaces around the medium \"%s\" do not close it: the edge (%g, %g, "
                      "%g)-(%g, %g, %g) of $.objects[%d] %s (a medium needs a closed boundary: every edge shared by "
-                     "two of the faces that have it on one side, or by an opaque surface)", P,
+                     "two of the faces that have it on one side, or by an opaque surface; an opaque object inside the "
+                     "medium has it on both sides, or keeps_medium)", P,
                      s->media[m].name, e->c[0], e->c[1], e->c[2], e->c[3], e->c[4], e->c[5], s->tri_obj[e->tri],
                      kind == 1 ? "is shared by two faces that wind the same way around it"
                                : "belongs to one face only: the boundary is open");
@@ -197,23 +198,24 @@ static int crossable(const scene *s, int mat) {
     return s->mats[mat].kind == MAT_NULL || s->mats[mat].transparency > 0;
 }
 
-/* Medium m's boundary: every surface light can cross with m on one side (oriented out of m),
- * plus the opaque surfaces and those that keep the medium that close it (a ray cannot leave
- * through an opaque wall, whatever media it names); then each directed edge once and its
- * reverse once, and a positive enclosed volume. Spheres are closed and only add their volume. */
+/* Medium m's boundary: every surface with m on one side (oriented out of m), plus the opaque
+ * surfaces and those that keep the medium that close it (a ray cannot leave through an opaque
+ * wall, whatever media it names); then each directed edge once and its reverse once, and a
+ * positive enclosed volume. Spheres are closed and only add their volume. */
 static int check_medium_closed(const scene *s, int m, closure *c, json_err *err) {
     int any = 0;
     c->n = 0, c->vol = 0;
     memset(c->used, 0, (size_t)(s->ntris > 0 ? s->ntris : 1));
     for (int t = 0; t < s->ntris; t++) {
         int o = s->tri_obj[t], in = scene_object_side_medium(s, o, 0), out = scene_object_side_medium(s, o, 1);
-        if (in == -2 || (in == m) == (out == m) || !crossable(s, s->tris[t].mat)) continue;
+        if (in == -2 || (in == m) == (out == m)) continue;
         if (push_face(c, s, t, out == m) < 0) return json_fail(err, PM_ENOMEM, "out of memory");
+        c->used[t] = 1;
         any = 1;
     }
     for (int k = 0; k < s->nspheres; k++) {
         int o = s->sphere_obj[k], in = scene_object_side_medium(s, o, 0), out = scene_object_side_medium(s, o, 1);
-        if (in == -2 || (in == m) == (out == m) || !crossable(s, s->spheres[k].mat)) continue;
+        if (in == -2 || (in == m) == (out == m)) continue;
         double r = s->spheres[k].r, v = 4 * M_PI / 3 * r * r * r;
         c->vol += in == m ? v : -v;
         any = 1;
@@ -231,7 +233,7 @@ static int check_medium_closed(const scene *s, int m, closure *c, json_err *err)
 }
 
 /* Every medium but the global one (it is the unbounded space between objects) must be closed
- * by the surfaces around it together (medium.h): those light crosses, closed by opaque walls. */
+ * by the surfaces around it together (medium.h), opaque walls included. */
 int sl_check_media_closed(scene *s, json_err *e) {
     if (s->nmedia == 0) return 0;
     closure c = {0};
