@@ -204,22 +204,21 @@ static rgb caustics_at(const mapper_state *st, const scene *s, const material *m
 /* Follow a ray through specular surfaces to the first diffuse hit. Returns the number of
  * specular bounces + 1 with the hit, the throughput and the direction of the last segment
  * (*din, pointing into the hit), or 0 if it escapes, is absorbed or runs out of bounces.
- * With media (st->vol.on; med: the medium the ray starts in) null surfaces are passed, each
- * segment's transmittance multiplies the throughput and its in-scattered light (pmv_gather,
- * times the throughput) is added to *Lvol. */
+ * With media (st->vol.on; *medp: the medium at the start, then at the hit) null surfaces are
+ * passed (scene_medium_next), each segment's transmittance multiplies the throughput and its
+ * in-scattered light (pmv_gather, times the throughput) is added to *Lvol. */
 static int to_diffuse(const mapper_state *st, const scene *s, ray r, int *medp, rng *g, hit *h, rgb *beta,
                       vec3 *din, rgb *Lvol, void *vscratch) {
-    int med = *medp;
     *beta = v3s(1);
     *din = r.d;
     for (int b = 0, crossings = 0; b < 8; b++) {
         int got = scene_intersect(s, r, INFINITY, h);
         if (st->vol.on) {
-            rgb tr, Lm = pmv_gather(&st->vol, s, r, got ? h->t : INFINITY, med, g, vscratch, &tr);
+            rgb tr, Lm = pmv_gather(&st->vol, s, r, got ? h->t : INFINITY, *medp, g, vscratch, &tr);
             *Lvol = v3_add(*Lvol, v3_mul(*beta, Lm));
             *beta = v3_mul(*beta, tr);
             if (got && scene_material(s, h)->kind == MAT_NULL && crossings++ < 1024) {
-                med = scene_medium_next(s, h, r.d, r.d, med);
+                *medp = scene_medium_next(s, h, r.d, r.d, *medp);
                 r.o = scene_offset(s, h->p, h->ng, r.d);
                 b--;
                 continue;
@@ -229,7 +228,6 @@ static int to_diffuse(const mapper_state *st, const scene *s, ray r, int *medp, 
         const material *m = scene_material(s, h);
         vec3 wo = v3_neg(r.d);
         *din = r.d;
-        *medp = med;
         if (has_diffuse(s, m, wo, h->ng)) return b + 1;
         double w[LOBE_COUNT];
         material_weights(m, wo, h->ng, s->medium_ior, w);
@@ -248,7 +246,7 @@ static int to_diffuse(const mapper_state *st, const scene *s, ray r, int *medp, 
             *beta = v3_scale(v3_mul(*beta, m->transmit_tint), ws);
         }
         if (v3_iszero(*beta)) return 0;
-        if (st->vol.on) med = scene_medium_next(s, h, r.d, d, med);
+        if (st->vol.on) *medp = scene_medium_next(s, h, r.d, d, *medp);
         r.o = scene_offset(s, h->p, h->ng, d);
         r.d = d;
         stat_inc(STAT_INDIRECT_RAYS);
@@ -298,8 +296,7 @@ static int gg_read(void *user, const scene *s, const guide_point *pt, vec3 d, rn
     hit y;
     rgb beta, Lvol = v3s(0);
     vec3 din;
-    int ymed = -1;
-    if (!to_diffuse(st, s, r, &ymed, g, &y, &beta, &din, &Lvol, NULL)) return 0;
+    if (!to_diffuse(st, s, r, &(int){-1}, g, &y, &beta, &din, &Lvol, NULL)) return 0;
     int found;
     vec3 ny = v3_dot(din, y.ng) <= 0 ? y.ng : v3_neg(y.ng);
     rgb Lo = lookup_radiance_ex(st, s, &y, v3_neg(din), &found, 0);
