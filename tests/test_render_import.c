@@ -1424,8 +1424,8 @@ TEST(degenerate_faces_skipped_with_one_warning) {
 
 /* Oracle: a Tungsten cube primitive bounding the same gas (the converter's closed 12-triangle
  * mesh). Six null quads with int_medium "gas" on the faces of a box (fronts outward: the medium
- * is behind them) are merged into one closed mesh with that interior medium (issue 29, item 1,
- * the converter's part), and render the cube's image, with the camera outside the box and
+ * is behind them) are six interfaces with that interior medium, closed together (issue 29,
+ * item 1: the loader's scene-wide closedness check), and render the cube's image, with the camera outside the box and
  * inside it (the camera's medium found from the geometry), path and pm, same seed: relative
  * rmse below 1e-6 (measured 0). The gas matters (without it the image mean moves by more than
  * 3%), and five quads (an open box) are refused by the closedness check, exit 2. */
