@@ -149,7 +149,7 @@ static int push_face(closure *c, const scene *s, int t, int flip) {
  * (MEDIUM_IFACE_KEEP: walls that name no medium) that share them, each turned to continue
  * the boundary's winding, until none is added. */
 static int close_with_keep(closure *c, const scene *s) {
-    for (int added = 1; added;) {
+    for (int added = c->n > 0; added;) { /* only spheres: no edges */
         added = 0;
         qsort(c->ed, (size_t)c->n, sizeof *c->ed, edge_cmp);
         for (int i = 0, n = c->n; i < n; i++) {
