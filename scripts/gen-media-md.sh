@@ -77,6 +77,22 @@ measurement. Correctness comes first and is tested elsewhere: photon mapping's r
 against long path-traced references (\`tests/test_render_media_proof.c\`, \`docs/RESULTS.md\`), and
 the volumetric caustic's deposited power against a brute-force integral (the same test file).
 
+## Where media are: interfaces
+
+Text only, no measured figures. A medium is bounded by interfaces (\`render/scene/medium.h\`,
+format in \`data/scenes/README.md\`): each surface may name the medium behind it
+(\`interior_medium\`) and in front of it (\`exterior_medium\`), or keep the ray's medium
+(\`keeps_medium\`, what Tungsten and pbrt surfaces naming no medium become). Every ray carries
+its medium, the camera's first, and changes it only where it leaves a surface by the other side.
+The path tracer, the volume photon tracer, photon mapping's eye rays, gathers and shadow rays
+all follow one rule (\`scene_medium_next\`, or \`scene_medium_side\` without the check below),
+so they agree on where each medium is.
+A ray that reaches a surface from a side that names another medium than its own is reported
+once per run, with the point and the object, and goes on by the surface's media. The loader
+checks that the surfaces around each medium close it together (opaque walls included), so a
+gas-filled room of five walls and a null quad renders as the same gas in a closed cube
+(\`tests/test_render_interfaces.c\`).
+
 ## cornell_fog: the whole image
 
 $(stamp cornell_fog)

@@ -197,7 +197,7 @@ static void direct_at(const scene *s, const guide *gd, double x, double z, long 
     if (!scene_intersect(s, r, INFINITY, &h)) return;
     const material *m = scene_material(s, &h);
     vec3 wo = v3(0, 1, 0), n0 = v3(0, 1, 0);
-    direct_options o = {DIRECT_BSDF_FULL, 0, NULL, NULL};
+    direct_options o = {DIRECT_BSDF_FULL, 0, NULL, NULL, -1};
     rng g = rng_stream(99, 1, 2);
     double s1 = 0, s2 = 0;
     for (long k = 0; k < n; k++) {

@@ -749,7 +749,11 @@ TEST(tungsten_media_conversion_values) {
     EXPECT_EQ_INT(s.obj_medium[0], -1);
     EXPECT_EQ_INT(s.obj_medium[1], smoke);
     EXPECT_EQ_INT(s.obj_medium[2], iso);
-    EXPECT_EQ_INT(s.obj_medium[3], fog);
+    EXPECT_EQ_INT(s.obj_medium[3], -1); /* names no medium: keeps the ray's (fog) inside */
+    ASSERT(s.obj_iface != NULL);
+    EXPECT_EQ_INT(s.obj_iface[3], MEDIUM_IFACE_KEEP);
+    EXPECT_EQ_INT(s.obj_iface[1], MEDIUM_IFACE_DECLARED);
+    EXPECT_EQ_INT(s.obj_medium_out[1], fog);
     EXPECT_EQ_INT(s.obj_medium[4], -1);
     EXPECT_EQ_INT(s.obj_medium[5], inl);
     EXPECT_EQ_INT(s.has_null, 1);
@@ -801,11 +805,11 @@ TEST(tungsten_unsupported_is_an_error_naming_path) {
          "$.media[0].sigma_s: textures are not supported"},
         {"{\"type\": \"quad\", \"bsdf\": \"w\"}", ", \"media\": [{\"name\": \"f\", \"type\": \"homogeneous\", \"max_bounces\": 3}]",
          "$.media[0].max_bounces: 3, below the integrator's max_bounces (64)"},
-        {"{\"type\": \"sphere\", \"bsdf\": \"w\", \"ext_medium\": \"f\"}", ", \"media\": [{\"name\": \"f\", \"type\": \"homogeneous\"}]",
-         "$.primitives[0].ext_medium: the medium outside the primitive (\"f\") must be the camera's (none)"},
+        {"{\"type\": \"sphere\", \"bsdf\": {\"type\": \"dielectric\"}, \"ext_medium\": \"f\"}", ", \"media\": [{\"name\": \"f\", \"type\": \"homogeneous\"}]",
+         "$.media.f: the surfaces around the medium \"f\" enclose a volume of -4.18879: their sides are swapped, or the medium is unbounded"}, /* f outside a sphere: unbounded, not the camera's */
         {"{\"type\": \"quad\", \"bsdf\": {\"type\": \"dielectric\"}, \"int_medium\": \"f\"}",
          ", \"media\": [{\"name\": \"f\", \"type\": \"homogeneous\"}]",
-         "$.objects[0].interior_medium: a medium needs a closed surface"}, /* one quad cannot close a volume */
+         "$.media.f: the surfaces around the medium \"f\" do not close it: the edge"}, /* one quad cannot close a volume */
         {"{\"type\": \"sphere\", \"bsdf\": {\"type\": \"forward\"}, \"int_medium\": \"f\", \"emission\": 1}",
          ", \"media\": [{\"name\": \"f\", \"type\": \"homogeneous\"}]",
          "$.primitives[0].emission: an emitting \"forward\" medium boundary is not supported"},
@@ -1420,8 +1424,8 @@ TEST(degenerate_faces_skipped_with_one_warning) {
 
 /* Oracle: a Tungsten cube primitive bounding the same gas (the converter's closed 12-triangle
  * mesh). Six null quads with int_medium "gas" on the faces of a box (fronts outward: the medium
- * is behind them) are merged into one closed mesh with that interior medium (issue 29, item 1,
- * the converter's part), and render the cube's image, with the camera outside the box and
+ * is behind them) are six interfaces with that interior medium, closed together (issue 29,
+ * item 1: the loader's scene-wide closedness check), and render the cube's image, with the camera outside the box and
  * inside it (the camera's medium found from the geometry), path and pm, same seed: relative
  * rmse below 1e-6 (measured 0). The gas matters (without it the image mean moves by more than
  * 3%), and five quads (an open box) are refused by the closedness check, exit 2. */
@@ -1458,7 +1462,7 @@ TEST(tungsten_quads_bound_a_medium) {
         }
         snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' v2.json --quiet --hdr o.pfm 2>&1", dir, pm_test_build_dir());
         int rc = pm_test_run(cmd, out, sizeof out);
-        EXPECT_MSG(rc == 2 && strstr(out, "interior_medium: a medium needs a closed surface"), "open box: exit %d: %s", rc, out);
+        EXPECT_MSG(rc == 2 && strstr(out, "$.media.gas: the surfaces around the medium \"gas\" do not close it"), "open box: exit %d: %s", rc, out);
         for (int m = 0; m < 2; m++) {
             snprintf(cmd, sizeof cmd,
                      "cd '%s' && R='%s/render' && O='--quiet --threads 2 --seed 3 --mode %s' && $R v0.json $O --hdr q.pfm >/dev/null 2>&1 && "

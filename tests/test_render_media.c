@@ -97,7 +97,7 @@ TEST(render_media_closed_check_any_box) {
             if (skip < 0) {
                 EXPECT_MSG(rc == 0, "box %zu: %s", i, e.msg);
             } else {
-                EXPECT_MSG(rc != 0 && strstr(e.msg, "the mesh is open"), "box %zu without face %d: rc %d, '%s'",
+                EXPECT_MSG(rc != 0 && strstr(e.msg, "the boundary is open"), "box %zu without face %d: rc %d, '%s'",
                            i, skip, rc, e.msg);
             }
             if (rc == 0) scene_free(&s);
@@ -143,8 +143,8 @@ TEST(render_media_scene_format) {
     box_mesh(open_box, sizeof open_box, v3(-1, -1, -1), v3(1, 1, 1), 3, 0);
     box_mesh(inward_box, sizeof inward_box, v3(-1, -1, -1), v3(1, 1, 1), -1, 1);
     char o1[4096], o2[4096];
-    snprintf(o1, sizeof o1, "{\"type\": \"mesh\", %s, \"material\": \"white\", \"interior_medium\": \"fog\"}", open_box);
-    snprintf(o2, sizeof o2, "{\"type\": \"mesh\", %s, \"material\": \"white\", \"interior_medium\": \"fog\"}", inward_box);
+    snprintf(o1, sizeof o1, "{\"type\": \"mesh\", %s, \"material\": \"x\", \"interior_medium\": \"fog\"}", open_box);
+    snprintf(o2, sizeof o2, "{\"type\": \"mesh\", %s, \"material\": \"x\", \"interior_medium\": \"fog\"}", inward_box);
     const char *sph = "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"white\"}";
     struct {
         const char *media, *top, *mats, *objs, *want;
@@ -166,13 +166,13 @@ TEST(render_media_scene_format) {
         {"\"fog\": {}", "", "\"x\": {\"type\": \"lambert\", \"reflectance\": 0}",
          "{\"type\": \"sphere\", \"center\": [0, 0, 0], \"radius\": 1, \"material\": \"white\", \"interior_medium\": \"smog\"}",
          "$.objects[1].interior_medium: unknown medium \"smog\""},
-        {"\"fog\": {}", "", "\"x\": {\"type\": \"lambert\", \"reflectance\": 0}",
-         "{\"type\": \"quad\", \"vertices\": [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], \"material\": \"white\", \"interior_medium\": \"fog\"}",
-         "$.objects[1].interior_medium: a quad is open"},
-        {"\"fog\": {}", "", "\"x\": {\"type\": \"lambert\", \"reflectance\": 0}", o1,
-         "$.objects[1].interior_medium: a medium needs a closed surface, consistently wound (an edge belongs to one face only"},
-        {"\"fog\": {}", "", "\"x\": {\"type\": \"lambert\", \"reflectance\": 0}", o2,
-         "$.objects[1].interior_medium: the surface's normals point inward"},
+        {"\"fog\": {}", "", "\"x\": {\"type\": \"null\"}",
+         "{\"type\": \"quad\", \"vertices\": [[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], \"material\": \"x\", \"interior_medium\": \"fog\"}",
+         "$.media.fog: the surfaces around the medium \"fog\" do not close it: the edge (0, 0, 0)-(1, 0, 0) of $.objects[1] belongs to one face only"},
+        {"\"fog\": {}", "", "\"x\": {\"type\": \"null\"}", o1,
+         "$.media.fog: the surfaces around the medium \"fog\" do not close it: the edge (-1, 1, -1)-(1, 1, -1) of $.objects[1] belongs to one face only"},
+        {"\"fog\": {}", "", "\"x\": {\"type\": \"null\"}", o2,
+         "$.media.fog: the surfaces around the medium \"fog\" enclose a volume of -8: their sides are swapped"},
         {"\"fog\": {}", "", "\"x\": {\"type\": \"null\", \"emission\": 1}", sph,
          "$.materials.x.emission: a null (invisible) surface cannot emit"},
     };

@@ -146,7 +146,7 @@ rgb direct_light_surface_guided(const scene *s, const material *m, const hit *h,
                                         : material_diffuse_f(m, nsh, wo, ls.wi);
     if (v3_iszero(f)) return v3s(0);
     if (o->media) {
-        rgb tr = shadow_tr(s, li, h->p, h->ng, &ls, scene_medium_after(s, h, ls.wi));
+        rgb tr = shadow_tr(s, li, h->p, h->ng, &ls, scene_medium_side(s, h, ls.wi, o->med));
         return v3_scale(v3_mul(v3_mul(f, ls.L), tr), cos_s / pl);
     }
     /* The hint answers for the point, not for this sample: where the guide aims the samples at

@@ -61,6 +61,8 @@ typedef struct direct_options {
     int media;                /* 1: shadow segments carry the media's transmittance */
     direct_shadow_hint hint;  /* NULL: always trace (ignored when media = 1) */
     void *hint_user;
+    int med;                  /* with media: the medium the path is in at the surface (a surface
+                               * that keeps the ray's medium, medium.h, needs it) */
 } direct_options;
 
 /* Direct light leaving the surface at h toward wo (material m, n the geometric normal on wo's

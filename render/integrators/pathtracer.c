@@ -21,8 +21,8 @@
  *
  * Participating media (medium.h), only in scenes that have a medium or a null surface (the
  * others run the loop above unchanged, bit for bit): the path knows the medium it is in (the
- * camera's, then the side of each surface it leaves by). In a medium, free-flight sampling
- * draws a distance (channel, distance: 2 numbers); a scattering event before the next surface
+ * camera's, then as each surface's interface says: scene_medium_next, medium.h). In a
+ * medium, free-flight sampling draws a distance (channel, distance: 2 numbers); a scattering event before the next surface
  * counts as a bounce: next-event estimation with the HG phase function and the transmittance
  * of the shadow segment, then an HG direction (2 numbers), then roulette. The single scattering
  * of every segment in a medium (while the depth allows a bounce) has a second strategy: one
@@ -90,7 +90,7 @@ static int surface_event(const pt_state *st, const scene *s, const hit *h, ray *
     int alive = material_sample_ns(m, wo, h->ng, h->ns, s->medium_ior, ul, u1, u2, &bs);
     if (bs.lobe == LOBE_DIFFUSE) {
         vec3 n = v3_dot(wo, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
-        direct_options o = {DIRECT_BSDF_DIFFUSE_LOBE, med != NO_MEDIA, NULL, NULL};
+        direct_options o = {DIRECT_BSDF_DIFFUSE_LOBE, med != NO_MEDIA, NULL, NULL, med};
         pp->L = v3_add(pp->L, v3_mul(pp->beta, direct_light_surface(s, m, h, n, wo, g, &o)));
         pp->count_emission = 0;
     } else {
@@ -154,13 +154,14 @@ static rgb pt_li_media(const pt_state *st, const scene *s, ray r, rng *g) {
         if (!got) break;
         if (scene_material(s, &h)->kind == MAT_NULL) { /* invisible: only the medium changes */
             if (++crossings > 4 * st->max_depth + 1024) break;
-            med = scene_medium_after(s, &h, r.d);
+            med = scene_medium_next(s, &h, r.d, r.d, med);
             r.o = scene_offset(s, h.p, h.ng, r.d);
             depth--; /* not a bounce */
             continue;
         }
+        vec3 din = r.d;
         if (!surface_event(st, s, &h, &r, depth, med, &pp, g)) break;
-        med = scene_medium_after(s, &h, r.d);
+        med = scene_medium_next(s, &h, din, r.d, med);
     }
     return pp.L;
 }

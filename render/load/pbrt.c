@@ -177,6 +177,9 @@ static int convert(const char *text, const char *path, cJSON **out, json_err *e)
         cJSON_AddNumberToObject(cam, "spp", (double)c->spp);
         cJSON_AddItemToObject(doc, "camera", cam);
         cJSON_AddItemToObject(doc, "materials", c->mats);
+        /* with media, a shape without a MediumInterface transition keeps the ray's medium */
+        for (cJSON *o = c->media && c->media->child ? c->objs->child : NULL; o; o = o->next)
+            if (!cJSON_GetObjectItemCaseSensitive(o, "interior_medium")) cJSON_AddBoolToObject(o, "keeps_medium", 1);
         cJSON_AddItemToObject(doc, "objects", c->objs);
         cJSON_AddItemToObject(doc, "lights", c->lights);
         if (c->media) cJSON_AddItemToObject(doc, "media", c->media);

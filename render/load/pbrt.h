@@ -21,11 +21,12 @@
  *   - Include (and pbrt-v4's Import) relative to the including file, WorldBegin/End,
  *     ObjectBegin/End/ObjectInstance (an instance is a copy of the object's shapes under the
  *     instance's transform).
- *   - MakeNamedMedium "homogeneous" (sigma_a, sigma_s, scale, g) and MediumInterface, as far as
- *     our media go (one level): the outside medium at Camera is our global "medium"; a shape
- *     that light passes through (material "interface" or glass) with an inside medium gets it as
- *     its interior_medium (our loader wants it closed: a sphere or a closed mesh); an outside
- *     medium other than the camera's is warned about (ours is one medium around all objects).
+ *   - MakeNamedMedium "homogeneous" (sigma_a, sigma_s, scale, g) and MediumInterface as
+ *     interfaces (scene/medium.h): the outside medium at Camera is our global "medium"; a shape
+ *     whose interface has two different media gets them as interior_medium (inside) and
+ *     exterior_medium (outside), whatever its material, as pbrt-v3 does; with media in the
+ *     scene, a shape without such an interface keeps the ray's medium ("keeps_medium"). Our
+ *     loader checks that the surfaces around each medium close it together.
  * Anything else is warned about with its file and line and skipped: unknown directives (with
  * their parameters), unknown parameters, textures (the material's default value is used),
  * other shapes and materials (matte grey 0.5).

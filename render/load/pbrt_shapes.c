@@ -296,14 +296,11 @@ int pb_do_shape(conv *c, const tok *at, const char *s, plist *pl, const char *wh
     const cJSON *cur = rc == 0 ? cJSON_GetObjectItemCaseSensitive(c->mats, c->g.mat) : NULL;
     const cJSON *ct = cur ? cJSON_GetObjectItemCaseSensitive(cur, "type") : NULL;
     int is_null = cJSON_IsString(ct) && strcmp(ct->valuestring, "null") == 0;
-    /* media (pbrt.h): the inside of a shape is its interior_medium; its outside must be the
-     * camera's medium, ours between all objects */
-    int new_inside = strcmp(c->g.inside, c->cam_medium) != 0;
-    if (rc == 0 && (c->g.inside[0] || c->g.outside[0]) && strcmp(c->g.outside, c->cam_medium) != 0)
-        pb_warn(c, at, "%s: the medium outside it (\"%s\") is not the camera's (\"%s\"): one medium surrounds all "
-              "objects here, the camera's", what, c->g.outside, c->cam_medium);
-    if (rc == 0 && is_null && !new_inside) {
-        pb_warn(c, at, "%s with material \"none\" or \"interface\" and no medium of its own inside: skipped", what);
+    /* media (pbrt.h): a shape whose MediumInterface has two different media is an interface
+     * (interior_medium inside, exterior_medium outside); one without keeps the ray's medium */
+    int transition = strcmp(c->g.inside, c->g.outside) != 0;
+    if (rc == 0 && is_null && !transition) {
+        pb_warn(c, at, "%s with material \"none\" or \"interface\" and no MediumInterface of two media: skipped", what);
         for (int k = 0; k < pl->n; k++) pl->p[k].used = 1;
     } else if (rc == 0 && (rc = pb_shape_material(c, mat, sizeof mat)) == 0) {
         int before = cJSON_GetArraySize(c->target);
@@ -315,11 +312,11 @@ int pb_do_shape(conv *c, const tok *at, const char *s, plist *pl, const char *wh
             for (int k = 0; k < pl->n; k++) pl->p[k].used = 1;
         }
         cJSON *made = cJSON_GetArraySize(c->target) > before ? cJSON_GetArrayItem(c->target, before) : NULL;
-        /* only a surface light passes through has an inside that matters (ours: a closed
-         * sphere or mesh); no key is no medium inside */
-        int passes = is_null || (cJSON_IsString(ct) && strcmp(ct->valuestring, "dielectric") == 0);
-        if (rc == 0 && made && passes && c->g.inside[0])
-            cJSON_AddStringToObject(made, "interior_medium", c->g.inside);
+        for (int k = 0; rc == 0 && made && transition && k < 2; k++) {
+            const char *m = k ? c->g.outside : c->g.inside;
+            cJSON_AddItemToObject(made, k ? "exterior_medium" : "interior_medium",
+                                  m[0] ? cJSON_CreateString(m) : cJSON_CreateNull());
+        }
         pparam *al;
         if (rc == 0) rc = pb_get(c, at, pl, "alpha", "float|texture", &al);
         if (rc == 0 && al) pb_warn(c, at, "%s: alpha is not supported: opaque", what);

@@ -390,10 +390,10 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
     for (const cJSON *it = objs->child; it; it = it->next, i++) {
         json_path_index(p, sizeof p, "$.objects", i);
         cp.obj = i;
-        int first_tri = s->ntris;
         TRY(sl_load_object(s, &cp, it, p, e));
-        TRY(sl_load_interior_medium(s, it, p, i, first_tri, e));
+        TRY(sl_load_object_media(s, it, p, i, e));
     }
+    TRY(sl_check_media_closed(s, e));
     TRY(json_array(root, "$", "lights", 0, &lights, e));
     i = 0;
     for (const cJSON *it = lights ? lights->child : NULL; it; it = it->next, i++) {
@@ -413,6 +413,8 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
     TRY(scene_prepare(s, e));
     TRY(check_point_lights(s, lights, e));
     sl_find_camera_medium(s);
+    s->iface_report = calloc(1, sizeof *s->iface_report);
+    if (!s->iface_report) return json_fail(e, PM_ENOMEM, "out of memory");
     return 0;
 }
 

@@ -49,8 +49,10 @@ int sl_load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_err *
 int sl_load_media(scene *s, const cJSON *root, json_err *e);
 /* The index of the medium named by the string at obj.key, in *out. */
 int sl_find_medium(const scene *s, const cJSON *obj, const char *P, const char *key, int *out, json_err *e);
-/* An object's "interior_medium": spheres and closed meshes only. */
-int sl_load_interior_medium(scene *s, const cJSON *o, const char *P, int obj, int first_tri, json_err *e);
+/* An object's "interior_medium", "exterior_medium", "keeps_medium" (medium.h). */
+int sl_load_object_media(scene *s, const cJSON *o, const char *P, int obj, json_err *e);
+/* Every medium but the global one closed by the surfaces around it together (medium.h). */
+int sl_check_media_closed(scene *s, json_err *e);
 /* Which medium the camera is in (the rule of medium.h). */
 void sl_find_camera_medium(scene *s);
 

@@ -75,81 +75,227 @@ static double as_float(double x) {
     return (double)f;
 }
 
-/* Edge order for the closedness check: the 6 coordinates of a directed edge. */
+/* A directed edge of a face of the closedness check: its 6 rounded coordinates and the
+ * triangle it comes from. */
+typedef struct {
+    double c[6];
+    int tri;
+} edge_rec;
+
 static int edge_cmp(const void *a, const void *b) {
-    const double *x = a, *y = b;
+    const double *x = ((const edge_rec *)a)->c, *y = ((const edge_rec *)b)->c;
     for (int k = 0; k < 6; k++)
         if (x[k] != y[k]) return x[k] < y[k] ? -1 : 1;
     return 0;
 }
 
-/* Triangles first..s->ntris-1 bound a medium only if they form a closed, consistently wound
- * surface whose normals point out: each directed edge (by vertex position) appears once and
- * its reverse once, and the enclosed signed volume is positive. A triangle keeps v0 and two
- * edge vectors, so its other corners come back as v0 + e, which can miss the loaded vertex by
- * a rounding of the double: positions are compared rounded to float (vertices closer than
- * float precision count as one, which only makes the check more lenient). */
-static int check_closed(const scene *s, int first, const char *P, json_err *e) {
-    int nt = s->ntris - first;
-    if (nt < 4)
-        return json_fail(e, PM_EINVAL, "%s.interior_medium: a medium needs a closed surface "
-                         "(this one has %d triangles)", P, nt);
-    double(*ed)[6] = malloc((size_t)nt * 3 * sizeof *ed);
-    if (!ed) return json_fail(e, PM_ENOMEM, "out of memory");
-    double vol = 0;
-    for (int t = 0; t < nt; t++) {
-        const triangle *tr = &s->tris[first + t];
-        vec3 v[3] = {tr->v0, v3_add(tr->v0, tr->e1), v3_add(tr->v0, tr->e2)};
-        vol += v3_dot(v[0], v3_cross(v[1], v[2])) / 6;
-        for (int k = 0; k < 3; k++) {
-            vec3 a = v[k], b = v[(k + 1) % 3];
-            double *d = ed[3 * t + k];
-            const double c[6] = {a.x, a.y, a.z, b.x, b.y, b.z};
-            for (int j = 0; j < 6; j++) d[j] = as_float(c[j]);
+/* Triangle t's corners (flip: reversed) rounded, as 3 directed edges into ed[0..2]. */
+static void tri_edges(const scene *s, int t, int flip, edge_rec *ed) {
+    const triangle *tr = &s->tris[t];
+    vec3 v[3] = {tr->v0, v3_add(tr->v0, tr->e1), v3_add(tr->v0, tr->e2)};
+    if (flip) {
+        vec3 w = v[1];
+        v[1] = v[2];
+        v[2] = w;
+    }
+    for (int k = 0; k < 3; k++) {
+        vec3 a = v[k], b = v[(k + 1) % 3];
+        const double c[6] = {a.x, a.y, a.z, b.x, b.y, b.z};
+        for (int j = 0; j < 6; j++) ed[k].c[j] = as_float(c[j]);
+        ed[k].tri = t;
+    }
+}
+
+static double tri_volume(const scene *s, int t, int flip) {
+    const triangle *tr = &s->tris[t];
+    vec3 a = tr->v0, b = v3_add(tr->v0, tr->e1), c = v3_add(tr->v0, tr->e2);
+    double v = v3_dot(a, v3_cross(b, c)) / 6;
+    return flip ? -v : v;
+}
+
+static void reverse_edge(const edge_rec *e, edge_rec *r) {
+    for (int j = 0; j < 3; j++) r->c[j] = e->c[j + 3], r->c[j + 3] = e->c[j];
+    r->tri = e->tri;
+}
+
+/* An undirected key: the smaller end first. */
+static void undirected(const edge_rec *e, edge_rec *u) {
+    edge_rec r;
+    reverse_edge(e, &r);
+    *u = edge_cmp(e, &r) <= 0 ? *e : r;
+}
+
+typedef struct {
+    edge_rec *ed, *ke; /* the medium's directed edges; the keep surfaces' undirected edges */
+    int n, cap, nk;
+    unsigned char *used; /* per triangle: a keep surface taken into the boundary */
+    double vol;
+} closure;
+
+static int push_face(closure *c, const scene *s, int t, int flip) {
+    if (c->n + 3 > c->cap) {
+        int cap = c->cap ? 2 * c->cap : 96;
+        edge_rec *n = realloc(c->ed, (size_t)cap * sizeof *n);
+        if (!n) return PM_ENOMEM;
+        c->ed = n, c->cap = cap;
+    }
+    tri_edges(s, t, flip, c->ed + c->n);
+    c->n += 3;
+    c->vol += tri_volume(s, t, flip);
+    return 0;
+}
+
+/* Close the open edges of c with opaque surfaces and those that keep the medium
+ * (MEDIUM_IFACE_KEEP: walls that name no medium) that share them, each turned to continue
+ * the boundary's winding, until none is added. */
+static int close_with_keep(closure *c, const scene *s) {
+    for (int added = c->n > 0; added;) { /* only spheres: no edges */
+        added = 0;
+        qsort(c->ed, (size_t)c->n, sizeof *c->ed, edge_cmp);
+        for (int i = 0, n = c->n; i < n; i++) {
+            edge_rec r, u;
+            reverse_edge(&c->ed[i], &r);
+            if (bsearch(&r, c->ed, (size_t)n, sizeof *c->ed, edge_cmp)) continue;
+            undirected(&c->ed[i], &u);
+            edge_rec *k = c->nk ? bsearch(&u, c->ke, (size_t)c->nk, sizeof *c->ke, edge_cmp) : NULL;
+            while (k && k > c->ke && edge_cmp(k - 1, &u) == 0) k--;
+            for (; k && k < c->ke + c->nk && edge_cmp(k, &u) == 0; k++) {
+                if (c->used[k->tri]) continue;
+                edge_rec te[3];
+                tri_edges(s, k->tri, 0, te);
+                int as_is = 0;
+                for (int j = 0; j < 3; j++) as_is |= edge_cmp(&te[j], &r) == 0;
+                c->used[k->tri] = 1;
+                if (push_face(c, s, k->tri, !as_is) < 0) return PM_ENOMEM;
+                added = 1;
+                break;
+            }
         }
     }
-    int n = 3 * nt, bad = 0;
-    qsort(ed, (size_t)n, sizeof *ed, edge_cmp);
-    for (int i = 0; i < n && !bad; i++) {
-        double rev[6] = {ed[i][3], ed[i][4], ed[i][5], ed[i][0], ed[i][1], ed[i][2]};
-        if (i + 1 < n && edge_cmp(ed[i], ed[i + 1]) == 0) bad = 1; /* an edge used twice one way */
-        else if (!bsearch(rev, ed, (size_t)n, sizeof *ed, edge_cmp)) bad = 2; /* an open edge */
+    return 0;
+}
+
+/* The message for a medium whose boundary is open, crossed or inside out. */
+static int closure_fail(const scene *s, int m, const edge_rec *e, int kind, double vol, json_err *err) {
+    char P[P_MAX];
+    json_path_key(P, sizeof P, "$.media", s->media[m].name);
+    if (kind == 0)
+        return json_fail(err, PM_EINVAL, "%s: the surfaces around the medium \"%s\" enclose a volume of %g: their "
+                         "sides are swapped, or the medium is unbounded (it is interior_medium of surfaces whose "
+                         "normals point out of it; a medium around everything is the global \"medium\", the "
+                         "camera's in a Tungsten scene)", P, s->media[m].name, vol);
+    return json_fail(err, PM_EINVAL, "%s: the surfaces around the medium \"%s\" do not close it: the edge (%g, %g, "
+                     "%g)-(%g, %g, %g) of $.objects[%d] %s (a medium needs a closed boundary: every edge shared by "
+                     "two of the faces that have it on one side, or by an opaque surface; an opaque object inside the "
+                     "medium has it on both sides, or keeps_medium)", P,
+                     s->media[m].name, e->c[0], e->c[1], e->c[2], e->c[3], e->c[4], e->c[5], s->tri_obj[e->tri],
+                     kind == 1 ? "is shared by two faces that wind the same way around it"
+                               : "belongs to one face only: the boundary is open");
+}
+
+/* Can light cross this material (so a medium can leak through a gap next to it)? */
+static int crossable(const scene *s, int mat) {
+    return s->mats[mat].kind == MAT_NULL || s->mats[mat].transparency > 0;
+}
+
+/* Medium m's boundary: every surface with m on one side (oriented out of m), plus the opaque
+ * surfaces and those that keep the medium that close it (a ray cannot leave through an opaque
+ * wall, whatever media it names); then each directed edge once and its reverse once, and a
+ * positive enclosed volume. Spheres are closed and only add their volume. */
+static int check_medium_closed(const scene *s, int m, closure *c, json_err *err) {
+    int any = 0;
+    c->n = 0, c->vol = 0;
+    memset(c->used, 0, (size_t)(s->ntris > 0 ? s->ntris : 1));
+    for (int t = 0; t < s->ntris; t++) {
+        int o = s->tri_obj[t], in = scene_object_side_medium(s, o, 0), out = scene_object_side_medium(s, o, 1);
+        if (in == -2 || (in == m) == (out == m)) continue;
+        if (push_face(c, s, t, out == m) < 0) return json_fail(err, PM_ENOMEM, "out of memory");
+        c->used[t] = 1;
+        any = 1;
     }
-    free(ed);
-    if (bad)
-        return json_fail(e, PM_EINVAL, "%s.interior_medium: a medium needs a closed surface, "
-                         "consistently wound (%s)", P,
-                         bad == 1 ? "an edge is shared by faces of the same winding"
-                                  : "an edge belongs to one face only: the mesh is open");
-    if (!(vol > 0))
-        return json_fail(e, PM_EINVAL, "%s.interior_medium: the surface's normals point inward "
-                         "(reverse the winding so the front side is the outside)", P);
+    for (int k = 0; k < s->nspheres; k++) {
+        int o = s->sphere_obj[k], in = scene_object_side_medium(s, o, 0), out = scene_object_side_medium(s, o, 1);
+        if (in == -2 || (in == m) == (out == m)) continue;
+        double r = s->spheres[k].r, v = 4 * M_PI / 3 * r * r * r;
+        c->vol += in == m ? v : -v;
+        any = 1;
+    }
+    if (!any) return 0;
+    if (close_with_keep(c, s) < 0) return json_fail(err, PM_ENOMEM, "out of memory");
+    for (int i = 0; i < c->n; i++) {
+        edge_rec r;
+        reverse_edge(&c->ed[i], &r);
+        if (i + 1 < c->n && edge_cmp(&c->ed[i], &c->ed[i + 1]) == 0) return closure_fail(s, m, &c->ed[i], 1, 0, err);
+        if (!bsearch(&r, c->ed, (size_t)c->n, sizeof *c->ed, edge_cmp)) return closure_fail(s, m, &c->ed[i], 2, 0, err);
+    }
+    if (!(c->vol > 0)) return closure_fail(s, m, NULL, 0, c->vol, err);
     return 0;
 }
 
-/* An object's "interior_medium": spheres and closed meshes only. */
-int sl_load_interior_medium(scene *s, const cJSON *o, const char *P, int obj, int first_tri,
-                                json_err *e) {
-    if (!json_get(o, "interior_medium")) return 0;
-    int med = -1;
-    TRY(sl_find_medium(s, o, P, "interior_medium", &med, e));
-    const char *type = json_get(o, "type")->valuestring;
-    if (strcmp(type, "triangle") == 0 || strcmp(type, "quad") == 0)
-        return json_fail(e, PM_EINVAL, "%s.interior_medium: a %s is open and cannot bound a medium "
-                         "(use a sphere or a closed mesh)", P, type);
-    if (strcmp(type, "mesh") == 0) TRY(check_closed(s, first_tri, P, e));
-    s->obj_medium[obj] = med;
+/* Every medium but the global one (it is the unbounded space between objects) must be closed
+ * by the surfaces around it together (medium.h), opaque walls included. */
+int sl_check_media_closed(scene *s, json_err *e) {
+    if (s->nmedia == 0) return 0;
+    closure c = {0};
+    c.used = malloc((size_t)(s->ntris > 0 ? s->ntris : 1));
+    int rc = c.used ? 0 : json_fail(e, PM_ENOMEM, "out of memory");
+    for (int t = 0; t < s->ntris && rc == 0; t++) {
+        if (scene_object_side_medium(s, s->tri_obj[t], 0) != -2 && crossable(s, s->tris[t].mat)) continue;
+        edge_rec *n = realloc(c.ke, (size_t)(c.nk + 3) * sizeof *n);
+        if (!n) {
+            rc = json_fail(e, PM_ENOMEM, "out of memory");
+            break;
+        }
+        c.ke = n;
+        tri_edges(s, t, 0, c.ke + c.nk);
+        for (int j = 0; j < 3; j++) undirected(&c.ke[c.nk + j], &c.ke[c.nk + j]);
+        c.nk += 3;
+    }
+    if (c.nk) qsort(c.ke, (size_t)c.nk, sizeof *c.ke, edge_cmp);
+    for (int m = 0; m < s->nmedia && rc == 0; m++)
+        if (m != s->global_medium) rc = check_medium_closed(s, m, &c, e);
+    free(c.ed);
+    free(c.ke);
+    free(c.used);
+    return rc;
+}
+
+/* A medium key of an object: a name from $.media, or null (no medium). */
+static int object_medium_key(const scene *s, const cJSON *o, const char *P, const char *key, int *out, json_err *e) {
+    const cJSON *v = json_get(o, key);
+    if (cJSON_IsNull(v)) {
+        *out = -1;
+        return 0;
+    }
+    return sl_find_medium(s, o, P, key, out, e);
+}
+
+/* An object's media (medium.h): "interior_medium" and "exterior_medium" (names or null) make
+ * it an interface, "keeps_medium": true none. */
+int sl_load_object_media(scene *s, const cJSON *o, const char *P, int obj, json_err *e) {
+    const cJSON *im = json_get(o, "interior_medium"), *xm = json_get(o, "exterior_medium");
+    int keep = 0;
+    TRY(json_bool(o, P, "keeps_medium", 0, &keep, e));
+    if (keep && (im || xm))
+        return json_fail(e, PM_EINVAL, "%s.keeps_medium: an object that keeps the ray's medium names none "
+                         "(drop interior_medium and exterior_medium, or keeps_medium)", P);
+    if (!im && !xm && !keep) return 0;
+    if (!s->obj_iface) {
+        s->obj_iface = calloc((size_t)s->nobj, 1);
+        s->obj_medium_out = malloc((size_t)s->nobj * sizeof *s->obj_medium_out);
+        if (!s->obj_iface || !s->obj_medium_out) return json_fail(e, PM_ENOMEM, "out of memory");
+        for (int k = 0; k < s->nobj; k++) s->obj_medium_out[k] = s->global_medium;
+    }
+    s->obj_iface[obj] = keep ? MEDIUM_IFACE_KEEP : MEDIUM_IFACE_DECLARED;
+    if (im) TRY(object_medium_key(s, o, P, "interior_medium", &s->obj_medium[obj], e));
+    if (xm) TRY(object_medium_key(s, o, P, "exterior_medium", &s->obj_medium_out[obj], e));
     return 0;
 }
 
-/* Which medium the camera is in: the side of the nearest surface a ray from the eye meets
- * (the rule of medium.h); the global medium when it meets nothing. */
+/* Which medium the camera is in: scene_medium_ahead along the view axis (medium.h). */
 void sl_find_camera_medium(scene *s) {
     s->camera_medium = s->global_medium;
     if (s->nmedia == 0) return;
     ray r = {s->cam.eye, s->cam.forward};
-    hit h;
-    if (scene_intersect(s, r, INFINITY, &h))
-        s->camera_medium = scene_medium_after(s, &h, v3_neg(r.d));
+    s->camera_medium = scene_medium_ahead(s, r);
 }
-

@@ -134,7 +134,8 @@ int sl_load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_err *
     int mat;
     TRY(json_string(o, P, "type", 1, &type, e));
     if (strcmp(type, "sphere") == 0) {
-        KEYS(o, P, "a sphere", "type", "name", "center", "radius", "material", "interior_medium");
+        KEYS(o, P, "a sphere", "type", "name", "center", "radius", "material", "interior_medium", "exterior_medium",
+             "keeps_medium");
         sphere sp;
         TRY(json_vec3(o, P, "center", 1, &sp.c, e));
         TRY(sl_check_point(sp.c, P, "center", e));
@@ -154,17 +155,19 @@ int sl_load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_err *
     } else if (strcmp(type, "triangle") == 0 || strcmp(type, "quad") == 0) {
         int nv = strcmp(type, "quad") == 0 ? 4 : 3; /* a quad is the fan (0 1 2) (0 2 3) */
         KEYS(o, P, nv == 4 ? "a quad" : "a triangle", "type", "name", "vertices", "material",
-             "interior_medium");
+             "interior_medium", "exterior_medium", "keeps_medium");
         vec3 v[4];
         TRY(read_points(o, P, "vertices", nv, v, e));
         TRY(find_material(s, o, P, &mat, e));
         for (int i = 1; i + 1 < nv; i++) TRY(add_tri(s, cp, v[0], v[i], v[i + 1], mat, P, e));
     } else if (strcmp(type, "mesh") == 0 && json_get(o, "file")) {
         KEYS(o, P, "a mesh from a file", "type", "name", "file", "material", "usemtl", "transform", "smooth",
-             "recompute_normals", "flip", "interior_medium", "vertices", "triangles"); /* import.c: not both */
+             "recompute_normals", "flip", "interior_medium", "exterior_medium", "keeps_medium", "vertices",
+             "triangles"); /* import.c: not both */
         return load_mesh_file(s, cp, o, P, e);
     } else if (strcmp(type, "mesh") == 0) {
         KEYS(o, P, "a mesh", "type", "name", "vertices", "triangles", "normals", "smooth", "material", "interior_medium",
+             "exterior_medium", "keeps_medium",
              "file");
         const cJSON *va, *ta;
         TRY(json_array(o, P, "vertices", 1, &va, e));

@@ -356,27 +356,22 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
         return json_fail(e, PM_EINVAL, "%s.%s: must not be negative", P, has_e ? "emission" : "power");
     int emits = !v3_iszero(Le) || !v3_iszero(power);
     int invisible = strcmp(b.type, "null") == 0 || strcmp(b.type, "forward") == 0;
-    /* Media (tungsten.h): the outside must be the camera's medium; the inside is int_medium,
-     * or, for a surface light passes through that names no medium, the medium around it. */
+    /* Media (tungsten.h): a primitive that names int_medium or ext_medium is an interface
+     * (the one it does not name: no medium); one that names neither keeps the ray's medium. */
     const cJSON *im = json_get(p, "int_medium"), *xm = json_get(p, "ext_medium");
-    int imed, xmed, inside = -1;
+    int imed, xmed, passes = invisible || (strcmp(b.type, "dielectric") == 0 && b.refract);
+    int declared = (im || xm) && passes;
     char mp[P_MAX];
     json_path_key(mp, sizeof mp, P, "int_medium");
     TRY(tg_medium_ref(c, im, mp, &imed, e));
     json_path_key(mp, sizeof mp, P, "ext_medium");
     TRY(tg_medium_ref(c, xm, mp, &xmed, e));
-    if (xm && xmed != c->global)
-        return json_fail(e, PM_EINVAL, "%s: the medium outside the primitive (\"%s\") must be the camera's (%s%s%s): "
-                         "media around objects other than the one the camera is in are not supported", mp,
-                         c->mnames[xmed], c->global >= 0 ? "\"" : "", c->global >= 0 ? c->mnames[c->global] : "none",
-                         c->global >= 0 ? "\"" : "");
-    int passes = invisible || (strcmp(b.type, "dielectric") == 0 && b.refract);
-    if (passes) inside = im ? imed : xm ? -1 : c->global;
-    json_path_key(mp, sizeof mp, P, im ? "int_medium" : "bsdf");
+    /* Tungsten uses the media of a surface light cannot cross only for what it emits: an
+     * emitter's ext_medium is all around it; otherwise such a surface keeps the ray's. */
+    if (!passes && emits && xmed >= 0) imed = xmed, declared = 1;
     if (invisible && emits && (im || xm))
         return json_fail(e, PM_EINVAL, "%s.emission: an emitting \"%s\" medium boundary is not supported", P, b.type);
-    if (invisible && !emits && inside == c->global) return 0; /* changes nothing: dropped (tungsten.h) */
-    int quad_group = inside >= 0 && strcmp(type, "quad") == 0; /* merged later (tungsten.h) */
+    if (invisible && !emits && !declared) return 0; /* changes nothing: dropped (tungsten.h) */
     if (invisible && !emits) {
         snprintf(b.name, sizeof b.name, "%s", "boundary");
         b.type = "boundary";
@@ -404,10 +399,6 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
         if (!(area > 0)) return json_fail(e, PM_EINVAL, "%s: the quad has zero area", tp);
         /* front = e1 x e0, Tungsten's normal (see shapes.h for ours) */
         obj = quad_json(base, v3_add(base, e1), v3_add(v3_add(base, e0), e1), v3_add(base, e0), mat);
-        if (quad_group && obj) { /* into its group's mesh; the medium is behind its front */
-            TRY(tg_quad_group_add(c, obj, inside, mat, P, e));
-            return add_material(c, mat, &b, v3s(0), e);
-        }
     } else if (strcmp(type, "cube") == 0) {
         TRY(cube_obj(M, mat, tp, &obj, &area, e));
     } else if (strcmp(type, "sphere") == 0) {
@@ -437,7 +428,10 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
     const char *pname = NULL;
     if (json_string(p, P, "name", 0, &pname, e) < 0) pname = NULL;
     if (pname) cJSON_AddStringToObject(obj, "name", pname);
-    if (inside >= 0) cJSON_AddStringToObject(obj, "interior_medium", c->mnames[inside]);
+    if (declared) {
+        cJSON_AddItemToObject(obj, "interior_medium", imed >= 0 ? cJSON_CreateString(c->mnames[imed]) : cJSON_CreateNull());
+        if (xmed >= 0) cJSON_AddStringToObject(obj, "exterior_medium", c->mnames[xmed]); /* else the camera's */
+    }
     cJSON_AddItemToArray(c->objs, obj);
     return add_material(c, mat, &b, emits ? Le : v3s(0), e);
 }
@@ -495,7 +489,9 @@ static int convert(const cJSON *root, const char *dir, const char *file, cJSON *
         json_path_index(p, sizeof p, "$.primitives", i);
         rc = convert_primitive(&c, pr, p, i, e);
     }
-    tg_quad_groups_flush(&c, rc == 0);
+    /* With media, a primitive that names none keeps the ray's medium (tungsten.h). */
+    for (cJSON *o = c.objs && c.nmedia > 0 ? c.objs->child : NULL; o && rc == 0; o = o->next)
+        if (!json_get(o, "interior_medium")) cJSON_AddBoolToObject(o, "keeps_medium", 1);
     free(c.bsdfs);
     if (c.media) cJSON_AddItemToObject(out, "media", c.media); /* owned by out from here */
     if (rc == 0 && c.global >= 0) cJSON_AddStringToObject(out, "medium", c.mnames[c.global]);

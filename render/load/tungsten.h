@@ -32,14 +32,15 @@
  * "phase_function" "isotropic" or "henyey_greenstein" with "g"; "max_bounces" only at or above
  * the integrator's). A medium is named in $.media or written inline where it is used (it is then
  * named after its JSON path). The camera's "medium" becomes our global "medium" (the one
- * between objects); a primitive's "int_medium" its interior_medium (a closed primitive only;
- * quads that light passes through are merged, one mesh per medium and bsdf, so that the quads
- * of a box bound their medium together: the loader then checks that the mesh is closed);
- * its "ext_medium", if given, must be the camera's medium (ours has one medium around all
- * objects). Tungsten changes the medium only at a surface that names one, so a glass primitive
- * that names none keeps the medium around it inside: it gets the global medium as its
- * interior. A null or forward bsdf with a medium becomes our "null" material. Other medium
- * types, phase functions, an emitting boundary and a glass quad in a medium are errors.
+ * between objects). Media are interfaces (scene/medium.h): a primitive light passes through
+ * (null, forward, refracting glass) that names int_medium or ext_medium gets interior_medium
+ * (int; unnamed: none) and exterior_medium (ext; unnamed: the camera's medium); an opaque
+ * emitter's ext_medium is the medium on both its sides (Tungsten uses an opaque surface's media
+ * only for its emission); every other primitive, in a scene with media, gets "keeps_medium":
+ * the ray keeps its medium there, as Tungsten changes the medium only at a surface that names
+ * one. The loader checks that the surfaces around each medium close it together (a null quad
+ * closing a room of walls does). A null or forward bsdf with a medium becomes our "null"
+ * material. Other medium types, phase functions and an emitting boundary are errors.
  *
  * Errors: a negative PM_E* code with the message in json_err. The caller owns *out.
  */

@@ -39,16 +39,6 @@ typedef struct conv {
     const char *dir;
     const char *file;      /* the scene file, for warnings (NULL: a text) */
     int nemit;
-    /* Quads that light passes through with a medium behind them, merged into one mesh per
-     * (medium, material) at the end: a box of such quads bounds its medium (tungsten.h). */
-    struct qgroup {
-        int medium;
-        char mat[64];
-        cJSON *verts, *tris;
-        int nq;
-        char first[P_MAX]; /* the first quad's JSON path, for messages */
-    } qg[16];
-    int nqg;
 } conv;
 
 /* ---- tungsten.c ---------------------------------------------------------------------------- */
@@ -70,12 +60,6 @@ cJSON *tg_jvec(vec3 v);
 int tg_read_medium(conv *c, const cJSON *m, const char *P, const char *name, int *idx, json_err *e);
 /* A medium reference at path P: a name from $.media, or an inline medium; *idx -1 when v is NULL. */
 int tg_medium_ref(conv *c, const cJSON *v, const char *P, int *idx, json_err *e);
-/* The quad obj (of primitive P, material mat, medium `inside` behind its front) into its
- * group's mesh; obj is consumed. */
-int tg_quad_group_add(conv *c, cJSON *obj, int inside, const char *mat, const char *P, json_err *e);
-/* Each group of quads as one mesh with its interior_medium, into c->objs (ok: no error so far;
- * otherwise the groups are freed). */
-void tg_quad_groups_flush(conv *c, int ok);
 
 /* ---- tungsten_settings.c ------------------------------------------------------------------- */
 

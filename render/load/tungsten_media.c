@@ -1,6 +1,6 @@
 /* tungsten_media.c: Tungsten's media in our terms (tungsten_internal.h): homogeneous media by
- * name or inline, and the quads that light passes through with a medium behind them, merged
- * into one mesh per (medium, material) so that a box of quads bounds its medium (tungsten.h).
+ * name or inline. Where they are (int_medium, ext_medium) tungsten.c turns into our
+ * interfaces (medium.h, tungsten.h).
  */
 #define _XOPEN_SOURCE 700
 #include "load/tungsten_internal.h"
@@ -94,62 +94,4 @@ int tg_medium_ref(conv *c, const cJSON *v, const char *P, int *idx, json_err *e)
         return json_fail(e, PM_EINVAL, "%s: unknown medium \"%s\"", P, v->valuestring);
     }
     return tg_read_medium(c, v, P, P + (P[0] == '$' && P[1] == '.' ? 2 : 0), idx, e);
-}
-
-/* The quad obj (of primitive P, material mat, medium `inside` behind its front) into its
- * group's mesh; obj is consumed. */
-int tg_quad_group_add(conv *c, cJSON *obj, int inside, const char *mat, const char *P, json_err *e) {
-    int gi = -1;
-    for (int k = 0; k < c->nqg; k++)
-        if (c->qg[k].medium == inside && strcmp(c->qg[k].mat, mat) == 0) gi = k;
-    if (gi < 0) {
-        if (c->nqg == 16) {
-            cJSON_Delete(obj);
-            return json_fail(e, PM_EINVAL, "%s: more than 16 groups of quads with a medium behind them", P);
-        }
-        gi = c->nqg++;
-        c->qg[gi].medium = inside;
-        snprintf(c->qg[gi].mat, sizeof c->qg[gi].mat, "%s", mat);
-        snprintf(c->qg[gi].first, sizeof c->qg[gi].first, "%s", P);
-        c->qg[gi].verts = cJSON_CreateArray();
-        c->qg[gi].tris = cJSON_CreateArray();
-        c->qg[gi].nq = 0;
-        if (!c->qg[gi].verts || !c->qg[gi].tris) {
-            cJSON_Delete(obj);
-            return json_fail(e, PM_ENOMEM, "out of memory");
-        }
-    }
-    struct qgroup *q = &c->qg[gi];
-    const cJSON *vs = json_get(obj, "vertices");
-    for (const cJSON *v = vs->child; v; v = v->next) cJSON_AddItemToArray(q->verts, cJSON_Duplicate(v, 1));
-    int b0 = 4 * q->nq++;
-    int t1[3] = {b0, b0 + 1, b0 + 2}, t2[3] = {b0, b0 + 2, b0 + 3};
-    cJSON_AddItemToArray(q->tris, cJSON_CreateIntArray(t1, 3));
-    cJSON_AddItemToArray(q->tris, cJSON_CreateIntArray(t2, 3));
-    cJSON_Delete(obj);
-    return 0;
-}
-
-/* Each group of quads as one mesh with its interior_medium, into c->objs (ok: no error so far;
- * otherwise the groups are freed). */
-void tg_quad_groups_flush(conv *c, int ok) {
-    for (int k = 0; k < c->nqg; k++) { /* each group of quads with a medium behind them: one mesh */
-        struct qgroup *q = &c->qg[k];
-        cJSON *o = ok ? cJSON_CreateObject() : NULL;
-        if (o) {
-            char nm[P_MAX + 96];
-            snprintf(nm, sizeof nm, "the %d quads with the medium \"%s\" behind them (from %s)", q->nq,
-                     c->mnames[q->medium], q->first);
-            cJSON_AddStringToObject(o, "type", "mesh");
-            cJSON_AddStringToObject(o, "name", nm);
-            cJSON_AddItemToObject(o, "vertices", q->verts);
-            cJSON_AddItemToObject(o, "triangles", q->tris);
-            cJSON_AddStringToObject(o, "material", q->mat);
-            cJSON_AddStringToObject(o, "interior_medium", c->mnames[q->medium]);
-            cJSON_AddItemToArray(c->objs, o);
-        } else {
-            cJSON_Delete(q->verts);
-            cJSON_Delete(q->tris);
-        }
-    }
 }

@@ -186,9 +186,9 @@ static int shadow_hint(void *user, const scene *s, int li, const hit *h, vec3 n)
 /* Direct light at a diffuse point: one light sample (direct.h), weighted by the full BSDF
  * (the diffuse branch's weight included: no branch is chosen here). */
 static rgb direct_light(const mapper_state *st, const scene *s, const material *m, const hit *h,
-                        vec3 ns, vec3 wo, rng *g, mapper_scratch *sc) {
+                        vec3 ns, vec3 wo, int med, rng *g, mapper_scratch *sc) {
     shadow_hint_ctx c = {st, sc, g, 1.0};
-    direct_options o = {DIRECT_BSDF_FULL, st->vol.on, shadow_hint, &c}; /* media: transmittance */
+    direct_options o = {DIRECT_BSDF_FULL, st->vol.on, shadow_hint, &c, med}; /* media: transmittance */
     /* the plan's light guide (guide.h; NULL: light samples as direct_light_surface draws them) */
     rgb L = direct_light_surface_guided(s, m, h, ns, wo, g, &o, st->plan.guide);
     return c.weight == 1.0 ? L : v3_scale(L, c.weight);
@@ -204,21 +204,21 @@ static rgb caustics_at(const mapper_state *st, const scene *s, const material *m
 /* Follow a ray through specular surfaces to the first diffuse hit. Returns the number of
  * specular bounces + 1 with the hit, the throughput and the direction of the last segment
  * (*din, pointing into the hit), or 0 if it escapes, is absorbed or runs out of bounces.
- * With media (st->vol.on; med: the medium the ray starts in) null surfaces are passed, each
- * segment's transmittance multiplies the throughput and its in-scattered light (pmv_gather,
- * times the throughput) is added to *Lvol. */
-static int to_diffuse(const mapper_state *st, const scene *s, ray r, int med, rng *g, hit *h, rgb *beta,
+ * With media (st->vol.on; *medp: the medium at the start, then at the hit) null surfaces are
+ * passed (scene_medium_next), each segment's transmittance multiplies the throughput and its
+ * in-scattered light (pmv_gather, times the throughput) is added to *Lvol. */
+static int to_diffuse(const mapper_state *st, const scene *s, ray r, int *medp, rng *g, hit *h, rgb *beta,
                       vec3 *din, rgb *Lvol, void *vscratch) {
     *beta = v3s(1);
     *din = r.d;
     for (int b = 0, crossings = 0; b < 8; b++) {
         int got = scene_intersect(s, r, INFINITY, h);
         if (st->vol.on) {
-            rgb tr, Lm = pmv_gather(&st->vol, s, r, got ? h->t : INFINITY, med, g, vscratch, &tr);
+            rgb tr, Lm = pmv_gather(&st->vol, s, r, got ? h->t : INFINITY, *medp, g, vscratch, &tr);
             *Lvol = v3_add(*Lvol, v3_mul(*beta, Lm));
             *beta = v3_mul(*beta, tr);
             if (got && scene_material(s, h)->kind == MAT_NULL && crossings++ < 1024) {
-                med = scene_medium_after(s, h, r.d);
+                *medp = scene_medium_next(s, h, r.d, r.d, *medp);
                 r.o = scene_offset(s, h->p, h->ng, r.d);
                 b--;
                 continue;
@@ -246,7 +246,7 @@ static int to_diffuse(const mapper_state *st, const scene *s, ray r, int med, rn
             *beta = v3_scale(v3_mul(*beta, m->transmit_tint), ws);
         }
         if (v3_iszero(*beta)) return 0;
-        if (st->vol.on) med = scene_medium_after(s, h, d);
+        if (st->vol.on) *medp = scene_medium_next(s, h, r.d, d, *medp);
         r.o = scene_offset(s, h->p, h->ng, d);
         r.d = d;
         stat_inc(STAT_INDIRECT_RAYS);
@@ -296,12 +296,12 @@ static int gg_read(void *user, const scene *s, const guide_point *pt, vec3 d, rn
     hit y;
     rgb beta, Lvol = v3s(0);
     vec3 din;
-    if (!to_diffuse(st, s, r, -1, g, &y, &beta, &din, &Lvol, NULL)) return 0;
+    if (!to_diffuse(st, s, r, &(int){-1}, g, &y, &beta, &din, &Lvol, NULL)) return 0;
     int found;
     vec3 ny = v3_dot(din, y.ng) <= 0 ? y.ng : v3_neg(y.ng);
     rgb Lo = lookup_radiance_ex(st, s, &y, v3_neg(din), &found, 0);
     if (!found || st->sides.indirect_only) {
-        direct_options o = {DIRECT_BSDF_FULL, 0, NULL, NULL};
+        direct_options o = {DIRECT_BSDF_FULL, 0, NULL, NULL, -1};
         Lo = v3_add(Lo, direct_light_surface_guided(s, scene_material(s, &y), &y, ny, v3_neg(din), g, &o,
                                                     st->plan.guide));
     }
@@ -318,23 +318,23 @@ static int gg_read(void *user, const scene *s, const guide_point *pt, vec3 d, rn
  * path, level >= 1 inside a secondary gather (its rays read the map, or recurse where the map
  * has nothing, see gather). */
 static rgb gather(const mapper_state *st, const scene *s, const material *m, const hit *h, vec3 ns,
-                  vec3 wo, int n, int level, rng *g, mapper_scratch *sc);
+                  vec3 wo, int n, int level, int med, rng *g, mapper_scratch *sc);
 
 /* Outgoing light at a gather hit y, computed instead of read from the map: y's direct light,
  * caustics and a gather of its own at `level` (secondary_rays rays at level 1, one ray deeper,
  * so a chain of them costs one ray per bounce, like a path). */
 static rgb secondary_radiance(const mapper_state *st, const scene *s, const hit *y, vec3 wo, int level,
-                              rng *g, mapper_scratch *sc) {
+                              int med, rng *g, mapper_scratch *sc) {
     const material *m = scene_material(s, y);
     vec3 ns = v3_dot(wo, y->ng) >= 0 ? y->ng : v3_neg(y->ng);
-    rgb L = direct_light(st, s, m, y, ns, wo, g, sc);
+    rgb L = direct_light(st, s, m, y, ns, wo, med, g, sc);
     L = v3_add(L, caustics_at(st, s, m, y, ns, wo, sc));
     int n = level <= 1 ? st->cfg.secondary_rays : 1;
-    return v3_add(L, gather(st, s, m, y, ns, wo, n, level, g, sc));
+    return v3_add(L, gather(st, s, m, y, ns, wo, n, level, med, g, sc));
 }
 
 static rgb gather(const mapper_state *st, const scene *s, const material *m, const hit *h, vec3 ns,
-                  vec3 wo, int n, int level, rng *g, mapper_scratch *sc) {
+                  vec3 wo, int n, int level, int med, rng *g, mapper_scratch *sc) {
     if (n <= 0 || !st->sides.irr) return v3s(0);
     rgb sum = v3s(0);
     vec3 nsh = material_shading_side(wo, h->ng, h->ns);
@@ -360,22 +360,22 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
         rgb beta;
         vec3 din;
         rgb Lvol = v3s(0);
-        int steps = to_diffuse(st, s, r, st->vol.on ? scene_medium_after(s, h, d) : -1, g, &y, &beta, &din,
-                               &Lvol, sc->est);
+        int ymed = st->vol.on ? scene_medium_side(s, h, d, med) : -1;
+        int steps = to_diffuse(st, s, r, &ymed, g, &y, &beta, &din, &Lvol, sc->est);
         if (st->vol.on) sum = v3_add(sum, v3_scale(v3_mul(f, Lvol), wk));
         if (!steps) continue;
         /* y is seen from -din, the last segment's direction (not d after a mirror). */
         rgb Lo;
         int found = 0;
         if (!level && steps == 1 && y.t < st->sec_dist)
-            Lo = secondary_radiance(st, s, &y, v3_neg(din), 1, g, sc);
+            Lo = secondary_radiance(st, s, &y, v3_neg(din), 1, ymed, g, sc);
         else {
             Lo = lookup_radiance(st, s, &y, v3_neg(din), &found);
             /* The cache holds indirect irradiance only (photon_sides.h, "Direct light"): y's
              * direct light comes from a light sample, so shadow edges stay sharp. */
             if (found && st->sides.indirect_only)
                 Lo = v3_add(Lo, direct_light(st, s, scene_material(s, &y), &y,
-                                             v3_dot(din, y.ng) <= 0 ? y.ng : v3_neg(y.ng), v3_neg(din), g, sc));
+                                             v3_dot(din, y.ng) <= 0 ? y.ng : v3_neg(y.ng), v3_neg(din), ymed, g, sc));
             /* No precomputed value on y's side within reach: y is in a photon-starved
              * region (behind a wall from every nearby photon, or a room that light enters
              * through a pinhole, where a map of any practical size holds a handful of
@@ -387,12 +387,12 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
             if (!found) {
                 stat_inc(st->st_lookup_miss);
                 if (!level)
-                    Lo = secondary_radiance(st, s, &y, v3_neg(din), 1, g, sc);
+                    Lo = secondary_radiance(st, s, &y, v3_neg(din), 1, ymed, g, sc);
                 else {
                     rgb a = diffuse_albedo(s, scene_material(s, &y), v3_neg(din), y.ng);
                     double q = fmin(0.95, v3_maxc(a));
                     if (level < st->max_depth && rng_uniform(g) < q)
-                        Lo = v3_scale(secondary_radiance(st, s, &y, v3_neg(din), level + 1, g, sc),
+                        Lo = v3_scale(secondary_radiance(st, s, &y, v3_neg(din), level + 1, ymed, g, sc),
                                       1.0 / q);
                 }
             }
@@ -458,7 +458,7 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
             beta = v3_mul(beta, tr);
             if (got && scene_material(s, &h)->kind == MAT_NULL) {
                 if (++crossings > 1024 || v3_iszero(beta)) break;
-                med = scene_medium_after(s, &h, r.d);
+                med = scene_medium_next(s, &h, r.d, r.d, med);
                 r.o = scene_offset(s, h.p, h.ng, r.d);
                 depth--; /* not a bounce */
                 continue;
@@ -481,7 +481,7 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
                                                    diffuse_albedo(s, m, wo, h.ng), sc)
                                      : v3s(0);
             } else {
-                Ld = direct_light(st, s, m, &h, ns, wo, g, sc);
+                Ld = direct_light(st, s, m, &h, ns, wo, med, g, sc);
                 if (cw > 0) {
                     rgb Lc = caustics_at(st, s, m, &h, ns, wo, sc);
                     Ld = v3_add(Ld, v3_scale(Lc, cw));
@@ -494,7 +494,7 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
                     double share = fmin(1.0, v3_maxc(beta));
                     int n = (int)ceil(st->cfg.gather_rays * share);
                     if (st->cfg.gather_rays > 0 && n < 1) n = 1;
-                    Ld = v3_add(Ld, gather(st, s, m, &h, ns, wo, n, 0, g, sc));
+                    Ld = v3_add(Ld, gather(st, s, m, &h, ns, wo, n, 0, med, g, sc));
                 }
             }
             L = v3_add(L, v3_mul(beta, Ld));
@@ -522,7 +522,7 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
                 ray rr = {scene_offset(s, h.p, h.ng, dr), dr};
                 stat_inc(STAT_INDIRECT_RAYS);
                 L = v3_add(L, eye_radiance(st, s, rr, depth + 1, br, cw, what,
-                                           st->vol.on ? scene_medium_after(s, &h, dr) : -1, g, sc));
+                                           st->vol.on ? scene_medium_next(s, &h, r.d, dr, med) : -1, g, sc));
             }
             beta = bt;
             d = dt;
@@ -538,7 +538,7 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
             }
         }
         if (!eye_roulette(st, depth, &beta, g) || v3_iszero(beta)) break;
-        if (st->vol.on) med = scene_medium_after(s, &h, d);
+        if (st->vol.on) med = scene_medium_next(s, &h, r.d, d, med);
         r.o = scene_offset(s, h.p, h.ng, d);
         r.d = d;
         stat_inc(STAT_INDIRECT_RAYS);

@@ -114,7 +114,9 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
     while (pp.depth <= pp.max_depth && !b->over) {
         hit h;
         int got = scene_intersect(s, r, INFINITY, &h);
-        if (med == -2) med = got ? scene_medium_after(s, &h, v3_neg(r.d)) : s->global_medium;
+        if (med == -2) /* the emitter's interface, else the side of the first surface facing it */
+            med = scene_light_medium(s, li, p, nl, d, got ? scene_medium_side(s, &h, v3_neg(r.d), -2)
+                                                          : s->global_medium);
         if (med >= 0) {
             double uc = rng_uniform(&g), ud = rng_uniform(&g), t;
             rgb w;
@@ -143,7 +145,7 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
         const material *m = scene_material(s, &h);
         if (m->kind == MAT_NULL) {
             if (++crossings > 4 * pp.max_depth + 1024) return;
-            med = scene_medium_after(s, &h, r.d);
+            med = scene_medium_next(s, &h, r.d, r.d, med);
             r.o = scene_offset(c->s, h.p, h.ng, r.d);
             continue;
         }
@@ -179,7 +181,7 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
             spec_mat = h.mat;
         }
         if (!survive(&power, bs.weight, &g)) return;
-        med = scene_medium_after(s, &h, bs.wi);
+        med = scene_medium_next(s, &h, r.d, bs.wi, med);
         r.o = scene_offset(c->s, h.p, h.ng, bs.wi);
         r.d = bs.wi;
         pp.depth++;

@@ -6,6 +6,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <stdio.h>
 
 #include "photonmap/common.h"
 #include "base/sampling.h"
@@ -91,10 +92,57 @@ double medium_equiangular_pdf(vec3 o, vec3 d, double t0, double t1, vec3 y, doub
 
 int scene_has_media(const scene *s) { return s->nmedia > 0 || s->has_null; }
 
-int scene_medium_after(const scene *s, const hit *h, vec3 d) {
-    if (v3_dot(d, h->ng) >= 0) return s->global_medium;
-    int obj = scene_prim_object(s, h->prim);
+int scene_object_side_medium(const scene *s, int obj, int front) {
+    int kind = s->obj_iface && obj < s->nobj ? s->obj_iface[obj] : MEDIUM_IFACE_LEGACY;
+    if (kind == MEDIUM_IFACE_KEEP) return -2;
+    if (front) return kind == MEDIUM_IFACE_DECLARED && s->obj_medium_out ? s->obj_medium_out[obj] : s->global_medium;
     return s->obj_medium && obj < s->nobj ? s->obj_medium[obj] : -1;
+}
+
+int scene_medium_side(const scene *s, const hit *h, vec3 dout, int cur) {
+    int m = scene_object_side_medium(s, scene_prim_object(s, h->prim), v3_dot(dout, h->ng) >= 0);
+    return m == -2 ? cur : m;
+}
+
+static const char *mname(const scene *s, int m) { return m >= 0 ? s->media[m].name : "(none)"; }
+
+/* An inconsistent interface: said once per scene (the flag is the scene's, set atomically). */
+static void report_inconsistent(const scene *s, const hit *h, int obj, int front, int cur, int side) {
+    if (!s->iface_report || __atomic_exchange_n(s->iface_report, 1, __ATOMIC_RELAXED)) return;
+    fprintf(stderr, "render: %s%swarning: inconsistent medium interface: a ray in medium \"%s\" reached "
+            "$.objects[%d] at (%.6g, %.6g, %.6g) from its %s side, whose medium is \"%s\" (the surface does not "
+            "bound the ray's medium); the ray goes on by the surface's media (reported once)\n",
+            s->file, s->file[0] ? ": " : "", mname(s, cur), obj, h->p.x, h->p.y, h->p.z,
+            front ? "front (exterior_medium)" : "back (interior_medium)", mname(s, side));
+}
+
+int scene_medium_next(const scene *s, const hit *h, vec3 din, vec3 dout, int cur) {
+    int obj = scene_prim_object(s, h->prim);
+    if (s->obj_iface && obj < s->nobj && s->obj_iface[obj] == MEDIUM_IFACE_DECLARED) {
+        int from_front = v3_dot(din, h->ng) < 0, side = scene_object_side_medium(s, obj, from_front);
+        if (side != cur) report_inconsistent(s, h, obj, from_front, cur, side);
+    }
+    return scene_medium_side(s, h, dout, cur);
+}
+
+int scene_medium_ahead(const scene *s, ray r) {
+    hit h;
+    for (int n = 0; n < MEDIUM_MAX_CROSSINGS && scene_intersect(s, r, INFINITY, &h); n++) {
+        int m = scene_medium_side(s, &h, v3_neg(r.d), -2);
+        if (m != -2) return m;
+        r.o = scene_offset(s, h.p, h.ng, r.d);
+    }
+    return s->global_medium;
+}
+
+int scene_light_medium(const scene *s, int li, vec3 p, vec3 nl, vec3 d, int first_hit) {
+    const light *l = &s->lights[li];
+    int prim = l->type == LIGHT_AREA ? l->tri : l->type == LIGHT_SPHERE ? s->ntris + l->sphere : -1;
+    if (prim >= 0 && s->obj_iface && s->obj_iface[scene_prim_object(s, prim)] == MEDIUM_IFACE_DECLARED)
+        return scene_object_side_medium(s, scene_prim_object(s, prim), v3_dot(d, nl) >= 0);
+    if (first_hit != -2) return first_hit;
+    ray r = {v3_iszero(nl) ? p : scene_offset(s, p, nl, d), d};
+    return scene_medium_ahead(s, r);
 }
 
 /* From o along unit dir for len (INFINITY: to infinity), starting in medium med. */
@@ -108,7 +156,7 @@ static rgb walk(const scene *s, vec3 o, vec3 dir, double len, int med) {
         if (med >= 0) T = v3_mul(T, medium_tr(&s->media[med], d));
         if (!got) return T;
         if (s->mats[h.mat].kind != MAT_NULL || v3_iszero(T)) return v3s(0);
-        med = scene_medium_after(s, &h, dir);
+        med = scene_medium_next(s, &h, dir, dir, med);
         vec3 no = scene_offset(s, h.p, h.ng, dir);
         if (isfinite(len)) len -= v3_dot(v3_sub(no, o), dir);
         if (!(len > 0)) return T;

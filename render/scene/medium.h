@@ -6,14 +6,22 @@
  * sigma_t = sigma_a + sigma_s) and an HG asymmetry g in (-1, 1) (0 = isotropic, > 0 forward).
  * Transmittance over a distance d is Tr = exp(-sigma_t d) per channel.
  *
- * Where media are (scene.h; format in data/scenes/README.md): an object with an
- * "interior_medium" fills its inside, a closed surface whose geometric normals point out;
- * the global "medium" fills the space between objects. Sides follow the same rule as
- * medium_ior: the front side (dot(d, ng) > 0 for a direction d leaving the surface) of any
- * object is the global medium, its back side is the object's interior medium (none if it has
- * none). So media do not nest deeper than one level, like indices of refraction. A surface
- * with the "null" material is an invisible boundary: rays and shadow rays pass straight
- * through it and only the medium changes.
+ * Where media are (scene.h; format in data/scenes/README.md): media by interfaces. Each object
+ * is one of three kinds (scene.obj_iface):
+ *   - MEDIUM_IFACE_LEGACY (an object that names no medium): its front side (dot(d, ng) > 0 for
+ *     a direction d leaving the surface) is the global medium, its back side none. A ray
+ *     leaving it takes the medium of the side it leaves by, as before interfaces existed.
+ *   - MEDIUM_IFACE_DECLARED ("interior_medium" and/or "exterior_medium"): its back side is
+ *     the interior medium (default none), its front side the exterior medium (default the
+ *     global one). A ray leaving it takes the medium of the side it leaves by; a ray that
+ *     reaches it from a side whose medium is not the one the ray carries is an inconsistent
+ *     interface, reported once per scene on stderr with the point and the object.
+ *   - MEDIUM_IFACE_KEEP ("keeps_medium": true; Tungsten's and pbrt's surfaces that name no
+ *     medium): no interface; a ray keeps the medium it carries, reflected or transmitted.
+ * The surfaces that bound a medium together (any mix of objects) must close it; the loader
+ * checks that over all of them (scene_media.c). A surface with the "null" material is an
+ * invisible boundary: rays and shadow rays pass straight through it and only the medium
+ * changes.
  *
  * Phase function, in terms of propagation directions: light travelling along a scatters into
  * b with density p(cos) where cos = dot(a, b), p(cos) = (1 - g^2) / (4 pi (1 + g^2 - 2 g cos)^1.5),
@@ -76,12 +84,31 @@ struct hit;
  * exactly their medium-free code (same random numbers, same images). */
 int scene_has_media(const struct scene *s);
 
-/* The medium index (into scene.media, -1 = none) on the side of hit h that direction d
- * points to (the rule above). */
-int scene_medium_after(const struct scene *s, const struct hit *h, vec3 d);
+/* scene.obj_iface values (the rule above). */
+enum { MEDIUM_IFACE_LEGACY = 0, MEDIUM_IFACE_DECLARED = 1, MEDIUM_IFACE_KEEP = 2 };
+
+/* The medium (index into scene.media, -1 = none) of a ray that reached hit h going along din
+ * while in medium cur, and leaves it along dout (dout = din: passing a null surface). Reports
+ * an inconsistent interface (above) once per scene. Thread-safe. */
+int scene_medium_next(const struct scene *s, const struct hit *h, vec3 din, vec3 dout, int cur);
+/* The same without the consistency check (shadow rays, estimates). */
+int scene_medium_side(const struct scene *s, const struct hit *h, vec3 dout, int cur);
+/* The medium on the side of object obj that its normal points to (front 1) or away from
+ * (front 0); -2 for a MEDIUM_IFACE_KEEP object. */
+int scene_object_side_medium(const struct scene *s, int obj, int front);
+
+/* The medium at r.o as the surfaces ahead say: the side facing r.o of the first surface along r
+ * with an interface (surfaces that keep the medium are passed); the global medium if none. */
+int scene_medium_ahead(const struct scene *s, ray r);
+/* The medium a photon of light li leaves in from point p (normal nl, zero for a point) along
+ * d: the emitting object's side if it declares an interface, else first_hit (the medium of
+ * the first surface's side facing the photon, -2 when that surface keeps the medium), else
+ * scene_medium_ahead. */
+int scene_light_medium(const struct scene *s, int li, vec3 p, vec3 nl, vec3 d, int first_hit);
 
 /* Transmittance of the segment from p (normal np, zero if not on a surface) to q (normal nq),
- * starting in medium med: it passes through null surfaces (changing medium at each) and is 0
+ * starting in medium med: it passes through null surfaces (changing medium at each by
+ * scene_medium_next) and is 0
  * at any other surface. Tr of each medium part per channel. */
 rgb scene_transmittance(const struct scene *s, vec3 p, vec3 np, vec3 q, vec3 nq, int med);
 /* The same for a ray toward infinity in direction d (directional lights). */

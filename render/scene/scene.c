@@ -209,6 +209,9 @@ void scene_free(scene *s) {
     free(s->media);
     free(s->obj_medium);
     free(s->ports);
+    free(s->obj_medium_out);
+    free(s->obj_iface);
+    free(s->iface_report);
     free(s->lights);
     distrib1d_free(&s->light_distrib);
     bvh_free(&s->accel);

@@ -105,7 +105,10 @@ typedef struct scene {
     int nmedia;
     int global_medium;       /* index in media of $.medium (between objects), or -1 */
     int camera_medium;       /* the medium the camera is in (found from the nearest surface) */
-    int *obj_medium;         /* per object of $.objects: its interior_medium, or -1 */
+    int *obj_medium;         /* per object of $.objects: its interior_medium (back side), or -1 */
+    int *obj_medium_out;     /* per object: its exterior_medium (front side), or NULL (all global) */
+    unsigned char *obj_iface; /* per object: MEDIUM_IFACE_* (medium.h), or NULL (all legacy) */
+    int *iface_report;       /* 1 int: an inconsistent interface was reported (medium.c) */
     int nobj;
     int has_null;            /* some surface has the "null" (invisible interface) material */
     port *ports;             /* photon ports ($.ports; port.h), nports of them, or NULL */

@@ -82,5 +82,8 @@ uint64_t scene_transport_hash(const scene *s) {
     h = hash_int(h, s->global_medium);
     h = hash_int(h, s->obj_medium ? s->nobj : 0);
     for (int i = 0; s->obj_medium && i < s->nobj; i++) h = hash_int(h, s->obj_medium[i]);
+    /* interfaces (medium.h): only when some object has one, so older scenes hash as before */
+    for (int i = 0; s->obj_iface && s->obj_medium_out && i < s->nobj; i++)
+        h = hash_int(hash_int(h, s->obj_iface[i]), s->obj_medium_out[i]);
     return h;
 }
