@@ -103,8 +103,8 @@ cmp2() {
 stamp() { # scene, extra lines on stdin
   {
     echo "commit $commit"
-    echo "date $(date -u '+%Y-%m-%d %H:%M UTC')"
-    echo "machine $(nproc) cores, $(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1), load $(cut -d' ' -f1 /proc/loadavg)"
+    echo "date $date0"
+    echo "machine $(nproc) cores, $(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1), load $load0"
     echo "resolution $RES"
     cat
   } > "$out/measurement_$1.txt"
@@ -164,6 +164,9 @@ if [ $summ = 1 ]; then
   exit 0
 fi
 for scene in $scenes; do
+  # the date and load average at the start of the scene's runs (the document says "at the start")
+  date0=$(date -u '+%Y-%m-%d %H:%M UTC')
+  load0=$(cut -d' ' -f1 /proc/loadavg)
   csv="$out/time_error_$scene.csv"
   echo "method,spp,seed,cpu_s,rmse,mean,rmse_corrected" > "$work/te.csv"
   seed=200

@@ -96,6 +96,9 @@ fi
 for p in "$B/render" "$B/bench_estimate"; do
   [ -x "$p" ] || { echo "remeasure-docs: $p not built (make -j2 all)" >&2; exit 2; }
 done
+# The build directory as the documents name it: relative to the checkout when inside it.
+cd "$here"
+case $B in "$here"/*) B=${B#"$here"/} ;; esac
 . "$here/scripts/commit-stamp.sh"
 stamp=$(commit_stamp "$here" "$B/render") || exit 2
 echo "remeasure-docs: binaries of $B, stamp $stamp"
@@ -166,7 +169,7 @@ run_step() { # name
       make -C "$T/before" -j2 render > "$T/before.log" 2>&1 || { tail -20 "$T/before.log" >&2; return 1; }
       bl="$(git -C "$here" rev-parse --short "$before")-export"
       al=$(echo "$stamp" | cut -d' ' -f1)
-      COST_NOTE="Before ($bl) is render built from a clean export of $before (git archive); after is ${B#"$here"/}/render at $stamp. Both with the Makefile's default flags." \
+      COST_NOTE="Before ($bl) is render built from a clean export of $before (git archive); after is $B/render at $stamp. Both with the Makefile's default flags." \
         sh scripts/media-cost.sh "$T/before/build/release/render" "$bl" "$B/render" "$al" 3 &&
       sh scripts/gen-media-md.sh ;;
     mpi) PM_BUILD_DIR="$B" sh scripts/mpi-scaling.sh --reps 1 ;;
