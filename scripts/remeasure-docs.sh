@@ -40,6 +40,8 @@
 # --media-before COMMIT: the "before" binary of the media cost section, built here from a
 # clean export of COMMIT (into a temporary directory, about 2 minutes on 2 cores); without it
 # media_cost is skipped. Use the last commit before the media change the section is about.
+# When COMMIT's photonmap/, render/ and Makefile are those of the binaries, the section says it
+# is an A/A run (the measurement's own spread).
 #
 # Writes only into docs/ (the five documents and docs/accuracy, docs/import, docs/media,
 # docs/mpi, docs/profile) and its own temporary directories (removed at the end).
@@ -169,7 +171,9 @@ run_step() { # name
       make -C "$T/before" -j2 render > "$T/before.log" 2>&1 || { tail -20 "$T/before.log" >&2; return 1; }
       bl="$(git -C "$here" rev-parse --short "$before")-export"
       al=$(echo "$stamp" | cut -d' ' -f1)
-      COST_NOTE="Before ($bl) is render built from a clean export of $before (git archive); after is $B/render at $stamp. Both with the Makefile's default flags." \
+      same=no
+      case $stamp in *uncommitted*) ;; *) git -C "$here" diff --quiet "$before" HEAD -- photonmap render Makefile && same=yes ;; esac
+      COST_SAME_SOURCES=$same COST_NOTE="Before ($bl) is render built from a clean export of $before (git archive); after is $B/render at $stamp. Both with the Makefile's default flags." \
         sh scripts/media-cost.sh "$T/before/build/release/render" "$bl" "$B/render" "$al" 3 &&
       sh scripts/gen-media-md.sh ;;
     mpi) PM_BUILD_DIR="$B" sh scripts/mpi-scaling.sh --reps 1 ;;
@@ -181,6 +185,11 @@ for s in $STEPS; do
   if [ $s = mpi ] && [ ! -x "$B/render-mpi" ]; then
     echo "remeasure-docs: mpi skipped: $B/render-mpi is not built (make -j2 MPI=1 render-mpi); docs/MPI.md stays as it was"
     skipped="$skipped mpi(no render-mpi)"
+    continue
+  fi
+  if [ $s = media_cost ] && [ -n "$before" ] && ! git -C "$here" rev-parse -q --verify "$before^{commit}" >/dev/null; then
+    echo "remeasure-docs: media_cost skipped: --media-before $before is not a commit"
+    skipped="$skipped media_cost(bad --media-before)"
     continue
   fi
   if [ $s = media_cost ] && [ -z "$before" ]; then
