@@ -4,7 +4,7 @@
 # section stamped with the binaries' commit (scripts/commit-stamp.sh) by the script that measures it.
 #
 #   sh scripts/remeasure-docs.sh [--budget-min N] [--build DIR] [--media-before COMMIT]
-#                                [--only STEP,...] [--all] [--list] [--dry-run]
+#                                [--only STEP,...] [--all] [--full] [--list] [--dry-run]
 #
 # Build first: `make -j2 all` and, for MPI, `make -j2 MPI=1 render-mpi` (the same BUILD
 # directory: render-mpi is linked from render's objects). The steps, in order, each the
@@ -37,6 +37,10 @@
 # --list prints the steps and their expected minutes and exits; --dry-run says which steps
 # would run (stale, within the budget) and measures nothing.
 #
+# --full: the scripts' full protocols instead (import at 64x64, the beam's 4096-spp path-traced
+# run, which is what shows the 10x target by measurement rather than by extrapolation, and
+# mpi-scaling.sh's 3 repetitions), with the expected minutes of EXPECT_FULL.
+#
 # --media-before COMMIT: the "before" binary of the media cost section, built here from a
 # clean export of COMMIT (into a temporary directory, about 2 minutes on 2 cores); without it
 # media_cost is skipped. Use the last commit before the media change the section is about.
@@ -52,6 +56,7 @@ budget=""
 before=""
 only=""
 list=0
+full=0
 all=0
 dry=0
 while [ $# -gt 0 ]; do
@@ -68,6 +73,7 @@ while [ $# -gt 0 ]; do
             only=$(echo "$2" | tr ',' ' '); shift 2 ;;
     --list) list=1; shift ;;
     --all) all=1; shift ;;
+    --full) full=1; shift ;;
     --dry-run) dry=1; shift ;;
     *) echo "remeasure-docs: unknown argument '$1' (see --help)" >&2; exit 2 ;;
   esac
@@ -85,13 +91,19 @@ media_cost 3
 mpi 4
 profile 1.5
 import_ply 2"
-expect() { echo "$EXPECT" | awk -v s="$1" '$1 == s { print $2 }'; }
+# With --full, the steps whose protocol changes (the others as above).
+EXPECT_FULL="import 2.5
+media_vc 4
+mpi 9"
+expect() { [ $full = 0 ] || { echo "$EXPECT_FULL" | awk -v s="$1" '$1 == s { print $2; f = 1 } END { exit !f }' && return 0; }
+  echo "$EXPECT" | awk -v s="$1" '$1 == s { print $2 }'; }
 for s in $only; do
   case " $STEPS " in *" $s "*) ;; *) echo "remeasure-docs: unknown step '$s' (steps: $STEPS)" >&2; exit 2 ;; esac
 done
 if [ $list = 1 ]; then
-  for s in $STEPS; do echo "$s $(expect "$s") min"; done
-  echo "total $(echo "$EXPECT" | awk '{ t += $2 } END { print t }') min"
+  tot=0
+  for s in $STEPS; do echo "$s $(expect "$s") min"; tot=$(awk -v a=$tot -v b="$(expect "$s")" 'BEGIN { print a + b }'); done
+  echo "total $tot min"
   exit 0
 fi
 
@@ -159,11 +171,11 @@ files_of() {
 run_step() { # name
   case $1 in
     accuracy) sh scripts/gen-accuracy-md.sh --run "$B" ;;
-    import) sh scripts/gen-import-md.sh --run "$B" --reduced ;;
+    import) sh scripts/gen-import-md.sh --run "$B" $([ $full = 1 ] || echo --reduced) ;;
     import_pbrt) sh scripts/gen-import-md.sh --run-pbrt "$B" ;;
     import_ply) sh scripts/gen-import-md.sh --run-ply "$B" ;;
     media_fog) PM_BUILD_DIR="$B" sh scripts/media-time-error.sh cornell_fog ;;
-    media_vc) PM_BUILD_DIR="$B" sh scripts/media-time-error.sh --reduced volumetric_caustic ;;
+    media_vc) PM_BUILD_DIR="$B" sh scripts/media-time-error.sh $([ $full = 1 ] || echo --reduced) volumetric_caustic ;;
     media_cost)
       mkdir -p "$T/before"
       git -C "$here" archive "$before" | tar -x -C "$T/before"
@@ -176,7 +188,7 @@ run_step() { # name
       COST_SAME_SOURCES=$same COST_NOTE="Before ($bl) is render built from a clean export of $before (git archive); after is $B/render at $stamp. Both with the Makefile's default flags." \
         sh scripts/media-cost.sh "$T/before/build/release/render" "$bl" "$B/render" "$al" 3 &&
       sh scripts/gen-media-md.sh ;;
-    mpi) PM_BUILD_DIR="$B" sh scripts/mpi-scaling.sh --reps 1 ;;
+    mpi) PM_BUILD_DIR="$B" sh scripts/mpi-scaling.sh --reps $([ $full = 1 ] && echo 3 || echo 1) ;;
     profile) sh scripts/profile-pm.sh --build "$B" ;;
   esac
 }
