@@ -129,7 +129,7 @@ if [ -f "$res/cost.csv" ]; then
 ## Cost: scenes without media
 
 Measured by \`scripts/media-cost.sh\` on $(cm date), $(cm machine), load average $(cm load): the renderer
-$(if [ "$(cm same_sources)" = yes ]; then echo "of one commit against itself (an A/A run: it shows the measurement's own spread), both built"; else echo "before and after a change to the media code (named below), both built"; fi) the same way, alternating run by
+$(if [ "$(cm same_sources)" = yes ]; then echo "built twice from the same sources (an A/A run: it shows the measurement's own spread), both"; else echo "before and after a change to the media code (named below), both built"; fi) the same way, alternating run by
 run on $(cmd threads 1 | sed 's/^1$/one thread/;s/^[0-9][0-9]*$/& threads/'), $(cmd resolution 32)x$(cmd resolution 32) pixels; CPU time (user + system), median of the$(v=$(cm runs); [ -z "$v" ] || echo " $v") runs. Before: $(cm before).
 After: $(cm after). RMSE between their path-traced images: $(cm path_rmse_between_binaries).
 $(cm note)
