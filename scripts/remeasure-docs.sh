@@ -125,6 +125,10 @@ echo "remeasure-docs: binaries of $B, stamp $stamp"
 cd "$here"
 T=$(mktemp -d "${TMPDIR:-/tmp}/remeasure-docs.XXXXXX")
 trap 'rm -rf "$T"' EXIT
+# Interrupted: the step under way puts its files back, as a failed one does.
+cur=""
+restore() { for f in $(files_of "$1"); do rm -rf "$f"; [ ! -e "$T/save/$f" ] || cp -R "$T/save/$f" "$f"; done; }
+trap 'if [ -n "$cur" ]; then echo "remeasure-docs: interrupted in $cur; its files are put back" >&2; restore "$cur"; fi; exit 130' INT TERM
 t0=$(date +%s)
 ran=""
 skipped=""
@@ -247,15 +251,18 @@ for s in $STEPS; do
   for f in $(files_of $s); do mkdir -p "$T/save/$(dirname "$f")"; [ ! -e "$f" ] || cp -R "$f" "$T/save/$f"; done
   s0=$(date +%s)
   childcpu > "$T/c0"; c0=$(cat "$T/c0")
+  cur=$s
   if (run_step $s) > "$T/$s.log" 2>&1; then
+    cur=""
     childcpu > "$T/c1"; c1=$(cat "$T/c1")
     ran="$ran $s($(( $(date +%s) - s0 ))s)"
     echo "remeasure-docs: $s done in $(( $(date +%s) - s0 )) s wall, $(awk -v a="$c0" -v b="$c1" 'BEGIN { printf "%.0f", b - a }') CPU-s (load now $(cut -d' ' -f1 /proc/loadavg))"
   else
     echo "remeasure-docs: $s FAILED after $(( $(date +%s) - s0 )) s; its files are put back:" >&2
     tail -15 "$T/$s.log" >&2
-    for f in $(files_of $s); do rm -rf "$f"; [ ! -e "$T/save/$f" ] || cp -R "$T/save/$f" "$f"; done
+    restore $s
     failed="$failed $s"
+    cur=""
   fi
 done
 echo "remeasure-docs: $(( ($(date +%s) - t0) ))s in all; ran:${ran:- none}; skipped:${skipped:- none}; failed:${failed:- none}"
