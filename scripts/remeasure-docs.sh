@@ -84,8 +84,7 @@ STEPS="accuracy import import_pbrt media_fog media_vc media_cost mpi profile imp
 # seconds as measured by this script on 2026-12-04 at load 14-17 (the machine was never idle):
 # accuracy 10 CPU-s on one thread; import 48 and import_pbrt 46 (renders on 2 threads);
 # media_fog 85 and media_vc 66 (one thread); media_cost 74 (the before build on 2 threads, then
-# 41 on one); mpi 74 (2 ranks or threads); profile 12; import_ply not measured here (its script
-# says a minute or two). Rounded up, since wall time on 2 cores is at least CPU / 2.
+# 41 on one); mpi 74 (2 ranks or threads); profile 12; import_ply 16 (33 s at load 13). Rounded up, since wall time on 2 cores is at least CPU / 2.
 EXPECT="accuracy 0.5
 import 1
 import_pbrt 1
@@ -94,7 +93,7 @@ media_vc 1.5
 media_cost 2.5
 mpi 2
 profile 0.5
-import_ply 2"
+import_ply 1"
 # With --full, the steps whose protocol changes (the others as above).
 # (import: 4x the pixels of its renders; media_vc: + the 4096-spp run, about 150 CPU-s; mpi:
 # 3 repetitions of the timing and partitioned runs)
