@@ -40,6 +40,8 @@ table() {
 stamp() {
   echo "Measured at commit $(ms "$1" commit), $(ms "$1" date), on $(ms "$1" machine) (load average at the start);"
   echo "$(ms "$1" resolution)x$(ms "$1" resolution) pixels, every render on $(ms "$1" threads) thread, CPU time (user + system)."
+  pr=$(ms "$1" protocol)
+  [ -z "$pr" ] || echo "Protocol: $pr."
   echo "Measured sources (stamp $(ms "$1" commit | cut -d' ' -f1)): \`photonmap/\` \`render/\` \`Makefile\`"
 }
 # What the path-traced runs of the beam show, read from time_error_volumetric_caustic.csv: the
@@ -135,13 +137,16 @@ $(awk '$1 == "pm_cheapest_as_good_spp" && $2 > 0 { f = 1 } END { exit !f }' "$re
 EOF
 if [ -f "$res/cost.csv" ]; then
   cm() { kv "$res/cost_measurement.txt" "$1"; }
+  # A setting of the run, or (files measured before media-cost.sh recorded it) the value that
+  # script then used.
+  cmd() { v=$(cm "$1"); echo "${v:-$2}"; }
   cat <<EOF
 
 ## Cost: scenes without media
 
 Measured by \`scripts/media-cost.sh\` on $(cm date), $(cm machine), load average $(cm load): the renderer
-before and after a change to the media code (named below), both built the same way, alternating run by
-run on one thread, 32x32 pixels; CPU time (user + system), median of the runs. Before: $(cm before).
+$(if [ "$(cm same_sources)" = yes ]; then echo "built twice from the same sources (an A/A run: it shows the measurement's own spread), both"; else echo "before and after a change to the media code (named below), both built"; fi) the same way, alternating run by
+run on $(cmd threads 1 | sed 's/^1$/one thread/;s/^[0-9][0-9]*$/& threads/'), $(cmd resolution 32)x$(cmd resolution 32) pixels; CPU time (user + system), median of the$(v=$(cm runs); [ -z "$v" ] || echo " $v") runs. Before: $(cm before).
 After: $(cm after). RMSE between their path-traced images: $(cm path_rmse_between_binaries).
 $(cm note)
 Measured sources (stamp $(cm after | cut -d' ' -f1)): \`photonmap/\` \`render/\` \`Makefile\`

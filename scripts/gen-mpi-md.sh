@@ -161,7 +161,12 @@ echo "## Measurements"
 echo
 echo "Measured by \`scripts/mpi-scaling.sh\` at commit $(meas commit), $(meas date), on"
 echo "$(meas machine); load average before $(meas load_before), after $(meas load_after)"
-echo "(the machine is shared: figures are medians of $(meas reps) interleaved runs, and noisy)."
+if [ "$(meas reps)" = 1 ]; then
+  echo "(one run of each: a reduced protocol, mpi-scaling.sh --reps 1; its default takes medians of"
+  echo "interleaved repetitions. The machine is shared: figures are noisy)."
+else
+  echo "(the machine is shared: figures are medians of $(meas reps) interleaved runs, and noisy)."
+fi
 echo "Scene \`$(meas scene)\`; pm: \`$(meas pm_args)\`; path: \`$(meas path_args)\`."
 echo "Measured sources (stamp $(meas commit | cut -d' ' -f1)): \`photonmap/\` \`render/\` \`Makefile\`"
 echo
@@ -377,7 +382,8 @@ echo "### Accuracy, traffic and time"
 echo
 echo "Measured by \`scripts/mpi-scaling.sh --partitioned\` at commit $(pmeas commit), $(pmeas date),"
 echo "on $(pmeas machine); load average before $(pmeas load_before), after $(pmeas load_after);"
-echo "$(pmeas reps) interleaved repetitions. The pm render of the measurements above"
+if [ "$(pmeas reps)" = 1 ]; then echo "one run of each (a reduced protocol; the default takes medians of interleaved repetitions). The pm render of the measurements above"
+else echo "$(pmeas reps) interleaved repetitions. The pm render of the measurements above"; fi
 echo "(\`$(meas scene)\`, \`$(meas pm_args)\`), 1 thread per rank, replicated"
 echo "and partitioned at the same rank count. Accuracy: the partitioned image's mean over each"
 echo "32x32 quarter against the one-process render's with the shadow-photon map off (the same"

@@ -11,7 +11,8 @@
 # docs/media/cost_measurement.txt (the two labels, date, machine, load average before and
 # after); scripts/gen-media-md.sh reports the medians and their ratio. The RMSE between the
 # two binaries' path-traced images is recorded too (0: they did the same work). COST_NOTE (in the
-# environment) is kept as a note on how the binaries were built.
+# environment) is kept as a note on how the binaries were built; COST_SAME_SOURCES=yes says the
+# two were built from the same sources (an A/A run, which shows the measurement's own spread).
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 case "${1:-}" in -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;; esac
@@ -50,6 +51,10 @@ mv "$work/cost.csv" "$out/cost.csv"
   echo "machine $(nproc) cores, $(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1)"
   echo "load $load0 before, $(cut -d' ' -f1 /proc/loadavg) after"
   echo "path_rmse_between_binaries $same"
+  echo "resolution 32"
+  echo "threads 1"
+  echo "runs $reps"
+  [ -z "${COST_SAME_SOURCES:-}" ] || echo "same_sources $COST_SAME_SOURCES"
   [ -z "${COST_NOTE:-}" ] || echo "note $COST_NOTE"
 } > "$out/cost_measurement.txt"
 echo "media-cost: wrote $out/cost.csv" >&2

@@ -2,7 +2,7 @@
 # media-time-error.sh: time to equal error, photon mapping against path tracing, in scenes with
 # participating media: RMSE against a reference as a function of CPU time, for both methods.
 #
-#   scripts/media-time-error.sh [--quick] cornell_fog|volumetric_caustic ...
+#   scripts/media-time-error.sh [--quick | --reduced] cornell_fog|volumetric_caustic ...
 #
 # cornell_fog: the whole 64x64 image against the committed path-traced reference
 #   data/reference-media/cornell_fog.pfm (its .info gives its samples; a reference of another
@@ -36,7 +36,10 @@
 # sources" when git status lists any in photonmap/, render/ or the Makefile; refused (exit 2)
 # when a source file is newer than the binary; PM_BENCH_COMMIT=TEXT stamps TEXT instead (a
 # binary built from a clean export of a commit). --quick: fewer samples, into
-# build/media-quick (not the published figures). --summarize: no renders; redo the analysis of
+# build/media-quick (not the published figures). --reduced: the published files, without the
+# beam's longest path-traced run (4096 spp, about 150 of its 215 CPU-s): path tracing at
+# 16..1024 spp there, everything else as at the defaults; measurement_SCENE.txt says so in its
+# "protocol" line, which the document prints. --summarize: no renders; redo the analysis of
 # the named scenes from their CSV files (and the document).
 #
 # Environment: PM_BUILD_DIR (where render is; default build/release).
@@ -45,6 +48,7 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 bin="${PM_BUILD_DIR:-$here/build/release}/render"
 out="$here/docs/media"
 quick=0
+reduced=0
 summ=0
 usage() { awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; }
 scenes=""
@@ -52,6 +56,7 @@ while [ $# -gt 0 ]; do
   case "$1" in
     -h|--help) usage; exit 0 ;;
     --quick) quick=1; shift ;;
+    --reduced) reduced=1; shift ;;
     --summarize) summ=1; shift ;;
     cornell_fog|volumetric_caustic) scenes="$scenes $1"; shift ;;
     *) echo "media-time-error: unknown argument '$1' (see --help)" >&2; exit 2 ;;
@@ -76,6 +81,9 @@ if [ $quick = 1 ]; then
   PT_SPPS="4 16"; PM_SPPS="1"; PT_SPPS_VC="4 16"; PM_SPPS_VC="1"; REF_PM_SPP=1; REF_PM_FLAGS=""
   out="$here/build/media-quick"
 fi
+[ $quick = 0 ] || [ $reduced = 0 ] || { echo "media-time-error: --quick or --reduced, not both" >&2; exit 2; }
+FULL_PT_SPPS=$PT_SPPS FULL_PT_SPPS_VC=$PT_SPPS_VC
+[ $reduced = 1 ] && PT_SPPS_VC="16 64 256 1024"
 mkdir -p "$out"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
@@ -95,8 +103,8 @@ cmp2() {
 stamp() { # scene, extra lines on stdin
   {
     echo "commit $commit"
-    echo "date $(date -u '+%Y-%m-%d %H:%M UTC')"
-    echo "machine $(nproc) cores, $(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1), load $(cut -d' ' -f1 /proc/loadavg)"
+    echo "date $date0"
+    echo "machine $(nproc) cores, $(sed -n 's/^model name[^:]*: //p' /proc/cpuinfo | head -1), load $load0"
     echo "resolution $RES"
     cat
   } > "$out/measurement_$1.txt"
@@ -156,6 +164,9 @@ if [ $summ = 1 ]; then
   exit 0
 fi
 for scene in $scenes; do
+  # the date and load average at the start of the scene's runs (the document says "at the start")
+  date0=$(date -u '+%Y-%m-%d %H:%M UTC')
+  load0=$(cut -d' ' -f1 /proc/loadavg)
   csv="$out/time_error_$scene.csv"
   echo "method,spp,seed,cpu_s,rmse,mean,rmse_corrected" > "$work/te.csv"
   seed=200
@@ -195,6 +206,12 @@ for scene in $scenes; do
   summarize "$scene" "$nref" "$work/te.csv" "$csv"
   {
     echo "threads 1"
+    if [ $quick = 1 ]; then echo "protocol quick (fewer samples, not for publication)"
+    elif [ "$scene" = volumetric_caustic ] && [ $reduced = 1 ]; then
+      left=""
+      for n in $FULL_PT_SPPS_VC; do case " $PT_SPPS_VC " in *" $n "*) ;; *) left="$left $n" ;; esac; done
+      echo "protocol reduced: path tracing at $PT_SPPS_VC spp (the full protocol also runs$left spp)"
+    else echo "protocol full"; fi
     echo "reference_spp $nref"
     echo "pt_spps $pts"
     echo "pm_spps $pms"

@@ -154,7 +154,7 @@ measure_partitioned() {
     echo "load_before $pload0"
     echo "load_after $(cut -d' ' -f1-3 /proc/loadavg)"
     echo "reps $reps"
-    [ -n "$before" ] && echo "before $before_label"
+    if [ -n "$before" ]; then echo "before $before_label"; fi
   } > "$out/partitioned.txt"
 }
 MEMPM="--mode pm --spp 1 --pm global_photons=400000 --pm caustic_photons=200000"
@@ -203,7 +203,7 @@ EOS
     echo "load_after $(cut -d' ' -f1-3 /proc/loadavg)"
     echo "scene $SCENE, 16x16"
     echo "pm_args $MEMPM"
-    [ -n "$before" ] && echo "before $before_label"
+    if [ -n "$before" ]; then echo "before $before_label"; fi
   } > "$out/memory.txt"
 }
 if [ "$only_mem" = 1 ]; then
