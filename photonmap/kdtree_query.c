@@ -27,7 +27,9 @@
  * plane distances are never NaN (positions and queries are finite), so no other case arises.
  *
  * K-NN. The result set is internal.h's (THE K-NEAREST RESULT SET): the k smallest
- * (dist2, index) within max_dist2, kept sorted for small k and in a max-heap for large k. The
+ * (dist2, index) within max_dist2, kept in a max-heap for k > 16; for k <= 16 the same set is
+ * kept here in 16 unordered slots (THE SMALL-K RESULT SET below; internal.h's sorted array
+ * where SSE2 is missing). The
  * search's bound r2 is that set's `lim`: max_dist2 until k are found, then the float just
  * above the k-th dist2, so that a record or a cell at exactly the k-th distance is still
  * looked at (a tied record with a smaller index must win, wherever it lies). Every test stays
@@ -306,7 +308,8 @@ typedef struct {
  * an entering record overwrites the slot of the largest key, and the next largest is found by
  * four SSE2 max and compare steps over all 16 slots (unused ones hold -1, which no dist2 is)
  * instead of an insertion whose loop exit mispredicted about once per entry (perf: 10-13% of
- * a clustered empty-space query at k = 10 on one branch). Equal dist2 at the maximum (rare)
+ * a clustered empty-space query at k = 10 on one branch; 1.03x over it, measured in
+ * bench/results/experiments.csv). Equal dist2 at the maximum (rare)
  * are settled by index in a scalar loop. knn_finish writes the set to out sorted by
  * (dist2, index), as kdtree.h promises for k <= 16. */
 #if !defined(PM__KNN_SMALL) && defined(__SSE2__)
