@@ -450,33 +450,41 @@ PM__INLINE void knn_bucket(knn_state *s, const view *v, uint64_t node, int metri
     if (ph && !metric) {
         /* Four photons at a time: a 16-byte load at each record start (x, y, z and the RGBE
          * bytes, all inside the 20-byte record), a 4x4 transpose, and the same float
-         * expression as knn_dist2 (separate multiplies and adds, so bit-identical). Records
-         * that pass are then taken in order against the current r2, exactly as the scalar
-         * loop would. */
+         * expression as knn_dist2 (separate multiplies and adds, so bit-identical). In two
+         * passes over up to 64 records: first every distance and one bit mask of those below
+         * r2 as it was on entry, with no branch; then the records of the mask in order, each
+         * tested again against the current r2 (a push shrinks it), exactly as the scalar loop
+         * would take them. (One pass, branching on each group of four and narrowing its mask
+         * after each push, was 0.95-0.97x this on clustered data: experiments.csv.) */
         const __m128 qx = _mm_set1_ps(s->q[0]), qy = _mm_set1_ps(s->q[1]),
                      qz = _mm_set1_ps(s->q[2]);
-        for (; i + 4 <= e; i += 4) {
-            const float *p0 = PX(v, i, 1);
-            __m128 r0 = _mm_loadu_ps(p0), r1 = _mm_loadu_ps(p0 + 5), r2v = _mm_loadu_ps(p0 + 10),
-                   r3 = _mm_loadu_ps(p0 + 15);
-            _MM_TRANSPOSE4_PS(r0, r1, r2v, r3);
-            __m128 dx = _mm_sub_ps(qx, r0), dy = _mm_sub_ps(qy, r1), dz = _mm_sub_ps(qz, r2v);
-            __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)),
-                                   _mm_mul_ps(dz, dz));
-            /* lanes with !(d2 >= r2): NaN r2 (unlimited) passes every lane */
-            int m = _mm_movemask_ps(_mm_cmpnge_ps(d2, _mm_set1_ps(s->r2)));
-            if (cnt) s->evals += 4;
-            if (!m) continue;
-            float dv[4];
-            _mm_storeu_ps(dv, d2);
-            do { /* lanes in order; a push shrinks r2, so m is narrowed again after it */
-                unsigned l = (unsigned)__builtin_ctz((unsigned)m);
-                m &= m - 1;
+        while (i + 4 <= e) {
+            unsigned ng = (unsigned)((e - i) / 4);
+            if (ng > 16) ng = 16;
+            _Alignas(16) float dv[64];
+            uint64_t M = 0;
+            const __m128 rv = _mm_set1_ps(s->r2);
+            for (unsigned g = 0; g < ng; g++) {
+                const float *p0 = PX(v, i + 4 * g, 1);
+                __m128 r0 = _mm_loadu_ps(p0), r1 = _mm_loadu_ps(p0 + 5),
+                       r2v = _mm_loadu_ps(p0 + 10), r3 = _mm_loadu_ps(p0 + 15);
+                _MM_TRANSPOSE4_PS(r0, r1, r2v, r3);
+                __m128 dx = _mm_sub_ps(qx, r0), dy = _mm_sub_ps(qy, r1), dz = _mm_sub_ps(qz, r2v);
+                __m128 d2 = _mm_add_ps(_mm_add_ps(_mm_mul_ps(dx, dx), _mm_mul_ps(dy, dy)),
+                                       _mm_mul_ps(dz, dz));
+                _mm_store_ps(dv + 4 * g, d2);
+                M |= (uint64_t)_mm_movemask_ps(_mm_cmpnge_ps(d2, rv)) << (4 * g);
+            }
+            if (cnt) s->evals += 4 * ng;
+            while (M) {
+                unsigned l = (unsigned)__builtin_ctzll(M);
+                M &= M - 1;
+                if (dv[l] >= s->r2) continue;
                 if (filter && !s->filter(s->user, v->rec + (i + l) * v->stride, (uint32_t)(i + l)))
                     continue;
                 knn_push(s, dv[l], (uint32_t)(i + l));
-                m &= _mm_movemask_ps(_mm_cmpnge_ps(d2, _mm_set1_ps(s->r2)));
-            } while (m);
+            }
+            i += 4 * ng;
         }
     }
 #endif
