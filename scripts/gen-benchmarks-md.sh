@@ -224,7 +224,7 @@ fi
 if [ -f "$X" ]; then
   echo "## What did not pay off"
   echo
-  echo "Ideas tried or weighed on the kd-tree, with how each was measured (bench/results/experiments.csv, written from those measurements; they are not part of the run):"
+  echo "Ideas tried or weighed on the kd-tree, kept or not (the last column says which), with how each was measured (bench/results/experiments.csv, written from those measurements; they are not part of the run):"
   echo
   echo "| idea | measured on | effect | decision |"
   echo "|---|---|---|---|"
@@ -341,10 +341,10 @@ for m in $missed; do
     cat <<'EOF'
 So the kd-tree wins on traversal and not on memory. Both structures scan about the same
 records (the distance evaluations above), kept contiguous in their leaves, so they pay about
-the same cache misses for them; and both collect the k best the same way (a plain array,
-then a max-heap whose top is the shrinking radius), a cost that does not depend on the
-structure: in the kd-tree's line-level profile the heap (`heapify` plus the sift-down inlined
-into `pm_kdtree_knn`) is about a third of its instructions. The kd-tree's advantage is the
+the same cache misses for them; and both collected the k best the same way when this race was
+measured (a plain array, then a max-heap whose top is the shrinking radius), a cost that does
+not depend on the structure: in the kd-tree's line-level profile the heap (`heapify` plus the
+sift-down inlined into `pm_kdtree_knn`) is a large share of its instructions. The kd-tree's advantage is the
 rest: one plane test per node against the octree's ordering of up to 8 children per cell
 (`push_children` in its self costs below). With those shared floors, a 2x ratio would need
 the octree's traversal to cost several times the kd-tree's whole query, and it does not. The
@@ -352,12 +352,12 @@ octree is built as carefully as the kd-tree (records partitioned in place into i
 the same heap of the k best, exact pruning by box distance), so we report the gap we measure
 rather than a slower octree.
 
-The speed ideas tried on the kd-tree, with their figures, are in "What did not pay off" above.
-Bucket size is chosen by the sweep (the fastest B is used). The heap of the k best stays:
-kdtree.h promises its tie rule (the tied record that leaves is the heap's top) and its
-output order (out[0] is the farthest), and a cheaper collection (batched selection, a d-ary
-heap) would change which of several equidistant records is returned; the octree uses the
-same heap, so the ratio would move little anyway.
+The speed ideas tried on the kd-tree, kept or not, with their figures, are in "What did not
+pay off" above. Bucket size is chosen by the sweep (the fastest B is used). This race is older
+than the k-nearest search of the workload race: since it was measured, ties go to the smaller
+record index whatever the visiting order, k <= 16 is kept in an unordered 16-slot set and the
+bucket scan runs in two passes (kdtree.h, kdtree_query.c); the workload race above measures
+that search, at its own commit.
 
 EOF
     ;;
