@@ -66,7 +66,7 @@
  * applies first: the rule picks among the records it accepts.) The iterative and recursive
  * searches visit in the same order and return identical arrays (and identical
  * pm_query_stats). ORDER of results: with PM_SORT, ascending by (dist2, index); without it,
- * for k <= 16 also ascending (the search sorts its 16-slot set once at the end, so PM_SORT costs
+ * for k <= 16 also ascending (the search sorts its result set once at the end, so PM_SORT costs
  * nothing more there),
  * and for k > 16 a max-heap on (dist2, index) (out[0] is the k-th nearest once k were found).
  * pm_kdtree_radius returns every record within r2, so ties do not arise; when more than cap
@@ -140,8 +140,8 @@ int pm_kdtree_height(const pm_kdtree *tree, uint32_t i);
 
 /* The k nearest records with dist2 < max_dist2 (ties: the smaller index, see TIES above). out
  * must hold k entries. Returns the number found (0..k) or a negative code. Iterative: an
- * explicit stack of cells and far children; the results are kept in 16 unordered slots whose
- * largest (dist2, index) is tracked for k <= 16, else in a max-heap, and the k-th entry
+ * explicit stack of cells and far children; the results are kept in unordered slots whose
+ * largest (dist2, index) is tracked for k <= 64, else in a max-heap, and the k-th entry
  * shrinks the search radius.
  * Order: see TIES (PM_SORT sorts when k > 16). */
 int pm_kdtree_knn(const pm_kdtree *tree, const float q[3], unsigned k, float max_dist2,

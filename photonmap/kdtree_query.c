@@ -27,9 +27,9 @@
  * plane distances are never NaN (positions and queries are finite), so no other case arises.
  *
  * K-NN. The result set is internal.h's (THE K-NEAREST RESULT SET): the k smallest
- * (dist2, index) within max_dist2, kept in a max-heap for k > 16; for k <= 16 the same set is
- * kept here in 16 unordered slots (THE SMALL-K RESULT SET below; internal.h's sorted array
- * where SSE2 is missing). The
+ * (dist2, index) within max_dist2, kept in a max-heap for k > 64; for k <= 64 the same set is
+ * kept here in unordered slots (THE SMALL-K RESULT SET below; internal.h's sorted array or
+ * heap where SSE2 is missing). The
  * search's bound r2 is that set's `lim`: max_dist2 until k are found, then the float just
  * above the k-th dist2, so that a record or a cell at exactly the k-th distance is still
  * looked at (a tied record with a smaller index must win, wherever it lies). Every test stays
@@ -303,36 +303,51 @@ typedef struct {
     unsigned smax;        /* its slot of the largest (dist2, index), once k are held */
 } knn_state;
 
-/* THE SMALL-K RESULT SET (k <= PM__KNN_SMALL_MAX, SSE2). The same set as pm__knn_offer's (the
- * k smallest (dist2, index) offered), kept unordered in 16 slots beside the caller's array:
- * an entering record overwrites the slot of the largest key, and the next largest is found by
- * four SSE2 max and compare steps over all 16 slots (unused ones hold -1, which no dist2 is)
- * instead of an insertion whose loop exit mispredicted about once per entry (perf: 10-13% of
- * a clustered empty-space query at k = 10 on one branch; 1.03x over it, measured in
- * bench/results/experiments.csv). Equal dist2 at the maximum (rare)
- * are settled by index in a scalar loop. knn_finish writes the set to out sorted by
- * (dist2, index), as kdtree.h promises for k <= 16. */
+/* THE SMALL-K RESULT SET (k <= PM__KNN_BLOCK_MAX = 64, SSE2). The same set as pm__knn_offer's
+ * (the k smallest (dist2, index) offered), kept unordered in slots beside the caller's array:
+ * an entering record overwrites the slot of the largest key, and the next largest is found
+ * without a data-dependent branch. For k <= 16, by four SSE2 max and compare steps over 16
+ * slots (unused ones hold -1, which no dist2 is), instead of an insertion whose loop exit
+ * mispredicted about once per entry (perf: 10-13% of a clustered empty-space query at k = 10
+ * on one branch; 1.03x). For 16 < k <= 64, in blocks of 4 slots with each block's largest
+ * dist2 kept: an entry refreshes its block's, then the largest of the 16 block maxima and its
+ * lane are found the same way, instead of the binary heap's sift-down (1.08-1.15x at k = 50).
+ * Equal dist2 at the maximum (rare) are settled by index in a scalar loop. knn_finish writes
+ * the set to out sorted by (dist2, index) for k <= 16 or with PM_SORT, else as a max-heap, as
+ * kdtree.h promises. Measured in bench/results/experiments.csv. */
 #if !defined(PM__KNN_SMALL) && defined(__SSE2__)
 #define PM__KNN_SMALL 1
 #endif
-#define PM__KNN_SMALL_MAX 16u
+#ifndef PM__KNN_BLOCK_MAX
+#define PM__KNN_BLOCK_MAX 64u
+#endif
+_Static_assert(PM__KNN_BLOCK_MAX >= 16 && PM__KNN_BLOCK_MAX <= 64, "16 blocks of 4 slots at most");
 typedef struct knn_small {
-    _Alignas(16) float d[16];
-    uint32_t i[16];
+    _Alignas(16) float d[PM__KNN_BLOCK_MAX > 16 ? PM__KNN_BLOCK_MAX : 16];
+    _Alignas(16) float bm[16]; /* k > 16: the largest dist2 of each block of 4 slots */
+    uint32_t i[PM__KNN_BLOCK_MAX > 16 ? PM__KNN_BLOCK_MAX : 16];
 } knn_small;
 
 #if defined(__SSE2__) && PM__KNN_SMALL
+PM__INLINE __m128 hmax4(__m128 x) {
+    x = _mm_max_ps(x, _mm_shuffle_ps(x, x, 0xB1));
+    return _mm_max_ps(x, _mm_shuffle_ps(x, x, 0x4E));
+}
+/* The 16-bit mask of the lanes of a[0..16) equal to the broadcast x. */
+PM__INLINE unsigned eq16(const float *a, __m128 x) {
+    return (unsigned)_mm_movemask_ps(_mm_cmpeq_ps(_mm_load_ps(a), x)) |
+           (unsigned)_mm_movemask_ps(_mm_cmpeq_ps(_mm_load_ps(a + 4), x)) << 4 |
+           (unsigned)_mm_movemask_ps(_mm_cmpeq_ps(_mm_load_ps(a + 8), x)) << 8 |
+           (unsigned)_mm_movemask_ps(_mm_cmpeq_ps(_mm_load_ps(a + 12), x)) << 12;
+}
+PM__INLINE __m128 max16(const float *a) {
+    return hmax4(_mm_max_ps(_mm_max_ps(_mm_load_ps(a), _mm_load_ps(a + 4)),
+                            _mm_max_ps(_mm_load_ps(a + 8), _mm_load_ps(a + 12))));
+}
 /* The slot of the largest (dist2, index) among the 16 (at least one slot holds a dist2). */
 PM__INLINE unsigned small_argmax(const knn_small *m) {
-    __m128 a0 = _mm_load_ps(m->d), a1 = _mm_load_ps(m->d + 4), a2 = _mm_load_ps(m->d + 8),
-           a3 = _mm_load_ps(m->d + 12);
-    __m128 x = _mm_max_ps(_mm_max_ps(a0, a1), _mm_max_ps(a2, a3));
-    x = _mm_max_ps(x, _mm_shuffle_ps(x, x, 0xB1));
-    x = _mm_max_ps(x, _mm_shuffle_ps(x, x, 0x4E));
-    unsigned mk = (unsigned)_mm_movemask_ps(_mm_cmpeq_ps(a0, x)) |
-                  (unsigned)_mm_movemask_ps(_mm_cmpeq_ps(a1, x)) << 4 |
-                  (unsigned)_mm_movemask_ps(_mm_cmpeq_ps(a2, x)) << 8 |
-                  (unsigned)_mm_movemask_ps(_mm_cmpeq_ps(a3, x)) << 12;
+    __m128 x = max16(m->d);
+    unsigned mk = eq16(m->d, x);
     unsigned j = (unsigned)__builtin_ctz(mk);
     for (mk &= mk - 1; mk; mk &= mk - 1) { /* equal dist2: the larger index is the larger key */
         unsigned l = (unsigned)__builtin_ctz(mk);
@@ -340,20 +355,41 @@ PM__INLINE unsigned small_argmax(const knn_small *m) {
     }
     return j;
 }
+/* k > 16: slot `changed` was written; its block's maximum is refreshed, then the largest
+ * block, then its lane. Equal dist2 at the maximum: every slot is looked at. */
+PM__INLINE unsigned block_argmax(knn_small *m, unsigned changed, unsigned k) {
+    unsigned b = changed >> 2;
+    _mm_store_ss(&m->bm[b], hmax4(_mm_load_ps(m->d + 4 * b)));
+    __m128 x = max16(m->bm);
+    unsigned mb = eq16(m->bm, x);
+    unsigned c = (unsigned)__builtin_ctz(mb);
+    unsigned ml = (unsigned)_mm_movemask_ps(_mm_cmpeq_ps(_mm_load_ps(m->d + 4 * c), x));
+    if (!(mb & (mb - 1)) && !(ml & (ml - 1))) return 4 * c + (unsigned)__builtin_ctz(ml);
+    float top = _mm_cvtss_f32(x);
+    unsigned j = k;
+    for (unsigned l = 0; l < k; l++)
+        if (m->d[l] == top && (j == k || m->i[l] > m->i[j])) j = l;
+    return j;
+}
 
 PM__INLINE int small_offer(knn_state *s, float d2, uint32_t idx) {
     knn_small *m = s->sm;
-    unsigned f = s->found, j;
-    if (f < s->k) {
+    unsigned f = s->found, j, k = s->k;
+    if (f < k) {
         m->d[f] = d2, m->i[f] = idx;
         s->found = ++f;
-        if (f < s->k) return 1;
+        if (f < k) return 1;
+        if (k > 16) {
+            for (unsigned b = 0; b < 16; b++)
+                m->bm[b] = 4 * b < k ? _mm_cvtss_f32(hmax4(_mm_load_ps(m->d + 4 * b))) : -1.0f;
+        }
+        j = f - 1;
     } else {
         j = s->smax;
         if (d2 == m->d[j] && idx > m->i[j]) return 0;
         m->d[j] = d2, m->i[j] = idx;
     }
-    j = small_argmax(m);
+    j = k > 16 ? block_argmax(m, j, k) : small_argmax(m);
     s->smax = j;
     s->r2 = pm__nextup(m->d[j]);
     return 1;
@@ -698,8 +734,9 @@ static int knn_setup(knn_state *s, knn_small *sm, const pm_kdtree *t, const floa
     s->out = out;
     s->k = k;
 #if defined(__SSE2__) && PM__KNN_SMALL
-    if (k <= PM__KNN_SMALL_MAX) {
-        for (unsigned j = 0; j < 16; j++) sm->d[j] = -1.0f, sm->i[j] = 0;
+    if (k <= PM__KNN_BLOCK_MAX) {
+        unsigned nd = k <= 16 ? 16 : (k + 3) & ~3u;
+        for (unsigned j = 0; j < nd; j++) sm->d[j] = -1.0f, sm->i[j] = 0;
         s->sm = sm;
     }
 #else
@@ -716,12 +753,13 @@ static int knn_finish(knn_state *s, unsigned flags, pm_query_stats *stats) {
         stats->nodes_visited += s->nodes;
         stats->dist_evals += s->evals;
     }
-    if (s->sm) { /* the small set, out sorted (kdtree.h: always for k <= 16) */
+    if (s->sm) { /* the small-k set to out: sorted for k <= 16 or PM_SORT, else a heap */
         for (unsigned j = 0; j < s->found; j++) {
             s->out[j].dist2 = s->sm->d[j];
             s->out[j].index = s->sm->i[j];
         }
-        pm__nb_sort_keys(s->out, s->found);
+        if (s->k <= 16 || (flags & PM_SORT)) pm__nb_sort_keys(s->out, s->found);
+        else pm__heapify(s->out, s->found); /* kdtree.h: a max-heap for k > 16 */
         return (int)s->found;
     }
     if ((flags & PM_SORT) && !pm__knn_is_sorted(s->k)) {
