@@ -109,9 +109,10 @@ typedef struct pm_kdtree_config {
 } pm_kdtree_config;
 
 /* The bucket size recommended by the k-nearest race (docs/BENCHMARKS.md, "Choosing B"): B = 32
- * and 64 came out even there (each the fastest in about as many cells, and within a few percent
- * of each cell's fastest B in the median cell); 32 is the fastest in the worst cell (clustered
- * data, empty-space queries, k = 10) and the better one over the earlier races. */
+ * and 64 come out even in the geometric mean of their queries/s against each cell's fastest B
+ * (64 is the fastest in more cells, 32 slightly ahead on the cells of the targets, k = 10 and
+ * 50), and 32 is the fastest in the worst cell (clustered data, empty-space queries, k = 10),
+ * where 64 loses most. */
 #define PM_KDTREE_BUCKET_DEFAULT 32u
 
 /* A config for pm_photon records with bucket size B (axis in the flag byte); bucket 0 means

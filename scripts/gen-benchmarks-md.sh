@@ -186,17 +186,19 @@ its radius: \`bench_knn --oracle\` times the same search given each query's own 
 (a diagnostic no caller can use). The ideas measured on the search, kept or not, are in the
 last table of this document (bench/results/experiments.csv).
 
-Choosing B: how often each bucket size was the fastest (unsorted k-NN, over every cell), and the worst loss of always using it instead of the cell's fastest:"
+Choosing B: how often each bucket size was the fastest (unsorted k-NN, over every cell), the worst loss of always using it instead of the cell's fastest, the geometric mean of its queries/s against the cell's fastest over every cell and over the cells of the targets (k = 10 and 50), and its queries/s against the fastest B in the worst cell of the headline (the lowest ours / nanoflann best at the smallest N). The default (PM_KDTREE_BUCKET_DEFAULT in kdtree.h) and the README's example follow this table:"
 echo
-echo "| B | fastest in | worst queries/s against the cell's fastest B (where) |"
-echo "|---|---|---|"
-awk -F, 'NR > 1 && $7 == "kdtree" && $8 == "knn" {
+echo "| B | fastest in | worst queries/s against the cell's fastest B (where) | geometric mean, every cell | geometric mean, k = 10 and 50 | in the headline's worst cell |"
+echo "|---|---|---|---|---|---|"
+wc_cell=$(awk -F, 'NR > 1 && $27 != "" && (n == "" || $2 + 0 < n + 0 || ($2 == n && $27 + 0 < w + 0)) { n = $2; w = $27; c = $1 "|" $2 "|" $3 "|" $4 "|" $5 } END { print c }' "$KB")
+awk -F, -v wc="$wc_cell" 'NR > 1 && $7 == "kdtree" && $8 == "knn" {
     c = $1 "|" $2 "|" $3 "|" $4 "|" $5; if (!(c in best) || $12 > best[c]) { best[c] = $12; bb[c] = $9 }
-    q[c "|" $9] = $12; if (!($9 in seenb)) { seenb[$9] = 1; bs[++nb] = $9 } }
-  END { for (i = 1; i <= nb; i++) { B = bs[i]; wins = 0; worst = 2; where = ""
-      for (c in best) { if (bb[c] == B) wins++; r = q[c "|" B] / best[c]; if (r < worst) { worst = r; where = c } }
+    kk[c] = $4; q[c "|" $9] = $12; if (!($9 in seenb)) { seenb[$9] = 1; bs[++nb] = $9 } }
+  END { for (i = 1; i <= nb; i++) { B = bs[i]; wins = 0; worst = 2; where = ""; sl = 0; n = 0; st = 0; nt = 0
+      for (c in best) { if (bb[c] == B) wins++; r = q[c "|" B] / best[c]; if (r < worst) { worst = r; where = c }
+        sl += log(r); n++; if (kk[c] == 10 || kk[c] == 50) { st += log(r); nt++ } }
       gsub(/\|/, " ", where)
-      printf "| %s | %d cells | %.2f (%s) |\n", B, wins, worst, where } }' "$KQ"
+      printf "| %s | %d cells | %.2f (%s) | %.3f | %.3f | %s |\n", B, wins, worst, where, exp(sl / n), nt ? exp(st / nt) : 0, (wc in best) ? sprintf("%.3f", q[wc "|" B] / best[wc]) : "–" } }' "$KQ"
 echo
 cat <<'EOF'
 Notes: a cell is one (workload, N, query set, k, mode; above 1.5M points only k = 50). "Ours"
