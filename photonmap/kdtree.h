@@ -66,7 +66,8 @@
  * applies first: the rule picks among the records it accepts.) The iterative and recursive
  * searches visit in the same order and return identical arrays (and identical
  * pm_query_stats). ORDER of results: with PM_SORT, ascending by (dist2, index); without it,
- * for k <= 16 also ascending (the search keeps them sorted, so PM_SORT costs nothing there),
+ * for k <= 16 also ascending (the search sorts its result set once at the end, so PM_SORT costs
+ * nothing more there),
  * and for k > 16 a max-heap on (dist2, index) (out[0] is the k-th nearest once k were found).
  * pm_kdtree_radius returns every record within r2, so ties do not arise; when more than cap
  * are within, which cap of them are written follows the traversal.
@@ -108,9 +109,10 @@ typedef struct pm_kdtree_config {
 } pm_kdtree_config;
 
 /* The bucket size recommended by the k-nearest race (docs/BENCHMARKS.md, "Choosing B"): B = 32
- * and 64 came out even there (each the fastest in about as many cells, and within a few percent
- * of each cell's fastest B in the median cell); 32 is the fastest in the worst cell (clustered
- * data, empty-space queries, k = 10) and the better one over the two races of issue 28. */
+ * and 64 come out even in the geometric mean of their queries/s against each cell's fastest B
+ * (64 is the fastest in more cells, 32 slightly ahead on the cells of the targets, k = 10 and
+ * 50), and 32 is the fastest in the worst cell (clustered data, empty-space queries, k = 10),
+ * where 64 loses most. */
 #define PM_KDTREE_BUCKET_DEFAULT 32u
 
 /* A config for pm_photon records with bucket size B (axis in the flag byte); bucket 0 means
@@ -139,8 +141,9 @@ int pm_kdtree_height(const pm_kdtree *tree, uint32_t i);
 
 /* The k nearest records with dist2 < max_dist2 (ties: the smaller index, see TIES above). out
  * must hold k entries. Returns the number found (0..k) or a negative code. Iterative: an
- * explicit stack of cells and far children; the results are kept in an array sorted by
- * (dist2, index) for k <= 16, else in a max-heap, whose k-th entry shrinks the search radius.
+ * explicit stack of cells and far children; the results are kept in unordered slots whose
+ * largest (dist2, index) is tracked for k <= 64, else in a max-heap, and the k-th entry
+ * shrinks the search radius.
  * Order: see TIES (PM_SORT sorts when k > 16). */
 int pm_kdtree_knn(const pm_kdtree *tree, const float q[3], unsigned k, float max_dist2,
                   pm_neighbor *out, unsigned flags, pm_query_stats *stats);

@@ -256,6 +256,62 @@ TEST(bench_quick_run_writes_checked_csvs) {
     csv_free(&kd);
 }
 
+/* Oracle: brute force inside the bench. `bench_knn --oracle` also times the search given each
+ * query's own k-th distance (the next float above it, from an untimed unlimited search): a
+ * diagnostic of how much of a query goes into finding its radius, which no caller can do. Its
+ * rows must answer exactly like brute force (a radius at or below the k-th distance would lose
+ * neighbours: exact_frac < 1), find as many as the unlimited search of the same B, exist only
+ * in unlimited mode, and never be named as ours in knn_best.csv (whose ratios are the
+ * headline). */
+TEST(bench_knn_oracle_rows_exact_and_never_ours) {
+    char cmd[4096], out[16384], path[2048];
+    const char *dir = pm_test_tmpdir();
+    snprintf(cmd, sizeof cmd,
+             "%s/bench_knn --quick --n 3000 --workloads cluster,slab --oracle --out %s",
+             pm_test_build_dir(), dir);
+    int rc = pm_test_run(cmd, out, sizeof out);
+    ASSERT_MSG(rc == 0, "bench_knn --oracle failed (%d): %s", rc, out);
+    csv kq, kb;
+    snprintf(path, sizeof path, "%s/knn.csv", dir);
+    ASSERT_EQ_INT(csv_load(&kq, path), 0);
+    snprintf(path, sizeof path, "%s/knn_best.csv", dir);
+    ASSERT_EQ_INT(csv_load(&kb, path), 0);
+    /* 2 workloads x 2 query sets at k = 50, unlimited only, one row per B (8, 16, 32, 64) */
+    EXPECT_EQ_INT(count_rows(&kq, "variant", "knn_oracle", NULL, NULL, NULL, NULL), 16);
+    EXPECT_EQ_INT(count_rows(&kq, "variant", "knn_oracle", "mode", "radius", NULL, NULL), 0);
+    int checked = 0;
+    for (int r = 1; r < kq.nrows; r++) {
+        if (strcmp(at(&kq, r, "variant"), "knn_oracle")) continue;
+        EXPECT_MSG(atof(at(&kq, r, "exact_frac")) == 1.0 && atoi(at(&kq, r, "verified")) > 0,
+                   "knn.csv row %d: %s %s B=%s oracle exact %s", r, at(&kq, r, "workload"),
+                   at(&kq, r, "queries"), at(&kq, r, "param"), at(&kq, r, "exact_frac"));
+        EXPECT(atof(at(&kq, r, "qps")) > 0);
+        /* the unlimited search of the same tree and cell found the same number */
+        for (int u = 1; u < kq.nrows; u++)
+            if (!strcmp(at(&kq, u, "variant"), "knn") && !strcmp(at(&kq, u, "index"), "kdtree") &&
+                !strcmp(at(&kq, u, "mode"), "unlimited") &&
+                !strcmp(at(&kq, u, "workload"), at(&kq, r, "workload")) &&
+                !strcmp(at(&kq, u, "queries"), at(&kq, r, "queries")) &&
+                !strcmp(at(&kq, u, "param"), at(&kq, r, "param"))) {
+                EXPECT_MSG(!strcmp(at(&kq, u, "mean_found"), at(&kq, r, "mean_found")) &&
+                               atof(at(&kq, r, "mean_found")) == 50.0,
+                           "oracle row %d found %s, the search %s", r,
+                           at(&kq, r, "mean_found"), at(&kq, u, "mean_found"));
+                checked++;
+            }
+    }
+    EXPECT_EQ_INT(checked, 16);
+    EXPECT_EQ_INT(kb.nrows - 1, 8); /* 2 workloads x 2 query sets x 2 modes */
+    for (int r = 1; r < kb.nrows; r++)
+        EXPECT_MSG(!strncmp(at(&kb, r, "kdtree"), "kdtree_knn_", 11) &&
+                       !strstr(at(&kb, r, "kdtree"), "oracle") &&
+                       !strstr(at(&kb, r, "kdtree_sorted"), "oracle"),
+                   "knn_best.csv row %d names '%s' / '%s' as ours", r, at(&kb, r, "kdtree"),
+                   at(&kb, r, "kdtree_sorted"));
+    csv_free(&kq);
+    csv_free(&kb);
+}
+
 /* Oracle: brute force inside the bench, on a synthetic map file written with pm_map_save
  * (a clustered point set, so the tree shape differs from the built-in distributions). */
 TEST(bench_reads_photon_map_files) {

@@ -10,7 +10,9 @@
  * sit on lattice points, cell centres, face and edge midpoints (8, 4 and 2 lattice points at
  * one distance, times their duplicates), on the identical block, and at random; the radius is
  * unlimited or exactly a lattice distance (strict: the records at that distance are out). k
- * runs across the sorted-array and heap result sets (internal.h, PM__KNN_SORTED_MAX).
+ * runs across every result set: kdtree_query.c's 16-slot set (k <= 16) and blocked set
+ * (16 < k <= 64) and internal.h's heap above (builds without SSE2 use internal.h's sorted
+ * array for k <= 16 and its heap above).
  */
 #include <stdio.h>
 
