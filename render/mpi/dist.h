@@ -26,20 +26,20 @@
  * pixel-pass statistics to its own, writes the outputs once through main.c's atomic output
  * code, and prints the traffic ("MPI:" lines; statistics "MPI/...").
  *
- * FAILURES. Until the first collective step every rank runs alone; there (dist_start) the
- * ranks agree: if any failed (a scene it could not load, a bad option), rank 0 prints each
- * failing rank's message and every rank exits with the failing rank's status (2 for input
- * errors), nothing written; ranks given different commands (mpirun's MPMD form: some render
- * and some do not, or the --pm distributed modes differ) are named and exit 2. So that they
- * meet there, every rank makes the same collective calls before it, whatever its command. A rank failing later (an allocation in render/mpi, or render_main's
- * own error, e.g. out of memory in the photon pass or the pixel pass; the photon tracer's own
- * out of memory, which the exchange would tell every rank, is sent by the failing rank before
+ * FAILURES. Until the first collective step every rank runs alone; there (ranks.c's
+ * dist_start) the ranks agree: if any failed (a scene it could not load, a bad option), rank 0
+ * prints each failing rank's message and every rank exits with the failing rank's status (2
+ * for input errors), nothing written; ranks given different commands (mpirun's MPMD form:
+ * some render and some do not, or the --pm distributed modes differ) are named and exit 2.
+ * So that they meet there, every rank makes the same collective calls before it, whatever
+ * its command. A rank failing later (an allocation in render/mpi, or render_main's own
+ * error, e.g. out of memory in the photon pass or the pixel pass; the photon tracer's own out
+ * of memory, which the exchange would tell every rank, is sent by the failing rank before
  * that exchange, through trace_dist.failed) sends its message to rank 0, which listens for it
  * wherever it waits (the tile queue, the photon exchange, dist_poll_fail, and dist_wait in the
- * collectives of lk_irradiance.c's partitioned precomputed irradiance), prints
- * "rank K of N failed (status S): what" and aborts the job
- * (MPI_Abort, non-zero exit) before anything is written; rank 0's own failures abort at
- * once. A rank that dies (killed, a lost node, the kernel's OOM killer) makes mpirun stop
+ * collectives of lk_irradiance.c's partitioned precomputed irradiance), prints "rank K of N
+ * failed (status S): what" and aborts the job (MPI_Abort, non-zero exit) before anything is
+ * written; rank 0's own failures abort at once. A rank that dies (killed, a lost node, the kernel's OOM killer) makes mpirun stop
  * the job; rank 0 then says so on stderr from its SIGTERM handler and, the output being
  * written only at the very end through a temporary and a rename, leaves no output file.
  * Test hook: PM_RENDER_MPI_TEST_ENOMEM="RANK PHASE N" fails an allocation (ranks.c), or a
