@@ -33,7 +33,7 @@
 #
 # Progressive photon mapping (render --passes N: each pass traces fresh maps, radii shrink):
 # for ET_PROG_SCENES (default "cornell_spheres water_caustic"), `render --mode pm --passes N
-# --pass-spp ET_PROG_SPP` (default 16) for N in ET_PROG_PASSES (default "1 4 16"), rows of mode
+# --pass-spp ET_PROG_SPP` (default 16) for N in ET_PROG_PASSES (default "1 4 16 64"), rows of mode
 # pm_passes whose budget column is N, for the error-against-time slope.
 #
 # Before and after: with ET_BEFORE_BIN=PATH (a render binary of an older commit) and
@@ -83,7 +83,7 @@ echo "scene,mode,budget_cpu_s,spp,cpu_s,wall_s,rmse,ref_spp" > "$work/out/runs.c
 
 before="${ET_BEFORE_BIN:-}"
 prog_scenes="${ET_PROG_SCENES-cornell_spheres water_caustic}"
-prog_passes="${ET_PROG_PASSES:-1 4 16}"
+prog_passes="${ET_PROG_PASSES:-1 4 16 64}"
 prog_spp="${ET_PROG_SPP:-16}"
 [ -z "$before" ] || [ -x "$before" ] || { echo "make-equal-time: ET_BEFORE_BIN=$before is not a program" >&2; exit 2; }
 

@@ -294,6 +294,55 @@ TEST(render_progressive_threads_bit_identical) {
     }
 }
 
+/* Oracle: photons per pass (pm_passes.c, PHOTONS PER PASS). (a) ppm_photons=0.25 on targets
+ * of 8000: passes 1 and 2 store 2000 of each map, plus at most the last photon path's stores
+ * (a path's stores are kept together: 64 is far above the few a path leaves), and pass 0 the
+ * whole targets; a later pass's estimates read k f photons, at least 32 global and 8 caustic
+ * (k_global 100 -> 32, k_caustic 60 -> 15). (b) At the default the fraction printed is the documented rule applied to
+ * the counted work the same line prints: clamp(0.15 W_r / W_p, 1/64, 1) (3 significant
+ * digits printed: relative 5e-3 plus the fraction's own 4), and the next pass's maps hold
+ * that fraction of the targets; the same fraction for 1 and 2 threads (counted work, never
+ * timed: the images' bit-identity is render_progressive_threads_bit_identical). */
+TEST(render_progressive_photons_per_pass) {
+    char out[65536];
+    ASSERT_MSG(rt_render(BOX_PM, "--passes 3 --pm ppm_photons=0.25 --threads 2 --hdr a.pfm -o a.png", out, sizeof out) == 0,
+               "%s", out);
+    for (int p = 0; p < 3; p++) {
+        char key[32];
+        snprintf(key, sizeof key, "Pass %d: photons ", p);
+        const char *l = strstr(out, key);
+        ASSERT_MSG(l, "no line for pass %d:\n%s", p, out);
+        double g = num_after(l, key), c = num_after(l, "global, "), want = p ? 2000 : 8000;
+        EXPECT_MSG(g >= want && g <= want + 64 && c >= want && c <= want + 64,
+                   "pass %d: %g global, %g caustic photons, expected %g (+ one path's stores)", p, g, c, want);
+        if (p) { /* k f photons an estimate, at least 32 global and 8 caustic: 25 -> 32, 15 */
+            double kg = num_after(l, "estimates of "), kc = num_after(l, " global and ");
+            EXPECT_MSG(kg == 32 && kc == 15, "pass %d: estimates of %g global and %g caustic photons, expected 32 and 15",
+                       p, kg, kc);
+        }
+    }
+    double frac[2];
+    for (int t = 0; t < 2; t++) {
+        ASSERT_MSG(rt_render(BOX_PM, t ? "--passes 2 --threads 2 --hdr b.pfm -o b.png"
+                                       : "--passes 2 --threads 1 --hdr b.pfm -o b.png", out, sizeof out) == 0,
+                   "%s", out);
+        const char *l = strstr(out, "Pass 1: photons ");
+        ASSERT_MSG(l, "%s", out);
+        double wp = num_after(l, "the targets' photons ");
+        const char *cam = l ? strstr(l, "camera samples ") : NULL;
+        const char *fl = strstr(l, "); ");
+        double f = fl ? strtod(fl + 3, NULL) : NAN;
+        double wr = cam ? strtod(cam + strlen("camera samples "), NULL) : NAN;
+        ASSERT_MSG(isfinite(f) && wp > 0 && wr > 0, "no fraction or counted work in: %.400s", l);
+        double rule = fmin(1.0, fmax(1.0 / 64, 0.15 * wr / wp));
+        EXPECT_MSG(fabs(f - rule) <= 1e-2 * rule, "fraction %g, the rule gives %g (W_p %g, W_r %g)", f, rule, wp, wr);
+        double g = num_after(l, "Pass 1: photons "), want = floor(8000 * f);
+        EXPECT_MSG(g >= want - 8000 * 5e-4 - 1 && g <= want + 8000 * 5e-4 + 64, "pass 1: %g global photons at fraction %g", g, f);
+        frac[t] = f;
+    }
+    EXPECT_MSG(frac[0] == frac[1], "the fraction differs for 1 and 2 threads: %g, %g", frac[0], frac[1]);
+}
+
 /* Oracle: the documented refusals: exit status 2, a message that names the option or the
  * field, and no image. */
 TEST(render_progressive_bad_input) {

@@ -99,6 +99,10 @@ uint64_t stats_total(int id) {
     return s;
 }
 
+uint64_t stats_trace_work(void) {
+    return stats_total(STAT_BVH_NODES) + stats_total(STAT_TRI_TESTS) + stats_total(STAT_SPHERE_TESTS);
+}
+
 void stats_time_add(const char *name, double seconds) {
     pthread_mutex_lock(&g_lock);
     int i;

@@ -61,6 +61,9 @@ static inline void stat_inc(int id) { stat_add(id, 1); }
  * name, or -1 if the table is full. Thread-safe, but call it once, not in inner loops. */
 int stats_register(const char *name);
 uint64_t stats_total(int id);
+/* The traversal work counted so far: BVH nodes visited plus triangle and sphere tests (the
+ * unit the photon mapper's pilots weigh costs in). */
+uint64_t stats_trace_work(void);
 /* The id of a named counter, or -1. */
 int stats_find(const char *name);
 /* The name of counter id, or NULL when id is not registered. */

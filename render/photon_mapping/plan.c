@@ -19,6 +19,7 @@
  * the rule photon_trace applies (pilot_photons_joining).
  */
 #include "photon_mapping/plan.h"
+#include "photon_mapping/plan_internal.h"
 
 #include <stdlib.h>
 #include <string.h>
@@ -29,6 +30,7 @@
 #include "photons/photon_trace.h"
 #include "photons/volume.h"
 #include "base/rng.h"
+#include "base/stats.h"
 #include "base/sampling.h"
 
 /* ---- probes ------------------------------------------------------------------------------ */
@@ -51,7 +53,7 @@ static int any_diffuse(const scene *s) {
     return 0;
 }
 
-static void set(plan_item *it, int on, const char *fmt, const char *arg) {
+void plan__set(plan_item *it, int on, const char *fmt, const char *arg) {
     it->on = on;
     snprintf(it->reason, sizeof it->reason, fmt, arg);
 }
@@ -81,7 +83,9 @@ typedef struct pilot_result {
     trace_pilot g, c;                     /* evidence of the global and the caustic pilot */
     uint64_t g_emitted, c_emitted;        /* pilot photons emitted by each */
     size_t g_stored;                      /* photons the global pilot stored */
+    double g_work, c_work;                /* their counted work (pilot_work) */
 } pilot_result;
+
 
 /* Test hook: PM_PLAN_TEST_ENOMEM=PILOT (global, caustic or volume) makes that pilot pass fail
  * as if photon_trace (vol_trace_pass for volume) had run out of memory, so the tests see the
@@ -150,7 +154,9 @@ static int run_pilot(const scene *s, const photon_settings *cfg, const importanc
     o.global = o.shadow = 1;
     o.global_target = 1L << 40; /* never reached: the emission budget ends the pilot */
     char why[256] = "";
+    uint64_t w0 = stats_trace_work(); /* the work per emitted photon (render_plan.work_emit) */
     int rc = test_enomem("global") ? PM_ENOMEM : photon_trace(s, &o, &m, why, sizeof why);
+    r->g_work = (double)(stats_trace_work() - w0);
     if ((rc = pilot_failed(rc, r->g.emitted, PLAN_PILOT_PHOTONS, "global photon", why, err, errcap)) < 0) {
         pilot_photons_free(r->g.kept);
         r->g.kept = NULL;
@@ -170,7 +176,9 @@ static int run_pilot(const scene *s, const photon_settings *cfg, const importanc
     r->c.keep = 1;
     r->c.kept = r->g.kept; /* its stores are added to the global pilot's kept photons */
     why[0] = 0;
+    w0 = stats_trace_work();
     rc = test_enomem("caustic") ? PM_ENOMEM : photon_trace(s, &o, &m, why, sizeof why);
+    r->c_work = (double)(stats_trace_work() - w0);
     r->g.kept = r->c.kept; /* created here if the global pilot kept none */
     if ((rc = pilot_failed(rc, r->c.emitted, PLAN_PILOT_PHOTONS, "caustic photon", why, err, errcap)) < 0) {
         pilot_photons_free(r->g.kept);
@@ -189,15 +197,15 @@ static void plan_caustics(const scene *s, const pilot_result *r, render_plan *p)
     for (int i = 0; i < prim_count(s); i++)
         nspec += material_is_specular(prim_mat(s, i));
     if (!nspec) {
-        set(&p->caustics, 0, "no specular surface%s", "");
+        plan__set(&p->caustics, 0, "no specular surface%s", "");
         return;
     }
     if (!emitting_lights(s)) {
-        set(&p->caustics, 0, "no light emits photons%s", "");
+        plan__set(&p->caustics, 0, "no light emits photons%s", "");
         return;
     }
     if (!any_diffuse(s)) {
-        set(&p->caustics, 0, "no diffuse surface to receive them%s", "");
+        plan__set(&p->caustics, 0, "no diffuse surface to receive them%s", "");
         return;
     }
     char mats[128], buf[300];
@@ -207,11 +215,11 @@ static void plan_caustics(const scene *s, const pilot_result *r, render_plan *p)
                  "L S+ D paths: %llu photons stored through specular surfaces (first %s), from "
                  "%llu pilot photons aimed at them",
                  r->c.caustic.total, mats, (unsigned long long)r->c_emitted);
-        set(&p->caustics, 1, "%s", buf);
+        plan__set(&p->caustics, 1, "%s", buf);
         return;
     }
     if (r->c_emitted == 0) {
-        set(&p->caustics, 0,
+        plan__set(&p->caustics, 0,
             "no specular surface reachable from a light (no light faces one: the "
             "projection maps are empty)%s",
             "");
@@ -222,12 +230,12 @@ static void plan_caustics(const scene *s, const pilot_result *r, render_plan *p)
              "no specular surface reachable from a light leads to a diffuse one: 0 of %llu pilot "
              "photons aimed at the specular surfaces were stored (first hits: %s)",
              (unsigned long long)r->c_emitted, mats[0] ? mats : "none");
-    set(&p->caustics, 0, "%s", buf);
+    plan__set(&p->caustics, 0, "%s", buf);
 }
 
 static void plan_global(const scene *s, const pilot_result *r, render_plan *p) {
     if (!emitting_lights(s)) {
-        set(&p->global, 0, "no light emits photons%s", "");
+        plan__set(&p->global, 0, "no light emits photons%s", "");
         return;
     }
     char mats[128], buf[300];
@@ -237,7 +245,7 @@ static void plan_global(const scene *s, const pilot_result *r, render_plan *p) {
                  "diffuse surfaces reflect onto each other: %llu photons stored after a diffuse "
                  "bounce off %s, from %llu pilot photons: indirect diffuse light",
                  r->g.diffuse_bounce.total, mats, (unsigned long long)r->g_emitted);
-        set(&p->global, 1, "%s", buf);
+        plan__set(&p->global, 1, "%s", buf);
         return;
     }
     top_mats(s, &r->g.first_hits, mats, sizeof mats);
@@ -251,14 +259,14 @@ static void plan_global(const scene *s, const pilot_result *r, render_plan *p) {
                  "no diffuse surface reflects onto another: %zu pilot photons stored, none after "
                  "a diffuse bounce (%llu emitted)",
                  r->g_stored, (unsigned long long)r->g_emitted);
-    set(&p->global, 0, "%s", buf);
+    plan__set(&p->global, 0, "%s", buf);
 }
 
 static void plan_shadow(const scene *s, const photon_settings *cfg, const pilot_result *r, render_plan *p) {
     int area = 0;
     for (int i = 0; i < s->nlights; i++) area += s->lights[i].type == LIGHT_AREA && v3_maxc(s->lights[i].power) > 0;
     if (!area) {
-        set(&p->shadow, 0,
+        plan__set(&p->shadow, 0,
             "no area light of triangles (point, directional and sphere lights take one shadow ray each)%s",
             "");
         return;
@@ -267,7 +275,7 @@ static void plan_shadow(const scene *s, const photon_settings *cfg, const pilot_
     for (int i = 0; i < prim_count(s); i++)
         ndiff += material_is_diffuse(prim_mat(s, i));
     if (!ndiff) {
-        set(&p->shadow, 0, "no diffuse surface%s", "");
+        plan__set(&p->shadow, 0, "no diffuse surface%s", "");
         return;
     }
     char mats[128], buf[480];
@@ -283,7 +291,7 @@ static void plan_shadow(const scene *s, const photon_settings *cfg, const pilot_
                  "photon_mapping.shadow=true forces it",
                  r->g.occluder.total, (unsigned long long)r->g_emitted, mats, cfg->k_shadow,
                  PLAN_SHADOW_HINT_NODES, s->accel.depth, prim_count(s));
-        set(&p->shadow, 0, "%s", buf);
+        plan__set(&p->shadow, 0, "%s", buf);
         return;
     }
     top_mats(s, &r->g.first_hits, mats, sizeof mats);
@@ -297,7 +305,7 @@ static void plan_shadow(const scene *s, const photon_settings *cfg, const pilot_
                  "nothing occludes the area lights: none of %llu pilot photons reaches a "
                  "diffuse surface behind its first hit (first hits: %s)",
                  (unsigned long long)r->g_emitted, mats);
-    set(&p->shadow, 0, "%s", buf);
+    plan__set(&p->shadow, 0, "%s", buf);
 }
 
 /* ---- scenes with media ------------------------------------------------------------------- */
@@ -351,15 +359,15 @@ static int plan_media(const scene *s, const photon_settings *cfg, render_plan *p
     }
     /* volume */
     if (!emitting_lights(s))
-        set(&p->volume, 0, "no light emits photons%s", "");
+        plan__set(&p->volume, 0, "no light emits photons%s", "");
     else if (!s->nmedia)
-        set(&p->volume, 0, "no participating medium (only null surfaces): no volume photon map%s", "");
+        plan__set(&p->volume, 0, "no participating medium (only null surfaces): no volume photon map%s", "");
     else if (!scatters)
-        set(&p->volume, 0, "no medium scatters light (sigma_s = 0 in every medium): they only attenuate, "
+        plan__set(&p->volume, 0, "no medium scatters light (sigma_s = 0 in every medium): they only attenuate, "
                            "no volume photon map%s", "");
     else if (total == 0) {
         snprintf(buf, sizeof buf, "no medium is lit: 0 of %llu pilot photons scatter in a medium", pg.emitted);
-        set(&p->volume, 0, "%s", buf);
+        plan__set(&p->volume, 0, "%s", buf);
     } else {
         int top = argmax(ev, VOL_PILOT_MEDIA, 1);
         snprintf(buf, sizeof buf,
@@ -367,21 +375,21 @@ static int plan_media(const scene *s, const photon_settings *cfg, render_plan *p
                  "(%llu in all media: %llu straight from a light, %llu after a bounce or an earlier "
                  "event)",
                  medium_name(s, top), ev[top], pg.emitted, total, direct, total - direct);
-        set(&p->volume, 1, "%s", buf);
+        plan__set(&p->volume, 1, "%s", buf);
     }
     /* volume caustics */
     unsigned long long vc = 0, vcm[VOL_PILOT_MEDIA];
     for (int m = 0; m < VOL_PILOT_MEDIA; m++) vc += (vcm[m] = pc.events[m][PM_KIND_CAUSTIC]);
     if (!p->volume.on && !(scatters && vc > 0))
-        set(&p->volume_caustics, 0, "no volume map%s", "");
+        plan__set(&p->volume_caustics, 0, "no volume map%s", "");
     else if (!nspec)
-        set(&p->volume_caustics, 0, "no specular surface%s", "");
+        plan__set(&p->volume_caustics, 0, "no specular surface%s", "");
     else if (vc == 0) {
         snprintf(buf, sizeof buf,
                  "no specular surface sends light into a medium: 0 of %llu pilot photons aimed at "
                  "specular surfaces scatter in a medium after specular bounces only",
                  pc.emitted);
-        set(&p->volume_caustics, 0, "%s", buf);
+        plan__set(&p->volume_caustics, 0, "%s", buf);
     } else {
         int tm = argmax(vcm, VOL_PILOT_MEDIA, 1), ts = argmax(pc.caustic_by_mat, VOL_PILOT_MATS, 1);
         snprintf(buf, sizeof buf,
@@ -389,103 +397,39 @@ static int plan_media(const scene *s, const photon_settings *cfg, render_plan *p
                  "surfaces scatter in \"%s\" after specular bounces only (L S+ V)",
                  ts >= 0 && ts < s->nmats && ts < VOL_PILOT_MATS - 1 ? s->mats[ts].name : "(others)", vc,
                  pc.emitted, medium_name(s, tm));
-        set(&p->volume_caustics, 1, "%s", buf);
+        plan__set(&p->volume_caustics, 1, "%s", buf);
     }
     /* surface maps */
     if (!nspec)
-        set(&p->caustics, 0, "no specular surface%s", "");
+        plan__set(&p->caustics, 0, "no specular surface%s", "");
     else if (pc.surf_caustic == 0) {
         snprintf(buf, sizeof buf,
                  "no L S+ D path: 0 of %llu pilot photons aimed at specular surfaces reach a diffuse "
                  "surface through specular surfaces only",
                  pc.emitted);
-        set(&p->caustics, 0, "%s", buf);
+        plan__set(&p->caustics, 0, "%s", buf);
     } else {
         snprintf(buf, sizeof buf,
                  "L S+ D paths: %llu arrivals at diffuse surfaces through specular surfaces only, from "
                  "%llu pilot photons aimed at them",
                  pc.surf_caustic, pc.emitted);
-        set(&p->caustics, 1, "%s", buf);
+        plan__set(&p->caustics, 1, "%s", buf);
     }
     if (pg.surf_indirect == 0) {
         snprintf(buf, sizeof buf,
                  "no diffuse surface or medium sends light onto a diffuse surface: %llu arrivals "
                  "after a bounce, from %llu pilot photons",
                  pg.surf_indirect, pg.emitted);
-        set(&p->global, 0, "%s", buf);
+        plan__set(&p->global, 0, "%s", buf);
     } else {
         snprintf(buf, sizeof buf,
                  "diffuse surfaces and media send light onto diffuse surfaces: %llu arrivals after a "
                  "bounce (%llu of them after scattering in a medium), from %llu pilot photons",
                  pg.surf_indirect, pg.surf_after_scatter, pg.emitted);
-        set(&p->global, 1, "%s", buf);
+        plan__set(&p->global, 1, "%s", buf);
     }
-    set(&p->shadow, 0, "a scene with media: shadow rays carry the transmittance, no shadow photons%s", "");
+    plan__set(&p->shadow, 0, "a scene with media: shadow rays carry the transmittance, no shadow photons%s", "");
     return 0;
-}
-
-/* The importance table of the scene's settings (importance.h), or NULL: none asked for, maps
- * loaded, media, or out of memory (the emission line says which). */
-static importance *make_importance(const scene *s, const photon_settings *c) {
-    if (scene_has_media(s) || c->load_dir[0] || c->importance_paths <= 0) return NULL;
-    importance *imp = malloc(sizeof *imp);
-    if (imp && importance_build(s, c->importance_paths, c->importance_defensive, s->settings.seed, 0, imp) < 0) {
-        free(imp);
-        imp = NULL;
-    }
-    return imp;
-}
-
-/* Importance-driven emission of the global pass, from the table make_importance built (its
- * evidence); the plan keeps the table when it is used and frees it otherwise. */
-static void plan_emission(const scene *s, const photon_settings *c, render_plan *p, importance *tab) {
-    char buf[320];
-    if (scene_has_media(s))
-        set(&p->emission, 0, "a scene with media traces its maps with volume.h%s", "");
-    else if (!p->global.on && !p->shadow.on)
-        set(&p->emission, 0, "no global pass%s", "");
-    else if (c->load_dir[0])
-        set(&p->emission, 0, "the maps are loaded (photon_mapping.load_photons), not traced%s", "");
-    else if (c->importance_paths <= 0)
-        set(&p->emission, 0, "photon_mapping.importance_paths is 0%s", "");
-    else if (p->global.on && !p->final_gather.on)
-        /* The map is the image there: photons of even power (a k-nearest estimate over
-         * photons of uneven power is noisier, and a partitioned render's combination of the
-         * parts' estimates assumes even powers: 3% off in a quarter, where 0.2% by power). */
-        set(&p->emission, 0, "the global map is shown directly (no final gather): photons of even power%s", "");
-    else if (!tab)
-        set(&p->emission, 0, "out of memory for the importance table%s", "");
-    if (!tab || p->emission.reason[0]) {
-        if (tab) importance_free(tab);
-        free(tab);
-        return;
-    }
-    importance imp = *tab;
-    if (imp.contributing == 0)
-        snprintf(buf, sizeof buf,
-                 "none of %llu light connections from %ld camera paths carries light",
-                 imp.connections, imp.paths);
-    else if (!imp.on)
-        snprintf(buf, sizeof buf,
-                 "the camera sees light from cells of %.1f%% of the lights' power (%zu of "
-                 "%llu light connections from %ld camera paths carry light), below the %.0f%% "
-                 "emission can steer by (what enters a small opening after a bounce cannot be aimed "
-                 "at; importance.h, LIMITS)",
-                 100 * imp.coverage, imp.contributing, imp.connections, imp.paths, 100 * IMP_MIN_COVERAGE);
-    else
-        snprintf(buf, sizeof buf,
-                 "%zu of %llu light connections from %ld camera paths carry light, "
-                 "into %zu/%zu/%zu emission cells (finest to coarsest) covering %.1f%% of the lights' "
-                 "power; %.0f%% of the global photons by importance, %.0f%% by power",
-                 imp.contributing, imp.connections, imp.paths, imp.lv[0].ncells, imp.lv[1].ncells,
-                 imp.lv[IMP_LEVELS - 1].ncells, 100 * imp.coverage, 100 * (1 - imp.a), 100 * imp.a);
-    set(&p->emission, imp.on, "%s", buf);
-    if (imp.on) {
-        p->imp = tab; /* kept for the global pass (trace_opts.importance) */
-        return;
-    }
-    importance_free(tab);
-    free(tab);
 }
 
 void plan_free(render_plan *p) {
@@ -556,34 +500,36 @@ int plan_make(const scene *s, const photon_settings *c, int preview, render_plan
         force(&p->volume_caustics, c->force_volume_caustics, "volume_caustics");
     } else {
         pilot_result r;
-        tab = make_importance(s, c);
+        tab = plan__make_importance(s, c);
         if ((rc = run_pilot(s, c, tab && tab->on ? tab : NULL, &r, err, errcap)) < 0) {
             if (tab) importance_free(tab);
             free(tab);
             return rc;
         }
         p->pilot = r.g.kept; /* both pilots' stores */
+        p->work_emit[0] = r.g_emitted ? r.g_work / (double)r.g_emitted : 0;
+        p->work_emit[1] = r.c_emitted ? r.c_work / (double)r.c_emitted : 0;
         plan_caustics(s, &r, p);
         plan_global(s, &r, p);
         plan_shadow(s, c, &r, p);
-        set(&p->volume, 0, "no participating medium in the scene: no volume photon map%s", "");
-        set(&p->volume_caustics, 0, "no participating medium in the scene%s", "");
+        plan__set(&p->volume, 0, "no participating medium in the scene: no volume photon map%s", "");
+        plan__set(&p->volume_caustics, 0, "no participating medium in the scene%s", "");
     }
     force(&p->caustics, c->force_caustics, "caustics");
     force(&p->global, c->force_global, "global");
     force(&p->shadow, c->force_shadow, "shadow");
     if (preview)
-        set(&p->final_gather, 0, "preview mode: the global map is shown directly%s", "");
+        plan__set(&p->final_gather, 0, "preview mode: the global map is shown directly%s", "");
     else if (!p->global.on)
-        set(&p->final_gather, 0, "no global map to gather from%s", "");
+        plan__set(&p->final_gather, 0, "no global map to gather from%s", "");
     else if (c->force_final_gather == PLAN_OFF)
-        set(&p->final_gather, 0, "forced by photon_mapping.final_gather: the global map is shown directly%s", "");
+        plan__set(&p->final_gather, 0, "forced by photon_mapping.final_gather: the global map is shown directly%s", "");
     else if (c->force_final_gather == PLAN_ON)
-        set(&p->final_gather, 1, "forced by photon_mapping.final_gather%s", "");
+        plan__set(&p->final_gather, 1, "forced by photon_mapping.final_gather%s", "");
     else
-        set(&p->final_gather, 1,
+        plan__set(&p->final_gather, 1,
             "indirect diffuse by gather rays reading precomputed irradiance of the global map%s", "");
-    plan_emission(s, c, p, tab);
+    plan__emission(s, c, p, tab);
     /* usable: the photon mapper samples lights unless it shows the global map directly */
     p->guide = guide_light_plan(s, c->force_light_guide, !((preview || !p->final_gather.on) && p->global.on),
                                 &p->light_guide.on, p->light_guide.reason, sizeof p->light_guide.reason, NULL);
@@ -592,13 +538,12 @@ int plan_make(const scene *s, const photon_settings *c, int preview, render_plan
 }
 
 void plan_print(const render_plan *p, FILE *f) {
+    const plan_item *it[] = {&p->caustics, &p->global, &p->shadow, &p->final_gather, &p->volume,
+                             &p->volume_caustics, &p->emission, &p->light_guide};
+    static const char *name[] = {"caustics", "global", "shadow photons", "final gather", "volume",
+                                 "volume caustics", "photon emission", "light guide"};
     fprintf(f, "Plan:\n");
-    fprintf(f, "  caustics: %s (%s)\n", p->caustics.on ? "on" : "off", p->caustics.reason);
-    fprintf(f, "  global: %s (%s)\n", p->global.on ? "on" : "off", p->global.reason);
-    fprintf(f, "  shadow photons: %s (%s)\n", p->shadow.on ? "on" : "off", p->shadow.reason);
-    fprintf(f, "  final gather: %s (%s)\n", p->final_gather.on ? "on" : "off", p->final_gather.reason);
-    fprintf(f, "  volume: %s (%s)\n", p->volume.on ? "on" : "off", p->volume.reason);
-    fprintf(f, "  volume caustics: %s (%s)\n", p->volume_caustics.on ? "on" : "off", p->volume_caustics.reason);
-    fprintf(f, "  photon emission: %s (%s)\n", p->emission.on ? "importance" : "by power", p->emission.reason);
-    fprintf(f, "  light guide: %s (%s)\n", p->light_guide.on ? "on" : "off", p->light_guide.reason);
+    for (int i = 0; i < 8; i++)
+        fprintf(f, "  %s: %s (%s)\n", name[i],
+                i == 6 ? (it[i]->on ? "importance" : "by power") : it[i]->on ? "on" : "off", it[i]->reason);
 }

@@ -100,6 +100,10 @@ typedef struct render_plan {
                                join a map the plan traces) */
     plan_item light_guide;  /* on: guided light samples in the photon mapper's direct light */
     struct guide *guide;    /* light_guide on: its tables (guide.h; owned), else NULL */
+    /* Counted work (BVH node visits and primitive tests) per photon the global and the
+     * caustic pilot emitted, each path whole: what the passes' photons cost in the units of
+     * the sample pilot's (pm_sample.h). 0: no surface pilot ran (a scene with media). */
+    double work_emit[2];
 } render_plan;
 
 /* Decide the plan for scene s under config c; preview = 1 turns final gathering off. The

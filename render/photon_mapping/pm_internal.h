@@ -57,6 +57,14 @@ typedef struct mapper_state {
     uint64_t pass_seed;
     double r2_scale, t_trace, t_trees, t_irr; /* the last pass's times (seconds) */
     map_radii rad0;
+    /* Photons per pass (pm_passes.c, PHOTONS PER PASS): the sample pilot's counted work of a
+     * camera sample, the settings' targets (global, caustic, volume, volume caustic) and
+     * pass 0's counted photon work at them, the fraction later passes trace, and why. */
+    double sample_work, photon_work0, pass_fraction;
+    long target0[4];
+    int k0[2]; /* the settings' k_global, k_caustic (a later pass reads fewer: pass_targets) */
+    int fraction_made;
+    char fraction_reason[320];
     float *vol_r2_0; /* 3 per medium: ms, caus, all */
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
         st_global_est, st_lookup_miss, st_side_rays, st_side_again;
@@ -65,8 +73,15 @@ typedef struct mapper_state {
 /* A distributed render's lookups (photon_lookup.h); NULL in one process. */
 extern const photon_lookup_hook *pm__lookup;
 
-/* photonmapper.c: trace the maps of st->pass (pass 0 at first) and build what reads them. */
+/* pm_preprocess.c: trace the maps of st->pass (pass 0 at first) and build what reads them. */
 int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap);
+
+/* photonmapper.c: the gather guide and the camera sample, decided once on pass 0. */
+int pm__decide_sample(mapper_state *st, const scene *s, char *err, size_t errcap);
+
+/* pm_preprocess.c: the caustic side map, the estimates' options and the precomputed
+ * irradiance of st's maps at the radii rad (the readers; st->sides and st->caus_side empty). */
+int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, char *err, size_t errcap);
 
 /* pm_passes.c: the radii of the pass being built (pass 0: records them as the start, with
  * ppm_radius applied in a progressive render), the same for each medium's volume maps, and

@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 
+#include "base/stats.h"
 #include "photon_mapping/pm_internal.h"
 
 /* Progressive photon mapping (README.md, "Progressive photon mapping"): a render in passes
@@ -82,6 +83,95 @@ int pm__pass_volume_radii(mapper_state *st, const scene *s) {
     return 0;
 }
 
+/* PHOTONS PER PASS. Pass 0 traces the settings' targets (it is the plain render, and its
+ * radii start the schedule). A later pass traces the fraction f of them that makes its photon
+ * work about PPM_PHOTON_SHARE times its camera samples' work, both counted, never timed, so f is
+ * the same on every machine, thread count and process (render-mpi) and after a resume:
+ *   camera work  W_r = pixels x spp of a pass x the sample pilot's work per sample;
+ *   photon work  W_p = (each pilot's work per emitted photon + PPM_EMIT_COST) x pass 0's
+ *                      emitted photons (the camera sample's work per photon where no surface
+ *                      pilot ran: media)
+ *                    + PPM_STORE_COST per stored photon (storing it, its kd-tree)
+ *                    + PPM_IRR_COST per precomputed irradiance estimate;
+ *   f = PPM_PHOTON_SHARE W_r / W_p, within [1/PPM_MIN_DIV, 1].
+ * Why a share and not the targets: the passes' mean has the photons of all passes, so a pass
+ * that spends most of its time on photons buys few camera samples, and at the defaults the
+ * camera samples' noise is most of the error (cornell_spheres at 96x96, 16 spp a pass: 90% of
+ * a pass with the full targets went to photons). PPM_PHOTON_SHARE was chosen by measurement
+ * (README.md, Progressive photon mapping, "Photons per pass"): on cornell_spheres the error
+ * at equal CPU time fell as f fell down to about 0.02, where the camera samples' noise is all
+ * that is left. ppm_photons > 0 sets f. */
+/* The costs in the sample pilot's units (one BVH node visit or primitive test, about 30 ns of
+ * a camera sample's time here), from the pass lines' seconds of pass 0 on cornell_box,
+ * cornell_spheres and water_caustic (96x96, one thread): the photon tracing's time beyond its
+ * counted work fits about 5 units per emitted photon and 20 per stored one, the kd-trees 10
+ * per photon, a precomputed irradiance estimate 640 to 1000 units (19 to 30 us). Within 2x
+ * of the seconds on those scenes, which is all the choice needs. */
+#define PPM_PHOTON_SHARE 0.15
+#define PPM_EMIT_COST 5.0
+#define PPM_STORE_COST 30.0
+#define PPM_IRR_COST 800.0
+#define PPM_MIN_DIV 64.0
+
+static void choose_fraction(mapper_state *st, const scene *s) {
+    photon_settings *c = &st->cfg;
+    st->target0[0] = c->global_photons;
+    st->target0[1] = c->caustic_photons;
+    st->target0[2] = c->volume_photons;
+    st->target0[3] = c->volume_caustic_photons;
+    const photon_maps *m = &st->maps;
+    double wg = st->plan.work_emit[0] > 0 ? st->plan.work_emit[0] : st->sample_work;
+    double wc = st->plan.work_emit[1] > 0 ? st->plan.work_emit[1] : st->sample_work;
+    double stored = (double)st->nglobal_all + (double)st->ncaustic_all +
+                    (double)(m->part ? m->whole_shadow : m->nshadow) + (double)st->vol.n_all +
+                    (double)st->vol.n_caus;
+    double wp = (wg + PPM_EMIT_COST) * (double)m->global_emitted +
+                (wc + PPM_EMIT_COST) * (double)m->caustic_emitted +
+                st->sample_work * (double)(m->volume_emitted + m->volume_caustic_emitted) +
+                PPM_IRR_COST * (double)st->sides.n + PPM_STORE_COST * stored;
+    double wr = (double)s->cam.width * (double)s->cam.height * (double)s->cam.spp * st->sample_work;
+    st->photon_work0 = wp;
+    if (c->ppm_photons > 0) {
+        st->pass_fraction = c->ppm_photons;
+        snprintf(st->fraction_reason, sizeof st->fraction_reason, "set by photon_mapping.ppm_photons");
+    } else if (!(wr > 0) || !(wp > 0) || !isfinite(wr) || !isfinite(wp)) {
+        st->pass_fraction = 1;
+        snprintf(st->fraction_reason, sizeof st->fraction_reason,
+                 "the targets: no counted work to weigh (%s)", wr > 0 ? "no photons" : "no sample pilot");
+    } else {
+        double f = PPM_PHOTON_SHARE * wr / wp;
+        st->pass_fraction = f > 1 ? 1 : f < 1 / PPM_MIN_DIV ? 1 / PPM_MIN_DIV : f;
+        snprintf(st->fraction_reason, sizeof st->fraction_reason,
+                 "counted work: the targets' photons %.3g, a pass's %d x %d x %d camera samples %.3g; "
+                 "photons at %.3g of that (ppm_photons sets it)",
+                 wp, s->cam.width, s->cam.height, s->cam.spp, wr, PPM_PHOTON_SHARE);
+    }
+    st->fraction_made = 1;
+}
+
+/* The settings' targets for pass p: pass 0's whole, a later pass's fraction of them. The
+ * estimates of a later pass read k f photons (k_global and k_caustic; at least PPM_K_MIN):
+ * with f of the photons, the k f-th neighbour is about as far as pass 0's k-th, so a pass's
+ * estimates cover the same discs as the plain render's: caustics as sharp, irradiance as
+ * local (with all k photons the discs would widen by 1/sqrt(f), blurring caustics and
+ * reading low near edges, and the Knaus-Zwicker caps take many thousands of passes to undo
+ * that), while the mean of the passes keeps their noise down. */
+static const int PPM_K_MIN[2] = {32, 8};
+static void pass_targets(mapper_state *st, int pass) {
+    int *k[2] = {&st->cfg.k_global, &st->cfg.k_caustic};
+    for (int i = 0; i < 2; i++) {
+        if (!st->k0[i]) st->k0[i] = *k[i];
+        long kf = llround(st->k0[i] * st->pass_fraction), lo = st->k0[i] < PPM_K_MIN[i] ? st->k0[i] : PPM_K_MIN[i];
+        *k[i] = !pass || kf >= st->k0[i] ? st->k0[i] : kf < lo ? (int)lo : (int)kf;
+    }
+    long *dst[4] = {&st->cfg.global_photons, &st->cfg.caustic_photons, &st->cfg.volume_photons,
+                    &st->cfg.volume_caustic_photons};
+    for (int i = 0; i < 4; i++) {
+        double t = (double)st->target0[i] * (pass ? st->pass_fraction : 1);
+        *dst[i] = st->target0[i] > 0 && t < 1 ? 1 : (long)llround(t);
+    }
+}
+
 /* Free the volume trees of a pass (pmv_trace allocates them anew); the rest of v stays. */
 static void drop_volume_maps(pmv_state *v) {
     pmv_map *maps[3] = {v->ms, v->caus, v->all};
@@ -106,17 +196,22 @@ static void print_pass(const mapper_state *st, int pass) {
         printf(", %zu volume (r^2 %.9g), %zu volume-caustic", st->vol.n_all, r2v, st->vol.n_caus);
     }
     printf("; trace %.3f s, kd-trees %.3f s, irradiance %.3f s; r^2 global %.9g, caustic %.9g "
-           "(pass 0's x %.9g)\n",
+           "(pass 0's x %.9g)",
            st->t_trace, st->t_trees, st->t_irr, (double)st->r2_global, (double)st->r2_caustic,
            st->r2_scale);
+    if (pass > 0)
+        printf("; %.4g of the photon targets, estimates of %d global and %d caustic photons (%s)",
+               st->pass_fraction, st->cfg.k_global, st->cfg.k_caustic, st->fraction_reason);
+    printf("\n");
     fflush(stdout);
 }
 
 int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, char *err,
                              size_t errcap) {
     mapper_state *st = self->data;
-    /* Pass 0 is what preprocess made, unless ppm_radius asks for other first radii: then it
-     * is made again (the same photons) with them. */
+    /* Pass 0 is what preprocess made, unless ppm_radius asks for other first radii: then its
+     * readers (precomputed irradiance, caustic side map) are made again with them, from the
+     * same maps. */
     int again = pass == 0 && !st->progressive && st->cfg.ppm_radius > 0;
     if (!st->progressive && st->cfg.filter == CAUSTIC_FILTER_HULL && st->ncaustic_all)
         fprintf(stderr, "render: note: filter hull divides by the photons' hull, not by the "
@@ -126,6 +221,15 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
      * and its counts are still here): pass 0's radii become the progressive start. */
     if (!st->progressive && st->cfg.ppm_radius > 0 && st->pass == 0) start_radii(st, &st->rad0);
     st->progressive = 1;
+    if (again && st->pass == 0 && !pm__lookup) {
+        side_cache_free(&st->sides);
+        side_map_free(&st->caus_side);
+        double t0 = stats_now();
+        int rc = pm__build_estimates(st, s, &st->rad0, err, errcap);
+        st->t_irr = stats_now() - t0;
+        if (rc == 0) print_pass(st, pass);
+        return rc;
+    }
     if (pass == st->pass && !again) {
         print_pass(st, pass);
         return 0;
@@ -142,6 +246,7 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
                  "leave the maps out", st->cfg.load_dir);
         return PM_EINVAL;
     }
+    if (!st->fraction_made) choose_fraction(st, s); /* from pass 0's maps, still here */
     side_cache_free(&st->sides);
     side_map_free(&st->caus_side);
     pm_kdtree_free(st->tg);
@@ -152,6 +257,7 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
     int nmedia = st->maps.nmedia;
     photon_maps_free(&st->maps);
     st->maps.nmedia = nmedia;
+    pass_targets(st, pass);
     st->pass = pass;
     st->pass_seed = seed;
     st->r2_scale = ppm_r2_scale(pass, st->cfg.ppm_alpha);

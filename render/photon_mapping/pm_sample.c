@@ -158,9 +158,7 @@ typedef struct pilot_figures {
 static void pilot_run(const pm_sample_host *h, void *sc, pilot_figures *f) {
     const scene *s = h->s;
     int W = s->cam.width, H = s->cam.height;
-    static const int cost_ids[] = {STAT_BVH_NODES, STAT_TRI_TESTS, STAT_SPHERE_TESTS};
-    uint64_t w0 = 0, w1 = 0, l0 = stats_total(h->st_lookup), k0 = stats_total(h->st_caustic);
-    for (size_t i = 0; i < sizeof cost_ids / sizeof *cost_ids; i++) w0 += stats_total(cost_ids[i]);
+    uint64_t w0 = stats_trace_work(), l0 = stats_total(h->st_lookup), k0 = stats_total(h->st_caustic);
     double vsum = 0, vcsum = 0;
     uint64_t ncam = 0;
     for (int py = 0; py < PILOT_SIDE; py++)
@@ -185,7 +183,7 @@ static void pilot_run(const pm_sample_host *h, void *sc, pilot_figures *f) {
             vsum += fmax(0.0, (sum2 - sum * sum / PILOT_SPP) / (PILOT_SPP - 1));
             vcsum += fmax(0.0, (csum2 - csum * csum / PILOT_SPP) / (PILOT_SPP - 1));
         }
-    for (size_t i = 0; i < sizeof cost_ids / sizeof *cost_ids; i++) w1 += stats_total(cost_ids[i]);
+    uint64_t w1 = stats_trace_work();
     double n = (double)PILOT_SIDE * PILOT_SIDE * PILOT_SPP;
     double ncaus = (double)(stats_total(h->st_caustic) - k0);
     f->var = vsum / (PILOT_SIDE * PILOT_SIDE);
@@ -195,8 +193,29 @@ static void pilot_run(const pm_sample_host *h, void *sc, pilot_figures *f) {
                PILOT_CAUSTIC_COST * (ncaus - (double)ncam)) / n;
 }
 
+/* Run the pilot's samples once at cfg's settings for their counted work alone (the counters
+ * taken back out); 0 when out of memory. */
+static double work_of_current(const pm_sample_host *h) {
+    void *sc = h->scratch_new(h->user);
+    if (!sc) return 0;
+    int undo[STATS_MAX], nundo = 0;
+    uint64_t before[STATS_MAX];
+    for (int id = 0; id < STATS_MAX; id++)
+        if (stats_name(id)) undo[nundo++] = id;
+    for (int i = 0; i < nundo; i++) before[i] = stats_total(undo[i]);
+    pilot_figures f;
+    pilot_run(h, sc, &f);
+    for (int i = 0; i < nundo; i++) stat_add(undo[i], before[i] - stats_total(undo[i])); /* mod 2^64 */
+    h->scratch_free(h->user, sc);
+    int strata = 1, c = h->cfg->caustic_stride > 1 ? h->cfg->caustic_stride : 1;
+    while ((strata + 1) * (strata + 1) <= h->s->cam.spp) strata++;
+    if (c > strata) c = strata;
+    return f.work + PILOT_CAUSTIC_COST * f.caus / ((double)c * c);
+}
+
 void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, int explicit_c, double emit_var,
-                     char *reason, size_t cap) {
+                     char *reason, size_t cap, double *work) {
+    *work = 0;
     const scene *s = h->s;
     photon_settings *cfg = h->cfg;
     int cand[PILOT_NCAND][2], nc = 0;
@@ -222,6 +241,7 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
         snprintf(reason, cap,
                  "gather_rays %d, secondary_rays %d, caustic_stride %d (%s)", cfg->gather_rays,
                  cfg->secondary_rays, cfg->caustic_stride, why);
+        if (!h->no_probe) *work = work_of_current(h);
         return;
     }
     void *sc = h->scratch_new(h->user);
@@ -265,6 +285,7 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
     cfg->gather_rays = cand[bc][0];
     cfg->secondary_rays = cand[bc][1];
     cfg->caustic_stride = bs;
+    *work = bestcost;
     size_t len = (size_t)snprintf(reason, cap,
                                   "gather_rays %d, secondary_rays %d, caustic_stride %d (pilot of %d camera "
                                   "samples at %d pixels: lowest variance x cost of",

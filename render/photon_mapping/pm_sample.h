@@ -37,6 +37,8 @@ typedef struct pm_sample_host {
     int st_lookup, st_caustic;  /* the ids of the irradiance-lookup and caustic-estimate counters */
     int caustics;               /* the scene has a caustic map */
     const char *no_pilot;       /* why the pilot cannot run (no final gather, ...), or NULL */
+    int no_probe;               /* the eye rays cannot be traced before the render (partitioned
+                                   render-mpi: its lookups are shared between processes) */
     void *user;
     void *(*scratch_new)(void *user); /* a thread's scratch for eye rays (NULL: out of memory) */
     void (*scratch_free)(void *user, void *scratch);
@@ -57,9 +59,12 @@ int pm_emission_mask_build(const pm_sample_host *h, pm_emission_mask *m, char *r
                            size_t errcap);
 void pm_emission_mask_free(pm_emission_mask *m);
 /* The sample pilot: sets h->cfg's gather_rays, secondary_rays and caustic_stride (those the
- * user did not set: explicit_*) and writes the "sample:" reason. emit_var: the mask's var. */
+ * user did not set: explicit_*) and writes the "sample:" reason. emit_var: the mask's var.
+ * *work: the counted work of one camera sample as chosen (BVH node visits, primitive tests,
+ * lookups and caustic estimates at their costs), measured by the pilot's samples even where
+ * no choice is left to it; 0 when h->no_probe or out of memory. */
 void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, int explicit_c, double emit_var,
-                     char *reason, size_t cap);
+                     char *reason, size_t cap, double *work);
 
 #ifdef __cplusplus
 }

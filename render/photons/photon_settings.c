@@ -145,6 +145,10 @@ static const setting_def k_settings[] = {
      "progressive photon mapping: the first pass's radius of the global and caustic estimates, "
      "in units of a k-photon estimate's radius at the map's mean density over the diffuse "
      "area (at most the maximum radius); 0: the maximum radii of max_radius_global/_caustic"},
+    {"ppm_photons", ST_NUMBER, F(ppm_photons), 0, 0, 1,
+     "progressive photon mapping: the fraction of the photon targets (global, caustic, volume) "
+     "each pass after the first traces; 0: chosen from counted work so that a pass's photons "
+     "cost about 0.15 of its camera samples (README.md, Progressive photon mapping)"},
     {"save_photons", ST_DIR, F(save_dir), 0, NONE,
      "a directory to save the maps to (global.pmap, caustic.pmap, shadow.pmap, and in a scene "
      "with media volume-M.pmap and volume_caustic-M.pmap for each medium M; the format of "

@@ -1,0 +1,16 @@
+/* plan_internal.h: what plan.c and plan_emission.c share; not an interface (plan.h is). */
+#ifndef RENDER_PLAN_INTERNAL_H
+#define RENDER_PLAN_INTERNAL_H
+
+#include "photon_mapping/plan.h"
+
+struct importance;
+
+/* it->on = on, it->reason = fmt with one string argument. */
+void plan__set(plan_item *it, int on, const char *fmt, const char *arg);
+/* The importance table of the scene's settings (importance.h), or NULL (plan_emission.c). */
+struct importance *plan__make_importance(const scene *s, const photon_settings *c);
+/* The emission line from that table: kept in p->imp when used, freed otherwise. */
+void plan__emission(const scene *s, const photon_settings *c, render_plan *p, struct importance *tab);
+
+#endif /* RENDER_PLAN_INTERNAL_H */

@@ -1,0 +1,161 @@
+/* pm_preprocess.c: the photon mapper's preprocess, for pass 0 and each progressive pass:
+ * trace (or load) the maps as the plan says, build their kd-trees, then what reads them at the
+ * pass's radii (the caustic side map and the precomputed irradiance); on pass 0 also the
+ * camera-side decisions (photonmapper.c, pm__decide_sample). See photonmapper.c for the
+ * integrator these serve, pm_passes.c for the passes.
+ */
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "base/stats.h"
+#include "photon_mapping/pm_internal.h"
+
+enum { BUCKET_GLOBAL = 1, BUCKET_CAUSTIC = 8, BUCKET_SHADOW = 8 };
+
+/* Progressive passes: pm_passes.c (pm__pass_radii, pm__begin_pass). */
+
+/* What reads the maps at the pass's radii: the caustic side map, the estimates' options and
+ * the precomputed irradiance (side cache). pm_passes.c calls it again when a progressive
+ * render's first radii differ from the plain render's (ppm_radius), without tracing again. */
+int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, char *err, size_t errcap) {
+    int rc;
+    double t0;
+    if ((rc = side_map_init(&st->caus_side, s, st->tc, st->maps.ncaustic, rad->r2_caustic, err, errcap)) < 0) return rc;
+    st->r2_global = rad->r2_global;
+    st->r2_caustic = rad->r2_caustic;
+    st->r2_lookup = rad->r2_lookup;
+    st->r2_shadow = rad->r2_shadow;
+    st->sec_dist = st->cfg.secondary_distance > 0 ? st->cfg.secondary_distance : rad->typical;
+    if (!st->made)
+    printf("Radii: global estimate %.4g, caustic estimate %.4g, secondary gather below %.4g, "
+           "shadow-map query %.4g\n",
+           rad->global, rad->caustic, st->sec_dist, rad->shadow);
+
+    pm_estimator kinds[] = {PM_EST_DISC, PM_EST_CONE, PM_EST_GAUSS, PM_EST_HULL};
+    pm_estimate_options_init(&st->caus_opt, kinds[st->cfg.filter], (unsigned)st->cfg.k_caustic);
+    st->caus_opt.max_dist2 = st->r2_caustic;
+    st->caus_opt.reject_behind = 1;
+    pm_estimate_options_init(&st->glob_opt, PM_EST_DISC, (unsigned)st->cfg.k_global);
+    st->glob_opt.max_dist2 = st->r2_global;
+    st->glob_opt.reject_behind = 1;
+
+    st->t_irr = 0;
+    if (st->nglobal_all && !st->direct_vis) {
+        t0 = stats_now();
+        rc = pm__lookup ? pm__lookup->side_build(pm__lookup->user, &st->sides, s, st->tg,
+                                             st->tg ? pm_kdtree_records(st->tg) : NULL, st->maps.nglobal,
+                                             (unsigned)st->cfg.k_global, st->r2_global, err, errcap)
+                      : side_cache_build(&st->sides, s, st->tg, pm_kdtree_records(st->tg), st->maps.global_path,
+                                         st->maps.nglobal, (unsigned)st->cfg.k_global, st->r2_global, err, errcap);
+        if (rc < 0) return rc;
+        stat_add(st->st_side_rays, st->sides.rays_first + st->sides.rays_second);
+        stat_add(st->st_side_again, st->sides.researched);
+        st->t_irr = stats_now() - t0;
+        stats_time_add("Time/Precomputed irradiance", st->t_irr);
+        if (!st->made)
+        printf("Precomputed irradiance at %zu of %zu global photons (%zu estimates searched again "
+               "for a hidden neighbour; %zu of too few photon paths to be read: the light there is "
+               "computed)\n",
+               st->sides.n, st->nglobal_all, st->sides.researched, st->sides.sparse);
+    }
+    return 0;
+}
+
+int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
+    mapper_state *st = self->data;
+    if (!st->made) plan_print(&st->plan, stdout);
+    fflush(stdout);
+    photon_maps *m = &st->maps;
+    int rc;
+    double t0 = stats_now();
+    map_stamp stamp; /* what shapes this run's maps: checked on load, written on save */
+    map_stamp_make(s, &st->cfg, st->plan.global.on, st->plan.caustics.on, st->plan.shadow.on, &stamp);
+    if (st->vol.on) { /* a scene with media: its own tracer, surface and volume maps */
+        /* Loaded maps (the volume files too, photon_maps.h) are checked here; pmv_trace then
+         * builds its trees from them instead of tracing. */
+        map_stamp_volume(s, &st->cfg, st->plan.volume.on, st->plan.volume_caustics.on, &stamp);
+        m->nmedia = s->nmedia;
+        if (st->cfg.load_dir[0] &&
+            (rc = photon_maps_load(m, st->cfg.load_dir, &stamp, st->cfg.force_load, err, errcap)) < 0)
+            return rc;
+        int loaded = m->loaded;
+        /* A later pass traces with its own seed (the scene's copy carries it to pmv_trace). */
+        scene sp = *s;
+        sp.settings.seed = st->pass_seed;
+        if ((rc = pmv_trace(&st->vol, &sp, &st->cfg, &st->plan, m, err, errcap)) < 0) return rc;
+        if (!loaded) m->stamp = stamp;
+        if ((rc = pm__pass_volume_radii(st, s)) < 0) return rc;
+    } else if (st->cfg.load_dir[0]) {
+        if ((rc = photon_maps_load(m, st->cfg.load_dir, &stamp, st->cfg.force_load, err, errcap)) < 0)
+            return rc;
+        /* The plan decides which loaded maps are used. */
+        if (!st->plan.global.on) m->nglobal = 0;
+        if (!st->plan.caustics.on) m->ncaustic = 0;
+        if (!st->plan.shadow.on) m->nshadow = 0;
+        printf("Loaded photon maps from %s: %zu global, %zu caustic, %zu shadow-map photons\n",
+               st->cfg.load_dir, m->nglobal, m->ncaustic, m->nshadow);
+    } else {
+        /* The settings' targets, budgets and projection, as the plan read them (plan_joins);
+         * which maps, the importance table and the pilot's photons are the plan's. */
+        trace_opts o;
+        trace_opts_settings(&o, s, &st->cfg);
+        o.global = st->plan.global.on;
+        o.caustic = st->plan.caustics.on;
+        o.shadow = st->plan.shadow.on;
+        o.importance = st->plan.imp; /* importance-driven emission, when the plan chose it */
+        o.reuse = st->plan.pilot;    /* the plan's pilot photons join the global maps */
+        if (st->pass) { /* a later pass: its own photons only (the pilot joined pass 0) */
+            o.seed = st->pass_seed;
+            o.reuse = NULL;
+        }
+        if ((rc = photon_trace(s, &o, m, err, errcap)) < 0) return rc;
+        m->stamp = stamp;
+        if (!st->made)
+        printf("Photons: %zu global, %zu shadow-map (from %llu emitted); %zu caustic (from %llu "
+               "emitted; projection maps cover %.2f%% of the light's power, saving %llu "
+               "emissions)\n",
+               m->part ? m->whole_global : m->nglobal, m->part ? m->whole_shadow : m->nshadow,
+               (unsigned long long)m->global_emitted, m->part ? m->whole_caustic : m->ncaustic,
+               (unsigned long long)m->caustic_emitted, 100 * m->caustic_fraction,
+               (unsigned long long)m->caustic_saved);
+    }
+    st->t_trace = stats_now() - t0;
+    stats_time_add("Time/Photon tracing (or loading)", st->t_trace);
+    /* Saved before the trees reorder them: loading these files then gives the trees, the
+     * precomputed irradiance and the image of this run exactly. */
+    if (st->cfg.save_dir[0] && !st->made) {
+        if ((rc = photon_maps_save(m, st->cfg.save_dir, err, errcap)) < 0) return rc;
+        printf("Saved photon maps to %s\n", st->cfg.save_dir);
+    }
+
+    /* The radii of the whole maps, before a distributed render keeps only its part of them. */
+    map_radii rad;
+    photon_maps_radii(s, m, &st->cfg, &rad);
+    st->nglobal_all = m->part ? m->whole_global : m->nglobal;
+    st->ncaustic_all = m->part ? m->whole_caustic : m->ncaustic;
+    pm__pass_radii(st, &rad); /* progressive passes: pass 0's radii, shrunk */
+    if (pm__lookup && (rc = pm__lookup->partition(pm__lookup->user, m, err, errcap)) < 0) return rc;
+
+    t0 = stats_now();
+    if ((rc = photon_tree_build_global(&st->tg, m, BUCKET_GLOBAL, err, errcap)) < 0 ||
+        (rc = photon_tree_build(&st->tc, m->caustic, m->ncaustic, BUCKET_CAUSTIC, err, errcap)) < 0 ||
+        (rc = photon_tree_build(&st->ts, m->shadow, m->nshadow, BUCKET_SHADOW, err, errcap)) < 0)
+        return rc;
+    st->t_trees = stats_now() - t0;
+    stats_time_add("Time/Photon kd-trees", st->t_trees);
+    if ((rc = pm__build_estimates(st, s, &rad, err, errcap)) < 0) return rc;
+    if (st->made) { /* the gather guide is the plan's: made once, on pass 0 */
+        fflush(stdout);
+        return 0;
+    }
+    if ((rc = pm__decide_sample(st, s, err, errcap)) < 0) return rc;
+    st->made = 1;
+    if (pm__lookup) {
+        const pm_kdtree *trees[2] = {st->tg, st->tc};
+        pm_estimate_options opts[2] = {st->glob_opt, st->caus_opt};
+        pm__lookup->ready(pm__lookup->user, trees, opts);
+    }
+    fflush(stdout);
+    return 0;
+}
+
