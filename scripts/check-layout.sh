@@ -15,13 +15,8 @@ STAGES="base scene load photons guiding integrators photon_mapping image run app
 # Known exceptions: "include FILE STAGE/HEADER", "file FILE MAXLINES", "func FILE NAME MAXLINES".
 EXCEPTIONS='
 include load/scene_load.c photons/photon_settings.h
-file guiding/guide.c 814
 file photon_mapping/photonmapper.c 770
-file mpi/dist.c 903
-file mpi/lookup.c 1107
-func mpi/lookup.c hook_side_build 202
 func photon_mapping/photon_sides.c side_cache_build 153
-func guiding/gather_guide.c gather_guide_plan 147
 func photon_mapping/pm_volume.c pmv_trace 133
 '
 # One awk over every file (the checker must stay cheap: it runs in the test suite).

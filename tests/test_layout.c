@@ -43,8 +43,6 @@ TEST(layout_checker_sees_each_kind_of_violation) {
         {"{ echo 'int planted_long(int a) {'; for i in $(seq 119); do echo '    a++;'; done; echo '}'; } "
          "> base/planted.c",
          "long function: base/planted.c planted_long() has 121 lines"},
-        /* a listed exception that grew past its recorded size */
-        {"for i in $(seq 5); do echo '/* x */'; done >> guiding/guide.c", "long file: guiding/guide.c"},
         /* a listed exception that no longer applies must be struck from the list */
         {"sed -i '/^#include \"photons\\/photon_settings.h\"/d' load/scene_load.c",
          "stale exception: include load/scene_load.c photons/photon_settings.h"},
@@ -55,6 +53,22 @@ TEST(layout_checker_sees_each_kind_of_violation) {
         EXPECT_MSG(rc == 1 && strstr(out, cases[i].expect),
                    "planted '%s': expected rc 1 and '%s', got rc %d:\n%s", cases[i].plant,
                    cases[i].expect, rc, out);
+    }
+    /* A listed exception that grew past its recorded size: the first file the script lists (the
+     * list only shrinks, so which file that is changes; none left, nothing can grow). */
+    char name[256] = "", line[512], plant[1024], expect[512];
+    snprintf(plant, sizeof plant, "%s/scripts/check-layout.sh", pm_test_source_dir());
+    FILE *f = fopen(plant, "r");
+    EXPECT_MSG(f != NULL, "cannot read %s", plant);
+    while (f && fgets(line, sizeof line, f))
+        if (sscanf(line, "file %255s %*d", name) == 1) break;
+    if (f) fclose(f);
+    if (name[0]) {
+        snprintf(plant, sizeof plant, "for i in $(seq 5); do echo '/* x */'; done >> %s", name);
+        snprintf(expect, sizeof expect, "long file: %s", name);
+        int rc = planted(plant, out, sizeof out);
+        EXPECT_MSG(rc == 1 && strstr(out, expect), "planted '%s': expected rc 1 and '%s', got rc %d:\n%s", plant,
+                   expect, rc, out);
     }
     /* and a clean copy passes, so the cases above fail for their plant alone */
     int rc = planted("true", out, sizeof out);

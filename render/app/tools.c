@@ -76,6 +76,17 @@ static int read_pfm_or_say(film *f, const char *path) { /* PFM or OpenEXR (film_
     return rc;
 }
 
+/* A tool's next positional argument, into *first, then *second: 0, or -1 when both are taken. */
+static int positional(const char *arg, const char **first, const char **second) {
+    if (!*first)
+        *first = arg;
+    else if (!*second)
+        *second = arg;
+    else
+        return -1;
+    return 0;
+}
+
 int tools_compare(int argc, char **argv) {
     const char *fa = NULL, *fb = NULL, *fmask = NULL, *fdiff = NULL;
     long rect[4] = {0, 0, 0, 0};
@@ -118,11 +129,7 @@ int tools_compare(int argc, char **argv) {
                 return 2;
             }
             i++;
-        } else if (!fa) {
-            fa = argv[i];
-        } else if (!fb) {
-            fb = argv[i];
-        } else {
+        } else if (positional(argv[i], &fa, &fb) < 0) {
             fprintf(stderr, "render: --compare takes two files\n");
             return 2;
         }
@@ -186,11 +193,7 @@ int tools_tonemap(int argc, char **argv) {
                 return 2;
             }
             tone = strcmp(argv[++i], "srgb") == 0 ? FILM_TONE_SRGB : FILM_TONE_FILMIC;
-        } else if (!in) {
-            in = argv[i];
-        } else if (!out) {
-            out = argv[i];
-        } else {
+        } else if (positional(argv[i], &in, &out) < 0) {
             fprintf(stderr, "render: --tonemap takes one PFM and one PNG\n");
             return 2;
         }

@@ -382,22 +382,14 @@ static int fetch_with_path(const cJSON *obj, const char *path, const char *key, 
     return rc;
 }
 
-int json_vec3(const cJSON *obj, const char *path, const char *key, int required, vec3 *out,
-              json_err *e) {
+/* json_vec3 and json_rgb: three numbers, or with grey one number for all three. */
+static int fetch_triple(const cJSON *obj, const char *path, const char *key, int required, int grey,
+                        vec3 *out, json_err *e) {
     const cJSON *it;
     char p[256];
     int rc = fetch_with_path(obj, path, key, required, &it, p, sizeof p, e);
     if (rc <= 0) return rc;
-    return json_item_vec3(it, p, out, e);
-}
-
-int json_rgb(const cJSON *obj, const char *path, const char *key, int required, rgb *out,
-             json_err *e) {
-    const cJSON *it;
-    char p[256];
-    int rc = fetch_with_path(obj, path, key, required, &it, p, sizeof p, e);
-    if (rc <= 0) return rc;
-    if (cJSON_IsNumber(it)) {
+    if (grey && cJSON_IsNumber(it)) {
         double g;
         rc = check_number(it, p, "", &g, e);
         if (rc < 0) return rc;
@@ -405,6 +397,16 @@ int json_rgb(const cJSON *obj, const char *path, const char *key, int required, 
         return 0;
     }
     return json_item_vec3(it, p, out, e);
+}
+
+int json_vec3(const cJSON *obj, const char *path, const char *key, int required, vec3 *out,
+              json_err *e) {
+    return fetch_triple(obj, path, key, required, 0, out, e);
+}
+
+int json_rgb(const cJSON *obj, const char *path, const char *key, int required, rgb *out,
+             json_err *e) {
+    return fetch_triple(obj, path, key, required, 1, out, e);
 }
 
 /* json_object and json_array: the item itself, NULL when absent (and optional). */

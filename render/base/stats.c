@@ -63,13 +63,14 @@ uint64_t *stats__attach(void) {
     return p;
 }
 
-int stats_register(const char *name) {
+/* The counter named name, or -1; with add, a new one if there is none and room is left. */
+static int lookup_name(const char *name, int add) {
     int id = -1;
     pthread_mutex_lock(&g_lock);
     init_core_names();
     for (int i = 0; i < g_ncounters; i++)
         if (strcmp(g_names[i], name) == 0) id = i;
-    if (id < 0 && g_ncounters < STATS_MAX) {
+    if (add && id < 0 && g_ncounters < STATS_MAX) {
         id = g_ncounters++;
         snprintf(g_names[id], sizeof g_names[id], "%s", name);
     }
@@ -77,15 +78,9 @@ int stats_register(const char *name) {
     return id;
 }
 
-int stats_find(const char *name) {
-    int id = -1;
-    pthread_mutex_lock(&g_lock);
-    init_core_names();
-    for (int i = 0; i < g_ncounters; i++)
-        if (strcmp(g_names[i], name) == 0) id = i;
-    pthread_mutex_unlock(&g_lock);
-    return id;
-}
+int stats_register(const char *name) { return lookup_name(name, 1); }
+
+int stats_find(const char *name) { return lookup_name(name, 0); }
 
 const char *stats_name(int id) {
     pthread_mutex_lock(&g_lock);

@@ -222,6 +222,72 @@ static int gg_find_opening(const guide_point *pts, const size_t *jp, size_t nj, 
     return fit;
 }
 
+/* The pilot's points (jp[0..*nj)) and their cells (jc[j], an index into ck[0..*ncell), the cells
+ * in key order): per cell its first GG_CELL_POINTS points; at most GG_MAX_JOBS, evenly in point
+ * order. pk: room for npts; ck, jp and jc: room for npts each. */
+static void gg_pick_points(const guide_grid *grid, const guide_point *pts, size_t npts, guide_cell_ref *pk,
+                           uint64_t *ck, size_t *ncell, size_t *jp, int *jc, size_t *nj) {
+    for (size_t k = 0; k < npts; k++) pk[k] = (guide_cell_ref){guide_cell(grid, pts[k].h.p, pts[k].n), k};
+    qsort(pk, npts, sizeof *pk, guide_cell_ref_cmp);
+    for (size_t a = 0, b; a < npts; a = b) {
+        for (b = a; b < npts && pk[b].cell == pk[a].cell; b++)
+            if (b - a < GG_CELL_POINTS) jp[(*nj)++] = pk[b].k;
+        ck[(*ncell)++] = pk[a].cell;
+    }
+    qsort(jp, *nj, sizeof *jp, gg_size_cmp);
+    if (*nj > GG_MAX_JOBS) {
+        for (size_t j = 0; j < GG_MAX_JOBS; j++) jp[j] = jp[j * *nj / GG_MAX_JOBS];
+        *nj = GG_MAX_JOBS;
+    }
+    for (size_t j = 0; j < *nj; j++) jc[j] = gg_cell_index(ck, *ncell, guide_cell(grid, pts[jp[j]].h.p, pts[jp[j]].n));
+}
+
+/* One probe per stratum of each chosen point, jittered, into pr[j GG_G^2 + stratum]; each point on
+ * its own stream (thread-count free). */
+static void gg_probe_points(const gather_guide_probe *probe, const scene *s, const guide_grid *grid,
+                            const uint64_t *ck, size_t ncell, const guide_point *pts, const size_t *jp, size_t nj,
+                            gg_probe *pr) {
+    const size_t G2 = (size_t)GG_G * GG_G;
+#pragma omp parallel for schedule(dynamic, 4)
+    for (long j = 0; j < (long)nj; j++) {
+        rng g = rng_stream(GG_SEED, jp[j], 1);
+        for (int b = 0; b < GG_G; b++)
+            for (int a = 0; a < GG_G; a++) {
+                /* Two statements, not two arguments of one call: C leaves the order in which a
+                 * call's arguments are evaluated unspecified, so compilers could draw them in
+                 * either order and the pilot would depend on the compiler. */
+                double v2 = (b + rng_uniform(&g)) / GG_G; /* the order gcc used: images kept */
+                double u2 = (a + rng_uniform(&g)) / GG_G;
+                pr[(size_t)j * G2 + (size_t)(a + GG_G * b)] =
+                    gg_probe_at(probe, s, grid, ck, ncell, &pts[jp[j]], u2, v2, &g);
+            }
+    }
+}
+
+/* The light gathered where the map has nothing: each round gives every cell the mean of its
+ * points' probes, with the last round's cell values at the probes' hits (one more bounce). v:
+ * the probes' values of the last round; Lc: the cells' values; Ln and nc: scratch, a cell each
+ * (Lc, Ln, nc: room for at least one). */
+static void gg_cell_light(const gg_probe *pr, const int *jc, size_t nj, size_t ncell, double *v, double *Lc,
+                          double *Ln, double *nc) {
+    const size_t G2 = (size_t)GG_G * GG_G, nc1 = ncell ? ncell : 1;
+    for (int round = 0; round <= GG_BOUNCES; round++) {
+        memset(Ln, 0, nc1 * sizeof *Ln);
+        memset(nc, 0, nc1 * sizeof *nc);
+        for (size_t j = 0; j < nj; j++) {
+            double t = 0;
+            for (size_t i = 0; i < G2; i++) {
+                const gg_probe *p = &pr[j * G2 + i];
+                v[j * G2 + i] = p->base + (p->ycell >= 0 ? p->w * Lc[p->ycell] : 0);
+                t += v[j * G2 + i];
+            }
+            Ln[jc[j]] += t / (double)G2;
+            nc[jc[j]] += 1;
+        }
+        for (size_t c = 0; c < ncell; c++) Lc[c] = nc[c] > 0 ? Ln[c] / nc[c] : 0;
+    }
+}
+
 int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *why,
                       const gather_guide_probe *probe, char *err, size_t errcap) {
     gg->on = 0;
@@ -267,20 +333,7 @@ int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *w
     gg_probe *pr = NULL;
     double *v = NULL, *Lc = NULL, *Ln = NULL, *nc = NULL;
     if (!pk || !ck || !jp || !jc) goto oom;
-    /* Cells; per cell its first GG_CELL_POINTS points; at most GG_MAX_JOBS, evenly in point order. */
-    for (size_t k = 0; k < npts; k++) pk[k] = (guide_cell_ref){guide_cell(&grid, pts[k].h.p, pts[k].n), k};
-    qsort(pk, npts, sizeof *pk, guide_cell_ref_cmp);
-    for (size_t a = 0, b; a < npts; a = b) {
-        for (b = a; b < npts && pk[b].cell == pk[a].cell; b++)
-            if (b - a < GG_CELL_POINTS) jp[nj++] = pk[b].k;
-        ck[ncell++] = pk[a].cell;
-    }
-    qsort(jp, nj, sizeof *jp, gg_size_cmp);
-    if (nj > GG_MAX_JOBS) {
-        for (size_t j = 0; j < GG_MAX_JOBS; j++) jp[j] = jp[j * nj / GG_MAX_JOBS];
-        nj = GG_MAX_JOBS;
-    }
-    for (size_t j = 0; j < nj; j++) jc[j] = gg_cell_index(ck, ncell, guide_cell(&grid, pts[jp[j]].h.p, pts[jp[j]].n));
+    gg_pick_points(&grid, pts, npts, pk, ck, &ncell, jp, jc, &nj);
     size_t nj1 = nj ? nj : 1, nc1 = ncell ? ncell : 1;
     pr = malloc(nj1 * G2 * sizeof *pr);
     v = malloc(nj1 * G2 * sizeof *v);
@@ -288,38 +341,8 @@ int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *w
     Ln = calloc(nc1, sizeof *Ln);
     nc = calloc(nc1, sizeof *nc);
     if (!pr || !v || !Lc || !Ln || !nc) goto oom;
-    /* One probe per stratum, jittered; each point on its own stream (thread-count free). */
-#pragma omp parallel for schedule(dynamic, 4)
-    for (long j = 0; j < (long)nj; j++) {
-        rng g = rng_stream(GG_SEED, jp[j], 1);
-        for (int b = 0; b < GG_G; b++)
-            for (int a = 0; a < GG_G; a++) {
-                /* Two statements, not two arguments of one call: C leaves the order in which a
-                 * call's arguments are evaluated unspecified, so compilers could draw them in
-                 * either order and the pilot would depend on the compiler. */
-                double v2 = (b + rng_uniform(&g)) / GG_G; /* the order gcc used: images kept */
-                double u2 = (a + rng_uniform(&g)) / GG_G;
-                pr[(size_t)j * G2 + (size_t)(a + GG_G * b)] =
-                    gg_probe_at(probe, s, &grid, ck, ncell, &pts[jp[j]], u2, v2, &g);
-            }
-    }
-    /* The light gathered where the map has nothing: each round gives every cell the mean of its
-     * points' probes, with the last round's cell values at the probes' hits (one more bounce). */
-    for (int round = 0; round <= GG_BOUNCES; round++) {
-        memset(Ln, 0, nc1 * sizeof *Ln);
-        memset(nc, 0, nc1 * sizeof *nc);
-        for (size_t j = 0; j < nj; j++) {
-            double t = 0;
-            for (size_t i = 0; i < G2; i++) {
-                const gg_probe *p = &pr[j * G2 + i];
-                v[j * G2 + i] = p->base + (p->ycell >= 0 ? p->w * Lc[p->ycell] : 0);
-                t += v[j * G2 + i];
-            }
-            Ln[jc[j]] += t / (double)G2;
-            nc[jc[j]] += 1;
-        }
-        for (size_t c = 0; c < ncell; c++) Lc[c] = nc[c] > 0 ? Ln[c] / nc[c] : 0;
-    }
+    gg_probe_points(probe, s, &grid, ck, ncell, pts, jp, nj, pr);
+    gg_cell_light(pr, jc, nj, ncell, v, Lc, Ln, nc);
     /* The opening: rays that read the map and carry over 1/GG_OUTLIER of their point's light. */
     size_t nline = 0;
     double all = 0, bright = 0, rms = 0;

@@ -37,7 +37,7 @@
  * probes' values. Every point has its own random stream (seed, point), so the table is the
  * same for any thread count and on every process of a distributed render.
  *
- * THE LIGHT GUIDE (guide_light_plan, used by the photon mapper's direct light, direct.h):
+ * THE LIGHT GUIDE (guide_light_plan, light_guide.c; used by the photon mapper's direct light, direct.h):
  * slots are lights (area and sphere lights; a point or directional light ignores (u1, u2)).
  * Stage A: GUIDE_PATHS camera paths give points (guide_points); at each, GUIDE_PROBES light
  * samples drawn as next-event estimation draws them (light by power, a uniform point) count
@@ -97,6 +97,9 @@
 extern "C" {
 #endif
 
+/* The pilot's random streams (seed, point, GUIDE_STREAM + i): i = 0 the camera paths of
+ * guide_points, 1 the probes of guide_learn, 2 the light guide's stage A (light_guide.c). */
+#define GUIDE_STREAM 0x6775696465ULL /* "guide" */
 #define GUIDE_G 16             /* strata per side of a table */
 #define GUIDE_RES 128          /* receiver cells along the scene's largest side */
 #define GUIDE_ALPHA 0.4        /* defensive share: d(u) >= alpha everywhere */
@@ -213,6 +216,16 @@ int guide_learn(guide *g, const scene *s, const guide_grid *grid, int G, double 
 int guide_learn_jobs(guide *g, const scene *s, const guide_grid *grid, int G, double alpha, const guide_point *pts,
                      const size_t *job_point, const int *job_slot, size_t njobs, guide_probe_fn fn, void *user,
                      uint64_t seed, int threads, unsigned long long *probes);
+
+/* The same, each probed row spread before the build (half itself plus half the largest value
+ * in its 3 x 3 strata; THE LIGHT GUIDE above). */
+int guide_learn_jobs_spread(guide *g, const scene *s, const guide_grid *grid, int G, double alpha,
+                            const guide_point *pts, const size_t *job_point, const int *job_slot, size_t njobs,
+                            guide_probe_fn fn, void *user, uint64_t seed, int threads, unsigned long long *probes);
+
+/* The region of a cell key of guide_cell: its cube of GUIDE_COARSE^3 cells, same side (THE
+ * LIGHT GUIDE's stage A). */
+uint64_t guide_region(uint64_t cell);
 
 /* The light guide's evidence (guide_light_plan). */
 typedef struct guide_light_evidence {

@@ -26,24 +26,27 @@
  * pixel-pass statistics to its own, writes the outputs once through main.c's atomic output
  * code, and prints the traffic ("MPI:" lines; statistics "MPI/...").
  *
- * FAILURES. Until the first collective step every rank runs alone; there (dist_start) the
- * ranks agree: if any failed (a scene it could not load, a bad option), rank 0 prints each
- * failing rank's message and every rank exits with the failing rank's status (2 for input
- * errors), nothing written; ranks given different commands (mpirun's MPMD form: some render
- * and some do not, or the --pm distributed modes differ) are named and exit 2. So that they
- * meet there, every rank makes the same collective calls before it, whatever its command. A rank failing later (an allocation in dist.c, or render_main's
- * own error, e.g. out of memory in the photon pass or the pixel pass; the photon tracer's own
- * out of memory, which the exchange would tell every rank, is sent by the failing rank before
+ * FAILURES. Until the first collective step every rank runs alone; there (ranks.c's
+ * dist_start) the ranks agree: if any failed (a scene it could not load, a bad option), rank 0
+ * prints each failing rank's message and every rank exits with the failing rank's status (2
+ * for input errors), nothing written; ranks given different commands (mpirun's MPMD form:
+ * some render and some do not, or the --pm distributed modes differ) are named and exit 2.
+ * So that they meet there, every rank makes the same collective calls before it, whatever
+ * its command. A rank failing later (an allocation in render/mpi, or render_main's own
+ * error, e.g. out of memory in the photon pass or the pixel pass; the photon tracer's own out
+ * of memory, which the exchange would tell every rank, is sent by the failing rank before
  * that exchange, through trace_dist.failed) sends its message to rank 0, which listens for it
  * wherever it waits (the tile queue, the photon exchange, dist_poll_fail, and dist_wait in the
- * collectives of lookup.c's partitioned precomputed irradiance), prints
- * "rank K of N failed (status S): what" and aborts the job
- * (MPI_Abort, non-zero exit) before anything is written; rank 0's own failures abort at
- * once. A rank that dies (killed, a lost node, the kernel's OOM killer) makes mpirun stop
+ * collectives of lk_irradiance.c's partitioned precomputed irradiance), prints "rank K of N
+ * failed (status S): what" and aborts the job (MPI_Abort, non-zero exit) before anything is
+ * written; rank 0's own failures abort at once. A rank that dies (killed, a lost node, the kernel's OOM killer) makes mpirun stop
  * the job; rank 0 then says so on stderr from its SIGTERM handler and, the output being
  * written only at the very end through a temporary and a rename, leaves no output file.
- * Test hook: PM_RENDER_MPI_TEST_ENOMEM="RANK PHASE N" fails an allocation (dist.c), or a
+ * Test hook: PM_RENDER_MPI_TEST_ENOMEM="RANK PHASE N" fails an allocation (ranks.c), or a
  * batch of the photon tracer (PHASE tracer).
+ *
+ * The agreement, the failures and the test hook are ranks.c's (ranks.h); the photon exchange
+ * and the image loop dist.c's, rank 0's tile queue and the workers' chunks tile_queue.c's.
  *
  * Ranks other than 0 print nothing: their stdout is discarded and their stderr kept in a
  * temporary file, whose last lines become their failure message.
@@ -55,45 +58,20 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "ranks.h"
 #include "run/renderer.h"
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-enum { DIST_REPLICATED = 0, DIST_PARTITIONED = 1 };
-
-/* After MPI_Init: rank and size, streams of ranks > 0, the photon-pass hook. mode: a DIST_*. */
+/* After MPI_Init: rank and size (dist_ranks_init), streams of ranks > 0, the photon-pass hook,
+ * the partitioned lookups (lookup.h) in that mode. mode: a DIST_* (ranks.h). */
 void dist_init(int mode);
-int dist_rank(void);
-int dist_size(void);
-/* This rank's own failure before the render started (usage error, bad option), with a
- * message (printed by rank 0 only). Joins dist_start and exits the program with status rc. */
-void dist_fail_early(int rc, const char *msg);
-/* Before this rank's first collective call outside the photon exchange (dist.c's agreement). */
-void dist_collective_begin(void);
-/* A failure of this rank after the agreement: rank 0 says "rank K of N failed: what" and
- * stops the job (see FAILURES); does not return. */
-void dist_die(const char *what);
-/* Rank 0, while it waits for other ranks outside dist.c (a blocking collective would not
- * hear a rank that failed and never joins it): if a rank sent its failure, say it and stop
- * the job; else return at once. Other ranks: returns at once. */
-void dist_poll_fail(void);
-/* Wait for a request (a nonblocking collective's: every rank must call the same collective,
- * so all ranks use the nonblocking form and wait here). Rank 0 listens meanwhile as in
- * dist_poll_fail, so a rank that failed and never joins the collective stops the job at once
- * (not after the failing rank's own FAIL_GRACE, dist.c). Other ranks: MPI_Wait. */
-void dist_wait(MPI_Request *r);
-/* malloc / calloc for lookup.c's partitioned precomputed-irradiance build, which the test
- * hook PM_RENDER_MPI_TEST_ENOMEM="RANK irradiance N" can make fail (dist.c). */
-void *dist_irr_malloc(size_t n);
-void *dist_irr_calloc(size_t n, size_t m);
-/* What render_main returned on this rank: finishes MPI and returns the exit status. */
-int dist_finish(int rc);
 /* The image loop of a distributed render (see above), called by render_main in place of
  * render_image_ctl. On ranks > 0 it does not return: they exit once their tiles are sent.
  * With a control (a checkpointed, snapshotted or resumed render), rank 0 renders into
- * ctl->state, skipping its complete tiles, and makes ctl's pauses between chunks (dist.c,
+ * ctl->state, skipping its complete tiles, and makes ctl's pauses between chunks (tile_queue.c,
  * root_pause); it returns RENDER_INTERRUPTED after the checkpoint of a signal, as
  * render_image_ctl does. The other ranks ignore ctl: they write nothing. */
 int dist_render_image_ctl(const scene *s, const integrator *it, const render_job *job,
@@ -113,8 +91,6 @@ int dist_pass_image(const scene *s, const integrator *it, const render_job *job,
                     const render_control *ctl, film *out);
 int dist_pass_agree(int go);
 void dist_passes_end(int rc);
-/* 1 with --pm distributed=partitioned. */
-int dist_partitioned(void);
 
 #ifdef __cplusplus
 }

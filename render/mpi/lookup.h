@@ -90,7 +90,7 @@ extern "C" {
 
 /* Set the photon-lookup hook (photon_lookup.h) for a partitioned render on these ranks; comm:
  * the lookups' own communicator (a duplicate of MPI_COMM_WORLD, made by every rank whatever
- * its mode, so that ranks started with different modes meet in dist.c's agreement). */
+ * its mode, so that ranks started with different modes meet in the ranks' agreement, ranks.c). */
 void lk_init(int rank, int size, MPI_Comm comm);
 /* Before the pixel pass, on every rank, before it answers any query: the free heights of this
  * rank's caustic part, so that its caustic estimates keep to the query's side (side_neighbours,

@@ -125,7 +125,7 @@ int main(int argc, char **argv) {
     dist_init(mode);
     /* Ranks sharing this node share its cores. Every rank asks (a collective call) before
      * anything else, whatever its command: ranks given different commands, or one with a bad
-     * option, must meet in dist.c's agreement. */
+     * option, must meet in the ranks' agreement (ranks.c). */
     MPI_Comm node;
     int local = 1;
     if (MPI_Comm_split_type(MPI_COMM_WORLD, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) ==

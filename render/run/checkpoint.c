@@ -395,6 +395,27 @@ double ckpt_session_period(const ckpt_session *cs) {
     return p;
 }
 
+/* The periodic snapshot of ckpt_session_pause (st) or ckpt_session_pass (ps), when one is due:
+ * the image so far as a PNG at cs->snap_path. 0, or a negative code with cs->err set. */
+static int session_snapshot(ckpt_session *cs, int why, double now, const render_state *st, const pass_state *ps) {
+    if (!cs->snap_path || why != RENDER_PAUSE_PERIODIC || now < cs->next_snap) return 0;
+    film f;
+    if (film_init(&f, st ? st->width : ps->width, st ? st->height : ps->height) < 0) return PM_ENOMEM;
+    if (st)
+        render_state_to_film(st, &f);
+    else
+        pass_state_to_film(ps, &f);
+    int rc = film_write_png(&f, cs->snap_path, cs->tone, cs->exposure, cs->clip_percent, NULL);
+    int saved = errno;
+    film_free(&f);
+    if (rc < 0) {
+        snprintf(cs->err, sizeof cs->err, "%s: cannot write the snapshot: %s", cs->snap_path, strerror(saved));
+        return rc;
+    }
+    cs->next_snap = stats_now() + cs->snap_every;
+    return 0;
+}
+
 int ckpt_session_pause(void *user, const render_state *st, int why) {
     ckpt_session *cs = user;
     if (!g_writer) return 0;
@@ -407,21 +428,7 @@ int ckpt_session_pause(void *user, const render_state *st, int why) {
                     100.0 * (double)render_state_done(st) / ((double)st->width * st->height * st->spp));
         cs->next_ckpt = stats_now() + cs->ckpt_every;
     }
-    if (cs->snap_path && why == RENDER_PAUSE_PERIODIC && now >= cs->next_snap) {
-        film f;
-        if (film_init(&f, st->width, st->height) < 0) return PM_ENOMEM;
-        render_state_to_film(st, &f);
-        int rc = film_write_png(&f, cs->snap_path, cs->tone, cs->exposure, cs->clip_percent, NULL);
-        int saved = errno;
-        film_free(&f);
-        if (rc < 0) {
-            snprintf(cs->err, sizeof cs->err, "%s: cannot write the snapshot: %s", cs->snap_path,
-                     strerror(saved));
-            return rc;
-        }
-        cs->next_snap = stats_now() + cs->snap_every;
-    }
-    return 0;
+    return session_snapshot(cs, why, now, st, NULL);
 }
 
 int ckpt_session_pass(void *user, const pass_state *ps, int why) {
@@ -436,21 +443,7 @@ int ckpt_session_pass(void *user, const pass_state *ps, int why) {
                     ps->done == 1 ? "" : "es");
         cs->next_ckpt = stats_now() + cs->ckpt_every;
     }
-    if (cs->snap_path && why == RENDER_PAUSE_PERIODIC && now >= cs->next_snap) {
-        film f;
-        if (film_init(&f, ps->width, ps->height) < 0) return PM_ENOMEM;
-        pass_state_to_film(ps, &f);
-        int rc = film_write_png(&f, cs->snap_path, cs->tone, cs->exposure, cs->clip_percent, NULL);
-        int saved = errno;
-        film_free(&f);
-        if (rc < 0) {
-            snprintf(cs->err, sizeof cs->err, "%s: cannot write the snapshot: %s", cs->snap_path,
-                     strerror(saved));
-            return rc;
-        }
-        cs->next_snap = stats_now() + cs->snap_every;
-    }
-    return 0;
+    return session_snapshot(cs, why, now, NULL, ps);
 }
 
 static const char *pm_dir_key(const scene *s, const char *key) {
