@@ -592,7 +592,7 @@ else
   bad "--save-photons partitioned" "rc $rc; $(grep render "$T/psave.log" | head -2)"
 fi
 # An allocation that fails on one rank mid-render (test hook PM_RENDER_MPI_TEST_ENOMEM="RANK
-# PHASE N": the N-th allocation dist.c makes or asks for on that rank in that phase fails, as if
+# PHASE N": the N-th allocation ranks.c (dist_irr_malloc) makes or asks for on that rank in that phase fails, as if
 # malloc returned NULL). Oracle: the failing rank and what failed, as the hook made them: rank 0
 # must name them ("rank K of N failed ...: <what>"), the job must end non-zero within 60 s
 # without the failing rank's own fallback (it stops the job itself only if rank 0 has not
@@ -600,10 +600,10 @@ fi
 # state (the error goes through render's own message), a worker's second chunk's result
 # buffer, rank 0's own message buffer, the receive buffer of a later photon exchange of
 # rank 2 of 3 (where the other ranks wait in the exchange for it), and two allocations of the
-# partitioned precomputed-irradiance build (lookup.c, phase irradiance): rank 1 of 2's query
+# partitioned precomputed-irradiance build (lk_irradiance.c, phase irradiance): rank 1 of 2's query
 # buffer after the counts' all-gather (rank 0 waits in the queries' all-gather), and rank 2 of
 # 3's records after the all-to-all (the error goes through render's own message; rank 0 waits
-# in the statistics' reduce). Before lookup.c waited in those collectives with dist_wait, rank
+# in the statistics' reduce). Before lk_irradiance.c waited in those collectives with dist_wait, rank
 # 0 did not hear these and the job ended after the failing rank's 30 s fallback.
 # The photon tracer's own allocation (phase tracer: the N-th batch the rank traces in a
 # distributed pass fails as if its buffer could not grow; trace_dist.test_fail): rank 1 of 3's

@@ -57,7 +57,7 @@
  *                    open ground under the sun: 100 direct photons, a few indirect, all of
  *                    it read correctly before) and computed their light at every gather hit.
  *                    The rule needs no k: it holds as well for a distributed process's part
- *                    of an estimate, whose paths add up over the parts (render/mpi/lookup.c).
+ *                    of an estimate, whose paths add up over the parts (render/mpi/lk_serve.c).
  *                    Direct light: the values leave out the direct photons (first hits from
  *                    a light; they still count toward the k that set the radius), and the
  *                    caller computes y's direct light with a light sample instead. Why: direct
@@ -137,7 +137,7 @@ int side_visible_h(const scene *s, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, 
 
 /* The part of the disc of radius r around the surface point p (normal n) on p's side of every
  * surface (side_cache_build's area for an estimate that met a wall, at least 1/32): 33 rays.
- * For a distributed build (render/mpi/lookup.c) that combines such estimates. */
+ * For a distributed build (render/mpi/lk_irradiance.c) that combines such estimates. */
 double side_disc_fraction(const scene *s, vec3 p, vec3 n, double r);
 
 typedef struct side_cache {
@@ -149,7 +149,7 @@ typedef struct side_cache {
     size_t sparse; /* estimates of too few photon paths to be looked up (see "Sparse estimates" above) */
     int indirect_only; /* 1: the values leave out direct photons (side_cache_build; see "Direct
                         * light" above): the caller adds y's direct light itself */
-    /* A distributed render's lookups (render/mpi/lookup.c, partitioned maps: this process holds
+    /* A distributed render's lookups (render/mpi/lookup.c and lk_irradiance.c, partitioned maps: this process holds
      * only its part of the records): when set, side_cache_lookup returns remote(remote_user,
      * ...) instead of reading irr, which then holds this process's part alone (NULL: the
      * cache is read here, as always in one process). Not freed by side_cache_free. */
@@ -212,7 +212,7 @@ void side_map_free(side_map *sm);
  * allocates only when a neighbour is hidden. */
 int side_estimate(const side_map *sm, const float x[3], const float n[3], const pm_estimate_options *o,
                   void *scratch, pm_estimate_result *res);
-/* side_estimate's neighbour rule for callers that search themselves (render/mpi/lookup.c):
+/* side_estimate's neighbour rule for callers that search themselves (render/mpi/lk_irradiance.c):
  * nb[0..found) are the k nearest that ko accepts within max_dist2, from sm's tree; returns how
  * many of them stay (in nb[0..), at most k, the k nearest on x's side among 4k candidates when
  * one of the first was hidden) and sets *limit to the radius^2 of the disc they cover when
