@@ -17,6 +17,7 @@
 #include <string.h>
 
 #include "test.h"
+#include "test_film.h"
 #include "../render/image/film.h"
 #include "../render/scene/material.h"
 
@@ -39,19 +40,6 @@ TEST(render_glass_radiance_scale) {
     EXPECT_MSG(material_radiance_scale(0.0, 1.5) == 1.0, "unknown source index: not 1");
     EXPECT_MSG(material_radiance_scale(1.5, 0.0) == 1.0, "unknown index: not 1");
     EXPECT_MSG(material_radiance_scale(NAN, 1.5) == 1.0, "NaN index: not 1");
-}
-
-/* Mean of the three channels over the rectangle [x0, x1) x [y0, y1) (top-left origin). */
-static double rect_mean(const film *f, int x0, int y0, int x1, int y1) {
-    double sum = 0;
-    int n = 0;
-    for (int y = y0; y < y1; y++)
-        for (int x = x0; x < x1; x++) {
-            const float *p = &f->px[3 * ((size_t)y * (size_t)f->width + (size_t)x)];
-            sum += (p[0] + p[1] + p[2]) / 3.0;
-            n++;
-        }
-    return n ? sum / n : 0;
 }
 
 static int render_file(const char *scene, const char *flags, const char *pfm) {
@@ -90,8 +78,8 @@ TEST(render_glass_enclosed_pm_matches_path) {
              {"plate under water", 16, 22, 25, 27},
              {"whole image", 0, 0, 32, 32}};
     for (size_t i = 0; i < sizeof r / sizeof *r; i++) {
-        double ma = rect_mean(&a, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
-        double mb = rect_mean(&b, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
+        double ma = rt_rect_mean(&a, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
+        double mb = rt_rect_mean(&b, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
         double rel = ma > 0 ? mb / ma - 1 : INFINITY;
         printf("    glass_enclosed %s: path %.5g pm %.5g (%+.2f%%, bound 5%%)\n", r[i].name, ma, mb,
                100 * rel);
@@ -148,8 +136,8 @@ TEST(render_glass_open_panes_pm_matches_path) {
         int x0, y0, x1, y1;
     } r[] = {{"lower part (under both panes)", 0, 20, 32, 32}, {"whole image", 0, 0, 32, 32}};
     for (size_t i = 0; i < sizeof r / sizeof *r; i++) {
-        double ma = rect_mean(&a, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
-        double mb = rect_mean(&b, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
+        double ma = rt_rect_mean(&a, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
+        double mb = rt_rect_mean(&b, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
         double rel = ma > 0 ? mb / ma - 1 : INFINITY;
         printf("    two panes %s: path %.5g pm %.5g (%+.2f%%, bound 5%%)\n", r[i].name, ma, mb,
                100 * rel);

@@ -17,20 +17,8 @@
 #include <string.h>
 
 #include "test.h"
+#include "test_film.h"
 #include "../render/image/film.h"
-
-/* Mean of the three channels over the rectangle [x0, x1) x [y0, y1) (top-left origin). */
-static double rect_mean(const film *f, int x0, int y0, int x1, int y1) {
-    double sum = 0;
-    int n = 0;
-    for (int y = y0; y < y1; y++)
-        for (int x = x0; x < x1; x++) {
-            const float *p = &f->px[3 * ((size_t)y * f->width + x)];
-            sum += (p[0] + p[1] + p[2]) / 3.0;
-            n++;
-        }
-    return n ? sum / n : 0;
-}
 
 static int render_scene_at(const char *name, int size, const char *flags, const char *pfm) {
     char cmd[4096], out[16384];
@@ -62,8 +50,8 @@ static void check_regions(const char *name, int size, const char *pt_flags, cons
     film a, b;
     ASSERT(film_read_pfm(&a, pt) == 0 && film_read_pfm(&b, pm) == 0);
     for (int i = 0; i < nr; i++) {
-        double ma = rect_mean(&a, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
-        double mb = rect_mean(&b, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
+        double ma = rt_rect_mean(&a, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
+        double mb = rt_rect_mean(&b, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
         double rel = ma > 0 ? mb / ma - 1 : INFINITY;
         printf("    %s %s: path %.5g pm %.5g (%+.2f%%, bound %.0f%%)\n", name, r[i].name, ma, mb,
                100 * rel, 100 * r[i].tol);
@@ -87,8 +75,8 @@ static void check_partition(const char *name) {
     ASSERT_EQ_INT(render_scene(name, "--mode pm --spp 16 --pm global_photons=50000", pm), 0);
     film a, b;
     ASSERT(film_read_pfm(&a, pt) == 0 && film_read_pfm(&b, pm) == 0);
-    double up_pt = rect_mean(&a, 0, 0, 32, 14), low_pt = rect_mean(&a, 0, 18, 32, 32);
-    double up_pm = rect_mean(&b, 0, 0, 32, 14), low_pm = rect_mean(&b, 0, 18, 32, 32);
+    double up_pt = rt_rect_mean(&a, 0, 0, 32, 14), low_pt = rt_rect_mean(&a, 0, 18, 32, 32);
+    double up_pm = rt_rect_mean(&b, 0, 0, 32, 14), low_pm = rt_rect_mean(&b, 0, 18, 32, 32);
     printf("    %s: upper half path %.5f pm %.5f (%+.2f%%); lower half path %.3g pm %.3g\n", name,
            up_pt, up_pm, 100 * (up_pm / up_pt - 1), low_pt, low_pm);
     EXPECT_MSG(low_pt == 0, "%s: path tracing lights the lower half (%g)", name, low_pt);
@@ -180,8 +168,8 @@ TEST(render_hard_pinhole_room_regions) {
     ASSERT_MSG(film_read_pfm(&a, ref) == 0, "cannot read %s", ref);
     ASSERT(a.width == 8 && a.height == 8 && film_read_pfm(&b, pm) == 0);
     for (int i = 0; i < 3; i++) {
-        double ma = rect_mean(&a, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
-        double mb = rect_mean(&b, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
+        double ma = rt_rect_mean(&a, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
+        double mb = rt_rect_mean(&b, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
         double rel = ma > 0 ? mb / ma - 1 : INFINITY;
         printf("    pinhole_room %s: reference %.5g pm %.5g (%+.2f%%, bound %.0f%%)\n", r[i].name, ma, mb, 100 * rel,
                100 * r[i].tol);
@@ -231,7 +219,7 @@ TEST(render_hard_caustic_cage_no_leak) {
     }
     film a, b;
     ASSERT(film_read_pfm(&a, pt) == 0 && film_read_pfm(&b, pm) == 0);
-    double ma = rect_mean(&a, 0, 0, 16, 16), mb = rect_mean(&b, 0, 0, 16, 16);
+    double ma = rt_rect_mean(&a, 0, 0, 16, 16), mb = rt_rect_mean(&b, 0, 0, 16, 16);
     printf("    caustic cage: path %.3g, photon mapping %.3g (bound 1e-6)\n", ma, mb);
     EXPECT_MSG(ma == 0, "path tracing lights the outside of the cage: %g", ma);
     EXPECT_MSG(mb < 1e-6, "caustic photons leak out of the cage: %g", mb);

@@ -32,6 +32,7 @@
 #include <string.h>
 
 #include "test.h"
+#include "test_film.h"
 #include "../photonmap/common.h"
 #include "../photonmap/photon.h"
 #include "../render/base/rng.h"
@@ -647,18 +648,6 @@ TEST(render_ports_bounce_density) {
 
 /* ---- pinhole_room with its hole as a port ------------------------------------------------------ */
 
-static double rect_mean(const film *f, int x0, int y0, int x1, int y1) {
-    double sum = 0;
-    int n = 0;
-    for (int y = y0; y < y1; y++)
-        for (int x = x0; x < x1; x++) {
-            const float *p = &f->px[3 * ((size_t)y * f->width + x)];
-            sum += (p[0] + p[1] + p[2]) / 3.0;
-            n++;
-        }
-    return n ? sum / n : 0;
-}
-
 /* MEASURED (at d3c7df1, the test's settings, seeds 1-12, photon maps and samples both varying;
  * /tmp scripts, not kept): against the reference, region means in %
  *                      whole image          lit patch            walls and ceiling
@@ -721,8 +710,8 @@ TEST(render_ports_pinhole_room_regions) {
     ASSERT_MSG(film_read_pfm(&fa, ref) == 0, "cannot read %s", ref);
     ASSERT(fa.width == 8 && fa.height == 8 && film_read_pfm(&fb, pm) == 0);
     for (int i = 0; i < 3; i++) {
-        double ma = rect_mean(&fa, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
-        double mb = rect_mean(&fb, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
+        double ma = rt_rect_mean(&fa, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
+        double mb = rt_rect_mean(&fb, r[i].x0, r[i].y0, r[i].x1, r[i].y1);
         double rel = ma > 0 ? mb / ma - 1 : INFINITY;
         printf("    pinhole_room_ports %s: reference %.5g pm %.5g (%+.2f%%, bound %.1f%%)\n", r[i].name, ma, mb,
                100 * rel, 100 * r[i].tol);

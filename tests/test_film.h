@@ -1,0 +1,24 @@
+/* test_film.h: small helpers over render/image/film.h's framebuffers, shared by the render
+ * tests that read regions of an image. */
+#ifndef TEST_FILM_H
+#define TEST_FILM_H
+
+#include <stddef.h>
+
+#include "../render/image/film.h"
+
+/* Mean of the three channels over the rectangle [x0, x1) x [y0, y1) (top-left origin); 0 for
+ * an empty rectangle. */
+static inline double rt_rect_mean(const film *f, int x0, int y0, int x1, int y1) {
+    double sum = 0;
+    int n = 0;
+    for (int y = y0; y < y1; y++)
+        for (int x = x0; x < x1; x++) {
+            const float *p = &f->px[3 * ((size_t)y * (size_t)f->width + (size_t)x)];
+            sum += (p[0] + p[1] + p[2]) / 3.0;
+            n++;
+        }
+    return n ? sum / n : 0;
+}
+
+#endif /* TEST_FILM_H */
