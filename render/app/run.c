@@ -222,6 +222,7 @@ int run_create_integrator(app_run *r) {
     scene *s = &r->s;
     char err[512];
     int rc = integrator_create(s->settings.mode, s, &r->it, err, sizeof err);
+    r->it.in_passes = r->in_passes;
     if (rc < 0 && rc != PM_EINVAL) { /* the mode is known; making it failed (the plan's pilots
                                       * ran out of memory): a failure, not bad input */
         fprintf(stderr, "render: %s: %s\n", o->scene_path, err);

@@ -77,6 +77,8 @@ struct integrator {
     void (*destroy)(integrator *self);
     int (*begin_pass)(integrator *self, const scene *s, int pass, uint64_t seed, char *err,
                       size_t errcap);
+    int in_passes; /* set by the caller before preprocess: the render runs in passes (its
+                    * camera's spp is a pass's), so begin_pass follows */
 };
 
 typedef int (*integrator_create_fn)(integrator *it, const scene *s, char *err, size_t errcap);

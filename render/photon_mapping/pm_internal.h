@@ -66,6 +66,12 @@ typedef struct mapper_state {
     int fraction_made;
     char fraction_reason[320];
     float *vol_r2_0; /* 3 per medium: ms, caus, all */
+    /* Pass 0's photons fitted to its camera samples (pm_passes.c, PASS 0'S PHOTONS): the
+     * settings' counts, stage A running (1), the scale of the targets pass 0 traced, why. */
+    long fit_target[4];
+    int fit_stage, in_passes;
+    double fit_scale, k_scale0; /* k_scale0: pass 0's maps' scale in a render in passes, else 1 */
+    char fit_reason[400];
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
         st_global_est, st_lookup_miss, st_side_rays, st_side_again;
 } mapper_state;
@@ -90,5 +96,12 @@ void pm__pass_radii(mapper_state *st, map_radii *rad);
 int pm__pass_volume_radii(mapper_state *st, const scene *s);
 int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, char *err,
                    size_t errcap);
+/* pm_passes.c: pass 0's photons fitted to its camera samples (PASS 0'S PHOTONS): before the
+ * first trace (stage A's targets into st->cfg, or why not), after stage A's sample pilot (1:
+ * the maps were dropped and st->cfg holds the targets to trace again), and freeing a pass's
+ * maps, trees and readers. */
+void pm__fit_begin(mapper_state *st, const scene *s);
+int pm__fit_end(mapper_state *st, const scene *s);
+void pm__drop_maps(mapper_state *st);
 
 #endif /* RENDER_PM_INTERNAL_H */

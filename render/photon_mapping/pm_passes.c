@@ -113,23 +113,33 @@ int pm__pass_volume_radii(mapper_state *st, const scene *s) {
 #define PPM_IRR_COST 800.0
 #define PPM_MIN_DIV 64.0
 
-static void choose_fraction(mapper_state *st, const scene *s) {
-    photon_settings *c = &st->cfg;
-    st->target0[0] = c->global_photons;
-    st->target0[1] = c->caustic_photons;
-    st->target0[2] = c->volume_photons;
-    st->target0[3] = c->volume_caustic_photons;
+/* W_p of the maps st holds (above), in the sample pilot's units. */
+static double photon_work(const mapper_state *st) {
     const photon_maps *m = &st->maps;
     double wg = st->plan.work_emit[0] > 0 ? st->plan.work_emit[0] : st->sample_work;
     double wc = st->plan.work_emit[1] > 0 ? st->plan.work_emit[1] : st->sample_work;
     double stored = (double)st->nglobal_all + (double)st->ncaustic_all +
                     (double)(m->part ? m->whole_shadow : m->nshadow) + (double)st->vol.n_all +
                     (double)st->vol.n_caus;
-    double wp = (wg + PPM_EMIT_COST) * (double)m->global_emitted +
-                (wc + PPM_EMIT_COST) * (double)m->caustic_emitted +
-                st->sample_work * (double)(m->volume_emitted + m->volume_caustic_emitted) +
-                PPM_IRR_COST * (double)st->sides.n + PPM_STORE_COST * stored;
-    double wr = (double)s->cam.width * (double)s->cam.height * (double)s->cam.spp * st->sample_work;
+    return (wg + PPM_EMIT_COST) * (double)m->global_emitted +
+           (wc + PPM_EMIT_COST) * (double)m->caustic_emitted +
+           st->sample_work * (double)(m->volume_emitted + m->volume_caustic_emitted) +
+           PPM_IRR_COST * (double)st->sides.n + PPM_STORE_COST * stored;
+}
+
+/* W_r of one pass (of the whole render when it is not in passes): its camera samples' work. */
+static double camera_work(const mapper_state *st, const scene *s) {
+    return (double)s->cam.width * (double)s->cam.height * (double)s->cam.spp * st->sample_work;
+}
+
+static void choose_fraction(mapper_state *st, const scene *s) {
+    photon_settings *c = &st->cfg;
+    st->target0[0] = c->global_photons;
+    st->target0[1] = c->caustic_photons;
+    st->target0[2] = c->volume_photons;
+    st->target0[3] = c->volume_caustic_photons;
+    double wp = photon_work(st);
+    double wr = camera_work(st, s);
     st->photon_work0 = wp;
     if (c->ppm_photons > 0) {
         st->pass_fraction = c->ppm_photons;
@@ -157,12 +167,17 @@ static void choose_fraction(mapper_state *st, const scene *s) {
  * reading low near edges, and the Knaus-Zwicker caps take many thousands of passes to undo
  * that), while the mean of the passes keeps their noise down. */
 static const int PPM_K_MIN[2] = {32, 8};
+/* k_global (i 0) or k_caustic (1) for maps of f times the settings' targets. */
+static int k_of(const mapper_state *st, int i, double f) {
+    long kf = llround(st->k0[i] * f), lo = st->k0[i] < PPM_K_MIN[i] ? st->k0[i] : PPM_K_MIN[i];
+    return kf >= st->k0[i] ? st->k0[i] : kf < lo ? (int)lo : (int)kf;
+}
+
 static void pass_targets(mapper_state *st, int pass) {
     int *k[2] = {&st->cfg.k_global, &st->cfg.k_caustic};
     for (int i = 0; i < 2; i++) {
         if (!st->k0[i]) st->k0[i] = *k[i];
-        long kf = llround(st->k0[i] * st->pass_fraction), lo = st->k0[i] < PPM_K_MIN[i] ? st->k0[i] : PPM_K_MIN[i];
-        *k[i] = !pass || kf >= st->k0[i] ? st->k0[i] : kf < lo ? (int)lo : (int)kf;
+        *k[i] = k_of(st, i, st->k_scale0 * (pass ? st->pass_fraction : 1));
     }
     long *dst[4] = {&st->cfg.global_photons, &st->cfg.caustic_photons, &st->cfg.volume_photons,
                     &st->cfg.volume_caustic_photons};
@@ -184,6 +199,19 @@ static void drop_volume_maps(pmv_state *v) {
     }
     v->ms = v->caus = v->all = NULL;
     v->n_ms = v->n_caus = v->n_all = 0;
+}
+
+void pm__drop_maps(mapper_state *st) {
+    side_cache_free(&st->sides);
+    side_map_free(&st->caus_side);
+    pm_kdtree_free(st->tg);
+    pm_kdtree_free(st->tc);
+    pm_kdtree_free(st->ts);
+    st->tg = st->tc = st->ts = NULL;
+    drop_volume_maps(&st->vol);
+    int nmedia = st->maps.nmedia;
+    photon_maps_free(&st->maps);
+    st->maps.nmedia = nmedia;
 }
 
 /* One line per pass on stdout: the maps, what building them cost, and the radii. */
@@ -247,16 +275,7 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
         return PM_EINVAL;
     }
     if (!st->fraction_made) choose_fraction(st, s); /* from pass 0's maps, still here */
-    side_cache_free(&st->sides);
-    side_map_free(&st->caus_side);
-    pm_kdtree_free(st->tg);
-    pm_kdtree_free(st->tc);
-    pm_kdtree_free(st->ts);
-    st->tg = st->tc = st->ts = NULL;
-    drop_volume_maps(&st->vol);
-    int nmedia = st->maps.nmedia;
-    photon_maps_free(&st->maps);
-    st->maps.nmedia = nmedia;
+    pm__drop_maps(st);
     pass_targets(st, pass);
     st->pass = pass;
     st->pass_seed = seed;
@@ -269,3 +288,122 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
     return rc;
 }
 
+
+/* PASS 0'S PHOTONS, FITTED TO THE CAMERA SAMPLES THEY SERVE. The settings' photon counts are
+ * defaults sized for a large image; a small or short render that traced them all spent most of
+ * its time before its first camera sample (cornell_spheres at 96x96 and 4 CPU-s: 3.5 CPU-s of
+ * photons, 25 spp). So unless the scene or --pm sets a count, pass 0 is traced in two stages:
+ *   stage A: 1/PM_FIT_FIRST of the targets, its trees and readers, then the sample pilot
+ *            (pm__decide_sample), which gives the counted work of a camera sample;
+ *   the fit:  s = PM_FIT_SHARE x W_r / W_p(targets), within [1/PM_FIT_FIRST, PM_FIT_MAX],
+ *            W_r the camera samples' counted work (of the whole render, or of pass 0 when the
+ *            render is in passes), W_p(targets) = stage A's counted photon work (photon_work)
+ *            x PM_FIT_FIRST;
+ *   stage B: when s is above 1.25 / PM_FIT_FIRST, the maps are traced again at s x the targets
+ *            (same seed) and stage A's are dropped; else stage A's maps are pass 0's.
+ * The gather guide, the emission mask and the sample pilot's choices stay stage A's (they
+ * choose sampling, never the mean). Counted work, never seconds: the same s for any thread
+ * count, for render-mpi's processes and after a resume. PM_FIT_SHARE was chosen by
+ * measurement (README.md, "Photons fitted to the render"): on cornell_spheres at 96x96 the
+ * error at equal CPU time was lowest with photons at about 1/5 of the time, and water_caustic,
+ * whose caustic is all photons, lost little there. Not fitted: counts set by the scene or
+ * --pm, loaded or saved maps (a saved set must match its targets when loaded), a partitioned
+ * render-mpi (its sample pilot does not run), no sample pilot. */
+#define PM_FIT_SHARE 0.2
+#define PM_FIT_FIRST 4.0
+#define PM_FIT_MAX 4.0
+
+static long *fit_count(mapper_state *st, int i) {
+    long *c[4] = {&st->cfg.global_photons, &st->cfg.caustic_photons, &st->cfg.volume_photons,
+                  &st->cfg.volume_caustic_photons};
+    return c[i];
+}
+
+static const char *const k_fit_keys[4] = {"global_photons", "caustic_photons", "volume_photons",
+                                          "volume_caustic_photons"};
+
+static void fit_scale(mapper_state *st, double f) {
+    for (int i = 0; i < 4; i++) {
+        double t = (double)st->fit_target[i] * f;
+        *fit_count(st, i) = st->fit_target[i] > 0 && t < 1 ? 1 : (long)llround(t);
+    }
+}
+
+/* Before pass 0's first trace: stage A's targets, when the fit applies (st->fit_stage 1), or
+ * the reason it does not (st->fit_reason). */
+/* A render in passes: pass 0's estimates, like a later pass's (pass_targets), read k f
+ * photons of maps f times the targets, so its radii are those of the targets. */
+static void fit_k(mapper_state *st, double f) {
+    st->k_scale0 = st->in_passes ? f : 1;
+    st->cfg.k_global = k_of(st, 0, st->k_scale0);
+    st->cfg.k_caustic = k_of(st, 1, st->k_scale0);
+}
+
+void pm__fit_begin(mapper_state *st, const scene *s) {
+    for (int i = 0; i < 4; i++) st->fit_target[i] = *fit_count(st, i);
+    st->k0[0] = st->cfg.k_global;
+    st->k0[1] = st->cfg.k_caustic;
+    st->k_scale0 = 1;
+    st->fit_scale = 1;
+    const char *why = NULL;
+    for (int i = 0; i < 4 && !why; i++)
+        if (json_get(s->photon_mapping, k_fit_keys[i])) why = k_fit_keys[i];
+    if (why)
+        snprintf(st->fit_reason, sizeof st->fit_reason, "the targets (photon_mapping.%s is set)", why);
+    else if (st->cfg.load_dir[0] || st->cfg.save_dir[0])
+        snprintf(st->fit_reason, sizeof st->fit_reason, "the targets (%s photon maps keep them)",
+                 st->cfg.load_dir[0] ? "loaded" : "saved");
+    else if (pm__lookup)
+        snprintf(st->fit_reason, sizeof st->fit_reason,
+                 "the targets (partitioned render-mpi: no sample pilot to weigh them by)");
+    else {
+        st->fit_stage = 1;
+        fit_scale(st, 1 / PM_FIT_FIRST);
+        fit_k(st, 1 / PM_FIT_FIRST);
+    }
+}
+
+/* After stage A's sample pilot: 1 when pass 0 must be traced again at the fitted targets (set
+ * in st->cfg), 0 when stage A's maps stay (or the fit did not apply). */
+int pm__fit_end(mapper_state *st, const scene *s) {
+    if (!st->fit_stage) return 0;
+    st->fit_stage = 0;
+    double wp = photon_work(st) * PM_FIT_FIRST, wr = camera_work(st, s);
+    double f = wp > 0 && wr > 0 && isfinite(wp) && isfinite(wr) ? PM_FIT_SHARE * wr / wp : 0;
+    if (!(wp > 0)) { /* no photons at all (no map on, or none stored): nothing to fit */
+        snprintf(st->fit_reason, sizeof st->fit_reason, "no photon work to fit");
+        return 0;
+    }
+    if (!(f > 0)) {
+        st->fit_scale = 1;
+        snprintf(st->fit_reason, sizeof st->fit_reason, "the targets (no counted work to weigh: %s)",
+                 wr > 0 ? "no photons" : "no sample pilot");
+        fit_scale(st, 1);
+        fit_k(st, 1);
+        pm__drop_maps(st);
+        return 1;
+    }
+    double lo = 1 / PM_FIT_FIRST, fs = f < lo ? lo : f > PM_FIT_MAX ? PM_FIT_MAX : f;
+    int again = fs > 1.25 * lo;
+    st->fit_scale = again ? fs : lo;
+    if (again) {
+        fit_scale(st, fs);
+        fit_k(st, fs);
+    }
+    char vol[96] = "";
+    if (st->vol.on)
+        snprintf(vol, sizeof vol, ", volume %ld, volume caustic %ld", st->fit_target[2], st->fit_target[3]);
+    int n = snprintf(st->fit_reason, sizeof st->fit_reason,
+             "%.3g x the targets (global %ld, caustic %ld%s): counted work of the targets' photons "
+             "%.3g, of %d x %d x %d camera samples %.3g; photons at %.2g of that, within [%.3g, %.3g]; %s",
+             st->fit_scale, st->fit_target[0], st->fit_target[1], vol, wp, s->cam.width,
+             s->cam.height, s->cam.spp, wr, PM_FIT_SHARE, lo, PM_FIT_MAX,
+             again ? "traced again" : "the first stage's maps kept");
+    if (st->in_passes && n > 0 && (size_t)n < sizeof st->fit_reason)
+        snprintf(st->fit_reason + n, sizeof st->fit_reason - (size_t)n,
+                 "; in passes: estimates of %d global and %d caustic photons (the targets' radii)",
+                 st->cfg.k_global, st->cfg.k_caustic);
+    if (!again) return 0;
+    pm__drop_maps(st);
+    return 1;
+}

@@ -26,10 +26,6 @@ int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, 
     st->r2_lookup = rad->r2_lookup;
     st->r2_shadow = rad->r2_shadow;
     st->sec_dist = st->cfg.secondary_distance > 0 ? st->cfg.secondary_distance : rad->typical;
-    if (!st->made)
-    printf("Radii: global estimate %.4g, caustic estimate %.4g, secondary gather below %.4g, "
-           "shadow-map query %.4g\n",
-           rad->global, rad->caustic, st->sec_dist, rad->shadow);
 
     pm_estimator kinds[] = {PM_EST_DISC, PM_EST_CONE, PM_EST_GAUSS, PM_EST_HULL};
     pm_estimate_options_init(&st->caus_opt, kinds[st->cfg.filter], (unsigned)st->cfg.k_caustic);
@@ -52,19 +48,13 @@ int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, 
         stat_add(st->st_side_again, st->sides.researched);
         st->t_irr = stats_now() - t0;
         stats_time_add("Time/Precomputed irradiance", st->t_irr);
-        if (!st->made)
-        printf("Precomputed irradiance at %zu of %zu global photons (%zu estimates searched again "
-               "for a hidden neighbour; %zu of too few photon paths to be read: the light there is "
-               "computed)\n",
-               st->sides.n, st->nglobal_all, st->sides.researched, st->sides.sparse);
     }
     return 0;
 }
 
-int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
-    mapper_state *st = self->data;
-    if (!st->made) plan_print(&st->plan, stdout);
-    fflush(stdout);
+/* Trace (or load) the maps of st->pass at the targets in st->cfg, build their trees and
+ * readers. Quiet while pass 0's first stage runs (pm_passes.c, PASS 0'S PHOTONS). */
+static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t errcap) {
     photon_maps *m = &st->maps;
     int rc;
     double t0 = stats_now();
@@ -110,14 +100,6 @@ int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
         }
         if ((rc = photon_trace(s, &o, m, err, errcap)) < 0) return rc;
         m->stamp = stamp;
-        if (!st->made)
-        printf("Photons: %zu global, %zu shadow-map (from %llu emitted); %zu caustic (from %llu "
-               "emitted; projection maps cover %.2f%% of the light's power, saving %llu "
-               "emissions)\n",
-               m->part ? m->whole_global : m->nglobal, m->part ? m->whole_shadow : m->nshadow,
-               (unsigned long long)m->global_emitted, m->part ? m->whole_caustic : m->ncaustic,
-               (unsigned long long)m->caustic_emitted, 100 * m->caustic_fraction,
-               (unsigned long long)m->caustic_saved);
     }
     st->t_trace = stats_now() - t0;
     stats_time_add("Time/Photon tracing (or loading)", st->t_trace);
@@ -143,12 +125,68 @@ int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
         return rc;
     st->t_trees = stats_now() - t0;
     stats_time_add("Time/Photon kd-trees", st->t_trees);
-    if ((rc = pm__build_estimates(st, s, &rad, err, errcap)) < 0) return rc;
+    return pm__build_estimates(st, s, &rad, err, errcap);
+}
+
+/* Pass 0's lines on stdout, once its maps are final: the photons traced (of a scene without
+ * media: pmv_trace prints its own), the radii and the precomputed irradiance. */
+static void print_maps(const mapper_state *st) {
+    const photon_maps *m = &st->maps;
+    const map_radii *rad = &st->rad0;
+    if (!st->vol.on && !st->cfg.load_dir[0])
+        printf("Photons: %zu global, %zu shadow-map (from %llu emitted); %zu caustic (from %llu "
+               "emitted; projection maps cover %.2f%% of the light's power, saving %llu "
+               "emissions)\n",
+               m->part ? m->whole_global : m->nglobal, m->part ? m->whole_shadow : m->nshadow,
+               (unsigned long long)m->global_emitted, m->part ? m->whole_caustic : m->ncaustic,
+               (unsigned long long)m->caustic_emitted, 100 * m->caustic_fraction,
+               (unsigned long long)m->caustic_saved);
+    printf("Radii: global estimate %.4g, caustic estimate %.4g, secondary gather below %.4g, "
+           "shadow-map query %.4g\n",
+           rad->global, rad->caustic, st->sec_dist, rad->shadow);
+    if (st->nglobal_all && !st->direct_vis)
+        printf("Precomputed irradiance at %zu of %zu global photons (%zu estimates searched again "
+               "for a hidden neighbour; %zu of too few photon paths to be read: the light there is "
+               "computed)\n",
+               st->sides.n, st->nglobal_all, st->sides.researched, st->sides.sparse);
+}
+
+/* The counters stage A's trace and readers added (taken back out when it is traced again). */
+static void counters_now(uint64_t *v) {
+    for (int id = 0; id < STATS_MAX; id++) v[id] = stats_name(id) ? stats_total(id) : 0;
+}
+
+int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
+    mapper_state *st = self->data;
+    if (!st->made) plan_print(&st->plan, stdout);
+    fflush(stdout);
+    int rc, first = !st->made && st->pass == 0;
+    st->in_passes = self->in_passes;
+    uint64_t c0[STATS_MAX], c1[STATS_MAX];
+    int progress = st->cfg.progress;
+    if (first) {
+        pm__fit_begin(st, s);
+        if (st->fit_stage) st->cfg.progress = 0;
+        counters_now(c0);
+    }
+    rc = trace_and_build(st, s, err, errcap);
+    st->cfg.progress = progress;
+    if (rc < 0) return rc;
     if (st->made) { /* the gather guide is the plan's: made once, on pass 0 */
         fflush(stdout);
         return 0;
     }
+    counters_now(c1);
     if ((rc = pm__decide_sample(st, s, err, errcap)) < 0) return rc;
+    if (first && pm__fit_end(st, s)) { /* pass 0 again, at the fitted targets */
+        for (int id = 0; id < STATS_MAX; id++)
+            if (stats_name(id)) stat_add(id, c0[id] - c1[id]); /* mod 2^64 */
+        if ((rc = trace_and_build(st, s, err, errcap)) < 0) return rc;
+    }
+    if (first) {
+        printf("  photons: %s\n", st->fit_reason);
+        print_maps(st);
+    }
     st->made = 1;
     if (pm__lookup) {
         const pm_kdtree *trees[2] = {st->tg, st->tc};
