@@ -76,13 +76,32 @@ typedef struct mapper_state {
         st_global_est, st_lookup_miss, st_side_rays, st_side_again;
 } mapper_state;
 
+/* A thread's scratch for the camera sample (estimate buffers) and what it is tracing. */
+typedef struct mapper_scratch {
+    void *est;
+    pm_neighbor *nb;
+    const sample_id *id; /* the camera sample being traced (for the lookup hook) */
+    pm_sample_caustics *pc; /* the sample pilot's tally of camera-level caustics, else NULL */
+} mapper_scratch;
+
+/* photonmapper.c: the integrator's camera sample and its threads' scratch (integrator.h's li,
+ * thread_begin, thread_end); an eye ray for pm_sample.c's pilots (emission alone, or the
+ * shading alone with the camera path's caustics tallied into pc); the gather guide's two
+ * probes (gather_guide.h: a lookup as the gather makes it, a gather ray read as it reads it). */
+rgb pm__li(const integrator *self, const scene *s, ray r, rng *g, const sample_id *id, void *scratch);
+void *pm__thread_begin(const integrator *self);
+void pm__thread_end(const integrator *self, void *scratch);
+rgb pm__sample_eye(void *user, ray r, int emit, rng *g, void *scratch, pm_sample_caustics *pc);
+int pm__gg_found(void *user, const scene *s, const hit *h, vec3 wo);
+int pm__gg_read(void *user, const scene *s, const guide_point *pt, vec3 d, rng *g, gather_guide_read *out);
+
 /* A distributed render's lookups (photon_lookup.h); NULL in one process. */
 extern const photon_lookup_hook *pm__lookup;
 
 /* pm_preprocess.c: trace the maps of st->pass (pass 0 at first) and build what reads them. */
 int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap);
 
-/* photonmapper.c: the gather guide and the camera sample, decided once on pass 0. */
+/* pm_setup.c: the gather guide and the camera sample, decided once on pass 0. */
 int pm__decide_sample(mapper_state *st, const scene *s, char *err, size_t errcap);
 
 /* pm_preprocess.c: the caustic side map, the estimates' options and the precomputed
