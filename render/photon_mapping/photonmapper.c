@@ -567,13 +567,20 @@ rgb pm__li(const integrator *self, const scene *s, ray r, rng *g, const sample_i
     return v3_add(L, v3_scale(E, 1.0 / (m * m)));
 }
 
-void *pm__thread_begin(const integrator *self) {
-    const mapper_state *st = self->data;
+mapper_scratch *pm__scratch_new(const mapper_state *st) {
     mapper_scratch *sc = calloc(1, sizeof *sc);
     if (!sc) return NULL;
     sc->est = malloc(pm_estimate_scratch_bytes(st->kmax));
     sc->nb = malloc((size_t)st->cfg.k_shadow * sizeof *sc->nb);
+    if (!sc->est || !sc->nb) {
+        pm__thread_end(NULL, sc);
+        return NULL;
+    }
     return sc;
+}
+
+void *pm__thread_begin(const integrator *self) {
+    return pm__scratch_new(self->data);
 }
 
 void pm__thread_end(const integrator *self, void *scratch) {

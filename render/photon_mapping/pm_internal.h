@@ -90,6 +90,7 @@ typedef struct mapper_scratch {
  * probes (gather_guide.h: a lookup as the gather makes it, a gather ray read as it reads it). */
 rgb pm__li(const integrator *self, const scene *s, ray r, rng *g, const sample_id *id, void *scratch);
 void *pm__thread_begin(const integrator *self);
+mapper_scratch *pm__scratch_new(const mapper_state *st); /* NULL when out of memory */
 void pm__thread_end(const integrator *self, void *scratch);
 rgb pm__sample_eye(void *user, ray r, int emit, rng *g, void *scratch, pm_sample_caustics *pc);
 int pm__gg_found(void *user, const scene *s, const hit *h, vec3 wo);

@@ -13,27 +13,12 @@
 
 /* Scratch for the preprocess's own camera rays (the emission mask, the sample pilot). */
 static void *sample_scratch_new(void *user) {
-    const mapper_state *st = user;
-    mapper_scratch *sc = calloc(1, sizeof *sc);
-    if (!sc) return NULL;
-    sc->est = malloc(pm_estimate_scratch_bytes(st->kmax));
-    sc->nb = malloc((size_t)st->cfg.k_shadow * sizeof *sc->nb);
-    if (!sc->est || !sc->nb) {
-        free(sc->est);
-        free(sc->nb);
-        free(sc);
-        return NULL;
-    }
-    return sc;
+    return pm__scratch_new(user);
 }
 
 static void sample_scratch_free(void *user, void *scratch) {
     (void)user;
-    mapper_scratch *sc = scratch;
-    if (!sc) return;
-    free(sc->est);
-    free(sc->nb);
-    free(sc);
+    pm__thread_end(NULL, scratch);
 }
 
 /* The emission mask and the sample pilot, once (pass 0's preprocess), and their plan lines. */
