@@ -49,7 +49,10 @@ static uint64_t hash_light(uint64_t h, const light *l) {
     h = hash_vec(h, l->intensity);
     h = hash_vec(h, l->irradiance);
     h = hash_int(h, l->two_sided);
-    return hash_vec(h, l->power);
+    h = hash_vec(h, l->power);
+    if (l->type == LIGHT_SPOT) /* only for the newer types: older scenes keep their hashes */
+        h = hash_int(hash_double(hash_double(h, l->cos_total), l->cos_start), l->falloff);
+    return h;
 }
 
 uint64_t scene_transport_hash(const scene *s) {
