@@ -340,3 +340,33 @@ TEST(pbrt_spot_and_infinite_convert) {
     EXPECT(pbrt_convert_text(bad, "t.pbrt", &out, &e) < 0 && strstr(e.msg, "t.pbrt:4") && strstr(e.msg, "conedeltaangle"));
     cJSON_Delete(out);
 }
+
+/* Tungsten's infinite_sphere: emission is its radiance, power / (4 pi) too (Tungsten's
+ * powerToRadianceFactor); a texture is refused with the key named. */
+TEST(tungsten_infinite_sphere_converts) {
+    const char *fmt =
+        "{\"bsdfs\": [{\"name\": \"w\", \"type\": \"lambert\", \"albedo\": 0.5}],"
+        " \"primitives\": [{\"type\": \"sphere\", \"transform\": {\"position\": [0, 0, 0]}, \"bsdf\": \"w\"},"
+        " {\"type\": \"infinite_sphere\", %s}],"
+        " \"camera\": {\"resolution\": [8, 8], \"transform\": {\"position\": [0, 0, -5], \"look_at\": [0, 0, 0], \"up\": [0, 1, 0]}}}";
+    const char *cases[3] = {"\"emission\": [1, 2, 3]", "\"power\": 6.283185307179586", "\"emission\": \"sky.exr\""};
+    for (int k = 0; k < 3; k++) {
+        char txt[2048];
+        snprintf(txt, sizeof txt, fmt, cases[k]);
+        scene s;
+        json_err e;
+        e.msg[0] = 0;
+        int rc = scene_load_text(&s, txt, &e);
+        if (k == 2) {
+            EXPECT_MSG(rc < 0 && strstr(e.msg, "$.primitives[1].emission"), "texture: rc %d, %s", rc, e.msg);
+            if (rc == 0) scene_free(&s);
+            continue;
+        }
+        ASSERT_MSG(rc == 0, "%s", e.msg);
+        ASSERT_EQ_INT(s.nlights, 1);
+        EXPECT_EQ_INT(s.lights[0].type, LIGHT_INFINITE);
+        EXPECT_NEAR(s.lights[0].Le.y, k == 0 ? 2 : 0.5, 1e-12);
+        EXPECT_EQ_INT(s.env_light, 1);
+        scene_free(&s);
+    }
+}

@@ -1,6 +1,7 @@
 /* pbrt_internal.h: what the files of the pbrt-v3 converter share (pbrt.c the entry point and
  * the matrices, pbrt_lex.c the tokens and parameter lists, pbrt_directives.c the directives,
- * pbrt_shapes.c, pbrt_materials.c and pbrt_lights.c the conversions); not for use outside render/load/pbrt*.c.
+ * pbrt_shapes.c, pbrt_materials.c and pbrt_lights.c the conversions); not for use outside
+ * render/load/pbrt*.c.
  *
  * How it works: each file (and each Include) is read whole and cut into tokens (quoted strings,
  * numbers, bare words, [ and ]), each with its file and line. The directives are then run in

@@ -1,6 +1,7 @@
 /* scene_load_internal.h: what the files of the JSON scene loader share (scene_load.c the
  * document, camera, materials, lights and settings; scene_objects.c the objects;
- * scene_media.c the media; scene_lights.c the spot and infinite lights; scene_ports.c the photon ports); not for use outside render/load/scene_*.c.
+ * scene_media.c the media; scene_lights.c the spot and infinite lights; scene_ports.c the
+ * photon ports); not for use outside render/load/scene_*.c.
  */
 #ifndef RENDER_SCENE_LOAD_INTERNAL_H
 #define RENDER_SCENE_LOAD_INTERNAL_H

@@ -1,4 +1,4 @@
-/* light.h: area, point and directional lights, and sampling them for next-event estimation.
+/* light.h: area, point, spot, directional and infinite lights, and sampling them for next-event estimation.
  *
  * Area lights are the scene's triangles (and quads, as two triangles) whose material emits:
  * the loader makes one light per emissive triangle. They emit Le from the front side (or
