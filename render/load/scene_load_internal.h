@@ -61,7 +61,7 @@ void sl_find_camera_medium(scene *s);
 
 /* A light of a type that scene_load.c leaves to scene_lights.c (spot, infinite) into *l: 1 if
  * type is one, 0 if not, negative on an error (reported in e). */
-int sl_load_light_more(const scene *s, light *l, const char *type, const cJSON *o, const char *P, json_err *e);
+int sl_load_light_more(scene *s, light *l, const char *type, const cJSON *o, const char *P, json_err *e);
 
 /* ---- scene_ports.c ------------------------------------------------------------------------- */
 

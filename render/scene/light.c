@@ -5,6 +5,7 @@
 #include "scene/light.h"
 
 #include "base/sampling.h"
+#include "scene/envmap.h"
 #include "scene/scene.h"
 
 /* The falloff's profile g(delta) on [0, 1] and its integral G(delta) = int_0^delta g. */
@@ -67,7 +68,20 @@ int light_spot_invert(const light *l, vec3 d, double *u0, double *u1) {
 
 rgb light_env_radiance(const struct scene *s, vec3 d) {
     (void)d;
-    return s->env_light > 0 ? s->lights[s->env_light - 1].Le : v3s(0);
+    if (s->env_light <= 0) return v3s(0);
+    return s->env_map ? envmap_eval(s->env_map, d) : s->lights[s->env_light - 1].Le;
+}
+
+rgb light_emit_weight(const struct scene *s, int li, vec3 d) {
+    const envmap *m = s->env_map;
+    if (s->lights[li].type != LIGHT_INFINITE || !m) return v3s(1);
+    /* a photon carries (L / lum(L)) Sigma pi R^2 / n (envmap.h); the light's power is
+     * integral pi R^2, so the ratio per channel is (L / lum(L)) Sigma / integral */
+    rgb L = envmap_eval(m, v3_neg(d)), I = m->integral;
+    double lum = rgb_lum(L);
+    if (!(lum > 0)) return v3s(0);
+    return v3(I.x > 0 ? L.x / lum * m->sigma / I.x : 0, I.y > 0 ? L.y / lum * m->sigma / I.y : 0,
+              I.z > 0 ? L.z / lum * m->sigma / I.z : 0);
 }
 
 int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2, light_sample *ls) {
@@ -127,10 +141,16 @@ int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2,
         return f > 0;
     }
     case LIGHT_INFINITE:
-        ls->wi = sample_uniform_sphere(u1, u2);
         ls->dist = INFINITY;
         ls->p = v3s(0);
         ls->n = v3s(0);
+        if (s->env_map) {
+            double pdf;
+            ls->wi = envmap_sample(s->env_map, u1, u2, &pdf);
+            ls->L = pdf > 0 ? v3_scale(envmap_eval(s->env_map, ls->wi), 1 / pdf) : v3s(0);
+            return pdf > 0;
+        }
+        ls->wi = sample_uniform_sphere(u1, u2);
         ls->L = v3_scale(l->Le, 4 * M_PI);
         return 1;
     case LIGHT_DIRECTIONAL:
@@ -186,7 +206,8 @@ void light_sample_le(const struct scene *s, int li, const double u[4], vec3 *p, 
         *d = spot_dir(l, u[0], u[1]);
         return;
     case LIGHT_INFINITE: {
-        vec3 dd = sample_uniform_sphere(u[0], u[1]), a, b;
+        double pdf;
+        vec3 dd = s->env_map ? v3_neg(envmap_sample(s->env_map, u[0], u[1], &pdf)) : sample_uniform_sphere(u[0], u[1]), a, b;
         double x, y, R = s->bsphere_r > 0 ? s->bsphere_r : 1.0;
         sample_concentric_disc(u[2], u[3], &x, &y);
         v3_basis(dd, &a, &b);

@@ -13,17 +13,18 @@
  * with f = 1 inside the inner cone (cos >= cos_start), 0 outside the cone (cos < cos_total) and
  * between them a function of delta = (cos - cos_total) / (cos_start - cos_total): smoothstep
  * 3 delta^2 - 2 delta^3 (pbrt-v4's spotlight), or delta^4 (SPOT_QUARTIC, pbrt-v3's).
- * An infinite light is a constant radiance Le arriving from every direction at infinity (an
- * environment, pbrt's "infinite", Tungsten's "infinite_sphere"); a ray that leaves the scene
- * sees it (light_env_radiance). At most one per scene (scene.env_light).
+ * An infinite light is a radiance arriving from every direction at infinity (an environment,
+ * pbrt's "infinite", Tungsten's "infinite_sphere"): constant Le, or an image (scene.env_map,
+ * envmap.h) sampled by luminance; a ray that leaves the scene sees it (light_env_radiance).
+ * At most one per scene (scene.env_light).
  *
  * Each light also carries its total power (W), which the path tracer uses to choose a light
  * in proportion to it and photon emission uses to share photons out:
  *   area and sphere: pi Le A (x2 if two-sided); point: 4 pi I; directional: E pi R^2, where R is the
  *   radius of the scene's bounding sphere (the disc photons are shot from); spot: 2 pi I W with
  *   W = the integral of f over cos in [-1, 1] = (1 - cos_start) + (cos_start - cos_total) k,
- *   k = 1/2 (smoothstep) or 1/5 (quartic); infinite: 4 pi Le pi R^2 (each direction's light
- *   crossing the disc of radius R).
+ *   k = 1/2 (smoothstep) or 1/5 (quartic); infinite: 4 pi Le pi R^2 (with an image, pi R^2 times
+ *   the integral of L over directions: each direction's light crossing the disc of radius R).
  */
 #ifndef RENDER_LIGHT_H
 #define RENDER_LIGHT_H
@@ -59,7 +60,8 @@ typedef struct light_sample {
     vec3 p, n;   /* sampled point and its unit normal (area lights); p for point lights */
     rgb L;       /* incident radiance divided by the solid-angle pdf of this sample
                     (area: Le cos_l A / dist^2; point: I / dist^2; spot: I f / dist^2;
-                    directional: E; infinite: 4 pi Le, a uniform direction on the sphere);
+                    directional: E; infinite: 4 pi Le, a uniform direction on the sphere,
+                    or with an image L / pdf of envmap_sample's direction);
                     zero when the light faces away. Divide by the light's choice probability. */
 } light_sample;
 
@@ -75,14 +77,16 @@ int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2,
  *   point:       the light's position and a uniform direction;
  *   spot:        the light's position and a direction of density f / (2 pi W) (light_spot_pdf):
  *                u[0] gives cos by the inverse of its distribution, u[1] the angle about dir;
- *   infinite:    a uniform direction d (u[0], u[1], as sample_uniform_sphere) and a uniform
- *                point (u[2], u[3]) on the disc of radius R perpendicular to d, R before the
- *                bounding sphere's centre, travelling along d;
+ *   infinite:    a uniform direction d (u[0], u[1], as sample_uniform_sphere; with an image,
+ *                minus envmap_sample's direction) and a uniform point (u[2], u[3]) on the
+ *                disc of radius R perpendicular to d, R before the bounding sphere's centre,
+ *                travelling along d;
  *   directional: a uniform point on the disc of radius R (the scene's bounding sphere)
  *                perpendicular to the light, R in front of the scene, travelling along dir.
  * With these densities every emitted photon of light li carries power light.power / n_emitted
- * (for n_emitted photons from that light). *p is the origin, *n the surface normal at it
- * (zero for point and directional lights: no offset needed), *d the unit direction. */
+ * (for n_emitted photons from that light), times light_emit_weight. *p is the origin, *n the
+ * surface normal at it (zero for point and directional lights: no offset needed), *d the unit
+ * direction. */
 void light_sample_le(const struct scene *s, int li, const double u[4], vec3 *p, vec3 *n, vec3 *d);
 
 /* The spot's falloff f for a unit direction d leaving it (0 outside the cone), and the
@@ -104,6 +108,12 @@ static inline int light_is_point(const light *l) { return l->type == LIGHT_POINT
 
 /* The radiance that a ray leaving the scene along d sees: the infinite light's, or 0. */
 rgb light_env_radiance(const struct scene *s, vec3 d);
+
+/* What a photon of light li leaving along d carries, per channel, relative to the equal share
+ * light.power / n_emitted: 1 for every light but an infinite light with an image
+ * (scene.env_map, envmap.h), whose photons are drawn by luminance and so carry each its own
+ * colour (L / lum(L)) Sigma / integral. */
+rgb light_emit_weight(const struct scene *s, int li, vec3 d);
 
 #ifdef __cplusplus
 }

@@ -11,6 +11,7 @@
 #include <time.h>
 
 #include "base/errors.h"
+#include "scene/envmap.h"
 #include "photonmap/common.h"
 #include "base/stats.h"
 
@@ -62,7 +63,9 @@ static rgb light_power(const scene *s, const light *l) {
                                    (l->two_sided ? 2 : 1));
     case LIGHT_POINT: return v3_scale(l->intensity, 4 * M_PI);
     case LIGHT_SPOT: return v3_scale(l->intensity, 2 * M_PI * light_spot_w(l));
-    case LIGHT_INFINITE: return v3_scale(l->Le, 4 * M_PI * M_PI * s->bsphere_r * s->bsphere_r);
+    case LIGHT_INFINITE: /* pi R^2 times int L dw */
+        if (s->env_map) return v3_scale(s->env_map->integral, M_PI * s->bsphere_r * s->bsphere_r);
+        return v3_scale(l->Le, 4 * M_PI * M_PI * s->bsphere_r * s->bsphere_r);
     default: return v3_scale(l->irradiance, M_PI * s->bsphere_r * s->bsphere_r);
     }
 }
@@ -221,6 +224,8 @@ void scene_free(scene *s) {
     free(s->obj_iface);
     free(s->iface_report);
     free(s->lights);
+    if (s->env_map) envmap_free(s->env_map);
+    free(s->env_map);
     distrib1d_free(&s->light_distrib);
     bvh_free(&s->accel);
     cJSON_Delete(s->photon_mapping);
