@@ -22,6 +22,7 @@
 #include "test.h"
 #include "../render/base/rng.h"
 #include "../render/integrators/integrator.h"
+#include "../render/load/pbrt.h"
 #include "../render/scene/envmap.h"
 #include "../render/scene/scene.h"
 
@@ -265,4 +266,28 @@ TEST(envmap_photon_mapper_matches_closed_form) {
         EXPECT_MSG(fabs(mean - want) < tol, "%s: %.6g, rho/pi E = %.6g (tolerance %.3g)", m ? "pm" : "preview", mean, want, tol);
         scene_free(&s);
     }
+}
+
+/* pbrt-v3's infinite light with a PFM mapname: the map, resolved next to the file, and the
+ * frame from our world to pbrt's light space; the usual "Rotate -90 1 0 0" (pbrt's z-up map in
+ * a y-up world) takes world +y to the map's +z (by hand: the rotation sends (0, 0, 1) to
+ * (0, 1, 0), so the frame's third row is (0, 1, 0)). */
+TEST(envmap_pbrt_mapname_converts) {
+    const char *t = "LookAt 0 0 -5  0 0 0  0 1 0\nCamera \"perspective\"\nWorldBegin\n"
+                    "AttributeBegin\nRotate -90 1 0 0\n"
+                    "LightSource \"infinite\" \"string mapname\" \"sky.pfm\" \"rgb L\" [2 2 2]\nAttributeEnd\n"
+                    "Material \"matte\"\nShape \"sphere\"\n";
+    cJSON *out = NULL;
+    json_err e;
+    e.msg[0] = 0;
+    ASSERT_MSG(pbrt_convert_text(t, "t.pbrt", &out, &e) == 0, "%s", e.msg);
+    const cJSON *l = cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(out, "lights"), 0);
+    const cJSON *map = cJSON_GetObjectItemCaseSensitive(l, "map"), *fr = cJSON_GetObjectItemCaseSensitive(l, "map_frame");
+    EXPECT(cJSON_IsString(map) && strstr(map->valuestring, "sky.pfm"));
+    ASSERT(cJSON_GetArraySize(fr) == 9);
+    EXPECT_NEAR(cJSON_GetArrayItem(fr, 6)->valuedouble, 0, 1e-12);
+    EXPECT_NEAR(cJSON_GetArrayItem(fr, 7)->valuedouble, 1, 1e-12);
+    EXPECT_NEAR(cJSON_GetArrayItem(fr, 8)->valuedouble, 0, 1e-12);
+    EXPECT_NEAR(cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(l, "radiance"), 0)->valuedouble, 2, 1e-12);
+    cJSON_Delete(out);
 }

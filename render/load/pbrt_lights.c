@@ -1,11 +1,14 @@
 /* pbrt_lights.c: pbrt-v3's "spot" and "infinite" LightSource directives, converted to this
  * renderer's spot and infinite lights (light.h); pbrt_directives.c converts point and distant.
  * A spot keeps pbrt-v3's own falloff (delta^4 between cos(coneangle - conedeltaangle) and
- * cos(coneangle): "falloff": "quartic"); an infinite light keeps its constant radiance L, and
- * an environment image (mapname) is not read: warned about, with what is used instead.
+ * cos(coneangle): "falloff": "quartic"); an infinite light keeps its radiance L, and its
+ * environment image (mapname) when it is a PFM ("map", with "map_frame" the rotation from our
+ * world to pbrt's light space, which is z-up lat-long as ours); another image format is warned
+ * about, with the constant L used instead.
  */
 #include <math.h>
 #include <string.h>
+#include <strings.h>
 
 #include "load/pbrt_internal.h"
 #include "photonmap/common.h"
@@ -53,9 +56,11 @@ int pb_infinite_light(conv *c, const tok *at, plist *pl, rgb sc, const char *wha
         return rc;
     L = v3_mul(L, sc);
     if (L.x < 0 || L.y < 0 || L.z < 0) return pb_fail(c, at, PM_EINVAL, "%s: L (times scale) must not be negative", what);
-    if (map && *map)
-        pb_warn(c, at, "%s: the environment image \"%s\" (mapname) is not supported: a constant radiance L "
-                "(times scale) from every direction is used instead", what, map);
+    size_t ml = map ? strlen(map) : 0;
+    int pfm = ml > 4 && strcasecmp(map + ml - 4, ".pfm") == 0;
+    if (map && *map && !pfm)
+        pb_warn(c, at, "%s: the environment image \"%s\" (mapname) is not supported (a PFM is): a constant "
+                "radiance L (times scale) from every direction is used instead", what, map);
     for (const cJSON *it = c->lights->child; it; it = it->next) {
         const cJSON *t = cJSON_GetObjectItemCaseSensitive(it, "type");
         if (cJSON_IsString(t) && strcmp(t->valuestring, "infinite") == 0)
@@ -65,6 +70,19 @@ int pb_infinite_light(conv *c, const tok *at, plist *pl, rgb sc, const char *wha
     if (!l) return PM_ENOMEM;
     cJSON_AddStringToObject(l, "type", "infinite");
     cJSON_AddItemToObject(l, "radiance", pb_jv(L));
+    if (pfm) { /* the map's frame: world (ours) to light space, the transpose of light to world */
+        char path[4096];
+        pb_resolve(pb_file(c, at), map, path, sizeof path);
+        cJSON_AddStringToObject(l, "map", path);
+        double F[9];
+        for (int i = 0; i < 3; i++) {
+            vec3 col = pb_out(c, pb_dir(c->g.m, v3(i == 0, i == 1, i == 2)));
+            double n = v3_len(col);
+            col = n > 0 ? v3_scale(col, 1 / n) : col;
+            F[3 * i] = col.x, F[3 * i + 1] = col.y, F[3 * i + 2] = col.z;
+        }
+        cJSON_AddItemToObject(l, "map_frame", cJSON_CreateDoubleArray(F, 9));
+    }
     cJSON_AddItemToArray(c->lights, l);
     pb_warn_unused(c, at, what, pl);
     return 0;
