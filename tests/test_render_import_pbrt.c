@@ -370,7 +370,7 @@ TEST(pbrt_warnings_name_file_and_line) {
         "Frobnicate \"x\" \"float y\" 1\n"
         "Texture \"t\" \"spectrum\" \"checkerboard\"\n"
         "Material \"matte\" \"texture Kd\" \"t\" \"float foo\" 3\n"
-        "LightSource \"spot\" \"rgb I\" [1 1 1]\n"
+        "LightSource \"goniometric\" \"rgb I\" [1 1 1]\n"
         "AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [1 1 1]\n"
         "Shape \"sphere\" \"float radius\" 1 \"float zmax\" 0.5\nAttributeEnd\n"
         "Shape \"cylinder\"\n"
@@ -390,7 +390,7 @@ TEST(pbrt_warnings_name_file_and_line) {
         "render: w.pbrt:8: warning: Texture \"t\": textures are not supported",
         "render: w.pbrt:9: warning: parameter \"texture Kd\": textures are not supported: the default value is used",
         "render: w.pbrt:9: warning: Material \"matte\": parameter \"float foo\" is not supported: ignored",
-        "render: w.pbrt:10: warning: LightSource \"spot\" is not supported (point, distant): skipped",
+        "render: w.pbrt:10: warning: LightSource \"goniometric\" is not supported (point, spot, distant, infinite): skipped",
         "render: w.pbrt:13: warning: Shape \"sphere\": a partial sphere",
         "render: w.pbrt:15: warning: Shape \"cylinder\" is not supported (trianglemesh, plymesh, sphere): skipped",
         "render: w.pbrt:16: warning: Material \"metal\" is not supported: matte grey 0.5",

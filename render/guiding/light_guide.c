@@ -33,7 +33,7 @@ static double light_value(const scene *s, const guide_point *pt, int li, double 
 }
 
 static int light_visible(const scene *s, const guide_point *pt, int li, const light_sample *ls) {
-    if (s->lights[li].type == LIGHT_DIRECTIONAL) return scene_visible_dir(s, pt->h.p, pt->h.ng, ls->wi);
+    if (light_at_infinity(&s->lights[li])) return scene_visible_dir(s, pt->h.p, pt->h.ng, ls->wi);
     return scene_visible(s, pt->h.p, pt->h.ng, ls->p, ls->n);
 }
 

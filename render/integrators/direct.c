@@ -54,7 +54,7 @@ static int pick_light(const scene *s, vec3 p, rng *g, light_sample *ls, double *
 /* Transmittance from p (normal np) to the light sample, starting in medium med. */
 static rgb shadow_tr(const scene *s, int li, vec3 p, vec3 np, const light_sample *ls, int med) {
     stat_inc(STAT_SHADOW_RAYS);
-    if (s->lights[li].type == LIGHT_DIRECTIONAL) return scene_transmittance_dir(s, p, np, ls->wi, med);
+    if (light_at_infinity(&s->lights[li])) return scene_transmittance_dir(s, p, np, ls->wi, med);
     return scene_transmittance(s, p, np, ls->p, ls->n, med);
 }
 
@@ -69,7 +69,7 @@ rgb direct_light_medium(const scene *s, vec3 p, vec3 d, int med, rng *g) {
 }
 
 /* The point that light_sample_li(s, li, any p, u1, u2) samples on light li (light.h: it does not
- * depend on p); 0 for a directional light. */
+ * depend on p); 0 for a light at infinity. */
 static int light_point(const scene *s, int li, double u1, double u2, vec3 *y) {
     const light *l = &s->lights[li];
     switch (l->type) {
@@ -79,7 +79,8 @@ static int light_point(const scene *s, int li, double u1, double u2, vec3 *y) {
         *y = v3_madd(sp->c, sample_uniform_sphere(u1, u2), sp->r);
         return 1;
     }
-    case LIGHT_POINT: *y = l->pos; return 1;
+    case LIGHT_POINT:
+    case LIGHT_SPOT: *y = l->pos; return 1;
     default: return 0;
     }
 }
@@ -91,7 +92,7 @@ rgb direct_light_medium_mis(const scene *s, const direct_segment *seg, double t,
     vec3 p = ray_at(seg->r, t);
     if (!pick_light(s, p, g, &ls, &pl, &li) || v3_iszero(ls.L)) return v3s(0);
     double w = 1;
-    if (seg->m > 0 && s->lights[li].type != LIGHT_DIRECTIONAL) {
+    if (seg->m > 0 && !light_at_infinity(&s->lights[li])) {
         double pe = seg->m * medium_equiangular_pdf(seg->r.o, seg->r.d, 0, seg->t1, ls.p, t);
         w = dens > 0 ? dens / (dens + pe) : 0;
         if (!(w > 0)) return v3s(0);
@@ -154,7 +155,7 @@ rgb direct_light_surface_guided(const scene *s, const material *m, const hit *h,
     int vis = o->hint && !guided ? o->hint(o->hint_user, s, li, h, n) : -1;
     if (vis < 0) {
         stat_inc(STAT_SHADOW_RAYS);
-        if (s->lights[li].type == LIGHT_DIRECTIONAL)
+        if (light_at_infinity(&s->lights[li]))
             vis = scene_visible_dir(s, h->p, h->ng, ls.wi);
         else
             vis = scene_visible(s, h->p, h->ng, ls.p, ls.n);

@@ -9,7 +9,8 @@
  *     dist^2 / (cos_light A) (light.c). The continuation is cosine-weighted;
  *   - emission seen directly, or after a specular bounce, is added; after a diffuse bounce
  *     the emission of lights (emissive triangles and spheres) is skipped because next-event
- *     estimation already counted it;
+ *     estimation already counted it. A ray that leaves the scene sees the infinite light
+ *     (light.h), by the same rule;
  *   - Russian roulette after rr_depth bounces with survival probability min(0.95, max
  *     channel of the throughput), dividing the throughput by it; a hard limit max_depth.
  * Caustics from small lights are therefore found only by paths that happen to hit the light
@@ -107,6 +108,12 @@ static int surface_event(const pt_state *st, const scene *s, const hit *h, ray *
     return 1;
 }
 
+/* A ray that leaves the scene along d sees the infinite light (light.h), counted as the emission
+ * of other lights is: on camera rays and after specular bounces. */
+static void escape(const scene *s, vec3 d, pt_path *pp) {
+    if (s->env_light && pp->count_emission) pp->L = v3_add(pp->L, v3_mul(pp->beta, light_env_radiance(s, d)));
+}
+
 /* The density of medium_sample_distance's scattering distance t (before the surface): the
  * mean over the channels of sigma_t Tr(t). */
 static double free_flight_pdf(const void *user, double t) {
@@ -151,7 +158,10 @@ static rgb pt_li_media(const pt_state *st, const scene *s, ray r, rng *g) {
                 continue;
             }
         }
-        if (!got) break;
+        if (!got) {
+            escape(s, r.d, &pp);
+            break;
+        }
         if (scene_material(s, &h)->kind == MAT_NULL) { /* invisible: only the medium changes */
             if (++crossings > 4 * st->max_depth + 1024) break;
             med = scene_medium_next(s, &h, r.d, r.d, med);
@@ -175,7 +185,10 @@ static rgb pt_li(const integrator *self, const scene *s, ray r, rng *g, const sa
     pt_path pp = {v3s(0), v3s(1), 1};
     for (int depth = 0;; depth++) {
         hit h;
-        if (!scene_intersect(s, r, INFINITY, &h)) break;
+        if (!scene_intersect(s, r, INFINITY, &h)) {
+            escape(s, r.d, &pp);
+            break;
+        }
         if (!surface_event(st, s, &h, &r, depth, NO_MEDIA, &pp, g)) break;
     }
     return pp.L;

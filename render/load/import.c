@@ -46,19 +46,23 @@ int scene_import(cJSON **root, const char *scene_path, json_err *e) {
         *root = out;
         stats_time_add("Time/Mesh loading", stats_now() - t0);
     }
-    const cJSON *objs = cJSON_IsObject(*root) ? json_get(*root, "objects") : NULL;
-    if (!cJSON_IsArray(objs)) return 0;
-    for (cJSON *o = objs->child; o; o = o->next) {
-        cJSON *f = cJSON_IsObject(o) ? cJSON_GetObjectItemCaseSensitive(o, "file") : NULL;
-        if (!cJSON_IsString(f) || f->valuestring[0] == '/') continue;
-        char path[8192], real[PATH_MAX];
-        if (dir[0])
-            snprintf(path, sizeof path, "%s/%s", dir, f->valuestring);
-        else
-            snprintf(path, sizeof path, "%s", f->valuestring);
-        cJSON *nf = cJSON_CreateString(realpath(path, real) ? real : path);
-        if (!nf) return json_fail(e, PM_ENOMEM, "out of memory");
-        cJSON_ReplaceItemInObjectCaseSensitive(o, "file", nf);
+    /* the objects' mesh files and the lights' images (an infinite light's "map") */
+    for (int k = 0; k < 2; k++) {
+        const cJSON *arr = cJSON_IsObject(*root) ? json_get(*root, k ? "lights" : "objects") : NULL;
+        if (!cJSON_IsArray(arr)) continue;
+        for (cJSON *o = arr->child; o; o = o->next) {
+            const char *key = k ? "map" : "file";
+            cJSON *f = cJSON_IsObject(o) ? cJSON_GetObjectItemCaseSensitive(o, key) : NULL;
+            if (!cJSON_IsString(f) || f->valuestring[0] == '/') continue;
+            char path[8192], real[PATH_MAX];
+            if (dir[0])
+                snprintf(path, sizeof path, "%s/%s", dir, f->valuestring);
+            else
+                snprintf(path, sizeof path, "%s", f->valuestring);
+            cJSON *nf = cJSON_CreateString(realpath(path, real) ? real : path);
+            if (!nf) return json_fail(e, PM_ENOMEM, "out of memory");
+            cJSON_ReplaceItemInObjectCaseSensitive(o, key, nf);
+        }
     }
     return 0;
 }

@@ -1,8 +1,8 @@
 /* import.h: what the scene loader needs to read scenes and meshes written elsewhere.
  *
  * scene_import() runs on a parsed scene file before it is loaded: a Tungsten scene is
- * converted into our format (tungsten.h), and the "file" of every mesh object is joined to the
- * scene file's directory, so the document no longer depends on where it came from. The result
+ * converted into our format (tungsten.h), and the "file" of every mesh object (and the "map"
+ * of every light, an infinite light's image) is joined to the scene file's directory, so the document no longer depends on where it came from. The result
  * is what `render --dump-scene` prints.
  *
  * mesh_object_read() reads the mesh of one {"type": "mesh", "file": ...} object (keys in

@@ -368,8 +368,12 @@ static int do_light(conv *c, const tok *at, const char *s, plist *pl, const char
                 pb_warn_unused(c, at, what, pl);
             }
         }
+    } else if (rc == 0 && strcmp(s, "spot") == 0) {
+        rc = pb_spot_light(c, at, pl, sc, what);
+    } else if (rc == 0 && strcmp(s, "infinite") == 0) {
+        rc = pb_infinite_light(c, at, pl, sc, what);
     } else if (rc == 0) {
-        pb_warn(c, at, "%s is not supported (point, distant): skipped, so its light is missing", what);
+        pb_warn(c, at, "%s is not supported (point, spot, distant, infinite): skipped, so its light is missing", what);
     }
     return rc;
 }

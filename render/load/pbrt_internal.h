@@ -1,6 +1,7 @@
 /* pbrt_internal.h: what the files of the pbrt-v3 converter share (pbrt.c the entry point and
  * the matrices, pbrt_lex.c the tokens and parameter lists, pbrt_directives.c the directives,
- * pbrt_shapes.c and pbrt_materials.c the conversions); not for use outside render/load/pbrt*.c.
+ * pbrt_shapes.c, pbrt_materials.c and pbrt_lights.c the conversions); not for use outside
+ * render/load/pbrt*.c.
  *
  * How it works: each file (and each Include) is read whole and cut into tokens (quoted strings,
  * numbers, bare words, [ and ]), each with its file and line. The directives are then run in
@@ -163,6 +164,11 @@ int pb_do_shape(conv *c, const tok *at, const char *s, plist *pl, const char *wh
 int pb_do_material(conv *c, const tok *at, const char *s, plist *pl, const char *what);
 int pb_do_named_material(conv *c, const tok *at, const char *s, plist *pl, const char *what);
 int pb_do_area_light(conv *c, const tok *at, const char *s, plist *pl, const char *what);
+
+/* ---- pbrt_lights.c: LightSource "spot" and "infinite" (sc: the directive's scale) -------- */
+
+int pb_spot_light(conv *c, const tok *at, plist *pl, rgb sc, const char *what);
+int pb_infinite_light(conv *c, const tok *at, plist *pl, rgb sc, const char *what);
 int pb_do_named_medium(conv *c, const tok *at, const char *s, plist *pl, const char *what);
 /* MediumInterface "inside" ["outside"], which reads its own arguments. */
 int pb_do_medium_interface(conv *c, const toks *ts, int *i, const tok *at);

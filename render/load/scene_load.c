@@ -55,7 +55,7 @@ static int check_light_rgb(rgb c, const char *path, const char *key, json_err *e
     return 0;
 }
 
-/* A point light's intensity or power, once the scene's bounds are known: the irradiance it
+/* A point or spot light's intensity or power, once the scene's bounds are known: the irradiance it
  * gives at D, the larger of the scene's bounding radius and the light's distance from the
  * scene's centre, is at most SCENE_RADIANCE_MAX (a directional light's limit). Scaled with the
  * scene (I / D^2 is what lights it), so a scene in other units keeps its lights. */
@@ -63,7 +63,7 @@ static int check_point_lights(const scene *s, const cJSON *lights, json_err *e) 
     int i = 0;
     char P[P_MAX];
     for (const cJSON *it = lights ? lights->child : NULL; it; it = it->next, i++) {
-        if (i >= s->nlights || s->lights[i].type != LIGHT_POINT) continue;
+        if (i >= s->nlights || !light_is_point(&s->lights[i])) continue;
         const light *l = &s->lights[i];
         double D = fmax(s->bsphere_r, v3_len(v3_sub(l->pos, s->bsphere_c)));
         double I = v3_maxabs(l->intensity);
@@ -268,9 +268,12 @@ static int load_light(scene *s, caps *cp, const cJSON *o, const char *P, json_er
         TRY(json_rgb(o, P, "irradiance", 1, &l.irradiance, e));
         TRY(check_light_rgb(l.irradiance, P, "irradiance", e));
     } else {
-        return json_fail(e, PM_EINVAL,
-                         "%s.type: unknown light type \"%s\" (point, directional; area lights are "
-                         "objects with an emissive material)", P, type);
+        int rc = sl_load_light_more(s, &l, type, o, P, e);
+        if (rc < 0) return rc;
+        if (rc == 0)
+            return json_fail(e, PM_EINVAL,
+                             "%s.type: unknown light type \"%s\" (point, spot, directional, infinite; area "
+                             "lights are objects with an emissive material)", P, type);
     }
     if (sl_push((void **)&s->lights, &s->nlights, &cp->lcap, sizeof l, &l) < 0)
         return json_fail(e, PM_ENOMEM, "out of memory");

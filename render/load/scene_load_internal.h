@@ -1,6 +1,7 @@
 /* scene_load_internal.h: what the files of the JSON scene loader share (scene_load.c the
  * document, camera, materials, lights and settings; scene_objects.c the objects;
- * scene_media.c the media; scene_ports.c the photon ports); not for use outside render/load/scene_*.c.
+ * scene_media.c the media; scene_lights.c the spot and infinite lights; scene_ports.c the
+ * photon ports); not for use outside render/load/scene_*.c.
  */
 #ifndef RENDER_SCENE_LOAD_INTERNAL_H
 #define RENDER_SCENE_LOAD_INTERNAL_H
@@ -55,6 +56,12 @@ int sl_load_object_media(scene *s, const cJSON *o, const char *P, int obj, json_
 int sl_check_media_closed(scene *s, json_err *e);
 /* Which medium the camera is in (the rule of medium.h). */
 void sl_find_camera_medium(scene *s);
+
+/* ---- scene_lights.c ------------------------------------------------------------------------ */
+
+/* A light of a type that scene_load.c leaves to scene_lights.c (spot, infinite) into *l: 1 if
+ * type is one, 0 if not, negative on an error (reported in e). */
+int sl_load_light_more(scene *s, light *l, const char *type, const cJSON *o, const char *P, json_err *e);
 
 /* ---- scene_ports.c ------------------------------------------------------------------------- */
 

@@ -325,17 +325,42 @@ static int mesh_obj(conv *c, const cJSON *p, const char *P, double M[3][4], cons
     return 0;
 }
 
+/* An infinite_sphere of constant emission (radiance) or power (radiance = power / (4 pi), as
+ * Tungsten's): our infinite light; its transform turns a constant nothing. */
+static int infinite_sphere(conv *c, const cJSON *p, const char *P, json_err *e) {
+    static const char *const ok[] = {"name", "type", "transform", "emission", "power", "sample", NULL};
+    TRY(tg_check_keys(c->file, p, P, ok, NULL, "a key of an infinite_sphere outside the supported subset", e));
+    rgb Le = v3s(0), power = v3s(0);
+    if (json_get(p, "emission") && json_get(p, "power")) return json_fail(e, PM_EINVAL, "%s: give emission or power, not both", P);
+    TRY(tg_color(p, P, "emission", &Le, e));
+    TRY(tg_color(p, P, "power", &power, e));
+    if (json_get(p, "power")) Le = v3_scale(power, 1 / (4 * M_PI));
+    if (Le.x < 0 || Le.y < 0 || Le.z < 0)
+        return json_fail(e, PM_EINVAL, "%s.%s: must not be negative", P, json_get(p, "power") ? "power" : "emission");
+    cJSON *ls = cJSON_GetObjectItemCaseSensitive(c->out, "lights"), *l = cJSON_CreateObject();
+    if (!ls && (ls = cJSON_CreateArray()) != NULL) cJSON_AddItemToObject(c->out, "lights", ls);
+    if (!ls || !l) {
+        cJSON_Delete(l);
+        return json_fail(e, PM_ENOMEM, "out of memory");
+    }
+    cJSON_AddStringToObject(l, "type", "infinite");
+    cJSON_AddItemToObject(l, "radiance", tg_jvec(Le));
+    cJSON_AddItemToArray(ls, l);
+    return 0;
+}
+
 static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, json_err *e) {
     if (!cJSON_IsObject(p)) return json_fail(e, PM_EINVAL, "%s: expected an object, got %s", P, json_type_name(p));
     const char *type;
     TRY(json_string(p, P, "type", 1, &type, e));
+    if (strcmp(type, "infinite_sphere") == 0) return infinite_sphere(c, p, P, e);
     static const char *const common[] = {"name", "type", "transform", "bsdf", "emission", "power",
                                          "file", "smooth", "recompute_normals", "backface_culling",
                                          "int_medium", "ext_medium", NULL};
     if (json_get(p, "bump")) return json_fail(e, PM_EINVAL, "%s.bump: bump maps are not supported", P);
     int is_mesh = strcmp(type, "mesh") == 0;
     if (!is_mesh && strcmp(type, "quad") != 0 && strcmp(type, "cube") != 0 && strcmp(type, "sphere") != 0)
-        return json_fail(e, PM_EINVAL, "%s.type: primitive type \"%s\" is not supported (quad, cube, sphere, mesh)",
+        return json_fail(e, PM_EINVAL, "%s.type: primitive type \"%s\" is not supported (quad, cube, sphere, mesh, infinite_sphere)",
                          P, type);
     TRY(tg_check_keys(NULL, p, P, common, NULL, "a primitive key outside the supported subset", e));
     if (!is_mesh)
@@ -451,6 +476,7 @@ static int convert(const cJSON *root, const char *dir, const char *file, cJSON *
     conv c = {0};
     c.dir = dir;
     c.file = file;
+    c.out = out;
     int rc = 0, i = 0;
     char p[P_MAX];
     c.bsdfs = calloc((size_t)(bsdfs ? cJSON_GetArraySize(bsdfs) : 0) + 1, sizeof *c.bsdfs);

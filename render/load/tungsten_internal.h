@@ -39,6 +39,7 @@ typedef struct conv {
     const char *dir;
     const char *file;      /* the scene file, for warnings (NULL: a text) */
     int nemit;
+    cJSON *out;            /* the converted document (its "lights" made by the first light) */
 } conv;
 
 /* ---- tungsten.c ---------------------------------------------------------------------------- */

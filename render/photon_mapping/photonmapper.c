@@ -457,7 +457,7 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
                 continue;
             }
         }
-        if (!got) break;
+        if (!got) { if (what != EYE_SHADE && s->env_light) L = v3_add(L, v3_mul(beta, light_env_radiance(s, r.d))); break; }
         stat_inc(STAT_PATH_VERTICES);
         const material *m = scene_material(s, &h);
         vec3 wo = v3_neg(r.d);

@@ -40,7 +40,7 @@ int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
     v->lo = v3_min(s->bounds_lo, s->cam.eye);
     v->hi = v3_max(s->bounds_hi, s->cam.eye);
     for (int i = 0; i < s->nlights; i++)
-        if (s->lights[i].type == LIGHT_POINT) {
+        if (light_is_point(&s->lights[i])) {
             v->lo = v3_min(v->lo, s->lights[i].pos);
             v->hi = v3_max(v->hi, s->lights[i].pos);
         }

@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "photonmap/common.h"
+#include "scene/envmap.h"
 #include "scene/material.h"
 #include "base/rng.h"
 #include "base/sampling.h"
@@ -100,6 +101,19 @@ int importance_invert_le(const scene *s, int li, vec3 p, vec3 d, double u[4]) {
         return direction_inverse(d, back ? v3_neg(nf) : nf, &u[2], &u[3]);
     }
     case LIGHT_POINT: sphere_inverse(d, &u[0], &u[1]); return 1;
+    case LIGHT_SPOT: return light_spot_invert(l, d, &u[0], &u[1]);
+    case LIGHT_INFINITE: { /* the direction, then the point on its disc */
+        if (s->env_map && !envmap_invert(s->env_map, v3_neg(d), &u[0], &u[1])) return 0;
+        vec3 a, b;
+        v3_basis(d, &a, &b);
+        double R = s->bsphere_r > 0 ? s->bsphere_r : 1.0;
+        vec3 c = v3_madd(s->bsphere_c, d, -R);
+        double x = v3_dot(v3_sub(p, c), a) / R, y = v3_dot(v3_sub(p, c), b) / R;
+        if (x * x + y * y >= 1) return 0;
+        if (!s->env_map) sphere_inverse(d, &u[0], &u[1]);
+        concentric_inverse(x, y, &u[2], &u[3]);
+        return 1;
+    }
     default: {
         vec3 a, b;
         v3_basis(l->dir, &a, &b);
@@ -220,15 +234,26 @@ static double connect(const scene *s, const hit *h, const material *m, vec3 wo, 
         Lw = v3_scale(l->Le, cl * area / r2);
         if (-v3_dot(d, n) <= 0) return 0;
         vis = scene_visible(s, x, n, y, ny);
-    } else if (l->type == LIGHT_POINT) {
+    } else if (light_is_point(l)) {
         y = l->pos;
         vec3 v = v3_sub(x, y);
         double r2 = v3_len2(v);
         if (!(r2 > 0)) return 0;
         d = v3_scale(v, 1 / sqrt(r2));
-        Lw = v3_scale(l->intensity, 1 / r2);
-        if (-v3_dot(d, n) <= 0) return 0;
+        Lw = v3_scale(l->intensity, (l->type == LIGHT_SPOT ? light_spot_falloff(l, d) : 1) / r2);
+        if (-v3_dot(d, n) <= 0 || v3_iszero(Lw)) return 0;
         vis = scene_visible(s, x, n, y, v3s(0));
+    } else if (l->type == LIGHT_INFINITE) {
+        light_sample li_s;
+        if (!light_sample_li(s, li, x, a0, a1, &li_s)) return 0;
+        d = v3_neg(li_s.wi);
+        Lw = li_s.L;
+        if (-v3_dot(d, n) <= 0) return 0;
+        vis = scene_visible_dir(s, x, n, v3_neg(d));
+        /* the emission that carries it: d, from the point of its disc on the line through x */
+        double R = s->bsphere_r > 0 ? s->bsphere_r : 1.0;
+        vec3 c = v3_madd(s->bsphere_c, d, -R), xc = v3_sub(x, c);
+        y = v3_sub(x, v3_scale(d, v3_dot(xc, d)));
     } else {
         d = l->dir;
         y = x;

@@ -131,8 +131,9 @@ double importance_rel(const importance *imp, const scene *s, int l, const double
 /* The inverse of light_sample_le (for tests and importance_build): for a light point p (on the
  * light's surface, or anything for point lights) and a direction d leaving it, the u[0..3]
  * that light_sample_le maps to p and d (area lights: u[0], u[1] from the barycentrics of p,
- * front or back side from d; directional: u[0], u[1] of p's place on the disc, d ignored).
- * 1, or 0 when no u gives d (d behind a one-sided light). */
+ * front or back side from d; directional: u[0], u[1] of p's place on the disc, d ignored;
+ * spot: u[0], u[1] of d; infinite: u[0], u[1] of d and u[2], u[3] of p's place on d's disc).
+ * 1, or 0 when no u gives d (d behind a one-sided light, outside a spot's cone). */
 int importance_invert_le(const scene *s, int l, vec3 p, vec3 d, double u[4]);
 
 #ifdef __cplusplus

@@ -63,6 +63,7 @@ static void emit_ordinary(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *
 static void emit_photon(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *p, vec3 *n, vec3 *d,
                         rgb *power, double *rel) {
     emit_ordinary(c, i, g, li, p, n, d, power, rel);
+    if (c->s->env_map) *power = v3_mul(*power, light_emit_weight(c->s, *li, *d)); /* light.h */
     if (c->ports) ports_mix(c, i, li, p, n, d, power, rel);
 }
 

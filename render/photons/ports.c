@@ -53,6 +53,8 @@ static double weight(const scene *s, const light *L, const port *pt, double *per
     }
     case LIGHT_SPHERE: xs[0] = s->spheres[L->sphere].c; *per_unit = 1 / (4 * M_PI); break;
     case LIGHT_POINT: xs[0] = L->pos; *per_unit = 1 / (4 * M_PI); break;
+    case LIGHT_SPOT: xs[0] = L->pos; *per_unit = 1 / (2 * M_PI * light_spot_w(L)); break;
+    case LIGHT_INFINITE: *per_unit = 0; return 0; /* no port share: its photons keep the ordinary emission */
     default: *per_unit = 1 / (M_PI * R * R); return pt->area * fabs(v3_dot(L->dir, pt->n));
     }
     double g = 0;
@@ -64,6 +66,7 @@ static double weight(const scene *s, const light *L, const port *pt, double *per
             v = v3_scale(v, 1 / t);
             double cl = 1;
             if (cosine) cl = L->two_sided ? fabs(v3_dot(v, nl)) : fmax(0, v3_dot(v, nl));
+            if (L->type == LIGHT_SPOT) cl = light_spot_falloff(L, v);
             g += pt->area * fabs(v3_dot(v, pt->n)) * cl / (t2 + pt->area);
         }
     return g / (nx * ny);
@@ -80,7 +83,8 @@ static double light_side(const scene *s, const light *L, const port *pt) {
         break;
     }
     case LIGHT_SPHERE: v = v3_dot(v3_sub(s->spheres[L->sphere].c, pt->c), pt->n); break;
-    case LIGHT_POINT: v = v3_dot(v3_sub(L->pos, pt->c), pt->n); break;
+    case LIGHT_POINT:
+    case LIGHT_SPOT: v = v3_dot(v3_sub(L->pos, pt->c), pt->n); break;
     default: v = -v3_dot(L->dir, pt->n); break;
     }
     return v > 0 ? 1 : v < 0 ? -1 : 0;
@@ -159,6 +163,8 @@ static double ordinary_pd(const scene *s, const light *L, vec3 x, vec3 d) {
     case LIGHT_AREA: n = s->tris[L->tri].n; break;
     case LIGHT_SPHERE: n = v3_norm(v3_sub(x, s->spheres[L->sphere].c)); break;
     case LIGHT_POINT: return 1 / (4 * M_PI);
+    case LIGHT_SPOT: return light_spot_pdf(L, d);
+    case LIGHT_INFINITE: return 0;
     default: {
         double R;
         vec3 c = disc_centre(s, L, &R), r = v3_sub(x, c);
@@ -226,7 +232,7 @@ int ports_sample(const photon_ports *pp, double ul, double uk, const double u[4]
     double t = v3_len(v);
     if (!(t > 0)) return 0;
     *d = v3_scale(v, 1 / t);
-    if (L->type != LIGHT_POINT) {
+    if (!light_is_point(L)) {
         double cs = v3_dot(*d, nx);
         if (cs < 0 && L->two_sided) nx = v3_neg(nx);
         else if (!(cs > 0)) return 0;

@@ -51,7 +51,7 @@ static int cell_active(const scene *s, int li, int G, int cx, int cy, const bsph
     const light *l = &s->lights[li];
     /* A sphere light's normal changes over its surface, so a cell of directions bounds no
      * cone: every cell stays active (no saving, no loss). */
-    if (l->type == LIGHT_SPHERE) return 1;
+    if (l->type == LIGHT_SPHERE || l->type == LIGHT_INFINITE) return 1; /* infinite: any cell reaches anything */
     /* Nine points of the cell: corners, edge midpoints, centre. */
     double pu[9], pv[9];
     int k = 0;
@@ -103,9 +103,15 @@ static int cell_active(const scene *s, int li, int G, int cx, int cy, const bsph
     for (int side = 0; side < nsides; side++) {
         vec3 dirs[9];
         for (int j = 0; j < 9; j++)
-            dirs[j] = l->type == LIGHT_AREA
-                          ? sampling_to_world(sample_cosine_hemisphere(pu[j], pv[j]), normals[side])
-                          : sample_uniform_sphere(pu[j], pv[j]);
+            if (l->type == LIGHT_SPOT) { /* the spot's own map of (u[0], u[1]) to directions */
+                double u[4] = {pu[j], pv[j], 0, 0};
+                vec3 p, n;
+                light_sample_le(s, li, u, &p, &n, &dirs[j]);
+            } else {
+                dirs[j] = l->type == LIGHT_AREA
+                              ? sampling_to_world(sample_cosine_hemisphere(pu[j], pv[j]), normals[side])
+                              : sample_uniform_sphere(pu[j], pv[j]);
+            }
         vec3 dc = dirs[4];
         double ang = 0;
         for (int j = 0; j < 9; j++) ang = fmax(ang, acos(fmin(1.0, fmax(-1.0, v3_dot(dirs[j], dc)))));

@@ -105,6 +105,7 @@ static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
     vec3 p, nl, d;
     light_sample_le(s, li, u, &p, &nl, &d);
     rgb power = v3_scale(s->lights[li].power, (c->proj ? c->proj[li].fraction : 1.0) / pl);
+    if (s->env_map) power = v3_mul(power, light_emit_weight(s, li, d)); /* light.h */
     if (v3_iszero(power)) return;
     ray r = {v3_iszero(nl) ? p : scene_offset(c->s, p, nl, d), d};
     /* pp: the walk's state (photon_path.h); vscattered: a scattering event so far. med -2:

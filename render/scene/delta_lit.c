@@ -62,10 +62,11 @@ static void test_point(const scene *s, const light *l, vec3 p, vec3 ng, const ma
                        unsigned char *flags, int *traced) {
     vec3 d; /* the light's direction of travel at p */
     int seen;
-    if (l->type == LIGHT_POINT) {
+    if (light_is_point(l)) {
         vec3 to = v3_sub(p, l->pos);
         if (v3_len2(to) == 0) return;
         d = v3_norm(to);
+        if (l->type == LIGHT_SPOT && !(light_spot_falloff(l, d) > 0)) return;
         seen = scene_visible(s, p, ng, l->pos, v3(0, 0, 0));
     } else {
         d = l->dir;
@@ -95,7 +96,7 @@ int delta_lit_find(const scene *s, unsigned char **flags_out) {
     }
     for (int li = 0; li < s->nlights; li++) {
         const light *l = &s->lights[li];
-        if ((l->type != LIGHT_POINT && l->type != LIGHT_DIRECTIONAL) || !(v3_maxc(l->power) > 0))
+        if ((!light_is_point(l) && l->type != LIGHT_DIRECTIONAL) || !(v3_maxc(l->power) > 0))
             continue;
         memset(seen, 0, (size_t)nobj * sizeof *seen);
         memset(traced, 0, (size_t)nobj * sizeof *traced);

@@ -11,6 +11,7 @@
 #include <time.h>
 
 #include "base/errors.h"
+#include "scene/envmap.h"
 #include "photonmap/common.h"
 #include "base/stats.h"
 
@@ -51,6 +52,22 @@ static int check_object_offsets(const scene *s, json_err *e) {
     free(lo);
     free(hi);
     return rc;
+}
+
+/* A light's total power (light.h). */
+static rgb light_power(const scene *s, const light *l) {
+    switch (l->type) {
+    case LIGHT_AREA: return v3_scale(l->Le, M_PI * s->tris[l->tri].area * (l->two_sided ? 2 : 1));
+    case LIGHT_SPHERE:
+        return v3_scale(l->Le, M_PI * 4 * M_PI * s->spheres[l->sphere].r * s->spheres[l->sphere].r *
+                                   (l->two_sided ? 2 : 1));
+    case LIGHT_POINT: return v3_scale(l->intensity, 4 * M_PI);
+    case LIGHT_SPOT: return v3_scale(l->intensity, 2 * M_PI * light_spot_w(l));
+    case LIGHT_INFINITE: /* pi R^2 times int L dw */
+        if (s->env_map) return v3_scale(s->env_map->integral, M_PI * s->bsphere_r * s->bsphere_r);
+        return v3_scale(l->Le, 4 * M_PI * M_PI * s->bsphere_r * s->bsphere_r);
+    default: return v3_scale(l->irradiance, M_PI * s->bsphere_r * s->bsphere_r);
+    }
 }
 
 int scene_prepare(scene *s, json_err *e) {
@@ -126,15 +143,8 @@ int scene_prepare(scene *s, json_err *e) {
     if (!w) return json_fail(e, PM_ENOMEM, "out of memory");
     for (int i = 0; i < s->nlights; i++) {
         light *l = &s->lights[i];
-        if (l->type == LIGHT_AREA)
-            l->power = v3_scale(l->Le, M_PI * s->tris[l->tri].area * (l->two_sided ? 2 : 1));
-        else if (l->type == LIGHT_SPHERE)
-            l->power = v3_scale(l->Le, M_PI * 4 * M_PI * s->spheres[l->sphere].r *
-                                           s->spheres[l->sphere].r * (l->two_sided ? 2 : 1));
-        else if (l->type == LIGHT_POINT)
-            l->power = v3_scale(l->intensity, 4 * M_PI);
-        else
-            l->power = v3_scale(l->irradiance, M_PI * s->bsphere_r * s->bsphere_r);
+        l->power = light_power(s, l);
+        if (l->type == LIGHT_INFINITE) s->env_light = i + 1;
         w[i] = (l->power.x + l->power.y + l->power.z) / 3.0;
         if (!isfinite(w[i])) { /* finite inputs whose product overflows */
             double wi = w[i];
@@ -145,7 +155,8 @@ int scene_prepare(scene *s, json_err *e) {
                                  l->type == LIGHT_AREA ? s->tri_obj[l->tri] : s->sphere_obj[l->sphere],
                                  l->type == LIGHT_AREA ? "triangle" : "sphere", wi);
             return json_fail(e, PM_EINVAL, "$.lights[%d]: its power is too large to represent%s", i,
-                             l->type == LIGHT_DIRECTIONAL ? " (irradiance times the scene's cross-section)" : "");
+                             l->type == LIGHT_DIRECTIONAL ? " (irradiance times the scene's cross-section)"
+                             : l->type == LIGHT_INFINITE ? " (4 pi radiance times the scene's cross-section)" : "");
         }
     }
     double total = 0;
@@ -213,6 +224,8 @@ void scene_free(scene *s) {
     free(s->obj_iface);
     free(s->iface_report);
     free(s->lights);
+    if (s->env_map) envmap_free(s->env_map);
+    free(s->env_map);
     distrib1d_free(&s->light_distrib);
     bvh_free(&s->accel);
     cJSON_Delete(s->photon_mapping);

@@ -100,6 +100,8 @@ typedef struct scene {
     light *lights;
     int nlights;
     distrib1d light_distrib; /* choose a light in proportion to its power (mean of RGB) */
+    int env_light;           /* 1 + the index of the infinite light (light.h); 0: none */
+    struct envmap *env_map;  /* its image (envmap.h; owned), NULL: a constant radiance */
     double medium_ior;       /* index of refraction of the space between objects; default 1 */
     medium *media;           /* participating media ($.media; medium.h), nmedia of them */
     int nmedia;

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "base/hash.h"
+#include "scene/envmap.h"
 
 static uint64_t hash_u64(uint64_t h, uint64_t v) {
     unsigned char b[8];
@@ -49,7 +50,10 @@ static uint64_t hash_light(uint64_t h, const light *l) {
     h = hash_vec(h, l->intensity);
     h = hash_vec(h, l->irradiance);
     h = hash_int(h, l->two_sided);
-    return hash_vec(h, l->power);
+    h = hash_vec(h, l->power);
+    if (l->type == LIGHT_SPOT) /* only for the newer types: older scenes keep their hashes */
+        h = hash_int(hash_double(hash_double(h, l->cos_total), l->cos_start), l->falloff);
+    return h;
 }
 
 uint64_t scene_transport_hash(const scene *s) {
@@ -73,6 +77,12 @@ uint64_t scene_transport_hash(const scene *s) {
     for (int i = 0; i < s->nmats; i++) h = hash_material(h, &s->mats[i]);
     h = hash_int(h, s->nlights);
     for (int i = 0; i < s->nlights; i++) h = hash_light(h, &s->lights[i]);
+    if (s->env_map) { /* an infinite light's image (only then: older scenes keep their hashes) */
+        const envmap *m = s->env_map;
+        h = hash_int(hash_int(h, m->w), m->h);
+        for (int i = 0; i < 9; i++) h = hash_double(h, m->frame[i / 3][i % 3]);
+        for (size_t i = 0; i < 3 * (size_t)m->w * (size_t)m->h; i++) h = hash_double(h, m->px[i]);
+    }
     h = hash_double(h, s->medium_ior);
     h = hash_int(h, s->nmedia);
     for (int i = 0; i < s->nmedia; i++) {
