@@ -108,7 +108,8 @@ int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
             o.seed = st->pass_seed;
             o.reuse = NULL;
         }
-        if ((rc = photon_trace(s, &o, m, err, errcap)) < 0) return rc;
+        scene sp; /* with the ports the plan's probe found (ports.h), if any */
+        if ((rc = photon_trace(ports_found_scene(s, &st->plan.found, &sp), &o, m, err, errcap)) < 0) return rc;
         m->stamp = stamp;
         if (!st->made)
         printf("Photons: %zu global, %zu shadow-map (from %llu emitted); %zu caustic (from %llu "

@@ -127,6 +127,78 @@ void ports_describe(const photon_ports *pp, const scene *s, char *buf, size_t ca
  *   100 at (500, 300, 500)): about 0.0247% of the lights' power passes them ...) */
 int ports_plan(const scene *s, char *buf, size_t cap);
 
+/* ---- ports found by a camera probe (ports_find.c) ------------------------------------------------
+ *
+ * WHY. A scene seldom declares its openings. Where the camera sees light that came through a
+ * small opening (pinhole_room: the room behind a 10 x 10 hole), the camera's own paths show
+ * where: their light connections that pass all pass the opening.
+ *
+ * THE PROBE. Camera paths (fixed streams of the scene's seed; BSDF sampling through mirrors and
+ * glass, up to PF_DEPTH diffuse vertices, PF_LIGHTS light connections at each, as next-event
+ * estimation makes them). A connection that reaches the light makes a light path the camera
+ * sees: a carrier, weighted by what it carries (luminance). Paths are traced until PF_CARRIERS
+ * carriers are found or PF_PATHS_MAX paths traced; after every PF_ROUND paths, when at least
+ * PF_MAX_PASS of the connections pass, the probe stops (most of what the camera sees is lit in
+ * the open: no opening to find). Otherwise every carrier's segments (vertex to vertex,
+ * the last to the light point) are tested, from the camera's end, for a thread: rays from the
+ * segment's camera end toward points around its far end, offset across it by L 2^j / 512
+ * (j = 0 .. PF_LEVELS - 1, L its length) in four directions, until both rays of one axis are
+ * blocked. The segment threads an opening when those two blockers are on nearly parallel
+ * surfaces (normals within 45 degrees), the segment crosses the first one's plane short of
+ * its end, and the crossing lies between the two blocks: there is wall on both sides of the
+ * light's way. The first threading segment of a carrier gives its crossing point and the
+ * wall's normal.
+ *
+ * THE FIT. Crossings are grouped greedily (within PF_CLUSTER of the scene's bounding radius,
+ * normals within 25 degrees). Each group's plane is its carriers' weighted mean crossing and
+ * mean normal; every carrier's segment is cut with that plane again, and the port is the
+ * smallest-area rectangle (over 32 rotations) around those points, each side pushed out by
+ * its range / (n - 1) (the expected gap between the outermost of n uniform points and the
+ * edge).
+ *
+ * THE DECISION. A group becomes a port when it has at least PF_MIN_THREADS carriers, carries
+ * at least PF_MIN_SHARE of the carried light, and ordinary emission sends at most 1 /
+ * PF_MIN_GAIN of that share of the lights' power through it (ports_build's estimate): aiming
+ * there then puts at least PF_MIN_GAIN times as many photons where the camera looks. At most
+ * PF_MAX ports, the largest shares first. A found port is used exactly as a declared one
+ * (the plan hands the passes a copy of the scene with it), with the scene's port_fraction:
+ * the defensive mixture keeps every estimate unbiased whatever the probe found, so a wrong or
+ * poor port costs noise, never bias.
+ */
+#define PF_PATHS_MAX 65536
+#define PF_ROUND 1024
+#define PF_CARRIERS 512
+#define PF_DEPTH 3
+#define PF_LIGHTS 4
+#define PF_LEVELS 7
+#define PF_MAX_PASS 0.3
+#define PF_CLUSTER 0.05
+#define PF_MIN_THREADS 8
+#define PF_MIN_SHARE 0.2
+#define PF_MIN_GAIN 4
+#define PF_MAX 4
+
+typedef struct port_found {
+    int n;              /* ports kept */
+    port p[PF_MAX];
+    double share[PF_MAX]; /* the share of the carried light that threads port k */
+    double flux[PF_MAX];  /* the share of the lights' power ordinary emission sends through it */
+    int count[PF_MAX];    /* carriers that thread it */
+    /* Evidence, for the plan's line. */
+    int ran;            /* 0: not run (ports declared, find_ports false, media, no light) */
+    long paths;
+    unsigned long long connections, passed; /* light connections, and those that passed */
+    long carriers, threaded, groups;        /* carriers, those that thread, groups of them */
+    char why[360];      /* the evidence in words: what was found and kept, or why not */
+} port_found;
+
+/* Run the probe on s (not run when s declares ports, $.find_ports is false, or s has media or
+ * no light) with streams of seed; f->why says what it found. 0, or PM_ENOMEM. */
+int ports_find(const scene *s, uint64_t seed, port_found *f);
+/* *copy = *s with f's ports as its ports (nothing is allocated; copy shares s's arrays), for
+ * the passes that should aim through them; returns copy, or s when f found none. */
+const scene *ports_found_scene(const scene *s, const port_found *f, scene *copy);
+
 #ifdef __cplusplus
 }
 #endif
