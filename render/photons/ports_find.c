@@ -1,5 +1,6 @@
 /* ports_find.c: photon ports found by a camera probe; see ports.h (ports found by a camera
- * probe). One thread, fixed streams: the same scene and seed always find the same ports. */
+ * probe). Fixed streams, and the camera paths' carriers kept in path order: the same scene and
+ * seed find the same ports on any number of threads. */
 #include "photons/ports.h"
 
 #include <math.h>
@@ -285,16 +286,35 @@ int ports_find(const scene *s, uint64_t seed, port_found *f) {
         return 0;
     }
     f->ran = 1;
-    carrier *c = malloc((size_t)(PF_CARRIERS + PF_DEPTH * PF_LIGHTS) * sizeof *c);
-    if (!c) return PM_ENOMEM;
+    /* Rounds of PF_ROUND paths on all threads, each path into its own slots, appended in path
+     * order: the same carriers for any thread count. */
+    const size_t per = (size_t)PF_DEPTH * PF_LIGHTS;
+    carrier *c = malloc((size_t)(PF_CARRIERS + PF_ROUND * per) * sizeof *c);
+    carrier *slots = malloc((size_t)PF_ROUND * per * sizeof *slots);
+    int *ns = malloc((size_t)PF_ROUND * sizeof *ns);
+    if (!c || !slots || !ns) {
+        free(c), free(slots), free(ns);
+        return PM_ENOMEM;
+    }
     long nc = 0;
     double pass = 0;
-    for (long j = 0; j < PF_PATHS_MAX && nc < PF_CARRIERS; j++) {
-        nc += camera_path(s, seed, j, c + nc, &f->connections, &f->passed);
-        f->paths = j + 1;
+    for (long j0 = 0; j0 < PF_PATHS_MAX && nc < PF_CARRIERS && pass < PF_MAX_PASS; j0 += PF_ROUND) {
+        unsigned long long tried = 0, passed = 0;
+#ifdef _OPENMP
+#pragma omp parallel for schedule(dynamic, 64) reduction(+ : tried, passed)
+#endif
+        for (long j = 0; j < PF_ROUND; j++) ns[j] = camera_path(s, seed, j0 + j, slots + (size_t)j * per, &tried, &passed);
+        f->connections += tried;
+        f->passed += passed;
+        f->paths = j0 + PF_ROUND;
+        for (long j = 0; j < PF_ROUND; j++) {
+            memcpy(c + nc, slots + (size_t)j * per, (size_t)ns[j] * sizeof *c);
+            nc += ns[j];
+        }
         pass = f->connections ? (double)f->passed / (double)f->connections : 0;
-        if (f->paths % PF_ROUND == 0 && pass >= PF_MAX_PASS) break;
     }
+    free(slots);
+    free(ns);
     f->carriers = nc;
     int n = snprintf(f->why, sizeof f->why, "%ld camera paths: %llu of %llu light connections pass (%.3g%%)",
                      f->paths, f->passed, f->connections, 100 * pass);
