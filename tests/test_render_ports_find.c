@@ -18,6 +18,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "test.h"
 #include "test_film.h"
@@ -26,6 +27,13 @@
 #include "../render/photon_mapping/plan.h"
 #include "../render/photons/ports.h"
 #include "../render/scene/scene.h"
+
+/* Wall-clock seconds, for the printed cost of the probe (not checked: speed is for benchmarks). */
+static double now_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + 1e-9 * ts.tv_nsec;
+}
 
 static int load(scene *s, const char *name) {
     char path[1024];
@@ -43,7 +51,9 @@ TEST(render_ports_find_pinhole_room_hole) {
     for (int i = 0; i < 4; i++) {
         s.settings.seed = seeds[i];
         port_found f;
+        double t0 = now_s();
         ASSERT_EQ_INT(ports_find(&s, plan_pilot_seed(&s), &f), 0);
+        printf("    (the probe took %.0f ms)\n", 1e3 * (now_s() - t0));
         ASSERT_MSG(f.n == 1, "seed %llu: %d ports found (%s)", (unsigned long long)seeds[i], f.n, f.why);
         const port *p = &f.p[0];
         double a = v3_len(p->e1), b = v3_len(p->e2);
@@ -65,8 +75,9 @@ TEST(render_ports_find_none_in_open_scenes) {
         scene s;
         ASSERT_EQ_INT(load(&s, open_scenes[i]), 0);
         port_found f;
+        double t0 = now_s();
         ASSERT_EQ_INT(ports_find(&s, plan_pilot_seed(&s), &f), 0);
-        printf("    %s: %d found (%s)\n", open_scenes[i], f.n, f.why);
+        printf("    %s: %d found in %.1f ms (%s)\n", open_scenes[i], f.n, 1e3 * (now_s() - t0), f.why);
         EXPECT_MSG(f.ran && f.n == 0 && strstr(f.why, "not confined to openings"), "%s: %d found: %s",
                    open_scenes[i], f.n, f.why);
         scene_free(&s);

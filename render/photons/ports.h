@@ -137,7 +137,8 @@ int ports_plan(const scene *s, char *buf, size_t cap);
  * glass, up to PF_DEPTH diffuse vertices, PF_LIGHTS light connections at each, as next-event
  * estimation makes them). A connection that reaches the light makes a light path the camera
  * sees: a carrier, weighted by what it carries (luminance). Paths are traced until PF_CARRIERS
- * carriers are found or PF_PATHS_MAX paths traced, in rounds of PF_ROUND; after a round in which
+ * carriers are found or PF_PATHS_MAX paths traced, in rounds (PF_ROUND paths, then twice as many
+ * each time, up to PF_ROUND_MAX); after a round in which
  * at least PF_MAX_PASS of the connections pass so far, the probe stops (most of what the camera sees is lit in
  * the open: no opening to find). Otherwise every carrier's segments (vertex to vertex,
  * the last to the light point) are tested, from the camera's end, for a thread: rays from the
@@ -166,7 +167,8 @@ int ports_plan(const scene *s, char *buf, size_t cap);
  * poor port costs noise, never bias.
  */
 #define PF_PATHS_MAX 65536
-#define PF_ROUND 1024
+#define PF_ROUND 256      /* the first round; each next one twice as many, at most PF_ROUND_MAX */
+#define PF_ROUND_MAX 2048
 #define PF_CARRIERS 256
 #define PF_DEPTH 3
 #define PF_LIGHTS 4

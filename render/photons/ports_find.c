@@ -289,25 +289,28 @@ int ports_find(const scene *s, uint64_t seed, port_found *f) {
     /* Rounds of PF_ROUND paths on all threads, each path into its own slots, appended in path
      * order: the same carriers for any thread count. */
     const size_t per = (size_t)PF_DEPTH * PF_LIGHTS;
-    carrier *c = malloc((size_t)(PF_CARRIERS + PF_ROUND * per) * sizeof *c);
-    carrier *slots = malloc((size_t)PF_ROUND * per * sizeof *slots);
-    int *ns = malloc((size_t)PF_ROUND * sizeof *ns);
+    carrier *c = malloc((size_t)(PF_CARRIERS + PF_ROUND_MAX * per) * sizeof *c);
+    carrier *slots = malloc((size_t)PF_ROUND_MAX * per * sizeof *slots);
+    int *ns = malloc((size_t)PF_ROUND_MAX * sizeof *ns);
     if (!c || !slots || !ns) {
         free(c), free(slots), free(ns);
         return PM_ENOMEM;
     }
     long nc = 0;
     double pass = 0;
-    for (long j0 = 0; j0 < PF_PATHS_MAX && nc < PF_CARRIERS && pass < PF_MAX_PASS; j0 += PF_ROUND) {
+    long round = PF_ROUND;
+    for (long j0 = 0; j0 < PF_PATHS_MAX && nc < PF_CARRIERS && pass < PF_MAX_PASS; j0 += round, round *= 2) {
         unsigned long long tried = 0, passed = 0;
+        if (round > PF_ROUND_MAX) round = PF_ROUND_MAX;
+        if (round > PF_PATHS_MAX - j0) round = PF_PATHS_MAX - j0;
 #ifdef _OPENMP
 #pragma omp parallel for schedule(dynamic, 64) reduction(+ : tried, passed)
 #endif
-        for (long j = 0; j < PF_ROUND; j++) ns[j] = camera_path(s, seed, j0 + j, slots + (size_t)j * per, &tried, &passed);
+        for (long j = 0; j < round; j++) ns[j] = camera_path(s, seed, j0 + j, slots + (size_t)j * per, &tried, &passed);
         f->connections += tried;
         f->passed += passed;
-        f->paths = j0 + PF_ROUND;
-        for (long j = 0; j < PF_ROUND; j++) {
+        f->paths = j0 + round;
+        for (long j = 0; j < round; j++) {
             memcpy(c + nc, slots + (size_t)j * per, (size_t)ns[j] * sizeof *c);
             nc += ns[j];
         }
