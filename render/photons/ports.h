@@ -150,12 +150,13 @@ int ports_plan(const scene *s, char *buf, size_t cap);
  * light's way. The first threading segment of a carrier gives its crossing point and the
  * wall's normal.
  *
- * THE FIT. Crossings are grouped greedily (within PF_CLUSTER of the scene's bounding radius,
- * normals within 25 degrees). Each group's plane is its carriers' weighted mean crossing and
+ * THE FIT. Crossings are grouped by single linkage (a crossing joins a group when it lies within
+ * PF_CLUSTER of the scene's bounding radius of one of its crossings, their normals within 25
+ * degrees: a long slit is one group). Each group's plane is its carriers' weighted mean crossing and
  * mean normal; every carrier's segment is cut with that plane again, and the port is the
- * smallest-area rectangle (over 32 rotations) around those points, each side pushed out by
- * its range / (n - 1) (the expected gap between the outermost of n uniform points and the
- * edge).
+ * smallest-area rectangle (over 32 rotations) that holds those points taken as uniform on it,
+ * from the order statistics PF_TRIM n and n - 1 - PF_TRIM n of each side (a stray crossing
+ * does not stretch it; E[x_(j)] = A + (B - A) j / (n + 1) for n uniform points on [A, B]).
  *
  * THE DECISION. A group becomes a port when it has at least PF_MIN_THREADS carriers, carries
  * at least PF_MIN_SHARE of the carried light, and ordinary emission sends at most 1 /
@@ -175,6 +176,7 @@ int ports_plan(const scene *s, char *buf, size_t cap);
 #define PF_LEVELS 7
 #define PF_MAX_PASS 0.3
 #define PF_CLUSTER 0.05
+#define PF_TRIM 0.03
 #define PF_MIN_THREADS 8
 #define PF_MIN_SHARE 0.2
 #define PF_MIN_GAIN 4

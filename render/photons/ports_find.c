@@ -152,31 +152,46 @@ static int threads(const scene *s, vec3 a, vec3 na, vec3 b, thread_rec *r) {
     return 0;
 }
 
+static int dbl_cmp(const void *pa, const void *pb) {
+    double x = *(const double *)pa, y = *(const double *)pb;
+    return x < y ? -1 : x > y;
+}
+
+/* The interval of m points taken as uniform on it, from their order statistics k and m - 1 - k
+ * (k = PF_TRIM m: the outermost few are left out): E[x_(j)] = A + (B - A) j / (m + 1). */
+static void trimmed(double *v, long m, double *lo, double *hi) {
+    qsort(v, (size_t)m, sizeof *v, dbl_cmp);
+    long k = (long)(PF_TRIM * (double)m);
+    double a = v[k], b = v[m - 1 - k], half = (b - a) * (double)(m + 1) / (double)(m - 1 - 2 * k) / 2;
+    *lo = (a + b) / 2 - half;
+    *hi = (a + b) / 2 + half;
+}
+
 /* The smallest-area rectangle (32 rotations) around the crossings of group gi's segments with
- * the plane (c, n), each side pushed out by its range / (m - 1). 0 when too few cross. */
+ * the plane (c, n), by trimmed: 0 when fewer than PF_MIN_THREADS cross, PM_ENOMEM. */
 static int fit_rect(const thread_rec *t, long nt, int gi, vec3 c, vec3 n, port *out) {
     vec3 e1, e2;
     v3_basis(n, &e1, &e2);
-    double best = INFINITY, bx[4] = {0};
     vec3 bu = e1, bv = e2;
-    long m = 0;
+    double best = INFINITY, bx[4] = {0};
+    double *xs = malloc(2 * (size_t)nt * sizeof *xs), *ys = xs + nt;
+    if (!xs) return PM_ENOMEM;
     for (int r = 0; r < 32; r++) {
-        double ang = r * (M_PI / 2) / 32, ca = cos(ang), sa = sin(ang);
+        double ang = r * (M_PI / 2) / 32, ca = cos(ang), sa = sin(ang), lo[2], hi[2];
         vec3 u = v3_add(v3_scale(e1, ca), v3_scale(e2, sa)), v = v3_add(v3_scale(e1, -sa), v3_scale(e2, ca));
-        double lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
-        m = 0;
+        long m = 0;
         for (long i = 0; i < nt; i++) {
-            if (t[i].group != gi) continue;
-            double dn = v3_dot(t[i].d, n);
-            if (dn == 0) continue;
-            double tt = v3_dot(v3_sub(c, t[i].a), n) / dn;
-            if (!(tt > 0 && tt < t[i].len)) continue;
+            double dn = v3_dot(t[i].d, n), tt = dn != 0 ? v3_dot(v3_sub(c, t[i].a), n) / dn : -1;
+            if (t[i].group != gi || !(tt > 0 && tt < t[i].len)) continue;
             vec3 w = v3_sub(v3_madd(t[i].a, t[i].d, tt), c);
-            double x = v3_dot(w, u), y = v3_dot(w, v);
-            lo[0] = fmin(lo[0], x), hi[0] = fmax(hi[0], x), lo[1] = fmin(lo[1], y), hi[1] = fmax(hi[1], y);
-            m++;
+            xs[m] = v3_dot(w, u), ys[m++] = v3_dot(w, v);
         }
-        if (m < 2) return 0;
+        if (m < PF_MIN_THREADS) {
+            free(xs);
+            return 0;
+        }
+        trimmed(xs, m, &lo[0], &hi[0]);
+        trimmed(ys, m, &lo[1], &hi[1]);
         double area = (hi[0] - lo[0]) * (hi[1] - lo[1]);
         if (area < best) {
             best = area;
@@ -184,10 +199,10 @@ static int fit_rect(const thread_rec *t, long nt, int gi, vec3 c, vec3 n, port *
             bx[0] = lo[0], bx[1] = hi[0], bx[2] = lo[1], bx[3] = hi[1];
         }
     }
-    double px = (bx[1] - bx[0]) / (double)(m - 1), py = (bx[3] - bx[2]) / (double)(m - 1);
-    double sx = bx[1] - bx[0] + 2 * px, sy = bx[3] - bx[2] + 2 * py;
+    free(xs);
+    double sx = bx[1] - bx[0], sy = bx[3] - bx[2];
     if (!(sx > 0 && sy > 0)) return 0;
-    vec3 corner = v3_add(c, v3_add(v3_scale(bu, bx[0] - px), v3_scale(bv, bx[2] - py)));
+    vec3 corner = v3_add(c, v3_add(v3_scale(bu, bx[0]), v3_scale(bv, bx[2])));
     vec3 q1 = v3_scale(bu, sx), q2 = v3_scale(bv, sy);
     if (v3_dot(v3_cross(q1, q2), n) < 0) { /* keep the wall's normal: e1 x e2 along n */
         corner = v3_add(corner, q1);
@@ -197,28 +212,44 @@ static int fit_rect(const thread_rec *t, long nt, int gi, vec3 c, vec3 n, port *
     return 1;
 }
 
-/* Greedy groups of the threads' crossings (ports.h, THE FIT); how many groups. */
-static int group(const scene *s, thread_rec *t, long nt, vec3 *gc, vec3 *gn, double *gw, int *gcount) {
+static long uf_root(long *up, long i) {
+    while (up[i] != i) i = up[i] = up[up[i]];
+    return i;
+}
+
+/* Groups of the threads' crossings (ports.h, THE FIT): linked when within PF_CLUSTER of the
+ * scene's bounding radius with normals within 25 degrees, so a long slit is one group. The
+ * groups' weighted centres and normals (sums), weights and counts; how many groups (the first
+ * PF_GROUPS in thread order; threads of later ones get group -1). 0 with PM_ENOMEM in *rc. */
+static int group(const scene *s, thread_rec *t, long nt, vec3 *gc, vec3 *gn, double *gw, int *gcount, int *rc) {
+    double link = PF_CLUSTER * (s->bsphere_r > 0 ? s->bsphere_r : 1.0);
+    long *up = malloc((size_t)nt * sizeof *up);
+    *rc = 0;
+    if (!up) {
+        *rc = PM_ENOMEM;
+        return 0;
+    }
+    for (long i = 0; i < nt; i++) up[i] = i;
+    for (long i = 0; i < nt; i++)
+        for (long j = i + 1; j < nt; j++)
+            if (v3_len2(v3_sub(t[i].q, t[j].q)) < link * link && fabs(v3_dot(t[i].n, t[j].n)) > 0.9) {
+                long a = uf_root(up, i), b = uf_root(up, j);
+                if (a != b) up[a > b ? a : b] = a < b ? a : b; /* the root is the smallest index */
+            }
     int ng = 0;
-    double rc = PF_CLUSTER * (s->bsphere_r > 0 ? s->bsphere_r : 1.0);
     for (long i = 0; i < nt; i++) {
-        t[i].group = -1;
-        for (int k = 0; k < ng && t[i].group < 0; k++)
-            if (v3_len(v3_sub(t[i].q, v3_scale(gc[k], 1 / gw[k]))) < rc && fabs(v3_dot(t[i].n, v3_norm(gn[k]))) > 0.9)
-                t[i].group = k;
-        if (t[i].group < 0 && ng < PF_GROUPS) {
-            t[i].group = ng;
-            gc[ng] = v3s(0), gn[ng] = v3s(0), gw[ng] = 0, gcount[ng] = 0;
-            ng++;
-        }
+        long r = uf_root(up, i);
+        t[i].group = r == i && ng < PF_GROUPS ? ng++ : r == i ? -1 : t[r].group;
         int k = t[i].group;
         if (k < 0) continue;
+        if (r == i) gc[k] = v3s(0), gn[k] = v3s(0), gw[k] = 0, gcount[k] = 0;
         vec3 nn = gw[k] > 0 && v3_dot(t[i].n, gn[k]) < 0 ? v3_neg(t[i].n) : t[i].n;
         gc[k] = v3_madd(gc[k], t[i].q, t[i].w);
         gn[k] = v3_madd(gn[k], nn, t[i].w);
         gw[k] += t[i].w;
         gcount[k]++;
     }
+    free(up);
     return ng;
 }
 
@@ -241,7 +272,8 @@ static int decide(const scene *s, thread_rec *t, long nt, double wsum, port_foun
     vec3 gc[PF_GROUPS], gn[PF_GROUPS];
     double gw[PF_GROUPS];
     int gcount[PF_GROUPS], used[PF_GROUPS] = {0};
-    int ng = group(s, t, nt, gc, gn, gw, gcount);
+    int rc = 0, ng = group(s, t, nt, gc, gn, gw, gcount, &rc);
+    if (rc < 0) return rc;
     f->groups = ng;
     size_t len = strlen(f->why);
     for (int r = 0; r < ng && f->n < PF_MAX; r++) {
@@ -254,14 +286,15 @@ static int decide(const scene *s, thread_rec *t, long nt, double wsum, port_foun
         const char *no = NULL;
         if (gcount[k] < PF_MIN_THREADS) no = "too few carriers";
         else if (share < PF_MIN_SHARE) no = "too small a share";
-        else if (!fit_rect(t, nt, k, v3_scale(gc[k], 1 / gw[k]), v3_norm(gn[k]), &pt)) no = "no rectangle fits";
-        else {
-            int rc = port_flux(s, &pt, &flux);
+        else if ((rc = fit_rect(t, nt, k, v3_scale(gc[k], 1 / gw[k]), v3_norm(gn[k]), &pt)) <= 0) {
             if (rc < 0) return rc;
+            no = "no rectangle fits";
+        } else {
+            if ((rc = port_flux(s, &pt, &flux)) < 0) return rc;
             if (flux * PF_MIN_GAIN > share) no = "ordinary emission already sends enough there";
         }
         vec3 c = v3_scale(gc[k], 1 / gw[k]);
-        if (len < sizeof f->why)
+        if (len < sizeof f->why && r < 3)
             len += (size_t)snprintf(f->why + len, sizeof f->why - len, "; group at (%.4g, %.4g, %.4g): %d carriers, "
                                     "%.3g%% of the carried light%s%s", c.x, c.y, c.z, gcount[k], 100 * share,
                                     no ? ", not a port: " : "", no ? no : "");
