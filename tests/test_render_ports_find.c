@@ -152,4 +152,15 @@ TEST(render_ports_find_plan_line_open_scene) {
     ASSERT_MSG(line, "%s", out);
     printf("    %.*s\n", (int)strcspn(line, "\n"), line);
     EXPECT(strstr(line, "so the light is not confined to openings: none looked for") != NULL);
+    /* find_ports false: not looked for, and the line says so. */
+    char scn[1024];
+    snprintf(scn, sizeof scn, "%s/nofind.json", pm_test_tmpdir());
+    snprintf(cmd, sizeof cmd, "sed 's/^{/{\"find_ports\": false,/' '%s/data/scenes/pinhole_room.json' > '%s'",
+             pm_test_source_dir(), scn);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    snprintf(cmd, sizeof cmd, "'%s/render' '%s' --width 8 --height 8 --spp 1 --mode pm --hdr '%s'", pm_test_build_dir(),
+             scn, pfm);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "photon ports: off (none declared in the scene ($.ports); not looked for: $.find_ports is "
+                           "false)"), "%s", out);
 }

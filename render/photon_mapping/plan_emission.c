@@ -112,9 +112,10 @@ int plan__ports(const scene *s, render_plan *p, char *err, size_t errcap) {
     }
     if (on && p->found.n) {
         found_reason(s, &p->found, buf, cap);
-    } else if (p->found.ran) {
+    } else if (p->found.ran || (!s->nports && p->found.why[0])) {
         size_t n = strlen(buf);
-        snprintf(buf + n, cap - n, "; none found by a camera probe: %s", p->found.why);
+        snprintf(buf + n, cap - n, "; %s: %s", p->found.ran ? "none found by a camera probe" : "not looked for",
+                 p->found.why);
     }
     p->ports.on = on;
     return 0;
