@@ -143,12 +143,13 @@ int ports_plan(const scene *s, char *buf, size_t cap);
  * the open: no opening to find). Otherwise every carrier's segments (vertex to vertex,
  * the last to the light point) are tested, from the camera's end, for a thread: rays from the
  * segment's camera end toward points around its far end, offset across it by L 2^j / 512
- * (j = 0 .. PF_LEVELS - 1, L its length) in four directions, until both rays of one axis are
- * blocked. The segment threads an opening when those two blockers are on nearly parallel
- * surfaces (normals within 45 degrees), the segment crosses the first one's plane short of
- * its end, and the crossing lies between the two blocks: there is wall on both sides of the
- * light's way. The first threading segment of a carrier gives its crossing point and the
- * wall's normal.
+ * (j = 0 .. PF_LEVELS - 1, L its length) in two opposite pairs, each pair until both its rays
+ * are blocked. A pair threads an opening when its two blockers are on nearly parallel surfaces
+ * (normals within 45 degrees) and the segment crosses one of their walls short of its end,
+ * between the two blocks: there is wall on both sides of the light's way. The crossing is the
+ * farthest from the camera's end that either pair gives (the opening nearest the light: the
+ * slit between a door ajar and its frame, not the doorway in front of it). A carrier's first
+ * threading segment gives its crossing point and the wall's normal.
  *
  * THE FIT. Crossings are grouped by single linkage (a crossing joins a group when it lies within
  * PF_CLUSTER of the scene's bounding radius of one of its crossings, their normals within 25

@@ -107,22 +107,35 @@ static int camera_path(const scene *s, uint64_t seed, long j, carrier *c, unsign
     return nc;
 }
 
+/* Where the segment a + t d (0 < t < len) crosses the wall of blocker hit h, between the two
+ * blockers h and g: 1 with *t, 0 when it does not. */
+static int cross_wall(vec3 a, vec3 d, double len, const hit *h, const hit *g, double *t) {
+    double dn = v3_dot(d, h->ng);
+    *t = dn != 0 ? v3_dot(v3_sub(h->p, a), h->ng) / dn : -1;
+    vec3 e = v3_sub(g->p, h->p);
+    double along = v3_dot(v3_sub(v3_madd(a, d, *t), h->p), e);
+    return *t > 0.01 * len && *t < 0.9 * len && along > 0 && along < v3_len2(e);
+}
+
 /* Does the segment a -> b (a on a surface, na its normal on the segment's side) thread an
- * opening (ports.h, THE PROBE)? Then 1 with the crossing in r->q and the wall's normal. */
+ * opening (ports.h, THE PROBE)? Then 1 with the crossing in r->q and the wall's normal. Each
+ * axis whose two rays are blocked gives its crossing with the farther of the two blockers'
+ * walls (the segment crosses it between them); of the two axes, the farther crossing wins: the
+ * opening nearest the light, where a slit behind a doorway narrows the light the most. */
 static int threads(const scene *s, vec3 a, vec3 na, vec3 b, thread_rec *r) {
     vec3 d = v3_sub(b, a);
-    double len = v3_len(d);
+    double len = v3_len(d), best = -1;
     if (!(len > 0)) return 0;
     d = v3_scale(d, 1 / len);
     vec3 u, v;
     v3_basis(d, &u, &v);
     const vec3 off[4] = {u, v3_neg(u), v, v3_neg(v)};
-    int blocked[4] = {0}, dead[2] = {0};
+    int blocked[4] = {0}, done[2] = {0};
     hit hh[4];
-    for (int j = 0; j < PF_LEVELS; j++) {
+    for (int j = 0; j < PF_LEVELS && !(done[0] && done[1]); j++) {
         double delta = len * (double)(1 << j) / 512;
         for (int k = 0; k < 4; k++) {
-            if (blocked[k] || dead[k / 2]) continue;
+            if (blocked[k] || done[k / 2]) continue;
             vec3 tgt = v3_madd(b, off[k], delta), dr = v3_sub(tgt, a);
             double dl = v3_len(dr);
             dr = v3_scale(dr, 1 / dl);
@@ -130,26 +143,25 @@ static int threads(const scene *s, vec3 a, vec3 na, vec3 b, thread_rec *r) {
             blocked[k] = scene_intersect(s, ry, 0.97 * dl, &hh[k]);
         }
         for (int ax = 0; ax < 2; ax++) {
-            if (dead[ax] || !blocked[2 * ax] || !blocked[2 * ax + 1]) continue;
+            if (done[ax] || !blocked[2 * ax] || !blocked[2 * ax + 1]) continue;
+            done[ax] = 1;
             const hit *h1 = &hh[2 * ax], *h2 = &hh[2 * ax + 1];
-            double dn = v3_dot(d, h1->ng), t = dn != 0 ? v3_dot(v3_sub(h1->p, a), h1->ng) / dn : -1;
-            vec3 q = v3_madd(a, d, t), e = v3_sub(h2->p, h1->p);
-            double along = v3_dot(v3_sub(q, h1->p), e);
-            if (fabs(v3_dot(h1->ng, h2->ng)) < 0.7 || !(t > 0.01 * len && t < 0.9 * len) || !(along > 0) ||
-                !(along < v3_len2(e))) {
-                dead[ax] = 1;
-                continue;
+            if (fabs(v3_dot(h1->ng, h2->ng)) < 0.7) continue;
+            for (int w = 0; w < 2; w++) {
+                const hit *h = w ? h2 : h1, *g = w ? h1 : h2;
+                double t;
+                if (!cross_wall(a, d, len, h, g, &t) || !(t > best)) continue;
+                best = t;
+                r->q = v3_madd(a, d, t);
+                r->n = v3_dot(h->ng, d) < 0 ? v3_neg(h->ng) : h->ng; /* along the way toward the light */
             }
-            r->a = a;
-            r->d = d;
-            r->len = len;
-            r->q = q;
-            r->n = v3_dot(h1->ng, d) < 0 ? v3_neg(h1->ng) : h1->ng; /* along the light's way to the camera, reversed */
-            return 1;
         }
-        if (dead[0] && dead[1]) return 0;
     }
-    return 0;
+    if (!(best > 0)) return 0;
+    r->a = a;
+    r->d = d;
+    r->len = len;
+    return 1;
 }
 
 static int dbl_cmp(const void *pa, const void *pb) {
