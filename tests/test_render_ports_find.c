@@ -95,6 +95,25 @@ TEST(render_ports_find_none_in_open_scenes) {
     scene_free(&s);
 }
 
+/* Oracle: door_ajar.json's geometry: the probe finds the light's way over the top edge of the
+ * door (the leaf from (400, 0, 150) to (379.3, 200, 227.3), opened 15 degrees into the lit
+ * room), and keeps it off: it carries about half the light the camera's paths carry, below
+ * PF_MIN_SHARE (ports.h, THE DECISION, measured there: a port there made pm noisier). */
+TEST(render_ports_find_door_ajar_kept_off) {
+    scene s;
+    ASSERT_EQ_INT(load(&s, "door_ajar.json"), 0);
+    port_found f;
+    ASSERT_EQ_INT(ports_find(&s, plan_pilot_seed(&s), &f), 0);
+    printf("    door_ajar: %d found (%s)\n", f.n, f.why);
+    EXPECT_MSG(f.ran && f.n == 0 && strstr(f.why, "not a port: too small a share"), "%s", f.why);
+    double x, y, z;
+    const char *g = strstr(f.why, "group at (");
+    ASSERT_MSG(g && sscanf(g, "group at (%lf, %lf, %lf)", &x, &y, &z) == 3, "%s", f.why);
+    EXPECT_MSG(x > 375 && x < 401 && y > 150 && y < 215 && z > 150 && z < 231, "the group at (%g, %g, %g) is not at the "
+               "door's top", x, y, z);
+    scene_free(&s);
+}
+
 /* MEASURED (2026-12-04, branch ports2 at e14480a: the probe before its rectangle was trimmed,
  * which found the same port within 1% of its area; loaded machine, load 10-14 on 2 cores):
  * pinhole_room 8 x 8, one gather and one secondary ray, seeds 1-6, against the long reference.

@@ -140,7 +140,7 @@ static int threads(const scene *s, vec3 a, vec3 na, vec3 b, thread_rec *r) {
             double dl = v3_len(dr);
             dr = v3_scale(dr, 1 / dl);
             ray ry = {scene_offset(s, a, na, dr), dr};
-            blocked[k] = scene_intersect(s, ry, 0.97 * dl, &hh[k]);
+            blocked[k] = scene_intersect(s, ry, 0.9 * dl, &hh[k]); /* a blocker by the far end is its surface */
         }
         for (int ax = 0; ax < 2; ax++) {
             if (done[ax] || !blocked[2 * ax] || !blocked[2 * ax + 1]) continue;
