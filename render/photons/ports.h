@@ -166,11 +166,12 @@ int ports_plan(const scene *s, char *buf, size_t cap);
  * large a share: the photons that reach the camera's region some other way (another opening,
  * a bounce that misses the port) keep only 1 - a of their density, so they carry 1 / (1 - a)
  * = 2 times their power (and again at a bounce on the lit side), and where they carry much of
- * the light their noise outweighs the gain. Measured (pm, 16 x 16, 256-1024 spp, against the
- * path-traced reference): door_ajar, where the port threads 50-62% of the carried light (the
- * rest comes through the slit below it and after bounces), read -15.6..+15.1% over six runs
- * with the found port or a declared one over the door's top (relMSE 0.021-0.094), against
- * +0.8% (relMSE 0.0065) without; pinhole_room (72-95%) gains (test_render_ports_find.c). At most
+ * the light their noise outweighs the gain. Measured on door_ajar (pm, 16 x 16, 1024 spp, seeds
+ * 1-4, about 4.5 CPU-s a render, against the path-traced reference), where the probe's group
+ * over the door's top edge threads 50-62% of the carried light (the rest comes through the
+ * slit below it and after bounces): with a port declared over the door's top the whole image
+ * read -4.4..+18.2% (pixels' mean squared relative error 0.013-0.32), without one +4.0..+7.2%
+ * (0.011-0.018). On pinhole_room (72-95%) the found port gains (test_render_ports_find.c). At most
  * PF_MAX ports, the largest shares first. A found port is used exactly as a declared one
  * (the plan hands the passes a copy of the scene with it), with the scene's port_fraction:
  * the defensive mixture keeps every estimate unbiased whatever the probe found, so a wrong or
