@@ -19,11 +19,22 @@
 #include "../render/guiding/gather_guide.h"
 #include "../render/base/rng.h"
 
-/* Render data/scenes/NAME.json with FLAGS into DIR/TAG.pfm; the output in out. */
+/* Render data/scenes/NAME.json with FLAGS into DIR/TAG.pfm; the output in out. pinhole_room with
+ * "find_ports": false: the guide is for a room the photon map does not reach, and the port the
+ * plan finds at the hole (photons/ports.h) would fill it with photons (the guide then, rightly,
+ * stays off). */
 static int gg_render(const char *name, const char *flags, const char *tag, char *out, size_t cap) {
-    char cmd[4096];
-    snprintf(cmd, sizeof cmd, "%s/render '%s/data/scenes/%s.json' --mode pm --quiet --hdr '%s/%s.pfm' %s 2>&1",
-             pm_test_build_dir(), pm_test_source_dir(), name, pm_test_tmpdir(), tag, flags);
+    char cmd[4096], scn[1024];
+    snprintf(scn, sizeof scn, "%s/data/scenes/%s.json", pm_test_source_dir(), name);
+    if (strcmp(name, "pinhole_room") == 0) {
+        snprintf(scn, sizeof scn, "%s/pinhole_room_no_ports.json", pm_test_tmpdir());
+        snprintf(cmd, sizeof cmd, "sed '1s/^{/{\"find_ports\": false,/' '%s/data/scenes/pinhole_room.json' > '%s'",
+                 pm_test_source_dir(), scn);
+        int rc = pm_test_run(cmd, out, cap);
+        if (rc != 0) return rc;
+    }
+    snprintf(cmd, sizeof cmd, "%s/render '%s' --mode pm --quiet --hdr '%s/%s.pfm' %s 2>&1", pm_test_build_dir(), scn,
+             pm_test_tmpdir(), tag, flags);
     return pm_test_run(cmd, out, cap);
 }
 

@@ -121,6 +121,8 @@ typedef struct expected_plan {
  *                    no photon reaches it straight from the light, so no L S+ D path.
  *   pinhole_room     Lambertian rooms; the small room's roof occludes the light.
  *   pinhole_room_ports  the same scene with its hole declared as a photon port: the same plan.
+ *   door_ajar        Lambertian rooms; the door between them, opened 15 degrees, occludes most
+ *                    of the light.
  *   glass_hole       a glass sphere lit straight from the light only through a 10 x 10 hole
  *                    in a wall: caustics (the pilot aims photons at it and finds the hole).
  *   glass_enclosed   a white plate under water and a white sphere in a glass sphere, lit
@@ -145,6 +147,7 @@ static const expected_plan k_plans[] = {
     {"shelf_glass", 0, 1, 0, 1, "leads to a diffuse one: 0 of", "", "the hint costs more than the shadow rays it saves", ""},
     {"pinhole_room", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
     {"pinhole_room_ports", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
+    {"door_ajar", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
     {"glass_hole", 1, 1, 0, 1, "", "", "the hint costs more than the shadow rays it saves", ""},
     {"glass_enclosed", 1, 1, 0, 1, "", "", "the hint costs more than the shadow rays it saves", ""},
     {"mirror_cage", 0, 0, 0, 0, "leads to a diffuse one: 0 of 8192", "no surface the lights reach stores photons, 0 of 8192", "no area light", "no global map"},

@@ -127,13 +127,24 @@ static double ceiling_flux(int n) {
     return sum * (4.0 / (n * n)) * (4 * HOLE_B * HOLE_B / (nh * nh));
 }
 
+/* with_port: 0 none, 1 declared ($.ports), 2 found by the plan's camera probe (ports_find). */
 static void check_box(int with_port, int white_ceiling, long target, uint64_t pilot) {
     char text[8192];
-    snprintf(text, sizeof text, BOX_SCENE_FMT, white_ceiling ? "ceiling" : "black", with_port ? BOX_PORT : "");
-    scene s;
+    snprintf(text, sizeof text, BOX_SCENE_FMT, white_ceiling ? "ceiling" : "black", with_port == 1 ? BOX_PORT : "");
+    scene s0, sc;
     json_err e;
-    ASSERT_MSG(scene_load_text(&s, text, &e) == 0, "%s", e.msg);
-    ASSERT_EQ_INT(s.nports, with_port ? 1 : 0);
+    ASSERT_MSG(scene_load_text(&s0, text, &e) == 0, "%s", e.msg);
+    ASSERT_EQ_INT(s0.nports, with_port == 1 ? 1 : 0);
+    port_found pf;
+    const scene *sp = &s0;
+    if (with_port == 2) { /* the hole, found: used as the declared one is */
+        ASSERT_EQ_INT(ports_find(&s0, 7, &pf), 0);
+        ASSERT_MSG(pf.n == 1, "found %d ports: %s", pf.n, pf.why);
+        printf("    found: quad %.4g x %.4g at (%.4g, %.4g, %.4g); %s\n", v3_len(pf.p[0].e1), v3_len(pf.p[0].e2),
+               pf.p[0].c.x, pf.p[0].c.y, pf.p[0].c.z, pf.why);
+        sp = ports_found_scene(&s0, &pf, &sc);
+    }
+    const scene s = *sp; /* a copy that shares s0's arrays (freed once, below) */
     trace_opts o;
     trace_opts_init(&o, &s);
     o.global = 1;
@@ -201,7 +212,7 @@ static void check_box(int with_port, int white_ceiling, long target, uint64_t pi
         EXPECT_MSG(bounced.n == 0, "%zu photons bounced onto the plane (only black surfaces)", bounced.n);
     }
     photon_maps_free(&m);
-    scene_free(&s);
+    scene_free(&s0);
 }
 
 TEST(render_ports_analytic_hole_with_port) { check_box(1, 0, PM_TEST_SANITIZED ? 4000 : 40000, 0); }
@@ -210,6 +221,9 @@ TEST(render_ports_analytic_hole_without_port) { check_box(0, 0, PM_TEST_SANITIZE
  * off the ceiling (ports.h, BOUNCES: the ceiling's photons aim at the hole too). */
 TEST(render_ports_analytic_hole_bounce_with_port) { check_box(1, 1, PM_TEST_SANITIZED ? 8000 : 80000, 0); }
 TEST(render_ports_analytic_hole_bounce_without_port) { check_box(0, 1, PM_TEST_SANITIZED ? 25000 : 250000, 0); }
+/* The same with the port the plan's camera probe finds (ports.h) instead of a declared one. */
+TEST(render_ports_analytic_hole_with_found_port) { check_box(2, 0, PM_TEST_SANITIZED ? 4000 : 40000, 0); }
+TEST(render_ports_analytic_hole_bounce_with_found_port) { check_box(2, 1, PM_TEST_SANITIZED ? 8000 : 80000, 0); }
 /* The pilot's photons, emitted by power, join the port pass by the balance heuristic (their rel
  * is the mixture's too): 400,000 of them, about 4,900 through the hole. */
 TEST(render_ports_analytic_hole_with_port_and_pilot) {
@@ -458,6 +472,7 @@ TEST(render_ports_bad_input_errors) {
          "\"radus\": 1}]",
          "$.ports[0].radus: unknown key"},
         {"\"port_fraction\": 0.5", "$.port_fraction: given without $.ports"},
+        {"\"find_ports\": 1", "$.find_ports: expected true or false, got a number"},
         {"\"ports\": [{\"type\": \"disc\", \"center\": [0, 0, 0], \"normal\": [0, 1, 0], \"radius\": 1}], "
          "\"port_fraction\": 1",
          "$.port_fraction: must be at least 0 and below 1"},

@@ -356,7 +356,8 @@ static int from_json(scene *s, const cJSON *root, json_err *e) {
     if (!cJSON_IsObject(root))
         return json_fail(e, PM_EINVAL, "$: expected an object, got %s", json_type_name(root));
     KEYS(root, "$", "a scene", "camera", "materials", "objects", "lights", "medium_ior", "media",
-         "medium", "render", "image", "photon_mapping", "description", "ports", "port_fraction");
+         "medium", "render", "image", "photon_mapping", "description", "ports", "port_fraction",
+         "find_ports");
     TRY(load_camera(s, root, e));
     TRY(load_settings(s, root, e));
     s->medium_ior = 1.0;

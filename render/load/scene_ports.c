@@ -2,7 +2,8 @@
  * port is, data/scenes/README.md the format):
  *   "ports": [{"type": "quad", "corner": [x, y, z], "edge1": [..], "edge2": [..]},
  *             {"type": "disc", "center": [..], "normal": [..], "radius": r}],
- *   "port_fraction": 0.5
+ *   "port_fraction": 0.5,
+ *   "find_ports": true   (false: the plan does not look for ports of its own, ports.h)
  * Every field is checked, with the JSON path of the mistake in the message.
  */
 #include "load/scene_load_internal.h"
@@ -59,6 +60,13 @@ int sl_load_ports(scene *s, const cJSON *root, json_err *e) {
     const cJSON *ps;
     TRY(json_array(root, "$", "ports", 0, &ps, e));
     s->port_fraction = 0.5;
+    s->find_ports = 1;
+    if (json_get(root, "find_ports")) {
+        const cJSON *f = json_get(root, "find_ports");
+        if (!cJSON_IsBool(f))
+            return json_fail(e, PM_EINVAL, "$.find_ports: expected true or false, got %s", json_type_name(f));
+        s->find_ports = cJSON_IsTrue(f);
+    }
     if (json_get(root, "port_fraction")) {
         if (!ps) return json_fail(e, PM_EINVAL, "$.port_fraction: given without $.ports");
         TRY(json_number(root, "$", "port_fraction", 1, &s->port_fraction, e));

@@ -60,6 +60,7 @@
 #include "base/json.h"
 #include "photons/photon_settings.h"
 #include "photons/photon_trace.h"
+#include "photons/ports.h"
 #include "scene/scene.h"
 
 #ifdef __cplusplus
@@ -96,6 +97,7 @@ typedef struct render_plan {
     plan_item caustics, global, shadow, final_gather, volume, volume_caustics;
     plan_item emission; /* on: importance-driven emission of the global pass (importance.h) */
     plan_item ports;    /* on: the global pass aims a share of its photons through the scene's ports (ports.h) */
+    port_found found;   /* ports a camera probe found (ports.h): the passes use ports_found_scene */
     struct importance *imp; /* emission on: the table for trace_opts.importance (owned) */
     pilot_photons *pilot;   /* the pilots' photons for trace_opts.reuse (owned; NULL when none
                                join a map the plan traces) */

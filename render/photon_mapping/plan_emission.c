@@ -1,9 +1,10 @@
 /* plan_emission.c: the plan's "photon emission" line (plan.h): whether the global pass
  * emits by importance (importance.h: toward what the camera sees) or by power, from the
  * importance table built before the pilot, which the pilot's photons already use; and its
- * "photon ports" line (ports.h). */
+ * "photon ports" line (ports.h), with the probe that finds ports where the scene declares none. */
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "photon_mapping/plan.h"
 #include "photon_mapping/plan_internal.h"
@@ -76,12 +77,45 @@ void plan__emission(const scene *s, const photon_settings *c, render_plan *p, im
 }
 
 
-/* The ports line (ports.h): whether the global pass aims through the scene's ports, and why. */
+/* The probe for ports of the scene's own (ports.h, ports found by a camera probe), before the
+ * pilot, so the pilot's photons aim through what it finds as the passes' do. */
+int plan__find_ports(const scene *s, render_plan *p, char *err, size_t errcap) {
+    int rc = ports_find(s, plan_pilot_seed(s), &p->found);
+    if (rc < 0) snprintf(err, errcap, "plan: photon ports: probe: %s", pm_strerror(rc));
+    return rc;
+}
+
+/* The line for ports the probe found: each port, and why. */
+static void found_reason(const scene *s, const port_found *f, char *buf, size_t cap) {
+    size_t n = (size_t)snprintf(buf, cap, "found by a camera probe, %.3g of the global photons aimed through "
+                                "them:", s->port_fraction);
+    for (int k = 0; k < f->n && n < cap; k++) {
+        const port *pt = &f->p[k];
+        n += (size_t)snprintf(buf + n, cap - n, " port %d quad %.3g x %.3g at (%.4g, %.4g, %.4g) normal (%.2g, %.2g, "
+                              "%.2g), threaded by %d carriers with %.3g%% of the light the camera's paths carry, "
+                              "where ordinary emission sends %.3g%% of the lights' power;", k, v3_len(pt->e1),
+                              v3_len(pt->e2), pt->c.x, pt->c.y, pt->c.z, pt->n.x, pt->n.y, pt->n.z, f->count[k],
+                              100 * f->share[k], 100 * f->flux[k]);
+    }
+    if (n < cap) snprintf(buf + n, cap - n, " %s", f->why);
+}
+
+/* The ports line (ports.h): whether the global pass aims through the scene's ports (declared,
+ * or found by the probe: s is then the plan's copy with them), and why. */
 int plan__ports(const scene *s, render_plan *p, char *err, size_t errcap) {
-    int on = ports_plan(s, p->ports.reason, sizeof p->ports.reason);
+    char *buf = p->ports.reason;
+    size_t cap = sizeof p->ports.reason;
+    int on = ports_plan(s, buf, cap);
     if (on < 0) {
         snprintf(err, errcap, "plan: photon ports: %s", pm_strerror(on));
         return on;
+    }
+    if (on && p->found.n) {
+        found_reason(s, &p->found, buf, cap);
+    } else if (p->found.ran || (!s->nports && p->found.why[0])) {
+        size_t n = strlen(buf);
+        snprintf(buf + n, cap - n, "; %s: %s", p->found.ran ? "none found by a camera probe" : "not looked for",
+                 p->found.why);
     }
     p->ports.on = on;
     return 0;

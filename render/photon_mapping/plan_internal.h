@@ -13,6 +13,8 @@ struct importance *plan__make_importance(const scene *s, const photon_settings *
 /* The emission line from that table: kept in p->imp when used, freed otherwise. */
 void plan__emission(const scene *s, const photon_settings *c, render_plan *p, struct importance *tab);
 
+/* The camera probe for ports (ports_find) into p->found; PM_ENOMEM with a message. */
+int plan__find_ports(const scene *s, render_plan *p, char *err, size_t errcap);
 /* The ports line: p->ports from ports_plan; PM_ENOMEM with a message (plan_emission.c). */
 int plan__ports(const scene *s, render_plan *p, char *err, size_t errcap);
 

@@ -98,7 +98,8 @@ static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t e
             o.seed = st->pass_seed;
             o.reuse = NULL;
         }
-        if ((rc = photon_trace(s, &o, m, err, errcap)) < 0) return rc;
+        scene sp; /* with the ports the plan's probe found (ports.h), if any */
+        if ((rc = photon_trace(ports_found_scene(s, &st->plan.found, &sp), &o, m, err, errcap)) < 0) return rc;
         m->stamp = stamp;
     }
     st->t_trace = stats_now() - t0;

@@ -127,6 +127,92 @@ void ports_describe(const photon_ports *pp, const scene *s, char *buf, size_t ca
  *   100 at (500, 300, 500)): about 0.0247% of the lights' power passes them ...) */
 int ports_plan(const scene *s, char *buf, size_t cap);
 
+/* ---- ports found by a camera probe (ports_find.c) ------------------------------------------------
+ *
+ * WHY. A scene seldom declares its openings. Where the camera sees light that came through a
+ * small opening (pinhole_room: the room behind a 10 x 10 hole), the camera's own paths show
+ * where: their light connections that pass all pass the opening.
+ *
+ * THE PROBE. Camera paths (fixed streams of the scene's seed; BSDF sampling through mirrors and
+ * glass, up to PF_DEPTH diffuse vertices, PF_LIGHTS light connections at each, as next-event
+ * estimation makes them). A connection that reaches the light makes a light path the camera
+ * sees: a carrier, weighted by what it carries (luminance). Paths are traced until PF_CARRIERS
+ * carriers are found or PF_PATHS_MAX paths traced, in rounds (PF_ROUND paths, then twice as many
+ * each time, up to PF_ROUND_MAX); after a round in which
+ * at least PF_MAX_PASS of the connections pass so far, the probe stops (most of what the camera sees is lit in
+ * the open: no opening to find). Otherwise every carrier's segments (vertex to vertex,
+ * the last to the light point) are tested, from the camera's end, for a thread: rays from the
+ * segment's camera end toward points around its far end, offset across it by L 2^j / 512
+ * (j = 0 .. PF_LEVELS - 1, L its length) in two opposite pairs, each pair until both its rays
+ * are blocked. A pair threads an opening when its two blockers are on nearly parallel surfaces
+ * (normals within 45 degrees) and the segment crosses one of their walls short of its end,
+ * between the two blocks: there is wall on both sides of the light's way. The crossing is the
+ * farthest from the camera's end that either pair gives (the opening nearest the light: the
+ * slit between a door ajar and its frame, not the doorway in front of it). A carrier's first
+ * threading segment gives its crossing point and the wall's normal.
+ *
+ * THE FIT. Crossings are grouped by single linkage (a crossing joins a group when it lies within
+ * PF_CLUSTER of the scene's bounding radius of one of its crossings, their normals within 25
+ * degrees: a long slit is one group). Each group's plane is its carriers' weighted mean crossing and
+ * mean normal; every carrier's segment is cut with that plane again, and the port is the
+ * smallest-area rectangle (over 32 rotations) that holds those points taken as uniform on it,
+ * from the order statistics PF_TRIM n and n - 1 - PF_TRIM n of each side (a stray crossing
+ * does not stretch it; E[x_(j)] = A + (B - A) j / (n + 1) for n uniform points on [A, B]).
+ *
+ * THE DECISION. A group becomes a port when it has at least PF_MIN_THREADS carriers, carries
+ * at least PF_MIN_SHARE of the carried light, and ordinary emission sends at most 1 /
+ * PF_MIN_GAIN of that share of the lights' power through it (ports_build's estimate): aiming
+ * there then puts at least PF_MIN_GAIN times as many photons where the camera looks. Why so
+ * large a share: the photons that reach the camera's region some other way (another opening,
+ * a bounce that misses the port) keep only 1 - a of their density, so they carry 1 / (1 - a)
+ * = 2 times their power (and again at a bounce on the lit side), and where they carry much of
+ * the light their noise outweighs the gain. Measured on door_ajar (pm, 16 x 16, 1024 spp, seeds
+ * 1-4, about 4.5 CPU-s a render, against the path-traced reference), where the probe's group
+ * over the door's top edge threads 50-62% of the carried light (the rest comes through the
+ * slit below it and after bounces): with a port declared over the door's top the whole image
+ * read -4.4..+18.2% (pixels' mean squared relative error 0.013-0.32), without one +4.0..+7.2%
+ * (0.011-0.018). On pinhole_room (72-95%) the found port gains (test_render_ports_find.c). At most
+ * PF_MAX ports, the largest shares first. A found port is used exactly as a declared one
+ * (the plan hands the passes a copy of the scene with it), with the scene's port_fraction:
+ * the defensive mixture keeps every estimate unbiased whatever the probe found, so a wrong or
+ * poor port costs noise, never bias.
+ */
+#define PF_PATHS_MAX 65536
+#define PF_ROUND 256      /* the first round; each next one twice as many, at most PF_ROUND_MAX */
+#define PF_ROUND_MAX 2048
+#define PF_CARRIERS 256
+#define PF_DEPTH 3
+#define PF_LIGHTS 4
+#define PF_LEVELS 9
+#define PF_MAX_PASS 0.3
+#define PF_CLUSTER 0.05
+#define PF_TRIM 0.03
+#define PF_MIN_THREADS 8
+#define PF_MIN_SHARE 0.65
+#define PF_MIN_GAIN 4
+#define PF_MAX 4
+
+typedef struct port_found {
+    int n;              /* ports kept */
+    port p[PF_MAX];
+    double share[PF_MAX]; /* the share of the carried light that threads port k */
+    double flux[PF_MAX];  /* the share of the lights' power ordinary emission sends through it */
+    int count[PF_MAX];    /* carriers that thread it */
+    /* Evidence, for the plan's line. */
+    int ran;            /* 0: not run (ports declared, find_ports false, media, no light) */
+    long paths;
+    unsigned long long connections, passed; /* light connections, and those that passed */
+    long carriers, threaded, groups;        /* carriers, those that thread, groups of them */
+    char why[360];      /* the evidence in words: what was found and kept, or why not */
+} port_found;
+
+/* Run the probe on s (not run when s declares ports, $.find_ports is false, or s has media or
+ * no light) with streams of seed; f->why says what it found. 0, or PM_ENOMEM. */
+int ports_find(const scene *s, uint64_t seed, port_found *f);
+/* *copy = *s with f's ports as its ports (nothing is allocated; copy shares s's arrays), for
+ * the passes that should aim through them; returns copy, or s when f found none. */
+const scene *ports_found_scene(const scene *s, const port_found *f, scene *copy);
+
 #ifdef __cplusplus
 }
 #endif

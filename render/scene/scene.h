@@ -116,6 +116,7 @@ typedef struct scene {
     port *ports;             /* photon ports ($.ports; port.h), nports of them, or NULL */
     int nports;
     double port_fraction;    /* $.port_fraction: the share of photons aimed through the ports */
+    int find_ports;          /* $.find_ports: 1 (default) lets the plan look for ports (ports.h) */
     vec3 bounds_lo, bounds_hi;
     vec3 bsphere_c; /* bounding sphere of all geometry */
     double bsphere_r;
