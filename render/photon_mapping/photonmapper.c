@@ -1,11 +1,8 @@
 /* photonmapper.c: the photon-mapping integrators, "--mode pm" (Jensen's two-pass method with
  * final gathering) and "--mode preview" (the global map shown directly).
  *
- * PREPROCESS. Read the settings ("$.photon_mapping", photon_settings.h), decide and print
- * the plan (plan.h), then either trace the maps (photon_trace.h) or load them from a directory (load_photons),
- * optionally save them as traced (save_photons), build a kd-tree over each (the records are
- * reordered into tree order), choose the search radii (map files, trees and radii:
- * photon_maps.h), and precompute irradiance at a quarter of the global photons (Christensen).
+ * PREPROCESS: pm_setup.c (settings, plan, pass 0's camera-side decisions), pm_preprocess.c
+ * (maps traced or loaded, kd-trees, radii, precomputed irradiance), pm_passes.c (passes).
  *
  * RENDERING: Jensen's split of the rendering equation. A camera ray follows specular
  * reflection and refraction (both branches, weighted, for the first split_depth bounces;
@@ -54,7 +51,6 @@
 #include <string.h>
 
 #include "photon_mapping/pm_internal.h"
-
 
 const photon_lookup_hook *pm__lookup;
 
@@ -579,9 +575,7 @@ mapper_scratch *pm__scratch_new(const mapper_state *st) {
     return sc;
 }
 
-void *pm__thread_begin(const integrator *self) {
-    return pm__scratch_new(self->data);
-}
+void *pm__thread_begin(const integrator *self) { return pm__scratch_new(self->data); }
 
 void pm__thread_end(const integrator *self, void *scratch) {
     (void)self;
@@ -592,10 +586,8 @@ void pm__thread_end(const integrator *self, void *scratch) {
     free(sc);
 }
 
-/* ---- the cheap sample (pm_sample.h): the photon mapper's side ---------------------------- */
-
-/* An eye ray for pm_sample.c: emission alone, or the shading alone with caustics at weight 1
- * tallied into pc (eye_radiance adds the camera path's caustics to sc->pc). */
+/* An eye ray for pm_sample.c (pm_internal.h; eye_radiance adds the camera path's caustics to
+ * sc->pc). */
 rgb pm__sample_eye(void *user, ray r, int emit, rng *g, void *scratch, pm_sample_caustics *pc) {
     const mapper_state *st = user;
     mapper_scratch *sc = scratch;
