@@ -15,8 +15,6 @@ STAGES="base scene load photons guiding integrators photon_mapping image run app
 # Known exceptions: "include FILE STAGE/HEADER", "file FILE MAXLINES", "func FILE NAME MAXLINES".
 EXCEPTIONS='
 include load/scene_load.c photons/photon_settings.h
-func photon_mapping/photon_sides.c side_cache_build 153
-func photon_mapping/pm_volume.c pmv_trace 133
 '
 # One awk over every file (the checker must stay cheap: it runs in the test suite).
 awk -v stages="$STAGES" -v ex="$EXCEPTIONS" '

@@ -399,3 +399,125 @@ TEST(render_sides_sparse_by_distinct_paths) {
     }
     scene_free(&s);
 }
+
+/* Oracle: side_precomp_neighbours (photon_sides.h) written out by brute force: every record
+ * that pm_filter_front accepts (travelling against the query's normal) with dist2 < max_dist2,
+ * sorted by (dist2, index) as the kd-tree's ties rule; the first k, with a wall if one of them
+ * at a distance > 0 is not side_visible_h from the query; after a wall the first SIDE_WIDEN x k
+ * of them, the visible ones kept in order until k are; reach2 the SIDE_WIDEN x k-th one's
+ * dist2 when fewer than k were kept and all SIDE_WIDEN x k were examined, else max_dist2; and
+ * the visibility rays of each search. The records: the floor of the sides scene (-0.5..0.5 by
+ * -1..1, none in a strip right of the tall wall), 80% travelling down (so accepted), 20% up
+ * (refused), in tree order;
+ * the queries are records (as side_cache_build asks them, with their own free heights) and
+ * random floor points. Also: the walls decide some estimates, and some come short of k. */
+TEST(render_sides_precomp_neighbours_match_brute_force) {
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, SIDES_SCENE, &e) == 0, "%s", e.msg);
+    const size_t m = PM_TEST_SANITIZED ? 1500 : 3000;
+    const int queries = PM_TEST_SANITIZED ? 300 : 1500;
+    const float max_dist2 = 0.02f;
+    enum { K = 12 };
+    const unsigned k = K;
+    pm_photon *recs = malloc(sizeof *recs * m);
+    float *hf = malloc(sizeof *hf * m);
+    sc_cand *cs = malloc(sizeof *cs * m);
+    pm_neighbor *nb = malloc(sizeof *nb * SIDE_WIDEN * k);
+    uint32_t *perm = malloc(sizeof *perm * m);
+    ASSERT(recs && hf && cs && nb && perm);
+    srng r = {777};
+    for (size_t i = 0; i < m; i++) {
+        float pos[3] = {(float)(srng_unit(&r) - 0.5), (float)(2 * srng_unit(&r) - 1), 0};
+        if (pos[0] > 0 && pos[0] < 0.12f) pos[0] += 0.12f; /* a strip without photons right of the wall */
+        float up[3] = {0, 0, 1}, down[3] = {0, 0, -1}, p[3] = {1, 1, 1};
+        pm_photon_init(&recs[i], pos, p, srng_unit(&r) < 0.8 ? down : up, up, PM_KIND_INDIRECT);
+    }
+    pm_kdtree *t = NULL;
+    pm_kdtree_config kc = pm_kdtree_photon_config(8);
+    ASSERT_EQ_INT(pm_kdtree_build(&t, recs, m, &kc, perm), 0); /* recs now in tree order */
+    side_free_heights(&s, recs, m, max_dist2, hf);
+    float nf[3] = {0, 0, 1};
+    int walls = 0, short_of_k = 0, bad = 0;
+    for (int qi = 0; qi < queries; qi++) {
+        float x[3];
+        double hx;
+        if (qi % 2 == 0) { /* a record, as side_cache_build asks */
+            size_t j = (size_t)(srng_unit(&r) * (double)m);
+            memcpy(x, recs[j].pos, sizeof x);
+            hx = hf[j];
+        } else {
+            x[0] = (float)(0.3 * srng_unit(&r) - 0.15), x[1] = (float)(2 * srng_unit(&r) - 1), x[2] = 0;
+            hx = side_free_height(&s, v3(x[0], x[1], x[2]), v3(0, 0, 1), 0.25 * sqrt((double)max_dist2));
+        }
+        size_t nc = 0;
+        for (uint32_t i = 0; i < m; i++) {
+            if (!pm_filter_front(nf, &recs[i], i)) continue;
+            float d[3] = {recs[i].pos[0] - x[0], recs[i].pos[1] - x[1], recs[i].pos[2] - x[2]};
+            float d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            if (d2 < max_dist2) cs[nc].d2 = d2, cs[nc].i = i, nc++;
+        }
+        qsort(cs, nc, sizeof *cs, sc_cmp);
+        for (size_t a = 1; a < nc; a++) /* equal dist2: the smaller index first, as the kd-tree */
+            for (size_t b = a; b > 0 && cs[b - 1].d2 == cs[b].d2 && cs[b - 1].i > cs[b].i; b--) {
+                sc_cand tmp = cs[b];
+                cs[b] = cs[b - 1];
+                cs[b - 1] = tmp;
+            }
+        unsigned long long rays_want[2] = {0, 0}, rays_got[2] = {0, 0};
+        int wall_want = 0;
+        uint32_t want[SIDE_WIDEN * K];
+        unsigned nwant = 0;
+        float reach_want = max_dist2;
+        vec3 xv = v3(x[0], x[1], x[2]), up = v3(0, 0, 1);
+        for (size_t a = 0; a < nc && a < k; a++) {
+            want[nwant++] = cs[a].i;
+            if (wall_want || cs[a].d2 == 0) continue;
+            rays_want[0]++;
+            const float *q = recs[cs[a].i].pos;
+            wall_want = !side_visible_h(&s, xv, up, hx, v3(q[0], q[1], q[2]), up, hf[cs[a].i]);
+        }
+        if (wall_want) {
+            nwant = 0;
+            size_t a = 0;
+            for (; a < nc && a < SIDE_WIDEN * k && nwant < k; a++) {
+                int vis = 1;
+                if (cs[a].d2 > 0) {
+                    rays_want[1]++;
+                    const float *q = recs[cs[a].i].pos;
+                    vis = side_visible_h(&s, xv, up, hx, v3(q[0], q[1], q[2]), up, hf[cs[a].i]);
+                }
+                if (vis) want[nwant++] = cs[a].i;
+            }
+            if (nwant < k && nc >= SIDE_WIDEN * k) reach_want = cs[SIDE_WIDEN * k - 1].d2;
+        }
+        int wall_got = -1;
+        float reach_got = -1;
+        int got = side_precomp_neighbours(&s, t, recs, hf, x, nf, hx, k, max_dist2, nb, &wall_got, &reach_got,
+                                          rays_got);
+        int same = got == (int)nwant && wall_got == wall_want && reach_got == reach_want &&
+                   rays_got[0] == rays_want[0] && rays_got[1] == rays_want[1];
+        for (int a = 0; same && a < got; a++) same = nb[a].index == want[a];
+        if (!same && bad++ < 5)
+            EXPECT_MSG(0, "query %d at (%g, %g): %d neighbours (wall %d, reach2 %g, rays %llu+%llu), brute force %u "
+                       "(wall %d, reach2 %g, rays %llu+%llu)", qi, x[0], x[1], got, wall_got, reach_got, rays_got[0],
+                       rays_got[1], nwant, wall_want, reach_want, rays_want[0], rays_want[1]);
+        walls += wall_want;
+        short_of_k += nwant < k;
+    }
+    printf("precomputed estimates' neighbours: %d of %d queries met a wall, %d came short of k = %u\n", walls,
+           queries, short_of_k, k);
+    EXPECT(bad == 0 && walls > queries / 20 && short_of_k > 0);
+    /* No tree (a distributed rank without photons): nothing, no wall, the whole radius. */
+    int w0 = -1;
+    float r0 = 0;
+    EXPECT(side_precomp_neighbours(&s, NULL, recs, hf, nf, nf, 0, k, max_dist2, nb, &w0, &r0, NULL) == 0 && w0 == 0 &&
+           r0 == max_dist2);
+    pm_kdtree_free(t);
+    free(perm);
+    free(nb);
+    free(cs);
+    free(hf);
+    free(recs);
+    scene_free(&s);
+}

@@ -23,56 +23,17 @@
 #include <omp.h>
 #endif
 
-/* Candidates examined by an estimate that meets a wall, as a multiple of its k (photon_sides.c). */
-#define LK_WIDEN 4
-
 /* This rank's part of the precomputed estimate at query q: its k/M nearest photons on q's side,
- * as side_cache_build takes them (widened past a wall, visible ones only). */
+ * by side_cache_build's rule (side_precomp_neighbours: widened past a wall, visible ones only). */
 static void answer_side(const scene *s, const pm_kdtree *t, const pm_photon *ph, const uint32_t *path,
                         const float *hfree, unsigned k, float max_dist2, const lk_query *q, pm_neighbor *nb,
                         uint32_t *ids, lk_part *out) {
     unsigned km = lk_per_map(k);
     pm_combine_acc acc;
     pm_combine_init(&acc);
-    float hq = q->h;
-    vec3 p = lk_v3f(q->x), pn = lk_v3f(q->n);
-    int found = 0, wall = 0;
-    float limit = max_dist2;
-    if (t) {
-        float nf[3] = {q->n[0], q->n[1], q->n[2]};
-        pm_knn_options ko = {0};
-        ko.filter = pm_filter_front;
-        ko.filter_user = nf;
-        ko.flags = PM_SORT;
-        found = pm_kdtree_knn_ex(t, q->x, km, max_dist2, &ko, nb, NULL);
-        if (found < 0) found = 0;
-        for (int i = 0; i < found && !wall; i++) {
-            if (nb[i].dist2 == 0) continue;
-            float nq[3];
-            pm_normal_decode(ph[nb[i].index].normal, nq);
-            if (!side_visible_h(s, p, pn, hq, lk_v3f(ph[nb[i].index].pos), lk_v3f(nq), hfree[nb[i].index]))
-                wall = 1;
-        }
-        if (wall) {
-            unsigned want = LK_WIDEN * km;
-            int n2 = pm_kdtree_knn_ex(t, q->x, want, max_dist2, &ko, nb, NULL);
-            if (n2 < 0) n2 = 0;
-            int kept = 0;
-            for (int i = 0; i < n2 && (unsigned)kept < km; i++) {
-                int vis = 1;
-                if (nb[i].dist2 > 0) {
-                    float nq[3];
-                    pm_normal_decode(ph[nb[i].index].normal, nq);
-                    vis = side_visible_h(s, p, pn, hq, lk_v3f(ph[nb[i].index].pos), lk_v3f(nq),
-                                         hfree[nb[i].index]);
-                }
-                if (vis) nb[kept++] = nb[i];
-            }
-            /* Short of k/M visible ones: the disc is covered up to the last one examined. */
-            if ((unsigned)kept < km && (unsigned)n2 == want) limit = nb[n2 - 1].dist2;
-            found = kept;
-        }
-    }
+    int wall;
+    float limit;
+    int found = side_precomp_neighbours(s, t, ph, hfree, q->x, q->n, q->h, km, max_dist2, nb, &wall, &limit, NULL);
     pm_combine_add(&acc, t ? ph : NULL, nb, (unsigned)found, km, limit, PM_BIAS_AREA, q->x);
     /* The value is the indirect irradiance, as side_cache_build's: direct photons count in
      * the radius (and in the photons found) but not in the power. */
@@ -196,7 +157,7 @@ static lk_query *share_queries(side_build *b, lk_part **ans) {
 
 /* This rank's parts of every query, on OpenMP threads. */
 static void answer_all(const side_build *b, const lk_query *all, lk_part *ans) {
-    unsigned want = LK_WIDEN * lk_per_map(b->k);
+    unsigned want = SIDE_WIDEN * lk_per_map(b->k);
     int fail = 0;
 #ifdef _OPENMP
 #pragma omp parallel reduction(| : fail)

@@ -19,8 +19,6 @@
 
 /* Directions of the visible-area probe of an estimate with a hidden neighbour. */
 #define SIDE_AREA_DIRS 32
-/* Candidates examined by an estimate that meets a wall, as a multiple of k. */
-#define SIDE_WIDEN 4
 /* Candidates a lookup tests for visibility, nearest first. */
 #define SIDE_LOOKUP_CANDIDATES 8u
 /* An estimate's neighbour within this fraction of its distance of the query's tangent plane
@@ -158,6 +156,48 @@ static void disc_irradiance(const pm_photon *ph, const pm_neighbor *nb, int coun
     for (int c = 0; c < 3; c++) e[c] = area > 0 && isfinite(area) ? (float)(sum[c] / area) : 0.0f;
 }
 
+int side_precomp_neighbours(const scene *s, const pm_kdtree *t, const pm_photon *ph, const float *hfree,
+                            const float x[3], const float n[3], double hx, unsigned k, float max_dist2,
+                            pm_neighbor *nb, int *wall, float *reach2, unsigned long long rays[2]) {
+    *wall = 0;
+    *reach2 = max_dist2;
+    if (!t) return 0;
+    vec3 xv = v3f(x), nv = v3f(n);
+    pm_knn_options ko = {0};
+    ko.filter = pm_filter_front;
+    ko.filter_user = (void *)n;
+    ko.flags = PM_SORT;
+    int found = pm_kdtree_knn_ex(t, x, k, max_dist2, &ko, nb, NULL);
+    if (found < 0) found = 0;
+    for (int i = 0; i < found && !*wall; i++) {
+        if (nb[i].dist2 == 0) continue;
+        float nq[3];
+        pm_normal_decode(ph[nb[i].index].normal, nq);
+        if (rays) rays[0]++;
+        *wall = !side_visible_h(s, xv, nv, hx, v3f(ph[nb[i].index].pos), v3f(nq), hfree[nb[i].index]);
+    }
+    if (!*wall) return found;
+    /* A wall: SIDE_WIDEN x k candidates in order of distance, the visible ones kept until k
+     * are. Every photon closer than the last one tested was tested, so the estimate covers the
+     * disc up to it (the k-th kept on its rim, or, short of k, the whole disc searched). */
+    unsigned want = (unsigned)SIDE_WIDEN * k;
+    int n2 = pm_kdtree_knn_ex(t, x, want, max_dist2, &ko, nb, NULL);
+    if (n2 < 0) n2 = 0;
+    unsigned kept = 0;
+    for (int i = 0; i < n2 && kept < k; i++) {
+        int vis = 1;
+        if (nb[i].dist2 > 0) {
+            float nq[3];
+            pm_normal_decode(ph[nb[i].index].normal, nq);
+            if (rays) rays[1]++;
+            vis = side_visible_h(s, xv, nv, hx, v3f(ph[nb[i].index].pos), v3f(nq), hfree[nb[i].index]);
+        }
+        if (vis) nb[kept++] = nb[i];
+    }
+    if (kept < k && (unsigned)n2 == want) *reach2 = nb[n2 - 1].dist2; /* examined up to there */
+    return (int)kept;
+}
+
 int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
                      const uint32_t *path, size_t n, unsigned k, float max_dist2, char *err, size_t errcap) {
     memset(c, 0, sizeof *c);
@@ -193,6 +233,7 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
         /* SIDE_WIDEN x k candidates for the estimates that meet a wall. */
         pm_neighbor *nb = malloc((size_t)SIDE_WIDEN * k * sizeof *nb);
         uint32_t *ids = malloc(SIDE_MIN_PATHS * sizeof *ids); /* side_count_paths's scratch */
+        unsigned long long rays[2] = {0, 0};
         if (!nb || !ids) fail = 1;
 #ifdef _OPENMP
 #pragma omp for schedule(dynamic, 64)
@@ -204,76 +245,33 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
             pm_normal_decode(p->normal, nf);
             vec3 pp = v3f(p->pos), pn = v3f(nf);
             double hp = hfree[which[j]];
-            pm_knn_options ko = {0};
-            ko.filter = pm_filter_front;
-            ko.filter_user = nf;
-            ko.flags = PM_SORT;
-            int found = pm_kdtree_knn_ex(global, p->pos, k, max_dist2, &ko, nb, NULL);
-            if (found < 0) found = 0;
-            int hidden = 0;
-            for (int t = 0; t < found && !hidden; t++) {
-                const pm_photon *q = &ph[nb[t].index];
-                if (nb[t].dist2 == 0) continue;
-                float nq[3];
-                pm_normal_decode(q->normal, nq);
-                rays1++;
-                if (!side_visible_h(s, pp, pn, hp, v3f(q->pos), v3f(nq), hfree[nb[t].index]))
-                    hidden = 1;
+            int wall;
+            float reach2;
+            int found = side_precomp_neighbours(s, global, ph, hfree, p->pos, nf, hp, k, max_dist2, nb, &wall,
+                                                &reach2, rays);
+            /* The disc up to the k-th kept on its rim, or, short of k, the disc examined. A wall
+             * cuts the disc, where no photon of this side can be: divide by the part of the disc
+             * on this side only (a wall leaves this side's photons at their density over a
+             * smaller area). Rays per estimate: at most SIDE_WIDEN x k + SIDE_AREA_DIRS + 1. */
+            int rim = (unsigned)found == k;
+            double r2 = rim ? nb[found - 1].dist2 : (double)reach2, frac = 1.0;
+            if (wall) {
+                again++;
+                frac = visible_disc_fraction(s, pp, pn, sqrt(r2));
+                rays[1] += SIDE_AREA_DIRS + 1;
+                if (frac < 1.0 / SIDE_AREA_DIRS) frac = 1.0 / SIDE_AREA_DIRS;
             }
             float e[3];
-            if (!hidden) {
-                /* The usual estimate: k photons, the k-th on the rim; or the whole disc. */
-                double r2 = (unsigned)found == k ? nb[found - 1].dist2 : (double)max_dist2;
-                disc_irradiance(ph, nb, found, r2, (unsigned)found == k, 1.0, e);
-                int readable = side_estimate_readable(side_count_paths(path, nb, found, SIDE_MIN_PATHS, ids));
-                r2v[which[j]] = readable ? (float)r2 : 0.0f;
-                sparse += !readable;
-            } else {
-                /* A wall: take SIDE_WIDEN x k candidates in order of distance and keep the
-                 * visible ones until k are kept. Every photon closer than the last one tested
-                 * was tested, so the estimate covers the disc up to it (the k-th kept on its
-                 * rim, or, short of k, the whole disc searched). The disc reaches past the
-                 * wall, where no photon of this side can be: divide by the part of the disc on
-                 * this side only (a wall leaves this side's photons at their density over a
-                 * smaller area). Rays per estimate: at most SIDE_WIDEN x k + SIDE_AREA_DIRS + 1. */
-                again++;
-                unsigned want = (unsigned)SIDE_WIDEN * k;
-                int n2 = pm_kdtree_knn_ex(global, p->pos, want, max_dist2, &ko, nb, NULL);
-                if (n2 < 0) n2 = 0;
-                int kept = 0;
-                double r2 = (double)max_dist2;
-                int rim = 0;
-                for (int t = 0; t < n2; t++) {
-                    const pm_photon *q = &ph[nb[t].index];
-                    int vis = 1;
-                    if (nb[t].dist2 > 0) {
-                        float nq[3];
-                        pm_normal_decode(q->normal, nq);
-                        rays2++;
-                        vis = side_visible_h(s, pp, pn, hp, v3f(q->pos), v3f(nq), hfree[nb[t].index]);
-                    }
-                    if (vis) {
-                        nb[kept++] = nb[t];
-                        if ((unsigned)kept == k) {
-                            r2 = nb[t].dist2;
-                            rim = 1;
-                            break;
-                        }
-                    }
-                }
-                if (!rim && (unsigned)n2 == want) r2 = nb[n2 - 1].dist2; /* examined up to there */
-                double frac = visible_disc_fraction(s, pp, pn, sqrt(r2));
-                rays2 += SIDE_AREA_DIRS + 1;
-                if (frac < 1.0 / SIDE_AREA_DIRS) frac = 1.0 / SIDE_AREA_DIRS;
-                disc_irradiance(ph, nb, kept, r2, rim, frac, e);
-                int readable = side_estimate_readable(side_count_paths(path, nb, kept, SIDE_MIN_PATHS, ids));
-                r2v[which[j]] = readable ? (float)r2 : 0.0f;
-                sparse += !readable;
-            }
+            disc_irradiance(ph, nb, found, r2, rim, frac, e);
+            int readable = side_estimate_readable(side_count_paths(path, nb, found, SIDE_MIN_PATHS, ids));
+            r2v[which[j]] = readable ? (float)r2 : 0.0f;
+            sparse += !readable;
             memcpy(&val[3 * (size_t)which[j]], e, sizeof e);
         }
         free(nb);
         free(ids);
+        rays1 += rays[0];
+        rays2 += rays[1];
     }
     free(which);
     if (fail) {

@@ -119,6 +119,21 @@ int side_estimate_readable(unsigned paths);
  * (not known): every photon counts as a path of its own, which reads the estimate as often as
  * counting photons would. scratch: room for cap ids (read only with path). */
 unsigned side_count_paths(const uint32_t *path, const pm_neighbor *nb, int count, unsigned cap, uint32_t *scratch);
+/* Candidates examined by a precomputed estimate that meets a wall, as a multiple of its k. */
+#define SIDE_WIDEN 4
+/* The neighbours of a precomputed estimate at the photon x (decoded normal n, free height hx)
+ * from the tree t (records ph, free heights hfree; t NULL: none), side_cache_build's rule,
+ * shared with its distributed twin (render/mpi/lk_irradiance.c, each rank's part): the k
+ * nearest photons that travelled toward n's side within radius^2 max_dist2, sorted; if one of
+ * them (at a distance > 0) is not side_visible_h from x, a wall: then the SIDE_WIDEN x k
+ * nearest, keeping the visible ones, nearest first, until k are kept. Returns how many were
+ * kept, in nb[0..) (room for SIDE_WIDEN x k); *wall: whether a wall was met; *reach2 the
+ * radius^2 of the disc examined when fewer than k were kept after a wall (up to the last
+ * candidate when all SIDE_WIDEN x k were examined), else max_dist2. rays (or NULL) gains the
+ * visibility rays: [0] the first search's, [1] the widened search's. */
+int side_precomp_neighbours(const scene *s, const pm_kdtree *t, const pm_photon *ph, const float *hfree,
+                            const float x[3], const float n[3], double hx, unsigned k, float max_dist2,
+                            pm_neighbor *nb, int *wall, float *reach2, unsigned long long rays[2]);
 /* The shadow-photon map's search filter (the photon mapper's shadow hint; user: the query's
  * unit normal, float[3]): pm_filter_front (the photon travelled toward the query's side),
  * and the photon's surface normal within about 45 degrees of the query's (cos >= 0.7, as

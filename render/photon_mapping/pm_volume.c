@@ -156,6 +156,26 @@ static int split(const pmv_state *v, const scene *s, pmv_map *map, const pm_phot
     return photon_tree_build(&map->t, map->a, map->n, 8, err, errcap);
 }
 
+/* A pass's options (pmv_trace): the targets of its surface and volume maps, the budgets of c
+ * (max_emitted: c's, or max_emitted_factor times the larger target), the scene's rules. */
+static void pass_opts(vol_pass_opts *o, const pmv_state *v, const scene *s, const photon_settings *c,
+                      long surface_target, long volume_target) {
+    memset(o, 0, sizeof *o);
+    o->surface_target = surface_target;
+    o->volume_target = volume_target;
+    long tmax = surface_target > volume_target ? surface_target : volume_target;
+    double by_factor = c->max_emitted_factor * (double)(tmax > 0 ? tmax : 1);
+    o->max_emitted = fmin(c->max_emitted, by_factor);
+    o->max_emitted_budget = c->max_emitted < by_factor ? "photon_mapping.max_emitted budget"
+                                                       : "photon_mapping.max_emitted_factor budget";
+    o->max_memory_bytes = (size_t)c->max_memory_mb << 20;
+    o->max_depth = s->settings.max_depth;
+    o->max_bounces = c->max_bounces;
+    o->seed = s->settings.seed;
+    o->lo = v->lo;
+    o->hi = v->hi;
+}
+
 int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const render_plan *p,
               photon_maps *m, char *err, size_t errcap) {
     /* Maps loaded by photon_maps_load (m->loaded): their photons, not traced ones. */
@@ -177,33 +197,16 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
         m->volume_medium = m->volume_caustic_medium = NULL;
     }
     if (!loaded && (p->global.on || p->volume.on)) {
-        vol_pass_opts o = {0};
-        o.surface_target = p->global.on ? c->global_photons : 0;
-        o.volume_target = p->volume.on ? c->volume_photons : 0;
-        long tmax = o.surface_target > o.volume_target ? o.surface_target : o.volume_target;
-        double by_factor = c->max_emitted_factor * (double)(tmax > 0 ? tmax : 1);
-        o.max_emitted = fmin(c->max_emitted, by_factor);
-        o.max_emitted_budget = c->max_emitted < by_factor ? "photon_mapping.max_emitted budget"
-                                                          : "photon_mapping.max_emitted_factor budget";
-        o.max_memory_bytes = (size_t)c->max_memory_mb << 20;
-        o.max_depth = s->settings.max_depth;
-        o.max_bounces = c->max_bounces;
-        o.seed = s->settings.seed;
-        o.lo = v->lo;
-        o.hi = v->hi;
+        vol_pass_opts o;
+        pass_opts(&o, v, s, c, p->global.on ? c->global_photons : 0, p->volume.on ? c->volume_photons : 0);
         if ((rc = vol_trace_pass(s, &o, &g)) < 0) goto fail;
     }
     if (!loaded && (p->caustics.on || p->volume_caustics.on)) {
-        vol_pass_opts o = {0};
+        vol_pass_opts o;
+        pass_opts(&o, v, s, c, p->caustics.on ? c->caustic_photons : 0,
+                  p->volume_caustics.on ? c->volume_caustic_photons : 0);
         o.caustic_pass = 1;
         o.projection_cells = c->projection ? c->projection_cells : 0;
-        o.surface_target = p->caustics.on ? c->caustic_photons : 0;
-        o.volume_target = p->volume_caustics.on ? c->volume_caustic_photons : 0;
-        long tmax = o.surface_target > o.volume_target ? o.surface_target : o.volume_target;
-        double by_factor = c->max_emitted_factor * (double)(tmax > 0 ? tmax : 1);
-        o.max_emitted = fmin(c->max_emitted, by_factor);
-        o.max_emitted_budget = c->max_emitted < by_factor ? "photon_mapping.max_emitted budget"
-                                                          : "photon_mapping.max_emitted_factor budget";
         /* Light that reaches a wall through a smoke-filled glass is rare: do not let that map
          * take more than PMV_CAUSTIC_EMIT_FACTOR times the global pass's photons (at least
          * PMV_CAUSTIC_EMIT_MIN); it keeps what it stored, for the photons emitted. */
@@ -213,12 +216,6 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
             o.max_emitted_budget = "caustic pass's cap in a scene with media (4 times the global "
                                    "pass's photons emitted, at least 4194304; pm_volume.c)";
         }
-        o.max_memory_bytes = (size_t)c->max_memory_mb << 20;
-        o.max_depth = s->settings.max_depth;
-        o.max_bounces = c->max_bounces;
-        o.seed = s->settings.seed;
-        o.lo = v->lo;
-        o.hi = v->hi;
         if ((rc = vol_trace_pass(s, &o, &k)) < 0) goto fail;
     }
     /* Split the volume photons by medium and by use (pm_volume.h), and build the trees. */

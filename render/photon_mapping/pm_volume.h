@@ -83,7 +83,7 @@
  * (n_0 / n)^2: 1 / 2.25 for glass of index 1.5 in air. Without it the smoke in a glass sphere
  * read 2.2 times the path tracer's radiance. Media bounded by null surfaces have n = n_0.
  * The factor is material_radiance_scale(n_0, n) (material.h, where the rule is written down);
- * surface photons get the same factor when they are stored (photon_trace.c and volume.c keep
+ * surface photons get the same factor when they are stored (photon_walk.c keeps
  * the index around the light and the index the photon is in), so the caustic and global maps,
  * precomputed irradiance and final gather read the renderer's radiance at a diffuse surface
  * inside glass or under water too.

@@ -42,7 +42,7 @@
  *
  * TRACER VERSION. PHOTON_TRACE_VERSION names what photon tracing means: which photons a pass
  * stores for given scene and settings, and with what power, position, direction and kind.
- * Bump it in the same commit as any change to render/photon_trace.c, render/volume.c,
+ * Bump it in the same commit as any change to render/photons/photon_walk.c, photon_trace.c, volume.c,
  * render/projmap.c, or to what they call (light_sample_le and the light distribution,
  * material_sample / material_weights / material_radiance_scale, medium_sample_distance,
  * hg_sample, scene_offset, the rng streams) that changes a stored photon; a change that

@@ -1,6 +1,6 @@
 /* photon_pass.h: running a photon pass, the part both photon tracers share (photon_trace.c for
- * surfaces, volume.c for media; the per-photon walks are theirs, photon_path.h the state the
- * walks share). Internal to photons/: the tracers' own headers say what a pass does.
+ * surfaces, volume.c for media; the walk of one photon, photon_walk.c, is both tracers', on
+ * photon_path.h's state). Internal to photons/: the tracers' own headers say what a pass does.
  *
  *   records   a stored photon while tracing (pass_rec: full precision, tagged with the index
  *             of the emitted photon it came from) and a growable buffer of them (pass_buf),
@@ -8,8 +8,10 @@
  *             whole photon paths (the cut at the target, PASS BUDGETS in photon_trace.h);
  *   aim       the caustic passes' projection maps and the light choice by power times each
  *             light's active fraction (CAUSTIC PROJECTION MAP in photon_trace.h);
+ *   walk      photon_walk (photon_walk.c): one photon of either tracer, from its emission
+ *             through media and off surfaces to its stores;
  *   driver    pass_run: a surface pass (photon_trace.h) in batches of PT_BATCH on the threads,
- *             each photon traced by the pass's walk (pass_ctx.walk), with the budgets and,
+ *             each photon traced by photon_walk, with the budgets and,
  *             after photon_trace_set_dist, the distributed rounds (photon_rounds.c);
  *   exchange  pass_allgather, every distributed exchange of both tracers (trace_dist);
  *   messages  the texts on stderr and in err that both tracers print alike.
@@ -70,19 +72,16 @@ void pass_aim_free(pass_aim *a);
 
 /* ---- driver (surface passes) ---- */
 
-typedef struct pass_ctx pass_ctx;
-/* The walk of photon i: stores into gb (global or caustic) and sb (shadow); sets bit 0 of
- * *first_specular for a caustic-pass photon whose first hit is specular and bit 1 for a path
- * cut by the path-length budget. 0, PM_ENOMEM or PASS_OVER_BUDGET (pass_store). */
-typedef int (*pass_walk)(const pass_ctx *c, uint64_t i, pass_buf *gb, pass_buf *sb, int *first_specular);
 #define PASS_OVER_BUDGET 1
 
-struct pass_ctx {
+typedef struct pass_ctx {
     const scene *s;
-    const trace_opts *o;
-    pass_walk walk;
+    const trace_opts *o; /* a media pass's: seed, max_depth, max_bounces (volume.c fills it) */
+    int media;           /* 1: a pass of volume.h (the media's rules, photon_walk.c), 0: photon_trace.h's */
     int caustic_pass;
-    int want_global, want_shadow;
+    int want_global, want_shadow; /* a media pass: want_global keeps its surface map, no shadow */
+    int keep_volume;              /* a media pass: keeps its volume map */
+    vec3 lo, hi;                  /* a media pass: volume photons stored only inside (lo > hi: anywhere) */
     distrib1d choose; /* light choice for this pass */
     rgb *light_scale; /* per light: power / p_light (times the projection fraction) */
     projmap *proj;    /* caustic pass: one per light */
@@ -96,7 +95,28 @@ struct pass_ctx {
      * records the batch may store (0: no cap), and the count so far, shared by its threads. */
     uint64_t batch_cap;
     uint64_t *batch_records;
-};
+} pass_ctx;
+
+/* ---- the walk (photon_walk.c) ---- */
+
+struct vol_pilot;
+/* Where a walk stores, and what it reports. */
+typedef struct walk_out {
+    pass_buf *gb, *sb; /* surface passes: the main map's stores (global or caustic) and the
+                          shadow map's; media passes: both the batch's buffer (a volume record
+                          has its medium, a surface record medium -1) */
+    int first_specular; /* bit 0: a caustic-pass photon whose first hit is specular; bit 1: a
+                           path cut by the path-length budget */
+    /* Media passes (volume.c): the batch's share of the memory budget in records, and its
+     * counts (the pilot's evidence, volume.h); set when a store passed max_n or failed. */
+    size_t max_n;
+    struct vol_pilot *vp;
+    int over, fail;
+} walk_out;
+/* The walk of photon i of pass c: emission, flights through media (a media pass), bounces and
+ * stores into o (the top of photon_walk.c). 0, PM_ENOMEM or PASS_OVER_BUDGET (a store past
+ * the batch's cap: pass_store, or o->max_n in a media pass; the photon is then not whole). */
+int photon_walk(const pass_ctx *c, uint64_t i, walk_out *o);
 
 /* Store a record of the batch: PM_ENOMEM, PASS_OVER_BUDGET once the batch's records (all
  * threads') pass its cap, or 0. */

@@ -37,7 +37,9 @@ int pass_trace_batch(const pass_ctx *c, uint64_t start, pass_buf *tg, pass_buf *
         t = omp_get_thread_num();
 #endif
         /* Without a global map the shadow photons are the pass's main output. */
-        int r = c->walk(c, start + (uint64_t)k, &tg[t], c->want_global ? &ts[t] : &tg[t], &fs);
+        walk_out o = {&tg[t], c->want_global ? &ts[t] : &tg[t], 0, 0, NULL, 0, 0};
+        int r = photon_walk(c, start + (uint64_t)k, &o);
+        fs = o.first_specular;
         if (r < 0) fail |= 1;
         if (r == PASS_OVER_BUDGET) fail |= 2;
         /* fs bit 0: first hit specular (caustic pass); bit 1: cut by the path-length budget,

@@ -1,8 +1,7 @@
-/* photon_trace.c: emission, scattering and classification of photons over surfaces; see
- * photon_trace.h. The walk of one photon is here (trace_photon, on photon_path.h's state) and
- * the passes' bookkeeping (the global and caustic passes, the pilot's photons joining them,
- * packing); running a pass, its batches, budgets and distributed rounds is photon_pass.h's,
- * shared with the media's tracer (volume.c).
+/* photon_trace.c: the surface passes' bookkeeping (the global and caustic passes, the pilot's
+ * photons joining them, packing); see photon_trace.h. The walk of one photon is
+ * photon_walk.c's, shared with the media's tracer (volume.c); running a pass, its batches,
+ * budgets and distributed rounds is photon_pass.h's.
  */
 #include "photons/photon_trace.h"
 
@@ -32,181 +31,6 @@ struct pilot_photons {
     uint64_t c_emitted, c_first_specular; /* that pass's photons (0: it ran none) */
     int c_max_depth, c_max_bounces, c_cells; /* its rules; c_cells: projection cells per side */
 };
-
-/* The photon's light, origin, normal, direction, and power before the pass's division (the
- * per-photon denominator is applied at packing, see pack); *rel its p(l, u) / p_l. */
-static void emit_ordinary(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *p, vec3 *n, vec3 *d,
-                          rgb *power, double *rel) {
-    double u0 = sample_halton(i, 0, c->shift);
-    double pl;
-    double u[4] = {sample_halton(i, 1, c->shift), sample_halton(i, 2, c->shift), sample_halton(i, 3, c->shift),
-                   sample_halton(i, 4, c->shift)};
-    *rel = 1;
-    if (c->imp && !c->imp_rel_only) { /* the defensive mixture of importance.h */
-        double h[4] = {u[0], u[1], u[2], u[3]};
-        *li = importance_sample(c->imp, c->s, u0, h, u, rel);
-        light_sample_le(c->s, *li, u, p, n, d);
-        *power = c->light_scale[*li];
-        return;
-    }
-    *li = distrib1d_sample(&c->choose, u0, &pl);
-    if (c->imp) *rel = importance_rel(c->imp, c->s, *li, u); /* a pilot whose photons join */
-    const light *l = &c->s->lights[*li];
-    if (c->caustic_pass && c->proj) {
-        projmap_sample(&c->proj[*li], l, sample_halton(i, 5, c->shift), g, u);
-    }
-    light_sample_le(c->s, *li, u, p, n, d);
-    *power = c->light_scale[*li];
-}
-
-/* The same, with a share of the photons aimed through the scene's photon ports (ports.h). */
-static void emit_photon(const pass_ctx *c, uint64_t i, rng *g, int *li, vec3 *p, vec3 *n, vec3 *d,
-                        rgb *power, double *rel) {
-    emit_ordinary(c, i, g, li, p, n, d, power, rel);
-    if (c->s->env_map) *power = v3_mul(*power, light_emit_weight(c->s, *li, *d)); /* light.h */
-    if (c->ports) ports_mix(c, i, li, p, n, d, power, rel);
-}
-
-static double maxc_prod(double w, rgb t, rgb P) {
-    return w * fmax(t.x * P.x, fmax(t.y * P.y, t.z * P.z));
-}
-
-/* The pilot's counters: per material, shared by the threads. */
-static void pilot_count(pilot_counts *pc, int mat) {
-    if (mat < 0 || mat >= PILOT_MAX_MATS) mat = PILOT_MAX_MATS - 1;
-#ifdef _OPENMP
-#pragma omp atomic
-#endif
-    pc->by_mat[mat]++;
-#ifdef _OPENMP
-#pragma omp atomic
-#endif
-    pc->total++;
-}
-
-/* Shadow photons (photon_trace.h): the light's ray d, continued from its first hit h straight
- * on through every surface, stores a SHADOW photon at each later diffuse hit. */
-static int shadow_photons(const pass_ctx *c, uint64_t i, hit h, vec3 d, double rel, pass_buf *sb) {
-    trace_pilot *pl = c->o->pilot;
-    vec3 wo = v3_neg(d);
-    int first_mat = h.mat, counted = 0; /* the pilot counts one occluded photon, not each one */
-    pass_rec fp;
-    for (int k = 0; k < 16; k++) {
-        ray r2 = {scene_offset(c->s, h.p, h.ng, d), d};
-        if (!scene_intersect(c->s, r2, INFINITY, &h)) break;
-        if (!material_is_diffuse(scene_material(c->s, &h))) continue;
-        if (pl && !counted++) pilot_count(&pl->occluder, first_mat);
-        pass_rec_set(&fp, i, h.p, v3s(0), d, path_arrival_normal(wo, h.ng), PM_KIND_SHADOW, rel);
-        int rc = pass_store(c, sb, &fp);
-        if (rc != 0) return rc;
-    }
-    return 0;
-}
-
-/* Russian roulette over the branches of material m at hit h (the top of photon_trace.h):
- * the new direction in *d and power in *P; 2 for the diffuse branch, 1 for a specular one, 0
- * when the photon ends here. */
-static int scatter(const pass_ctx *c, photon_path *pp, const material *m, const hit *h, const double w[LOBE_COUNT],
-                   int diffuse_here, rng *g, vec3 *d, rgb *P) {
-    vec3 wo = v3_neg(*d), ns = path_arrival_normal(wo, h->ng);
-    vec3 nsh = material_shading_side(wo, h->ng, h->ns); /* bends directions only */
-    double pmax = v3_maxc(*P);
-    if (!(pmax > 0)) return 0;
-    double pd = diffuse_here ? maxc_prod(w[LOBE_DIFFUSE], m->diffuse, *P) / pmax : 0;
-    double pr = maxc_prod(w[LOBE_REFLECT], m->specular_tint, *P) / pmax;
-    double pt = maxc_prod(w[LOBE_TRANSMIT], m->transmit_tint, *P) / pmax;
-    double u = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
-    vec3 nd;
-    if (u < pd) {
-        if (c->caustic_pass) return 0; /* L S* D D...: not a caustic any more */
-        double k = 1; /* a share aimed through the ports (ports.h): k = cosine pdf / mixture's */
-        if (c->ports) k = ports_scatter(c->ports, h->p, nsh, g, u1, u2, &nd);
-        else nd = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
-        if (!(k > 0) || v3_dot(nd, ns) <= 0) return 0; /* below the real surface: absorbed */
-        /* f cos / pdf = pi f for cosine sampling; branch weight over its probability. */
-        rgb f = material_diffuse_f(m, nsh, wo, nd);
-        *P = v3_scale(v3_mul(*P, f), M_PI * k * w[LOBE_DIFFUSE] / pd);
-        pp->scattered = 1;
-    } else if (u < pd + pr) {
-        nd = material_reflect_shaded(*d, ns, nsh);
-        *P = v3_scale(v3_mul(*P, m->specular_tint), w[LOBE_REFLECT] / pr);
-        pp->specular = 1;
-    } else if (u < pd + pr + pt) {
-        double n1, n2;
-        material_indices(m, wo, h->ng, c->s->medium_ior, &n1, &n2);
-        if (!material_refract_shaded(*d, ns, nsh, n1 / n2, &nd)) nd = material_reflect_shaded(*d, ns, nsh);
-        else path_refract(pp, n1, n2);
-        *P = v3_scale(v3_mul(*P, m->transmit_tint), w[LOBE_TRANSMIT] / pt);
-        pp->specular = 1;
-    } else {
-        return 0; /* absorbed */
-    }
-    if (v3_iszero(*P) || !v3_isfinite(*P)) return 0;
-    *d = nd;
-    return u < pd ? 2 : 1;
-}
-
-/* Trace photon i (pass_walk, photon_pass.h): stores into gb (global or caustic) and sb
- * (shadow). */
-static int trace_photon(const pass_ctx *c, uint64_t i, pass_buf *gb, pass_buf *sb, int *first_specular) {
-    const scene *s = c->s;
-    rng g = rng_stream(c->o->seed, i, c->caustic_pass ? 2 : 1);
-    int li;
-    vec3 p, n, d;
-    rgb P;
-    double rel;
-    emit_photon(c, i, &g, &li, &p, &n, &d, &P, &rel);
-    trace_pilot *pl = c->o->pilot;
-    if (pl) {
-#ifdef _OPENMP
-#pragma omp atomic
-#endif
-        pl->emitted++;
-    }
-    if (v3_iszero(P)) return 0;
-    int from_area = s->lights[li].type == LIGHT_AREA;
-    int first_spec_mat = -1, diffuse_mat = -1; /* the pilot's evidence: which surfaces */
-    ray r = {scene_offset(c->s, p, n, d), d};
-    photon_path pp = path_start(c->o->max_depth, c->o->max_bounces);
-    pass_rec fp;
-    int rc;
-    for (pp.depth = 0; pp.depth <= pp.max_depth; pp.depth++) {
-        hit h;
-        if (!scene_intersect(s, r, INFINITY, &h)) break;
-        const material *m = scene_material(s, &h);
-        vec3 ns = path_arrival_normal(v3_neg(d), h.ng);
-        double w[LOBE_COUNT];
-        material_weights(m, v3_neg(d), h.ng, s->medium_ior, w);
-        int diffuse_here = w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0, kind = path_kind(&pp);
-        if (c->caustic_pass && pp.depth == 0 && !diffuse_here) *first_specular |= 1;
-        if (pp.depth == 0) first_spec_mat = h.mat; /* an L S+ D path's first surface is specular */
-        if (pl && pp.depth == 0) pilot_count(&pl->first_hits, h.mat);
-        if (diffuse_here) {
-            rgb Ps = v3_scale(P, path_store_scale(&pp));
-            if (c->caustic_pass) {
-                if (kind == PM_KIND_CAUSTIC) {
-                    if (pl) pilot_count(&pl->caustic, first_spec_mat);
-                    pass_rec_set(&fp, i, h.p, Ps, d, ns, PM_KIND_CAUSTIC, rel);
-                    if ((rc = pass_store(c, gb, &fp)) != 0) return rc;
-                }
-            } else {
-                if (pl && pp.scattered) pilot_count(&pl->diffuse_bounce, diffuse_mat);
-                pass_rec_set(&fp, i, h.p, Ps, d, ns, path_global_kind(&pp), rel);
-                if (c->want_global && (rc = pass_store(c, gb, &fp)) != 0) return rc;
-                if (c->want_shadow && from_area && pp.depth == 0 && (rc = pass_store(c, sb, &fp)) != 0) return rc;
-            }
-        }
-        if (c->want_shadow && from_area && pp.depth == 0 && (rc = shadow_photons(c, i, h, d, rel, sb)) != 0)
-            return rc;
-        int branch = scatter(c, &pp, m, &h, w, diffuse_here, &g, &d, &P);
-        if (!branch) break;
-        if (branch == 2) diffuse_mat = h.mat;
-        r.o = scene_offset(c->s, h.p, h.ng, d);
-        r.d = d;
-    }
-    if (path_cut(&pp)) *first_specular |= 2; /* still alive: the path-length budget cut it */
-    return 0;
-}
 
 /* ---- passes ------------------------------------------------------------------------------- */
 
@@ -368,7 +192,6 @@ static int global_pass(trace_run *t) {
     pass_ctx c = {0};
     c.s = s;
     c.o = o;
-    c.walk = trace_photon;
     c.want_global = o->global;
     c.want_shadow = o->shadow;
     c.choose = s->light_distrib;
@@ -427,8 +250,7 @@ static int caustic_pass(trace_run *t) {
         pass_ctx c = {0};
         c.s = s;
         c.o = o;
-        c.walk = trace_photon;
-        c.caustic_pass = 1;
+            c.caustic_pass = 1;
         c.proj = aim.proj;
         c.choose = aim.choose;
         for (int i = 0; i < s->nlights; i++) {

@@ -101,11 +101,12 @@
  * render from, and `render` exits non-zero instead of writing a black image. A pass that
  * stored some photons but hit a budget keeps them (runaway flag set).
  *
- * CODE. photon_trace.c has the walk of one photon and the passes' bookkeeping; what both
- * tracers share, this one and volume.h's, is photon_path.h's (the walk's state: bounces,
- * kinds, the refraction chain, the path-length cut) and photon_pass.h's (the records, the
- * cut at the target, the caustic pass's aim, the budgets' messages, the distributed exchange;
- * this tracer's pass driver, batches and rounds: photon_pass.c, photon_rounds.c).
+ * CODE. photon_trace.c has the passes' bookkeeping; what both tracers share, this one and
+ * volume.h's, is the walk of one photon (photon_walk.c, on photon_path.h's state: bounces,
+ * kinds, the refraction chain, the path-length cut; EMISSION and SCATTERING above are its
+ * surface passes' rules) and photon_pass.h's (the records, the cut at the target, the caustic
+ * pass's aim, the budgets' messages, the distributed exchange; this tracer's pass driver,
+ * batches and rounds: photon_pass.c, photon_rounds.c).
  *
  * OWNERSHIP. photon_trace fills a photon_maps (photon_maps.h) whose arrays it allocates;
  * photon_maps_free frees them.

@@ -51,7 +51,7 @@
  * point on the dark side (inside the room) never aims out through the port. Unbiased for any
  * a(x) >= 0 that depends only on x, as this one does.
  *
- * WHERE. The surface tracer's global pass (photon_trace.c, which calls ports_mix after its own
+ * WHERE. The surface tracer's global pass (photon_walk.c, which calls ports_mix after its own
  * emission and ports_scatter at diffuse bounces) and the photons of its pilot, whose rel is computed the same way so they can join
  * the pass (pilot_photons_joining). The caustic pass keeps its projection maps, and the media's
  * tracer (volume.c) ignores ports.
@@ -109,7 +109,7 @@ struct pass_ctx;
 struct rng;
 double ports_scatter(const photon_ports *pp, vec3 x, vec3 nsh, struct rng *g, double u1, double u2, vec3 *nd);
 
-/* photon_trace.c's hook: after its own emission of photon i (*li, *p, *n, *d, *power, *rel),
+/* The photon walk's hook (photon_walk.c, surface passes): after its own emission of photon i (*li, *p, *n, *d, *power, *rel),
  * with probability a (Halton dimension 5) replace the photon by a port photon; either way set
  * *rel to the mixture's (above). A pilot (c->o->pilot) keeps its own photon and only gets the
  * rel. */

@@ -1,12 +1,12 @@
 /* volume.c: photon tracing through participating media for the volume photon maps and the
- * surface maps of a scene with media; see volume.h. trace_photon follows one photon (free
- * flight in the current medium, a volume store and an HG bounce at each scattering event, a
- * surface store and a material bounce at each diffuse surface, a medium change at each null
- * surface) into its batch's buffer; vol_trace_pass runs rounds of batches on the threads and
- * merges them in photon order, cutting each map at its target by whole photon paths. What the
- * walk and the pass share with the surfaces' tracer, photon_trace.c, is photon_path.h's (the
- * walk's state: bounces, kinds, the refraction chain, the path-length cut) and photon_pass.h's
- * (the caustic pass's aim, the distributed exchange, the budgets' messages).
+ * surface maps of a scene with media; see volume.h. Each photon is traced by photon_walk
+ * (photon_walk.c, the surfaces' tracer's walk too: free flight in the current medium, a volume
+ * store and an HG bounce at each scattering event, a surface store and a material bounce at
+ * each diffuse surface, a medium change at each null surface) into its batch's buffer;
+ * vol_trace_pass runs rounds of batches on the threads and merges them in photon order,
+ * cutting each map at its target by whole photon paths. What the pass shares with the
+ * surfaces' tracer, photon_trace.c, is photon_pass.h's (the walk, the records, the caustic
+ * pass's aim, the distributed exchange, the budgets' messages).
  *
  * A change here that changes any stored photon (which photons are stored, their power,
  * position, direction or kind) must bump PHOTON_TRACE_VERSION in photon_maps.h in the same
@@ -23,172 +23,22 @@
 #include <omp.h>
 #endif
 
-#include "scene/medium.h"
-#include "photons/photon_pass.h"
-#include "photons/photon_path.h"
-#include "photons/photon_trace.h"
 #include "photonmap/common.h"
-#include "photons/projmap.h"
-#include "base/rng.h"
+#include "photons/photon_pass.h"
+#include "photons/photon_trace.h"
 
 /* Records are photon_pass.h's pass_rec, before the power is divided by the map's emitted
  * count: a volume photon's has its medium, a surface photon's medium -1. The memory budget
  * counts each as VOL_RECORD_BYTES (volume.h). */
 
 typedef struct vbuf {
-    pass_rec *r;
-    size_t n, cap;
-    size_t max_n;    /* the memory budget's share of this batch, in records */
+    pass_buf b;      /* the batch's records */
+    walk_out w;      /* the walks' sink (photon_pass.h): b, the budget's share w.max_n in
+                        records, w.over (past it: the photon being traced is not whole), w.fail */
     vol_pilot pilot; /* this batch's counts */
-    int fail, over;  /* out of memory; over max_n (the photon being traced is not whole) */
-    uint64_t stop;   /* over: the first photon not traced whole; else UINT64_MAX */
+    uint64_t stop;   /* w.over: the first photon not traced whole; else UINT64_MAX */
     uint64_t cut;    /* photons cut by the path-length budget */
 } vbuf;
-
-typedef struct vctx {
-    const scene *s;
-    const vol_pass_opts *o;
-    int keep_surface, keep_volume, counting;
-    projmap *proj; /* caustic pass with projection maps: one per light (aim.proj), else NULL */
-    pass_aim aim;  /* with proj: lights by power times active fraction (photon_pass.h) */
-} vctx;
-
-static void push(vbuf *b, uint64_t i, vec3 p, rgb power, vec3 d, vec3 n, int kind, int med) {
-    if (b->fail || b->over) return;
-    if (b->n >= b->max_n) { /* the memory budget: this photon's path is not kept */
-        b->over = 1;
-        return;
-    }
-    if (b->n == b->cap) {
-        size_t nc = b->cap ? 2 * b->cap : 1024;
-        if (nc > b->max_n) nc = b->max_n;
-        pass_rec *nr = realloc(b->r, nc * sizeof *nr);
-        if (!nr) {
-            b->fail = 1;
-            return;
-        }
-        b->r = nr;
-        b->cap = nc;
-    }
-    pass_rec *v = &b->r[b->n++];
-    pass_rec_set(v, i, p, power, d, n, kind, 1);
-    v->medium = (int16_t)med;
-}
-
-/* Roulette on a throughput factor w: survive with q = min(1, max channel), power * w / q. */
-static int survive(rgb *power, rgb w, rng *g) {
-    double q = fmin(1.0, v3_maxc(w)), u = rng_uniform(g);
-    if (!(q > 0) || !(u < q)) return 0;
-    *power = v3_mul(*power, v3_scale(w, 1.0 / q));
-    return 1;
-}
-
-static int inside(const vol_pass_opts *o, vec3 x) {
-    if (!(o->lo.x <= o->hi.x)) return 1;
-    return x.x >= o->lo.x && x.y >= o->lo.y && x.z >= o->lo.z && x.x <= o->hi.x && x.y <= o->hi.y &&
-           x.z <= o->hi.z;
-}
-
-static int clampi(int v, int n) { return v < 0 || v >= n ? n - 1 : v; }
-
-static void trace_photon(const vctx *c, uint64_t i, vbuf *b) {
-    const scene *s = c->s;
-    const int caustic_pass = c->o->caustic_pass;
-    rng g = rng_stream(c->o->seed, i, caustic_pass ? 8 : 7);
-    double pl, u[4];
-    int li = distrib1d_sample(c->proj ? &c->aim.choose : &s->light_distrib, rng_uniform(&g), &pl);
-    for (int k = 0; k < 4; k++) u[k] = rng_uniform(&g);
-    b->pilot.emitted++;
-    if (!(pl > 0)) return;
-    /* Aimed: a point of an active cell, the power times the light's active fraction. */
-    if (c->proj) projmap_sample(&c->proj[li], &s->lights[li], rng_uniform(&g), &g, u);
-    vec3 p, nl, d;
-    light_sample_le(s, li, u, &p, &nl, &d);
-    rgb power = v3_scale(s->lights[li].power, (c->proj ? c->proj[li].fraction : 1.0) / pl);
-    if (s->env_map) power = v3_mul(power, light_emit_weight(s, li, d)); /* light.h */
-    if (v3_iszero(power)) return;
-    ray r = {v3_iszero(nl) ? p : scene_offset(c->s, p, nl, d), d};
-    /* pp: the walk's state (photon_path.h); vscattered: a scattering event so far. med -2:
-     * not known until the first hit. */
-    photon_path pp = path_start(c->o->max_depth, c->o->max_bounces);
-    int med = -2, vscattered = 0, crossings = 0, spec_mat = -1;
-    while (pp.depth <= pp.max_depth && !b->over) {
-        hit h;
-        int got = scene_intersect(s, r, INFINITY, &h);
-        if (med == -2) /* the emitter's interface, else the side of the first surface facing it */
-            med = scene_light_medium(s, li, p, nl, d, got ? scene_medium_side(s, &h, v3_neg(r.d), -2)
-                                                          : s->global_medium);
-        if (med >= 0) {
-            double uc = rng_uniform(&g), ud = rng_uniform(&g), t;
-            rgb w;
-            if (medium_sample_distance(&s->media[med], got ? h.t : INFINITY, uc, ud, &t, &w)) {
-                if (v3_iszero(w)) return; /* sigma_s = 0: absorbed, nothing scatters */
-                vec3 x = ray_at(r, t);
-                int kind = path_kind(&pp);
-                b->pilot.events[clampi(med, VOL_PILOT_MEDIA)][kind]++;
-                if (kind == PM_KIND_CAUSTIC) b->pilot.caustic_by_mat[clampi(spec_mat, VOL_PILOT_MATS)]++;
-                if (c->keep_volume && (!caustic_pass || kind == PM_KIND_CAUSTIC) && inside(c->o, x))
-                    push(b, i, x, v3_mul(power, w), r.d, v3s(0), kind, med);
-                if (caustic_pass) return; /* not L S+ any more */
-                pp.scattered = vscattered = 1;
-                if (!survive(&power, w, &g)) return;
-                vec3 nd;
-                hg_sample(s->media[med].g, r.d, rng_uniform(&g), rng_uniform(&g), &nd);
-                r.o = x;
-                r.d = nd;
-                pp.depth++;
-                continue;
-            }
-            power = v3_mul(power, w);
-            if (v3_iszero(power)) return;
-        }
-        if (!got) return;
-        const material *m = scene_material(s, &h);
-        if (m->kind == MAT_NULL) {
-            if (++crossings > 4 * pp.max_depth + 1024) return;
-            med = scene_medium_next(s, &h, r.d, r.d, med);
-            r.o = scene_offset(c->s, h.p, h.ng, r.d);
-            continue;
-        }
-        vec3 wo = v3_neg(r.d);
-        double wl[LOBE_COUNT];
-        material_weights(m, wo, h.ng, s->medium_ior, wl);
-        if (wl[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0) {
-            int kind = path_kind(&pp);
-            if (kind == PM_KIND_DIRECT) b->pilot.surf_direct++;
-            if (kind == PM_KIND_CAUSTIC) b->pilot.surf_caustic++;
-            if (kind == PM_KIND_INDIRECT) b->pilot.surf_indirect++;
-            if (vscattered) b->pilot.surf_after_scatter++;
-            vec3 ns = path_arrival_normal(wo, h.ng);
-            rgb ps = v3_scale(power, path_store_scale(&pp));
-            if (c->keep_surface && !caustic_pass)
-                push(b, i, h.p, ps, r.d, ns, path_global_kind(&pp), -1);
-            if (c->keep_surface && caustic_pass && kind == PM_KIND_CAUSTIC)
-                push(b, i, h.p, ps, r.d, ns, kind, -1);
-        }
-        bsdf_sample bs;
-        double ul = rng_uniform(&g), u1 = rng_uniform(&g), u2 = rng_uniform(&g);
-        if (!material_sample_ns(m, wo, h.ng, h.ns, s->medium_ior, ul, u1, u2, &bs)) return;
-        if (bs.lobe == LOBE_TRANSMIT && !bs.tir && m->kind != MAT_NULL) {
-            double n1, n2;
-            material_indices(m, wo, h.ng, s->medium_ior, &n1, &n2);
-            path_refract(&pp, n1, n2);
-        }
-        if (bs.lobe == LOBE_DIFFUSE) {
-            if (caustic_pass) return;
-            pp.scattered = 1;
-        } else if (!pp.specular) {
-            pp.specular = 1;
-            spec_mat = h.mat;
-        }
-        if (!survive(&power, bs.weight, &g)) return;
-        med = scene_medium_next(s, &h, r.d, bs.wi, med);
-        r.o = scene_offset(c->s, h.p, h.ng, bs.wi);
-        r.d = bs.wi;
-        pp.depth++;
-    }
-    if (!b->over && path_cut(&pp)) b->cut++; /* still alive: the path-length budget cut it */
-}
 
 static void pilot_add(vol_pilot *a, const vol_pilot *b) {
     a->emitted += b->emitted;
@@ -281,7 +131,7 @@ static int vol_exchange(vbuf *bufs, int nb) {
     size_t bytes = 0;
     int mine = 0;
     for (int b = d->part; b < nb; b += d->nparts) {
-        bytes += sizeof(vbatch_head) + bufs[b].n * sizeof(pass_rec);
+        bytes += sizeof(vbatch_head) + bufs[b].b.n * sizeof(pass_rec);
         mine++;
     }
     char *out = malloc(bytes ? bytes : 1);
@@ -290,24 +140,24 @@ static int vol_exchange(vbuf *bufs, int nb) {
     int own_fail = !out;
     for (int b = d->part, j = 0; b < nb; b += d->nparts, j++) {
         vbuf *bf = &bufs[b];
-        if (d->test_fail && d->test_fail(d->user)) bf->fail = 1; /* test hook (photon_trace.h) */
-        own_fail |= bf->fail;
+        if (d->test_fail && d->test_fail(d->user)) bf->w.fail = 1; /* test hook (photon_trace.h) */
+        own_fail |= bf->w.fail;
         vbatch_head h;
         memset(&h, 0, sizeof h);
-        h.n = out ? bf->n : 0;
-        h.cap = bf->cap;
+        h.n = out ? bf->b.n : 0;
+        h.cap = bf->b.cap;
         h.stop = bf->stop;
         h.cut = bf->cut;
-        h.fail = bf->fail || !out;
-        h.over = bf->over;
+        h.fail = bf->w.fail || !out;
+        h.over = bf->w.over;
         h.b = b;
         h.pilot = bf->pilot;
         failed[j] = h;
         if (!out) continue;
         memcpy(out + off, &h, sizeof h);
         off += sizeof h;
-        if (bf->n) memcpy(out + off, bf->r, bf->n * sizeof(pass_rec));
-        off += bf->n * sizeof(pass_rec);
+        if (bf->b.n) memcpy(out + off, bf->b.v, bf->b.n * sizeof(pass_rec));
+        off += bf->b.n * sizeof(pass_rec);
     }
     /* This process's own failure: said before the exchange tells every process of it. */
     if (own_fail && d->failed)
@@ -331,21 +181,21 @@ static int vol_exchange(vbuf *bufs, int nb) {
             memcpy(&h, all + off, sizeof h);
             off += sizeof h;
             vbuf *bf = &bufs[h.b];
-            if (h.cap != bf->cap) { /* the tracing process's capacity */
-                pass_rec *nr = realloc(bf->r, (h.cap ? h.cap : 1) * sizeof *nr);
+            if (h.cap != bf->b.cap) { /* the tracing process's capacity */
+                pass_rec *nr = realloc(bf->b.v, (h.cap ? h.cap : 1) * sizeof *nr);
                 if (!nr) rc = PM_ENOMEM;
                 else {
-                    bf->r = nr;
-                    bf->cap = h.cap;
+                    bf->b.v = nr;
+                    bf->b.cap = h.cap;
                 }
             }
-            bf->n = rc == 0 ? h.n : 0;
-            if (bf->n) memcpy(bf->r, all + off, h.n * sizeof(pass_rec));
+            bf->b.n = rc == 0 ? h.n : 0;
+            if (bf->b.n) memcpy(bf->b.v, all + off, h.n * sizeof(pass_rec));
             off += h.n * sizeof(pass_rec);
             bf->stop = h.stop;
             bf->cut = h.cut;
-            bf->fail = h.fail || rc < 0;
-            bf->over = h.over;
+            bf->w.fail = h.fail || rc < 0;
+            bf->w.over = h.over;
             bf->pilot = h.pilot;
         }
     }
@@ -356,7 +206,11 @@ static int vol_exchange(vbuf *bufs, int nb) {
 
 /* A pass while it runs: vol_trace_pass's state, shared by its steps. */
 typedef struct vpass {
-    vctx c;
+    const vol_pass_opts *o;
+    trace_opts to; /* the walk's rules: seed, max_depth, max_bounces */
+    pass_ctx c;    /* the walk's pass (photon_pass.h, a media pass) */
+    pass_aim aim;  /* a caustic pass with projection maps: the aim (c.proj, c.choose) */
+    int counting;  /* a pilot: count, keep nothing */
     vmap ms, mv; /* the surface and volume maps */
     vbuf bufs[VOL_ROUND];
     int nthreads;
@@ -370,7 +224,7 @@ typedef struct vpass {
  * distributed pass, and merged into the maps in photon order. 0: go on; 1: a budget stopped
  * the pass (p->stop); PM_ENOMEM. */
 static int vol_round(vpass *p) {
-    const vol_pass_opts *o = p->c.o;
+    const vol_pass_opts *o = p->o;
     vbuf *bufs = p->bufs;
     uint64_t start = p->emitted, max_emitted = p->max_emitted;
     int nb = VOL_ROUND, rc = 0;
@@ -378,8 +232,8 @@ static int vol_round(vpass *p) {
      * round each batch's buffer at most its share of what the maps leave, so the stop is
      * the same for any thread count. */
     size_t held = (p->ms.cap + p->mv.cap) * VOL_RECORD_BYTES, room = SIZE_MAX;
-    for (int b = 0; b < nb; b++) held += bufs[b].cap * VOL_RECORD_BYTES;
-    if (o->max_memory_bytes > 0 && !p->c.counting) {
+    for (int b = 0; b < nb; b++) held += bufs[b].b.cap * VOL_RECORD_BYTES;
+    if (o->max_memory_bytes > 0 && !p->counting) {
         if (held > o->max_memory_bytes) {
             p->stop = "photon_mapping.max_memory_mb budget";
             snprintf(p->why, sizeof p->why, "%.2f MiB of photon buffers", (double)held / (1 << 20));
@@ -388,7 +242,7 @@ static int vol_round(vpass *p) {
         room = (o->max_memory_bytes - (p->ms.cap + p->mv.cap) * VOL_RECORD_BYTES) / VOL_ROUND / VOL_RECORD_BYTES;
     }
     const trace_dist *dist = p->dist;
-    const vctx *c = &p->c;
+    const pass_ctx *c = &p->c;
 #ifdef _OPENMP
 #pragma omp parallel for num_threads(p->nthreads) schedule(dynamic, 1)
 #endif
@@ -396,18 +250,22 @@ static int vol_round(vpass *p) {
         vbuf *bf = &bufs[b];
         /* A distributed pass (vol_set_dist): another process traces this batch. */
         if (dist && b % dist->nparts != dist->part) continue;
-        bf->n = 0;
-        bf->over = 0;
+        bf->b.n = 0;
+        bf->w.gb = bf->w.sb = &bf->b;
+        bf->w.vp = &bf->pilot;
+        bf->w.over = 0;
         bf->stop = UINT64_MAX;
         bf->cut = 0;
-        bf->max_n = room;
+        bf->w.max_n = room;
         memset(&bf->pilot, 0, sizeof bf->pilot);
         uint64_t lo = start + (uint64_t)b * VOL_BATCH, hi = lo + VOL_BATCH;
         if (hi > max_emitted) hi = max_emitted;
-        for (uint64_t i = lo; i < hi && !bf->over; i++) {
-            trace_photon(c, i, bf);
-            if (bf->over) { /* photon i is not whole: drop its records, end the batch here */
-                while (bf->n > 0 && bf->r[bf->n - 1].index == i) bf->n--;
+        for (uint64_t i = lo; i < hi && !bf->w.over && !bf->w.fail; i++) {
+            bf->w.first_specular = 0;
+            photon_walk(c, i, &bf->w);
+            if (bf->w.first_specular & 2) bf->cut++; /* the path-length budget cut it */
+            if (bf->w.over) { /* photon i is not whole: drop its records, end the batch here */
+                while (bf->b.n > 0 && bf->b.v[bf->b.n - 1].index == i) bf->b.n--;
                 bf->stop = i;
             }
         }
@@ -415,14 +273,14 @@ static int vol_round(vpass *p) {
     if (dist && vol_exchange(bufs, nb) < 0) return PM_ENOMEM;
     uint64_t end = start + (uint64_t)nb * VOL_BATCH;
     for (int b = 0; b < nb && rc == 0; b++) {
-        if (bufs[b].fail) rc = PM_ENOMEM;
+        if (bufs[b].w.fail) rc = PM_ENOMEM;
         if (o->pilot) pilot_add(o->pilot, &bufs[b].pilot);
         p->cut += bufs[b].cut;
-        for (size_t k = 0; k < bufs[b].n && rc == 0; k++) {
-            const pass_rec *v = &bufs[b].r[k];
+        for (size_t k = 0; k < bufs[b].b.n && rc == 0; k++) {
+            const pass_rec *v = &bufs[b].b.v[k];
             rc = vmap_take(v->medium < 0 ? &p->ms : &p->mv, v);
         }
-        if (bufs[b].over) { /* the photons before it are whole; none after it counts */
+        if (bufs[b].w.over) { /* the photons before it are whole; none after it counts */
             end = bufs[b].stop;
             p->stop = "photon_mapping.max_memory_mb budget";
             snprintf(p->why, sizeof p->why, "a batch of photons outgrew its share of the budget, "
@@ -445,7 +303,7 @@ static int vol_round(vpass *p) {
 /* The pass's end: its messages (BUDGETS in volume.h), PM_EEMPTY for a pass that stored
  * nothing, else rc. */
 static int vol_report(vpass *p, vol_pass_result *res, int rc) {
-    const vol_pass_opts *o = p->c.o;
+    const vol_pass_opts *o = p->o;
     const char *title_s = o->caustic_pass ? "Tracing caustic photons" : "Tracing global photons";
     const char *title_v = o->caustic_pass ? "Tracing volume-caustic photons" : "Tracing volume photons";
     res->emitted = p->emitted;
@@ -479,22 +337,32 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
         return PM_EINVAL;
     vpass *p = calloc(1, sizeof *p);
     if (!p) return PM_ENOMEM;
-    vctx *c = &p->c;
+    p->o = o;
+    p->to.seed = o->seed;
+    p->to.max_depth = o->max_depth;
+    p->to.max_bounces = o->max_bounces;
+    pass_ctx *c = &p->c;
     c->s = s;
-    c->o = o;
-    c->keep_surface = o->surface_target > 0 && !o->pilot;
+    c->o = &p->to;
+    c->media = 1;
+    c->caustic_pass = o->caustic_pass;
+    c->want_global = o->surface_target > 0 && !o->pilot;
     c->keep_volume = o->volume_target > 0 && !o->pilot;
-    c->counting = o->pilot != NULL;
+    c->lo = o->lo;
+    c->hi = o->hi;
+    c->choose = s->light_distrib;
+    p->counting = o->pilot != NULL;
     if (o->caustic_pass && o->projection_cells > 0) {
-        int rc0 = pass_aim_build(s, o->projection_cells, &c->aim);
-        if (rc0 < 0 || !c->aim.chosen) { /* no light faces a specular object: nothing to aim at */
-            pass_aim_free(&c->aim);
+        int rc0 = pass_aim_build(s, o->projection_cells, &p->aim);
+        if (rc0 < 0 || !p->aim.chosen) { /* no light faces a specular object: nothing to aim at */
+            pass_aim_free(&p->aim);
             free(p);
             return rc0 == PM_ENOMEM ? rc0 : 0; /* empty maps: nothing can reach a specular object */
         }
-        c->proj = c->aim.proj;
+        c->proj = p->aim.proj;
+        c->choose = p->aim.choose;
     }
-    vmap ms = {c->keep_surface, o->surface_target, NULL, 0, 0, c->keep_surface ? UINT64_MAX : 0};
+    vmap ms = {c->want_global, o->surface_target, NULL, 0, 0, c->want_global ? UINT64_MAX : 0};
     vmap mv = {c->keep_volume, o->volume_target, NULL, 0, 0, c->keep_volume ? UINT64_MAX : 0};
     p->ms = ms;
     p->mv = mv;
@@ -505,13 +373,13 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
     p->max_emitted = (uint64_t)o->max_emitted;
     p->dist = g_vdist && !o->pilot ? g_vdist : NULL;
     int rc = 0;
-    while (p->emitted < p->max_emitted && (c->counting || p->ms.cut == UINT64_MAX || p->mv.cut == UINT64_MAX)) {
+    while (p->emitted < p->max_emitted && (p->counting || p->ms.cut == UINT64_MAX || p->mv.cut == UINT64_MAX)) {
         rc = vol_round(p);
         if (rc != 0) break;
     }
     if (rc > 0) rc = 0;
-    for (int b = 0; b < VOL_ROUND; b++) free(p->bufs[b].r);
-    pass_aim_free(&c->aim);
+    for (int b = 0; b < VOL_ROUND; b++) free(p->bufs[b].b.v);
+    pass_aim_free(&p->aim);
     rc = vol_report(p, res, rc);
     if (rc == 0) rc = vmap_finish(&p->ms, p->emitted, &res->surface, NULL, &res->nsurface, &res->surface_emitted);
     if (rc == 0)

@@ -64,9 +64,11 @@
  * PILOT. With a vol_pilot the pass keeps nothing and counts what the photons do (the plan's
  * evidence, plan.h).
  *
- * CODE. volume.c has the walk through media and the round driver; the walk's state (bounces,
- * kinds, the refraction chain, the path-length cut) is photon_path.h's and the caustic pass's
- * aim, the exchange and the budgets' messages photon_pass.h's, shared with photon_trace.c.
+ * CODE. volume.c has the round driver; the walk of one photon is photon_walk.c's, shared with
+ * photon_trace.c (with the medium handling in it, and this tracer's rules of emission and
+ * bounces, above), on photon_path.h's state (bounces, kinds, the refraction chain, the
+ * path-length cut); the caustic pass's aim, the exchange and the budgets' messages are
+ * photon_pass.h's.
  *
  * Ownership: the caller frees the result's arrays (vol_pass_free, or free() on vol_photons).
  */
