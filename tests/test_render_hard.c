@@ -108,8 +108,8 @@ TEST(render_hard_shelf_glass_regions) {
      * default gave four, for about a quarter of the work; at 16 spp "under the shelf" (192
      * pixels lit by bounced light) read +6.9% from that noise, at 64 +1.8% (seed 1). */
     /* The 200,000 global photons are given: left to the plan, a 32x32 render's maps are fitted
-     * to its few camera samples (README.md, "Photons fitted to the render"), a quarter of the
-     * targets here, and under the shelf then read +9.9% (the estimate's radius doubles). */
+     * to its few camera samples (README.md, "Photons fitted to the render"); with a quarter of
+     * the targets under the shelf read +9.9% (the estimate's radius doubles). */
     check_regions("shelf_glass", 32, "--mode path --spp 1024", "--mode pm --spp 64 --pm global_photons=200000", r, 3);
 }
 

@@ -306,11 +306,13 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
  * count, for render-mpi's processes and after a resume. PM_FIT_SHARE was chosen by
  * measurement (README.md, "Photons fitted to the render"): on cornell_spheres at 96x96 the
  * error at equal CPU time was lowest with photons at about 1/5 of the time, and water_caustic,
- * whose caustic is all photons, lost little there. Not fitted: counts set by the scene or
+ * whose caustic is all photons, lost little there; the floor, 1/PM_FIT_FIRST, too: below half
+ * the targets the estimates' bias showed where photons are sparse (door_ajar +10..+17% at a
+ * quarter, +6..+8% at a half, +5..+6% at the targets). Not fitted: counts set by the scene or
  * --pm, loaded or saved maps (a saved set must match its targets when loaded), a partitioned
  * render-mpi (its sample pilot does not run), no sample pilot. */
 #define PM_FIT_SHARE 0.2
-#define PM_FIT_FIRST 4.0
+#define PM_FIT_FIRST 2.0
 #define PM_FIT_MAX 4.0
 
 static long *fit_count(mapper_state *st, int i) {
