@@ -552,6 +552,22 @@ PM__INLINE void prefetch_buckets(const view *v, uint64_t near) {
     }
 }
 
+/* Start loading the records two and three levels below internal node p while its own record
+ * is compared: the grandchildren (records 4p-1 .. 4p+2, contiguous) and the great-grandchildren
+ * (8p-1 .. 8p+6, 160 bytes: the first three of the lines they span), so the misses of the
+ * levels below overlap. (The grandchildren alone: 1-5% slower on the race's 1M cells, and
+ * a fourth level too gained nothing: docs/BENCHMARKS.md, experiments.csv.) */
+PM__INLINE void prefetch_below(const view *v, uint64_t p) {
+    const uint64_t L = v->L;
+    if (4 * p < L) __builtin_prefetch(v->rec + (4 * p - 1) * v->stride);
+    if (8 * p < L) {
+        const char *r = v->rec + (8 * p - 1) * v->stride;
+        __builtin_prefetch(r);
+        __builtin_prefetch(r + 64);
+        __builtin_prefetch(r + 128);
+    }
+}
+
 /* Depth first from `node0`, whose cell is [lo0, hi0] at dist2 cd0 from q. */
 PM__INLINE void knn_dfs(knn_state *io, const view *v, uint64_t node0, v4 lo0, v4 hi0, float cd0,
                         int metric, int filter, int ph, int cnt) {
@@ -575,9 +591,7 @@ PM__INLINE void knn_dfs(knn_state *io, const view *v, uint64_t node0, v4 lo0, v4
     if (cd >= s->r2) return; /* out of reach */
     for (;;) {
         while (node < L) {
-            /* Start loading the grandchildren (records 4p-1 .. 4p+2, contiguous) while this
-             * node's record is compared: one cache miss per level overlaps the next. */
-            if (4 * node < L) __builtin_prefetch(v->rec + (4 * node - 1) * v->stride);
+            prefetch_below(v, node);
             unsigned a = AXX(v, node, ph);
             if (cnt) s->nodes++;
             if (a == PM__AXIS_UNIFORM) {
@@ -657,7 +671,7 @@ PM__INLINE void knn_iter(knn_state *s, const view *v, int metric, int filter, in
             knn_bucket(s, v, node, metric, filter, ph, cnt);                             \
             return;                                                                      \
         }                                                                                \
-        if (4 * node < v->L) __builtin_prefetch(v->rec + (4 * node - 1) * v->stride);    \
+        prefetch_below(v, node);                                                         \
         unsigned a = AXX(v, node, ph);                                                   \
         if (a == PM__AXIS_UNIFORM) {                                                     \
             if (single_record(v, node))                                                  \
