@@ -544,10 +544,11 @@ PM__INLINE int single_record(const view *v, uint64_t node) {
 PM__INLINE void prefetch_buckets(const view *v, uint64_t near) {
     const uint64_t L = v->L;
     if (near >= (L >> 2) && near < (L >> 1)) {
+        const int two = v->t->leaf_q * v->stride > 64; /* r + 64 stays inside every bucket */
         for (uint64_t j = 4 * near - L; j < 4 * near - L + 4; j++) {
             const char *r = v->rec + (v->t->ninternal + pm__cum(v->t, j)) * v->stride;
             __builtin_prefetch(r);
-            __builtin_prefetch(r + 64);
+            if (two) __builtin_prefetch(r + 64);
         }
     } else if (near >= (L >> 1) && near < L) {
         uint64_t b = v->t->ninternal + pm__cum(v->t, 2 * near - L);
