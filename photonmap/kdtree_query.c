@@ -537,10 +537,20 @@ PM__INLINE int single_record(const view *v, uint64_t node) {
 
 /* When near's children are buckets (the two are adjacent in memory), start loading them:
  * the bucket scan is where a query waits for memory most. At most PM__PREFETCH_MAX bytes (1280:
- * both whole buckets up to B = 32; measured in docs/BENCHMARKS.md, "What did not pay off"). */
+ * both whole buckets up to B = 32; measured in docs/BENCHMARKS.md, "What did not pay off").
+ * One level earlier, when near's grandchildren are the buckets, the first two lines of each
+ * of the four (the hardware prefetcher follows a stream once it has started): 1.02-1.07x on
+ * the race's 1M cells, more lines per bucket gained nothing (experiments.csv). */
 PM__INLINE void prefetch_buckets(const view *v, uint64_t near) {
     const uint64_t L = v->L;
-    if (near >= (L >> 1) && near < L) {
+    if (near >= (L >> 2) && near < (L >> 1)) {
+        const int two = v->t->leaf_q * v->stride > 64; /* r + 64 stays inside every bucket */
+        for (uint64_t j = 4 * near - L; j < 4 * near - L + 4; j++) {
+            const char *r = v->rec + (v->t->ninternal + pm__cum(v->t, j)) * v->stride;
+            __builtin_prefetch(r);
+            if (two) __builtin_prefetch(r + 64);
+        }
+    } else if (near >= (L >> 1) && near < L) {
         uint64_t b = v->t->ninternal + pm__cum(v->t, 2 * near - L);
         const char *r = v->rec + b * v->stride;
         uint64_t bytes = (uint64_t)v->t->bucket * v->stride * 2;
@@ -549,6 +559,22 @@ PM__INLINE void prefetch_buckets(const view *v, uint64_t near) {
 #endif
         if (bytes > PM__PREFETCH_MAX) bytes = PM__PREFETCH_MAX;
         for (uint64_t o = 0; o < bytes; o += 64) __builtin_prefetch(r + o);
+    }
+}
+
+/* Start loading the records two and three levels below internal node p while its own record
+ * is compared: the grandchildren (records 4p-1 .. 4p+2, contiguous) and the great-grandchildren
+ * (8p-1 .. 8p+6, 160 bytes: the first three of the lines they span), so the misses of the
+ * levels below overlap. (The grandchildren alone: 1-5% slower on the race's 1M cells, and
+ * a fourth level too gained nothing: docs/BENCHMARKS.md, experiments.csv.) */
+PM__INLINE void prefetch_below(const view *v, uint64_t p) {
+    const uint64_t L = v->L;
+    if (4 * p < L) __builtin_prefetch(v->rec + (4 * p - 1) * v->stride);
+    if (8 * p < L) {
+        const char *r = v->rec + (8 * p - 1) * v->stride;
+        __builtin_prefetch(r);
+        __builtin_prefetch(r + 64);
+        __builtin_prefetch(r + 128);
     }
 }
 
@@ -575,9 +601,7 @@ PM__INLINE void knn_dfs(knn_state *io, const view *v, uint64_t node0, v4 lo0, v4
     if (cd >= s->r2) return; /* out of reach */
     for (;;) {
         while (node < L) {
-            /* Start loading the grandchildren (records 4p-1 .. 4p+2, contiguous) while this
-             * node's record is compared: one cache miss per level overlaps the next. */
-            if (4 * node < L) __builtin_prefetch(v->rec + (4 * node - 1) * v->stride);
+            prefetch_below(v, node);
             unsigned a = AXX(v, node, ph);
             if (cnt) s->nodes++;
             if (a == PM__AXIS_UNIFORM) {
@@ -657,7 +681,7 @@ PM__INLINE void knn_iter(knn_state *s, const view *v, int metric, int filter, in
             knn_bucket(s, v, node, metric, filter, ph, cnt);                             \
             return;                                                                      \
         }                                                                                \
-        if (4 * node < v->L) __builtin_prefetch(v->rec + (4 * node - 1) * v->stride);    \
+        prefetch_below(v, node);                                                         \
         unsigned a = AXX(v, node, ph);                                                   \
         if (a == PM__AXIS_UNIFORM) {                                                     \
             if (single_record(v, node))                                                  \

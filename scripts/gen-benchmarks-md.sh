@@ -97,6 +97,20 @@ EOF
 if [ -f "$KM" ]; then
   echo "Measured by \`bench_knn\` at commit $(kval commit) on $(kval date) (load average before / after: $(kval load_before) / $(kval load_after)$( [ -n "$(kval load_during)" ] && echo "; during the race, the 1-minute load average sampled every 15 s: $(kval load_during)"); $(kval bench_seconds) s for the race and its maps, including the renders). Times are the CPU time of the thread running the queries or the build, so that time slices the shared machine gave to other jobs do not count."
   echo
+  # The sources this section measured (tests/test_docs.c, docs_measured_sections_are_not_stale:
+  # stale once a later commit touches one). render/ only dumps the maps, inputs of two
+  # workloads, and is not declared. A stamp that is not a bare commit (uncommitted changes,
+  # PM_BENCH_COMMIT's text) cannot be checked against git: no line then, and the test asks
+  # for a clean re-run.
+  kc=$(kval commit)
+  if printf '%s\n' "$kc" | grep -Eq '^[0-9a-f]{7,40}$'; then
+    echo "Measured sources (stamp $kc): \`photonmap/\` \`bench/bench_knn.c\` \`bench/bench.h\` \`bench/util.c\` \`bench/octree.c\` \`bench/octree.h\` \`bench/nanoflann_peer.cpp\` \`bench/nanoflann_peer.h\` \`Makefile\`"
+    echo
+    echo "(render/ only dumps the two maps, inputs of the \`map:\` workloads, and is not declared.)"
+  else
+    echo "Measured sources: not stamped (the race's commit is '$kc', not a bare commit): re-run the race from a clean checkout"
+  fi
+  echo
 fi
 cat <<'EOF'
 | N (nominal) | k | mode | cells | ours / nanoflann best: min (where) | median | max | ours / FLANN best: min (where) | median | ours PM_SORT / FLANN best: min |
