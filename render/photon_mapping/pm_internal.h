@@ -70,7 +70,7 @@ typedef struct mapper_state {
      * settings' counts, stage A running (1), the scale of the targets pass 0 traced, why. */
     long fit_target[4];
     int fit_stage, in_passes;
-    double fit_scale, k_scale0; /* k_scale0: pass 0's maps' scale in a render in passes, else 1 */
+    double fit_scale;
     char fit_reason[400];
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
         st_global_est, st_lookup_miss, st_side_rays, st_side_again;

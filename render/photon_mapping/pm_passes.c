@@ -177,7 +177,7 @@ static void pass_targets(mapper_state *st, int pass) {
     int *k[2] = {&st->cfg.k_global, &st->cfg.k_caustic};
     for (int i = 0; i < 2; i++) {
         if (!st->k0[i]) st->k0[i] = *k[i];
-        *k[i] = k_of(st, i, st->k_scale0 * (pass ? st->pass_fraction : 1));
+        *k[i] = k_of(st, i, pass ? st->pass_fraction : 1);
     }
     long *dst[4] = {&st->cfg.global_photons, &st->cfg.caustic_photons, &st->cfg.volume_photons,
                     &st->cfg.volume_caustic_photons};
@@ -296,8 +296,7 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
  *   stage A: 1/PM_FIT_FIRST of the targets, its trees and readers, then the sample pilot
  *            (pm__decide_sample), which gives the counted work of a camera sample;
  *   the fit:  s = PM_FIT_SHARE x W_r / W_p(targets), within [1/PM_FIT_FIRST, PM_FIT_MAX],
- *            W_r the camera samples' counted work (of the whole render, or of pass 0 when the
- *            render is in passes), W_p(targets) = stage A's counted photon work (photon_work)
+ *            W_r the render's camera samples' counted work, W_p(targets) = stage A's counted photon work (photon_work)
  *            x PM_FIT_FIRST;
  *   stage B: when s is above 1.25 / PM_FIT_FIRST, the maps are traced again at s x the targets
  *            (same seed) and stage A's are dropped; else stage A's maps are pass 0's.
@@ -309,7 +308,8 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
  * whose caustic is all photons, lost little there; the floor, 1/PM_FIT_FIRST, too: below half
  * the targets the estimates' bias showed where photons are sparse (door_ajar +10..+17% at a
  * quarter, +6..+8% at a half, +5..+6% at the targets). Not fitted: counts set by the scene or
- * --pm, loaded or saved maps (a saved set must match its targets when loaded), a partitioned
+ * --pm, a render in passes (measured worse: README.md), loaded or saved maps (a saved set must
+ * match its targets when loaded), a partitioned
  * render-mpi (its sample pilot does not run), no sample pilot. */
 #define PM_FIT_SHARE 0.2
 #define PM_FIT_FIRST 2.0
@@ -333,19 +333,10 @@ static void fit_scale(mapper_state *st, double f) {
 
 /* Before pass 0's first trace: stage A's targets, when the fit applies (st->fit_stage 1), or
  * the reason it does not (st->fit_reason). */
-/* A render in passes: pass 0's estimates, like a later pass's (pass_targets), read k f
- * photons of maps f times the targets, so its radii are those of the targets. */
-static void fit_k(mapper_state *st, double f) {
-    st->k_scale0 = st->in_passes ? f : 1;
-    st->cfg.k_global = k_of(st, 0, st->k_scale0);
-    st->cfg.k_caustic = k_of(st, 1, st->k_scale0);
-}
-
 void pm__fit_begin(mapper_state *st, const scene *s) {
     for (int i = 0; i < 4; i++) st->fit_target[i] = *fit_count(st, i);
     st->k0[0] = st->cfg.k_global;
     st->k0[1] = st->cfg.k_caustic;
-    st->k_scale0 = 1;
     st->fit_scale = 1;
     const char *why = NULL;
     for (int i = 0; i < 4 && !why; i++)
@@ -355,13 +346,16 @@ void pm__fit_begin(mapper_state *st, const scene *s) {
     else if (st->cfg.load_dir[0] || st->cfg.save_dir[0])
         snprintf(st->fit_reason, sizeof st->fit_reason, "the targets (%s photon maps keep them)",
                  st->cfg.load_dir[0] ? "loaded" : "saved");
+    else if (st->in_passes)
+        snprintf(st->fit_reason, sizeof st->fit_reason,
+                 "the targets (a render in passes: its later passes trace their own share, and pass 0 "
+                 "at half the targets read cornell_spheres's 4- and 16-pass means worse, README.md)");
     else if (pm__lookup)
         snprintf(st->fit_reason, sizeof st->fit_reason,
                  "the targets (partitioned render-mpi: no sample pilot to weigh them by)");
     else {
         st->fit_stage = 1;
         fit_scale(st, 1 / PM_FIT_FIRST);
-        fit_k(st, 1 / PM_FIT_FIRST);
     }
 }
 
@@ -381,7 +375,6 @@ int pm__fit_end(mapper_state *st, const scene *s) {
         snprintf(st->fit_reason, sizeof st->fit_reason, "the targets (no counted work to weigh: %s)",
                  wr > 0 ? "no photons" : "no sample pilot");
         fit_scale(st, 1);
-        fit_k(st, 1);
         pm__drop_maps(st);
         return 1;
     }
@@ -390,21 +383,16 @@ int pm__fit_end(mapper_state *st, const scene *s) {
     st->fit_scale = again ? fs : lo;
     if (again) {
         fit_scale(st, fs);
-        fit_k(st, fs);
     }
     char vol[96] = "";
     if (st->vol.on)
         snprintf(vol, sizeof vol, ", volume %ld, volume caustic %ld", st->fit_target[2], st->fit_target[3]);
-    int n = snprintf(st->fit_reason, sizeof st->fit_reason,
+    snprintf(st->fit_reason, sizeof st->fit_reason,
              "%.3g x the targets (global %ld, caustic %ld%s): counted work of the targets' photons "
              "%.3g, of %d x %d x %d camera samples %.3g; photons at %.2g of that, within [%.3g, %.3g]; %s",
              st->fit_scale, st->fit_target[0], st->fit_target[1], vol, wp, s->cam.width,
              s->cam.height, s->cam.spp, wr, PM_FIT_SHARE, lo, PM_FIT_MAX,
              again ? "traced again" : "the first stage's maps kept");
-    if (st->in_passes && n > 0 && (size_t)n < sizeof st->fit_reason)
-        snprintf(st->fit_reason + n, sizeof st->fit_reason - (size_t)n,
-                 "; in passes: estimates of %d global and %d caustic photons (the targets' radii)",
-                 st->cfg.k_global, st->cfg.k_caustic);
     if (!again) return 0;
     pm__drop_maps(st);
     return 1;
