@@ -152,7 +152,7 @@ static int infinite(scene *s, light *l, const cJSON *o, const char *P, json_err 
         free(px);
         return json_fail(e, PM_ENOMEM, "out of memory");
     }
-    int rc = envmap_init(s->env_map, w, h, px, F);
+    int rc = envmap_init(s->env_map, w, h, px, (const double (*)[3])F);
     if (rc < 0) {
         free(s->env_map);
         s->env_map = NULL;
