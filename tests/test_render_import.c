@@ -1482,3 +1482,44 @@ TEST(tungsten_quads_bound_a_medium) {
         }
     }
 }
+
+/* Oracle: Tungsten's Point (src/core/primitives/Point.cpp, read as a description): its
+ * emission is a radiant intensity (it sends emission / r^2 to a point at distance r), power
+ * becomes emission by 1 / (4 pi), and it sits at its transform's translation. Converted: our
+ * point lights with that intensity and position, and no object; an unknown key is named. */
+TEST(tungsten_point_light_converts) {
+    const char *t =
+        "{\"bsdfs\": [{\"name\": \"w\", \"type\": \"lambert\", \"albedo\": 0.5}],\n"
+        " \"primitives\": [{\"type\": \"quad\", \"bsdf\": \"w\", \"transform\": {\"scale\": 4}},\n"
+        "  {\"type\": \"point\", \"power\": [12.566370614359172, 25.132741228718345, 0], \"transform\": {\"position\": [1, 2, 3]}},\n"
+        "  {\"type\": \"point\", \"emission\": 5, \"transform\": {\"position\": [0, 1, 0], \"scale\": 7}}],\n"
+        " \"camera\": {\"type\": \"pinhole\", \"fov\": 40, \"resolution\": 8,\n"
+        "   \"transform\": {\"position\": [0, 3, 6], \"look_at\": [0, 0, 0], \"up\": [0, 1, 0]}}}";
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, t, &e) == 0, "%s", e.msg);
+    EXPECT_EQ_INT(s.ntris, 2);
+    ASSERT_EQ_INT(s.nlights, 2); /* the two points (the quad emits nothing) */
+    int k = 0;
+    for (int i = 0; i < s.nlights; i++) {
+        if (s.lights[i].type != LIGHT_POINT) continue;
+        const light *l = &s.lights[i];
+        if (k == 0) {
+            EXPECT_NEAR(l->pos.x, 1, 1e-12);
+            EXPECT_NEAR(l->pos.z, 3, 1e-12);
+            EXPECT_NEAR(l->intensity.x, 1, 1e-12);
+            EXPECT_NEAR(l->intensity.y, 2, 1e-12);
+            EXPECT_NEAR(l->intensity.z, 0, 0);
+        } else {
+            EXPECT_NEAR(l->pos.y, 1, 1e-12);
+            EXPECT_NEAR(l->intensity.z, 5, 1e-12);
+        }
+        k++;
+    }
+    EXPECT_EQ_INT(k, 2);
+    scene_free(&s);
+    const char *bad = "{\"bsdfs\": [], \"primitives\": [{\"type\": \"point\", \"power\": 1, \"bsdf\": \"w\"}],\n"
+                      " \"camera\": {\"type\": \"pinhole\", \"fov\": 40, \"resolution\": 8,"
+                      " \"transform\": {\"position\": [0, 3, 6], \"look_at\": [0, 0, 0], \"up\": [0, 1, 0]}}}";
+    EXPECT(scene_load_text(&s, bad, &e) < 0 && strstr(e.msg, "$.primitives[0].bsdf: not supported"));
+}

@@ -208,8 +208,9 @@ static int shape_plymesh(conv *c, const tok *at, plist *pl, const char *mat) {
 }
 
 static int shape_sphere(conv *c, const tok *at, plist *pl, const char *mat) {
-    double r = 1, zmin = -1, zmax = 1, phimax = 360;
+    double r = 1, phimax = 360;
     TRY(pb_get_floats(c, at, pl, "radius", "float", 1, &r));
+    double zmin = -r, zmax = r; /* pbrt-v3's defaults: the whole sphere of that radius */
     int a = pb_get_floats(c, at, pl, "zmin", "float", 1, &zmin), b = pb_get_floats(c, at, pl, "zmax", "float", 1, &zmax),
         d = pb_get_floats(c, at, pl, "phimax", "float", 1, &phimax);
     if (a < 0 || b < 0 || d < 0) return PM_EINVAL;

@@ -325,11 +325,15 @@ static int mesh_obj(conv *c, const cJSON *p, const char *P, double M[3][4], cons
     return 0;
 }
 
-/* An infinite_sphere of constant emission (radiance) or power (radiance = power / (4 pi), as
- * Tungsten's): our infinite light; its transform turns a constant nothing. */
-static int infinite_sphere(conv *c, const cJSON *p, const char *P, json_err *e) {
+/* An infinite_sphere or a point: a light of ours, no object. Both take emission or power,
+ * and both turn power into emission by 1 / (4 pi) as Tungsten does: an infinite_sphere's
+ * emission is a radiance (our infinite light; its transform turns a constant nothing), a
+ * point's a radiant intensity (W/sr: our point light's intensity, at the transform's
+ * translation). */
+static int light_primitive(conv *c, const cJSON *p, const char *P, int point, json_err *e) {
     static const char *const ok[] = {"name", "type", "transform", "emission", "power", "sample", NULL};
-    TRY(tg_check_keys(c->file, p, P, ok, NULL, "a key of an infinite_sphere outside the supported subset", e));
+    TRY(tg_check_keys(c->file, p, P, ok, NULL,
+                      point ? "a key of a point outside the supported subset" : "a key of an infinite_sphere outside the supported subset", e));
     rgb Le = v3s(0), power = v3s(0);
     if (json_get(p, "emission") && json_get(p, "power")) return json_fail(e, PM_EINVAL, "%s: give emission or power, not both", P);
     TRY(tg_color(p, P, "emission", &Le, e));
@@ -337,14 +341,21 @@ static int infinite_sphere(conv *c, const cJSON *p, const char *P, json_err *e) 
     if (json_get(p, "power")) Le = v3_scale(power, 1 / (4 * M_PI));
     if (Le.x < 0 || Le.y < 0 || Le.z < 0)
         return json_fail(e, PM_EINVAL, "%s.%s: must not be negative", P, json_get(p, "power") ? "power" : "emission");
+    double M[3][4];
+    if (point) {
+        char tp[P_MAX];
+        json_path_key(tp, sizeof tp, P, "transform");
+        TRY(tungsten_transform(json_get(p, "transform"), tp, M, e));
+    }
     cJSON *ls = cJSON_GetObjectItemCaseSensitive(c->out, "lights"), *l = cJSON_CreateObject();
     if (!ls && (ls = cJSON_CreateArray()) != NULL) cJSON_AddItemToObject(c->out, "lights", ls);
     if (!ls || !l) {
         cJSON_Delete(l);
         return json_fail(e, PM_ENOMEM, "out of memory");
     }
-    cJSON_AddStringToObject(l, "type", "infinite");
-    cJSON_AddItemToObject(l, "radiance", tg_jvec(Le));
+    cJSON_AddStringToObject(l, "type", point ? "point" : "infinite");
+    if (point) cJSON_AddItemToObject(l, "position", tg_jvec(xf_point(M, v3s(0))));
+    cJSON_AddItemToObject(l, point ? "intensity" : "radiance", tg_jvec(Le));
     cJSON_AddItemToArray(ls, l);
     return 0;
 }
@@ -353,14 +364,15 @@ static int convert_primitive(conv *c, const cJSON *p, const char *P, int index, 
     if (!cJSON_IsObject(p)) return json_fail(e, PM_EINVAL, "%s: expected an object, got %s", P, json_type_name(p));
     const char *type;
     TRY(json_string(p, P, "type", 1, &type, e));
-    if (strcmp(type, "infinite_sphere") == 0) return infinite_sphere(c, p, P, e);
+    if (strcmp(type, "infinite_sphere") == 0 || strcmp(type, "point") == 0)
+        return light_primitive(c, p, P, strcmp(type, "point") == 0, e);
     static const char *const common[] = {"name", "type", "transform", "bsdf", "emission", "power",
                                          "file", "smooth", "recompute_normals", "backface_culling",
                                          "int_medium", "ext_medium", NULL};
     if (json_get(p, "bump")) return json_fail(e, PM_EINVAL, "%s.bump: bump maps are not supported", P);
     int is_mesh = strcmp(type, "mesh") == 0;
     if (!is_mesh && strcmp(type, "quad") != 0 && strcmp(type, "cube") != 0 && strcmp(type, "sphere") != 0)
-        return json_fail(e, PM_EINVAL, "%s.type: primitive type \"%s\" is not supported (quad, cube, sphere, mesh, infinite_sphere)",
+        return json_fail(e, PM_EINVAL, "%s.type: primitive type \"%s\" is not supported (quad, cube, sphere, mesh, infinite_sphere, point)",
                          P, type);
     TRY(tg_check_keys(NULL, p, P, common, NULL, "a primitive key outside the supported subset", e));
     if (!is_mesh)

@@ -33,6 +33,47 @@
 /* A segment marched in n steps gets ceil(n / PMV_EQUIANGULAR_DIV) equiangular light samples. */
 #define PMV_EQUIANGULAR_DIV 2
 
+/* The index of refraction around each medium (RADIANCE INSIDE GLASS in pm_volume.h), from the
+ * interfaces: the back side of a refractive object has its ior, its front side and the space
+ * between objects (the global medium) the index medium_ior. A medium that meets one index
+ * gets its scale once; one that meets two (a gas both around a glass and inside it), or any
+ * medium when a refractive object keeps the ray's medium (it could be in any), gets -1: each
+ * eye segment then asks scene_index_ahead where it is (pmv_segment_scale). */
+static int pmv_index_scales(pmv_state *v, const scene *s) {
+    int nm = s->nmedia > 0 ? s->nmedia : 1;
+    v->n2_scale = malloc((size_t)nm * sizeof *v->n2_scale);
+    double *idx = malloc((size_t)nm * sizeof *idx);
+    if (!v->n2_scale || !idx) {
+        free(idx);
+        return PM_ENOMEM;
+    }
+    for (int m = 0; m < s->nmedia; m++) idx[m] = 0; /* 0: no index met yet; -1: two met */
+    int keep = 0;
+    for (int prim = 0; prim < s->ntris + s->nspheres; prim++) {
+        int obj = scene_prim_object(s, prim);
+        const material *mt = &s->mats[prim < s->ntris ? s->tris[prim].mat : s->spheres[prim - s->ntris].mat];
+        if (obj < 0 || obj >= s->nobj || mt->kind == MAT_NULL || !(mt->transparency > 0) || !(mt->ior > 0)) continue;
+        for (int front = 0; front < 2; front++) {
+            int m = scene_object_side_medium(s, obj, front);
+            double n = front ? s->medium_ior : mt->ior;
+            if (m == -2) keep = 1;
+            else if (m >= 0 && idx[m] != n) idx[m] = idx[m] == 0 ? n : -1;
+        }
+    }
+    int g = s->global_medium;
+    if (g >= 0 && idx[g] != s->medium_ior) idx[g] = idx[g] == 0 ? s->medium_ior : -1;
+    for (int m = 0; m < s->nmedia; m++)
+        v->n2_scale[m] = keep || idx[m] < 0 ? -1 : idx[m] > 0 ? material_radiance_scale(s->medium_ior, idx[m]) : 1;
+    free(idx);
+    return 0;
+}
+
+/* The scale of the volume estimates along eye segment r in medium med (pmv_index_scales). */
+static double pmv_segment_scale(const pmv_state *v, const scene *s, int med, ray r) {
+    double k = v->n2_scale[med];
+    return k >= 0 ? k : material_radiance_scale(s->medium_ior, scene_index_ahead(s, r));
+}
+
 int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
     memset(v, 0, sizeof *v);
     v->on = scene_has_media(s);
@@ -56,18 +97,6 @@ int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
         if (st > 0) auto_step = fmin(auto_step, 0.25 / st);
         v->step[m] = c->volume_step > 0 ? c->volume_step : auto_step;
     }
-    /* The index of refraction around each medium (RADIANCE INSIDE GLASS in pm_volume.h): that of
-     * a refractive object whose inside it fills, else the index between objects. */
-    v->n2_scale = malloc((size_t)(s->nmedia > 0 ? s->nmedia : 1) * sizeof *v->n2_scale);
-    if (!v->n2_scale) return PM_ENOMEM;
-    for (int m = 0; m < s->nmedia; m++) v->n2_scale[m] = 1;
-    for (int prim = 0; prim < s->ntris + s->nspheres && s->obj_medium; prim++) {
-        int obj = scene_prim_object(s, prim);
-        if (obj < 0 || obj >= s->nobj || s->obj_medium[obj] < 0) continue;
-        const material *mt = &s->mats[prim < s->ntris ? s->tris[prim].mat : s->spheres[prim - s->ntris].mat];
-        if (mt->kind == MAT_NULL || !(mt->transparency > 0) || !(mt->ior > 0)) continue;
-        v->n2_scale[s->obj_medium[obj]] = material_radiance_scale(s->medium_ior, mt->ior);
-    }
     v->k_ms = (unsigned)c->k_volume;
     v->k_caus = (unsigned)c->k_volume_caustic;
     v->boundary = c->volume_boundary;
@@ -75,7 +104,7 @@ int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
     v->st_ms = stats_register("Photon mapping/Volume estimates (multiple scattering)");
     v->st_caus = stats_register("Photon mapping/Volume caustic estimates");
     v->st_gather = stats_register("Photon mapping/Volume estimates of gather rays");
-    return 0;
+    return pmv_index_scales(v, s);
 }
 
 static void maps_free(pmv_map *m, int n) {
@@ -406,11 +435,12 @@ static rgb volume_estimate(const pmv_state *v, const pm_kdtree *t, unsigned k, f
     return v3_scale(e, 1 / pmv_ball_fraction(s, x, sqrt(res.r2)));
 }
 
-/* The same in the renderer's radiance (RADIANCE INSIDE GLASS in pm_volume.h). */
+/* The same in the renderer's radiance (RADIANCE INSIDE GLASS in pm_volume.h): times n2, the
+ * segment's pmv_segment_scale. */
 static rgb volume_estimate_in(const pmv_state *v, const pm_kdtree *t, unsigned k, float r2, const scene *s,
-                              int med, vec3 x, vec3 d, void *scratch) {
+                              int med, vec3 x, vec3 d, void *scratch, double n2) {
     rgb e = volume_estimate(v, t, k, r2, s, med, x, d, scratch);
-    return v->n2_scale[med] == 1 ? e : v3_scale(e, v->n2_scale[med]);
+    return n2 == 1 ? e : v3_scale(e, n2);
 }
 
 /* Where r leaves the bounds (0 if it misses them). */
@@ -459,18 +489,18 @@ rgb pmv_march(const pmv_state *v, const scene *s, ray r, double tmax, int med, i
     double dt = T / n, u = rng_uniform(g);
     rgb L = v3s(0);
     direct_segment seg = {r, T, med, pmv_equiangular_samples(n)};
-    double dens = n / T;
+    double dens = n / T, n2 = ms->t || caus->t ? pmv_segment_scale(v, s, med, r) : 1;
     if (seg.m > 0) L = direct_light_equiangular(s, &seg, const_density, &dens, g);
     for (int i = 0; i < n; i++) {
         double t = (i + u) * dt;
         vec3 x = ray_at(r, t);
         rgb src = v3_mul(md->sigma_s, direct_light_medium_mis(s, &seg, t, dens, g));
         if (ms->t) {
-            src = v3_add(src, volume_estimate_in(v, ms->t, ms->k, ms->r2, s, med, x, r.d, scratch));
+            src = v3_add(src, volume_estimate_in(v, ms->t, ms->k, ms->r2, s, med, x, r.d, scratch, n2));
             stat_inc(v->st_ms);
         }
         if (caus->t) {
-            src = v3_add(src, volume_estimate_in(v, caus->t, caus->k, caus->r2, s, med, x, r.d, scratch));
+            src = v3_add(src, volume_estimate_in(v, caus->t, caus->k, caus->r2, s, med, x, r.d, scratch, n2));
             stat_inc(v->st_caus);
         }
         L = v3_add(L, v3_scale(v3_mul(medium_tr(md, t), src), dt));
@@ -500,6 +530,6 @@ rgb pmv_gather(const pmv_state *v, const scene *s, ray r, double tmax, int med, 
     }
     vec3 x = ray_at(r, t);
     stat_inc(v->st_gather);
-    rgb src = volume_estimate_in(v, all->t, all->k, all->r2, s, med, x, r.d, scratch);
+    rgb src = volume_estimate_in(v, all->t, all->k, all->r2, s, med, x, r.d, scratch, pmv_segment_scale(v, s, med, r));
     return v3_scale(v3_mul(medium_tr(md, t), src), 1 / pdf);
 }

@@ -86,7 +86,11 @@
  * surface photons get the same factor when they are stored (photon_walk.c keeps
  * the index around the light and the index the photon is in), so the caustic and global maps,
  * precomputed irradiance and final gather read the renderer's radiance at a diffuse surface
- * inside glass or under water too.
+ * inside glass or under water too. Which n: pm_volume.c's pmv_index_scales reads it off the
+ * interfaces (a refractive object's back side has its ior, its front side and the space
+ * between objects n_0); a medium found on both sides of a refractive surface (a gas around a
+ * glass and inside it), or any medium when a refractive object keeps the ray's medium, is
+ * scaled per eye segment by the index scene_index_ahead (medium.h) finds there.
  *
  * STEP, k AND RADII, chosen from the densities:
  *   step   settings volume_step, else per medium min(1 / (4 max sigma_t), D / 64), D the
@@ -148,7 +152,7 @@ typedef struct pmv_state {
     unsigned k_ms, k_caus;
     int boundary;                /* settings volume_boundary: BOUNDARIES below */
     double *step;                /* per medium */
-    double *n2_scale;            /* per medium: (n_lights / n_medium)^2, see RADIANCE below */
+    double *n2_scale;            /* per medium: (n_lights / n_medium)^2, -1: per segment (RADIANCE below) */
     vec3 lo, hi;                 /* the scene's bounds, lights included */
     int st_steps, st_ms, st_caus, st_gather;
 } pmv_state;

@@ -117,17 +117,7 @@ int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2,
         ls->L = v3_scale(l->Le, cos_l * area / dist2);
         return 1;
     }
-    case LIGHT_POINT: {
-        vec3 d = v3_sub(l->pos, p);
-        double dist2 = v3_len2(d);
-        if (!(dist2 > 0)) return 0;
-        ls->dist = sqrt(dist2);
-        ls->wi = v3_scale(d, 1.0 / ls->dist);
-        ls->p = l->pos;
-        ls->n = v3s(0);
-        ls->L = v3_scale(l->intensity, 1.0 / dist2);
-        return 1;
-    }
+    case LIGHT_POINT:
     case LIGHT_SPOT: {
         vec3 d = v3_sub(l->pos, p);
         double dist2 = v3_len2(d);
@@ -136,7 +126,8 @@ int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2,
         ls->wi = v3_scale(d, 1.0 / ls->dist);
         ls->p = l->pos;
         ls->n = v3s(0);
-        double f = light_spot_falloff(l, v3_neg(ls->wi));
+        /* a point light is a spot of falloff 1 everywhere (I / dist^2, as before spots) */
+        double f = l->type == LIGHT_SPOT ? light_spot_falloff(l, v3_neg(ls->wi)) : 1.0;
         ls->L = v3_scale(l->intensity, f / dist2);
         return f > 0;
     }

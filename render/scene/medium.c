@@ -135,6 +135,17 @@ int scene_medium_ahead(const scene *s, ray r) {
     return s->global_medium;
 }
 
+double scene_index_ahead(const scene *s, ray r) {
+    hit h;
+    for (int n = 0; n < MEDIUM_MAX_CROSSINGS && scene_intersect(s, r, INFINITY, &h); n++) {
+        const material *m = &s->mats[h.mat];
+        if (m->kind != MAT_NULL && m->transparency > 0 && m->ior > 0)
+            return v3_dot(r.d, h.ng) > 0 ? m->ior : s->medium_ior;
+        r.o = scene_offset(s, h.p, h.ng, r.d);
+    }
+    return s->medium_ior;
+}
+
 int scene_light_medium(const scene *s, int li, vec3 p, vec3 nl, vec3 d, int first_hit) {
     const light *l = &s->lights[li];
     int prim = l->type == LIGHT_AREA ? l->tri : l->type == LIGHT_SPHERE ? s->ntris + l->sphere : -1;

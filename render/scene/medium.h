@@ -100,6 +100,12 @@ int scene_object_side_medium(const struct scene *s, int obj, int front);
 /* The medium at r.o as the surfaces ahead say: the side facing r.o of the first surface along r
  * with an interface (surfaces that keep the medium are passed); the global medium if none. */
 int scene_medium_ahead(const struct scene *s, ray r);
+/* The index of refraction at r.o as the dielectrics ahead say (RADIANCE INSIDE GLASS in
+ * photon_mapping/pm_volume.h): the first surface along r whose material refracts (transparency
+ * > 0, not null) gives its ior when r leaves through its back side, else medium_ior (the index
+ * between objects); medium_ior when r meets none. Opaque and null surfaces are passed: they
+ * bound no region of another index. */
+double scene_index_ahead(const struct scene *s, ray r);
 /* The medium a photon of light li leaves in from point p (normal nl, zero for a point) along
  * d: the emitting object's side if it declares an interface, else first_hit (the medium of
  * the first surface's side facing the photon, -2 when that surface keeps the medium), else
