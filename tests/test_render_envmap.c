@@ -21,6 +21,9 @@
 
 #include "test.h"
 #include "../render/base/rng.h"
+#include "../render/base/sampling.h"
+#include "../render/image/exr.h"
+#include "../render/image/film.h"
 #include "../render/integrators/integrator.h"
 #include "../render/load/pbrt.h"
 #include "../render/scene/envmap.h"
@@ -293,5 +296,76 @@ TEST(envmap_pbrt_mapname_converts) {
     EXPECT_NEAR(cJSON_GetArrayItem(fr, 7)->valuedouble, 1, 1e-12);
     EXPECT_NEAR(cJSON_GetArrayItem(fr, 8)->valuedouble, 0, 1e-12);
     EXPECT_NEAR(cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(l, "radiance"), 0)->valuedouble, 2, 1e-12);
+    cJSON_Delete(out);
+}
+
+/* An 8 x 8 EXR (32-bit float, image/exr.h's writer) of the same rows as write_map. */
+static int write_map_exr(const char *path, const rgb rows[8]) {
+    film f;
+    if (film_init(&f, 8, 8) < 0) return -1;
+    for (int y = 0; y < 8; y++)
+        for (int x = 0; x < 8; x++) film_set(&f, x, y, rows[y]);
+    FILE *fp = fopen(path, "wb");
+    char err[256];
+    int rc = fp ? exr_write_fp(&f, fp, EXR_FLOAT, err, sizeof err) : -1;
+    if (fp && fclose(fp) != 0) rc = -1;
+    film_free(&f);
+    return rc;
+}
+
+/* An OpenEXR map (a name ending in .exr, read by base/exr_read.h in the loader). Oracle: the
+ * same rows as a PFM: the lights' power and the map's radiance in 64 directions are the same
+ * numbers (both files hold the same floats). Bad input names the field as for a PFM: a missing
+ * file, a file that is not EXR, a negative pixel. pbrt's mapname "sky.exr" becomes the map. */
+TEST(envmap_exr_map_matches_pfm) {
+    const char *dir = pm_test_tmpdir();
+    char pfm[1024], exr[1024], lt[1400];
+    snprintf(pfm, sizeof pfm, "%s/sky.pfm", dir);
+    snprintf(exr, sizeof exr, "%s/sky.exr", dir);
+    ASSERT(write_map(pfm, k_band) == 0);
+    ASSERT(write_map_exr(exr, k_band) == 0);
+    scene a, b;
+    json_err e;
+    snprintf(lt, sizeof lt, "{\"type\": \"infinite\", \"map\": \"%s\", \"radiance\": [1, 2, 0.5]}", pfm);
+    ASSERT_MSG(load_with(&a, lt, &e) == 0, "%s", e.msg);
+    snprintf(lt, sizeof lt, "{\"type\": \"infinite\", \"map\": \"%s\", \"radiance\": [1, 2, 0.5]}", exr);
+    ASSERT_MSG(load_with(&b, lt, &e) == 0, "%s", e.msg);
+    EXPECT(a.lights[0].power.x == b.lights[0].power.x && a.lights[0].power.y == b.lights[0].power.y &&
+           a.lights[0].power.z == b.lights[0].power.z);
+    rng g = rng_stream(5, 0, 0);
+    int differ = 0;
+    for (int i = 0; i < 64; i++) {
+        vec3 d = sample_uniform_sphere(rng_uniform(&g), rng_uniform(&g));
+        rgb x = envmap_eval(a.env_map, d), y = envmap_eval(b.env_map, d);
+        differ += x.x != y.x || x.y != y.y || x.z != y.z;
+    }
+    EXPECT_EQ_INT(differ, 0);
+    scene_free(&a);
+    scene_free(&b);
+    /* bad input */
+    char neg[1024], fake[1024];
+    snprintf(neg, sizeof neg, "%s/neg.exr", dir);
+    snprintf(fake, sizeof fake, "%s/fake.exr", dir);
+    rgb rows[8];
+    for (int r = 0; r < 8; r++) rows[r] = k_band[r];
+    rows[5] = v3(0.1, -2, 0.1);
+    ASSERT(write_map_exr(neg, rows) == 0);
+    ASSERT(rename(pfm, fake) == 0); /* a PFM under an EXR name */
+    const char *files[3] = {"missing.exr", "fake.exr", "neg.exr"};
+    const char *needle[3] = {"cannot open", "not an EXR file", "pixel (0, 5) from the top has -2: radiances must be finite"};
+    for (int k = 0; k < 3; k++) {
+        snprintf(lt, sizeof lt, "{\"type\": \"infinite\", \"map\": \"%s/%s\"}", dir, files[k]);
+        int rc = load_with(&a, lt, &e);
+        EXPECT_MSG(rc < 0 && strstr(e.msg, "$.lights[0].map") && strstr(e.msg, needle[k]), "%s: rc %d \"%s\"", files[k], rc,
+                   e.msg);
+        if (rc == 0) scene_free(&a);
+    }
+    cJSON *out = NULL;
+    e.msg[0] = 0;
+    ASSERT_MSG(pbrt_convert_text("LookAt 0 0 -5  0 0 0  0 1 0\nCamera \"perspective\"\nWorldBegin\n"
+                                 "LightSource \"infinite\" \"string mapname\" \"sky.exr\"\nMaterial \"matte\"\nShape \"sphere\"\n",
+                                 "t.pbrt", &out, &e) == 0, "%s", e.msg);
+    const cJSON *map = cJSON_GetObjectItemCaseSensitive(cJSON_GetArrayItem(cJSON_GetObjectItemCaseSensitive(out, "lights"), 0), "map");
+    EXPECT(cJSON_IsString(map) && strstr(map->valuestring, "sky.exr"));
     cJSON_Delete(out);
 }

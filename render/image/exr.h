@@ -10,9 +10,8 @@
  * through output.h's atomic outputs like every other image (a temporary renamed into place;
  * a FIFO written through).
  *
- * Reading: the first part of a scanline file, any compression OpenEXRCore decodes, channels R,
- * G and B (or Y alone, read as grey) of any pixel type, converted to float; the data window
- * gives the size. Tiled and deep files, and files with neither R, G, B nor Y, are refused.
+ * Reading: base/exr_read.h's exr_read_rgb into a film (the first part of a scanline file, R G B
+ * or Y, any pixel type converted to float); exr_is_exr and exr_has_ext are declared there.
  *
  * Errors: a negative PM_E* code (PM_EIO: cannot open or write; PM_EFORMAT: not an EXR file we
  * read, with OpenEXRCore's own message; PM_ENOMEM) and a message in err naming the file.
@@ -24,6 +23,7 @@
 #include <stddef.h>
 #include <stdio.h>
 
+#include "base/exr_read.h"
 #include "image/film.h"
 
 #ifdef __cplusplus
@@ -37,12 +37,6 @@ int exr_write_fp(const film *f, FILE *fp, int pixel_type, char *err, size_t cap)
 
 /* Read an EXR file into f (zeroed first). */
 int exr_read(film *f, const char *path, char *err, size_t cap);
-
-/* Does the file start with EXR's magic number (76 2f 31 01)? 0 when it cannot be read. */
-int exr_is_exr(const char *path);
-
-/* Does the name end in ".exr" (any case)? */
-int exr_has_ext(const char *path);
 
 #ifdef __cplusplus
 }

@@ -2,9 +2,9 @@
  * renderer's spot and infinite lights (light.h); pbrt_directives.c converts point and distant.
  * A spot keeps pbrt-v3's own falloff (delta^4 between cos(coneangle - conedeltaangle) and
  * cos(coneangle): "falloff": "quartic"); an infinite light keeps its radiance L, and its
- * environment image (mapname) when it is a PFM ("map", with "map_frame" the rotation from our
- * world to pbrt's light space, which is z-up lat-long as ours); another image format is warned
- * about, with the constant L used instead.
+ * environment image (mapname) when it is a PFM or an OpenEXR file ("map", with "map_frame" the
+ * rotation from our world to pbrt's light space, which is z-up lat-long as ours); another image
+ * format is warned about, with the constant L used instead.
  */
 #include <math.h>
 #include <string.h>
@@ -57,9 +57,9 @@ int pb_infinite_light(conv *c, const tok *at, plist *pl, rgb sc, const char *wha
     L = v3_mul(L, sc);
     if (L.x < 0 || L.y < 0 || L.z < 0) return pb_fail(c, at, PM_EINVAL, "%s: L (times scale) must not be negative", what);
     size_t ml = map ? strlen(map) : 0;
-    int pfm = ml > 4 && strcasecmp(map + ml - 4, ".pfm") == 0;
+    int pfm = ml > 4 && (strcasecmp(map + ml - 4, ".pfm") == 0 || strcasecmp(map + ml - 4, ".exr") == 0);
     if (map && *map && !pfm)
-        pb_warn(c, at, "%s: the environment image \"%s\" (mapname) is not supported (a PFM is): a constant "
+        pb_warn(c, at, "%s: the environment image \"%s\" (mapname) is not supported (a PFM or EXR is): a constant "
                 "radiance L (times scale) from every direction is used instead", what, map);
     for (const cJSON *it = c->lights->child; it; it = it->next) {
         const cJSON *t = cJSON_GetObjectItemCaseSensitive(it, "type");

@@ -1,14 +1,16 @@
 /* scene_lights.c: the spot and infinite lights of a JSON scene ($.lights[i] of type "spot" or
  * "infinite", format in data/scenes/README.md), every field checked; scene_load.c reads the
  * point and directional ones and hands the other types here. An infinite light's image
- * ("map") is a PFM file, read here (the image/ stage comes later than load/) and every pixel
- * checked: finite and not negative.
+ * ("map") is a PFM file, read here (the image/ stage comes later than load/), or an OpenEXR
+ * file (a name ending in .exr, read by base/exr_read.h), and every pixel checked: finite and
+ * not negative.
  */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "base/exr_read.h"
 #include "load/scene_load_internal.h"
 #include "photonmap/common.h"
 #include "scene/envmap.h"
@@ -54,6 +56,25 @@ static int read_pfm(const char *path, const char *P, int *w, int *h, float **px,
         free(*px);
         return json_fail(e, PM_EFORMAT, "%s.map: \"%s\" is truncated (%zu of %zu values)", P, path, got, n);
     }
+    return 0;
+}
+
+/* The EXR at path into *px (as read_pfm), with read_pfm's limits and checks. */
+static int read_exr(const char *path, const char *P, int *w, int *h, float **px, json_err *e) {
+    char msg[400];
+    int rc = exr_read_rgb(path, w, h, px, msg, sizeof msg);
+    if (rc < 0) return json_fail(e, rc, "%s.map: %s", P, msg);
+    if (*w > (1 << 15) || *h > (1 << 15)) {
+        free(*px);
+        return json_fail(e, PM_EFORMAT, "%s.map: \"%s\" is %d x %d (width and height in 1 to 32768)", P, path, *w, *h);
+    }
+    for (size_t i = 0; i < 3 * (size_t)*w * (size_t)*h; i++)
+        if (!isfinite((*px)[i]) || (*px)[i] < 0) {
+            double v = (double)(*px)[i];
+            free(*px);
+            return json_fail(e, PM_EINVAL, "%s.map: \"%s\": pixel (%zu, %zu) from the top has %g: radiances must be "
+                             "finite and not negative", P, path, i / 3 % (size_t)*w, i / 3 / (size_t)*w, v);
+        }
     return 0;
 }
 
@@ -138,7 +159,7 @@ static int infinite(scene *s, light *l, const cJSON *o, const char *P, json_err 
     int w, h;
     float *px = NULL;
     TRY(map_frame(o, P, F, e));
-    TRY(read_pfm(map, P, &w, &h, &px, e));
+    TRY(exr_has_ext(map) ? read_exr(map, P, &w, &h, &px, e) : read_pfm(map, P, &w, &h, &px, e));
     for (size_t i = 0; i < 3 * (size_t)w * (size_t)h; i++) {
         px[i] *= (float)(i % 3 == 0 ? l->Le.x : i % 3 == 1 ? l->Le.y : l->Le.z);
         if (!(px[i] <= SCENE_RADIANCE_MAX)) {

@@ -175,6 +175,101 @@ static int close_with_keep(closure *c, const scene *s) {
     return 0;
 }
 
+/* T-JUNCTIONS. A boundary whose faces meet at a vertex that lies on another face's edge (a
+ * wall split in two beside a whole one) is closed, but its edges do not pair. Each directed
+ * edge without a reverse is split at the endpoints of the other such edges that lie on it
+ * (within T_JUNCTION_TOL of its length from the line, strictly between its ends), so the
+ * pieces pair with the smaller faces' edges; rounding (as_float) stays the only tolerance
+ * for positions. Up to T_JUNCTION_MAX unpaired edges (each against all their endpoints);
+ * more is an open boundary anyway, refused as before. The volume is the faces' own. */
+#define T_JUNCTION_TOL 1e-6
+#define T_JUNCTION_MAX 20000
+
+static int has_reverse(const closure *c, const edge_rec *e) {
+    edge_rec r;
+    reverse_edge(e, &r);
+    return bsearch(&r, c->ed, (size_t)c->n, sizeof *c->ed, edge_cmp) != NULL;
+}
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* The parameters t in (0, 1) of the points pts (np of them, 3 each) on edge e, sorted, into t. */
+static int points_on_edge(const edge_rec *e, const double *pts, int np, double *t) {
+    vec3 a = v3(e->c[0], e->c[1], e->c[2]), d = v3_sub(v3(e->c[3], e->c[4], e->c[5]), a);
+    double l2 = v3_len2(d), tol = T_JUNCTION_TOL * sqrt(l2);
+    int k = 0;
+    for (int i = 0; i < np && l2 > 0; i++) {
+        vec3 p = v3(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]), ap = v3_sub(p, a);
+        double u = v3_dot(ap, d) / l2;
+        if (!(u > 0 && u < 1) || v3_len(v3_sub(ap, v3_scale(d, u))) > tol) continue;
+        t[k++] = u;
+    }
+    qsort(t, (size_t)k, sizeof *t, cmp_double);
+    return k;
+}
+
+static int split_t_junctions(closure *c) {
+    int nu = 0;
+    for (int i = 0; i < c->n; i++) nu += !has_reverse(c, &c->ed[i]);
+    if (nu == 0 || nu > T_JUNCTION_MAX) return 0;
+    int *u = malloc((size_t)nu * sizeof *u);
+    double *pts = malloc((size_t)nu * 6 * sizeof *pts), *t = malloc((size_t)nu * 2 * sizeof *t);
+    int rc = u && pts && t ? 0 : PM_ENOMEM, m = 0;
+    for (int i = 0; i < c->n && rc == 0; i++)
+        if (!has_reverse(c, &c->ed[i])) {
+            memcpy(pts + 6 * m, c->ed[i].c, 6 * sizeof *pts);
+            u[m++] = i;
+        }
+    int n0 = c->n;
+    for (int j = 0; j < m && rc == 0; j++) {
+        edge_rec e = c->ed[u[j]];
+        int k = points_on_edge(&e, pts, 2 * m, t);
+        if (k == 0) continue;
+        if (c->n + k > c->cap) {
+            int cap = 2 * (c->n + k);
+            edge_rec *g = realloc(c->ed, (size_t)cap * sizeof *g);
+            if (!g) {
+                rc = PM_ENOMEM;
+                break;
+            }
+            c->ed = g, c->cap = cap;
+        }
+        /* e becomes its first piece; the others are appended (t sorted: duplicates skipped) */
+        vec3 a = v3(e.c[0], e.c[1], e.c[2]), d = v3_sub(v3(e.c[3], e.c[4], e.c[5]), a);
+        double prev[3] = {e.c[0], e.c[1], e.c[2]};
+        int first = 1;
+        for (int q = 0; q <= k; q++) {
+            double next[3];
+            if (q < k) {
+                /* the piece ends at the listed point itself (its rounded coordinates) */
+                vec3 p = v3_add(a, v3_scale(d, t[q]));
+                double best = INFINITY;
+                for (int i = 0; i < 2 * m; i++) {
+                    double dd = v3_len2(v3_sub(v3(pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]), p));
+                    if (dd < best) best = dd, memcpy(next, pts + 3 * i, sizeof next);
+                }
+                if (next[0] == prev[0] && next[1] == prev[1] && next[2] == prev[2]) continue;
+            } else {
+                memcpy(next, e.c + 3, sizeof next);
+            }
+            edge_rec *dst = first ? &c->ed[u[j]] : &c->ed[c->n++];
+            memcpy(dst->c, prev, sizeof prev);
+            memcpy(dst->c + 3, next, sizeof next);
+            dst->tri = e.tri;
+            memcpy(prev, next, sizeof prev);
+            first = 0;
+        }
+    }
+    if (rc == 0 && c->n != n0) qsort(c->ed, (size_t)c->n, sizeof *c->ed, edge_cmp);
+    free(u);
+    free(pts);
+    free(t);
+    return rc;
+}
+
 /* The message for a medium whose boundary is open, crossed or inside out. */
 static int closure_fail(const scene *s, int m, const edge_rec *e, int kind, double vol, json_err *err) {
     char P[P_MAX];
@@ -221,7 +316,7 @@ static int check_medium_closed(const scene *s, int m, closure *c, json_err *err)
         any = 1;
     }
     if (!any) return 0;
-    if (close_with_keep(c, s) < 0) return json_fail(err, PM_ENOMEM, "out of memory");
+    if (close_with_keep(c, s) < 0 || split_t_junctions(c) < 0) return json_fail(err, PM_ENOMEM, "out of memory");
     for (int i = 0; i < c->n; i++) {
         edge_rec r;
         reverse_edge(&c->ed[i], &r);
