@@ -274,6 +274,12 @@ G="--width $GAL_RES --height $GAL_RES --quiet --mode path --spp $GAL_SPP --seed 
 "$R" "$PB" $G -o "$res/gallery/cornell_box_pbrt.png" >/dev/null
 "$R" $S/cornell_rect.json $G -o "$res/gallery/cornell_rect_json.png" >/dev/null
 "$R" $S/cornell_tungsten.json $G -o "$res/gallery/cornell_tungsten.png" >/dev/null 2>&1
+# each gallery scene's load time (reading, converting, BVH: render's "Scene loading and BVH
+# build", one thread), the median of 3 loads
+gl() { for i in 1 2 3; do "$R" "$1" --width 8 --height 8 --spp 1 --mode path --threads 1 --hdr "$T/gl.pfm" 2>/dev/null |
+       awk '/Scene loading and BVH build/ && !/CPU/ { print $(NF-1) }'; done | sort -g | sed -n 2p; }
+GL_BOX_JSON=$(gl $S/cornell_box.json); GL_BOX_PBRT=$(gl "$PB")
+GL_RECT_JSON=$(gl $S/cornell_rect.json); GL_TUNGSTEN=$(gl $S/cornell_tungsten.json)
 mkdir -p "$res"
 cp "$T/pbrt.csv" "$res/pbrt.csv"
 {
@@ -285,6 +291,7 @@ cp "$T/pbrt.csv" "$res/pbrt.csv"
     echo "pm_spp $PB_PM_SPP"
     echo "gallery_resolution $GAL_RES"
     echo "gallery_spp $GAL_SPP"
+    echo "gallery_load_s $GL_BOX_JSON $GL_BOX_PBRT $GL_RECT_JSON $GL_TUNGSTEN"
     echo "load $(cut -d' ' -f1-3 /proc/loadavg 2>/dev/null || echo '?')"
     echo "cpus $(nproc 2>/dev/null || echo '?')"
     if cmp -s "$res/gallery/cornell_box_json.png" "$res/gallery/cornell_box_pbrt.png"; then echo "gallery_same yes"; else echo "gallery_same no"; fi
@@ -410,6 +417,15 @@ echo "| ours (JSON) | imported |"
 echo "|---|---|"
 echo "| ![cornell_box.json](import/gallery/cornell_box_json.png) \`cornell_box.json\` | ![cornell_box.pbrt](import/gallery/cornell_box_pbrt.png) \`data/pbrt/cornell_box.pbrt\` (pbrt-v3) |"
 echo "| ![cornell_rect.json](import/gallery/cornell_rect_json.png) \`cornell_rect.json\` | ![cornell_tungsten.json](import/gallery/cornell_tungsten.png) \`cornell_tungsten.json\` (Tungsten) |"
+if [ -n "$(qm gallery_load_s)" ]; then
+# load times: render's "Scene loading and BVH build" (read, convert, BVH; one thread), median of 3
+set -- $(qm gallery_load_s)
+echo "| load: $1 s | load: $2 s (read, converted, BVH) |"
+echo "| load: $3 s | load: $4 s (read, converted, BVH) |"
+echo
+echo "Load times: render's \`Time/Scene loading and BVH build\` (reading the file, converting it, the"
+echo "BVH; one thread), the median of 3 loads, as printed (to the millisecond)."
+fi
 fi
 if [ -f "$res/ply.csv" ] && [ -f "$res/ply_measurement.txt" ]; then
 P="$res/ply.csv"
