@@ -755,3 +755,37 @@ TEST(pbrt_dump_scene_round_trip) {
     int rc = pm_test_run(cmd, out, sizeof out);
     EXPECT_MSG(rc == 0 && strstr(out, "SAME"), "exit %d: %s", rc, out);
 }
+
+/* Oracle: pbrt_materials.c's rule, by hand. "uber" and "substrate" become ours as plastic does:
+ * a mix of Kd under a smooth Fresnel coat tinted by Ks, the coat's ior uber's "index" (pbrt-v3's
+ * name) or 1.5; uber's Kr, Kt and opacity are lost, with a warning naming the file and line. */
+TEST(pbrt_uber_and_substrate_convert) {
+    const char *t = "LookAt 0 0 -5 0 0 0 0 1 0\nCamera \"perspective\"\nWorldBegin\n"
+                    "Material \"uber\" \"rgb Kd\" [0.1 0.2 0.3] \"rgb Ks\" [0.2 0.2 0.2] \"rgb Kr\" [0.3 0.3 0.3] \"float index\" 1.6\n"
+                    "Shape \"sphere\"\n"
+                    "Material \"substrate\" \"rgb Kd\" [0.4 0.5 0.6] \"rgb Ks\" [0.1 0.1 0.1]\n"
+                    "Shape \"sphere\" \"float radius\" 2\n";
+    char wpath[1100];
+    snprintf(wpath, sizeof wpath, "%s/uber_warnings.txt", pm_test_tmpdir());
+    fflush(stderr);
+    FILE *saved = freopen(wpath, "w", stderr);
+    cJSON *d = convert_ok(t);
+    if (saved) fflush(stderr);
+    char *w = read_text(wpath);
+    ASSERT(d && w);
+    EXPECT_MSG(strstr(w, "t.pbrt:4: warning: Material \"uber\": Kr, Kt and opacity are lost"), "%s", w);
+    EXPECT_MSG(strstr(w, "t.pbrt:6: warning: Material \"substrate\": the glossy lobe (Ks [0.1 0.1 0.1]"), "%s", w);
+    free(w);
+    const cJSON *mats = cJSON_GetObjectItemCaseSensitive(d, "materials");
+    const cJSON *u = cJSON_GetObjectItemCaseSensitive(mats, "pbrt:0"), *s = cJSON_GetObjectItemCaseSensitive(mats, "pbrt:1");
+    ASSERT(u && s);
+    EXPECT(strcmp(cJSON_GetObjectItemCaseSensitive(u, "type")->valuestring, "mix") == 0);
+    EXPECT(strcmp(cJSON_GetObjectItemCaseSensitive(u, "specular")->valuestring, "fresnel") == 0);
+    EXPECT_NEAR(num_at(u, "ior"), 1.6, 1e-12);
+    EXPECT_NEAR(num_at(u, "diffuse.2"), 0.3, 1e-12);
+    EXPECT_NEAR(num_at(u, "specular_tint.0"), 0.2, 1e-12);
+    EXPECT_NEAR(num_at(s, "ior"), 1.5, 1e-12);
+    EXPECT_NEAR(num_at(s, "diffuse.1"), 0.5, 1e-12);
+    EXPECT_NEAR(num_at(s, "specular_tint.2"), 0.1, 1e-12);
+    cJSON_Delete(d);
+}

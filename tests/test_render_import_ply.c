@@ -370,3 +370,28 @@ TEST(render_ply_matches_obj) {
     EXPECT_MSG(rc == 2 && strstr(out, "render: s0.json: $.objects[0].file: ") &&
                strstr(out, "m.ply:24: face 2: vertex index 9 out of range (6 vertices)"), "exit %d: %s", rc, out);
 }
+
+/* Item 6 of issue 29 for PLY: degenerate faces (a repeated corner, collinear corners, a flat
+ * quad fanned into two zero-area triangles) are skipped and counted, the first named by its
+ * face; the others kept in order. Oracle: the faces listed by hand, in ASCII. */
+TEST(ply_degenerate_faces_skipped_and_counted) {
+    const char *t = "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\nproperty float z\n"
+                    "element face 5\nproperty list uchar int vertex_indices\nend_header\n"
+                    "0 0 0\n1 0 0\n0 1 0\n2 0 0\n1 1 0\n"
+                    "3 0 1 2\n"     /* kept */
+                    "3 0 0 1\n"     /* repeated corner: face 1 */
+                    "3 0 1 3\n"     /* collinear */
+                    "4 0 1 3 1\n"   /* flat: 2 fan triangles of zero area */
+                    "3 1 4 2\n";    /* kept */
+    mesh_data m;
+    char err[256] = "";
+    ASSERT_MSG(ply_parse(t, strlen(t), "t.ply", &m, err, sizeof err) == 0, "%s", err);
+    EXPECT_EQ_INT(m.ntris, 2);
+    EXPECT_EQ_INT(m.nskipped, 4);
+    EXPECT_MSG(strcmp(m.first_skip, "face 1") == 0, "%s", m.first_skip);
+    if (m.ntris == 2) {
+        EXPECT(m.tri[0][0] == 0 && m.tri[0][1] == 1 && m.tri[0][2] == 2);
+        EXPECT(m.tri[1][0] == 1 && m.tri[1][1] == 4 && m.tri[1][2] == 2);
+    }
+    mesh_free(&m);
+}
