@@ -16,6 +16,7 @@
 
 #include "test.h"
 #include "test_render_run.h"
+#include "photon_mapping/pm_sample.h"
 
 static char g_out[1 << 16];
 
@@ -172,4 +173,45 @@ TEST(render_pm_fit_photons_to_the_render) {
     ASSERT_MSG(run_box_defaults("--width 16 --height 16 --passes 2 --pass-spp 4 -o a.png") == 0, "%s", g_out);
     EXPECT_MSG(strstr(g_out, "  photons: the targets (a render in passes: ") != NULL, "%s", g_out);
     EXPECT_MSG(after(g_out, "\nPass 0: photons ") >= 200000 && after(g_out, "\nPass 0: photons ") <= 200064, "%s", g_out);
+}
+
+/* Caustics at a stride (pm_sample.h, CAUSTICS AT A STRIDE): for every strata S (1 to 20) and
+ * stride c (1 to 5), at every pixel offset, the weights of a pixel's n = S^2 samples sum to n
+ * exactly (the old lattice, which chose (S mod c) more columns at some offsets, fails this for
+ * S = 4, c = 3: sums 36, 18, 9 instead of 16), each weight is 0 or n / m with m =
+ * pm_caustic_reads(S, c), and over the offsets each sample is chosen equally often: its mean
+ * weight is 1 (the estimate stays unbiased). Offsets: u, v on a grid fine enough to reach every
+ * lattice offset and every raster offset (n x c points: u = (i + 0.5) / n, v = (j + 0.5) / c). */
+TEST(render_pm_caustic_stride_weights_sum_exactly) {
+    static double mean[400];
+    for (int S = 1; S <= 20; S++)
+        for (int c = 1; c <= 5; c++) {
+            int n = S * S, m = pm_caustic_reads(S, c), bad = 0;
+            double expect_w = c <= 1 || S < c ? 1.0 : (double)n / m;
+            ASSERT(m >= 1 && m <= n);
+            if (c > 1 && S >= c && S % c == 0) ASSERT_EQ_INT(m, (S / c) * (S / c));
+            for (int k = 0; k < n; k++) mean[k] = 0;
+            int no = 0;
+            for (int i = 0; i < n; i++)
+                for (int j = 0; j < c; j++) {
+                    double u = (i + 0.5) / n, v = (j + 0.5) / c, sum = 0;
+                    int chosen = 0;
+                    for (int k = 0; k < n; k++) {
+                        double w = pm_caustic_weight(S, c, k, u, v);
+                        if (w != 0 && w != expect_w) bad++;
+                        chosen += w != 0;
+                        sum += w;
+                        mean[k] += w;
+                    }
+                    if (fabs(sum - n) > 1e-9 * n || chosen != (c <= 1 || S < c ? n : m)) bad++;
+                    no++;
+                }
+            double worst = 0;
+            for (int k = 0; k < n; k++) worst = fmax(worst, fabs(mean[k] / no - 1));
+            /* the lattice case's offsets are a c x c grid, reached exactly by the n x c points
+             * only when n is a multiple of c (it is: c divides S); the raster case's by the n
+             * values of u: both exact to rounding */
+            ASSERT_MSG(!bad && worst <= 1e-9, "S %d c %d: %d bad pixels or weights, mean weight off by %g", S,
+                       c, bad, worst);
+        }
 }

@@ -209,8 +209,28 @@ static double work_of_current(const pm_sample_host *h) {
     h->scratch_free(h->user, sc);
     int strata = 1, c = h->cfg->caustic_stride > 1 ? h->cfg->caustic_stride : 1;
     while ((strata + 1) * (strata + 1) <= h->s->cam.spp) strata++;
-    if (c > strata) c = strata;
-    return f.work + PILOT_CAUSTIC_COST * f.caus / ((double)c * c);
+    return f.work + PILOT_CAUSTIC_COST * f.caus * pm_caustic_reads(strata, c) / ((double)strata * strata);
+}
+
+int pm_caustic_reads(int strata, int c) {
+    if (c <= 1 || strata < c) return strata * strata;
+    if (strata % c == 0) return (strata / c) * (strata / c);
+    long m = lround((double)strata * strata / ((double)c * c));
+    return m < 1 ? 1 : (int)m;
+}
+
+double pm_caustic_weight(int strata, int c, int k, double u, double v) {
+    int S = strata;
+    if (c <= 1 || S < c) return 1.0;
+    if (S % c == 0) {
+        int ox = (int)(u * c), oy = (int)(v * c);
+        int sx = k % S, sy = k / S;
+        return sx % c == ox && sy % c == oy ? (double)c * c : 0.0;
+    }
+    int64_t n = (int64_t)S * S, m = pm_caustic_reads(S, c);
+    int64_t o = (int64_t)(u * (double)n);
+    int64_t j = ((int64_t)k + (o < n ? o : n - 1)) % n;
+    return j * m % n < m ? (double)n / (double)m : 0.0;
 }
 
 void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, int explicit_c, double emit_var,
@@ -271,9 +291,10 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
     /* the scores of (candidate, stride); a black image (all 0) falls to the cheapest */
     int bc = 0, bs = cmin;
     double best = INFINITY, bestcost = INFINITY;
+    double n = (double)strata * strata;
     for (int c = 0; c < nc; c++)
         for (int k = cmin; k <= cmax; k++) {
-            double k2 = (double)k * k, var = fig[c].var + (k2 - 1) * fig[c].varc + emit_var;
+            double k2 = n / pm_caustic_reads(strata, k), var = fig[c].var + (k2 - 1) * fig[c].varc + emit_var;
             double cost = fig[c].work + PILOT_CAUSTIC_COST * fig[c].caus / k2, score = var * cost;
             if (score < best || (score == best && cost < bestcost)) {
                 best = score;
@@ -292,7 +313,7 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
                                   cand[bc][0], cand[bc][1], bs, PILOT_SIDE * PILOT_SIDE * PILOT_SPP,
                                   PILOT_SIDE * PILOT_SIDE);
     for (int c = 0; c < nc && len < cap; c++) {
-        double k2 = (double)bs * bs;
+        double k2 = n / pm_caustic_reads(strata, bs);
         len += (size_t)snprintf(reason + len, cap - len,
                                 " %d/%d/%d %.3g x %.0f%s", cand[c][0], cand[c][1], bs,
                                 fig[c].var + (k2 - 1) * fig[c].varc + emit_var, fig[c].work + PILOT_CAUSTIC_COST * fig[c].caus / k2,
