@@ -60,7 +60,7 @@ typedef struct mapper_state {
     /* Photons per pass (pm_passes.c, PHOTONS PER PASS): the sample pilot's counted work of a
      * camera sample, the settings' targets (global, caustic, volume, volume caustic) and
      * pass 0's counted photon work at them, the fraction later passes trace, and why. */
-    double sample_work, photon_work0, pass_fraction;
+    double sample_work, sample_caustic, photon_work0, pass_fraction;
     long target0[4];
     int k0[2]; /* the settings' k_global, k_caustic (a later pass reads fewer: pass_targets) */
     int fraction_made;

@@ -153,13 +153,14 @@ static const int k_pilot_cand[][2] = {{1, 1}, {2, 1}, {4, 2}};
 typedef struct pilot_figures {
     double var, varc;  /* mean within-pixel variance of a sample, of its caustic part */
     double work, caus; /* per sample: work without the camera path's caustics, those estimates */
+    double lum, lumc;  /* per sample: mean luminance, of its caustic part */
 } pilot_figures;
 
 static void pilot_run(const pm_sample_host *h, void *sc, pilot_figures *f) {
     const scene *s = h->s;
     int W = s->cam.width, H = s->cam.height;
     uint64_t w0 = stats_trace_work(), l0 = stats_total(h->st_lookup), k0 = stats_total(h->st_caustic);
-    double vsum = 0, vcsum = 0;
+    double vsum = 0, vcsum = 0, lsum = 0, lcsum = 0;
     uint64_t ncam = 0;
     for (int py = 0; py < PILOT_SIDE; py++)
         for (int px = 0; px < PILOT_SIDE; px++) {
@@ -180,6 +181,8 @@ static void pilot_run(const pm_sample_host *h, void *sc, pilot_figures *f) {
                 csum2 += lc * lc;
                 ncam += pc.n;
             }
+            lsum += sum;
+            lcsum += csum;
             vsum += fmax(0.0, (sum2 - sum * sum / PILOT_SPP) / (PILOT_SPP - 1));
             vcsum += fmax(0.0, (csum2 - csum * csum / PILOT_SPP) / (PILOT_SPP - 1));
         }
@@ -189,13 +192,20 @@ static void pilot_run(const pm_sample_host *h, void *sc, pilot_figures *f) {
     f->var = vsum / (PILOT_SIDE * PILOT_SIDE);
     f->varc = vcsum / (PILOT_SIDE * PILOT_SIDE);
     f->caus = (double)ncam / n;
+    f->lum = lsum / n;
+    f->lumc = lcsum / n;
     f->work = ((double)(w1 - w0) + PILOT_LOOKUP_COST * (double)(stats_total(h->st_lookup) - l0) +
                PILOT_CAUSTIC_COST * (ncaus - (double)ncam)) / n;
 }
 
+/* The caustic map's share of the luminance the camera samples carry (0 for a black image). */
+static double caustic_share(const pilot_figures *f) {
+    return f->lum > 0 && isfinite(f->lum) ? fmin(1.0, fmax(0.0, f->lumc / f->lum)) : 0.0;
+}
+
 /* Run the pilot's samples once at cfg's settings for their counted work alone (the counters
- * taken back out); 0 when out of memory. */
-static double work_of_current(const pm_sample_host *h) {
+ * taken back out) and *share, their caustic_share; 0 when out of memory. */
+static double work_of_current(const pm_sample_host *h, double *share) {
     void *sc = h->scratch_new(h->user);
     if (!sc) return 0;
     int undo[STATS_MAX], nundo = 0;
@@ -207,6 +217,7 @@ static double work_of_current(const pm_sample_host *h) {
     pilot_run(h, sc, &f);
     for (int i = 0; i < nundo; i++) stat_add(undo[i], before[i] - stats_total(undo[i])); /* mod 2^64 */
     h->scratch_free(h->user, sc);
+    *share = caustic_share(&f);
     int strata = 1, c = h->cfg->caustic_stride > 1 ? h->cfg->caustic_stride : 1;
     while ((strata + 1) * (strata + 1) <= h->s->cam.spp) strata++;
     return f.work + PILOT_CAUSTIC_COST * f.caus * pm_caustic_reads(strata, c) / ((double)strata * strata);
@@ -234,8 +245,9 @@ double pm_caustic_weight(int strata, int c, int k, double u, double v) {
 }
 
 void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, int explicit_c, double emit_var,
-                     char *reason, size_t cap, double *work) {
+                     char *reason, size_t cap, double *work, double *caus_share) {
     *work = 0;
+    *caus_share = 0;
     const scene *s = h->s;
     photon_settings *cfg = h->cfg;
     int cand[PILOT_NCAND][2], nc = 0;
@@ -261,7 +273,7 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
         snprintf(reason, cap,
                  "gather_rays %d, secondary_rays %d, caustic_stride %d (%s)", cfg->gather_rays,
                  cfg->secondary_rays, cfg->caustic_stride, why);
-        if (!h->no_probe) *work = work_of_current(h);
+        if (!h->no_probe) *work = work_of_current(h, caus_share);
         return;
     }
     void *sc = h->scratch_new(h->user);
@@ -307,6 +319,7 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
     cfg->secondary_rays = cand[bc][1];
     cfg->caustic_stride = bs;
     *work = bestcost;
+    *caus_share = caustic_share(&fig[bc]);
     size_t len = (size_t)snprintf(reason, cap,
                                   "gather_rays %d, secondary_rays %d, caustic_stride %d (pilot of %d camera "
                                   "samples at %d pixels: lowest variance x cost of",
@@ -321,7 +334,8 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
     }
     if (len < cap)
         len += (size_t)snprintf(reason + len, cap - len,
-                                "; the variances include %.3g of the emission the camera sees", emit_var);
+                                "; the variances include %.3g of the emission the camera sees; the caustic "
+                                "map carries %.1f%% of the samples' luminance", emit_var, 100 * *caus_share);
     if (len < cap && cmax > cmin)
         len += (size_t)snprintf(reason + len, cap - len,
                                 "; strides %d to %d weighed", cmin, cmax);

@@ -62,9 +62,10 @@ void pm_emission_mask_free(pm_emission_mask *m);
  * user did not set: explicit_*) and writes the "sample:" reason. emit_var: the mask's var.
  * *work: the counted work of one camera sample as chosen (BVH node visits, primitive tests,
  * lookups and caustic estimates at their costs), measured by the pilot's samples even where
- * no choice is left to it; 0 when h->no_probe or out of memory. */
+ * no choice is left to it; 0 when h->no_probe or out of memory. *caus_share: the share of the
+ * samples' luminance read from the caustic map at the camera path's hits (0 likewise). */
 void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, int explicit_c, double emit_var,
-                     char *reason, size_t cap, double *work);
+                     char *reason, size_t cap, double *work, double *caus_share);
 /* CAUSTICS AT A STRIDE. With caustic_stride c > 1 the caustic map is read at m =
  * pm_caustic_reads(S, c) of a pixel's n = S x S samples (S = strata), each weighted n / m, the
  * others weighted 0. Every sample is chosen with probability m / n over the pixel's offset
