@@ -137,12 +137,14 @@ static double after(const char *text, const char *key) {
 }
 
 /* Oracle: the documented rule applied to the counted work the "photons:" line prints:
- * s = clamp(0.2 W_r / W_p, 1/2, 4), traced again when s > 1.25 / 2, else the first stage's
+ * s = clamp(0.2 W_r / W_p, 1/2, ceiling), the ceiling 1 + 3 clamp((q - 0.1) / 0.15, 0, 1) from the
+ * caustic map's printed share q of the luminance, traced again when s > 1.25 / 2, else the first stage's
  * half stays (3 significant digits printed: relative 5e-3); the "Photons:" line's global
  * count is s x 200,000 (+ at most one photon path's stores). A small render keeps the half,
  * a render of about 800 times the camera samples traces again; the same line for 1 and 2 threads
  * (counted work, never timed); a count given with --pm is traced as given and the line says
- * why; a render in passes keeps the targets for pass 0 and says why. */
+ * why; a render in passes fits pass 0 to one pass, and a later pass traces its printed
+ * fraction of the settings' targets. */
 TEST(render_pm_fit_photons_to_the_render) {
     static const char *runs[] = {"--width 16 --height 16 --spp 16 --threads 1 -o a.png",
                                  "--width 16 --height 16 --spp 16 --threads 2 -o a.png",
@@ -154,7 +156,11 @@ TEST(render_pm_fit_photons_to_the_render) {
         ASSERT_MSG(l, "no photons line: %s", g_out);
         double s = after(l, "  photons: "), wp = after(l, "the targets' photons "), wr = after(l, "camera samples ");
         ASSERT_MSG(s > 0 && wp > 0 && wr > 0, "%.300s", l);
-        double rule = fmin(4.0, fmax(0.5, 0.2 * wr / wp));
+        /* the ceiling from the caustic map's printed share of the luminance (cornell_box: none, so 1) */
+        double q = after(l, "(the caustic map carries ") / 100, t = fmin(1, fmax(0, (q - 0.10) / 0.15));
+        double ceil = after(l, ": ceiling ");
+        EXPECT_MSG(fabs(ceil - (1 + 3 * t)) <= 5e-3 * ceil, "%s: ceiling %g at a caustic share %g", runs[r], ceil, q);
+        double rule = fmin(ceil, fmax(0.5, 0.2 * wr / wp));
         int again = rule > 1.25 * 0.5;
         if (!again) rule = 0.5;
         EXPECT_MSG(fabs(s - rule) <= 5e-3 * rule, "%s: s %g, the rule gives %g (W_p %g, W_r %g)", runs[r], s, rule, wp, wr);
@@ -170,9 +176,19 @@ TEST(render_pm_fit_photons_to_the_render) {
     ASSERT_MSG(run_box_defaults("--width 16 --height 16 --spp 16 --pm global_photons=20000 -o a.png") == 0, "%s", g_out);
     EXPECT_MSG(strstr(g_out, "  photons: the targets (photon_mapping.global_photons is set)") != NULL, "%s", g_out);
     EXPECT_MSG(after(g_out, "\nPhotons: ") >= 20000 && after(g_out, "\nPhotons: ") <= 20064, "%s", g_out);
+    /* a render in passes: pass 0 fitted to one pass's camera samples (the half, here); a later
+     * pass's photons are its printed fraction of the settings' targets, not of pass 0's half */
     ASSERT_MSG(run_box_defaults("--width 16 --height 16 --passes 2 --pass-spp 4 -o a.png") == 0, "%s", g_out);
-    EXPECT_MSG(strstr(g_out, "  photons: the targets (a render in passes: ") != NULL, "%s", g_out);
-    EXPECT_MSG(after(g_out, "\nPass 0: photons ") >= 200000 && after(g_out, "\nPass 0: photons ") <= 200064, "%s", g_out);
+    EXPECT_MSG(strstr(g_out, "  photons: 0.5 x the targets (global 200000,") != NULL, "%s", g_out);
+    EXPECT_MSG(after(g_out, "\nPass 0: photons ") >= 100000 && after(g_out, "\nPass 0: photons ") <= 100064, "%s", g_out);
+    const char *p1 = strstr(g_out, "\nPass 1: photons ");
+    ASSERT_MSG(p1, "%s", g_out);
+    const char *ft = strstr(p1, " of the photon targets");
+    ASSERT_MSG(ft, "%.300s", p1);
+    while (ft > p1 && ft[-1] != ' ') ft--; /* back to the fraction's first digit */
+    double g1 = after(p1, "\nPass 1: photons "), f1 = strtod(ft, NULL);
+    EXPECT_MSG(f1 > 0 && f1 <= 1 && g1 >= 200000 * f1 * (1 - 5e-3) - 1 && g1 <= 200000 * f1 * (1 + 5e-3) + 64,
+               "pass 1: %g global photons at f %g of the targets: %.300s", g1, f1, p1);
 }
 
 /* Caustics at a stride (pm_sample.h, CAUSTICS AT A STRIDE): for every strata S (1 to 20) and

@@ -69,7 +69,7 @@ typedef struct mapper_state {
     /* Pass 0's photons fitted to its camera samples (pm_passes.c, PASS 0'S PHOTONS): the
      * settings' counts, stage A running (1), the scale of the targets pass 0 traced, why. */
     long fit_target[4];
-    int fit_stage, in_passes;
+    int fit_stage;
     double fit_scale;
     char fit_reason[400];
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,

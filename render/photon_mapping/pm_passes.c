@@ -134,11 +134,9 @@ static double camera_work(const mapper_state *st, const scene *s) {
 
 static void choose_fraction(mapper_state *st, const scene *s) {
     photon_settings *c = &st->cfg;
-    st->target0[0] = c->global_photons;
-    st->target0[1] = c->caustic_photons;
-    st->target0[2] = c->volume_photons;
-    st->target0[3] = c->volume_caustic_photons;
-    double wp = photon_work(st);
+    /* the settings' targets, and their work: pass 0's maps are fit_scale x the targets */
+    for (int i = 0; i < 4; i++) st->target0[i] = st->fit_target[i];
+    double wp = photon_work(st) / (st->fit_scale > 0 ? st->fit_scale : 1);
     double wr = camera_work(st, s);
     st->photon_work0 = wp;
     if (c->ppm_photons > 0) {
@@ -310,7 +308,7 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
  * which the ceiling handles. The floor, 1/PM_FIT_FIRST: below half
  * the targets the estimates' bias showed where photons are sparse (door_ajar +10..+17% at a
  * quarter, +6..+8% at a half, +5..+6% at the targets). Not fitted: counts set by the scene or
- * --pm, a render in passes (measured worse: README.md), loaded or saved maps (a saved set must
+ * --pm, loaded or saved maps (a saved set must
  * match its targets when loaded), a partitioned
  * render-mpi (its sample pilot does not run), no sample pilot. */
 #define PM_FIT_SHARE 0.2
@@ -378,10 +376,6 @@ void pm__fit_begin(mapper_state *st, const scene *s) {
     else if (st->cfg.load_dir[0] || st->cfg.save_dir[0])
         snprintf(st->fit_reason, sizeof st->fit_reason, "the targets (%s photon maps keep them)",
                  st->cfg.load_dir[0] ? "loaded" : "saved");
-    else if (st->in_passes)
-        snprintf(st->fit_reason, sizeof st->fit_reason,
-                 "the targets (a render in passes: its later passes trace their own share, and pass 0 "
-                 "at half the targets read cornell_spheres's 4- and 16-pass means worse, README.md)");
     else if (pm__lookup)
         snprintf(st->fit_reason, sizeof st->fit_reason,
                  "the targets (partitioned render-mpi: no sample pilot to weigh them by)");
