@@ -16,6 +16,7 @@
 
 #include "test.h"
 #include "test_render_run.h"
+#include "photon_mapping/pm_sample.h"
 
 static char g_out[1 << 16];
 
@@ -136,12 +137,14 @@ static double after(const char *text, const char *key) {
 }
 
 /* Oracle: the documented rule applied to the counted work the "photons:" line prints:
- * s = clamp(0.2 W_r / W_p, 1/2, 4), traced again when s > 1.25 / 2, else the first stage's
+ * s = clamp(0.2 W_r / W_p, 1/2, ceiling), the ceiling 1 + 3 clamp((q - 0.1) / 0.15, 0, 1) from the
+ * caustic map's printed share q of the luminance, traced again when s > 1.25 / 2, else the first stage's
  * half stays (3 significant digits printed: relative 5e-3); the "Photons:" line's global
  * count is s x 200,000 (+ at most one photon path's stores). A small render keeps the half,
  * a render of about 800 times the camera samples traces again; the same line for 1 and 2 threads
  * (counted work, never timed); a count given with --pm is traced as given and the line says
- * why; a render in passes keeps the targets for pass 0 and says why. */
+ * why; a render in passes fits pass 0 to one pass, and a later pass traces its printed
+ * fraction of the settings' targets. */
 TEST(render_pm_fit_photons_to_the_render) {
     static const char *runs[] = {"--width 16 --height 16 --spp 16 --threads 1 -o a.png",
                                  "--width 16 --height 16 --spp 16 --threads 2 -o a.png",
@@ -153,7 +156,11 @@ TEST(render_pm_fit_photons_to_the_render) {
         ASSERT_MSG(l, "no photons line: %s", g_out);
         double s = after(l, "  photons: "), wp = after(l, "the targets' photons "), wr = after(l, "camera samples ");
         ASSERT_MSG(s > 0 && wp > 0 && wr > 0, "%.300s", l);
-        double rule = fmin(4.0, fmax(0.5, 0.2 * wr / wp));
+        /* the ceiling from the caustic map's printed share of the luminance (cornell_box: none, so 1) */
+        double q = after(l, "(the caustic map carries ") / 100, t = fmin(1, fmax(0, (q - 0.10) / 0.15));
+        double ceil = after(l, ": ceiling ");
+        EXPECT_MSG(fabs(ceil - (1 + 3 * t)) <= 5e-3 * ceil, "%s: ceiling %g at a caustic share %g", runs[r], ceil, q);
+        double rule = fmin(ceil, fmax(0.5, 0.2 * wr / wp));
         int again = rule > 1.25 * 0.5;
         if (!again) rule = 0.5;
         EXPECT_MSG(fabs(s - rule) <= 5e-3 * rule, "%s: s %g, the rule gives %g (W_p %g, W_r %g)", runs[r], s, rule, wp, wr);
@@ -169,7 +176,58 @@ TEST(render_pm_fit_photons_to_the_render) {
     ASSERT_MSG(run_box_defaults("--width 16 --height 16 --spp 16 --pm global_photons=20000 -o a.png") == 0, "%s", g_out);
     EXPECT_MSG(strstr(g_out, "  photons: the targets (photon_mapping.global_photons is set)") != NULL, "%s", g_out);
     EXPECT_MSG(after(g_out, "\nPhotons: ") >= 20000 && after(g_out, "\nPhotons: ") <= 20064, "%s", g_out);
+    /* a render in passes: pass 0 fitted to one pass's camera samples (the half, here); a later
+     * pass's photons are its printed fraction of the settings' targets, not of pass 0's half */
     ASSERT_MSG(run_box_defaults("--width 16 --height 16 --passes 2 --pass-spp 4 -o a.png") == 0, "%s", g_out);
-    EXPECT_MSG(strstr(g_out, "  photons: the targets (a render in passes: ") != NULL, "%s", g_out);
-    EXPECT_MSG(after(g_out, "\nPass 0: photons ") >= 200000 && after(g_out, "\nPass 0: photons ") <= 200064, "%s", g_out);
+    EXPECT_MSG(strstr(g_out, "  photons: 0.5 x the targets (global 200000,") != NULL, "%s", g_out);
+    EXPECT_MSG(after(g_out, "\nPass 0: photons ") >= 100000 && after(g_out, "\nPass 0: photons ") <= 100064, "%s", g_out);
+    const char *p1 = strstr(g_out, "\nPass 1: photons ");
+    ASSERT_MSG(p1, "%s", g_out);
+    const char *ft = strstr(p1, " of the photon targets");
+    ASSERT_MSG(ft, "%.300s", p1);
+    while (ft > p1 && ft[-1] != ' ') ft--; /* back to the fraction's first digit */
+    double g1 = after(p1, "\nPass 1: photons "), f1 = strtod(ft, NULL);
+    EXPECT_MSG(f1 > 0 && f1 <= 1 && g1 >= 200000 * f1 * (1 - 5e-3) - 1 && g1 <= 200000 * f1 * (1 + 5e-3) + 64,
+               "pass 1: %g global photons at f %g of the targets: %.300s", g1, f1, p1);
+}
+
+/* Caustics at a stride (pm_sample.h, CAUSTICS AT A STRIDE): for every strata S (1 to 20) and
+ * stride c (1 to 5), at every pixel offset, the weights of a pixel's n = S^2 samples sum to n
+ * exactly (the old lattice, which chose (S mod c) more columns at some offsets, fails this for
+ * S = 4, c = 3: sums 36, 18, 9 instead of 16), each weight is 0 or n / m with m =
+ * pm_caustic_reads(S, c), and over the offsets each sample is chosen equally often: its mean
+ * weight is 1 (the estimate stays unbiased). Offsets: u, v on a grid fine enough to reach every
+ * lattice offset and every raster offset (n x c points: u = (i + 0.5) / n, v = (j + 0.5) / c). */
+TEST(render_pm_caustic_stride_weights_sum_exactly) {
+    static double mean[400];
+    for (int S = 1; S <= 20; S++)
+        for (int c = 1; c <= 5; c++) {
+            int n = S * S, m = pm_caustic_reads(S, c), bad = 0;
+            double expect_w = c <= 1 || S < c ? 1.0 : (double)n / m;
+            ASSERT(m >= 1 && m <= n);
+            if (c > 1 && S >= c && S % c == 0) ASSERT_EQ_INT(m, (S / c) * (S / c));
+            for (int k = 0; k < n; k++) mean[k] = 0;
+            int no = 0;
+            for (int i = 0; i < n; i++)
+                for (int j = 0; j < c; j++) {
+                    double u = (i + 0.5) / n, v = (j + 0.5) / c, sum = 0;
+                    int chosen = 0;
+                    for (int k = 0; k < n; k++) {
+                        double w = pm_caustic_weight(S, c, k, u, v);
+                        if (w != 0 && w != expect_w) bad++;
+                        chosen += w != 0;
+                        sum += w;
+                        mean[k] += w;
+                    }
+                    if (fabs(sum - n) > 1e-9 * n || chosen != (c <= 1 || S < c ? n : m)) bad++;
+                    no++;
+                }
+            double worst = 0;
+            for (int k = 0; k < n; k++) worst = fmax(worst, fabs(mean[k] / no - 1));
+            /* the lattice case's offsets are a c x c grid, reached exactly by the n x c points
+             * only when n is a multiple of c (it is: c divides S); the raster case's by the n
+             * values of u: both exact to rounding */
+            ASSERT_MSG(!bad && worst <= 1e-9, "S %d c %d: %d bad pixels or weights, mean weight off by %g", S,
+                       c, bad, worst);
+        }
 }

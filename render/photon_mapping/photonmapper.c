@@ -395,19 +395,15 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
 
 /* ---- the integrator ----------------------------------------------------------------------- */
 
-/* The weight of this camera sample's caustic estimates. With caustic_stride c > 1 the
- * caustic map is read at one stratum in c x c of the pixel, those whose (sx mod c, sy mod c)
- * equal a random offset drawn per pixel, and weighted c^2; the other samples get weight 0.
- * Each sample is chosen with probability 1/c^2, so the pixel's expected value is unchanged,
- * and the chosen ones are spread evenly over the pixel. The caustic radiance barely changes
- * within a pixel, so this costs little noise and saves most of the estimates' time. */
+/* The weight of this camera sample's caustic estimates: with caustic_stride c > 1 only some
+ * of a pixel's samples read the caustic map (pm_caustic_weight, pm_sample.h), at an offset
+ * drawn per pixel. */
 static double caustic_weight(const mapper_state *st, const sample_id *id) {
     int c = st->cfg.caustic_stride;
     if (c <= 1 || !id || id->strata < c) return 1.0;
     rng g = rng_stream(id->seed, id->pixel, 0x6361757374696373ULL); /* "caustics" */
-    int ox = (int)(rng_uniform(&g) * c), oy = (int)(rng_uniform(&g) * c);
-    int sx = id->k % id->strata, sy = id->k / id->strata;
-    return sx % c == ox && sy % c == oy ? (double)c * c : 0.0;
+    double u = rng_uniform(&g), v = rng_uniform(&g);
+    return pm_caustic_weight(id->strata, c, id->k, u, v);
 }
 
 enum { EYE_ALL, EYE_SHADE, EYE_EMIT };

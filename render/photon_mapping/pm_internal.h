@@ -60,7 +60,7 @@ typedef struct mapper_state {
     /* Photons per pass (pm_passes.c, PHOTONS PER PASS): the sample pilot's counted work of a
      * camera sample, the settings' targets (global, caustic, volume, volume caustic) and
      * pass 0's counted photon work at them, the fraction later passes trace, and why. */
-    double sample_work, photon_work0, pass_fraction;
+    double sample_work, sample_caustic, photon_work0, pass_fraction;
     long target0[4];
     int k0[2]; /* the settings' k_global, k_caustic (a later pass reads fewer: pass_targets) */
     int fraction_made;
@@ -69,7 +69,7 @@ typedef struct mapper_state {
     /* Pass 0's photons fitted to its camera samples (pm_passes.c, PASS 0'S PHOTONS): the
      * settings' counts, stage A running (1), the scale of the targets pass 0 traced, why. */
     long fit_target[4];
-    int fit_stage, in_passes;
+    int fit_stage;
     double fit_scale;
     char fit_reason[400];
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,

@@ -134,11 +134,9 @@ static double camera_work(const mapper_state *st, const scene *s) {
 
 static void choose_fraction(mapper_state *st, const scene *s) {
     photon_settings *c = &st->cfg;
-    st->target0[0] = c->global_photons;
-    st->target0[1] = c->caustic_photons;
-    st->target0[2] = c->volume_photons;
-    st->target0[3] = c->volume_caustic_photons;
-    double wp = photon_work(st);
+    /* the settings' targets, and their work: pass 0's maps are fit_scale x the targets */
+    for (int i = 0; i < 4; i++) st->target0[i] = st->fit_target[i];
+    double wp = photon_work(st) / (st->fit_scale > 0 ? st->fit_scale : 1);
     double wr = camera_work(st, s);
     st->photon_work0 = wp;
     if (c->ppm_photons > 0) {
@@ -295,25 +293,57 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
  * photons, 25 spp). So unless the scene or --pm sets a count, pass 0 is traced in two stages:
  *   stage A: 1/PM_FIT_FIRST of the targets, its trees and readers, then the sample pilot
  *            (pm__decide_sample), which gives the counted work of a camera sample;
- *   the fit:  s = PM_FIT_SHARE x W_r / W_p(targets), within [1/PM_FIT_FIRST, PM_FIT_MAX],
+ *   the fit:  s = PM_FIT_SHARE x W_r / W_p(targets), within [1/PM_FIT_FIRST, fit_ceiling],
  *            W_r the render's camera samples' counted work, W_p(targets) = stage A's counted photon work (photon_work)
- *            x PM_FIT_FIRST;
+ *            x PM_FIT_FIRST; the ceiling is PM_FIT_MAX where the caustic map carries much of
+ *            the camera samples' luminance, the targets where it carries little (fit_ceiling);
  *   stage B: when s is above 1.25 / PM_FIT_FIRST, the maps are traced again at s x the targets
  *            (same seed) and stage A's are dropped; else stage A's maps are pass 0's.
  * The gather guide, the emission mask and the sample pilot's choices stay stage A's (they
  * choose sampling, never the mean). Counted work, never seconds: the same s for any thread
- * count, for render-mpi's processes and after a resume. PM_FIT_SHARE was chosen by
- * measurement (README.md, "Photons fitted to the render"): on cornell_spheres at 96x96 the
- * error at equal CPU time was lowest with photons at about 1/5 of the time, and water_caustic,
- * whose caustic is all photons, lost little there; the floor, 1/PM_FIT_FIRST, too: below half
+ * count, for render-mpi's processes and after a resume. PM_FIT_SHARE (README.md, "Photons
+ * fitted to the render"): on water_caustic at 96x96 and 729 spp the error at equal CPU time
+ * was lowest with maps at 1 to 2 x the targets (fit_ceiling's figures), where the share 0.2
+ * puts them (1.8); on cornell_spheres the maps' size did not matter above half the targets,
+ * which the ceiling handles. The floor, 1/PM_FIT_FIRST: below half
  * the targets the estimates' bias showed where photons are sparse (door_ajar +10..+17% at a
  * quarter, +6..+8% at a half, +5..+6% at the targets). Not fitted: counts set by the scene or
- * --pm, a render in passes (measured worse: README.md), loaded or saved maps (a saved set must
+ * --pm, loaded or saved maps (a saved set must
  * match its targets when loaded), a partitioned
  * render-mpi (its sample pilot does not run), no sample pilot. */
 #define PM_FIT_SHARE 0.2
 #define PM_FIT_FIRST 2.0
 #define PM_FIT_MAX 4.0
+
+/* The fit's ceiling: photons above the targets pay only where the caustic map is much of what
+ * the camera sees (it is read at the camera path's hits, unfiltered, while the global map is
+ * read through gathers). Measured at 96x96, 2 threads, seeds 1 and 2, counts set by --pm, on a
+ * loaded machine (so the CPU seconds are rough, the errors firm): cornell_spheres (the caustic
+ * map carries 10% of the pilot samples' luminance) read the same RMSE from 0.5 to 4 x the
+ * targets at 289 spp (0.0052/0.0063 at 0.5, 0.0053/0.0063 at 4) and at 1089 spp (0.0030 at
+ * both), so maps above the targets were time lost; water_caustic (27%) fell from 0.0138 at
+ * 0.5 to 0.0131, 0.0124 and 0.0119 at 1, 2 and 4 x at 729 spp. So the ceiling is PM_FIT_MAX
+ * where the caustic share is at least PM_FIT_CAUSTIC_HI, the targets (1) at PM_FIT_CAUSTIC_LO
+ * or less, linear between; a scene with volume photon maps keeps PM_FIT_MAX (their estimates
+ * are read along the camera rays, unfiltered too, and were not measured apart). */
+#define PM_FIT_CAUSTIC_LO 0.10
+#define PM_FIT_CAUSTIC_HI 0.25
+static double fit_ceiling(const mapper_state *st) {
+    if (st->vol.on) return PM_FIT_MAX;
+    double t = (st->sample_caustic - PM_FIT_CAUSTIC_LO) / (PM_FIT_CAUSTIC_HI - PM_FIT_CAUSTIC_LO);
+    t = t < 0 ? 0 : t > 1 ? 1 : t;
+    return 1 + (PM_FIT_MAX - 1) * t;
+}
+
+static const char *ceiling_why(const mapper_state *st, double hi, char *buf, size_t cap) {
+    if (st->vol.on)
+        snprintf(buf, cap, "volume photon maps: the ceiling stays %.3g", hi);
+    else
+        snprintf(buf, cap, "the caustic map carries %.1f%% of the camera samples' luminance: ceiling %.3g, "
+                 "from 1 at %.0f%% to %.3g at %.0f%%", 100 * st->sample_caustic, hi, 100 * PM_FIT_CAUSTIC_LO,
+                 PM_FIT_MAX, 100 * PM_FIT_CAUSTIC_HI);
+    return buf;
+}
 
 static long *fit_count(mapper_state *st, int i) {
     long *c[4] = {&st->cfg.global_photons, &st->cfg.caustic_photons, &st->cfg.volume_photons,
@@ -346,10 +376,6 @@ void pm__fit_begin(mapper_state *st, const scene *s) {
     else if (st->cfg.load_dir[0] || st->cfg.save_dir[0])
         snprintf(st->fit_reason, sizeof st->fit_reason, "the targets (%s photon maps keep them)",
                  st->cfg.load_dir[0] ? "loaded" : "saved");
-    else if (st->in_passes)
-        snprintf(st->fit_reason, sizeof st->fit_reason,
-                 "the targets (a render in passes: its later passes trace their own share, and pass 0 "
-                 "at half the targets read cornell_spheres's 4- and 16-pass means worse, README.md)");
     else if (pm__lookup)
         snprintf(st->fit_reason, sizeof st->fit_reason,
                  "the targets (partitioned render-mpi: no sample pilot to weigh them by)");
@@ -378,20 +404,21 @@ int pm__fit_end(mapper_state *st, const scene *s) {
         pm__drop_maps(st);
         return 1;
     }
-    double lo = 1 / PM_FIT_FIRST, fs = f < lo ? lo : f > PM_FIT_MAX ? PM_FIT_MAX : f;
+    double lo = 1 / PM_FIT_FIRST, hi = fit_ceiling(st), fs = f < lo ? lo : f > hi ? hi : f;
     int again = fs > 1.25 * lo;
     st->fit_scale = again ? fs : lo;
     if (again) {
         fit_scale(st, fs);
     }
-    char vol[96] = "";
+    char vol[96] = "", why[128];
     if (st->vol.on)
         snprintf(vol, sizeof vol, ", volume %ld, volume caustic %ld", st->fit_target[2], st->fit_target[3]);
     snprintf(st->fit_reason, sizeof st->fit_reason,
              "%.3g x the targets (global %ld, caustic %ld%s): counted work of the targets' photons "
-             "%.3g, of %d x %d x %d camera samples %.3g; photons at %.2g of that, within [%.3g, %.3g]; %s",
+             "%.3g, of %d x %d x %d camera samples %.3g; photons at %.2g of that, within [%.3g, %.3g] "
+             "(%s); %s",
              st->fit_scale, st->fit_target[0], st->fit_target[1], vol, wp, s->cam.width,
-             s->cam.height, s->cam.spp, wr, PM_FIT_SHARE, lo, PM_FIT_MAX,
+             s->cam.height, s->cam.spp, wr, PM_FIT_SHARE, lo, hi, ceiling_why(st, hi, why, sizeof why),
              again ? "traced again" : "the first stage's maps kept");
     if (!again) return 0;
     pm__drop_maps(st);

@@ -162,7 +162,6 @@ int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
     if (!st->made) plan_print(&st->plan, stdout);
     fflush(stdout);
     int rc, first = !st->made && st->pass == 0;
-    st->in_passes = self->in_passes;
     uint64_t c0[STATS_MAX], c1[STATS_MAX];
     int progress = st->cfg.progress;
     if (first) {

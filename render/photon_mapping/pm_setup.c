@@ -36,7 +36,8 @@ static int sample_decide(mapper_state *st, const scene *s, char *err, size_t err
         snprintf(st->emit_reason, sizeof st->emit_reason, "none (photon_mapping.emission_strata is 0): "
                  "a sample's own path collects emission");
     pm_sample_pilot(&h, st->explicit_gather, st->explicit_secondary, st->explicit_stride, st->emit.var,
-                    st->sample_reason, sizeof st->sample_reason, &st->sample_work);
+                    st->sample_reason, sizeof st->sample_reason, &st->sample_work,
+                    &st->sample_caustic);
     return 0;
 }
 
