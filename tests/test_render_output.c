@@ -362,3 +362,24 @@ TEST(render_output_cli_bad_input) {
     pm_test_run(cmd, out, sizeof out);
     EXPECT_MSG(!strstr(out, "larger than the limit"), "%s", out);
 }
+
+/* Oracle: the old file's own bytes. An EXR output (--hdr o.exr) goes through the same
+ * whole-or-nothing path as PFM and PNG: interrupted (SIGINT) after the EXR is written to its
+ * temporary and before the commit, the old o.exr is left byte-identical and no temporary
+ * remains; a run that completes replaces it with the new render's file. */
+TEST(render_output_exr_whole_or_not_at_all) {
+    const char *dir = pm_test_tmpdir();
+    char out[16384], cmd[4096];
+    ASSERT_MSG(rt_render(SCENE_ARGS, "--seed 1 --spp 4 --hdr old.exr", out, sizeof out) == 0, "%s", out);
+    ASSERT_MSG(rt_render(SCENE_ARGS, "--seed 2 --spp 4 --hdr new.exr", out, sizeof out) == 0, "%s", out);
+    EXPECT(!rt_same_file(rt_path("old.exr"), rt_path("new.exr")));
+    snprintf(cmd, sizeof cmd, "cd '%s' && cp old.exr o.exr", dir);
+    ASSERT(pm_test_run(cmd, out, sizeof out) == 0);
+    int rc = rt_render_paused("pfm", "INT", SCENE_ARGS, "--seed 2 --spp 4 --hdr o.exr", "", out, sizeof out);
+    EXPECT_MSG(rc == 130, "status %d: %s", rc, out);
+    EXPECT_MSG(rt_same_file(rt_path("o.exr"), rt_path("old.exr")), "the old EXR changed");
+    EXPECT_EQ_INT(rt_count_temps(), 0);
+    ASSERT_MSG(rt_render(SCENE_ARGS, "--seed 2 --spp 4 --hdr o.exr", out, sizeof out) == 0, "%s", out);
+    EXPECT(rt_same_file(rt_path("o.exr"), rt_path("new.exr")));
+    EXPECT_EQ_INT(rt_count_temps(), 0);
+}
