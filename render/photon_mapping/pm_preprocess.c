@@ -72,6 +72,7 @@ static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t e
         /* A later pass traces with its own seed (the scene's copy carries it to pmv_trace). */
         scene sp = *s;
         sp.settings.seed = st->pass_seed;
+        st->vol.quiet = st->fit_stage; /* the fit's first stage prints no maps (pm_passes.c) */
         if ((rc = pmv_trace(&st->vol, &sp, &st->cfg, &st->plan, m, err, errcap)) < 0) return rc;
         if (!loaded) m->stamp = stamp;
         if ((rc = pm__pass_volume_radii(st, s)) < 0) return rc;

@@ -296,6 +296,7 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
         if (v->ms[md].n && v->ms[md].k < k_ms) k_ms = v->ms[md].k;
         if (v->caus[md].n && v->caus[md].k < k_caus) k_caus = v->caus[md].k;
     }
+    if (v->quiet) goto done;
     if (loaded) printf("Loaded photon maps from %s", c->load_dir);
     else printf("Photons");
     printf(" (scene with media): %zu global (from %llu emitted), %zu caustic (from %llu "
@@ -304,6 +305,7 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
            m->nglobal, (unsigned long long)m->global_emitted, m->ncaustic,
            (unsigned long long)m->caustic_emitted, v->n_all, (unsigned long long)m->volume_emitted,
            v->n_ms, r_ms, k_ms, v->n_caus, (unsigned long long)m->volume_caustic_emitted, r_caus, k_caus);
+done:
     vol_pass_free(&g);
     vol_pass_free(&k);
     return 0;

@@ -146,6 +146,7 @@ typedef struct pmv_map {
 
 typedef struct pmv_state {
     int on;                      /* the scene has a medium or a null surface */
+    int quiet;                   /* pmv_trace prints no "Photons" line (the fit's first stage) */
     int nmedia;
     pmv_map *ms, *caus, *all;    /* per medium (nmedia each): the three trees above */
     size_t n_ms, n_caus, n_all;  /* photons in all media */
