@@ -16,6 +16,8 @@
 
 #include "test.h"
 #include "../render/image/film.h"
+#include "../render/photons/photon_trace.h"
+#include "../render/scene/scene.h"
 
 /* A small closed box (floor, ceiling, walls; open front) with an area light in its
  * ceiling, one sphere and one point light. %s: extra top-level members (with a leading
@@ -494,6 +496,50 @@ TEST(render_validate_memory_budget_furnace) {
     long stored = ph ? strtol(ph + 9, NULL, 10) : -1;
     EXPECT_MSG(stored > 0 && stored * 64L <= 16L << 20, "stored %ld records (16 MiB holds %ld)", stored,
                (16L << 20) / 64);
+}
+
+/* Oracle: the memory budget's prefix (the driver's rules, top of photon_rounds.c), on
+ * photon_trace's pass itself. The furnace's photons never die; with max_bounces 100 a path
+ * stores at most 101 records, and a budget of 4 MiB holds 65536 records of 64 bytes, so the
+ * first batch passes it. The pass keeps the longest prefix of photons whose records fit: the
+ * same map on 1 and 2 threads; one more path would not have fit; and record for record the
+ * map of an unbudgeted pass of just that many photons (a photon's records depend only on its
+ * index). */
+TEST(render_validate_memory_budget_keeps_the_prefix) {
+    scene s;
+    json_err e;
+    ASSERT_MSG(scene_load_text(&s, k_furnace1, &e) == 0, "%s", e.msg);
+    trace_opts o;
+    trace_opts_init(&o, &s);
+    o.global = 1;
+    o.global_target = 100000000;
+    o.max_emitted_factor = 1e9;
+    o.max_emitted = 1e9;
+    o.max_memory_bytes = (size_t)4 << 20;
+    o.max_bounces = 100;
+    o.quiet = 1;
+    photon_maps m[3];
+    char err[512];
+    for (int t = 0; t < 2; t++) {
+        o.threads = t + 1;
+        ASSERT_MSG(photon_trace(&s, &o, &m[t], err, sizeof err) == 0, "%s", err);
+    }
+    size_t recs = ((size_t)4 << 20) / 64;
+    printf("    4 MiB: %zu global photons from %llu emitted\n", m[0].nglobal, (unsigned long long)m[0].global_emitted);
+    EXPECT(m[0].global_runaway && m[0].global_emitted > 0 && m[0].global_emitted < PT_BATCH);
+    EXPECT_MSG(m[0].nglobal <= recs && m[0].nglobal + 101 > recs, "%zu records of a budget of %zu", m[0].nglobal, recs);
+    EXPECT(m[1].nglobal == m[0].nglobal && m[1].global_emitted == m[0].global_emitted &&
+           memcmp(m[0].global, m[1].global, m[0].nglobal * sizeof *m[0].global) == 0);
+    o.threads = 0;
+    o.max_memory_bytes = 0;
+    o.max_emitted = (double)m[0].global_emitted;
+    ASSERT_MSG(photon_trace(&s, &o, &m[2], err, sizeof err) == 0, "%s", err);
+    EXPECT_MSG(m[2].nglobal == m[0].nglobal && m[2].global_emitted == m[0].global_emitted &&
+                   memcmp(m[0].global, m[2].global, m[0].nglobal * sizeof *m[0].global) == 0,
+               "budgeted %zu photons from %llu, unbudgeted %zu from %llu", m[0].nglobal,
+               (unsigned long long)m[0].global_emitted, m[2].nglobal, (unsigned long long)m[2].global_emitted);
+    for (int k = 0; k < 3; k++) photon_maps_free(&m[k]);
+    scene_free(&s);
 }
 
 /* Oracle: the float range (3.4e38). The base scene shrunk to 1e-5 (a box 2e-5 wide) with a

@@ -229,28 +229,6 @@ static int pass_stops(pass_run_state *st) {
         snprintf(st->why, sizeof st->why, "%.0f photons emitted", st->limit);
         return 1;
     }
-    /* Stored so slowly that the emission budget cannot reach the target: stop now rather
-     * than after the whole budget (the maps keep what they stored), when every open map is
-     * so. */
-    int open = 0, slow = 0;
-    for (int k = 0; k < 2; k++) {
-        const pass_buf *b = map_buf(st, k);
-        if (!map_open(st, k)) continue;
-        open++;
-        if (b->n == 0 || st->n_e < 4 * (uint64_t)PT_BATCH || map_target(st, k) == LONG_MAX) continue;
-        double need = (double)map_target(st, k) * (double)st->n_e / (double)b->n;
-        if (need > 2 * st->limit) {
-            slow++;
-            snprintf(st->why, sizeof st->why,
-                     "the target needs about %.3g photons emitted at the rate seen (%zu stored "
-                     "of %llu emitted), over the budget of %.3g",
-                     need, b->n, (unsigned long long)st->n_e, st->limit);
-        }
-    }
-    if (open > 0 && slow == open) {
-        st->stop = st->limit_name;
-        return 1;
-    }
     st->why[0] = 0;
     const pass_buf *mb = st->main_buf, *sb = st->shadow_buf;
     size_t bytes = (mb->cap + (sb ? sb->cap : 0)) * sizeof(pass_rec);

@@ -80,8 +80,8 @@
  * unbiased). Budgets stop it earlier, and the message on stderr names the one that did
  * ("stopped by the photon_mapping.KEY budget"):
  *   emitted    max_emitted_factor x target, and at most max_emitted photons (exactly: the
- *              last batch is cut there); a pass whose storage rate (after 4 batches) needs
- *              more than twice that stops at once;
+ *              last batch is cut there); a pass that cannot reach its target takes the whole
+ *              budget (no stop by rate: photon_rounds.c's rules);
  *   memory     max_memory_mb of photon buffers (the map's buffers grow to at most the
  *              budget, not by doubling past it): checked between batches, and inside a batch:
  *              a batch whose records, with those held, would pass the budget keeps its

@@ -39,8 +39,8 @@
  *            max_emitted, named by max_emitted_budget); a map short of its target then says
  *            "photon tracing: Tracing volume photons: only N of T photons stored after E
  *            emitted; stopped by the photon_mapping.KEY budget (...)" (or another budget the
- *            caller names). The pass stops at once when every map still open needs, at the
- *            rate seen, more than twice that budget;
+ *            caller names). A map that cannot reach its target (the wall behind a
+ *            smoke-filled glass) takes the whole budget;
  *   memory   max_memory_bytes of 64-byte records while tracing: the maps' buffers between
  *            batches; a batch whose records would pass what is left keeps its longest prefix
  *            of photons that fit (each whole) and the pass ends there, for any thread or
