@@ -51,10 +51,13 @@
  *            and the pass ends there. So the stop is the same for any thread count and, in a
  *            replicated distributed pass, for any process count (a round's batch past what
  *            is left now is traced again by every process); a runaway keeps the photons that
- *            fit instead of nothing. Chosen: it is the only one of the two that keeps the
- *            maps of a stopped pass independent of threads and processes and keeps photons
- *            in a runaway. A partitioned pass (surfaces only) still stops before a batch past
- *            its round's share (its parts are traced again whole; not a prefix);
+ *            fit instead of nothing. Chosen: the media's rule was independent of threads and
+ *            processes too, but by fixed shares of 1/8 per batch of 1024 photons; the prefix
+ *            keeps that independence with the whole of what is left and the surfaces'
+ *            batches, and unlike the surfaces' rule it keeps photons in a runaway. A
+ *            partitioned pass (surfaces only) still stops before a batch past its round's
+ *            share (its parts are traced again whole, not as a prefix: there the stop can
+ *            differ from one process's, as before);
  *   path     max_bounces per photon (photon_walk.c), the cut paths counted.
  */
 #include <math.h>
