@@ -257,8 +257,12 @@ static int pass_over(pass_run_state *st, uint64_t cap, uint64_t left, size_t max
         if (end == hi) return 0;
     }
     st->stop = "max_memory_mb";
-    snprintf(st->why, sizeof st->why, "photon %llu would store past the %zu MiB left of %zu MiB",
-             (unsigned long long)end, (size_t)(left * sizeof(pass_rec)) >> 20, max >> 20);
+    if (st->part)
+        snprintf(st->why, sizeof st->why, "the next batches of %d photons would store more than the %zu MiB left of %zu MiB",
+                 PT_BATCH, (size_t)(left * sizeof(pass_rec)) >> 20, max >> 20);
+    else
+        snprintf(st->why, sizeof st->why, "photon %llu would store past the %zu MiB left of %zu MiB",
+                 (unsigned long long)end, (size_t)(left * sizeof(pass_rec)) >> 20, max >> 20);
     st->n_e = end;
     return 1;
 }
