@@ -698,18 +698,20 @@ kill_test partitioned data/scenes/cornell_spheres.json --mode pm --width 64 --he
   --pm global_photons=20000 --pm caustic_photons=20000 --pm distributed=partitioned
 
 # ---- the memory budget inside a distributed pass ------------------------------------------
-# Oracle: PASS BUDGETS (photon_trace.h) and render's own run of the same command. A lossless
-# furnace (a closed box, every reflectance 1, render.max_depth 1e5) whose batches of 4096
-# photons, allowed 1e6 bounces, would store far more than max_memory_mb=16: render ends at
-# once, status 1, "no photon stored within the photon_mapping.max_memory_mb budget"; so must
-# render-mpi, replicated and partitioned, within 60 s and writing nothing (before, each rank
-# grew past 0.9 GB in 15 s and the job was still running at 60 s). Since the plan's pilots keep
-# the budget too (plan.c), that message may come from the plan's global pilot, which every
-# process traces alike; so a second case lets the pilot through and stops the distributed pass
-# itself: with max_bounces 16 the pilot fits in 16 MiB, the pass does not, and render-mpi must
-# say "stopped by the photon_mapping.max_memory_mb budget" and keep no more photons than
-# render's one-process pass does under the same budget (before 19e4d62 it kept 417792 there,
-# over 16 MiB, against render's 348160).
+# Oracle: PASS BUDGETS (photon_trace.h; the driver's rules at the top of
+# render/photons/photon_rounds.c) and render's own run of the same command. A lossless furnace
+# (a closed box, every reflectance 1, render.max_depth 1e5) whose batches of 4096 photons,
+# allowed 1e6 bounces, would store far more than max_memory_mb=16: render keeps the longest
+# prefix of photons that fits and says so (status 0); render-mpi replicated must write the
+# same PFM bytes with the same message (a batch past what is left is traced again by every
+# rank), within 60 s (before the budgets, each rank grew past 0.9 GB in 15 s and the job was
+# still running at 60 s). The partitioned mode keeps the older rule (a batch past its round's
+# share stops the pass before it): here that stores nothing, status 1, "no photon stored
+# within the photon_mapping.max_memory_mb budget", writing nothing. A second case stops the
+# distributed pass later: with max_bounces 16 render-mpi must say "stopped by the
+# photon_mapping.max_memory_mb budget" and keep no more photons than render's one-process
+# pass does under the same budget (before 19e4d62 it kept 417792 there, over 16 MiB, against
+# render's 348160).
 cat > "$T/furnace1.json" <<FURNACE
 {"camera": {"eye": [5, 5, 1], "look_at": [5, 5, 9], "fov_deg": 50, "width": 8, "height": 8, "spp": 1},
  "materials": {"w": {"type": "lambert", "reflectance": 1},
@@ -726,6 +728,9 @@ cat > "$T/furnace1.json" <<FURNACE
 FURNACE
 BUDGET="--mode pm --pm global_photons=100000000 --pm max_memory_mb=16 --pm max_bounces=1000000 --quiet"
 BUDGET_MSG="no photon stored within the photon_mapping.max_memory_mb budget"
+PREFIX_MSG="photon tracing: Tracing global photons: only [0-9]+ of 100000000 photons stored after [0-9]+ emitted; stopped by the photon_mapping.max_memory_mb budget \\(photon [0-9]+ would store past"
+# shellcheck disable=SC2086
+"$R" "$T/furnace1.json" $BUDGET --threads 1 --hdr "$T/budget.one.pfm" >"$T/budget.one.log" 2>&1
 for dmode in replicated partitioned; do
   mkdir -p "$T/budget.$dmode"
   t0=$(date +%s)
@@ -734,9 +739,13 @@ for dmode in replicated partitioned; do
     --hdr "$T/budget.$dmode/o.pfm" >"$T/budget.$dmode.log" 2>&1
   rc=$?
   dt=$(($(date +%s) - t0))
-  if [ $rc = 1 ] && [ $dt -lt 60 ] && [ -z "$(ls -A "$T/budget.$dmode")" ] \
+  if [ $dmode = replicated ] && [ $rc = 0 ] && [ $dt -lt 60 ] && cmp -s "$T/budget.$dmode/o.pfm" "$T/budget.one.pfm" \
+     && grep -Eq "^render: .*furnace1.json: $PREFIX_MSG" "$T/budget.$dmode.log" \
+     && grep -Eq "^render: .*furnace1.json: $PREFIX_MSG" "$T/budget.one.log"; then
+    ok "memory budget in a distributed pass ($dmode): render's prefix, message and PFM bytes, ${dt} s"
+  elif [ $dmode = partitioned ] && [ $rc = 1 ] && [ $dt -lt 60 ] && [ -z "$(ls -A "$T/budget.$dmode")" ] \
      && grep -Eq "^render: .*furnace1.json: (plan: global photon pilot: )?photon tracing: Tracing global photons: $BUDGET_MSG" "$T/budget.$dmode.log"; then
-    ok "memory budget in a distributed pass ($dmode): render's message, status 1, ${dt} s, no output"
+    ok "memory budget in a distributed pass ($dmode): the budget's message, status 1, ${dt} s, no output"
   else
     bad "memory budget in a distributed pass ($dmode)" "rc $rc, ${dt} s, left: $(ls -A "$T/budget.$dmode" | tr '\n' ' '); $(grep render "$T/budget.$dmode.log" | head -2)"
   fi

@@ -273,9 +273,10 @@ static int same_result(const vol_pass_result *a, const vol_pass_result *b) {
  * cornell_fog's global pass (surface and volume maps) traced by 3 and by 9 parts (more parts
  * than a round has batches: some trace nothing), each with 1 thread, must give every part
  * the one-process result: counts, emitted counts, the short flags and every record. Also under
- * memory budgets that stop the pass (the maps' and batches' buffers are summed from the
- * tracing parts' capacities): at least one budget must end the pass inside a batch (emitted
- * not a multiple of VOL_BATCH: a batch outgrew its share), and the exchange must have run. */
+ * memory budgets that stop the pass (the driver's rules, top of photon_rounds.c: a batch past
+ * what is left keeps its longest prefix that fits, the same in every process): at least one
+ * budget must end the pass inside a batch (emitted not a multiple of PT_BATCH), and the
+ * exchange must have run. */
 TEST(mpi_volume_pass_split_matches_one_process) {
     scene s;
     json_err e;
@@ -299,7 +300,7 @@ TEST(mpi_volume_pass_split_matches_one_process) {
         vol_pass_result one;
         int rc1 = vol_trace_pass(&s, &o, &one);
         ASSERT_MSG(rc1 == 0, "one-process pass failed (%d): %s", rc1, one.msg);
-        if (one.emitted % VOL_BATCH) inside_batch = 1;
+        if (one.emitted % PT_BATCH) inside_batch = 1;
         int counts[] = {3, VSPLIT_MAX};
         for (size_t ci = 0; ci < 2; ci++) {
             int n = counts[ci];

@@ -1094,12 +1094,14 @@ static void mirror_fog(char *buf, size_t cap, double sigma_a, double sigma_s, in
              sigma_a, sigma_s, max_depth);
 }
 
-/* Oracle for the memory budget: its definition (volume.h BUDGETS). A pass stopped by it keeps
- * the photons before the batch's stopping photon whole, so it equals, record for record, an
+/* Oracle for the memory budget: its definition (volume.h BUDGETS, the driver's rules at the top
+ * of photon_rounds.c). A pass stopped by it keeps the longest prefix of its batch's photons
+ * whose records fit the budget, each photon whole, so it equals, record for record, an
  * unbudgeted pass of just that many emitted photons (a photon's records depend only on its
- * index); it is the same on 1 and 2 threads; it holds at most its share of the budget per
- * batch; and it says which map stopped short. Each photon here stores up to 2001 records
- * (max_depth 2000), so a share of 2 MiB (16 MiB over 8 batches) holds about 14 photons. */
+ * index); one more photon would not have fit (its path stores at most max_depth + 1 = 2001
+ * records); it is the same on 1 and 2 threads; and it says which map stopped short. Each
+ * photon here stores up to 2001 records, so the budget of 16 MiB (262144 records of 64 bytes)
+ * holds about 130 photons, inside the first batch. */
 TEST(render_media_volume_memory_budget) {
     static char txt[8192];
     mirror_fog(txt, sizeof txt, 0, 5, 2000);
@@ -1121,8 +1123,10 @@ TEST(render_media_volume_memory_budget) {
     }
     printf("    memory budget 16 MiB: %zu volume photons from %llu emitted\n", r[0].nvolume,
            (unsigned long long)r[0].emitted);
-    EXPECT(r[0].volume_short && r[0].emitted > 0 && r[0].emitted < VOL_BATCH);
-    EXPECT(r[0].nvolume > 0 && r[0].nvolume * VOL_RECORD_BYTES <= ((size_t)16 << 20) / VOL_ROUND);
+    EXPECT(r[0].volume_short && r[0].emitted > 0 && r[0].emitted < PT_BATCH);
+    size_t recs = ((size_t)16 << 20) / 64; /* the budget in 64-byte records (pass_rec) */
+    EXPECT_MSG(r[0].nvolume > 0 && r[0].nvolume <= recs && r[0].nvolume + 2001 > recs,
+               "%zu records kept of a budget of %zu", r[0].nvolume, recs);
     EXPECT(r[0].nvolume == r[1].nvolume && r[0].emitted == r[1].emitted &&
            memcmp(r[0].volume, r[1].volume, r[0].nvolume * sizeof *r[0].volume) == 0);
     o.threads = 0;

@@ -1081,8 +1081,8 @@ static const char *k_runaway_scene =
     "{\"type\": \"sphere\", \"center\": [0,1,0], \"radius\": 0.5, \"material\": \"m\"},"
     "{\"type\": \"quad\", \"vertices\": [[-1,10,1],[1,10,1],[1,10,-1],[-1,10,-1]], \"material\": \"e\"}]}";
 
-/* Oracle: nothing can be hit, so each pass stores nothing; it stops at the first whole batch
- * (PT_BATCH photons) at or beyond its emission budget, max_emitted_factor x target, and
+/* Oracle: nothing can be hit, so each pass stores nothing; it stops at its emission budget,
+ * max_emitted_factor x target (exactly: 20 x 1000, the last batch cut there), and
  * photon_trace returns PM_EEMPTY with a message naming the pass and the budget. With
  * projection maps on, no cell of the light can reach the sphere (every emitted direction is
  * at least 88 degrees from the direction to it, and its bounding cone, widened by the light's
@@ -1107,7 +1107,7 @@ TEST(render_pm_runaway_trace) {
     char err[512];
     rc = photon_trace(&s, &o, &m, err, sizeof err);
     EXPECT_EQ_INT(rc, PM_EEMPTY);
-    EXPECT_MSG(strstr(err, "photon tracing: Tracing caustic photons: no photon stored after 20480 "
+    EXPECT_MSG(strstr(err, "photon tracing: Tracing caustic photons: no photon stored after 20000 "
                            "emitted") && strstr(err, "stopped by max_emitted_factor"),
                "%s", err);
     photon_maps_free(&m);
@@ -1117,7 +1117,7 @@ TEST(render_pm_runaway_trace) {
     o.global_target = 1000;
     rc = photon_trace(&s, &o, &m, err, sizeof err);
     EXPECT_EQ_INT(rc, PM_EEMPTY);
-    EXPECT_MSG(strstr(err, "Tracing global photons: no photon stored after 20480 emitted"), "%s", err);
+    EXPECT_MSG(strstr(err, "Tracing global photons: no photon stored after 20000 emitted"), "%s", err);
     photon_maps_free(&m);
 
     o.caustic = 1;
@@ -1150,7 +1150,8 @@ static int render_text(const char *name, const char *text, const char *flags, ch
 }
 
 /* The runaway scenes, each of which used to run for minutes, never end, or run out of
- * memory. Oracle: the pass budgets (photon_trace.h): a pass that stores nothing in 16 batches
+ * memory. Oracle: the pass budgets (photon_trace.h): a pass that stores nothing in 32 batches
+ * (131072 photons, PASS_EMPTY_BATCHES)
  * ends with exit status 1 and says so; a photon path is cut at max_bounces and the stored
  * count stops within one path of the target. Each must end inside 300 s (on an idle machine each
  * takes a few seconds; the bound is wide because the machine is shared, at loads of 20 on 2
@@ -1164,7 +1165,7 @@ TEST(render_pm_runaway_render) {
                          "--pm projection=false --pm global_photons=1000 --pm max_emitted_factor=20",
                          out, sizeof out, &secs);
     EXPECT_MSG(rc == 1, "exit %d: %s", rc, out);
-    EXPECT_MSG(strstr(out, "Tracing global photons: no photon stored after 20480 emitted: the "
+    EXPECT_MSG(strstr(out, "Tracing global photons: no photon stored after 20000 emitted: the "
                            "lights reach no surface that stores photons"),
                "%s", out);
     EXPECT_MSG(secs < 300, "%.1f s", secs);
@@ -1176,7 +1177,7 @@ TEST(render_pm_runaway_render) {
     ASSERT(cage);
     rc = render_text("cage", cage, "--mode pm --pm caustics=true", out, sizeof out, &secs);
     EXPECT_MSG(rc == 1, "exit %d: %s", rc, out);
-    EXPECT_MSG(strstr(out, "Tracing caustic photons: no photon stored after 65536 emitted"), "%s", out);
+    EXPECT_MSG(strstr(out, "Tracing caustic photons: no photon stored after 131072 emitted"), "%s", out);
     EXPECT_MSG(secs < 300, "%.1f s", secs);
     /* The same with the global map forced and an emission budget of 1e9 times the target:
      * the nothing-stored rule ends it, not the budget. */
@@ -1184,7 +1185,7 @@ TEST(render_pm_runaway_render) {
                      "--mode pm --pm global=true --pm max_emitted_factor=1e9 --pm global_photons=100000000",
                      out, sizeof out, &secs);
     EXPECT_MSG(rc == 1, "exit %d: %s", rc, out);
-    EXPECT_MSG(strstr(out, "Tracing global photons: no photon stored after 65536 emitted"), "%s", out);
+    EXPECT_MSG(strstr(out, "Tracing global photons: no photon stored after 131072 emitted"), "%s", out);
     EXPECT_MSG(secs < 300, "%.1f s", secs);
     /* An emission factor beyond the supported range is an input error. */
     rc = render_text("cage", cage, "--mode pm --pm max_emitted_factor=1e300", out, sizeof out, &secs);

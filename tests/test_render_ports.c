@@ -162,8 +162,8 @@ static void check_box(int with_port, int white_ceiling, long target, uint64_t pi
         po.pilot = &tp;
         tp.keep = 1;
         po.max_emitted = (double)pilot;
-        /* Above the ~1.2% of the pilot that passes the hole, below where the pass would give
-         * up on its target (pass_stops: twice the emission budget at the rate seen). */
+        /* Above the ~1.2% of the pilot that passes the hole: the pilot runs to its emission
+         * budget (its photons), as the plan's does. */
         po.global_target = (long)(pilot / 50);
         int rc = photon_trace(&s, &po, &m, err, sizeof err);
         ASSERT_MSG(rc == 0 && tp.kept, "pilot: %d %s", rc, err);

@@ -106,8 +106,11 @@ extern "C" {
  * bump it. */
 /* 2: importance-driven emission and the plan's pilot photons joined (global pass); 3: the
  * caustic pilot's photons joined too (the caustic map); 4: the joining pilot's streams
- * follow the scene's seed (plan_pilot_seed). */
-#define PHOTON_TRACE_VERSION 4
+ * follow the scene's seed (plan_pilot_seed); 5: one pass driver for both tracers (the rules
+ * at the top of photon_rounds.c): a pass stopped by the memory budget keeps its batch's
+ * longest prefix that fits, the emission budget is exact, no stop by rate, a map's first
+ * store may come up to 131072 photons. */
+#define PHOTON_TRACE_VERSION 5
 
 /* A map set's stamp: scene_transport_hash and the tracer version + settings hash
  * (map_stamp_make). */

@@ -10,9 +10,11 @@
  *             light's active fraction (CAUSTIC PROJECTION MAP in photon_trace.h);
  *   walk      photon_walk (photon_walk.c): one photon of either tracer, from its emission
  *             through media and off surfaces to its stores;
- *   driver    pass_run: a surface pass (photon_trace.h) in batches of PT_BATCH on the threads,
- *             each photon traced by photon_walk, with the budgets and,
- *             after photon_trace_set_dist, the distributed rounds (photon_rounds.c);
+ *   driver    pass_run: ONE driver for both tracers' passes (photon_trace.h's surface passes
+ *             and volume.h's media passes): batches of PT_BATCH on the threads, each photon
+ *             traced by photon_walk, the maps cut at their targets, the budgets and, after
+ *             photon_trace_set_dist / vol_set_dist, the distributed rounds (photon_rounds.c;
+ *             its top comment states the rules);
  *   exchange  pass_allgather, every distributed exchange of both tracers (trace_dist);
  *   messages  the texts on stderr and in err that both tracers print alike.
  */
@@ -70,7 +72,7 @@ typedef struct pass_aim {
 int pass_aim_build(const scene *s, int cells, pass_aim *a);
 void pass_aim_free(pass_aim *a);
 
-/* ---- driver (surface passes) ---- */
+/* ---- driver (both tracers' passes; the rules: the top of photon_rounds.c) ---- */
 
 #define PASS_OVER_BUDGET 1
 
@@ -95,6 +97,19 @@ typedef struct pass_ctx {
      * records the batch may store (0: no cap), and the count so far, shared by its threads. */
     uint64_t batch_cap;
     uint64_t *batch_records;
+    /* The driver's (pass_run) rules of a media pass (volume.c sets them; 0 for surface passes):
+     * the second buffer's own target (the volume map; 0: it follows the main map's cut, as the
+     * shadow map does), the emission budget and its name for messages (limit 0: the surface
+     * passes' max_emitted_factor x target, at most max_emitted), and a media pilot's counts
+     * (summed into it; such a pass keeps no map and runs to the emission budget). */
+    long target2;
+    double limit;
+    const char *limit_name;
+    struct vol_pilot *vpilot;
+    /* Set by pass_run: the first photon not traced (the emission budget), and the per-thread
+     * scratch counts a media walk writes (walk_out.vp). */
+    uint64_t end;
+    struct vol_pilot *vps;
 } pass_ctx;
 
 /* ---- the walk (photon_walk.c) ---- */
@@ -107,15 +122,11 @@ typedef struct walk_out {
                           has its medium, a surface record medium -1) */
     int first_specular; /* bit 0: a caustic-pass photon whose first hit is specular; bit 1: a
                            path cut by the path-length budget */
-    /* Media passes (volume.c): the batch's share of the memory budget in records, and its
-     * counts (the pilot's evidence, volume.h); set when a store passed max_n or failed. */
-    size_t max_n;
-    struct vol_pilot *vp;
-    int over, fail;
+    struct vol_pilot *vp; /* media passes: the thread's counts (the pilot's evidence, volume.h) */
 } walk_out;
 /* The walk of photon i of pass c: emission, flights through media (a media pass), bounces and
  * stores into o (the top of photon_walk.c). 0, PM_ENOMEM or PASS_OVER_BUDGET (a store past
- * the batch's cap: pass_store, or o->max_n in a media pass; the photon is then not whole). */
+ * the batch's cap, pass_store; the photon is then not whole). */
 int photon_walk(const pass_ctx *c, uint64_t i, walk_out *o);
 
 /* Store a record of the batch: PM_ENOMEM, PASS_OVER_BUDGET once the batch's records (all
@@ -127,15 +138,26 @@ typedef struct pass_out {
     uint64_t emitted, first_specular;
     int runaway;
     size_t whole[2]; /* the whole pass's counts, main and shadow (a partitioned pass keeps a part) */
+    /* A media pass (the messages are volume.c's): photons traced, the second map's emitted
+     * count and whether it fell short, the paths cut, and the budget that stopped the pass
+     * (NULL: none) with what it saw. */
+    uint64_t traced, emitted2, paths_cut;
+    int short2;
+    const char *stop;
+    char why[256];
 } pass_out;
-/* Run one surface pass until `target` photons are in main_buf or a budget stops it (PASS
- * BUDGETS in photon_trace.h). 0, PM_ENOMEM, or PM_EEMPTY (message in err). */
+/* Run one pass until its maps reach their targets or a budget stops it (the rules: the top of
+ * photon_rounds.c). A surface pass: `target` stores in main_buf, shadow_buf following its cut;
+ * a media pass (c->media): the surface map in main_buf (target, 0: not kept), the volume map
+ * in shadow_buf (c->target2). 0, PM_ENOMEM, or for a surface pass PM_EEMPTY (message in err). */
 int pass_run(pass_ctx *c, long target, pass_buf *main_buf, pass_buf *shadow_buf, pass_out *out,
              const char *title, char *err, size_t errcap);
 
-/* The distributed setting of surface passes (photon_trace_set_dist), and whether a pass is a
- * partitioned one (a pilot pass is always replicated). */
+/* The distributed setting of surface passes (photon_trace_set_dist), pass c's (a media
+ * pass's: vol_set_dist's; NULL for a pilot), and whether a pass is a partitioned one (a pilot
+ * pass and a media pass are always replicated). */
 const trace_dist *pass_dist(void);
+const trace_dist *pass_ctx_dist(const pass_ctx *c);
 int pass_partitioned(const pass_ctx *c);
 
 /* Trace photons start .. start + PT_BATCH - 1 on nthreads threads into the per-thread buffers
@@ -144,6 +166,12 @@ int pass_partitioned(const pass_ctx *c);
  * first-specular photons, and its cut paths in the high 32 bits. */
 int pass_trace_batch(const pass_ctx *c, uint64_t start, pass_buf *tg, pass_buf *ts, int nthreads,
                      uint64_t *nfirst);
+/* The memory budget's prefix (photon_rounds.c's rules): photons start .. of a batch traced on
+ * one thread into tg[0] and ts[0] while their records stay within cap; the first photon past
+ * it is dropped whole. Returns that photon's index (the batch's end, or c->end, when all
+ * fit); *fail set on out of memory. */
+uint64_t pass_trace_prefix(pass_ctx *c, uint64_t start, uint64_t cap, pass_buf *tg, pass_buf *ts, uint64_t *nfirst,
+                           int *fail);
 
 /* ---- distributed rounds (photon_rounds.c) ---- */
 

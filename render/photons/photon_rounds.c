@@ -1,7 +1,64 @@
-/* photon_rounds.c: the batches of a surface pass (photon_pass.h) and, for a distributed pass
- * (photon_trace_set_dist, DISTRIBUTED PASSES in photon_trace.h), its rounds of batches: each
- * process traces its batches of a round, the exchange gives every process every batch, and a
- * partitioned pass exchanges only counts and traces again the batches holding its part.
+/* photon_rounds.c: the rules of the ONE pass driver of both photon tracers (pass_run,
+ * photon_pass.c: photon_trace.h's surface passes and volume.h's media passes), its batches,
+ * the memory budget's prefix, and for a distributed pass (photon_trace_set_dist, vol_set_dist;
+ * DISTRIBUTED PASSES in photon_trace.h) its rounds of batches: each process traces its
+ * batches of a round, the exchange gives every process every batch, and a partitioned pass
+ * exchanges only counts and traces again the batches holding its part.
+ *
+ * THE RULES BEFORE (two drivers, up to 2fcfd51):
+ *   surface (pass_run)   batches of PT_BATCH photons on all threads; one target (the main map,
+ *       the shadow map following its cut); emission budget max_emitted_factor x target, at
+ *       most max_emitted, checked between batches (the last batch passing it whole); a pass
+ *       storing nothing in 16 batches (65536 photons) ended PM_EEMPTY; a pass whose rate
+ *       needed over twice the emission budget stopped at once; memory: buffer capacities (64 B
+ *       a record) between batches, and a batch whose records passed what was left was dropped
+ *       whole (a runaway's first batch: nothing stored, PM_EEMPTY); distributed: each
+ *       process's m batches of a round shared what was left at the round's start, a batch
+ *       past its share stopping every process there (earlier or later than one process).
+ *   media (vol_trace_pass)   rounds of 8 batches of 1024 photons, one batch per thread; two
+ *       maps with their own targets and cuts; emission budget the caller's max_emitted,
+ *       exact; a map storing nothing in 131072 photons stayed empty; no stop by rate;
+ *       memory: 72 B a record, buffers between rounds, and each batch of a round 1/8 of what
+ *       the maps left, a batch past it ending at its photon that passed (earlier photons
+ *       whole); distributed: replicated only, the one-process maps, budget stops included.
+ *
+ * THE ONE RULE NOW (both kinds of pass; images are unchanged wherever no budget stops a pass,
+ * since the maps are then the stores of the first photons in index order cut at each target
+ * by whole paths, which both drivers did alike):
+ *   batches  PT_BATCH photons on all threads, merged in photon order: the maps are the same
+ *            for any thread count (and for any process count, below);
+ *   stored   each map kept with its own target (a media pass's surface and volume maps; a
+ *            surface pass's main map, its shadow map following the main map's cut) is cut
+ *            after the photon whose stores reach the target; the pass ends when every map is
+ *            cut. A target of LONG_MAX keeps every store (never cut);
+ *   empty    a map with nothing stored after PASS_EMPTY_BATCHES batches (131072 photons, the
+ *            media's figure: a surface pass that needs more than 65536 photons for its first
+ *            store now gets its map instead of PM_EEMPTY) stays empty; a pass whose maps all
+ *            stay empty fails with PM_EEMPTY (the messages are each tracer's);
+ *   emitted  at most the emission budget, exactly (the media's rule: the last batch is cut
+ *            at it). No stop by rate (the media's rule; the surfaces stopped a pass at once
+ *            when its rate after 4 batches needed over twice the budget): a map that cannot
+ *            reach its target takes the whole budget and keeps what it buys. Chosen because
+ *            the rate stop, applied to both, left gas_room_tungsten's caustic maps with 360
+ *            and 40 photons (stopped after 16384 photons, against 90321 and 9784 from the
+ *            budget) and glass_of_smoke's with 5086 (against 55472); without it only
+ *            glass_hole's caustic pass changes among the shipped scenes (79 photons from 24576
+ *            emitted at 32 x 32 x 4: it now runs to its budget);
+ *   memory   max_memory_bytes of 64-byte records: the maps' buffer capacities between
+ *            batches; inside a batch the records may reach what is left (the budget less the
+ *            records held), and a batch that passes it keeps its longest prefix of photons
+ *            whose records fit, each whole (traced again on one thread: pass_trace_prefix),
+ *            and the pass ends there. So the stop is the same for any thread count and, in a
+ *            replicated distributed pass, for any process count (a round's batch past what
+ *            is left now is traced again by every process); a runaway keeps the photons that
+ *            fit instead of nothing. Chosen: the media's rule was independent of threads and
+ *            processes too, but by fixed shares of 1/8 per batch of 1024 photons; the prefix
+ *            keeps that independence with the whole of what is left and the surfaces'
+ *            batches, and unlike the surfaces' rule it keeps photons in a runaway. A
+ *            partitioned pass (surfaces only) still stops before a batch past its round's
+ *            share (its parts are traced again whole, not as a prefix: there the stop can
+ *            differ from one process's, as before);
+ *   path     max_bounces per photon (photon_walk.c), the cut paths counted.
  */
 #include <math.h>
 #include <stdio.h>
@@ -10,6 +67,7 @@
 
 #include "photonmap/common.h"
 #include "photons/photon_pass.h"
+#include "photons/volume.h"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -36,8 +94,10 @@ int pass_trace_batch(const pass_ctx *c, uint64_t start, pass_buf *tg, pass_buf *
 #ifdef _OPENMP
         t = omp_get_thread_num();
 #endif
-        /* Without a global map the shadow photons are the pass's main output. */
-        walk_out o = {&tg[t], c->want_global ? &ts[t] : &tg[t], 0, 0, NULL, 0, 0};
+        if (start + (uint64_t)k >= c->end) continue; /* past the emission budget */
+        /* Without a global map the shadow photons are the pass's main output; a media pass's
+         * second buffer is its volume map. */
+        walk_out o = {&tg[t], c->media || c->want_global ? &ts[t] : &tg[t], 0, c->vps ? &c->vps[t] : NULL};
         int r = photon_walk(c, start + (uint64_t)k, &o);
         fs = o.first_specular;
         if (r < 0) fail |= 1;
@@ -50,15 +110,49 @@ int pass_trace_batch(const pass_ctx *c, uint64_t start, pass_buf *tg, pass_buf *
     return fail;
 }
 
+uint64_t pass_trace_prefix(pass_ctx *c, uint64_t start, uint64_t cap, pass_buf *tg, pass_buf *ts, uint64_t *nfirst,
+                           int *fail) {
+    uint64_t rec = 0, hi = start + PT_BATCH < c->end ? start + PT_BATCH : c->end;
+    c->batch_cap = cap;
+    c->batch_records = &rec;
+    pass_buf *sb = c->media || c->want_global ? &ts[0] : &tg[0];
+    tg[0].n = ts[0].n = 0;
+    for (uint64_t i = start; i < hi; i++) {
+        walk_out o = {&tg[0], sb, 0, c->vps};
+        int r = photon_walk(c, i, &o);
+        if (r < 0) *fail = 1;
+        if (r < 0) break;
+        if (r == PASS_OVER_BUDGET) { /* photon i is not whole: drop its records, end here */
+            while (tg[0].n > 0 && tg[0].v[tg[0].n - 1].index == i) tg[0].n--;
+            while (ts[0].n > 0 && ts[0].v[ts[0].n - 1].index == i) ts[0].n--;
+            hi = i;
+            break;
+        }
+        *nfirst += (uint64_t)(o.first_specular & 1) + ((uint64_t)(o.first_specular >> 1) << 32);
+    }
+    c->batch_cap = 0;
+    c->batch_records = NULL;
+    return hi;
+}
+
 static const trace_dist *g_dist;
+/* Per thread: render-mpi sets it on the thread that runs the passes; a test runs several parts
+ * in threads of one process. */
+static _Thread_local const trace_dist *g_vdist;
 
 void photon_trace_set_dist(const trace_dist *d) { g_dist = d; }
+void vol_set_dist(const struct trace_dist *d) { g_vdist = d; }
 
 /* A partitioned distributed pass (photon_trace.h); a pilot pass is always replicated (its
- * evidence counts each photon traced once). */
-int pass_partitioned(const pass_ctx *c) { return g_dist && g_dist->partitioned && !c->o->pilot; }
+ * evidence counts each photon traced once), and a media pass too (volume.h). */
+int pass_partitioned(const pass_ctx *c) { return g_dist && g_dist->partitioned && !c->o->pilot && !c->media; }
 
 const trace_dist *pass_dist(void) { return g_dist; }
+
+const trace_dist *pass_ctx_dist(const pass_ctx *c) {
+    if (c->media) return c->vpilot ? NULL : g_vdist;
+    return c->o->pilot ? NULL : g_dist;
+}
 
 /* A distributed pass: trace a batch (pass_trace_batch), through the test hook; and say this
  * process's own failure before the exchange tells every process (trace_dist.failed). */
@@ -70,8 +164,8 @@ static int dist_trace(const trace_dist *d, const pass_ctx *c, uint64_t start, pa
 }
 static void dist_failed(const trace_dist *d, const pass_ctx *c, int again) {
     char what[128];
-    snprintf(what, sizeof what, "out of memory while tracing photons (the %s pass%s)",
-             c->caustic_pass ? "caustic" : c->want_global ? "global" : "shadow",
+    snprintf(what, sizeof what, "out of memory while tracing photons (%s%s)",
+             c->media ? "a pass of the media" : c->caustic_pass ? "the caustic pass" : c->want_global ? "the global pass" : "the shadow pass",
              again ? ", tracing this process's part of the map again" : "");
     if (d->failed) d->failed(d->user, what);
 }
@@ -106,7 +200,7 @@ static int round_batches(const pass_rounds *rb, uint64_t start, int nparts) {
  * is in batch order. 1 on failure here or (seen in the exchange) anywhere. */
 static int dist_round(const pass_ctx *c, pass_rounds *rb, uint64_t start, pass_buf *tg, pass_buf *ts,
                       int nthreads) {
-    const trace_dist *d = g_dist;
+    const trace_dist *d = pass_ctx_dist(c);
     int per = round_batches(rb, start, d->nparts);
     size_t *sizes = rb->sizes ? rb->sizes : calloc((size_t)d->nparts, sizeof *sizes);
     free(rb->all);

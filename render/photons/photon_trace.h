@@ -79,18 +79,19 @@
  * emitted (so the stored count exceeds the target by less than one path, and the powers stay
  * unbiased). Budgets stop it earlier, and the message on stderr names the one that did
  * ("stopped by the photon_mapping.KEY budget"):
- *   emitted    max_emitted_factor x target, and at most max_emitted photons; a pass whose
- *              storage rate (after 4 batches) needs more than twice that stops at once;
+ *   emitted    max_emitted_factor x target, and at most max_emitted photons (exactly: the
+ *              last batch is cut there); a pass that cannot reach its target takes the whole
+ *              budget (no stop by rate: photon_rounds.c's rules);
  *   memory     max_memory_mb of photon buffers (the map's buffers grow to at most the
  *              budget, not by doubling past it): checked between batches, and inside a batch:
- *              a batch whose records, with those held, would pass the budget is dropped
- *              whole and the pass stops before it (one batch can store PT_BATCH times the
- *              path length: 19 GB in a lossless furnace with max_depth 1e5). In a
- *              distributed pass each of a process's m batches of a round may store 1/m of
- *              what is left, and a batch past its share stops every process at that batch
- *              (so there the stop can come earlier than in one process; the maps are the
- *              one-process maps whenever no budget stops the pass). A pass stopped so
- *              before storing anything ends with PM_EEMPTY and a message that names the
+ *              a batch whose records, with those held, would pass the budget keeps its
+ *              longest prefix of photons that fit (each whole; one batch can store PT_BATCH
+ *              times the path length: 19 GB in a lossless furnace with max_depth 1e5) and
+ *              the pass stops there, for any thread count and, in a replicated distributed
+ *              pass, any process count (the maps are the one-process maps, budget stops
+ *              included). A partitioned pass stops before a batch past its round's share of
+ *              what was left (there the stop can differ from one process's). A pass stopped
+ *              so before storing anything ends with PM_EEMPTY and a message that names the
  *              budget;
  *   path       max_bounces bounces per photon (below the scene's max_depth), so one photon
  *              stores a bounded number of records (the furnace with reflectance 1 would
@@ -105,8 +106,8 @@
  * volume.h's, is the walk of one photon (photon_walk.c, on photon_path.h's state: bounces,
  * kinds, the refraction chain, the path-length cut; EMISSION and SCATTERING above are its
  * surface passes' rules) and photon_pass.h's (the records, the cut at the target, the caustic
- * pass's aim, the budgets' messages, the distributed exchange; this tracer's pass driver,
- * batches and rounds: photon_pass.c, photon_rounds.c).
+ * pass's aim, the budgets' messages, the distributed exchange, and the ONE pass driver of
+ * both tracers, its batches, rounds and rules: photon_pass.c, photon_rounds.c).
  *
  * OWNERSHIP. photon_trace fills a photon_maps (photon_maps.h) whose arrays it allocates;
  * photon_maps_free frees them.
@@ -143,7 +144,7 @@ extern "C" {
 #define PASS_MAX_EMITTED 4294967296.0
 #define PASS_MAX_BOUNCES 256
 /* A pass that stores nothing in this many batches stops with PM_EEMPTY. */
-#define PASS_EMPTY_BATCHES 16
+#define PASS_EMPTY_BATCHES 32
 
 /* A pilot's photons kept for the real passes (PILOT PHOTONS above); opaque. */
 typedef struct pilot_photons pilot_photons;

@@ -125,28 +125,11 @@ static int emit_media(const pass_ctx *c, uint64_t i, walk_out *o, walk_start *w)
 
 /* ---- stores -------------------------------------------------------------------------------- */
 
-/* Store a record: surface passes by pass_store (the batch's cap); media passes into the
- * batch's buffer, growing within its share of the memory budget (o->max_n records: past it,
- * o->over and PASS_OVER_BUDGET). 0, PASS_OVER_BUDGET or PM_ENOMEM. */
+/* Store a record, by pass_store (the batch's cap of the memory budget, photon_rounds.c):
+ * 0, PASS_OVER_BUDGET or PM_ENOMEM. */
 static int walk_store(const pass_ctx *c, walk_out *o, pass_buf *b, const pass_rec *r) {
-    if (!c->media) return pass_store(c, b, r);
-    if (b->n >= o->max_n) { /* the memory budget: this photon's path is not kept */
-        o->over = 1;
-        return PASS_OVER_BUDGET;
-    }
-    if (b->n == b->cap) {
-        size_t nc = b->cap ? 2 * b->cap : 1024;
-        if (nc > o->max_n) nc = o->max_n;
-        pass_rec *nr = realloc(b->v, nc * sizeof *nr);
-        if (!nr) {
-            o->fail = 1;
-            return PM_ENOMEM;
-        }
-        b->v = nr;
-        b->cap = nc;
-    }
-    b->v[b->n++] = *r;
-    return 0;
+    (void)o;
+    return pass_store(c, b, r);
 }
 
 /* Shadow photons (photon_trace.h): the light's ray d, continued from its first hit h straight

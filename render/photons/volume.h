@@ -27,27 +27,24 @@
  * (each path whole), scaled by 1/n_e, so a thin medium can take many more photons than the
  * surfaces without the surface map growing with it. A map that never reaches its target keeps
  * everything emitted, within max_emitted. A map that stores nothing in the first
- * VOL_EMPTY_PHOTONS emitted stops there (empty). With projection_cells > 0 the caustic pass
+ * PASS_EMPTY_BATCHES x PT_BATCH (131072) emitted stops there (empty). With projection_cells > 0 the caustic pass
  * emits only into the active cells of each light's projection map (projmap.h: directions
  * that can meet a specular object, null surfaces included) and chooses lights in proportion
  * to power times active fraction, with each photon's power scaled by that fraction (Jensen's
  * eq. 2.2), as photon_trace does.
  *
- * BUDGETS, as photon_trace.h's PASS BUDGETS, with the same messages on stderr (none in a pilot):
+ * BUDGETS: the one driver's (pass_run; the rules at the top of photon_rounds.c), as
+ * photon_trace.h's PASS BUDGETS, with the same messages on stderr (none in a pilot):
  *   emitted  max_emitted photons at most (the caller's min of max_emitted_factor x target and
  *            max_emitted, named by max_emitted_budget); a map short of its target then says
  *            "photon tracing: Tracing volume photons: only N of T photons stored after E
  *            emitted; stopped by the photon_mapping.KEY budget (...)" (or another budget the
- *            caller names). Unlike photon_trace, a
- *            map is not stopped early from its storage rate: a pass has two maps, and a map
- *            that cannot reach its target (the wall behind a smoke-filled glass) still takes
- *            the whole budget, as before budgets were stamped;
- *   memory   max_memory_bytes of records while tracing (VOL_RECORD_BYTES each): between
- *            rounds the maps' and batches' buffers; within a round each batch may hold its
- *            share, (budget - the maps' buffers) / VOL_ROUND, and a batch that outgrows it
- *            ends at the photon that did: that photon's records are dropped, the pass ends
- *            there with every earlier photon whole (its emitted count), so the stop does not
- *            depend on the thread count;
+ *            caller names). A map that cannot reach its target (the wall behind a
+ *            smoke-filled glass) takes the whole budget;
+ *   memory   max_memory_bytes of 64-byte records while tracing: the maps' buffers between
+ *            batches; a batch whose records would pass what is left keeps its longest prefix
+ *            of photons that fit (each whole) and the pass ends there, for any thread or
+ *            process count;
  *   path     max_bounces bounces per photon below max_depth; the paths cut are counted
  *            ("N photon paths were cut by the path-length budget (photon_mapping.max_bounces
  *            = B)");
@@ -57,14 +54,15 @@
  * stored after N emitted"); render then exits 1, as for photon_trace's empty pass.
  *
  * DETERMINISM AND THREADS. Photon i of a pass uses only rng_stream(seed, i, stream); photons are
- * traced in batches of VOL_BATCH, VOL_ROUND batches at a time on all threads (OpenMP), each
- * batch into its own buffer, merged in photon order. The maps are bit-identical for any thread
- * count.
+ * traced in batches of PT_BATCH on all threads (OpenMP), merged in photon order (pass_run).
+ * The maps are bit-identical for any thread count.
  *
  * PILOT. With a vol_pilot the pass keeps nothing and counts what the photons do (the plan's
  * evidence, plan.h).
  *
- * CODE. volume.c has the round driver; the walk of one photon is photon_walk.c's, shared with
+ * CODE. volume.c sets a pass's options, packs its maps and says its messages; the driver is
+ * pass_run (photon_pass.c, photon_rounds.c), the surfaces' tracer's too; the walk of one
+ * photon is photon_walk.c's, shared with
  * photon_trace.c (with the medium handling in it, and this tracer's rules of emission and
  * bounces, above), on photon_path.h's state (bounces, kinds, the refraction chain, the
  * path-length cut); the caustic pass's aim, the exchange and the budgets' messages are
@@ -85,17 +83,8 @@
 extern "C" {
 #endif
 
-#define VOL_BATCH 1024
-#define VOL_ROUND 8
-#define VOL_EMPTY_PHOTONS 131072
 #define VOL_PILOT_MEDIA 16 /* media counted separately; the last slot collects any beyond */
 #define VOL_PILOT_MATS 64  /* materials counted separately; the last slot collects any beyond */
-/* The memory budget's count of bytes per stored photon while tracing. The records are
- * photon_pass.h's pass_rec (64 bytes), shared with the surfaces' tracer; the budget still
- * counts 72, the size of this tracer's own record before, so that a budget stops a pass at
- * the photon it did and the maps (and their files' tracer version) stay the same. */
-#define VOL_RECORD_BYTES 72
-
 typedef struct vol_photons {
     pm_photon *photons;
     size_t count, cap;
@@ -151,13 +140,14 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *r);
 void vol_pass_free(vol_pass_result *r);
 
 /* DISTRIBUTED PASSES (render/mpi/; set by render-mpi, NULL by default). After vol_set_dist(d)
- * every process runs every pass's rounds, but traces only the round's batches b with
- * b % d->nparts == d->part; d->allgather then gives every process every batch (its records,
- * counts, flags and buffer size), and the merge goes on as in one process: every process ends
+ * every process runs every pass's rounds, but traces only its share of each round's batches;
+ * d->allgather then gives every process every batch (its records and counts), and the merge
+ * goes on as in one process: every process ends
  * with the one-process maps bit for bit, the budgets' stops included. Pilot passes are traced
  * whole by every process (each plans as one process does). A process whose own batch failed
  * (out of memory) calls d->failed before that exchange, and d->test_fail is asked once per
- * batch it traces (photon_trace.h). The caller keeps d alive. The setting belongs to the
+ * batch it traces (photon_trace.h). The rounds are photon_trace.h's (one driver); a media
+ * pass is always replicated, also with d->partitioned. The caller keeps d alive. The setting belongs to the
  * calling thread (the one that runs the passes). */
 struct trace_dist;
 void vol_set_dist(const struct trace_dist *d);
