@@ -554,8 +554,9 @@ TEST(pbrt_plymesh_cornell_matches_json) {
 /* Oracle: the shipped JSON scenes. data/pbrt/cornell_spheres.pbrt (mirror and glass spheres:
  * Translate + Shape "sphere", Material mirror and glass), cornell_diffuse.pbrt (matte with
  * sigma in degrees), cornell_point.pbrt (LightSource "point", I = power / 4 pi; the blocks by
- * Include) and cornell_fog.pbrt (MakeNamedMedium and a MediumInterface before Camera: the
- * camera's and the scene's medium), hand translations of data/scenes/cornell_*.json: each
+ * Include), cornell_fog.pbrt (MakeNamedMedium and a MediumInterface before Camera: the
+ * camera's and the scene's medium) and cornell_rect.pbrt (Tungsten's box: quads, blocks of
+ * 12 triangles, a light of reflectance 0), hand translations of data/scenes/cornell_*.json: each
  * renders its JSON scene's image mean within 1%, path and pm, 32x32, different seeds (path
  * 1024 spp, 256 in the fog; pm 64 spp, 16 in the fog; the renders' own noise is 0.1-0.5%).
  * With the same seed (16x16, path) the images agree to float rounding (relative rmse below
@@ -565,10 +566,10 @@ TEST(pbrt_plymesh_cornell_matches_json) {
  * outer side from the fog (over or beside the box) is reported once as an inconsistent
  * interface, as it is in pbrt's terms; no other warning. */
 TEST(pbrt_cornell_scenes_match_json) {
-    static const char *names[] = {"cornell_spheres", "cornell_diffuse", "cornell_point", "cornell_fog"};
+    static const char *names[] = {"cornell_spheres", "cornell_diffuse", "cornell_point", "cornell_fog", "cornell_rect"};
     char cmd[8192], out[8192], path[1024];
     const char *dir = pm_test_tmpdir();
-    for (int i = 0; i < 4; i++) {
+    for (int i = 0; i < 5; i++) {
         int fog = strcmp(names[i], "cornell_fog") == 0;
         for (int m = 0; m < 2; m++) {
             int spp = m ? (fog ? 16 : 64) : (fog ? 256 : 1024);
