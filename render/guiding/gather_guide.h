@@ -1,5 +1,6 @@
 /* gather_guide.h: the photon mapper's gather guide: final-gather rays aimed at an opening into a
- * lit region, weighted by the mixture's density so the gather's mean is unchanged.
+ * lit region (or, in a scene with photon ports, at a bright patch the light lands on), weighted
+ * by the mixture's density so the gather's mean is unchanged.
  *
  * WHY. In a room lit through an opening (pinhole_room: a 10 x 10 hole in the roof of a closed
  * room, the lit big room above it), about a third of the light the walls gather comes through
