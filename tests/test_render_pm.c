@@ -123,6 +123,11 @@ typedef struct expected_plan {
  *   pinhole_room_ports  the same scene with its hole declared as a photon port: the same plan.
  *   door_ajar        Lambertian rooms; the door between them, opened 15 degrees, occludes most
  *                    of the light.
+ *   sun_window       Lambertian room lit by the sun (a directional light) through a window:
+ *                    no specular surface; interreflection; a directional light: no shadow photons.
+ *   lamp_shade       Lambertian room; the lamp inside a shade with a hole: the shade occludes
+ *                    nearly all of the light (shadow photons as for door_ajar).
+ *   sun_window_fog   sun_window filled with dust: shadow rays carry the transmittance.
  *   glass_hole       a glass sphere lit straight from the light only through a 10 x 10 hole
  *                    in a wall: caustics (the pilot aims photons at it and finds the hole).
  *   glass_enclosed   a white plate under water and a white sphere in a glass sphere, lit
@@ -148,6 +153,8 @@ static const expected_plan k_plans[] = {
     {"pinhole_room", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
     {"pinhole_room_ports", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
     {"door_ajar", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
+    {"sun_window", 0, 1, 0, 1, "no specular surface", "", "no area light", ""},
+    {"lamp_shade", 0, 1, 0, 1, "no specular surface", "", "the hint costs more than the shadow rays it saves", ""},
     {"glass_hole", 1, 1, 0, 1, "", "", "the hint costs more than the shadow rays it saves", ""},
     {"glass_enclosed", 1, 1, 0, 1, "", "", "the hint costs more than the shadow rays it saves", ""},
     {"mirror_cage", 0, 0, 0, 0, "leads to a diffuse one: 0 of 8192", "no surface the lights reach stores photons, 0 of 8192", "no area light", "no global map"},
@@ -158,6 +165,7 @@ static const expected_plan k_plans[] = {
     {"glass_of_smoke", 1, 1, 0, 1, "", "", "shadow rays carry the transmittance", ""},
     /* Media bounded by interfaces (issue 29): the same physics; the Tungsten room's glass ball
      * focuses the lamp through the gas onto the floor (L S+ D). */
+    {"sun_window_fog", 0, 1, 0, 1, "no specular surface", "", "shadow rays carry the transmittance", ""},
     {"gas_room", 0, 1, 0, 1, "no specular surface", "", "shadow rays carry the transmittance", ""},
     {"gas_room_tungsten", 1, 1, 0, 1, "", "", "shadow rays carry the transmittance", ""},
 };

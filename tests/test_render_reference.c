@@ -188,7 +188,8 @@ TEST(render_reference_visibility_by_construction) {
  * out. Of the shipped scenes, exactly sun_spheres and mirror_cage have delta-lit objects. */
 TEST(render_reference_compared_scenes_are_complete) {
     const char *compared[] = {"cornell_spheres", "cornell_diffuse", "cornell_box", "furnace",
-                              "partition_thin", "partition_thick", "pinhole_room", "pinhole_room_ports", "door_ajar", "shelf_glass",
+                              "partition_thin", "partition_thick", "pinhole_room", "pinhole_room_ports", "door_ajar", "sun_window", "lamp_shade",
+                              "sun_window_fog", "shelf_glass",
                               "glass_hole", "water_caustic"};
     for (size_t i = 0; i < sizeof compared / sizeof *compared; i++) {
         scene s;

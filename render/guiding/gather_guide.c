@@ -28,6 +28,9 @@
 #define GG_MIN_LINES 16
 #define GG_AP_SPREAD 3.0
 #define GG_STARVED 0.75
+#define GG_PATCH_SPREAD 2.0  /* a bright patch's disc: this many RMS distances of its hits */
+#define GG_PATCH_MAX 0.3     /* a bright patch's disc at most this share of the scene's size */
+#define GG_PATCH_SHARE 0.25  /* a bright patch carries at least this share of the probed light */
 #define GG_SEED 0x676174686572ULL /* "gather" */
 
 void gather_guide_init(gather_guide *gg) {
@@ -222,6 +225,69 @@ static int gg_find_opening(const guide_point *pts, const size_t *jp, size_t nj, 
     return fit;
 }
 
+/* A bright patch (gather_guide.h, BRIGHT PATCHES): the hits of the rays that read the map and
+ * carry over 1/GG_OUTLIER of their point's light, weighted by their light: their centre *c and
+ * RMS distance *rms from it, again without the hits 3 RMS away (another bright place). 1 when
+ * at least GG_MIN_LINES such hits are left; *n: how many; *share: their share of the probed
+ * light (all: the probed light in all). */
+static int gg_find_patch(const size_t nj, const gg_probe *pr, const double *v, size_t G2, double all, vec3 *c,
+                         double *rms, size_t *n, double *share) {
+    *n = 0;
+    *share = 0;
+    *rms = 0;
+    for (int pass = 0; pass < 2; pass++) {
+        vec3 sum = v3s(0);
+        double w = 0, s2 = 0;
+        size_t m = 0;
+        for (size_t j = 0; j < nj; j++) {
+            double t = 0;
+            for (size_t i = 0; i < G2; i++) t += v[j * G2 + i];
+            for (size_t i = 0; i < G2 && t > 0; i++) {
+                const gg_probe *p = &pr[j * G2 + i];
+                if (!p->found || !(p->base > t / GG_OUTLIER)) continue;
+                vec3 y = v3(p->y[0], p->y[1], p->y[2]);
+                if (pass && v3_len2(v3_sub(y, *c)) > 9 * *rms * *rms) continue;
+                sum = v3_add(sum, v3_scale(y, p->base));
+                s2 += p->base * v3_len2(y);
+                w += p->base;
+                m++;
+            }
+        }
+        if (!(w > 0) || m < GG_MIN_LINES) return 0;
+        *c = v3_scale(sum, 1 / w);
+        *rms = sqrt(fmax(0, s2 / w - v3_len2(*c)));
+        *n = m;
+        *share = all > 0 ? w / all : 0;
+    }
+    return *rms > 0;
+}
+
+/* BRIGHT PATCHES: when no opening fits in a scene with ports, the patch of the bright rays'
+ * hits: 1 with gg's centre, radius and lit set, and its evidence in pw; 0 with why not in pw
+ * ("; no bright patch..."). size: the scene's largest side. */
+static int gg_patch(gather_guide *gg, size_t nj, const gg_probe *pr, const double *v, size_t G2, double all,
+                    double size, char *pw, size_t cap) {
+    size_t n = 0;
+    double share = 0, rms = 0;
+    vec3 c = v3s(0);
+    if (!gg_find_patch(nj, pr, v, G2, all, &c, &rms, &n, &share)) {
+        snprintf(pw, cap, "; no bright patch (too few bright hits)");
+        return 0;
+    }
+    double r = GG_PATCH_SPREAD * rms;
+    if (!(r <= GG_PATCH_MAX * size && share >= GG_PATCH_SHARE)) {
+        snprintf(pw, cap, "; no bright patch: their hits spread over radius %.3g (at most %.3g) with %.1f%% of the "
+                 "probed light (at least %.0f%%)", r, GG_PATCH_MAX * size, 100 * share, 100 * GG_PATCH_SHARE);
+        return 0;
+    }
+    gg->centre = c;
+    gg->radius = r;
+    gg->lit = v3s(0); /* a patch: every point in front of it may aim */
+    snprintf(pw, cap, "a bright patch (the scene has photon ports) at (%.4g, %.4g, %.4g), radius %.3g: %zu rays that "
+             "read the photon map end there, carrying %.1f%% of the probed light", c.x, c.y, c.z, r, n, 100 * share);
+    return 1;
+}
+
 /* The pilot's points (jp[0..*nj)) and their cells (jc[j], an index into ck[0..*ncell), the cells
  * in key order): per cell its first GG_CELL_POINTS points; at most GG_MAX_JOBS, evenly in point
  * order. pk: room for npts; ck, jp and jc: room for npts each. */
@@ -314,10 +380,14 @@ int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *w
         cam++;
         starved += !probe->found(probe->user, s, &pts[k].h, pts[k].wo);
     }
-    if (force != PLAN_ON && !((double)starved >= GG_STARVED * (double)cam && starved > 0)) {
+    /* Not starved, but the scene has photon ports: its light comes in through openings and lands
+     * in bright patches, so a patch is looked for (BRIGHT PATCHES). */
+    int patches = probe->ports;
+    if (force != PLAN_ON && !((double)starved >= GG_STARVED * (double)cam && starved > 0) && !patches) {
         snprintf(gg->reason, sizeof gg->reason,
                  "off (%zu of %zu camera points find no precomputed irradiance on their side, under "
-                 "%.0f%%: the gathers read the photon map, no opening is looked for)",
+                 "%.0f%%: the gathers read the photon map, no opening is looked for; no photon ports: no bright "
+                 "patch is looked for)",
                  starved, cam, 100 * GG_STARVED);
         free(pts);
         return 0;
@@ -352,23 +422,29 @@ int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *w
     if (fit < 0) goto oom;
     double size = v3_maxc(v3_sub(s->bounds_hi, s->bounds_lo));
     int opening = fit && nline >= GG_MIN_LINES && GG_AP_SPREAD * rms <= 0.02 * size && rms > 0;
-    gg->aim = opening;
-    gg->centre = c;
-    gg->radius = GG_AP_SPREAD * rms;
-    gg->lit = lit;
-    gg->on = opening || force == PLAN_ON;
-    char what[256];
-    if (opening)
+    char pw[224] = "";
+    int patch = !opening && patches && gg_patch(gg, nj, pr, v, G2, all, size, pw, sizeof pw);
+    if (!patch) {
+        gg->centre = c;
+        gg->radius = GG_AP_SPREAD * rms;
+        gg->lit = lit;
+    }
+    gg->aim = opening || patch;
+    gg->on = gg->aim || force == PLAN_ON;
+    char what[320];
+    if (patch)
+        snprintf(what, sizeof what, "no opening, but %s", pw);
+    else if (opening)
         snprintf(what, sizeof what, "an opening at (%.4g, %.4g, %.4g), radius %.3g, its light along (%.2f, %.2f, %.2f): "
                  "%zu rays that read the photon map meet there, carrying %.1f%% of the probed light",
                  c.x, c.y, c.z, gg->radius, lit.x, lit.y, lit.z, nline, all > 0 ? 100 * bright / all : 0);
     else
-        snprintf(what, sizeof what, "no opening (%zu bright rays that read the photon map, %s)", nline,
-                 nline < GG_MIN_LINES ? "too few" : "not meeting within 2% of the scene's size");
+        snprintf(what, sizeof what, "no opening (%zu bright rays that read the photon map, %s)%s", nline,
+                 nline < GG_MIN_LINES ? "too few" : "not meeting within 2% of the scene's size", pw);
     snprintf(gg->reason, sizeof gg->reason,
              "%s (%zu of %zu camera points find no precomputed irradiance; the pilot probed %zu points in %zu "
              "cells, %zu probes: %s)",
-             force == PLAN_ON && !opening ? "on (forced; no opening: gathers stay cosine)"
+             force == PLAN_ON && !gg->aim ? "on (forced; no opening: gathers stay cosine)"
              : force == PLAN_ON           ? "on (forced)"
              : gg->on                     ? "on"
                                           : "off",

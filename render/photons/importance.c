@@ -316,6 +316,28 @@ static int build_level(const scene *s, const conn *c, size_t n, int v, imp_level
     return 0;
 }
 
+int camera_walk_hit(const scene *s, ray ry, hit *h, const material **m, vec3 *wo, int *diffuse) {
+    if (!scene_intersect(s, ry, INFINITY, h)) return 0;
+    *m = scene_material(s, h);
+    *wo = v3_neg(ry.d);
+    double w[LOBE_COUNT];
+    material_weights(*m, *wo, h->ng, s->medium_ior, w);
+    *diffuse = w[LOBE_DIFFUSE] > 0 && v3_maxc((*m)->diffuse) > 0;
+    return 1;
+}
+
+int camera_walk_next(const scene *s, const material *m, const hit *h, vec3 wo, rng *g, rgb *beta, ray *ry,
+                     vec3 *nside) {
+    bsdf_sample bs;
+    double ul = rng_uniform(g), u1 = rng_uniform(g), u2 = rng_uniform(g);
+    if (!material_sample_ns(m, wo, h->ng, h->ns, s->medium_ior, ul, u1, u2, &bs)) return 0;
+    *beta = v3_mul(*beta, bs.weight);
+    *nside = v3_dot(bs.wi, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
+    ry->o = scene_offset(s, h->p, *nside, bs.wi);
+    ry->d = bs.wi;
+    return 1;
+}
+
 int importance_build(const scene *s, long paths, double a, uint64_t seed, int threads, importance *imp) {
     memset(imp, 0, sizeof *imp);
     imp->a = a;
@@ -346,12 +368,11 @@ int importance_build(const scene *s, long paths, double a, uint64_t seed, int th
         int v = 0;
         for (int b = 0; b < IMP_MAX_BOUNCES && v < IMP_DEPTH; b++) {
             hit h;
-            if (!scene_intersect(s, ry, INFINITY, &h)) break;
-            const material *m = scene_material(s, &h);
-            vec3 wo = v3_neg(ry.d);
-            double w[LOBE_COUNT];
-            material_weights(m, wo, h.ng, s->medium_ior, w);
-            if (w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0) {
+            const material *m;
+            vec3 wo, nside;
+            int diffuse;
+            if (!camera_walk_hit(s, ry, &h, &m, &wo, &diffuse)) break;
+            if (diffuse) {
                 for (int k = 0; k < IMP_LIGHTS; k++) {
                     int unocc = 0;
                     conn *e = &cj[(size_t)v * IMP_LIGHTS + (size_t)k];
@@ -363,18 +384,12 @@ int importance_build(const scene *s, long paths, double a, uint64_t seed, int th
                 nv++;
                 v++;
             }
-            bsdf_sample bs;
-            double ul = rng_uniform(&g), u1 = rng_uniform(&g), u2 = rng_uniform(&g);
-            if (!material_sample_ns(m, wo, h.ng, h.ns, s->medium_ior, ul, u1, u2, &bs)) break;
-            beta = v3_mul(beta, bs.weight);
+            if (!camera_walk_next(s, m, &h, wo, &g, &beta, &ry, &nside)) break;
             if (v >= 2) { /* Russian roulette on the throughput */
                 double q = fmin(0.95, v3_maxc(beta));
                 if (!(rng_uniform(&g) < q)) break;
                 beta = v3_scale(beta, 1 / q);
             }
-            vec3 nside = v3_dot(bs.wi, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
-            ry.o = scene_offset(s, h.p, nside, bs.wi);
-            ry.d = bs.wi;
         }
     }
     imp->vertices = nv;

@@ -69,6 +69,7 @@
 
 #include <stdint.h>
 
+#include "base/rng.h"
 #include "scene/scene.h"
 
 #ifdef __cplusplus
@@ -127,6 +128,15 @@ int importance_sample(const importance *imp, const scene *s, double u0, const do
                       double *rel);
 /* p(l, u) / p_l for any (l, u) (1 with imp NULL or off). */
 double importance_rel(const importance *imp, const scene *s, int l, const double u[4]);
+
+/* A camera walk's steps, shared by importance_build's pilot and the port probe (ports_find.c).
+ * camera_walk_hit: the surface ry meets (0: it escapes), its material, wo = -ry.d, and
+ * *diffuse = 1 when the material has a diffuse branch that reflects. camera_walk_next: the next
+ * segment from h, a BSDF sample of 3 numbers from g (ul, u1, u2), *beta times its weight, *ry
+ * leaving from the side it goes to, *nside that side's normal; 0 when the sample fails. */
+int camera_walk_hit(const scene *s, ray ry, hit *h, const material **m, vec3 *wo, int *diffuse);
+int camera_walk_next(const scene *s, const material *m, const hit *h, vec3 wo, rng *g, rgb *beta, ray *ry,
+                     vec3 *nside);
 
 /* The inverse of light_sample_le (for tests and importance_build): for a light point p (on the
  * light's surface, or anything for point lights) and a direction d leaving it, the u[0..3]

@@ -2,6 +2,7 @@
  * probe). Fixed streams, and the camera paths' carriers kept in path order: the same scene and
  * seed find the same ports on any number of threads. */
 #include "photons/ports.h"
+#include "photons/importance.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -70,15 +71,14 @@ static int camera_path(const scene *s, uint64_t seed, long j, carrier *c, unsign
     int nc = 0, nd = 0;
     for (int b = 0; b < PF_VERTS && nd < PF_DEPTH; b++) {
         hit h;
-        if (!scene_intersect(s, ry, INFINITY, &h)) break;
-        const material *m = scene_material(s, &h);
-        vec3 wo = v3_neg(ry.d);
-        double w[LOBE_COUNT];
-        material_weights(m, wo, h.ng, s->medium_ior, w);
+        const material *m;
+        vec3 wo, nside;
+        int diffuse;
+        if (!camera_walk_hit(s, ry, &h, &m, &wo, &diffuse)) break;
         path.x[path.nx] = h.p;
         path.n[path.nx] = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
         path.nx++;
-        if (w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0) {
+        if (diffuse) {
             nd++;
             for (int k = 0; k < PF_LIGHTS; k++) {
                 vec3 y;
@@ -95,13 +95,7 @@ static int camera_path(const scene *s, uint64_t seed, long j, carrier *c, unsign
                 ++*passed;
             }
         }
-        bsdf_sample bs;
-        double ul = rng_uniform(&g), u1 = rng_uniform(&g), u2 = rng_uniform(&g);
-        if (!material_sample_ns(m, wo, h.ng, h.ns, s->medium_ior, ul, u1, u2, &bs)) break;
-        beta = v3_mul(beta, bs.weight);
-        vec3 nside = v3_dot(bs.wi, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
-        ry.o = scene_offset(s, h.p, nside, bs.wi);
-        ry.d = bs.wi;
+        if (!camera_walk_next(s, m, &h, wo, &g, &beta, &ry, &nside)) break;
         path.n[path.nx - 1] = nside; /* the side the path leaves from */
     }
     return nc;
