@@ -71,7 +71,7 @@ echo "path tracing with \`--mode path\`. A scaled-down protocol (the full one is
 echo "the scenes' own size): $(m resolution)x$(m resolution) pixels, $(m threads) threads, budgets of"
 echo "$(m budgets) CPU-seconds (user + sys of the whole process: the photon pass and the plan's pilots"
 echo "count). The renderer's --time budget is wall-clock time, which a shared machine's load distorts, so each"
-echo "budget is met in CPU time by choosing spp from two timing runs per mode; the runs are compared by the CPU"
+echo "budget is met in CPU time by choosing spp from timing runs (path two, pm three: its photons grow with spp); the runs are compared by the CPU"
 echo "time they really took."
 echo
 echo "Measured sources (stamp $(m commit | cut -d' ' -f1)): \`photonmap/\` \`render/\` \`Makefile\`"

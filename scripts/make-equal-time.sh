@@ -107,24 +107,34 @@ run() {
 for name in $scenes; do
   refspp=$(info "$name" spp)
   for mode in pm path ${before:+pm_before}; do
-    # timing: two sample counts, a line through them
-    # pm's photons grow with spp past the fit's floor (README.md, "Photons fitted to the
-    # render"), so its second point is as far out as path's
-    case $mode in path) s1=16 s2=400 ;; *) s1=4 s2=400 ;; esac
+    # timing: sample counts s1 < s2 (< s3), lines through them. pm's photons grow with spp
+    # between the fit's floor and its ceiling (README.md, "Photons fitted to the render"), so
+    # its time is not one line in spp: it gets a third point between, and each budget is read
+    # on the segment it falls in (water_caustic at 4 CPU-s: the line through 4 and 400 spp gave
+    # 4 spp where 16 spp took no more time)
+    case $mode in path) s1=16 s2=400 s3= ;; *) s1=4 s2=64 s3=400 ;; esac
     run "$name" $mode $s1 7
     c1=$cpu; echo "$name,$mode,$spp_used,$cpu,$wall" >> "$work/out/calib.csv"
     [ $mode = pm ] && grep -E '^  [a-z ]+: ' "$work/log" > "$work/out/plan_$name.txt"
     run "$name" $mode $s2 8
     c2=$cpu; echo "$name,$mode,$spp_used,$cpu,$wall" >> "$work/out/calib.csv"
+    c3=
+    if [ -n "$s3" ]; then
+      run "$name" $mode $s3 9
+      c3=$cpu; echo "$name,$mode,$spp_used,$cpu,$wall" >> "$work/out/calib.csv"
+    fi
     seed=100
     for b in $budgets; do
-      spp=$(awk -v b="$b" -v c1="$c1" -v c2="$c2" -v s1=$s1 -v s2=$s2 \
-        'BEGIN { k = (c2 - c1) / (s2 - s1); if (k <= 0) k = 1e-9; a = c1 - k * s1; n = int((b - a) / k); print n < 1 ? 1 : n }')
+      spp=$(awk -v b="$b" -v c1="$c1" -v c2="$c2" -v c3="$c3" -v s1=$s1 -v s2=$s2 -v s3="$s3" \
+        'BEGIN { lo_s = s1; lo_c = c1; hi_s = s2; hi_c = c2
+                 if (s3 != "" && b > c2) { lo_s = s2; lo_c = c2; hi_s = s3; hi_c = c3 }
+                 k = (hi_c - lo_c) / (hi_s - lo_s); if (k <= 0) k = 1e-9; a = lo_c - k * lo_s
+                 n = int((b - a) / k); print n < 1 ? 1 : n }')
       seed=$((seed + 1))
       run "$name" $mode "$spp" $seed
       rmse=$("$bin" --compare "$work/img.pfm" "$refdir/$name.pfm" | awk '$1 == "rmse" { print $2 }')
       echo "$name,$mode,$b,$spp_used,$cpu,$wall,$rmse,$refspp" >> "$work/out/runs.csv"
-      echo "make-equal-time: $name $mode budget $b CPU-s (timing: $s1 spp $c1, $s2 spp $c2 CPU-s): $spp_used spp, $cpu CPU-s, $wall s, RMSE $rmse" >&2
+      echo "make-equal-time: $name $mode budget $b CPU-s (timing: $s1 spp $c1, $s2 spp $c2${s3:+, $s3 spp $c3} CPU-s): $spp_used spp, $cpu CPU-s, $wall s, RMSE $rmse" >&2
     done
   done
 done
