@@ -1,4 +1,4 @@
-/* test_render_hard_scenes.c: the hard scenes of issue 30 item 4 (data/scenes/sun_window.json,
+/* test_render_hard_scenes.c: the hard scenes of small openings (data/scenes/sun_window.json,
  * lamp_shade.json, sun_window_fog.json) and their path-traced references
  * (data/reference-hard/NAME.pfm and NAME.info).
  *

@@ -1292,7 +1292,7 @@ TEST(tungsten_mesh_power_and_transform) {
     scene_free(&s);
 }
 
-/* ---- 6. issue 29's quick wins -------------------------------------------------------------- */
+/* ---- 6. small import fixes ---------------------------------------------------------------- */
 
 /* Oracle: JSON's number grammar (RFC 8259: -?(0|[1-9][0-9]*)(.[0-9]+)?([eE][+-]?[0-9]+)?),
  * which cJSON does not enforce: each bad number is refused with its line, column and JSON
@@ -1353,7 +1353,7 @@ TEST(json_leading_zeros_refused_with_path) {
     if (f) fclose(f);
 }
 
-/* Oracle: issue 29, item 2: an integrator we lack is no refusal: the scene loads with mode
+/* Oracle: an integrator we lack is no refusal: the scene loads with mode
  * "path" (the nearest unbiased method), one warning names the key and what is used, one more
  * per setting of that integrator; an unknown reconstruction filter is named with the box
  * filter used instead. The converted document says mode "path" and keeps max_bounces. */
@@ -1424,8 +1424,8 @@ TEST(degenerate_faces_skipped_with_one_warning) {
 
 /* Oracle: a Tungsten cube primitive bounding the same gas (the converter's closed 12-triangle
  * mesh). Six null quads with int_medium "gas" on the faces of a box (fronts outward: the medium
- * is behind them) are six interfaces with that interior medium, closed together (issue 29,
- * item 1: the loader's scene-wide closedness check), and render the cube's image, with the camera outside the box and
+ * is behind them) are six interfaces with that interior medium, closed together (the
+ * loader's scene-wide closedness check), and render the cube's image, with the camera outside the box and
  * inside it (the camera's medium found from the geometry), path and pm, same seed: relative
  * rmse below 1e-6 (measured 0). The gas matters (without it the image mean moves by more than
  * 3%), and five quads (an open box) are refused by the closedness check, exit 2. */

@@ -371,7 +371,7 @@ TEST(render_ply_matches_obj) {
                strstr(out, "m.ply:24: face 2: vertex index 9 out of range (6 vertices)"), "exit %d: %s", rc, out);
 }
 
-/* Item 6 of issue 29 for PLY: degenerate faces (a repeated corner, collinear corners, a flat
+/* Real meshes in PLY: degenerate faces (a repeated corner, collinear corners, a flat
  * quad fanned into two zero-area triangles) are skipped and counted, the first named by its
  * face; the others kept in order. Oracle: the faces listed by hand, in ASCII. */
 TEST(ply_degenerate_faces_skipped_and_counted) {

@@ -1,4 +1,4 @@
-/* test_render_interfaces.c: media bounded by interfaces (medium.h; issue 29, item 1).
+/* test_render_interfaces.c: media bounded by interfaces (medium.h).
  *
  * 1. A gas-filled room bounded by six quads (five opaque walls whose inner side is the gas and
  *    a null quad closing the front with the gas behind it: data/scenes/gas_room.json's shape)

@@ -163,7 +163,7 @@ static const expected_plan k_plans[] = {
     {"cornell_fog", 0, 1, 0, 1, "no specular surface", "", "shadow rays carry the transmittance", ""},
     {"volumetric_caustic", 1, 1, 0, 1, "", "", "shadow rays carry the transmittance", ""},
     {"glass_of_smoke", 1, 1, 0, 1, "", "", "shadow rays carry the transmittance", ""},
-    /* Media bounded by interfaces (issue 29): the same physics; the Tungsten room's glass ball
+    /* Media bounded by interfaces: the same physics; the Tungsten room's glass ball
      * focuses the lamp through the gas onto the floor (L S+ D). */
     {"sun_window_fog", 0, 1, 0, 1, "no specular surface", "", "shadow rays carry the transmittance", ""},
     {"gas_room", 0, 1, 0, 1, "no specular surface", "", "shadow rays carry the transmittance", ""},
