@@ -409,7 +409,7 @@ TEST(render_validate_far_from_origin) {
  * An OBJ vertex at 1e200 is reported with its coordinates and the range, like a vertex in the
  * scene file; it used to be called "degenerate face (zero area: repeated or collinear
  * vertices 1 2 3)", the squares of its edge lengths overflowing in the reader's check. A
- * really degenerate face is still that (skipped since issue 29: a file of only that face is
+ * really degenerate face is still that (skipped, as real meshes need: a file of only that face is
  * an empty mesh). */
 TEST(render_validate_mesh_file_range) {
     char path[1024];
@@ -436,7 +436,7 @@ TEST(render_validate_mesh_file_range) {
             char out[16384], want[1200];
             int rc = render_text(text, "--mode path", out, sizeof out);
             snprintf(want, sizeof want, "render: s.json: $.objects[7].file: %s: empty mesh: all 1 faces are "
-                     "degenerate (zero area; the first at line 4)", path); /* skipped, none left (issue 29) */
+                     "degenerate (zero area; the first at line 4)", path); /* skipped, none left */
             EXPECT_MSG(rc == 2 && strstr(out, want), "exit %d: %s", rc, out);
         }
     }
