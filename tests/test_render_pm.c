@@ -1307,6 +1307,46 @@ TEST(render_pm_caustic_pilot_runaway_message) {
     EXPECT_MSG(n > 0 && nc < 2000 && strstr(out, want), "expected \"%s\" in %s", want, out);
 }
 
+/* Oracle: the rule of the caustic cap (photon_trace.h CAUSTIC CAP, pm_passes.c THE CAUSTIC
+ * CAP) and the render's own figures. glass_hole's caustic map lies behind a wall the camera
+ * does not see through: at its defaults (the fit applies) its caustic pass stops at the cap,
+ * max(4194304, 4 x the global pass's emitted photons) of its own, plus the plan's 8192 pilot
+ * photons that join it, exactly (the emission budget is exact), and says so. Control: with
+ * caustic_photons set (no fit) the cap does not apply: the same scene emits past it and stops
+ * by photon_mapping.max_emitted_factor. */
+TEST(render_pm_caustic_cap_at_the_defaults_only) {
+    static char out[65536];
+    char cmd[8192];
+    for (int set = 0; set < 2; set++) {
+        snprintf(cmd, sizeof cmd,
+                 "%s/render '%s/data/scenes/glass_hole.json' --mode pm --width 16 --height 16 --spp 1 --quiet "
+                 "--pm gather_rays=4 %s --hdr '%s/cap%d.pfm'",
+                 pm_test_build_dir(), pm_test_source_dir(), set ? "--pm caustic_photons=66000" : "",
+                 pm_test_tmpdir(), set);
+        int rc = pm_test_run(cmd, out, sizeof out);
+        ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
+        const char *line = strstr(out, "\n  caustics: on ("), *at = line ? strstr(line, "the pilot's ") : NULL;
+        size_t n = 0, ng = 0, nc = 0;
+        unsigned long long ne = 0, ge = 0, ce = 0;
+        ASSERT_MSG(at && sscanf(at, "the pilot's %zu stores join the caustic map (its %llu photons", &n, &ne) == 2,
+                   "%s", out);
+        const char *ph = strstr(out, "\nPhotons: ");
+        ASSERT_MSG(ph && sscanf(ph, "\nPhotons: %zu global, %*u shadow-map (from %llu emitted); %zu caustic (from %llu "
+                                    "emitted",
+                                &ng, &ge, &nc, &ce) == 4,
+                   "%s", out);
+        double cap = 4.0 * (double)ge > 4194304.0 ? 4.0 * (double)ge : 4194304.0;
+        if (!set) {
+            EXPECT_MSG(strstr(out, "stopped by the caustic pass's cap (4 times the global pass's photons emitted"),
+                       "%s", out);
+            EXPECT_MSG((double)ce == cap + (double)ne, "caustic emitted %llu, cap %.0f + pilot %llu", ce, cap, ne);
+        } else {
+            EXPECT_MSG(strstr(out, "stopped by the photon_mapping.max_emitted_factor budget"), "%s", out);
+            EXPECT_MSG((double)ce > cap + (double)ne, "caustic emitted %llu, cap %.0f + pilot %llu", ce, cap, ne);
+        }
+    }
+}
+
 /* Oracle: the fault-injection hook PM_PLAN_TEST_ENOMEM (plan.c) makes one pilot pass fail as
  * if it had run out of memory. Before, run_pilot ignored photon_trace's code and the plan read
  * a pass cut short as evidence ("nothing reaches there"). Now plan_make returns PM_ENOMEM with

@@ -70,6 +70,7 @@ typedef struct mapper_state {
      * settings' counts, stage A running (1), the scale of the targets pass 0 traced, why. */
     long fit_target[4];
     int fit_stage;
+    int caustic_cap; /* trace_opts.caustic_cap of the next trace (pm_passes.c, THE CAUSTIC CAP) */
     double fit_scale;
     char fit_reason[400];
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,

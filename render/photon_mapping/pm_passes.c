@@ -311,6 +311,16 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
  * --pm, loaded or saved maps (a saved set must
  * match its targets when loaded), a partitioned
  * render-mpi (its sample pilot does not run), no sample pilot. */
+/* THE CAUSTIC CAP (photon_trace.h CAUSTIC CAP). A caustic pass short of its target after
+ * emitting 4 x the global pass's photons (at least 4194304) is light that rarely reaches a
+ * diffuse surface through specular ones: glass_hole's glass behind a 10 x 10 hole stored 48775
+ * of 250000 caustic photons from the whole max_emitted_factor budget (16M emitted, 4.5 of
+ * 4.8 s at 64 x 64 x 16 spp) and the camera saw none of them (the sample pilot: 0.0% of its
+ * luminance). So stage A traces its caustic map under the cap; the fitted trace (stage B) and
+ * the later passes keep the cap where the sample pilot finds the caustic map carries less than
+ * PM_FIT_CAUSTIC_LO of the camera samples' luminance, and trace to the settings' budgets where
+ * it carries more. Counts set by the scene or --pm (no fit) trace to the settings' budgets. */
+
 #define PM_FIT_SHARE 0.2
 #define PM_FIT_FIRST 2.0
 #define PM_FIT_MAX 4.0
@@ -319,9 +329,10 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
  * the camera sees (it is read at the camera path's hits, unfiltered, while the global map is
  * read through gathers). Measured at 96x96, 2 threads, seeds 1 and 2, counts set by --pm, on a
  * loaded machine (so the CPU seconds are rough, the errors firm): cornell_spheres (the caustic
- * map carries 10% of the pilot samples' luminance) read the same RMSE from 0.5 to 4 x the
- * targets at 289 spp (0.0052/0.0063 at 0.5, 0.0053/0.0063 at 4) and at 1089 spp (0.0030 at
- * both), so maps above the targets were time lost; water_caustic (27%) fell from 0.0138 at
+ * map carries 10% of the pilot samples' luminance) read the same RMSE at 1 and 4 x the
+ * targets at 289 spp (0.00419/0.00369 at 1, 0.00421/0.00369 at 4, after the caustic stride's
+ * fix) and 1-3% apart at 1089 spp (0.00307/0.00300 against 0.00298/0.00295, for about 35% more
+ * CPU), so maps above the targets were time lost; water_caustic (27%) fell from 0.0138 at
  * 0.5 to 0.0131, 0.0124 and 0.0119 at 1, 2 and 4 x at 729 spp. So the ceiling is PM_FIT_MAX
  * where the caustic share is at least PM_FIT_CAUSTIC_HI, the targets (1) at PM_FIT_CAUSTIC_LO
  * or less, linear between; a scene with volume photon maps keeps PM_FIT_MAX (their estimates
@@ -381,6 +392,7 @@ void pm__fit_begin(mapper_state *st, const scene *s) {
                  "the targets (partitioned render-mpi: no sample pilot to weigh them by)");
     else {
         st->fit_stage = 1;
+        st->caustic_cap = 1; /* THE CAUSTIC CAP: until the sample pilot has weighed the map */
         fit_scale(st, 1 / PM_FIT_FIRST);
     }
 }
@@ -390,6 +402,7 @@ void pm__fit_begin(mapper_state *st, const scene *s) {
 int pm__fit_end(mapper_state *st, const scene *s) {
     if (!st->fit_stage) return 0;
     st->fit_stage = 0;
+    st->caustic_cap = st->sample_caustic < PM_FIT_CAUSTIC_LO;
     double wp = photon_work(st) * PM_FIT_FIRST, wr = camera_work(st, s);
     double f = wp > 0 && wr > 0 && isfinite(wp) && isfinite(wr) ? PM_FIT_SHARE * wr / wp : 0;
     if (!(wp > 0)) { /* no photons at all (no map on, or none stored): nothing to fit */

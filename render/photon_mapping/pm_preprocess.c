@@ -95,6 +95,7 @@ static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t e
         o.shadow = st->plan.shadow.on;
         o.importance = st->plan.imp; /* importance-driven emission, when the plan chose it */
         o.reuse = st->plan.pilot;    /* the plan's pilot photons join the global maps */
+        o.caustic_cap = st->caustic_cap;
         if (st->pass) { /* a later pass: its own photons only (the pilot joined pass 0) */
             o.seed = st->pass_seed;
             o.reuse = NULL;

@@ -222,8 +222,8 @@ static double work_of_current(const pm_sample_host *h, double *share) {
     for (int i = 0; i < nundo; i++) stat_add(undo[i], before[i] - stats_total(undo[i])); /* mod 2^64 */
     h->scratch_free(h->user, sc);
     *share = caustic_share(&f);
-    int strata = 1, c = h->cfg->caustic_stride > 1 ? h->cfg->caustic_stride : 1;
-    while ((strata + 1) * (strata + 1) <= h->s->cam.spp) strata++;
+    int strata = h->s->cam.strata > 0 ? h->s->cam.strata : 1;
+    int c = h->cfg->caustic_stride > 1 ? h->cfg->caustic_stride : 1;
     return f.work + PILOT_CAUSTIC_COST * f.caus * pm_caustic_reads(strata, c) / ((double)strata * strata);
 }
 
@@ -266,8 +266,7 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
             nc++;
         }
     }
-    int strata = 1;
-    while ((strata + 1) * (strata + 1) <= s->cam.spp) strata++;
+    int strata = s->cam.strata > 0 ? s->cam.strata : 1;
     int cmin = explicit_c || !h->caustics ? cfg->caustic_stride : 1;
     int cmax = explicit_c || !h->caustics ? cfg->caustic_stride
                : strata < PILOT_MAX_STRIDE ? (strata > 1 ? strata : 1) : PILOT_MAX_STRIDE;

@@ -14,13 +14,11 @@
 #include "photonmap/common.h"
 #include "photonmap/estimate.h"
 #include "base/stats.h"
+#include "photons/photon_trace.h"
 #include "photons/volume.h"
 
 /* No segment is marched in more steps than this (a tiny step setting in a huge scene). */
 #define PMV_MAX_STEPS 4096
-/* The caustic pass's emission budget in a scene with media (pmv_trace). */
-#define PMV_CAUSTIC_EMIT_FACTOR 4.0
-#define PMV_CAUSTIC_EMIT_MIN 4194304.0
 /* The smallest part of a search ball taken to lie inside a medium (a ball at a box's corner). */
 #define PMV_MIN_BALL_FRACTION 0.125
 /* A volume estimate's typical radius is at most this many mean free paths, and its k at least
@@ -237,9 +235,9 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
         o.caustic_pass = 1;
         o.projection_cells = c->projection ? c->projection_cells : 0;
         /* Light that reaches a wall through a smoke-filled glass is rare: do not let that map
-         * take more than PMV_CAUSTIC_EMIT_FACTOR times the global pass's photons (at least
-         * PMV_CAUSTIC_EMIT_MIN); it keeps what it stored, for the photons emitted. */
-        double cap = fmax(PMV_CAUSTIC_EMIT_MIN, PMV_CAUSTIC_EMIT_FACTOR * (double)g.emitted);
+         * take more than CAUSTIC_CAP_FACTOR times the global pass's photons (at least
+         * CAUSTIC_CAP_MIN); it keeps what it stored, for the photons emitted. */
+        double cap = fmax(CAUSTIC_CAP_MIN, CAUSTIC_CAP_FACTOR * (double)g.emitted);
         if (cap < o.max_emitted) {
             o.max_emitted = cap;
             o.max_emitted_budget = "caustic pass's cap in a scene with media (4 times the global "

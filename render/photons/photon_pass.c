@@ -348,11 +348,14 @@ static int pass_report(pass_run_state *st, int rc, uint64_t cut, int *runaway, c
     if (*runaway && !o->pilot) {
         /* The figures of the whole map: with a joining pilot's stores and photons. */
         size_t tn = c->tail ? c->tail->n : 0;
-        char with[96] = "", budget[64];
+        char with[96] = "", budget[160];
         if (c->tail)
             snprintf(with, sizeof with, " (the pilot's %zu stores and %llu photons included)", tn,
                      (unsigned long long)c->tail_emitted);
-        snprintf(budget, sizeof budget, "photon_mapping.%s budget", st->stop ? st->stop : "?");
+        if (st->stop && strchr(st->stop, ' ')) /* a caller's phrase (pass_ctx.limit_name) */
+            snprintf(budget, sizeof budget, "%s", st->stop);
+        else
+            snprintf(budget, sizeof budget, "photon_mapping.%s budget", st->stop ? st->stop : "?");
         pass_say_short(file, title, mb->n + tn, st->target + (long)tn, st->n_e + c->tail_emitted, with, budget,
                        st->why);
     }

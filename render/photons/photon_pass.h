@@ -100,7 +100,9 @@ typedef struct pass_ctx {
     /* The driver's (pass_run) rules of a media pass (volume.c sets them; 0 for surface passes):
      * the second buffer's own target (the volume map; 0: it follows the main map's cut, as the
      * shadow map does), the emission budget and its name for messages (limit 0: the surface
-     * passes' max_emitted_factor x target, at most max_emitted), and a media pilot's counts
+     * passes' max_emitted_factor x target, at most max_emitted; the caustic pass sets it for
+     * its cap, photon_trace.h CAUSTIC CAP; a name with a space is printed as it is, else as a
+     * setting, "photon_mapping.NAME budget"), and a media pilot's counts
      * (summed into it; such a pass keeps no map and runs to the emission budget). */
     long target2;
     double limit;

@@ -5,6 +5,7 @@
  */
 #include "photons/photon_trace.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -266,6 +267,14 @@ static int caustic_pass(trace_run *t) {
         c.tail = rkc ? &rkc->c : NULL;
         c.tail_emitted = rkc ? rkc->c_emitted : 0;
         if (rkc) target = (long)rkc->c.n < target ? target - (long)rkc->c.n : 1;
+        double cap = fmax(CAUSTIC_CAP_MIN, CAUSTIC_CAP_FACTOR * (double)m->global_emitted);
+        double budget = o->max_emitted_factor * (double)target;
+        if (o->max_emitted > 0 && o->max_emitted < budget) budget = o->max_emitted;
+        if (o->caustic_cap && cap < budget) { /* CAUSTIC CAP in photon_trace.h */
+            c.limit = cap;
+            c.limit_name = "caustic pass's cap (4 times the global pass's photons emitted, at least "
+                           "4194304; photon_trace.h CAUSTIC CAP)";
+        }
         pass_out po = {0};
         rc = pass_run(&c, target, &t->cbuf, NULL, &po, "Tracing caustic photons", t->err, t->errcap);
         m->caustic_emitted = po.emitted;

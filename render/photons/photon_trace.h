@@ -168,12 +168,22 @@ typedef struct trace_pilot {
     pilot_photons *kept;
 } trace_pilot;
 
+/* CAUSTIC CAP. A caustic pass that emits CAUSTIC_CAP_FACTOR times the global pass's photons
+ * (at least CAUSTIC_CAP_MIN) without reaching its target is rare light: the photon mapper
+ * stops it there when the caller asks (trace_opts.caustic_cap; the media tracer always, in
+ * pm_volume.c), and it keeps what it stored for the photons emitted (unbiased, a smaller
+ * map). The photon mapper asks for it where it does not yet know the camera sees the caustic
+ * map, or knows it barely does (pm_passes.c, THE CAUSTIC CAP). */
+#define CAUSTIC_CAP_FACTOR 4.0
+#define CAUSTIC_CAP_MIN 4194304.0
+
 typedef struct trace_opts {
     int global, caustic, shadow;     /* which maps to build */
     long global_target, caustic_target; /* photons to store */
     double max_emitted_factor;       /* give up after this many times the target emitted */
     double max_emitted;              /* and after this many emitted (0: no absolute cap) */
     size_t max_memory_bytes;         /* photon buffers of a pass (0: no cap) */
+    int caustic_cap;                 /* 1: the caustic pass emits at most CAUSTIC_CAP (below) */
     int max_bounces;                 /* photon path length cap below max_depth (0: none) */
     int projection, projection_cells;
     /* The global pass (and its shadow photons) emits by this table (importance.h; the plan
