@@ -12,7 +12,9 @@
  *              cell carried as a box in SSE2 registers (cut at the node's divlow / divhigh, the
  *              children's extreme coordinates, as nanoflann keeps them), pruned by its whole
  *              box distance, the closer cell first, an explicit stack, the children prefetched;
- *   nf L       nanoflann (bench/nanoflann_peer.cpp) with its points in its own tree order.
+ *   nf L       nanoflann (bench/nanoflann_peer.cpp) with its points in its own tree order;
+ *   flann L    FLANN's exact single kd-tree (libflann), batches of 250 queries per call, as
+ *              bench_knn configures and times it.
  * Rounds of 500-query chunks, every configuration timed on each chunk in a rotated order; CPU
  * time of the thread; medians over the rounds. Every configuration's answers (dist2 sorted) are
  * checked against brute force on the first 200 queries before timing.
@@ -21,7 +23,7 @@
  *   cc -std=c11 -D_POSIX_C_SOURCE=200809L -O2 -g -Wall -Wextra -Iphotonmap -Ibench \
  *      -c bench/experiments/midsplit.c -o /tmp/midsplit.o
  *   c++ -o /tmp/midsplit /tmp/midsplit.o build/release/obj/bench/nanoflann_peer.o \
- *      build/release/obj/bench/util.o build/release/libphotonmap.a -fopenmp -lm
+ *      build/release/obj/bench/util.o build/release/libphotonmap.a -lflann -fopenmp -lm
  * Run: /tmp/midsplit WORKLOAD(cluster|uniform) QUERIES(near|empty) K ROUNDS [N] [SPLIT] [race]
  * SPLIT: nf (nanoflann's rule, default), spread (the axis of the points' largest spread cut
  * at the middle of that spread) or median (the control: the axis of the points' largest extent
@@ -33,6 +35,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
+
+#include <flann/flann.h>
 
 #include "bench.h"
 #include "kdtree.h"
@@ -426,7 +430,7 @@ static double gauss(void) {
     return sqrt(-2 * log(1 - u)) * cos(6.283185307179586 * v);
 }
 
-enum { OURS, MID, NF };
+enum { OURS, MID, NF, FL };
 typedef struct {
     int kind;
     unsigned size;
@@ -434,6 +438,8 @@ typedef struct {
     pm_kdtree *ours;
     mtree mid;
     nf_peer *nf;
+    flann_index_t fl;
+    struct FLANNParameters fp;
     double build_s;
     double *t; /* CPU seconds per round */
     double evals, nodes;
@@ -447,7 +453,26 @@ static unsigned run_one(config *c, const float *q, unsigned k, float *od, uint32
         return (unsigned)f;
     }
     if (c->kind == MID) return mtree_knn(&c->mid, q, k, INFINITY, ks, od, oi);
+    if (c->kind == FL) {
+        int ix[64];
+        flann_find_nearest_neighbors_index(c->fl, (float *)q, 1, ix, od, (int)k, &c->fp);
+        for (unsigned j = 0; j < k; j++) oi[j] = (uint32_t)ix[j];
+        return k;
+    }
     return nf_knn(c->nf, q, k, INFINITY, oi, od);
+}
+
+/* FLANN as the race times it: batches of up to 250 queries per call (bench_knn: 256). */
+static double run_flann_batch(config *c, const float *q, int m, unsigned k) {
+    static int ix[250 * 64];
+    static float d[250 * 64];
+    double s = 0;
+    for (int b = 0; b < m; b += 250) {
+        int rows = m - b < 250 ? m - b : 250;
+        flann_find_nearest_neighbors_index(c->fl, (float *)(q + 3 * (size_t)b), rows, ix, d, (int)k, &c->fp);
+        s += d[0];
+    }
+    return s;
 }
 
 static int cmpd(const void *a, const void *b) {
@@ -523,16 +548,16 @@ int main(int argc, char **argv) {
             }
             if (s == empty && i < nq) memcpy(q + 3 * i, qq, sizeof qq);
         }
-    config cf[8];
+    config cf[12];
     int nc = 0;
-    unsigned sizes[3][3] = {{16, 32, 0}, {16, 32, 0}, {16, 32, 64}};
+    unsigned sizes[4][3] = {{16, 32, 0}, {16, 32, 0}, {16, 32, 64}, {16, 32, 64}};
     pm_photon *ph = calloc(n, sizeof *ph);
-    for (int kind = 0; kind < 3; kind++)
+    for (int kind = 0; kind < 4; kind++)
         for (int j = 0; j < 3 && sizes[kind][j]; j++) {
             config *c = &cf[nc++];
             memset(c, 0, sizeof *c);
             c->kind = kind, c->size = sizes[kind][j];
-            snprintf(c->name, sizeof c->name, "%s_%u", kind == OURS ? "ours" : kind == MID ? (spread == 1 ? "midspread" : spread == 2 ? "midmedian" : "midnf") : "nf_tree_order", c->size);
+            snprintf(c->name, sizeof c->name, "%s_%u", kind == OURS ? "ours" : kind == MID ? (spread == 1 ? "midspread" : spread == 2 ? "midmedian" : "midnf") : kind == NF ? "nf_tree_order" : "flann_batch", c->size);
             c->t = calloc((size_t)rounds, sizeof *c->t);
             double t0 = cpu();
             if (kind == OURS) {
@@ -545,9 +570,20 @@ int main(int argc, char **argv) {
             } else if (kind == MID) {
                 mtree_build(&c->mid, xyz, n, c->size, spread);
                 c->build_s = cpu() - t0;
-            } else {
+            } else if (kind == NF) {
                 c->nf = nf_build(xyz, n, c->size, 1, cpu, &c->build_s);
                 if (!c->nf) return 1;
+            } else { /* FLANN's exact single kd-tree, as bench_knn configures it */
+                float speedup;
+                c->fp = DEFAULT_FLANN_PARAMETERS;
+                c->fp.algorithm = FLANN_INDEX_KDTREE_SINGLE;
+                c->fp.leaf_max_size = (int)c->size;
+                c->fp.checks = FLANN_CHECKS_UNLIMITED;
+                c->fp.cores = 1, c->fp.sorted = 1, c->fp.max_neighbors = -1, c->fp.eps = 0;
+                c->fp.log_level = FLANN_LOG_NONE, c->fp.random_seed = 12345;
+                c->fl = flann_build_index(xyz, (int)n, 3, &speedup, &c->fp);
+                if (!c->fl) return 1;
+                c->build_s = cpu() - t0;
             }
         }
     float od[64], bd[64];
@@ -577,17 +613,20 @@ int main(int argc, char **argv) {
                 config *c = &cf[(o + ch + r) % nc];
                 const float *qq = q + 3 * (size_t)ch * chunk;
                 double t0 = cpu();
-                for (int i = 0; i < chunk; i++) sink += run_one(c, qq + 3 * i, k, od, oi, nb, &ks, NULL) + od[0];
+                if (c->kind == FL) sink += run_flann_batch(c, qq, chunk, k);
+                else
+                    for (int i = 0; i < chunk; i++) sink += run_one(c, qq + 3 * i, k, od, oi, nb, &ks, NULL) + od[0];
                 c->t[r] += cpu() - t0;
             }
     printf("# %s%s %s N=%u k=%u unlimited; %d rounds x %d queries; split rule %s; verified %d queries: %ld mismatches; sink %g\n",
            w, race_gen ? " (bench_knn's generator)" : "", argv[2], n, k, rounds, nq, spread == 1 ? "spread" : spread == 2 ? "median" : "nanoflann", nv, bad, sink > 0 ? 1.0 : 0.0);
-    double best_nf = 0, qs[8];
+    double best_nf = 0, best_fl = 0, qs[12];
     for (int c = 0; c < nc; c++) {
         double v[64];
         for (int r = 0; r < rounds; r++) v[r] = nq / cf[c].t[r];
         qs[c] = median(v, rounds);
         if (cf[c].kind == NF && qs[c] > best_nf) best_nf = qs[c];
+        if (cf[c].kind == FL && qs[c] > best_fl) best_fl = qs[c];
     }
     for (int c = 0; c < nc; c++) {
         double v[64], mn = 1e30, mx = 0;
@@ -598,9 +637,9 @@ int main(int argc, char **argv) {
             v[r] = b / cf[c].t[r];
             mn = v[r] < mn ? v[r] : mn, mx = v[r] > mx ? v[r] : mx;
         }
-        printf("%-16s build %.3f s  %9.0f q/s  / nf best %.3fx (rounds %.3f..%.3f; median of rounds %.3f)", cf[c].name,
-               cf[c].build_s, qs[c], qs[c] / best_nf, mn, mx, median(v, rounds));
-        if (cf[c].kind != NF) printf("  evals %.1f nodes %.1f", cf[c].evals, cf[c].nodes);
+        printf("%-16s build %.3f s  %9.0f q/s  / nf best %.3fx (rounds %.3f..%.3f; median of rounds %.3f)  / flann best %.3fx", cf[c].name,
+               cf[c].build_s, qs[c], qs[c] / best_nf, mn, mx, median(v, rounds), qs[c] / best_fl);
+        if (cf[c].kind == OURS || cf[c].kind == MID) printf("  evals %.1f nodes %.1f", cf[c].evals, cf[c].nodes);
         if (cf[c].kind == MID) printf("  tree %.2f B per point", cf[c].mid.nn * (double)sizeof(mnode) / n);
         printf("\n");
     }
