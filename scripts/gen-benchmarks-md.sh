@@ -200,6 +200,20 @@ its radius: \`bench_knn --oracle\` times the same search given each query's own 
 (a diagnostic no caller can use). The ideas measured on the search, kept or not, are in the
 last table of this document (bench/results/experiments.csv).
 
+The split rule is what the worst cell lacks, and it is measured (bench/experiments/midsplit.c;
+the last four rows of the last table): our search's ideas (cells carried
+as SSE2 boxes, the closer cell first, the SSE2 bucket scan, the same small-k result set) on a
+tree with nanoflann's splits and explicit children run the cluster, empty, 1M, k = 10 cell at
+1.18x nanoflann's best (leaves of 32; 1.12-1.22x over the runs) and 1.29-1.36x FLANN's best,
+where the library runs 0.94-1.02x and 1.06-1.14x in the same processes; the same code given
+median splits runs 0.73x nanoflann's best, so the split rule alone is
+worth 1.6x there (3.8x fewer records evaluated). Near the data and on uniform points the split
+rule changes nothing and the library's own search is faster (1.67-1.96x nanoflann against
+1.04-1.29x for that explicit tree). The split axis, the one freedom a left-balanced tree has,
+was measured earlier (cycling, variance, five other rules: none better than the largest extent).
+So the cell's targets (1.0x nanoflann's best, 1.3x FLANN's) ask for what issue 28's constraint
+rules out: the median splits of the left-balanced heap stay.
+
 Choosing B: how often each bucket size was the fastest (unsorted k-NN, over every cell), the worst loss of always using it instead of the cell's fastest, the geometric mean of its queries/s against the cell's fastest over every cell and over the cells of the targets (k = 10 and 50), and its queries/s against the fastest B in the worst cell of the headline (the lowest ours / nanoflann best at the smallest N). The default (PM_KDTREE_BUCKET_DEFAULT in kdtree.h) and the README's example follow this table:"
 echo
 echo "| B | fastest in | worst queries/s against the cell's fastest B (where) | geometric mean, every cell | geometric mean, k = 10 and 50 | in the headline's worst cell |"
