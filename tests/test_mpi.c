@@ -100,6 +100,56 @@ TEST(mpi_partitioned_two_ranks_close) {
     EXPECT_MSG(n == 4, "expected 4 quarters, got %d: %s", n, out);
 }
 
+/* Oracle: render's own pass under the same memory budget (the driver's rules, top of
+ * render/photons/photon_rounds.c: a batch past what is left keeps its longest prefix of whole
+ * photons that fit, the same for any process count). A lossless furnace (every reflectance 1)
+ * with max_bounces 16 and max_memory_mb 16 stops its global pass inside a batch; render-mpi
+ * with partitioned maps on 2 ranks must print render's message word for word (the photon where
+ * it stopped, the photons stored and emitted) and store as many photons. Until the prefix rule
+ * reached the partitioned mode it stopped before the batch (278528 photons against render's
+ * 401404). scripts/test-mpi.sh checks more ranks and the runaway case. Skipped unless
+ * render-mpi and mpirun are there. */
+TEST(mpi_partitioned_memory_budget_keeps_renders_prefix) {
+    char mpi[2048], cmd[8192], out[8192], path[2048];
+    struct stat sb;
+    snprintf(mpi, sizeof mpi, "%s/render-mpi", pm_test_build_dir());
+    if (stat(mpi, &sb) != 0) SKIP("render-mpi not built here (make MPI=1)");
+    if (pm_test_run("command -v mpirun", out, sizeof out) != 0) SKIP("mpirun not found");
+    const char *d = pm_test_tmpdir();
+    snprintf(path, sizeof path, "%s/furnace.json", d);
+    FILE *f = fopen(path, "w");
+    ASSERT_MSG(f != NULL, "cannot write %s", path);
+    fputs("{\"camera\": {\"eye\": [5, 5, 1], \"look_at\": [5, 5, 9], \"fov_deg\": 50, \"width\": 8, \"height\": 8, \"spp\": 1},\n"
+          " \"materials\": {\"w\": {\"type\": \"lambert\", \"reflectance\": 1},\n"
+          "   \"lamp\": {\"type\": \"lambert\", \"reflectance\": 1, \"emission\": 10}},\n"
+          " \"objects\": [\n"
+          "  {\"type\": \"quad\", \"vertices\": [[10,0,0],[0,0,0],[0,0,10],[10,0,10]], \"material\": \"w\"},\n"
+          "  {\"type\": \"quad\", \"vertices\": [[10,10,0],[10,10,10],[0,10,10],[0,10,0]], \"material\": \"w\"},\n"
+          "  {\"type\": \"quad\", \"vertices\": [[10,0,10],[0,0,10],[0,10,10],[10,10,10]], \"material\": \"w\"},\n"
+          "  {\"type\": \"quad\", \"vertices\": [[0,0,10],[0,0,0],[0,10,0],[0,10,10]], \"material\": \"w\"},\n"
+          "  {\"type\": \"quad\", \"vertices\": [[10,0,0],[10,0,10],[10,10,10],[10,10,0]], \"material\": \"w\"},\n"
+          "  {\"type\": \"quad\", \"vertices\": [[0,0,0],[10,0,0],[10,10,0],[0,10,0]], \"material\": \"w\"},\n"
+          "  {\"type\": \"quad\", \"vertices\": [[6,9.99,4],[6,9.99,6],[4,9.99,6],[4,9.99,4]], \"material\": \"lamp\"}],\n"
+          " \"render\": {\"max_depth\": 100000}}\n", f);
+    fclose(f);
+    const char *args = "--mode pm --pm global_photons=100000000 --pm max_memory_mb=16 --pm max_bounces=16 "
+                       "--threads 1";
+    /* Each run's budget line, without the scene's name, then its count of global photons. */
+    const char *pick = "sed -n -e 's/^render: [^:]*: \\(.*max_memory_mb budget.*\\)$/\\1/p' "
+                       "-e 's/^ *Global photons stored  *//p'";
+    snprintf(cmd, sizeof cmd, "cd '%s' && '%s/render' '%s' %s --hdr '%s/one.pfm' >'%s/one.log' 2>&1 && "
+             "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 ASAN_OPTIONS=detect_leaks=0 "
+             "mpirun --oversubscribe -np 2 '%s' '%s' %s --pm distributed=partitioned --hdr '%s/part.pfm' "
+             ">'%s/part.log' 2>&1 && %s '%s/one.log' >'%s/one.got' && %s '%s/part.log' >'%s/part.got' && "
+             "cat '%s/one.got' && echo == && diff '%s/one.got' '%s/part.got' && test -s '%s/part.pfm'",
+             pm_test_source_dir(), pm_test_build_dir(), path, args, d, d, mpi, path, args, d, d, pick, d, d, pick,
+             d, d, d, d, d, d);
+    int rc = pm_test_run(cmd, out, sizeof out);
+    EXPECT_MSG(rc == 0, "render-mpi partitioned under the memory budget differs from render (or failed):\n%s", out);
+    EXPECT_MSG(strstr(out, "stopped by the photon_mapping.max_memory_mb budget (photon ") != NULL,
+               "render's pass did not stop inside a batch by the memory budget:\n%s", out);
+}
+
 /* Oracle: the documented usage of the MPI scripts: --help prints it with status 0 and does
  * nothing else (no render, no file written). */
 TEST(mpi_scripts_have_help) {

@@ -256,6 +256,34 @@ typedef struct guide_light_evidence {
     size_t tables;                    /* (cell, light) tables built */
 } guide_light_evidence;
 
+/* The light guide in its steps, for a caller that runs its pilot with others and decides
+ * later (the photon mapper's plan, plan.h): guide_light_skip says why no pilot runs (force
+ * off, no light samples, media, no area or sphere light; NULL: it runs); guide_light_pilot_run
+ * is stage A and stage B's jobs (evidence in e; rc PM_ENOMEM: out of memory, said in the line,
+ * not an error); guide_light_wanted decides from it (pure); guide_light_learn is stage B (the
+ * tables; NULL when it learns nothing or runs out of memory, rc then PM_ENOMEM); guide_light_say
+ * writes the decision and its reason from all that (pure; *on = 0 unless the guide learned
+ * tables). guide_light_plan below runs them in that order. */
+typedef struct guide_light_pilot {
+    int ran;                /* stage A ran */
+    int rc;                 /* 0, or PM_ENOMEM */
+    guide_light_evidence e; /* stage A's (and B's probes and tables, once learned) */
+    uint64_t seed;
+    guide_grid grid;
+    guide_point *pts; /* stage A's points */
+    size_t np;
+    size_t *jp; /* stage B's jobs: point and light of each */
+    int *js;
+    size_t nj;
+} guide_light_pilot;
+const char *guide_light_skip(const scene *s, int force, int usable);
+void guide_light_pilot_run(const scene *s, guide_light_pilot *pl);
+void guide_light_pilot_free(guide_light_pilot *pl);
+int guide_light_wanted(int force, const guide_light_pilot *pl);
+guide *guide_light_learn(const scene *s, guide_light_pilot *pl);
+void guide_light_say(int force, const char *skip, const guide_light_pilot *pl, const guide *gd, int *on,
+                     char *reason, size_t cap);
+
 /* The light guide of scene s for the photon mapper: force is PLAN_AUTO/ON/OFF (photon_settings.h),
  * usable = 0 when the renderer makes no light samples (no final gather / preview). Writes the
  * decision (*on) and its reason (with the evidence) and returns the guide when on (the caller

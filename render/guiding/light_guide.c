@@ -209,78 +209,85 @@ done:
     return rc;
 }
 
-guide *guide_light_plan(const scene *s, int force, int usable, int *on, char *reason, size_t cap,
-                        guide_light_evidence *ev) {
-    guide_light_evidence e;
-    memset(&e, 0, sizeof e);
-    *on = 0;
-    if (ev) *ev = e;
-    if (force == PLAN_OFF) {
-        say(reason, cap, "forced off by photon_mapping.light_guide");
-        return NULL;
-    }
-    if (!usable) {
-        say(reason, cap, "no light samples to guide (the global map is shown directly)");
-        return NULL;
-    }
-    if (scene_has_media(s)) {
-        say(reason, cap, "a scene with media: shadow rays carry transmittance, the probes test visibility");
-        return NULL;
-    }
+const char *guide_light_skip(const scene *s, int force, int usable) {
+    if (force == PLAN_OFF) return "forced off by photon_mapping.light_guide";
+    if (!usable) return "no light samples to guide (the global map is shown directly)";
+    if (scene_has_media(s)) return "a scene with media: shadow rays carry transmittance, the probes test visibility";
     int any = 0;
     for (int l = 0; l < s->nlights; l++) any |= guided_light(&s->lights[l]);
-    if (!any || s->light_distrib.n == 0) {
-        say(reason, cap, "no area or sphere light (a point or directional light has no point to choose)");
-        return NULL;
-    }
-    uint64_t seed = s->settings.seed ^ 0x6c69676874ULL; /* "light" */
-    guide_point *pts = NULL;
-    size_t np = 0, nj = 0;
-    size_t *jp = NULL;
-    int *js = NULL;
+    if (!any || s->light_distrib.n == 0)
+        return "no area or sphere light (a point or directional light has no point to choose)";
+    return NULL;
+}
+
+void guide_light_pilot_run(const scene *s, guide_light_pilot *pl) {
+    memset(pl, 0, sizeof *pl);
+    pl->ran = 1;
+    pl->seed = s->settings.seed ^ 0x6c69676874ULL; /* "light" */
     point_a *pa = NULL;
-    guide *gd = NULL;
-    guide_grid grid;
-    guide_grid_init(&grid, s, GUIDE_RES);
-    if (guide_points(s, GUIDE_PATHS, seed, 0, &pts, &np) < 0 || !(pa = calloc(np ? np : 1, sizeof *pa))) {
-        free(pts);
-        say(reason, cap, "out of memory for the pilot");
-        return NULL;
+    guide_grid_init(&pl->grid, s, GUIDE_RES);
+    if (guide_points(s, GUIDE_PATHS, pl->seed, 0, &pl->pts, &pl->np) < 0 ||
+        !(pa = calloc(pl->np ? pl->np : 1, sizeof *pa))) {
+        free(pl->pts);
+        pl->pts = NULL;
+        pl->np = 0;
+        pl->rc = PM_ENOMEM; /* the evidence stays empty */
+        return;
     }
-    stage_a(s, pts, np, seed, pa);
-    int rc = plan_jobs(&grid, pts, np, pa, &e, &jp, &js, &nj);
-    int want = force == PLAN_ON || (e.blocked > 0 && e.blocked_share >= GUIDE_MIN_SHARE);
-    if (rc == 0 && want && nj > 0) {
-        gd = malloc(sizeof *gd);
-        if (!gd || guide_learn_jobs_spread(gd, s, &grid, GUIDE_G, GUIDE_ALPHA, pts, jp, js, nj, light_probe, NULL,
-                                           seed, 0, &e.probes) < 0) {
-            free(gd);
-            gd = NULL;
-            rc = PM_ENOMEM;
-        }
-        if (gd) {
-            e.tables = gd->ntables;
-            gd->stat_id = stats_register("Integrator/Light samples guided (light guide)");
-        }
-    }
-    free(pts);
+    stage_a(s, pl->pts, pl->np, pl->seed, pa);
+    pl->rc = plan_jobs(&pl->grid, pl->pts, pl->np, pa, &pl->e, &pl->jp, &pl->js, &pl->nj);
     free(pa);
-    free(jp);
-    free(js);
-    if (ev) *ev = e;
-    double rate = e.samples ? (double)e.passed / (double)e.samples : 0;
-    if (rc < 0) {
-        say(reason, cap, "out of memory for the pilot");
+}
+
+void guide_light_pilot_free(guide_light_pilot *pl) {
+    free(pl->pts);
+    free(pl->jp);
+    free(pl->js);
+    pl->pts = NULL;
+    pl->jp = NULL;
+    pl->js = NULL;
+}
+
+int guide_light_wanted(int force, const guide_light_pilot *pl) {
+    if (!pl->ran) return 0;
+    return force == PLAN_ON || (pl->e.blocked > 0 && pl->e.blocked_share >= GUIDE_MIN_SHARE);
+}
+
+guide *guide_light_learn(const scene *s, guide_light_pilot *pl) {
+    if (!pl->ran || pl->rc < 0 || pl->nj == 0) return NULL;
+    guide *gd = malloc(sizeof *gd);
+    if (!gd || guide_learn_jobs_spread(gd, s, &pl->grid, GUIDE_G, GUIDE_ALPHA, pl->pts, pl->jp, pl->js, pl->nj,
+                                       light_probe, NULL, pl->seed, 0, &pl->e.probes) < 0) {
+        free(gd);
+        pl->rc = PM_ENOMEM;
         return NULL;
+    }
+    pl->e.tables = gd->ntables;
+    gd->stat_id = stats_register("Integrator/Light samples guided (light guide)");
+    return gd;
+}
+
+void guide_light_say(int force, const char *skip, const guide_light_pilot *pl, const guide *gd, int *on,
+                     char *reason, size_t cap) {
+    *on = 0;
+    if (skip) {
+        say(reason, cap, skip);
+        return;
+    }
+    const guide_light_evidence e = pl->e;
+    int want = guide_light_wanted(force, pl);
+    double rate = e.samples ? (double)e.passed / (double)e.samples : 0;
+    if (pl->rc < 0) {
+        say(reason, cap, "out of memory for the pilot");
+        return;
     }
     if (want && (!gd || gd->ntables == 0)) {
-        guide_destroy(gd);
         snprintf(reason, cap,
                  "%s, but no cell had light samples that were mostly blocked: nothing to guide (%zu points, "
                  "%llu light samples, %.1f%% pass)",
                  force == PLAN_ON ? "forced on by photon_mapping.light_guide" : "wanted", e.points, e.samples,
                  100 * rate);
-        return NULL;
+        return;
     }
     if (want) {
         *on = 1;
@@ -291,7 +298,7 @@ guide *guide_light_plan(const scene *s, int force, int usable, int *on, char *re
                  force == PLAN_ON ? "forced by photon_mapping.light_guide" : "light samples are mostly blocked",
                  e.blocked, e.cells, 100 * e.blocked_pass, 100 * e.blocked_share, e.probes, gd->ntables, gd->ncells,
                  e.points, e.samples, 100 * rate);
-        return gd;
+        return;
     }
     /* Nothing to learn from: say so, rather than "mostly pass" over evidence of none. */
     if (e.samples == 0)
@@ -311,5 +318,21 @@ guide *guide_light_plan(const scene *s, int force, int usable, int *on, char *re
                  "pass)",
                  e.blocked, e.cells, 100 * e.blocked_share, 100 * GUIDE_MIN_SHARE, e.points, e.samples,
                  100 * rate);
-    return NULL;
+}
+
+guide *guide_light_plan(const scene *s, int force, int usable, int *on, char *reason, size_t cap,
+                        guide_light_evidence *ev) {
+    guide_light_pilot pl;
+    memset(&pl, 0, sizeof pl);
+    const char *skip = guide_light_skip(s, force, usable);
+    if (!skip) guide_light_pilot_run(s, &pl);
+    guide *gd = guide_light_wanted(force, &pl) && pl.rc == 0 ? guide_light_learn(s, &pl) : NULL;
+    guide_light_say(force, skip, &pl, gd, on, reason, cap);
+    if (ev) *ev = pl.e;
+    guide_light_pilot_free(&pl);
+    if (!*on) {
+        guide_destroy(gd);
+        gd = NULL;
+    }
+    return gd;
 }

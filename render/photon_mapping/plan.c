@@ -1,22 +1,22 @@
-/* plan.c: the per-scene plan of photon-mapping effects; see plan.h.
+/* plan.c: the plan's decisions (plan.h, step 2 of plan_make) and its lines.
+ *
+ * The path from a scene to its photon maps, in three steps (plan.h):
+ *   1. plan_pilots_run (plan_pilots.c) runs the pilots: the port probe, the importance table,
+ *      the photon pilots (or volume.h's in a scene with media), the ports table and the light
+ *      guide's stage A. They hand their evidence over in a plan_pilots.
+ *   2. plan_decide (here) decides every line from that evidence alone: it traces nothing and
+ *      calls no tracer; it takes over what the plan keeps (the importance table, the pilot's
+ *      photons) when a line uses it.
+ *   3. The tracers then run from the decisions: the light guide's learning (plan_make, and
+ *      plan_light_guide here writes its line), and the photon passes (pm_preprocess.c traces
+ *      the maps the plan turned on, with its table and pilot photons).
  *
  * The plan is decided from the lights' point of view, not by material names alone: a glass
  * sphere hidden in a box without light makes no caustics, a light inside a closed mirror
  * stores nothing, and a single diffuse sphere under a sun has nothing to interreflect with.
- * A pilot pass traces a few thousand photons with photon_trace itself (so the pilot and the
- * real passes can never disagree about what a photon does) and counts what they do: L S+ D
- * stores (caustic pilot, aimed at the specular objects through the projection maps, so an
- * opening is found whenever a fair share of the aimed photons passes it: an opening that
- * passes fewer than about 1 in 8192 of them can still be missed), stores after a diffuse
- * bounce (global), and photons that pass their first hit and reach a diffuse surface behind
- * it (shadow photons). Each reason prints those counts and the materials involved. The
- * pilot uses fixed streams (plan_pilot_seed: PLAN_SEED and the scene's seed), so the plan of a
- * scene and seed is deterministic, and costs about
- * 16384 photon paths. Both pilots' stores are kept (render_plan.pilot) and join the real
- * passes' maps (photon_trace.h, PILOT PHOTONS): the global pilot's the global and shadow
- * maps, the caustic pilot's (aimed by the projection maps the caustic pass will use) the
- * caustic map. The caustics and global lines say how many stores join, or why none do, by
- * the rule photon_trace applies (pilot_photons_joining).
+ * Each reason prints the pilot's counts and the materials involved. The caustics and global
+ * lines say how many of the pilot's stores join the maps, or why none do, by the rule
+ * photon_trace applies (pilot_photons_joining).
  */
 #include "photon_mapping/plan.h"
 #include "photon_mapping/plan_internal.h"
@@ -29,9 +29,6 @@
 #include "photons/importance.h"
 #include "photons/photon_trace.h"
 #include "photons/volume.h"
-#include "base/rng.h"
-#include "base/stats.h"
-#include "base/sampling.h"
 
 /* ---- probes ------------------------------------------------------------------------------ */
 
@@ -41,7 +38,7 @@ static const material *prim_mat(const scene *s, int prim) {
 }
 
 /* Lights that emit photons: every light in the list with some power. */
-static int emitting_lights(const scene *s) {
+int plan__emitting_lights(const scene *s) {
     int n = 0;
     for (int i = 0; i < s->nlights; i++) n += v3_maxc(s->lights[i].power) > 0;
     return n;
@@ -58,7 +55,7 @@ void plan__set(plan_item *it, int on, const char *fmt, const char *arg) {
     snprintf(it->reason, sizeof it->reason, fmt, arg);
 }
 
-/* ---- the pilot pass ------------------------------------------------------------------------ */
+/* ---- surface maps ------------------------------------------------------------------------ */
 
 /* "\"white\" 120, \"red\" 31" : the (up to) three materials with the largest counts. */
 static void top_mats(const scene *s, const pilot_counts *pc, char *buf, size_t cap) {
@@ -79,120 +76,7 @@ static void top_mats(const scene *s, const pilot_counts *pc, char *buf, size_t c
     }
 }
 
-typedef struct pilot_result {
-    trace_pilot g, c;                     /* evidence of the global and the caustic pilot */
-    uint64_t g_emitted, c_emitted;        /* pilot photons emitted by each */
-    size_t g_stored;                      /* photons the global pilot stored */
-    double g_work, c_work;                /* their counted work (pilot_work) */
-} pilot_result;
-
-
-/* Test hook: PM_PLAN_TEST_ENOMEM=PILOT (global, caustic or volume) makes that pilot pass fail
- * as if photon_trace (vol_trace_pass for volume) had run out of memory, so the tests see the
- * error reach the command line. Read at every call (tests set it per process). */
-static int test_enomem(const char *pilot) {
-    const char *v = getenv("PM_PLAN_TEST_ENOMEM");
-    return v && strcmp(v, pilot) == 0;
-}
-
-/* A pilot's budgets. Its paths are capped at PASS_MAX_BOUNCES bounces whatever max_bounces
- * says (a lossless furnace with max_bounces 1e6 otherwise follows each of its 8192 photons
- * for max_depth bounces: minutes, or 8 GiB of stores, before the plan is made; its evidence,
- * what a photon reaches within a few bounces, never needs longer paths). Where max_depth caps
- * the paths first (max_depth <= PASS_MAX_BOUNCES: every shipped scene) the user's max_bounces
- * changes nothing and is kept, so the pilot's photons are traced by the passes' rules and
- * join them; past that the pilot's cap differs from the pass's and pilot_photons_joining
- * keeps them out ("traced with another max_depth or max_bounces"): the pass traces its own.
- * Its memory: the user's max_memory_mb, at most PILOT_MAX_MEMORY_MB (8192 photons of up to
- * 256 bounces need far less). */
-#define PILOT_MAX_MEMORY_MB 256
-static int pilot_bounces(const scene *s, const photon_settings *cfg) {
-    int b = cfg->max_bounces;
-    return b > PASS_MAX_BOUNCES && s->settings.max_depth > PASS_MAX_BOUNCES ? PASS_MAX_BOUNCES : b;
-}
-static size_t pilot_memory(const photon_settings *cfg) {
-    long mb = cfg->max_memory_mb < PILOT_MAX_MEMORY_MB ? (long)cfg->max_memory_mb : PILOT_MAX_MEMORY_MB;
-    return (size_t)mb << 20;
-}
-
-/* A pilot pass's failure: anything but PM_EEMPTY (a pass that stores nothing, which is
- * evidence: a light inside a closed mirror, lights that face nothing) ends the plan, since a
- * pilot cut short by an error would be read as "nothing reaches there". A pilot that stored
- * nothing because a budget stopped it before it emitted its photons (emitted < want: a tiny
- * max_memory_mb) is cut short too. */
-static int pilot_failed(int rc, unsigned long long emitted, unsigned long long want, const char *which,
-                        const char *why, char *err, size_t errcap) {
-    if (rc >= 0 || (rc == PM_EEMPTY && emitted >= want)) return 0;
-    if (errcap)
-        snprintf(err, errcap, "plan: %s pilot: %s", which, why && why[0] ? why : pm_strerror(rc));
-    return rc;
-}
-
-/* The pilot: PLAN_PILOT_PHOTONS photons traced exactly as the real passes trace them
- * (same emission, scattering and storage rules; the caustic pilot aimed at the specular
- * objects by the projection maps, so a specular object lit only through a small opening still
- * receives its share of the aimed photons), counting what they do; their stores are kept for
- * the real passes (PILOT PHOTONS in photon_trace.h). 0, or a negative PM_E* code with a message
- * naming the pilot (pilot_failed); then the kept photons are freed. */
-static int run_pilot(const scene *s, const photon_settings *cfg, const importance *imp, pilot_result *r,
-                     char *err, size_t errcap) {
-    memset(r, 0, sizeof *r);
-    trace_opts o;
-    trace_opts_init(&o, s);
-    o.seed = plan_pilot_seed(s);
-    o.max_bounces = pilot_bounces(s, cfg); /* the passes' rules where it can (pilot_bounces) */
-    o.max_memory_bytes = pilot_memory(cfg);
-    o.quiet = 1;
-    o.max_emitted = PLAN_PILOT_PHOTONS;
-    o.max_emitted_factor = 1e300;
-    /* Emission by power (the evidence of uniform emission); with the table the real pass will
-     * use, each photon records its rel there, so the global photons can join that pass. */
-    o.importance = imp;
-    photon_maps m;
-    o.pilot = &r->g;
-    r->g.keep = 1;
-    o.global = o.shadow = 1;
-    o.global_target = 1L << 40; /* never reached: the emission budget ends the pilot */
-    char why[256] = "";
-    uint64_t w0 = stats_trace_work(); /* the work per emitted photon (render_plan.work_emit) */
-    int rc = test_enomem("global") ? PM_ENOMEM : photon_trace(s, &o, &m, why, sizeof why);
-    r->g_work = (double)(stats_trace_work() - w0);
-    if ((rc = pilot_failed(rc, r->g.emitted, PLAN_PILOT_PHOTONS, "global photon", why, err, errcap)) < 0) {
-        pilot_photons_free(r->g.kept);
-        r->g.kept = NULL;
-        return rc;
-    }
-    r->g_emitted = r->g.emitted;
-    r->g_stored = m.nglobal;
-    photon_maps_free(&m);
-    o.pilot = &r->c;
-    o.global = o.shadow = 0;
-    o.caustic = 1;
-    o.caustic_target = 1L << 40;
-    /* Always aimed (the evidence needs it); by the pass's projection maps when it uses them,
-     * so the pilot's caustic stores can join the caustic map. */
-    o.projection = 1;
-    o.projection_cells = cfg->projection ? cfg->projection_cells : 64;
-    r->c.keep = 1;
-    r->c.kept = r->g.kept; /* its stores are added to the global pilot's kept photons */
-    why[0] = 0;
-    w0 = stats_trace_work();
-    rc = test_enomem("caustic") ? PM_ENOMEM : photon_trace(s, &o, &m, why, sizeof why);
-    r->c_work = (double)(stats_trace_work() - w0);
-    r->g.kept = r->c.kept; /* created here if the global pilot kept none */
-    if ((rc = pilot_failed(rc, r->c.emitted, PLAN_PILOT_PHOTONS, "caustic photon", why, err, errcap)) < 0) {
-        pilot_photons_free(r->g.kept);
-        r->g.kept = r->c.kept = NULL;
-        return rc;
-    }
-    r->c_emitted = r->c.emitted;
-    photon_maps_free(&m);
-    return 0;
-}
-
-uint64_t plan_pilot_seed(const scene *s) { return rng_mix64(PLAN_SEED ^ rng_mix64(s->settings.seed)); }
-
-static void plan_caustics(const scene *s, const pilot_result *r, render_plan *p) {
+static void plan_caustics(const scene *s, const plan_pilots *r, render_plan *p) {
     int nspec = 0;
     for (int i = 0; i < prim_count(s); i++)
         nspec += material_is_specular(prim_mat(s, i));
@@ -200,7 +84,7 @@ static void plan_caustics(const scene *s, const pilot_result *r, render_plan *p)
         plan__set(&p->caustics, 0, "no specular surface%s", "");
         return;
     }
-    if (!emitting_lights(s)) {
+    if (!plan__emitting_lights(s)) {
         plan__set(&p->caustics, 0, "no light emits photons%s", "");
         return;
     }
@@ -214,11 +98,11 @@ static void plan_caustics(const scene *s, const pilot_result *r, render_plan *p)
         snprintf(buf, sizeof buf,
                  "L S+ D paths: %llu photons stored through specular surfaces (first %s), from "
                  "%llu pilot photons aimed at them",
-                 r->c.caustic.total, mats, (unsigned long long)r->c_emitted);
+                 r->c.caustic.total, mats, (unsigned long long)r->c.emitted);
         plan__set(&p->caustics, 1, "%s", buf);
         return;
     }
-    if (r->c_emitted == 0) {
+    if (r->c.emitted == 0) {
         plan__set(&p->caustics, 0,
             "no specular surface reachable from a light (no light faces one: the "
             "projection maps are empty)%s",
@@ -229,12 +113,12 @@ static void plan_caustics(const scene *s, const pilot_result *r, render_plan *p)
     snprintf(buf, sizeof buf,
              "no specular surface reachable from a light leads to a diffuse one: 0 of %llu pilot "
              "photons aimed at the specular surfaces were stored (first hits: %s)",
-             (unsigned long long)r->c_emitted, mats[0] ? mats : "none");
+             (unsigned long long)r->c.emitted, mats[0] ? mats : "none");
     plan__set(&p->caustics, 0, "%s", buf);
 }
 
-static void plan_global(const scene *s, const pilot_result *r, render_plan *p) {
-    if (!emitting_lights(s)) {
+static void plan_global(const scene *s, const plan_pilots *r, render_plan *p) {
+    if (!plan__emitting_lights(s)) {
         plan__set(&p->global, 0, "no light emits photons%s", "");
         return;
     }
@@ -244,7 +128,7 @@ static void plan_global(const scene *s, const pilot_result *r, render_plan *p) {
         snprintf(buf, sizeof buf,
                  "diffuse surfaces reflect onto each other: %llu photons stored after a diffuse "
                  "bounce off %s, from %llu pilot photons: indirect diffuse light",
-                 r->g.diffuse_bounce.total, mats, (unsigned long long)r->g_emitted);
+                 r->g.diffuse_bounce.total, mats, (unsigned long long)r->g.emitted);
         plan__set(&p->global, 1, "%s", buf);
         return;
     }
@@ -253,16 +137,16 @@ static void plan_global(const scene *s, const pilot_result *r, render_plan *p) {
         snprintf(buf, sizeof buf,
                  "no diffuse surface reflects onto another: no surface the lights reach stores "
                  "photons, 0 of %llu pilot photons stored (first hits: %s)",
-                 (unsigned long long)r->g_emitted, mats[0] ? mats : "none");
+                 (unsigned long long)r->g.emitted, mats[0] ? mats : "none");
     else
         snprintf(buf, sizeof buf,
                  "no diffuse surface reflects onto another: %zu pilot photons stored, none after "
                  "a diffuse bounce (%llu emitted)",
-                 r->g_stored, (unsigned long long)r->g_emitted);
+                 r->g_stored, (unsigned long long)r->g.emitted);
     plan__set(&p->global, 0, "%s", buf);
 }
 
-static void plan_shadow(const scene *s, const photon_settings *cfg, const pilot_result *r, render_plan *p) {
+static void plan_shadow(const scene *s, const photon_settings *cfg, const plan_pilots *r, render_plan *p) {
     int area = 0;
     for (int i = 0; i < s->nlights; i++) area += s->lights[i].type == LIGHT_AREA && v3_maxc(s->lights[i].power) > 0;
     if (!area) {
@@ -289,7 +173,7 @@ static void plan_shadow(const scene *s, const photon_settings *cfg, const pilot_
                  "rays it saves: its %d-photon search of the shadow map costs about %d BVH node "
                  "visits, a shadow ray far fewer (BVH depth %d, %d primitives); "
                  "photon_mapping.shadow=true forces it",
-                 r->g.occluder.total, (unsigned long long)r->g_emitted, mats, cfg->k_shadow,
+                 r->g.occluder.total, (unsigned long long)r->g.emitted, mats, cfg->k_shadow,
                  PLAN_SHADOW_HINT_NODES, s->accel.depth, prim_count(s));
         plan__set(&p->shadow, 0, "%s", buf);
         return;
@@ -299,18 +183,16 @@ static void plan_shadow(const scene *s, const photon_settings *cfg, const pilot_
         snprintf(buf, sizeof buf,
                  "no surface the lights reach stores photons: 0 of %llu pilot photons stored "
                  "(first hits: %s)",
-                 (unsigned long long)r->g_emitted, mats[0] ? mats : "none");
+                 (unsigned long long)r->g.emitted, mats[0] ? mats : "none");
     else
         snprintf(buf, sizeof buf,
                  "nothing occludes the area lights: none of %llu pilot photons reaches a "
                  "diffuse surface behind its first hit (first hits: %s)",
-                 (unsigned long long)r->g_emitted, mats);
+                 (unsigned long long)r->g.emitted, mats);
     plan__set(&p->shadow, 0, "%s", buf);
 }
 
 /* ---- scenes with media ------------------------------------------------------------------- */
-
-#define MEDIA_PILOT_PHOTONS (2 * PT_BATCH)
 
 /* The index of the largest of n counts (-1 if all are 0). */
 static int argmax(const unsigned long long *c, int n, size_t stride) {
@@ -324,28 +206,9 @@ static const char *medium_name(const scene *s, int m) {
     return m >= 0 && m < s->nmedia && m < VOL_PILOT_MEDIA - 1 ? s->media[m].name : "(others)";
 }
 
-/* Every decision of a scene with media, from volume.h's pilot (the tracer of its maps). 0, or
- * a negative PM_E* code with a message (pilot_failed). */
-static int plan_media(const scene *s, const photon_settings *cfg, render_plan *p, char *err, size_t errcap) {
-    vol_pilot pg, pc;
-    memset(&pg, 0, sizeof pg);
-    memset(&pc, 0, sizeof pc);
-    vol_pass_opts o = {0};
-    o.max_emitted = MEDIA_PILOT_PHOTONS;
-    o.lo = v3s(1);
-    o.hi = v3s(-1);
-    o.max_depth = s->settings.max_depth;
-    o.max_bounces = pilot_bounces(s, cfg); /* the path-length budget, capped (pilot_bounces) */
-    o.seed = PLAN_SEED;
-    o.pilot = &pg;
-    int rc = 0;
-    if (emitting_lights(s)) rc = test_enomem("volume") ? PM_ENOMEM : vol_trace_pass(s, &o, &(vol_pass_result){0});
-    if ((rc = pilot_failed(rc, 0, 0, "volume photon", NULL, err, errcap)) < 0) return rc;
-    o.caustic_pass = 1;
-    o.projection_cells = cfg->projection ? cfg->projection_cells : 0; /* aimed, as the pass is */
-    o.pilot = &pc;
-    if (emitting_lights(s)) rc = vol_trace_pass(s, &o, &(vol_pass_result){0});
-    if ((rc = pilot_failed(rc, 0, 0, "volume caustic photon", NULL, err, errcap)) < 0) return rc;
+/* Every decision of a scene with media, from volume.h's pilots (the tracer of its maps). */
+static void plan_media(const scene *s, const plan_pilots *pl, render_plan *p) {
+    const vol_pilot pg = pl->vg, pc = pl->vc;
     char buf[300];
     int scatters = 0, nspec = 0;
     for (int m = 0; m < s->nmedia; m++) scatters += v3_maxc(s->media[m].sigma_s) > 0;
@@ -358,7 +221,7 @@ static int plan_media(const scene *s, const photon_settings *cfg, render_plan *p
         direct += pg.events[m][PM_KIND_DIRECT];
     }
     /* volume */
-    if (!emitting_lights(s))
+    if (!plan__emitting_lights(s))
         plan__set(&p->volume, 0, "no light emits photons%s", "");
     else if (!s->nmedia)
         plan__set(&p->volume, 0, "no participating medium (only null surfaces): no volume photon map%s", "");
@@ -429,7 +292,6 @@ static int plan_media(const scene *s, const photon_settings *cfg, render_plan *p
         plan__set(&p->global, 1, "%s", buf);
     }
     plan__set(&p->shadow, 0, "a scene with media: shadow rays carry the transmittance, no shadow photons%s", "");
-    return 0;
 }
 
 void plan_free(render_plan *p) {
@@ -489,32 +351,19 @@ static void force(plan_item *it, int f, const char *key) {
     snprintf(it->reason, sizeof it->reason, "forced by photon_mapping.%s", key);
 }
 
-int plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p, char *err, size_t errcap) {
-    memset(p, 0, sizeof *p);
-    if (errcap) err[0] = 0;
-    importance *tab = NULL;
-    int rc;
-    scene sp; /* s with the ports the probe found (plan__find_ports), when it found some */
-    if (scene_has_media(s)) {
-        if ((rc = plan_media(s, c, p, err, errcap)) < 0) return rc;
+/* The map lines (caustics, global, shadow, volume, volume caustics) and final gathering, forces
+ * applied: what the light guide's pilot needs to know (plan_samples_lights) and plan_decide's
+ * first part. Pure. */
+static void decide_maps(const photon_settings *c, int preview, const plan_pilots *pl, render_plan *p) {
+    const scene *s = pl->s;
+    if (pl->media) {
+        plan_media(s, pl, p);
         force(&p->volume, c->force_volume, "volume");
         force(&p->volume_caustics, c->force_volume_caustics, "volume_caustics");
     } else {
-        pilot_result r;
-        if ((rc = plan__find_ports(s, p, err, errcap)) < 0) return rc;
-        s = ports_found_scene(s, &p->found, &sp); /* found ports are used as declared ones */
-        tab = plan__make_importance(s, c);
-        if ((rc = run_pilot(s, c, tab && tab->on ? tab : NULL, &r, err, errcap)) < 0) {
-            if (tab) importance_free(tab);
-            free(tab);
-            return rc;
-        }
-        p->pilot = r.g.kept; /* both pilots' stores */
-        p->work_emit[0] = r.g_emitted ? r.g_work / (double)r.g_emitted : 0;
-        p->work_emit[1] = r.c_emitted ? r.c_work / (double)r.c_emitted : 0;
-        plan_caustics(s, &r, p);
-        plan_global(s, &r, p);
-        plan_shadow(s, c, &r, p);
+        plan_caustics(s, pl, p);
+        plan_global(s, pl, p);
+        plan_shadow(s, c, pl, p);
         plan__set(&p->volume, 0, "no participating medium in the scene: no volume photon map%s", "");
         plan__set(&p->volume_caustics, 0, "no participating medium in the scene%s", "");
     }
@@ -532,16 +381,49 @@ int plan_make(const scene *s, const photon_settings *c, int preview, render_plan
     else
         plan__set(&p->final_gather, 1,
             "indirect diffuse by gather rays reading precomputed irradiance of the global map%s", "");
-    plan__emission(s, c, p, tab);
-    if ((rc = plan__ports(s, p, err, errcap)) < 0) {
-        plan_free(p);
-        return rc;
+}
+
+/* The photon mapper samples lights unless it shows the global map directly. */
+static int samples_lights(int preview, const render_plan *p) {
+    return !((preview || !p->final_gather.on) && p->global.on);
+}
+
+int plan_samples_lights(const photon_settings *c, int preview, const plan_pilots *pl) {
+    render_plan *p = calloc(1, sizeof *p);
+    if (!p) return 1; /* the guide's pilot then runs; its line is decided from the plan anyway */
+    decide_maps(c, preview, pl, p);
+    int on = samples_lights(preview, p);
+    free(p);
+    return on;
+}
+
+void plan_decide(const photon_settings *c, int preview, plan_pilots *pl, render_plan *p) {
+    const scene *s = pl->s;
+    memset(p, 0, sizeof *p);
+    p->found = pl->found;
+    if (!pl->media) {
+        p->pilot = pl->g.kept; /* both pilots' stores, until plan_joins says whether they join */
+        pl->g.kept = NULL;
+        p->work_emit[0] = pl->g.emitted ? pl->g_work / (double)pl->g.emitted : 0;
+        p->work_emit[1] = pl->c.emitted ? pl->c_work / (double)pl->c.emitted : 0;
     }
-    /* usable: the photon mapper samples lights unless it shows the global map directly */
-    p->guide = guide_light_plan(s, c->force_light_guide, !((preview || !p->final_gather.on) && p->global.on),
-                                &p->light_guide.on, p->light_guide.reason, sizeof p->light_guide.reason, NULL);
+    decide_maps(c, preview, pl, p);
+    plan__emission(s, c, p, pl);
+    plan__ports(s, p, pl);
+    /* The light guide: wanted (on) when its pilot's evidence says so; plan_light_guide writes
+     * the line once its tables are learned. */
+    p->light_guide.on = !pl->guide_skip && guide_light_wanted(c->force_light_guide, &pl->guide);
     plan_joins(s, c, p);
-    return 0;
+}
+
+void plan_light_guide(const photon_settings *c, const plan_pilots *pl, guide *gd, render_plan *p) {
+    guide_light_say(c->force_light_guide, pl->guide_skip, &pl->guide, gd, &p->light_guide.on, p->light_guide.reason,
+                    sizeof p->light_guide.reason);
+    if (p->light_guide.on) {
+        p->guide = gd;
+        return;
+    }
+    guide_destroy(gd);
 }
 
 void plan_print(const render_plan *p, FILE *f) {

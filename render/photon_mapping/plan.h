@@ -1,7 +1,7 @@
 /* plan.h: which photon-mapping effects a scene needs (the settings are photon_settings.h).
  *
- * Before a photon is traced, plan_make() looks at the scene and decides, with a reason for
- * each decision that is printed before rendering:
+ * Before a photon is traced, plan_make() runs the pilots, then decides from what they found
+ * (the three steps below), with a reason for each decision that is printed before rendering:
  *   caustics      a caustic map is built only if a specular or refractive surface can be
  *                 reached straight from a light (L S: the first step of an L S+ D path) and a
  *                 diffuse surface exists to receive it;
@@ -58,9 +58,11 @@
 #include <stdio.h>
 
 #include "base/json.h"
+#include "guiding/guide.h"
 #include "photons/photon_settings.h"
 #include "photons/photon_trace.h"
 #include "photons/ports.h"
+#include "photons/volume.h"
 #include "scene/scene.h"
 
 #ifdef __cplusplus
@@ -109,13 +111,61 @@ typedef struct render_plan {
     double work_emit[2];
 } render_plan;
 
-/* Decide the plan for scene s under config c; preview = 1 turns final gathering off. The
- * plan may hold the importance table (imp) and the pilot's photons (pilot): plan_free frees
+/* ---- the three steps of plan_make ----------------------------------------------------------
+ *
+ * 1. plan_pilots_run (plan_pilots.c) runs every pilot, in this order, and keeps what they
+ *    found: the camera probe for photon ports (ports.h, ports_find), the importance table
+ *    (importance.h), then either the two photon pilots (photon_trace: global, caustic) or, in
+ *    a scene with media, volume.h's two pilots (vol_trace_pass), the ports table (ports_plan)
+ *    and the light guide's stage A (guide.h, guide_light_pilot_run). The light guide's pilot
+ *    runs only where the photon mapper samples lights, which depends on the global map: the
+ *    pilot stage asks plan_samples_lights, the plan's own rule, pure.
+ * 2. plan_decide (plan.c) decides every line from those results and nothing else: no tracer,
+ *    no pilot, no callback. It takes over what the plan keeps (the importance table, the
+ *    pilot's photons) and leaves the rest to plan_pilots_free.
+ * 3. The tracers the plan decided: the light guide learns its tables here (guide_light_learn,
+ *    when the plan wants them) and plan_light_guide writes its line from what was learned;
+ *    the photon passes are traced later by the photon mapper (pm_preprocess.c) as the plan
+ *    says. */
+typedef struct plan_pilots {
+    const scene *s;          /* the scene the pilots saw: the caller's, or &sp */
+    scene sp;                /* the caller's scene with the found ports (ports_found_scene) */
+    int media;               /* 1: the volume pilots ran (vg, vc); 0: the photon pilots (g, c) */
+    port_found found;        /* the camera probe for ports */
+    struct importance *imp;  /* the importance table, or NULL (owned until the plan takes it) */
+    trace_pilot g, c;        /* the global and the caustic photon pilot's evidence; g.kept: both
+                                pilots' stores (owned until the plan takes them) */
+    size_t g_stored;         /* photons the global pilot stored */
+    double g_work, c_work;   /* their counted work (stats_trace_work) */
+    vol_pilot vg, vc;        /* volume.h's global and caustic pilot */
+    int ports_on;            /* ports_plan's answer and its words */
+    char ports_reason[480];
+    const char *guide_skip;  /* why the light guide's pilot did not run, or NULL */
+    guide_light_pilot guide; /* the light guide's stage A */
+} plan_pilots;
+
+/* Step 1. 0, or a negative PM_E* code with a message naming the pilot (see plan_make); then
+ * pl holds nothing to free. pl must not move until plan_pilots_free (pl->s may point into it). */
+int plan_pilots_run(const scene *s, const photon_settings *c, int preview, plan_pilots *pl, char *err,
+                    size_t errcap);
+void plan_pilots_free(plan_pilots *pl);
+/* Step 2 (pure): every line of p from pl; the light guide's line says whether it is wanted
+ * (on = 1: learn its tables) until plan_light_guide writes it. */
+void plan_decide(const photon_settings *c, int preview, plan_pilots *pl, render_plan *p);
+/* Whether the photon mapper samples lights, under the plan's global-map decision (pure): the
+ * light guide is usable only then. */
+int plan_samples_lights(const photon_settings *c, int preview, const plan_pilots *pl);
+/* Step 3's line (pure): the light guide's decision and words from its pilot and the guide
+ * learned from it (NULL: none); p takes gd when on, else destroys it. */
+void plan_light_guide(const photon_settings *c, const plan_pilots *pl, struct guide *gd, render_plan *p);
+
+/* Decide the plan for scene s under config c; preview = 1 turns final gathering off: the
+ * three steps above in order (plan_pilots.c). The plan may hold the importance table (imp) and the pilot's photons (pilot): plan_free frees
  * them. Returns 0, or a negative PM_E* code when a pilot pass fails (PM_ENOMEM: its evidence
  * would be a pass cut short, so no plan is made from it) with a message in err that names the
  * pilot ("plan: global photon pilot: out of memory"); then p holds nothing to free.
  * A pilot that stores nothing (PM_EEMPTY) is evidence, not a failure. Test hook:
- * PM_PLAN_TEST_ENOMEM=global|caustic|volume fails that pilot (plan.c). */
+ * PM_PLAN_TEST_ENOMEM=global|caustic|volume fails that pilot (plan_pilots.c). */
 int plan_make(const scene *s, const photon_settings *c, int preview, render_plan *p, char *err, size_t errcap);
 void plan_free(render_plan *p);
 /* "caustics: off (no specular surface reachable from a light)" and so on, one per line. */

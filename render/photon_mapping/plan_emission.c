@@ -1,7 +1,8 @@
 /* plan_emission.c: the plan's "photon emission" line (plan.h): whether the global pass
  * emits by importance (importance.h: toward what the camera sees) or by power, from the
- * importance table built before the pilot, which the pilot's photons already use; and its
- * "photon ports" line (ports.h), with the probe that finds ports where the scene declares none. */
+ * importance table the pilot stage built (plan_pilots.c), which the pilot's photons already
+ * use; and its "photon ports" line (ports.h), from the ports table and the port probe. Both
+ * decide only: the pilots ran before. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -10,23 +11,11 @@
 #include "photon_mapping/plan_internal.h"
 #include "photons/importance.h"
 #include "photons/ports.h"
-#include "photonmap/common.h"
 
-/* The importance table of the scene's settings (importance.h), or NULL: none asked for, maps
- * loaded, media, or out of memory (the emission line says which). */
-importance *plan__make_importance(const scene *s, const photon_settings *c) {
-    if (scene_has_media(s) || c->load_dir[0] || c->importance_paths <= 0) return NULL;
-    importance *imp = malloc(sizeof *imp);
-    if (imp && importance_build(s, c->importance_paths, c->importance_defensive, s->settings.seed, 0, imp) < 0) {
-        free(imp);
-        imp = NULL;
-    }
-    return imp;
-}
-
-/* Importance-driven emission of the global pass, from the table plan__make_importance built (its
- * evidence); the plan keeps the table when it is used and frees it otherwise. */
-void plan__emission(const scene *s, const photon_settings *c, render_plan *p, importance *tab) {
+/* Importance-driven emission of the global pass, from the table the pilot stage built (its
+ * evidence); the plan takes the table when it is used, else plan_pilots_free frees it. */
+void plan__emission(const scene *s, const photon_settings *c, render_plan *p, plan_pilots *pl) {
+    importance *tab = pl->imp;
     char buf[320];
     if (scene_has_media(s))
         plan__set(&p->emission, 0, "a scene with media traces its maps with volume.h%s", "");
@@ -43,11 +32,7 @@ void plan__emission(const scene *s, const photon_settings *c, render_plan *p, im
         plan__set(&p->emission, 0, "the global map is shown directly (no final gather): photons of even power%s", "");
     else if (!tab)
         plan__set(&p->emission, 0, "out of memory for the importance table%s", "");
-    if (!tab || p->emission.reason[0]) {
-        if (tab) importance_free(tab);
-        free(tab);
-        return;
-    }
+    if (!tab || p->emission.reason[0]) return;
     importance imp = *tab;
     if (imp.contributing == 0)
         snprintf(buf, sizeof buf,
@@ -70,20 +55,10 @@ void plan__emission(const scene *s, const photon_settings *c, render_plan *p, im
     plan__set(&p->emission, imp.on, "%s", buf);
     if (imp.on) {
         p->imp = tab; /* kept for the global pass (trace_opts.importance) */
-        return;
+        pl->imp = NULL;
     }
-    importance_free(tab);
-    free(tab);
 }
 
-
-/* The probe for ports of the scene's own (ports.h, ports found by a camera probe), before the
- * pilot, so the pilot's photons aim through what it finds as the passes' do. */
-int plan__find_ports(const scene *s, render_plan *p, char *err, size_t errcap) {
-    int rc = ports_find(s, plan_pilot_seed(s), &p->found);
-    if (rc < 0) snprintf(err, errcap, "plan: photon ports: probe: %s", pm_strerror(rc));
-    return rc;
-}
 
 /* The line for ports the probe found: each port, and why. */
 static void found_reason(const scene *s, const port_found *f, char *buf, size_t cap) {
@@ -101,15 +76,13 @@ static void found_reason(const scene *s, const port_found *f, char *buf, size_t 
 }
 
 /* The ports line (ports.h): whether the global pass aims through the scene's ports (declared,
- * or found by the probe: s is then the plan's copy with them), and why. */
-int plan__ports(const scene *s, render_plan *p, char *err, size_t errcap) {
+ * or found by the probe: s is then the pilots' copy with them), and why, from the pilot
+ * stage's ports_plan and port probe. */
+void plan__ports(const scene *s, render_plan *p, const plan_pilots *pl) {
     char *buf = p->ports.reason;
     size_t cap = sizeof p->ports.reason;
-    int on = ports_plan(s, buf, cap);
-    if (on < 0) {
-        snprintf(err, errcap, "plan: photon ports: %s", pm_strerror(on));
-        return on;
-    }
+    int on = pl->ports_on;
+    snprintf(buf, cap, "%s", pl->ports_reason);
     if (on && p->found.n) {
         found_reason(s, &p->found, buf, cap);
     } else if (p->found.ran || (!s->nports && p->found.why[0])) {
@@ -118,5 +91,4 @@ int plan__ports(const scene *s, render_plan *p, char *err, size_t errcap) {
                  p->found.why);
     }
     p->ports.on = on;
-    return 0;
 }

@@ -242,27 +242,27 @@ static int pass_stops(pass_run_state *st) {
 }
 
 /* A batch past the memory budget: its prefix that fits, traced again on one thread (every
- * process alike in a distributed pass; a partitioned pass stops before the batch). 1 when
- * the pass stops there (st->stop), 0 when the whole batch fits (a distributed round's share
- * was passed, not the budget), PM_ENOMEM. */
+ * process alike in a distributed pass, which counts it in its bookkeeping when partitioned).
+ * 1 when the pass stops there (st->stop), 0 when the whole batch fits (a distributed round's
+ * share was passed, not the budget), PM_ENOMEM. */
 static int pass_over(pass_run_state *st, uint64_t cap, uint64_t left, size_t max) {
     pass_ctx *c = st->c;
     for (int t = 0; t < st->nthreads; t++) st->tg[t].n = st->ts[t].n = 0;
-    uint64_t hi = st->n_e + PT_BATCH < c->end ? st->n_e + PT_BATCH : c->end, end = st->n_e;
-    if (!st->part) {
-        int fail = 0;
-        end = pass_trace_prefix(c, st->n_e, cap, st->tg, st->ts, &st->nfirst, &fail);
-        if (fail) return PM_ENOMEM;
-        st->rb.next = st->rb.nbatch; /* a distributed pass goes on with a new round */
-        if (end == hi) return 0;
+    uint64_t hi = st->n_e + PT_BATCH < c->end ? st->n_e + PT_BATCH : c->end;
+    int fail = 0;
+    uint64_t end = pass_trace_prefix(c, st->n_e, cap, st->tg, st->ts, &st->nfirst, &fail);
+    if (fail) return PM_ENOMEM;
+    st->rb.next = st->rb.nbatch; /* a distributed pass goes on with a new round */
+    if (st->part) { /* its counts stand for the records, which the parts trace again at the end */
+        if (pass_part_count(c, &st->rb, st->tg[0].n, st->ts[0].n, end == hi ? UINT64_MAX : end, st->main_buf,
+                            st->shadow_buf) < 0)
+            return PM_ENOMEM;
+        st->tg[0].n = st->ts[0].n = 0;
     }
+    if (end == hi) return 0;
     st->stop = "max_memory_mb";
-    if (st->part)
-        snprintf(st->why, sizeof st->why, "the next batches of %d photons would store more than the %zu MiB left of %zu MiB",
-                 PT_BATCH, (size_t)(left * sizeof(pass_rec)) >> 20, max >> 20);
-    else
-        snprintf(st->why, sizeof st->why, "photon %llu would store past the %zu MiB left of %zu MiB",
-                 (unsigned long long)end, (size_t)(left * sizeof(pass_rec)) >> 20, max >> 20);
+    snprintf(st->why, sizeof st->why, "photon %llu would store past the %zu MiB left of %zu MiB",
+             (unsigned long long)end, (size_t)(left * sizeof(pass_rec)) >> 20, max >> 20);
     st->n_e = end;
     return 1;
 }

@@ -179,6 +179,7 @@ uint64_t pass_trace_prefix(pass_ctx *c, uint64_t start, uint64_t cap, pass_buf *
 
 typedef struct pass_batch_count {
     uint64_t nmain, nshadow;
+    uint64_t end; /* its photons before end (the memory budget's prefix); UINT64_MAX: the whole batch */
 } pass_batch_count;
 /* The exchanged bytes of the current round: batch j of it starts at photon start + j PT_BATCH;
  * `next` is the batch to hand out, at byte `off`. target, stored and limit are the pass's,
@@ -201,6 +202,12 @@ void pass_rounds_free(pass_rounds *rb);
  * budget (every process stops there). */
 int pass_dist_batch(const pass_ctx *c, pass_rounds *rb, uint64_t n_e, pass_buf *tg, pass_buf *ts, int nthreads,
                     uint64_t *nfirst, pass_buf *main_buf, pass_buf *shadow_buf);
+/* A partitioned pass: a batch every process traced alike, the memory budget's prefix
+ * (pass_trace_prefix: its photons before end; UINT64_MAX: the whole batch), which stored
+ * nmain and nshadow records, counted in rb->bc and the count-only buffers as pass_dist_batch
+ * counts one. 0, or PM_ENOMEM. */
+int pass_part_count(const pass_ctx *c, pass_rounds *rb, uint64_t nmain, uint64_t nshadow, uint64_t end,
+                    pass_buf *main_buf, pass_buf *shadow_buf);
 /* The end of a partitioned pass (photon_trace.h, trace_dist.partitioned): the cut at the
  * target found by tracing its batch again, then this process's part of the main map traced
  * again into out. Sets vm, vs and *n_e to the whole pass's figures. Every process returns the

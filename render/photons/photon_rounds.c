@@ -49,15 +49,18 @@
  *            records held), and a batch that passes it keeps its longest prefix of photons
  *            whose records fit, each whole (traced again on one thread: pass_trace_prefix),
  *            and the pass ends there. So the stop is the same for any thread count and, in a
- *            replicated distributed pass, for any process count (a round's batch past what
- *            is left now is traced again by every process); a runaway keeps the photons that
- *            fit instead of nothing. Chosen: the media's rule was independent of threads and
- *            processes too, but by fixed shares of 1/8 per batch of 1024 photons; the prefix
- *            keeps that independence with the whole of what is left and the surfaces'
- *            batches, and unlike the surfaces' rule it keeps photons in a runaway. A
- *            partitioned pass (surfaces only) still stops before a batch past its round's
- *            share (its parts are traced again whole, not as a prefix: there the stop can
- *            differ from one process's, as before);
+ *            distributed pass, for any process count (a round's batch past what is left now
+ *            is traced again by every process); a runaway keeps the photons that fit instead
+ *            of nothing. Chosen: the media's rule was independent of threads and processes
+ *            too, but by fixed shares of 1/8 per batch of 1024 photons; the prefix keeps that
+ *            independence with the whole of what is left and the surfaces' batches, and
+ *            unlike the surfaces' rule it keeps photons in a runaway. A partitioned pass
+ *            (surfaces only) does the same with its counts: every process traces the prefix,
+ *            counts it as a batch ending at its last whole photon (pass_batch_count.end), and
+ *            at the end traces again only that prefix of it (retrace); its count-only buffers
+ *            grow as the one-process buffers do (capped at the budget). Until 2026-12-05 it
+ *            stopped before a batch past its round's share of what was left, so its stop
+ *            could differ from one process's (a runaway's first batch: nothing stored);
  *   path     max_bounces per photon (photon_walk.c), the cut paths counted.
  */
 #include <math.h>
@@ -110,9 +113,11 @@ int pass_trace_batch(const pass_ctx *c, uint64_t start, pass_buf *tg, pass_buf *
     return fail;
 }
 
-uint64_t pass_trace_prefix(pass_ctx *c, uint64_t start, uint64_t cap, pass_buf *tg, pass_buf *ts, uint64_t *nfirst,
-                           int *fail) {
-    uint64_t rec = 0, hi = start + PT_BATCH < c->end ? start + PT_BATCH : c->end;
+/* Photons start .. hi - 1 on one thread (pass_trace_prefix), their records within cap (0: no
+ * cap); returns where it ended. */
+static uint64_t trace_range(pass_ctx *c, uint64_t start, uint64_t hi, uint64_t cap, pass_buf *tg, pass_buf *ts,
+                            uint64_t *nfirst, int *fail) {
+    uint64_t rec = 0;
     c->batch_cap = cap;
     c->batch_records = &rec;
     pass_buf *sb = c->media || c->want_global ? &ts[0] : &tg[0];
@@ -133,6 +138,11 @@ uint64_t pass_trace_prefix(pass_ctx *c, uint64_t start, uint64_t cap, pass_buf *
     c->batch_cap = 0;
     c->batch_records = NULL;
     return hi;
+}
+
+uint64_t pass_trace_prefix(pass_ctx *c, uint64_t start, uint64_t cap, pass_buf *tg, pass_buf *ts, uint64_t *nfirst,
+                           int *fail) {
+    return trace_range(c, start, start + PT_BATCH < c->end ? start + PT_BATCH : c->end, cap, tg, ts, nfirst, fail);
 }
 
 static const trace_dist *g_dist;
@@ -292,15 +302,35 @@ static int dist_batch(const pass_ctx *c, pass_rounds *rb, uint64_t n_e, pass_buf
 }
 
 /* A partitioned pass: the bookkeeping's counts stand for the buffers. vgrow adds k photons
- * to a count-only buffer (v stays NULL) and grows its capacity as pass_buf_merge would, so the
- * memory budget stops the pass where one process would. */
-static void vgrow(pass_buf *b, uint64_t k) {
+ * to a count-only buffer (v stays NULL) and grows its capacity as pass_buf_merge_capped grows
+ * a buffer's (capped at the memory budget's records less the other buffer's capacity, as
+ * pass_batch merges), so the memory budget stops the pass where one process would. */
+static void vgrow(pass_buf *b, uint64_t k, size_t cap_max) {
     if (b->n + k > b->cap) {
-        size_t nc = b->cap ? b->cap : 1024;
-        while (nc < b->n + k) nc *= 2;
+        size_t need = b->n + (size_t)k, nc = b->cap ? b->cap : 1024;
+        while (nc < need) nc *= 2;
+        if (cap_max && nc > cap_max) nc = need > cap_max ? need : cap_max;
         b->cap = nc;
     }
     b->n += (size_t)k;
+}
+
+int pass_part_count(const pass_ctx *c, pass_rounds *rb, uint64_t nmain, uint64_t nshadow, uint64_t end,
+                    pass_buf *main_buf, pass_buf *shadow_buf) {
+    if (rb->nbc == rb->capbc) {
+        size_t nc = rb->capbc ? 2 * rb->capbc : 64;
+        pass_batch_count *nv = realloc(rb->bc, nc * sizeof *nv);
+        if (!nv) return PM_ENOMEM;
+        rb->bc = nv;
+        rb->capbc = nc;
+    }
+    rb->bc[rb->nbc++] = (pass_batch_count){nmain, nshadow, end};
+    size_t recs = c->o->max_memory_bytes / sizeof(pass_rec);
+    size_t cap_main = recs ? recs - (shadow_buf && shadow_buf->cap < recs ? shadow_buf->cap : 0) : 0;
+    size_t cap_shadow = recs ? recs - (main_buf->cap < recs ? main_buf->cap : 0) : 0;
+    vgrow(main_buf, nmain, cap_main);
+    if (shadow_buf) vgrow(shadow_buf, nshadow, cap_shadow);
+    return 0;
 }
 
 int pass_dist_batch(const pass_ctx *c, pass_rounds *rb, uint64_t n_e, pass_buf *tg, pass_buf *ts, int nthreads,
@@ -308,23 +338,11 @@ int pass_dist_batch(const pass_ctx *c, pass_rounds *rb, uint64_t n_e, pass_buf *
     if (!pass_partitioned(c)) return dist_batch(c, rb, n_e, tg, ts, nthreads, nfirst, NULL);
     uint64_t cnt[2] = {0, 0};
     int fail = dist_batch(c, rb, n_e, tg, ts, nthreads, nfirst, cnt);
-    if (!fail && rb->nbc == rb->capbc) {
-        size_t nc = rb->capbc ? 2 * rb->capbc : 64;
-        pass_batch_count *nv = realloc(rb->bc, nc * sizeof *nv);
-        if (nv) {
-            rb->bc = nv;
-            rb->capbc = nc;
-        }
-    }
-    if (!fail && rb->nbc < rb->capbc) {
-        rb->bc[rb->nbc].nmain = cnt[0];
-        rb->bc[rb->nbc++].nshadow = cnt[1];
-        vgrow(main_buf, cnt[0]);
-        if (shadow_buf) vgrow(shadow_buf, cnt[1]);
-    } else if (fail != 2) { /* 2: over the memory budget (pass_run) */
-        fail = 1;
-    }
-    return fail;
+    /* A round's batches were traced with what was left at its start: a batch whose records
+     * pass what is left now is over the budget here too (pass_over traces its prefix). */
+    if (fail == 0 && c->batch_cap && cnt[0] + cnt[1] > c->batch_cap) return 2;
+    if (fail == 0 && pass_part_count(c, rb, cnt[0], cnt[1], UINT64_MAX, main_buf, shadow_buf) < 0) fail = 1;
+    return fail == 2 ? 2 : fail ? 1 : 0; /* 2: over the memory budget (pass_run) */
 }
 
 void pass_rounds_free(pass_rounds *rb) {
@@ -334,6 +352,19 @@ void pass_rounds_free(pass_rounds *rb) {
     rb->all = NULL;
     rb->sizes = NULL;
     rb->bc = NULL;
+}
+
+/* Batch b of a partitioned pass traced again alike by every process: whole, or the memory
+ * budget's prefix it kept (bc[b].end; pass_over), on one thread. Nonzero on failure. */
+static int retrace(const trace_dist *d, const pass_ctx *c, const pass_rounds *rb, size_t b, pass_buf *tg,
+                   pass_buf *ts, int nthreads) {
+    uint64_t dummy = 0, start = (uint64_t)b * PT_BATCH;
+    if (rb->bc[b].end == UINT64_MAX) return dist_trace(d, c, start, tg, ts, nthreads, &dummy);
+    int fail = 0;
+    for (int t = 0; t < nthreads; t++) tg[t].n = ts[t].n = 0;
+    /* c is pass_run's own (not const there): trace_range sets and restores its batch budget */
+    trace_range((pass_ctx *)c, start, rb->bc[b].end, 0, tg, ts, &dummy, &fail);
+    return fail;
 }
 
 /* The end of a partitioned pass whose nb batches stored bc[b] photons each (vm, vs: the
@@ -348,7 +379,6 @@ int pass_part_finish(const pass_ctx *c, pass_rounds *rb, long target, uint64_t *
     pass_batch_count *bc = rb->bc;
     size_t nb = rb->nbc, ncut = nb;
     int fail = 0;
-    uint64_t dummy = 0;
     if (target > 0 && vm->n > (size_t)target) {
         uint64_t before = 0, sbefore = 0;
         size_t b = 0;
@@ -357,7 +387,7 @@ int pass_part_finish(const pass_ctx *c, pass_rounds *rb, long target, uint64_t *
             sbefore += bc[b++].nshadow;
         }
         pass_buf m = {0}, sh = {0};
-        fail = b == nb || dist_trace(d, c, (uint64_t)b * PT_BATCH, tg, ts, nthreads, &dummy) ||
+        fail = b == nb || retrace(d, c, rb, b, tg, ts, nthreads) ||
                pass_buf_merge(&m, tg, nthreads) < 0 || pass_buf_merge(&sh, ts, nthreads) < 0 ||
                m.n != bc[b].nmain;
         if (!fail) {
@@ -382,8 +412,7 @@ int pass_part_finish(const pass_ctx *c, pass_rounds *rb, long target, uint64_t *
     for (size_t b = 0; b < ncut && !fail && at < hi; at += bc[b++].nmain) {
         if (at + bc[b].nmain <= lo || bc[b].nmain == 0) continue;
         pass_buf m = {0};
-        fail = dist_trace(d, c, (uint64_t)b * PT_BATCH, tg, ts, nthreads, &dummy) ||
-               pass_buf_merge(&m, tg, nthreads) < 0 || m.n < bc[b].nmain;
+        fail = retrace(d, c, rb, b, tg, ts, nthreads) || pass_buf_merge(&m, tg, nthreads) < 0 || m.n < bc[b].nmain;
         for (int t = 0; t < nthreads; t++) ts[t].n = 0;
         uint64_t i0 = lo > at ? lo - at : 0, i1 = hi - at < bc[b].nmain ? hi - at : bc[b].nmain;
         for (uint64_t i = i0; !fail && i < i1; i++) fail = pass_buf_push(out, &m.v[i]) < 0;

@@ -14,7 +14,7 @@
  * level and cell of the table, dimensions 1-4 the point in the light's u-space or in the cell,
  * and its power is the uniform photon's divided by rel = p(l, u) / p_l.
  *
- * PILOT PHOTONS. A pilot pass (plan.c: emission by power, its own streams) may keep its
+ * PILOT PHOTONS. A pilot pass (plan_pilots.c: emission by power, its own streams) may keep its
  * photons (trace_pilot.keep): the global pass's stores, with each photon's rel under the
  * importance table the real pass will use, and the caustic pass's L S+ D stores. A real pass
  * joins them (trace_opts.reuse; pilot_photons_joining says whether, and why not) when they
@@ -87,12 +87,11 @@
  *              a batch whose records, with those held, would pass the budget keeps its
  *              longest prefix of photons that fit (each whole; one batch can store PT_BATCH
  *              times the path length: 19 GB in a lossless furnace with max_depth 1e5) and
- *              the pass stops there, for any thread count and, in a replicated distributed
- *              pass, any process count (the maps are the one-process maps, budget stops
- *              included). A partitioned pass stops before a batch past its round's share of
- *              what was left (there the stop can differ from one process's). A pass stopped
- *              so before storing anything ends with PM_EEMPTY and a message that names the
- *              budget;
+ *              the pass stops there, for any thread count and, in a distributed pass
+ *              (replicated or partitioned), any process count (the maps are the one-process
+ *              maps, budget stops included; a partitioned pass keeps its part of them). A
+ *              pass stopped so before storing anything ends with PM_EEMPTY and a message that
+ *              names the budget;
  *   path       max_bounces bounces per photon (below the scene's max_depth), so one photon
  *              stores a bounded number of records (the furnace with reflectance 1 would
  *              bounce to max_depth); the paths cut are counted and reported;
@@ -150,7 +149,7 @@ extern "C" {
 typedef struct pilot_photons pilot_photons;
 void pilot_photons_free(pilot_photons *k);
 
-/* A pilot pass's evidence (plan.c): counts of pilot photons, in total and by the material
+/* A pilot pass's evidence (plan_pilots.c): counts of pilot photons, in total and by the material
  * named (its index; PILOT_MAX_MATS - 1 collects any beyond). */
 #define PILOT_MAX_MATS 64
 typedef struct pilot_counts {
