@@ -287,6 +287,9 @@ static inline float box_dist2(__m128 q, __m128 lo, __m128 hi) {
            _mm_cvtss_f32(_mm_shuffle_ps(sq, sq, 2));
 }
 
+/* The bucket scan, written as photonmap/kdtree_query.c's two-pass SSE2 scan on purpose (a
+ * deliberate duplicate: the experiment races the library's scan on another tree, so it must be
+ * the same code; the library's is static and reads its own record layout). */
 static inline void scan(kset *s, const rec *r, uint32_t b, uint32_t n, const float q[3]) {
     uint32_t i = b, e = b + n;
     const __m128 qx = _mm_set1_ps(q[0]), qy = _mm_set1_ps(q[1]), qz = _mm_set1_ps(q[2]);
