@@ -495,14 +495,14 @@ int plan_make(const scene *s, const photon_settings *c, int preview, render_plan
     importance *tab = NULL;
     int rc;
     scene sp; /* s with the ports the probe found (plan__find_ports), when it found some */
+    if ((rc = plan__find_ports(s, p, err, errcap)) < 0) return rc;
+    s = ports_found_scene(s, &p->found, &sp); /* found ports are used as declared ones */
     if (scene_has_media(s)) {
         if ((rc = plan_media(s, c, p, err, errcap)) < 0) return rc;
         force(&p->volume, c->force_volume, "volume");
         force(&p->volume_caustics, c->force_volume_caustics, "volume_caustics");
     } else {
         pilot_result r;
-        if ((rc = plan__find_ports(s, p, err, errcap)) < 0) return rc;
-        s = ports_found_scene(s, &p->found, &sp); /* found ports are used as declared ones */
         tab = plan__make_importance(s, c);
         if ((rc = run_pilot(s, c, tab && tab->on ? tab : NULL, &r, err, errcap)) < 0) {
             if (tab) importance_free(tab);
