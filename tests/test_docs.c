@@ -7,7 +7,8 @@
  * something other than its files (the clock, the checkout's commit, the machine) shows up.
  * Oracle: the committed document itself, byte for byte.
  *
- * docs/MEDIA.md (scripts/gen-media-md.sh from docs/media/) is checked here too. docs/MPI.md is
+ * docs/MEDIA.md (scripts/gen-media-md.sh from docs/media/) and docs/HARD_SCENES.md
+ * (scripts/gen-hard-scenes-md.sh from docs/hard_scenes/) are checked here too. docs/MPI.md is
  * checked the same way in tests/test_mpi.c. docs/IMPORT.md is formatted from
  * docs/import/ (scripts/gen-import-md.sh, whose --run renders and measures into that folder).
  */
@@ -46,6 +47,15 @@ TEST(docs_benchmarks_md_regenerates_exactly) {
     snprintf(cmd, sizeof cmd, "cd '%s' && sh scripts/gen-benchmarks-md.sh bench/results bench > '%s'",
              pm_test_source_dir(), got);
     expect_regenerates(cmd, got, "docs/BENCHMARKS.md");
+}
+
+/* docs/HARD_SCENES.md from docs/hard_scenes/ (scripts/gen-hard-scenes-md.sh, which
+ * scripts/make-hard-scenes.sh runs after measuring). */
+TEST(docs_hard_scenes_md_regenerates_exactly) {
+    char cmd[4096], got[2048];
+    snprintf(got, sizeof got, "%s/HARD_SCENES.md", pm_test_tmpdir());
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-hard-scenes-md.sh' > '%s'", pm_test_source_dir(), got);
+    expect_regenerates(cmd, got, "docs/HARD_SCENES.md");
 }
 
 /* docs/IMPORT.md from docs/import/ (scripts/gen-import-md.sh, formatting only). */

@@ -32,6 +32,9 @@
 #define GG_PATCH_MAX 0.3     /* a bright patch's disc at most this share of the scene's size */
 #define GG_PATCH_SHARE 0.25  /* a bright patch carries at least this share of the probed light */
 #define GG_SEED 0x676174686572ULL /* "gather" */
+#define GG_CHEAP_EVERY 4   /* the cheap test (gather_guide.h): every 4th of the pilot's points */
+#define GG_CHEAP_G 8       /* with 8 x 8 probes each (the pilot: GG_G x GG_G) */
+#define GG_CHEAP_MARGIN 2.0 /* what it finds must miss the pilot's bounds by this factor */
 
 void gather_guide_init(gather_guide *gg) {
     memset(gg, 0, sizeof *gg);
@@ -312,19 +315,19 @@ static void gg_pick_points(const guide_grid *grid, const guide_point *pts, size_
  * its own stream (thread-count free). */
 static void gg_probe_points(const gather_guide_probe *probe, const scene *s, const guide_grid *grid,
                             const uint64_t *ck, size_t ncell, const guide_point *pts, const size_t *jp, size_t nj,
-                            gg_probe *pr) {
-    const size_t G2 = (size_t)GG_G * GG_G;
+                            gg_probe *pr, int G, uint64_t stream) {
+    const size_t G2 = (size_t)G * G;
 #pragma omp parallel for schedule(dynamic, 4)
     for (long j = 0; j < (long)nj; j++) {
-        rng g = rng_stream(GG_SEED, jp[j], 1);
-        for (int b = 0; b < GG_G; b++)
-            for (int a = 0; a < GG_G; a++) {
+        rng g = rng_stream(GG_SEED, jp[j], stream);
+        for (int b = 0; b < G; b++)
+            for (int a = 0; a < G; a++) {
                 /* Two statements, not two arguments of one call: C leaves the order in which a
                  * call's arguments are evaluated unspecified, so compilers could draw them in
                  * either order and the pilot would depend on the compiler. */
-                double v2 = (b + rng_uniform(&g)) / GG_G; /* the order gcc used: images kept */
-                double u2 = (a + rng_uniform(&g)) / GG_G;
-                pr[(size_t)j * G2 + (size_t)(a + GG_G * b)] =
+                double v2 = (b + rng_uniform(&g)) / G; /* the order gcc used: images kept */
+                double u2 = (a + rng_uniform(&g)) / G;
+                pr[(size_t)j * G2 + (size_t)(a + G * b)] =
                     gg_probe_at(probe, s, grid, ck, ncell, &pts[jp[j]], u2, v2, &g);
             }
     }
@@ -334,9 +337,9 @@ static void gg_probe_points(const gather_guide_probe *probe, const scene *s, con
  * points' probes, with the last round's cell values at the probes' hits (one more bounce). v:
  * the probes' values of the last round; Lc: the cells' values; Ln and nc: scratch, a cell each
  * (Lc, Ln, nc: room for at least one). */
-static void gg_cell_light(const gg_probe *pr, const int *jc, size_t nj, size_t ncell, double *v, double *Lc,
-                          double *Ln, double *nc) {
-    const size_t G2 = (size_t)GG_G * GG_G, nc1 = ncell ? ncell : 1;
+static void gg_cell_light(const gg_probe *pr, const int *jc, size_t nj, size_t ncell, size_t G2, double *v,
+                          double *Lc, double *Ln, double *nc) {
+    const size_t nc1 = ncell ? ncell : 1;
     for (int round = 0; round <= GG_BOUNCES; round++) {
         memset(Ln, 0, nc1 * sizeof *Ln);
         memset(nc, 0, nc1 * sizeof *nc);
@@ -352,6 +355,64 @@ static void gg_cell_light(const gg_probe *pr, const int *jc, size_t nj, size_t n
         }
         for (size_t c = 0; c < ncell; c++) Lc[c] = nc[c] > 0 ? Ln[c] / nc[c] : 0;
     }
+}
+
+/* THE CHEAP TEST (gather_guide.h): the pilot's rules on every GG_CHEAP_EVERY-th of its points
+ * (jp, jc: nj of them) with GG_CHEAP_G^2 probes each, on their own streams. 0 when what it finds
+ * rules out both an opening and a bright patch by a margin of GG_CHEAP_MARGIN (the full pilot
+ * is then skipped, with the evidence in why), 1 when the full pilot may find one, PM_ENOMEM. */
+static int gg_may_pay(const gather_guide_probe *probe, const scene *s, const guide_grid *grid, const uint64_t *ck,
+                      size_t ncell, const guide_point *pts, const size_t *jp, const int *jc, size_t nj, double size,
+                      char *why, size_t cap) {
+    const size_t G2 = (size_t)GG_CHEAP_G * GG_CHEAP_G, ns = (nj + GG_CHEAP_EVERY - 1) / GG_CHEAP_EVERY;
+    size_t ns1 = ns ? ns : 1, nc1 = ncell ? ncell : 1, nline = 0, np = 0;
+    size_t *sp = malloc(ns1 * sizeof *sp);
+    int *sc = malloc(ns1 * sizeof *sc), rc = PM_ENOMEM;
+    gg_probe *pr = malloc(ns1 * G2 * sizeof *pr);
+    double *v = malloc(ns1 * G2 * sizeof *v), *Lc = calloc(nc1, sizeof *Lc), *Ln = calloc(nc1, sizeof *Ln);
+    double *nc = calloc(nc1, sizeof *nc);
+    if (!sp || !sc || !pr || !v || !Lc || !Ln || !nc) goto done;
+    for (size_t j = 0; j < ns; j++) sp[j] = jp[j * GG_CHEAP_EVERY], sc[j] = jc[j * GG_CHEAP_EVERY];
+    gg_probe_points(probe, s, grid, ck, ncell, pts, sp, ns, pr, GG_CHEAP_G, 2);
+    gg_cell_light(pr, sc, ns, ncell, G2, v, Lc, Ln, nc);
+    double all = 0, bright = 0, rms = 0, prms = 0, share = 0;
+    vec3 c, lit;
+    int fit = gg_find_opening(pts, sp, ns, pr, v, G2, &nline, &all, &bright, &c, &rms, &lit);
+    if (fit < 0) goto done;
+    int patch = gg_find_patch(ns, pr, v, G2, all, &c, &prms, &np, &share);
+    /* Ruled out only where the cheap pilot sees enough to say so: a fit too wide by the margin. */
+    int no_opening = fit && GG_AP_SPREAD * rms > GG_CHEAP_MARGIN * 0.02 * size;
+    int no_patch = patch && (GG_PATCH_SPREAD * prms > GG_CHEAP_MARGIN * GG_PATCH_MAX * size ||
+                             share < GG_PATCH_SHARE / GG_CHEAP_MARGIN);
+    rc = !(no_opening && no_patch);
+    if (!rc)
+        snprintf(why, cap, "a cheap pilot (%zu points, %zu probes) rules both out by a factor %g: its bright rays "
+                 "meet within %.3g (an opening: at most %.3g), their hits spread over radius %.3g with %.1f%% of the "
+                 "probed light (a patch: at most %.3g, at least %.0f%%)", ns, ns * G2, GG_CHEAP_MARGIN,
+                 GG_AP_SPREAD * rms, 0.02 * size, GG_PATCH_SPREAD * prms, 100 * share, GG_PATCH_MAX * size,
+                 100 * GG_PATCH_SHARE);
+done:
+    free(sp);
+    free(sc);
+    free(pr);
+    free(v);
+    free(Lc);
+    free(Ln);
+    free(nc);
+    return rc;
+}
+
+/* Photon-starved camera points (no precomputed irradiance on their side), of *cam. */
+static size_t gg_starved(const gather_guide_probe *probe, const scene *s, const guide_point *pts, size_t npts,
+                         size_t *cam) {
+    size_t starved = 0;
+    *cam = 0;
+    for (size_t k = 0; k < npts; k++) {
+        if (pts[k].bounce) continue;
+        ++*cam;
+        starved += !probe->found(probe->user, s, &pts[k].h, pts[k].wo);
+    }
+    return starved;
 }
 
 int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *why,
@@ -373,17 +434,12 @@ int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *w
         snprintf(err, errcap, "out of memory (gather guide pilot)");
         return rc;
     }
-    /* Photon-starved camera points: no precomputed irradiance on their side. */
-    size_t starved = 0, cam = 0;
-    for (size_t k = 0; k < npts; k++) {
-        if (pts[k].bounce) continue;
-        cam++;
-        starved += !probe->found(probe->user, s, &pts[k].h, pts[k].wo);
-    }
+    size_t cam = 0, starved = gg_starved(probe, s, pts, npts, &cam);
+    int starving = (double)starved >= GG_STARVED * (double)cam && starved > 0;
     /* Not starved, but the scene has photon ports: its light comes in through openings and lands
      * in bright patches, so a patch is looked for (BRIGHT PATCHES). */
     int patches = probe->ports;
-    if (force != PLAN_ON && !((double)starved >= GG_STARVED * (double)cam && starved > 0) && !patches) {
+    if (force != PLAN_ON && !starving && !patches) {
         snprintf(gg->reason, sizeof gg->reason,
                  "off (%zu of %zu camera points find no precomputed irradiance on their side, under "
                  "%.0f%%: the gathers read the photon map, no opening is looked for; no photon ports: no bright "
@@ -404,6 +460,17 @@ int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *w
     double *v = NULL, *Lc = NULL, *Ln = NULL, *nc = NULL;
     if (!pk || !ck || !jp || !jc) goto oom;
     gg_pick_points(&grid, pts, npts, pk, ck, &ncell, jp, jc, &nj);
+    double size = v3_maxc(v3_sub(s->bounds_hi, s->bounds_lo));
+    if (force != PLAN_ON && patches && !starving) { /* THE CHEAP TEST */
+        char cheap[400];
+        if ((rc = gg_may_pay(probe, s, &grid, ck, ncell, pts, jp, jc, nj, size, cheap, sizeof cheap)) < 0) goto oom;
+        if (!rc) { /* rc = 0: done, the guide off */
+            snprintf(gg->reason, sizeof gg->reason, "off (%zu of %zu camera points find no precomputed irradiance, "
+                     "under %.0f%%; the scene has photon ports, so an opening or a bright patch is looked for: %s)",
+                     starved, cam, 100 * GG_STARVED, cheap);
+            goto done;
+        }
+    }
     size_t nj1 = nj ? nj : 1, nc1 = ncell ? ncell : 1;
     pr = malloc(nj1 * G2 * sizeof *pr);
     v = malloc(nj1 * G2 * sizeof *v);
@@ -411,8 +478,8 @@ int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *w
     Ln = calloc(nc1, sizeof *Ln);
     nc = calloc(nc1, sizeof *nc);
     if (!pr || !v || !Lc || !Ln || !nc) goto oom;
-    gg_probe_points(probe, s, &grid, ck, ncell, pts, jp, nj, pr);
-    gg_cell_light(pr, jc, nj, ncell, v, Lc, Ln, nc);
+    gg_probe_points(probe, s, &grid, ck, ncell, pts, jp, nj, pr, GG_G, 1);
+    gg_cell_light(pr, jc, nj, ncell, G2, v, Lc, Ln, nc);
     /* The opening: rays that read the map and carry over 1/GG_OUTLIER of their point's light. */
     size_t nline = 0;
     double all = 0, bright = 0, rms = 0;
@@ -420,7 +487,6 @@ int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *w
     vec3 lit = v3s(0);
     int fit = gg_find_opening(pts, jp, nj, pr, v, G2, &nline, &all, &bright, &c, &rms, &lit);
     if (fit < 0) goto oom;
-    double size = v3_maxc(v3_sub(s->bounds_hi, s->bounds_lo));
     int opening = fit && nline >= GG_MIN_LINES && GG_AP_SPREAD * rms <= 0.02 * size && rms > 0;
     char pw[224] = "";
     int patch = !opening && patches && gg_patch(gg, nj, pr, v, G2, all, size, pw, sizeof pw);

@@ -161,19 +161,19 @@ static importance *make_importance(const scene *s, const photon_settings *c) {
     return imp;
 }
 
-/* The pilots that read the scene before any photon: the port probe (so the photon pilot's
- * photons aim through what it finds as the passes' do), the importance table (which the
+/* The pilots that read the scene before any photon: the port probe (so the photon or volume
+ * pilots' photons aim through what it finds as the passes' do; in scenes with media too), the importance table (which the
  * photon pilot's global photons already use), then the photon or volume pilots. */
 static int photon_evidence(const scene *s, const photon_settings *c, plan_pilots *pl, char *err, size_t errcap) {
     pl->s = s;
     pl->media = scene_has_media(s);
-    if (pl->media) return volume_pilots(s, c, pl, err, errcap);
     int rc = ports_find(s, plan_pilot_seed(s), &pl->found);
     if (rc < 0) {
         snprintf(err, errcap, "plan: photon ports: probe: %s", pm_strerror(rc));
         return rc;
     }
     pl->s = ports_found_scene(s, &pl->found, &pl->sp); /* found ports are used as declared ones */
+    if (pl->media) return volume_pilots(pl->s, c, pl, err, errcap);
     pl->imp = make_importance(pl->s, c);
     return photon_pilots(pl->s, c, pl, err, errcap);
 }

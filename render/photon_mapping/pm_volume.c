@@ -226,7 +226,8 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
     if (!loaded && (p->global.on || p->volume.on)) {
         vol_pass_opts o;
         pass_opts(&o, v, s, c, p->global.on ? c->global_photons : 0, p->volume.on ? c->volume_photons : 0);
-        if ((rc = vol_trace_pass(s, &o, &g)) < 0) goto fail;
+        scene sp; /* with the ports the plan's probe found (ports.h), if any */
+        if ((rc = vol_trace_pass(ports_found_scene(s, &p->found, &sp), &o, &g)) < 0) goto fail;
     }
     if (!loaded && (p->caustics.on || p->volume_caustics.on)) {
         vol_pass_opts o;

@@ -109,8 +109,10 @@ extern "C" {
  * follow the scene's seed (plan_pilot_seed); 5: one pass driver for both tracers (the rules
  * at the top of photon_rounds.c): a pass stopped by the memory budget keeps its batch's
  * longest prefix that fits, the emission budget is exact, no stop by rate, a map's first
- * store may come up to 131072 photons. */
-#define PHOTON_TRACE_VERSION 5
+ * store may come up to 131072 photons; 6: the media tracer emits a share of its photons through
+ * photon ports, declared or found by the plan's probe, which now runs in scenes with media too
+ * (ports.h, MEDIA). */
+#define PHOTON_TRACE_VERSION 6
 
 /* A map set's stamp: scene_transport_hash and the tracer version + settings hash
  * (map_stamp_make). */

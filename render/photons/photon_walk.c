@@ -104,7 +104,8 @@ static int emit_surface(const pass_ctx *c, uint64_t i, walk_start *w) {
 
 /* Media passes: the light from the photon's own stream, by c->choose (power, or power times
  * active fraction when aimed through c->proj: a point of an active cell, the power times the
- * light's active fraction). 0: the photon carries no power. */
+ * light's active fraction), with a share of the photons aimed through the scene's photon ports
+ * (ports.h, MEDIA). 0: the photon carries no power. */
 static int emit_media(const pass_ctx *c, uint64_t i, walk_out *o, walk_start *w) {
     const scene *s = c->s;
     w->g = rng_stream(c->o->seed, i, c->caustic_pass ? 8 : 7);
@@ -116,6 +117,7 @@ static int emit_media(const pass_ctx *c, uint64_t i, walk_out *o, walk_start *w)
     if (c->proj) projmap_sample(&c->proj[w->li], &s->lights[w->li], rng_uniform(&w->g), &w->g, u);
     light_sample_le(s, w->li, u, &w->p, &w->n, &w->d);
     w->power = v3_scale(s->lights[w->li].power, (c->proj ? c->proj[w->li].fraction : 1.0) / pl);
+    if (c->ports && !ports_mix_media(c->ports, &w->g, &w->li, &w->p, &w->n, &w->d, &w->power)) return 0; /* ports.h */
     if (s->env_map) w->power = v3_mul(w->power, light_emit_weight(s, w->li, w->d)); /* light.h */
     w->rel = 1;
     if (v3_iszero(w->power)) return 0;

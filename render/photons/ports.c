@@ -325,6 +325,28 @@ void ports_mix(const pass_ctx *c, uint64_t i, int *li, vec3 *p, vec3 *n, vec3 *d
     *rel = a * r + (1 - a) * rb;
 }
 
+int ports_mix_media(const photon_ports *pp, rng *g, int *li, vec3 *p, vec3 *n, vec3 *d, rgb *power) {
+    const scene *s = pp->s;
+    double a = pp->a, uc = rng_uniform(g);
+    if (!(uc < a)) { /* the ordinary photon, weighed by the mixture */
+        *power = v3_scale(*power, 1 / (a * ports_ratio(pp, *li, *p, *d) + (1 - a)));
+        return 1;
+    }
+    double ul = rng_uniform(g), uk = rng_uniform(g), u[4];
+    for (int k = 0; k < 4; k++) u[k] = rng_uniform(g);
+    int l;
+    vec3 x, nx, dd;
+    if (!ports_sample(pp, ul, uk, u, &l, &x, &nx, &dd)) return 0;
+    double r = ports_ratio(pp, l, x, dd), pl = distrib1d_prob(&s->light_distrib, l);
+    if (!(r > 0) || !(pl > 0)) return 0; /* a direction the light does not emit into */
+    *li = l;
+    *p = x;
+    *n = nx;
+    *d = dd;
+    *power = v3_scale(s->lights[l].power, 1 / (pl * (a * r + (1 - a))));
+    return 1;
+}
+
 void ports_describe(const photon_ports *pp, const scene *s, char *buf, size_t cap) {
     if (!s->nports) {
         snprintf(buf, cap, "none declared in the scene ($.ports)");
@@ -354,11 +376,6 @@ int ports_plan(const scene *s, char *buf, size_t cap) {
     if (rc < 0) return rc;
     ports_describe(&pp, s, buf, cap);
     int on = pp.on;
-    if (s->nports && scene_has_media(s)) {
-        snprintf(buf, cap, "%d declared, but the scene has media, whose photon tracer does not aim through "
-                 "ports", s->nports);
-        on = 0;
-    }
     ports_free(&pp);
     return on;
 }

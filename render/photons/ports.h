@@ -51,10 +51,26 @@
  * point on the dark side (inside the room) never aims out through the port. Unbiased for any
  * a(x) >= 0 that depends only on x, as this one does.
  *
+ * MEDIA. In a scene with participating media (volume.h) one pass traces the surface map and the
+ * volume map together (photon_walk.c's emit_media), and it mixes the same way: after the
+ * ordinary photon (light l by power p_l, drawn from the photon's own stream), with probability a
+ * (the stream's next number) a port photon replaces it (light by q_l, port by w_lk, as above),
+ * and either photon's power is the light's power / p_l divided by the same rel = a r + (1 - a)
+ * (r = ports_ratio; no importance emission in media). The mixture's density is over the
+ * emission only, before any flight: the free flights, scattering events, surface bounces and
+ * stores that follow are the ordinary tracer's, so every volume and surface photon keeps its
+ * mean. The volume pilot of the plan (plan.c, plan_media) emits the same way. Not done in media:
+ * the aimed diffuse bounces (BOUNCES: a media pass samples its materials by material_sample,
+ * whose lobe probabilities ports_scatter would have to re-weigh) and the volume-caustic pass
+ * (its projection maps). The camera probe (ports found by a camera probe, below) runs in scenes
+ * with media too: its light connections and its threading rays pass null surfaces (a medium's
+ * invisible boundary, such as the quad that closes sun_window_fog's window) as if they were not
+ * there.
+ *
  * WHERE. The surface tracer's global pass (photon_walk.c, which calls ports_mix after its own
  * emission and ports_scatter at diffuse bounces) and the photons of its pilot, whose rel is computed the same way so they can join
- * the pass (pilot_photons_joining). The caustic pass keeps its projection maps, and the media's
- * tracer (volume.c) ignores ports.
+ * the pass (pilot_photons_joining); the media tracer's non-caustic pass (volume.c, which calls
+ * ports_mix_media, MEDIA above). The caustic passes keep their projection maps.
  *
  * Ownership: ports_build fills a photon_ports with malloc'd arrays, ports_free frees them; a
  * built table is read-only and may be used from any number of threads.
@@ -116,13 +132,18 @@ double ports_scatter(const photon_ports *pp, vec3 x, vec3 nsh, struct rng *g, do
 void ports_mix(const struct pass_ctx *c, uint64_t i, int *li, vec3 *p, vec3 *n, vec3 *d, rgb *power,
                double *rel);
 
+/* The media tracer's hook (photon_walk.c emit_media, MEDIA above): after its ordinary photon
+ * (*li, *p, *n, *d; *power the light's power / p_l), with probability a (the next number of g)
+ * a port photon replaces it; either way *power is divided by the mixture's rel. 0: the photon
+ * carries nothing (a port direction the light does not emit into). */
+int ports_mix_media(const photon_ports *pp, struct rng *g, int *li, vec3 *p, vec3 *n, vec3 *d, rgb *power);
+
 /* The plan's reason (the text in "photon ports: on (...)"): the ports, the fraction and the
  * estimated share of the power through them, or why they are not used. */
 void ports_describe(const photon_ports *pp, const scene *s, char *buf, size_t cap);
 
 /* For the plan (photon_mapping/plan.c): 1 when the global pass will aim through ports, 0 when
- * not (no ports, port_fraction 0, no light faces them, or a scene with media, whose tracer
- * does not use them), with the reason in buf (ports_describe); PM_ENOMEM. The plan prints
+ * not (no ports, port_fraction 0, or no light faces them), with the reason in buf (ports_describe); PM_ENOMEM. The plan prints
  *   photon ports: on (0.5 of the global photons aimed through 1 port ($.ports[0] quad of area
  *   100 at (500, 300, 500)): about 0.0247% of the lights' power passes them ...) */
 int ports_plan(const scene *s, char *buf, size_t cap);
@@ -206,8 +227,8 @@ typedef struct port_found {
     char why[360];      /* the evidence in words: what was found and kept, or why not */
 } port_found;
 
-/* Run the probe on s (not run when s declares ports, $.find_ports is false, or s has media or
- * no light) with streams of seed; f->why says what it found. 0, or PM_ENOMEM. */
+/* Run the probe on s (not run when s declares ports, $.find_ports is false, or s has no
+ * light) with streams of seed; f->why says what it found. 0, or PM_ENOMEM. */
 int ports_find(const scene *s, uint64_t seed, port_found *f);
 /* *copy = *s with f's ports as its ports (nothing is allocated; copy shares s's arrays), for
  * the passes that should aim through them; returns copy, or s when f found none. */

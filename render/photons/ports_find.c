@@ -36,6 +36,37 @@ typedef struct thread_rec {
     int group;
 } thread_rec;
 
+/* The first surface along ry (unit direction) within tmax that is not a null surface (ports.h,
+ * MEDIA): 1 with it in *h, 0 when there is none. */
+static int solid_hit(const scene *s, ray ry, double tmax, hit *h) {
+    if (!s->has_null) return scene_intersect(s, ry, tmax, h);
+    for (int k = 0; k < 64; k++) {
+        if (!scene_intersect(s, ry, tmax, h)) return 0;
+        if (scene_material(s, h)->kind != MAT_NULL) return 1;
+        vec3 o = scene_offset(s, h->p, h->ng, ry.d);
+        tmax -= v3_dot(v3_sub(o, ry.o), ry.d);
+        if (!(tmax > 0)) return 0;
+        ry.o = o;
+    }
+    return 1; /* too many null surfaces: taken as blocked */
+}
+
+/* Whether the light sample ls is unblocked from h (a directional light's: along its
+ * direction); null surfaces (a medium's invisible boundary) do not block (ports.h, MEDIA). */
+static int open_to(const scene *s, const hit *h, int dirl, const light_sample *ls) {
+    if (!s->has_null)
+        return dirl ? scene_visible_dir(s, h->p, h->ng, ls->wi) : scene_visible(s, h->p, h->ng, ls->p, ls->n);
+    hit b;
+    if (dirl) return !solid_hit(s, (ray){scene_offset(s, h->p, h->ng, ls->wi), ls->wi}, INFINITY, &b);
+    vec3 d = v3_sub(ls->p, h->p);
+    vec3 po = scene_offset(s, h->p, h->ng, d);
+    vec3 qo = v3_iszero(ls->n) ? ls->p : scene_offset(s, ls->p, ls->n, v3_neg(d));
+    vec3 e = v3_sub(qo, po);
+    double len = v3_len(e);
+    if (!(len > 0)) return 1;
+    return !solid_hit(s, (ray){po, v3_scale(e, 1 / len)}, len * (1 - 1e-9), &b);
+}
+
 /* One light connection from diffuse vertex h (wo toward the viewer, throughput beta): what it
  * carries (luminance; 0 if blocked or nothing) and the light's point in *y. */
 static double connect(const scene *s, const hit *h, const material *m, vec3 wo, rgb beta, rng *g, vec3 *y,
@@ -53,7 +84,7 @@ static double connect(const scene *s, const hit *h, const material *m, vec3 wo, 
     if (v3_iszero(f)) return 0;
     *tried = 1;
     int dirl = s->lights[li].type == LIGHT_DIRECTIONAL;
-    if (dirl ? !scene_visible_dir(s, h->p, h->ng, ls.wi) : !scene_visible(s, h->p, h->ng, ls.p, ls.n)) return 0;
+    if (!open_to(s, h, dirl, &ls)) return 0;
     *y = dirl ? v3_madd(h->p, ls.wi, 2 * (s->bsphere_r > 0 ? s->bsphere_r : 1.0)) : ls.p;
     double w = rgb_lum(v3_mul(v3_mul(beta, f), ls.L)) * cs / pl;
     return w > 0 && isfinite(w) ? w : 0;
@@ -134,7 +165,7 @@ static int threads(const scene *s, vec3 a, vec3 na, vec3 b, thread_rec *r) {
             double dl = v3_len(dr);
             dr = v3_scale(dr, 1 / dl);
             ray ry = {scene_offset(s, a, na, dr), dr};
-            blocked[k] = scene_intersect(s, ry, 0.9 * dl, &hh[k]); /* a blocker by the far end is its surface */
+            blocked[k] = solid_hit(s, ry, 0.9 * dl, &hh[k]); /* a blocker by the far end is its surface */
         }
         for (int ax = 0; ax < 2; ax++) {
             if (done[ax] || !blocked[2 * ax] || !blocked[2 * ax + 1]) continue;
@@ -319,9 +350,9 @@ static int decide(const scene *s, thread_rec *t, long nt, double wsum, port_foun
 
 int ports_find(const scene *s, uint64_t seed, port_found *f) {
     memset(f, 0, sizeof *f);
-    if (s->nports || !s->find_ports || scene_has_media(s) || !s->nlights || s->light_distrib.n == 0) {
+    if (s->nports || !s->find_ports || !s->nlights || s->light_distrib.n == 0) {
         snprintf(f->why, sizeof f->why, "%s", s->nports ? "ports declared" : !s->find_ports ? "$.find_ports is false"
-                 : scene_has_media(s) ? "a scene with media" : "no light");
+                 : "no light");
         return 0;
     }
     f->ran = 1;

@@ -23,6 +23,7 @@
 #include "photonmap/common.h"
 #include "photons/photon_pass.h"
 #include "photons/photon_trace.h"
+#include "photons/ports.h"
 
 /* The records (photon_pass.h's pass_rec) as pm_photons with the power divided by the map's
  * emitted count ne; med: each record's medium (a volume map), or NULL. */
@@ -123,6 +124,18 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
         c.proj = aim.proj;
         c.choose = aim.choose;
     }
+    /* Photon ports (ports.h, MEDIA): the pass that is not aimed at specular surfaces emits a
+     * share of its photons through them, as the surface tracer's global pass does. */
+    photon_ports ports;
+    memset(&ports, 0, sizeof ports);
+    if (!o->caustic_pass) {
+        int rc0 = ports_build(&ports, s);
+        if (rc0 < 0) {
+            pass_aim_free(&aim);
+            return rc0;
+        }
+        c.ports = ports.on ? &ports : NULL;
+    }
     pass_buf ms = {0}, mv = {0};
     pass_out po;
     memset(&po, 0, sizeof po);
@@ -130,6 +143,7 @@ int vol_trace_pass(const scene *s, const vol_pass_opts *o, vol_pass_result *res)
     int rc = pass_run(&c, c.want_global ? o->surface_target : 0, &ms, &mv, &po, "Tracing media photons", err,
                       sizeof err);
     pass_aim_free(&aim);
+    ports_free(&ports);
     rc = vol_report(o, &c, &po, ms.n, mv.n, res, rc);
     res->surface_emitted = c.want_global ? po.emitted : 0;
     res->volume_emitted = c.keep_volume ? po.emitted2 : 0;

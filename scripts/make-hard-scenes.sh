@@ -1,0 +1,128 @@
+#!/bin/sh
+# make-hard-scenes.sh: the hard scenes of small openings (issue 30: pinhole_room, door_ajar,
+# sun_window, lamp_shade, sun_window_fog), photon mapping at its defaults against path tracing,
+# each against its long path-traced reference (data/reference-hard/NAME.pfm); writes
+# docs/hard_scenes/ (CSV, plan lines, a stamp) and docs/HARD_SCENES.md (by
+# scripts/gen-hard-scenes-md.sh).
+#
+#   scripts/make-hard-scenes.sh [--quick]
+#
+# The protocol, scaled to what 2 shared cores allow (the whole run takes a few minutes of CPU):
+# each scene at its reference's size (pinhole_room 8 x 8, the others 16 x 16), HS_THREADS
+# threads (default 2). `render SCENE --mode pm` at its defaults (no flag but the size, --spp,
+# --seed and the threads: the plan chooses the rest and prints it) at two sample counts, seeds
+# 1 and 2 each; `render SCENE --mode path` at one sample count, seeds 1 and 2. Each run's CPU
+# time (user + sys of the whole process: the plan's probe and pilots and the photon passes
+# count) and its mean squared error of RGB over the pixels against the reference (`render
+# --compare`: rmse squared) go into runs.csv. scripts/gen-hard-scenes-md.sh computes from them
+# path tracing's error at each photon-mapping run's CPU time and the ratio of times to equal
+# error (path tracing is unbiased: its squared error falls as 1 / spp, less the reference's own
+# noise, which is taken out of every run's error).
+#
+# Sample counts (scene: pm's two, path's one): pinhole_room 1024 4096 / 32768; door_ajar,
+# sun_window 1024 4096 / 8192; lamp_shade 1024 4096 / 16384; sun_window_fog 16 64 / 8192.
+# HS_SCENES (default all five) picks scenes.
+#
+# Output (HS_OUT, default docs/hard_scenes): runs.csv (scene, mode, width, spp, seed, cpu_s,
+# wall_s, mse, ref_spp), plan_NAME.txt (pm's plan lines for ports and the gather guide, as
+# printed, seed 1 at the lower spp), measurement.txt (commit stamp, date, machine, load,
+# threads, references). Then docs/HARD_SCENES.md is regenerated from HS_OUT (not with --quick).
+# --quick: pm and path once each at low counts, pinhole_room only, into build/hard-scenes-quick.
+#
+# Environment: PM_BUILD_DIR (default build/release).
+set -eu
+here=$(cd "$(dirname "$0")/.." && pwd)
+bin="${PM_BUILD_DIR:-$here/build/release}/render"
+threads="${HS_THREADS:-2}"
+scenes="${HS_SCENES:-pinhole_room door_ajar sun_window lamp_shade sun_window_fog}"
+out="${HS_OUT:-$here/docs/hard_scenes}"
+refdir="$here/data/reference-hard"
+quick=0
+case "${1:-}" in
+  -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
+  --quick) quick=1; scenes="${HS_SCENES:-pinhole_room}"; out="$here/build/hard-scenes-quick" ;;
+  "") ;;
+  *) echo "make-hard-scenes: unknown option '$1' (see --help)" >&2; exit 2 ;;
+esac
+[ -x "$bin" ] || { echo "make-hard-scenes: $bin not found; run make first" >&2; exit 2; }
+. "$here/scripts/commit-stamp.sh"
+stamp=$(commit_stamp "$here" "$bin") || exit 2
+
+info() { awk -v k="$2" '$1 == k { print $2 }' "$refdir/$1.info"; }
+counts() { # NAME -> "PM_SPP_1 PM_SPP_2 PATH_SPP"
+  if [ $quick = 1 ]; then echo "64 64 1024"; return; fi
+  case $1 in
+    pinhole_room) echo "1024 4096 32768" ;;
+    door_ajar|sun_window) echo "1024 4096 8192" ;;
+    lamp_shade) echo "1024 4096 16384" ;;
+    sun_window_fog) echo "16 64 8192" ;;
+    *) echo "make-hard-scenes: no sample counts for scene '$1'" >&2; exit 2 ;;
+  esac
+}
+for name in $scenes; do
+  scene="$here/data/scenes/$name.json"
+  counts "$name" > /dev/null
+  [ -f "$refdir/$name.pfm" ] && [ -f "$refdir/$name.info" ] || {
+    echo "make-hard-scenes: no reference for $name in $refdir" >&2; exit 2; }
+  [ "$(info "$name" scene_sha256)" = "$(sha256sum "$scene" | cut -d' ' -f1)" ] || {
+    echo "make-hard-scenes: $scene changed since its reference was rendered" >&2; exit 2; }
+done
+
+# The images are scratch; the CSV is written as the runs end into $out.partial (kept if the
+# script stops), which replaces $out's files at the end.
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+mkdir -p "$out.partial"
+echo "scene,mode,width,spp,seed,cpu_s,wall_s,mse,ref_spp" > "$out.partial/runs.csv"
+
+# run NAME MODE SPP SEED: render and compare; appends a row.
+run() {
+  r_name=$1 r_mode=$2 r_spp=$3 r_seed=$4
+  r_w=$(info "$r_name" width)
+  r_h=$(info "$r_name" height)
+  /usr/bin/time -f '%U %S %e' -o "$work/time" "$bin" "$here/data/scenes/$r_name.json" --mode "$r_mode" \
+      --width "$r_w" --height "$r_h" --spp "$r_spp" --seed "$r_seed" --threads "$threads" \
+      --hdr "$work/img.pfm" -o "$work/img.png" > "$work/log" 2> "$work/err" || {
+    echo "make-hard-scenes: $r_name $r_mode $r_spp spp failed:" >&2; cat "$work/err" >&2; exit 1; }
+  cpu=$(awk '{ printf "%.2f", $1 + $2 }' "$work/time")
+  wall=$(awk '{ print $3 }' "$work/time")
+  rmse=$("$bin" --compare "$work/img.pfm" "$refdir/$r_name.pfm" | awk '$1 == "rmse" { print $2 }')
+  mse=$(awk -v r="$rmse" 'BEGIN { printf "%.6g", r * r }')
+  echo "$r_name,$r_mode,$r_w,$r_spp,$r_seed,$cpu,$wall,$mse,$(info "$r_name" spp)" >> "$out.partial/runs.csv"
+  echo "make-hard-scenes: $r_name $r_mode $r_spp spp seed $r_seed: $cpu CPU-s, $wall s, MSE $mse" >&2
+}
+
+for name in $scenes; do
+  set -- $(counts "$name")
+  p1=$1 p2=$2 ps=$3
+  seeds="1 2"
+  [ $quick = 1 ] && seeds=1
+  for seed in $seeds; do
+    run "$name" pm "$p1" "$seed"
+    if [ "$seed" = 1 ]; then
+      grep -E '^  (photon ports|gather guide): ' "$work/log" "$work/err" | sed 's/^[^:]*://' | sort -u \
+        > "$out.partial/plan_$name.txt" || true
+    fi
+    [ $quick = 1 ] || run "$name" pm "$p2" "$seed"
+    run "$name" path "$ps" "$seed"
+  done
+done
+{
+  echo "commit $stamp"
+  echo "date $(date -u '+%Y-%m-%d %H:%M UTC')"
+  echo "machine $(nproc) cores, $(awk -F': ' '/model name/ { print $2; exit }' /proc/cpuinfo)"
+  echo "load $(cut -d' ' -f1-3 /proc/loadavg) (1, 5, 15 min, at the end)"
+  echo "threads $threads"
+  for name in $scenes; do
+    echo "ref_$name $(info "$name" spp) spp, $(info "$name" width) x $(info "$name" height), $(info "$name" cpu_seconds) CPU-s"
+  done
+} > "$out.partial/measurement.txt"
+rm -f "$out"/*.csv "$out"/*.txt 2>/dev/null || true
+mkdir -p "$out"
+cp "$out.partial/"* "$out/"
+rm -rf "$out.partial"
+echo "make-hard-scenes: wrote $out" >&2
+if [ $quick = 0 ] && [ -z "${HS_OUT:-}" ]; then
+  sh "$here/scripts/gen-hard-scenes-md.sh" "$out" > "$here/docs/HARD_SCENES.md"
+  echo "make-hard-scenes: wrote docs/HARD_SCENES.md" >&2
+fi
