@@ -97,7 +97,7 @@ for name in cornell_spheres cornell_diffuse; do
   echo ". The plan, as the renderer printed it:"
   echo
   echo '```'
-  cat "$res/${name}_plan.txt" 2>/dev/null
+  cat "$res/${name}_plan.txt" 2>/dev/null || echo "(not recorded)"
   echo '```'
   echo
   if [ -n "$hflags" ]; then
