@@ -163,13 +163,16 @@ awk -F, -v nr="$(sum reference_spp)" -v c="$(sum c)" '
         if (hi <= 1.25 * lo) printf "within 25%%, so the path tracer'"'"'s error falls as 1/sqrt(N) here.\n"
         else printf "they differ by %.0f%%, more than 25%%, so the path tracer'"'"'s error does not follow 1/sqrt(N) closely here and the fit is rough.\n", 100 * (hi / lo - 1) }' "$res/time_error.csv"
 echo
-echo "| method | spp | wall s | CPU s | RMSE vs reference | corrected RMSE | path CPU-s for that error | ratio |"
-echo "|---|---:|---:|---:|---:|---:|---:|---:|"
-awk -F, -v c="$(sum c)" -v a="$(sum pt_cpu_fixed)" -v b="$(sum pt_cpu_per_spp)" '
+echo "| method | spp | wall s | CPU s | RMSE vs reference | reference noise, share of the MSE | corrected RMSE | path CPU-s for that error | ratio |"
+echo "|---|---:|---:|---:|---:|---:|---:|---:|---:|"
+awk -F, -v c="$(sum c)" -v a="$(sum pt_cpu_fixed)" -v b="$(sum pt_cpu_per_spp)" -v nr="$(sum reference_spp)" '
   NR > 1 { lab = $1 == "pm" ? "photon mapping, defaults" : $1 == "pm_hand" ? "photon mapping, hand-set" : "path tracing"
            cr = $7 > 0 ? sprintf("%.5f", $7) : "< ref"; pt = ""; r = ""
            if ($1 != "path" && $7 > 0) { t = a + b * c / ($7 * $7); pt = sprintf("%.3g", t); r = sprintf("%.2fx", t / $5) }
-           printf "| %s | %d | %.1f | %.1f | %.5f | %s | %s | %s |\n", lab, $2, $4, $5, $6, cr, pt, r }' "$res/time_error.csv"
+           printf "| %s | %d | %.1f | %.1f | %.5f | %.0f%% | %s | %s | %s |\n", lab, $2, $4, $5, $6, 100 * (c / nr) / ($6 * $6), cr, pt, r }' "$res/time_error.csv"
+echo
+echo "Where the reference's noise is most of a run's mean squared error (the share column), its corrected"
+echo "RMSE is a small difference of two larger figures: read that run's ratio as rough."
 echo
 echo "![error against time](results/time_error.png)"
 echo
