@@ -20,9 +20,8 @@
 # The reference uses seed 1000; the path-tracing runs of the time-to-equal-error experiment
 # use other seeds, so their noise is independent of the reference's. The reference's own
 # noise (it is a path tracer too) is estimated there from the same runs, not assumed zero.
-# It runs under nice. At 256x256 on 2 cores (the size before), cornell_spheres (65,536 spp)
-# took 35 minutes and cornell_diffuse (16,384 spp) 10 minutes; at 128x128 with the counts above
-# a quarter of the pixels and half the samples: about an eighth of that CPU time.
+# It runs under nice. At 128x128 on 2 cores, cornell_spheres (33,124 spp) took 382 s (569
+# CPU-s) and cornell_diffuse (8,281 spp) 90 s (124 CPU-s), at 58ea9b4.
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 bin="${PM_BUILD_DIR:-$here/build/release}/render"
