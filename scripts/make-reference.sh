@@ -6,7 +6,9 @@
 #   scripts/make-reference.sh [SCENE_NAME ...]      default: cornell_spheres cornell_diffuse
 #
 # Environment: PM_BUILD_DIR (where `render` is; default build/release), REF_RES (image side,
-# default 256), REF_SPP_<name> (samples per pixel; defaults below), REF_THREADS (default 2),
+# default 128: scripts/make-results.sh renders at the references' size, and its sample counts
+# are sized for 128x128), REF_SPP_<name> (samples per pixel; defaults below: cornell_spheres
+# 32768, rounded up to 33124 by the 182x182 strata, the others 8192), REF_THREADS (default 2),
 # REF_NICE (the niceness it runs at, default 10), REF_OUT (the directory, default
 # data/reference; make-equal-time.sh's 96x96 references go to data/reference/et96).
 #
@@ -18,13 +20,13 @@
 # The reference uses seed 1000; the path-tracing runs of the time-to-equal-error experiment
 # use other seeds, so their noise is independent of the reference's. The reference's own
 # noise (it is a path tracer too) is estimated there from the same runs, not assumed zero.
-# It runs under nice: on 2 cores, cornell_spheres (65,536 spp) took 35 minutes and
-# cornell_diffuse (16,384 spp) 10 minutes.
+# It runs under nice. At 128x128 on 2 cores, cornell_spheres (33,124 spp) took 382 s (569
+# CPU-s) and cornell_diffuse (8,281 spp) 90 s (124 CPU-s), at 58ea9b4.
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 bin="${PM_BUILD_DIR:-$here/build/release}/render"
 [ -x "$bin" ] || { echo "make-reference: $bin not found; run make first (or set PM_BUILD_DIR)" >&2; exit 2; }
-res="${REF_RES:-256}"
+res="${REF_RES:-128}"
 threads="${REF_THREADS:-2}"
 nice="${REF_NICE:-10}"
 out="${REF_OUT:-$here/data/reference}"
@@ -34,8 +36,8 @@ for name in "$@"; do
   scene="$here/data/scenes/$name.json"
   [ -f "$scene" ] || { echo "make-reference: no scene $scene" >&2; exit 2; }
   case "$name" in
-    cornell_spheres) def_spp=65536 ;;
-    *) def_spp=16384 ;;
+    cornell_spheres) def_spp=32768 ;;
+    *) def_spp=8192 ;;
   esac
   eval "spp=\${REF_SPP_$name:-$def_spp}"
   echo "make-reference: $name at ${res}x${res}, $spp spp (started $(date -u +%H:%M:%S) UTC)"

@@ -385,3 +385,60 @@ TEST(docs_generators_sentences_follow_the_data) {
     EXPECT_MSG(!strstr(out, "Both give the same answers") && strstr(out, "In 3 answers of the rows below the two disagree"),
                "accuracy with 3 mismatches: %.300s", strstr(out, "private tree") ? strstr(out, "private tree") : out);
 }
+
+/* Oracle: synthetic results whose verdicts are known by construction. Path tracing's RMSE is
+ * exactly sqrt(c (1/N + 1/N_ref)) with c = 0.1, N_ref = 10000, and its CPU time 0.01 N; photon
+ * mapping's corrected errors 0.01 and 0.005 need path tracing 0.01 x 0.1 / E² = 10 and 40
+ * CPU-s, so at 1 and 2 CPU-s its ratios are 10x and 20x (the 5x target met by both runs), and
+ * at 1 and 20 CPU-s 10x and 2x (met by one of two). One region mean of three is outside its
+ * tolerance. Then the path-traced run of 256 spp is given twice its RMSE (c four times as
+ * large): gen-results-md.sh must no longer say that the error falls as 1/sqrt(N). */
+TEST(docs_results_sentences_follow_the_data) {
+    char cmd[8192], out[65536];
+    const char *t = pm_test_tmpdir(), *src = pm_test_source_dir();
+    snprintf(cmd, sizeof cmd,
+             "mkdir -p '%s/r' && cd '%s/r' && "
+             "printf 'commit abc1234\\ndate 2000-01-01 00:00 UTC\\nmachine test\\nthreads 2\\npm_spp 64\\n"
+             "pt_spps 64 256\\npm_spps 16 64\\nref_cornell_spheres_width 128\\nref_cornell_spheres_height 128\\n"
+             "ref_cornell_spheres_spp 10000\\nref_cornell_spheres_seed 1000\\n' > measurement.txt && "
+             "printf 'c 0.1\\nreference_spp 10000\\nreference_rmse 0.00316228\\npt_cpu_per_spp 0.01\\n"
+             "pt_cpu_fixed 0\\n' > time_error_summary.txt && "
+             "printf 'scene,config,region,pixels,pm_mean,ref_mean,rel_diff,tolerance,pass\\n"
+             "cornell_spheres,defaults,image,100,1.01,1,0.01,0.03,yes\\n"
+             "cornell_spheres,defaults,floor,10,1.07,1,0.07,0.05,no\\n"
+             "cornell_diffuse,defaults,image,100,0.99,1,-0.01,0.03,yes\\n' > regions.csv && "
+             "awk 'BEGIN { print \"method,spp,seed,wall_s,cpu_s,rmse_vs_ref,rmse_corrected\"; "
+             "for (n = 64; n <= 256; n *= 4) printf \"path,%%d,1,%%g,%%g,%%.9g,%%.9g\\n\", n, n / 200, n / 100, "
+             "sqrt(0.1 * (1 / n + 1e-4)), sqrt(0.1 / n); "
+             "printf \"pm,16,2,1,1,%%.9g,0.01\\npm,64,3,2,2,%%.9g,0.005\\n\", sqrt(1e-4 + 1e-5), sqrt(2.5e-5 + 1e-5) }' "
+             "> time_error.csv && sh '%s/scripts/gen-results-md.sh' --out - '%s/r' 2>&1",
+             t, t, src, t);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "within 25%, so the path tracer's error falls as 1/sqrt(N) here."), "1/sqrt(N): %.3000s",
+               strstr(out, "## 2.") ? strstr(out, "## 2.") : out);
+    EXPECT_MSG(strstr(out, "ranges from **10.00x** (16 spp) to **20.00x** (64 spp)") &&
+                   strstr(out, "target at least 5x: met by every run."),
+               "ratios 10x and 20x: %.3000s", strstr(out, "## 2.") ? strstr(out, "## 2.") : out);
+    EXPECT_MSG(strstr(out, "At the defaults: 2 of 3 region means are within their tolerance; the largest difference "
+                           "is 7.00%, cornell_spheres floor."),
+               "regions: %.2000s", out);
+    EXPECT_MSG(strstr(out, "Measured sources (stamp abc1234): `photonmap/` `render/` `Makefile`"), "stamp line");
+    /* photon mapping's second run at 20 CPU-s: 2x, below the target */
+    snprintf(cmd, sizeof cmd,
+             "cd '%s/r' && sed -i 's/^pm,64,3,2,2,/pm,64,3,20,20,/' time_error.csv && "
+             "sh '%s/scripts/gen-results-md.sh' --out - '%s/r' 2>&1",
+             t, src, t);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "ranges from **2.00x** (64 spp) to **10.00x** (16 spp)") &&
+                   strstr(out, "target at least 5x: met by 1 of 2 runs."),
+               "ratios 2x and 10x: %.3000s", strstr(out, "## 2.") ? strstr(out, "## 2.") : out);
+    /* the path-traced run of 256 spp with twice its RMSE: c from 0.1 to 0.4 */
+    snprintf(cmd, sizeof cmd,
+             "cd '%s/r' && awk -F, -v OFS=, '$1 == \"path\" && $2 == 256 { $6 = 2 * $6 } { print }' time_error.csv > x && "
+             "mv x time_error.csv && sh '%s/scripts/gen-results-md.sh' --out - '%s/r' 2>&1",
+             t, src, t);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(!strstr(out, "falls as 1/sqrt(N) here") &&
+                   strstr(out, "they differ by 300%, more than 25%, so the path tracer's error does not follow 1/sqrt(N)"),
+               "c from 0.1 to 0.4: %.3000s", strstr(out, "## 2.") ? strstr(out, "## 2.") : out);
+}
