@@ -221,7 +221,7 @@ TEST(render_guide_direct_light_unbiased) {
     int on = 0;
     char reason[400];
     guide_light_evidence ev;
-    guide *gd = guide_light_plan(&s, PLAN_ON, 1, &on, reason, sizeof reason, &ev);
+    guide *gd = guide_light_make(&s, PLAN_ON, 1, &on, reason, sizeof reason, &ev);
     printf("    light guide: %s (%s)\n", on ? "on" : "off", reason);
     ASSERT_MSG(on && gd, "%s", reason);
     /* A wrong table for the cells of the three points: value only in stratum 0 of each light,
@@ -269,9 +269,9 @@ TEST(render_guide_same_for_any_thread_count) {
     char r1[400], r2[400];
     int saved = omp_get_max_threads();
     omp_set_num_threads(1);
-    guide *a = guide_light_plan(&s, PLAN_AUTO, 1, &on1, r1, sizeof r1, NULL);
+    guide *a = guide_light_make(&s, PLAN_AUTO, 1, &on1, r1, sizeof r1, NULL);
     omp_set_num_threads(2);
-    guide *b = guide_light_plan(&s, PLAN_AUTO, 1, &on2, r2, sizeof r2, NULL);
+    guide *b = guide_light_make(&s, PLAN_AUTO, 1, &on2, r2, sizeof r2, NULL);
     omp_set_num_threads(saved);
     EXPECT_EQ_INT(on1, on2);
     EXPECT(strcmp(r1, r2) == 0);

@@ -381,7 +381,7 @@ TEST(render_pm_plan_shadow_hint) {
                "%s", p.shadow.reason);
     plan_free(&p);
     char err[256];
-    ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "shadow=true", err, sizeof err), 0);
+    ASSERT_EQ_INT(photon_settings_cli_set(&s.photon_mapping, "--pm", "shadow=true", err, sizeof err), 0);
     ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
     EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
     EXPECT_MSG(p.shadow.on && strcmp(p.shadow.reason, "forced by photon_mapping.shadow") == 0, "%s",
@@ -391,7 +391,7 @@ TEST(render_pm_plan_shadow_hint) {
 }
 
 /* Oracle: the documented forcing (plan.h): a "photon_mapping" key or `--pm KEY=VALUE`
- * (plan_cli_set) sets the item whatever the probes found, with the reason "forced by
+ * (photon_settings_cli_set) sets the item whatever the probes found, with the reason "forced by
  * photon_mapping.KEY"; a global map forced off takes final gathering with it; bad values are
  * errors naming the JSON path. */
 TEST(render_pm_plan_forced) {
@@ -429,8 +429,8 @@ TEST(render_pm_plan_forced) {
     /* On the command line: cornell_spheres needs every map; --pm turns them off. */
     ASSERT_MSG(load_shipped(&s, "cornell_spheres", &e) == 0, "%s", e.msg);
     char err[256];
-    ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "caustics=false", err, sizeof err), 0);
-    ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "global_photons=5000", err, sizeof err), 0);
+    ASSERT_EQ_INT(photon_settings_cli_set(&s.photon_mapping, "--pm", "caustics=false", err, sizeof err), 0);
+    ASSERT_EQ_INT(photon_settings_cli_set(&s.photon_mapping, "--pm", "global_photons=5000", err, sizeof err), 0);
     ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
     EXPECT_EQ_INT(c.global_photons, 5000);
     EXPECT_EQ_INT(c.force_caustics, PLAN_OFF);
@@ -440,8 +440,8 @@ TEST(render_pm_plan_forced) {
     EXPECT_MSG(strcmp(p.caustics.reason, "forced by photon_mapping.caustics") == 0, "%s", p.caustics.reason);
     EXPECT(p.global.on && !p.shadow.on && p.final_gather.on);
     /* A later flag replaces the earlier one; global off takes final gathering with it. */
-    ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "caustics=true", err, sizeof err), 0);
-    ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "global=false", err, sizeof err), 0);
+    ASSERT_EQ_INT(photon_settings_cli_set(&s.photon_mapping, "--pm", "caustics=true", err, sizeof err), 0);
+    ASSERT_EQ_INT(photon_settings_cli_set(&s.photon_mapping, "--pm", "global=false", err, sizeof err), 0);
     ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
     EXPECT_EQ_INT(plan_make(&s, &c, 0, &p, NULL, 0), 0);
     EXPECT(p.caustics.on && strstr(p.caustics.reason, "forced"));
@@ -449,9 +449,9 @@ TEST(render_pm_plan_forced) {
     EXPECT_MSG(!p.final_gather.on && strstr(p.final_gather.reason, "no global map"), "%s",
                p.final_gather.reason);
     /* Errors. */
-    EXPECT(plan_cli_set(&s.photon_mapping, "--pm", "caustics", err, sizeof err) == PM_EINVAL);
+    EXPECT(photon_settings_cli_set(&s.photon_mapping, "--pm", "caustics", err, sizeof err) == PM_EINVAL);
     EXPECT_MSG(strstr(err, "expected KEY=VALUE"), "%s", err);
-    ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", "shadow=maybe", err, sizeof err), 0);
+    ASSERT_EQ_INT(photon_settings_cli_set(&s.photon_mapping, "--pm", "shadow=maybe", err, sizeof err), 0);
     EXPECT(photon_settings_parse(&c, s.photon_mapping, &e) < 0);
     EXPECT_MSG(strstr(e.msg, "$.photon_mapping.shadow: expected true or false"), "%s", e.msg);
     scene_free(&s);
@@ -915,7 +915,7 @@ TEST(render_pm_plan_emission) {
         json_err e;
         ASSERT_MSG(load_shipped(&s, cases[k].scene, &e) == 0, "%s", e.msg);
         char err[256];
-        if (cases[k].set) ASSERT_EQ_INT(plan_cli_set(&s.photon_mapping, "--pm", cases[k].set, err, sizeof err), 0);
+        if (cases[k].set) ASSERT_EQ_INT(photon_settings_cli_set(&s.photon_mapping, "--pm", cases[k].set, err, sizeof err), 0);
         photon_settings c;
         ASSERT_MSG(photon_settings_parse(&c, s.photon_mapping, &e) == 0, "%s", e.msg);
         render_plan p;

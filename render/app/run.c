@@ -125,13 +125,13 @@ static int apply_photon_settings(app_run *r) {
         /* A resumed render loads the maps its checkpoint names; they were saved already. */
         if (o->resume && strcmp(o->pm_flag[k], "--save-photons") == 0) continue;
         if (photon_settings_check_cli(o->pm_flag[k], o->pm_value[k], perr, sizeof perr) < 0 ||
-            plan_cli_set(&s->photon_mapping, o->pm_flag[k], o->pm_value[k], perr, sizeof perr) < 0) {
+            photon_settings_cli_set(&s->photon_mapping, o->pm_flag[k], o->pm_value[k], perr, sizeof perr) < 0) {
             fprintf(stderr, "render: %s\n", perr);
             return 2;
         }
     }
     char err_unused[64];
-    if (o->quiet) plan_cli_set(&s->photon_mapping, "--pm", "progress=false", err_unused, sizeof err_unused);
+    if (o->quiet) photon_settings_cli_set(&s->photon_mapping, "--pm", "progress=false", err_unused, sizeof err_unused);
     return APP_GO;
 }
 

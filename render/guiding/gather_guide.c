@@ -316,7 +316,7 @@ static void gg_pick_points(const guide_grid *grid, const guide_point *pts, size_
 static void gg_probe_points(const gather_guide_probe *probe, const scene *s, const guide_grid *grid,
                             const uint64_t *ck, size_t ncell, const guide_point *pts, const size_t *jp, size_t nj,
                             gg_probe *pr, int G, uint64_t stream) {
-    const size_t G2 = (size_t)G * G;
+    const size_t G2 = (size_t)G * (size_t)G;
 #pragma omp parallel for schedule(dynamic, 4)
     for (long j = 0; j < (long)nj; j++) {
         rng g = rng_stream(GG_SEED, jp[j], stream);
@@ -415,7 +415,7 @@ static size_t gg_starved(const gather_guide_probe *probe, const scene *s, const 
     return starved;
 }
 
-int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *why,
+int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *why,
                       const gather_guide_probe *probe, char *err, size_t errcap) {
     gg->on = 0;
     gg->aim = 0;

@@ -25,7 +25,7 @@
  * the surface and carries no cosine-weighted light). tests/test_render_gather_guide.c checks
  * E[f/p] against closed forms (a disc's form factor, on and off its axis and at the horizon).
  *
- * THE PILOT (gather_guide_plan; after the precomputed irradiance; fixed streams, each point its
+ * THE PILOT (gather_guide_make; after the precomputed irradiance; fixed streams, each point its
  * own, so the same for any thread count and on every process): guide_points' camera-path points
  * (first diffuse hits and one cosine bounce), at most GG_CELL_POINTS per cell of side (largest
  * side / GG_RES), at most GG_MAX_JOBS in all, one jittered probe per stratum of GG_G x GG_G over
@@ -108,7 +108,7 @@
  * gather, and in a partitioned render-mpi (the probes would read one process's records).
  *
  * OWNERSHIP AND THREADS. A gather_guide is plain data owned by its caller (the photon mapper's
- * state); it owns no memory today, gather_guide_free only resets it. After gather_guide_plan it
+ * state); it owns no memory today, gather_guide_free only resets it. After gather_guide_make it
  * is read-only: gather_guide_share, _pdf and _direction may be called from any thread.
  */
 #ifndef RENDER_GATHER_GUIDE_H
@@ -167,7 +167,7 @@ void gather_guide_init(gather_guide *gg);
 /* Decide the guide for scene s and find its opening (see THE PILOT, DECISION). force is
  * PLAN_AUTO/ON/OFF (photon_settings.h); off_why, when not NULL, is why the caller cannot use it
  * (the reason then says so and no pilot runs). 0, or PM_ENOMEM with a message in err. */
-int gather_guide_plan(gather_guide *gg, const scene *s, int force, const char *off_why,
+int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *off_why,
                       const gather_guide_probe *probe, char *err, size_t errcap);
 void gather_guide_free(gather_guide *gg);
 

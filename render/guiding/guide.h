@@ -37,7 +37,7 @@
  * probes' values. Every point has its own random stream (seed, point), so the table is the
  * same for any thread count and on every process of a distributed render.
  *
- * THE LIGHT GUIDE (guide_light_plan, light_guide.c; used by the photon mapper's direct light, direct.h):
+ * THE LIGHT GUIDE (guide_light_make, light_guide.c; used by the photon mapper's direct light, direct.h):
  * slots are lights (area and sphere lights; a point or directional light ignores (u1, u2)).
  * Stage A: GUIDE_PATHS camera paths give points (guide_points); at each, GUIDE_PROBES light
  * samples drawn as next-event estimation draws them (light by power, a uniform point) count
@@ -97,7 +97,7 @@
  * every pm render that samples lights) and stage B's (cells x points x lights x G^2 shadow
  * rays, only when on; pinhole_room: 365,568).
  *
- * Ownership: a built guide owns its arrays (guide_free; guide_destroy for a guide_light_plan
+ * Ownership: a built guide owns its arrays (guide_free; guide_destroy for a guide_light_make
  * result). Once built it is read-only: guide_sample and guide_density may be called from any
  * number of threads.
  */
@@ -244,7 +244,7 @@ int guide_learn_jobs_spread(guide *g, const scene *s, const guide_grid *grid, in
  * LIGHT GUIDE's stage A). */
 uint64_t guide_region(uint64_t cell);
 
-/* The light guide's evidence (guide_light_plan). */
+/* The light guide's evidence (guide_light_make). */
 typedef struct guide_light_evidence {
     size_t points;                    /* stage-A points */
     unsigned long long samples;       /* stage-A light samples that would contribute unshadowed */
@@ -263,7 +263,7 @@ typedef struct guide_light_evidence {
  * not an error); guide_light_wanted decides from it (pure); guide_light_learn is stage B (the
  * tables; NULL when it learns nothing or runs out of memory, rc then PM_ENOMEM); guide_light_say
  * writes the decision and its reason from all that (pure; *on = 0 unless the guide learned
- * tables). guide_light_plan below runs them in that order. */
+ * tables). guide_light_make below runs them in that order. */
 typedef struct guide_light_pilot {
     int ran;                /* stage A ran */
     int rc;                 /* 0, or PM_ENOMEM */
@@ -289,7 +289,7 @@ void guide_light_say(int force, const char *skip, const guide_light_pilot *pl, c
  * decision (*on) and its reason (with the evidence) and returns the guide when on (the caller
  * frees it with guide_destroy), else NULL. The same scene gives the same answer on any thread
  * count. ev may be NULL. */
-guide *guide_light_plan(const scene *s, int force, int usable, int *on, char *reason, size_t cap,
+guide *guide_light_make(const scene *s, int force, int usable, int *on, char *reason, size_t cap,
                         guide_light_evidence *ev);
 
 #ifdef __cplusplus

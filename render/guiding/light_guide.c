@@ -95,7 +95,7 @@ static void stage_a(const scene *s, const guide_point *pts, size_t np, uint64_t 
  * GUIDE_PASS_MAX of the unshadowed light), the first GUIDE_CELL_POINTS points of every fine
  * cell, each with the lights stage A saw contribute in the coarse cell. Jobs sorted by (point,
  * light), as guide_learn_jobs wants. Evidence into e. 0 or PM_ENOMEM. */
-static int plan_jobs(const guide_grid *grid, const guide_point *pts, size_t np, const point_a *pa,
+static int guide_jobs(const guide_grid *grid, const guide_point *pts, size_t np, const point_a *pa,
                      guide_light_evidence *e, size_t **jp_out, int **js_out, size_t *nj_out) {
     enum { MAXL = 64 };
     guide_cell_ref *cr = malloc((np ? np : 1) * sizeof *cr);
@@ -235,7 +235,7 @@ void guide_light_pilot_run(const scene *s, guide_light_pilot *pl) {
         return;
     }
     stage_a(s, pl->pts, pl->np, pl->seed, pa);
-    pl->rc = plan_jobs(&pl->grid, pl->pts, pl->np, pa, &pl->e, &pl->jp, &pl->js, &pl->nj);
+    pl->rc = guide_jobs(&pl->grid, pl->pts, pl->np, pa, &pl->e, &pl->jp, &pl->js, &pl->nj);
     free(pa);
 }
 
@@ -320,7 +320,7 @@ void guide_light_say(int force, const char *skip, const guide_light_pilot *pl, c
                  100 * rate);
 }
 
-guide *guide_light_plan(const scene *s, int force, int usable, int *on, char *reason, size_t cap,
+guide *guide_light_make(const scene *s, int force, int usable, int *on, char *reason, size_t cap,
                         guide_light_evidence *ev) {
     guide_light_pilot pl;
     memset(&pl, 0, sizeof pl);

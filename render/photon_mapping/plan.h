@@ -31,7 +31,7 @@
  *                 light, the cells and the coverage. photon_trace builds the same table from
  *                 the same streams, so the pass does what the line says.
  *   light guide  the photon mapper's light samples are guided toward the part of each area
- *                 light a pilot saw pass (guide.h, guide_light_plan) when light samples are
+ *                 light a pilot saw pass (guide.h, guide_light_make) when light samples are
  *                 mostly blocked where the camera looks (light through an opening); the line
  *                 gives the pilot's points, pass rate, regions, probes and tables.
  * In a scene with media (or null surfaces) every decision comes from volume.h's pilot (the

@@ -71,7 +71,7 @@ int pm__decide_sample(mapper_state *st, const scene *s, char *err, size_t errcap
                           : pm__lookup   ? "partitioned render-mpi: its probes would read one process's records"
                                        : NULL;
         gather_guide_probe probe = {st, pm__gg_found, pm__gg_read, s->nports > 0 || st->plan.found.n > 0};
-        if ((rc = gather_guide_plan(&st->gg, s, st->cfg.force_gather_guide, why, &probe, err, errcap)) < 0)
+        if ((rc = gather_guide_make(&st->gg, s, st->cfg.force_gather_guide, why, &probe, err, errcap)) < 0)
             return rc;
     }
     stats_time_add("Time/Gather guide pilot", stats_now() - t0);

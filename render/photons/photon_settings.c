@@ -373,7 +373,7 @@ void photon_settings_print(FILE *f, int markdown) {
 
 /* ---- command line ------------------------------------------------------------------------ */
 
-int plan_cli_set(cJSON **pm, const char *flag, const char *value, char *err, size_t errcap) {
+int photon_settings_cli_set(cJSON **pm, const char *flag, const char *value, char *err, size_t errcap) {
     char key[64];
     const char *val;
     if (strcmp(flag, "--save-photons") == 0 || strcmp(flag, "--load-photons") == 0) {
@@ -421,7 +421,7 @@ int plan_cli_set(cJSON **pm, const char *flag, const char *value, char *err, siz
 
 int photon_settings_check_cli(const char *flag, const char *value, char *err, size_t errcap) {
     cJSON *one = NULL;
-    int rc = plan_cli_set(&one, flag, value, err, errcap);
+    int rc = photon_settings_cli_set(&one, flag, value, err, errcap);
     if (rc == 0) {
         photon_settings c;
         json_err e;

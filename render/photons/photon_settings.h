@@ -2,7 +2,7 @@
  *
  * photon_settings holds every parameter of photon mapping, read from "$.photon_mapping"
  * with the json.h getters (errors name the JSON path and make `render` exit with status 2). The
- * command line sets the same keys: plan_cli_set() applies `--pm KEY=VALUE`,
+ * command line sets the same keys: photon_settings_cli_set() applies `--pm KEY=VALUE`,
  * `--save-photons DIR` and `--load-photons DIR` to the scene's photon_mapping object before
  * the integrator reads it, so a flag and the file can never disagree about names.
  *
@@ -76,8 +76,8 @@ void photon_settings_print(FILE *f, int markdown);
 /* Apply a command-line option to the scene's photon_mapping object (created if NULL):
  * flag "--pm" with value "KEY=VALUE" (VALUE a number, true/false or a string), or
  * "--save-photons"/"--load-photons" with a directory. 0, or PM_EINVAL with a message. */
-int plan_cli_set(cJSON **pm, const char *flag, const char *value, char *err, size_t errcap);
-/* Check one command-line option as plan_cli_set would apply it (its key, type and range),
+int photon_settings_cli_set(cJSON **pm, const char *flag, const char *value, char *err, size_t errcap);
+/* Check one command-line option as photon_settings_cli_set would apply it (its key, type and range),
  * without a scene: 0, or PM_EINVAL with a message that names the option, not a JSON path
  * ("--pm global_photon: unknown key (did you mean "global_photons"?)"). */
 int photon_settings_check_cli(const char *flag, const char *value, char *err, size_t errcap);

@@ -475,7 +475,7 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
         } else {
             if (!save) {
                 snprintf(ci->photons, sizeof ci->photons, "%s.photons", ckpt_path);
-                if (g_writer && plan_cli_set(&s->photon_mapping, "--save-photons", ci->photons, msg,
+                if (g_writer && photon_settings_cli_set(&s->photon_mapping, "--save-photons", ci->photons, msg,
                                          sizeof msg) < 0) {
                     fprintf(stderr, "render: %s\n", msg);
                     return 2;
@@ -537,7 +537,7 @@ int checkpoint_setup(scene *s, const char *scene_path, int argc, char **argv, co
             fprintf(stderr, "render: --resume %s: the photon maps in %s are missing or changed since "
                     "the checkpoint\n", resume, old->photons[0] ? old->photons : "(none)");
             status = 2;
-        } else if (plan_cli_set(&s->photon_mapping, "--load-photons", old->photons, msg,
+        } else if (photon_settings_cli_set(&s->photon_mapping, "--load-photons", old->photons, msg,
                                         sizeof msg) < 0) {
             fprintf(stderr, "render: %s\n", msg);
             status = 2;
