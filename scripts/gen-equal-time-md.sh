@@ -58,6 +58,7 @@ for f in runs.csv calib.csv measurement.txt; do
   [ -f "$dir/$f" ] || { echo "gen-equal-time-md: $dir/$f missing: run scripts/make-equal-time.sh" >&2; exit 2; }
 done
 m() { awk -v k="$1" '$1 == k { sub(/^[^ ]+ /, ""); print; exit }' "$dir/measurement.txt"; }
+. "$here/scripts/measured-table.sh"
 scenes=$(awk -F, 'NR > 1 && !seen[$1]++ { printf "%s ", $1 }' "$dir/runs.csv")
 ratios=$(mktemp)
 trap 'rm -f "$ratios"' EXIT
@@ -74,15 +75,7 @@ echo "count). The renderer's --time budget is wall-clock time, which a shared ma
 echo "budget is met in CPU time by choosing spp from timing runs (path two, pm three: its photons grow with spp); the runs are compared by the CPU"
 echo "time they really took."
 echo
-echo "Measured sources (stamp $(m commit | cut -d' ' -f1)): \`photonmap/\` \`render/\` \`Makefile\`"
-echo
-echo "| | |"
-echo "|---|---|"
-echo "| commit | $(m commit) |"
-echo "| date | $(m date) |"
-echo "| machine | $(m machine) |"
-echo "| load during the run | $(m load) |"
-for s in $scenes; do echo "| reference $s | path tracing, $(m "ref_$s") |"; done
+measured_table "$dir" "$scenes"
 echo
 echo "The reference is a path tracer too: its noise (c / N_ref) is taken out of every run's mean"
 echo "squared error, with c fitted from the path-traced runs (corrected RMSE). Path tracing's CPU time for"

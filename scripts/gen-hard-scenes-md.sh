@@ -26,6 +26,7 @@ for f in runs.csv measurement.txt; do
   [ -f "$dir/$f" ] || { echo "gen-hard-scenes-md: $dir/$f missing: run scripts/make-hard-scenes.sh" >&2; exit 2; }
 done
 m() { awk -v k="$1" '$1 == k { sub(/^[^ ]+ /, ""); print; exit }' "$dir/measurement.txt"; }
+. "$here/scripts/measured-table.sh"
 scenes=$(awk -F, 'NR > 1 && !seen[$1]++ { printf "%s ", $1 }' "$dir/runs.csv")
 summary=$(mktemp)
 trap 'rm -f "$summary"' EXIT
@@ -42,15 +43,7 @@ echo "$(m threads) threads, seeds 1 and 2. Error: the mean squared error of RGB 
 echo "reference (\`render --compare\`, rmse squared), less the reference's own noise. Time: CPU seconds of the"
 echo "whole process (user + sys: the plan's probe and pilots and the photon passes count)."
 echo
-echo "Measured sources (stamp $(m commit | cut -d' ' -f1)): \`photonmap/\` \`render/\` \`Makefile\`"
-echo
-echo "| | |"
-echo "|---|---|"
-echo "| commit | $(m commit) |"
-echo "| date | $(m date) |"
-echo "| machine | $(m machine) |"
-echo "| load during the run | $(m load) |"
-for s in $scenes; do echo "| reference $s | path tracing, $(m "ref_$s") |"; done
+measured_table "$dir" "$scenes"
 echo
 echo "Equal time: path tracing is unbiased, so its squared error at a photon-mapping run's CPU time is"
 echo "c k / CPU (c its variance constant, fitted from its own runs against the reference, k its CPU-s per"
