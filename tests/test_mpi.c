@@ -15,6 +15,7 @@
 #include "test.h"
 #include "../photonmap/common.h"
 #include "../render/photons/photon_trace.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 #include "../render/photons/volume.h"
 

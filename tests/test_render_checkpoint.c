@@ -21,6 +21,7 @@
 #include "../render/integrators/integrator.h"
 #include "../render/base/output.h"
 #include "../render/run/renderer.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 #include "test_render_run.h"
 

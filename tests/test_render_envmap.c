@@ -27,6 +27,7 @@
 #include "../render/integrators/integrator.h"
 #include "../render/load/pbrt.h"
 #include "../render/scene/envmap.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
 /* An 8 x 8 PFM (little-endian), row r (from the top) of colour rows[r], at dir/name. */

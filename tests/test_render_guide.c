@@ -20,6 +20,7 @@
 #include "../render/guiding/guide.h"
 #include "../render/photons/photon_settings.h"
 #include "../render/base/rng.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
 #ifdef _OPENMP

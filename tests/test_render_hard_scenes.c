@@ -64,6 +64,7 @@
 #include "../render/image/film.h"
 #include "../render/photon_mapping/plan.h"
 #include "../render/photons/ports.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
 static const char *const k_hard[] = {"sun_window", "lamp_shade", "sun_window_fog"};

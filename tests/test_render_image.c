@@ -15,6 +15,7 @@
 #include "../render/image/film.h"
 #include "../render/integrators/integrator.h"
 #include "../render/run/renderer.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 #include "../render/base/stats.h"
 

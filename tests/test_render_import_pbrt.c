@@ -18,6 +18,7 @@
 #include "test.h"
 #include "image/film.h"
 #include "load/pbrt.h"
+#include "load/scene_load.h"
 #include "scene/scene.h"
 
 static int write_text(const char *path, const char *text) {

@@ -7,6 +7,7 @@
  */
 #include "test.h"
 #include "../render/base/rng.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
 TEST(render_light_area_emission_moments) {

@@ -18,6 +18,7 @@
 
 #include "photonmap/mapfile.h"
 #include "render/photons/photon_maps.h"
+#include "render/load/scene_load.h"
 #include "render/scene/scene.h"
 #include "render/scene/scene_hash.h"
 #include "test.h"

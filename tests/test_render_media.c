@@ -22,6 +22,7 @@
 #include "../render/scene/medium.h"
 #include "../render/photon_mapping/plan.h"
 #include "../render/photon_mapping/pm_volume.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 #include "../render/photons/volume.h"
 

@@ -36,6 +36,7 @@
 #include "../render/photons/photon_settings.h"
 #include "../render/photon_mapping/pm_volume.h"
 #include "../render/base/rng.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 #include "../render/photons/volume.h"
 

@@ -32,6 +32,7 @@
 #include "../render/photons/photon_settings.h"
 #include "../render/photon_mapping/plan.h"
 #include "../render/photons/projmap.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 #include "../render/base/stats.h"
 

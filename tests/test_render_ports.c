@@ -42,6 +42,7 @@
 #include "../render/photons/photon_maps.h"
 #include "../render/photons/photon_trace.h"
 #include "../render/photons/ports.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 #include "../render/scene/scene_hash.h"
 

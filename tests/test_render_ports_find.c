@@ -26,6 +26,7 @@
 #include "../render/image/film.h"
 #include "../render/photon_mapping/plan.h"
 #include "../render/photons/ports.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
 /* Wall-clock seconds, for the printed cost of the probe (not checked: speed is for benchmarks). */

@@ -29,6 +29,7 @@
 #include "../photonmap/photon.h"
 #include "../render/photons/ports.h"
 #include "../render/photons/volume.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
 /* The box of dust: a closed null mesh, x and z from -50 to 50, y from 0 to 90, outward faces. */

@@ -15,6 +15,7 @@
 #include "render/scene/delta_lit.h"
 #include "render/photons/photon_maps.h"
 #include "render/photons/photon_trace.h"
+#include "render/load/scene_load.h"
 #include "render/scene/scene.h"
 #include "test.h"
 #include "test_render_run.h"

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include "test.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
 #define CAM "\"camera\": {\"eye\": [0,0,-5], \"look_at\": [0,0,0], \"fov_deg\": 40, \"width\": 8, \"height\": 8, \"spp\": 1}"

@@ -17,6 +17,7 @@
 #include "test.h"
 #include "../render/photons/photon_maps.h"
 #include "../render/photon_mapping/photon_sides.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
 typedef struct { uint64_t s; } srng;

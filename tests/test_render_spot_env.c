@@ -28,6 +28,7 @@
 #include "../render/base/rng.h"
 #include "../render/integrators/integrator.h"
 #include "../render/load/pbrt.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
 /* The falloff as the books write it, for the oracle integrals. */

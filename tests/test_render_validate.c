@@ -17,6 +17,7 @@
 #include "test.h"
 #include "../render/image/film.h"
 #include "../render/photons/photon_trace.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
 /* A small closed box (floor, ceiling, walls; open front) with an area light in its

@@ -18,6 +18,7 @@
 #include "base/output.h"
 #include "base/stats.h"
 #include "image/exr.h"
+#include "load/scene_load.h"
 #include "photonmap/common.h"
 #include "photons/photon_settings.h"
 #include "scene/delta_lit.h"

@@ -22,6 +22,7 @@
 #include "image/film.h"
 #include "integrators/integrator.h"
 #include "load/import.h"
+#include "load/scene_load.h"
 #include "scene/scene.h"
 
 /* 1 if name is a mode of integrator.h's registry (read from integrator_list's lines: four

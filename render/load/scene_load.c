@@ -1,4 +1,4 @@
-/* scene_load.c: the JSON scene loader (format: data/scenes/README.md); see scene.h.
+/* scene_load.c: the JSON scene loader (format: data/scenes/README.md); see scene_load.h.
  *
  * Loading is one pass over the document with the json.h getters. Each check reports the
  * JSON path of the offending field. Arrays grow with a small push helper; on any error the
@@ -14,6 +14,7 @@
 
 #include "photonmap/common.h"
 #include "load/import.h"
+#include "load/scene_load.h"
 #include "photons/photon_settings.h"
 
 /* Append one element of size sz to *arr (count *n, capacity *cap). */

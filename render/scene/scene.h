@@ -1,20 +1,19 @@
 /* scene.h: the scene: camera, materials, shapes, lights, settings, and its accelerator.
  *
- * Data flow: scene_load() (scene_load.c) parses a JSON scene file (format:
- * data/scenes/README.md), checks every field and turns quads and meshes into triangles;
- * scene_prepare() (scene.c) then makes one area light per emissive triangle and builds the
- * BVH. After that the scene is immutable, and scene_intersect() / scene_visible() may be
- * called from any number of threads.
+ * Data flow: scene_load() (a later stage, load/scene_load.h) parses a JSON scene file
+ * (format: data/scenes/README.md), checks every field and turns quads and meshes into
+ * triangles; scene_prepare() (scene.c) then makes one area light per emissive triangle and
+ * builds the BVH. After that the scene is immutable, and scene_intersect() / scene_visible()
+ * may be called from any number of threads.
  *
- * Errors: scene_load returns a negative PM_E* code and a message in json_err: the line and
- * column of a syntax error, or the JSON path of a missing, mistyped or invalid field
- * ("$.objects[3].radius: must be positive, got -1"). main.c prints it and exits with 2.
+ * Errors: a negative PM_E* code and a message in json_err (the loader's: load/scene_load.h).
  *
- * Extensions: the "photon_mapping" object of the file is checked here against the settings
- * table (photon_settings_parse: known keys, types, ranges), not otherwise interpreted; a copy
- * is kept in scene.photon_mapping (NULL when absent) for the photon-mapping code to read with
- * the json.h getters (its path is "$.photon_mapping"). A key the format does not know is an
- * error anywhere in the file (json_check_keys), with the nearest known key.
+ * Extensions: the "photon_mapping" object of the file is checked by the loader against the
+ * settings table (photon_settings_parse: known keys, types, ranges), not otherwise
+ * interpreted; a copy is kept in scene.photon_mapping (NULL when absent) for the
+ * photon-mapping code to read with the json.h getters (its path is "$.photon_mapping"). A
+ * key the format does not know is an error anywhere in the file (json_check_keys), with the
+ * nearest known key.
  *
  * Ranges: numbers that would break the arithmetic are refused with the supported range in
  * the message. Lengths (every coordinate, radius, the scene's size) are within
@@ -141,11 +140,6 @@ typedef struct hit {
     double u, v;       /* triangle barycentrics */
 } hit;
 
-int scene_load(scene *s, const char *filename, json_err *e);
-/* The same from a JSON text (for tests). */
-int scene_load_text(scene *s, const char *text, json_err *e);
-/* The same from a parsed document (not consumed). */
-int scene_from_json(scene *s, const cJSON *root, json_err *e);
 void scene_free(scene *s);
 /* After the loader has filled the camera, materials, shapes and the point and directional
  * lights: the bounds and bounding sphere, one light per emissive triangle or sphere, every
