@@ -12,8 +12,11 @@
 #   make run             photon mapping of cornell_spheres to out/ (45 s; SCENE=, RUNFLAGS=)
 #   make bench           run the full benchmarks, write bench/results/*.csv, plots and docs
 #   make bench-quick     a small benchmark subset (also run by the test suite)
-#   make results         path-traced references (if missing, ~45 min) and docs/RESULTS.md (~20 min;
-#                        its media section from the committed data/reference-media/, ~3 min)
+#   make results         docs/RESULTS.md: the path-traced references when missing (128x128,
+#                        make-reference.sh, ~8 min on 2 cores; and the equal-time section's
+#                        96x96 ones), then make-equal-time.sh, make-results.sh (~8.5 min on 2
+#                        shared cores) and media-results.sh (the committed data/reference-media/);
+#                        README.md's paragraph "How it compares with path-traced references"
 #   make deps            install the missing Debian packages (scripts/install-deps.sh)
 #   make install PREFIX=/usr/local DESTDIR=
 #                        headers, libphotonmap.a, libphotonmap.so.2, photonmap.pc, bin/render
@@ -296,7 +299,8 @@ bench-quick: $(BENCH_DEPS)
 # Photon mapping against long path-traced references (data/reference/, not in git).
 # First photon mapping at its defaults against path tracing at equal CPU time (make-equal-time.sh;
 # 96x96 references of its scenes made in data/reference/et96/ when missing), then the
-# correctness and time-to-error sections at 256x256 (make-results.sh) and the media section.
+# correctness and time-to-error sections at the references' size, 128x128 (make-results.sh;
+# references made in data/reference/ when missing), and the media section (media-results.sh).
 ET_SCENES ?= cornell_box cornell_spheres water_caustic
 results: $(RENDER_BIN)
 	@command -v gnuplot >/dev/null 2>&1 || sh scripts/install-deps.sh --bench
