@@ -82,18 +82,6 @@ int mesh_load(const char *path, mesh_data *m, char *err, size_t cap) {
     return rc;
 }
 
-void mesh_free(mesh_data *m) {
-    free(m->pos);
-    free(m->nrm);
-    free(m->tri);
-    free(m->tri_n);
-    free(m->tri_group);
-    for (int g = 0; g < m->ngroups; g++) free(m->groups[g]);
-    free(m->groups);
-    free(m->corner_n);
-    memset(m, 0, sizeof *m);
-}
-
 /* |v| without squaring: no underflow for tiny vectors (1e-160 squared is 0 in a double), no
  * overflow for huge ones. */
 static double len_scaled(vec3 v) {

@@ -1,7 +1,7 @@
 /* mesh.h: triangle meshes read from files (Wavefront OBJ, Tungsten's binary wo3, PLY), placed in the
  * scene by a transform, with flat or smooth shading normals.
  *
- * A reader (obj.h, wo3.h) fills a mesh_data in the file's own coordinates: positions, optional
+ * A reader (obj.h, ply.h, wo3.h) fills a mesh_data (mesh_data.h) in the file's own coordinates: positions, optional
  * normals, and triangles that index them. Faces are checked while reading, so every error names
  * the place in the file ("bunny.obj:12: vertex index 99 out of range (1..98)", "water.wo3: byte
  * 1032: ..."): a truncated file, an index out of range, a NaN or infinite number and an empty
@@ -21,8 +21,9 @@
  * turned to the front side of their triangle's geometric normal; they only shade, never
  * decide a side (scene.h).
  *
- * Ownership: the mesh_data owns its arrays; mesh_free() releases them (a zeroed one may be
- * freed). Nothing here keeps state; errors go to the caller's buffer.
+ * The mesh_data and mesh_free() are mesh_data.h's: the readers need them and nothing else of
+ * this file, so they do not depend on the dispatch that calls them. Nothing here keeps state;
+ * errors go to the caller's buffer.
  */
 #ifndef RENDER_MESH_H
 #define RENDER_MESH_H
@@ -30,6 +31,7 @@
 #include <stddef.h>
 
 #include "base/vec.h"
+#include "load/mesh_data.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -38,26 +40,10 @@ extern "C" {
 /* Smooth normals are not averaged across edges sharper than this (degrees). */
 #define MESH_CREASE_DEG 30.0
 
-typedef struct mesh_data {
-    vec3 *pos;
-    int npos;
-    vec3 *nrm; /* normals of the file (OBJ vn, wo3 vertex normals), NULL if none */
-    int nnrm;
-    int (*tri)[3];   /* position indices of each triangle, 0-based */
-    int (*tri_n)[3]; /* normal indices per corner, -1 where the face gave none; NULL if none */
-    int *tri_group;  /* OBJ: index into groups (the usemtl name), -1 before any usemtl */
-    int ntris;
-    char **groups; /* usemtl names in order of first use */
-    int ngroups;
-    vec3 (*corner_n)[3]; /* after mesh_smooth_normals: unit shading normal of each corner */
-    long nskipped;       /* degenerate faces (zero area) the reader left out */
-    char first_skip[64]; /* where the first of them is ("line 12", "byte 1032", "face 7") */
-} mesh_data;
 
 /* Read path as OBJ, wo3 or PLY by its extension. 0, or a negative PM_E* code with a message that
  * starts with the file name in err. */
 int mesh_load(const char *path, mesh_data *m, char *err, size_t cap);
-void mesh_free(mesh_data *m);
 /* Read a whole file into a malloc'd buffer (NUL-terminated; the caller frees it). 0, PM_EIO
  * or PM_ENOMEM with a message naming path. */
 int mesh_read_file(const char *path, char **buf, size_t *len, char *err, size_t cap);

@@ -21,7 +21,7 @@
 
 #include <stddef.h>
 
-#include "load/mesh.h"
+#include "load/mesh_data.h"
 
 #ifdef __cplusplus
 extern "C" {

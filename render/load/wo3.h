@@ -17,7 +17,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "load/mesh.h"
+#include "load/mesh_data.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -15,7 +15,6 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "photons/photon_trace.h"
 #include "photonmap/common.h"
 
 typedef enum {

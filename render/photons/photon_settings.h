@@ -25,6 +25,18 @@
 extern "C" {
 #endif
 
+/* Photons are traced in batches of PT_BATCH (photon_trace.h): max_emitted is at least one. */
+#define PT_BATCH 4096
+/* Budget defaults (photon_trace.h, PASS BUDGETS), sized for a machine of 24 GiB and 2 cores: a
+ * pass may use 8 GiB of photon buffers (48 bytes per photon while tracing: 170 M photons, more
+ * than the largest target the settings allow), emit 2^32 photons (about an hour on 2 cores for
+ * photons that hit something), and follow a photon for 256 bounces (a photon that survives
+ * Russian roulette that long carries at most 0.9^256 = 2e-12 of its power in a scene of
+ * reflectance 0.9: only a lossless scene reaches it). */
+#define PASS_MAX_MEMORY_MB 8192
+#define PASS_MAX_EMITTED 4294967296.0
+#define PASS_MAX_BOUNCES 256
+
 enum { PLAN_AUTO = -1, PLAN_OFF = 0, PLAN_ON = 1 };
 #define PHOTON_SETTINGS_PATH_MAX 512
 enum { CAUSTIC_FILTER_NONE, CAUSTIC_FILTER_CONE, CAUSTIC_FILTER_GAUSS, CAUSTIC_FILTER_HULL };

@@ -132,16 +132,9 @@
 extern "C" {
 #endif
 
-#define PT_BATCH 4096
-/* Budget defaults (PASS BUDGETS above), sized for a machine of 24 GiB and 2 cores: a pass may
- * use 8 GiB of photon buffers (48 bytes per photon while tracing: 170 M photons, more than
- * the largest target the settings allow), emit 2^32 photons (about an hour on 2 cores for
- * photons that hit something), and follow a photon for 256 bounces (a photon that survives
- * Russian roulette that long carries at most 0.9^256 = 2e-12 of its power in a scene of
- * reflectance 0.9: only a lossless scene reaches it). */
-#define PASS_MAX_MEMORY_MB 8192
-#define PASS_MAX_EMITTED 4294967296.0
-#define PASS_MAX_BOUNCES 256
+/* PT_BATCH (photons per batch) and the budget defaults PASS_MAX_MEMORY_MB, PASS_MAX_EMITTED and
+ * PASS_MAX_BOUNCES are photon_settings.h's (the settings' table, a stage below, needs them as
+ * its defaults and ranges); photon_maps.h includes it. */
 /* A pass that stores nothing in this many batches stops with PM_EEMPTY. */
 #define PASS_EMPTY_BATCHES 32
 
