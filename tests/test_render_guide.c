@@ -18,7 +18,7 @@
 #include "../render/integrators/direct.h"
 #include "../render/image/film.h"
 #include "../render/guiding/guide.h"
-#include "../render/photons/photon_settings.h"
+#include "../render/load/photon_settings.h"
 #include "../render/base/rng.h"
 #include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"

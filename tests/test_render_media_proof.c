@@ -33,7 +33,7 @@
 #include "../render/integrators/direct.h"
 #include "../render/image/film.h"
 #include "../render/scene/medium.h"
-#include "../render/photons/photon_settings.h"
+#include "../render/load/photon_settings.h"
 #include "../render/photon_mapping/pm_volume.h"
 #include "../render/base/rng.h"
 #include "../render/load/scene_load.h"

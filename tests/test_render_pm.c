@@ -29,7 +29,7 @@
 #include "../render/image/film.h"
 #include "../render/photons/importance.h"
 #include "../render/photons/photon_trace.h"
-#include "../render/photons/photon_settings.h"
+#include "../render/load/photon_settings.h"
 #include "../render/photon_mapping/plan.h"
 #include "../render/photons/projmap.h"
 #include "../render/load/scene_load.h"

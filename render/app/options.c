@@ -17,7 +17,7 @@
 #include "app/tools.h"
 #include "image/exr.h"
 #include "integrators/integrator.h"
-#include "photons/photon_settings.h"
+#include "load/photon_settings.h"
 
 typedef enum {
     OPT_FLAG,     /* no value: an int field set to 1 */

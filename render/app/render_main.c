@@ -18,7 +18,7 @@
 #include "app/options.h"
 #include "app/run.h"
 #include "app/tools.h"
-#include "photons/photon_settings.h"
+#include "load/photon_settings.h"
 #include "run/checkpoint.h"
 #include "run/renderer.h"
 

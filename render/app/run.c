@@ -20,7 +20,7 @@
 #include "image/exr.h"
 #include "load/scene_load.h"
 #include "photonmap/common.h"
-#include "photons/photon_settings.h"
+#include "load/photon_settings.h"
 #include "scene/delta_lit.h"
 
 #ifdef _OPENMP

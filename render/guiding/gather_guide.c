@@ -14,7 +14,7 @@
 
 #include "photonmap/common.h"
 #include "scene/material.h"
-#include "photons/photon_settings.h"
+#include "load/photon_settings.h"
 #include "base/sampling.h"
 #include "base/stats.h"
 

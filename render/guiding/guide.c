@@ -18,7 +18,7 @@
 #include "scene/light.h"
 #include "scene/material.h"
 #include "scene/medium.h"
-#include "photons/photon_settings.h"
+#include "load/photon_settings.h"
 #include "base/sampling.h"
 #include "base/stats.h"
 

@@ -15,7 +15,7 @@
 #include "photonmap/common.h"
 #include "load/import.h"
 #include "load/scene_load.h"
-#include "photons/photon_settings.h"
+#include "load/photon_settings.h"
 
 /* Append one element of size sz to *arr (count *n, capacity *cap). */
 int sl_push(void **arr, int *n, int *cap, size_t sz, const void *elem) {

@@ -59,7 +59,7 @@
 
 #include "base/json.h"
 #include "guiding/guide.h"
-#include "photons/photon_settings.h"
+#include "load/photon_settings.h"
 #include "photons/photon_trace.h"
 #include "photons/ports.h"
 #include "photons/volume.h"

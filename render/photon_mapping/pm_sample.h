@@ -16,7 +16,7 @@
 
 #include "base/rng.h"
 #include "base/vec.h"
-#include "photons/photon_settings.h"
+#include "load/photon_settings.h"
 #include "scene/scene.h"
 
 #ifdef __cplusplus

@@ -125,7 +125,7 @@
 #include <stddef.h>
 
 #include "photons/photon_maps.h"
-#include "photons/photon_settings.h"
+#include "load/photon_settings.h"
 #include "photonmap/kdtree.h"
 #include "photon_mapping/plan.h"
 #include "base/rng.h"

@@ -95,7 +95,7 @@
 
 #include "photonmap/kdtree.h"
 #include "photonmap/photon.h"
-#include "photons/photon_settings.h"
+#include "load/photon_settings.h"
 #include "scene/scene.h"
 
 #ifdef __cplusplus

@@ -17,7 +17,7 @@
 #include "common.h"
 #include "base/hash.h"
 #include "base/output.h"
-#include "photons/photon_settings.h"
+#include "load/photon_settings.h"
 #include "base/stats.h"
 
 #define MAGIC "PMRCKPT\n"

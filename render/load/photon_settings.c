@@ -7,7 +7,7 @@
  * once. Numbers are kept as doubles in the table; every integer default and bound is exact
  * in a double.
  */
-#include "photons/photon_settings.h"
+#include "load/photon_settings.h"
 
 #include <errno.h>
 #include <math.h>
