@@ -345,32 +345,11 @@ static void place_subtree(const pm_kdtree *t, uint32_t *order, uint8_t *ax, uint
     }
 }
 
-int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_config *cfg,
-                    uint32_t *perm) {
-    if (!out) return PM_EINVAL;
-    *out = NULL;
-    if (!cfg || (n > 0 && !records) || !config_ok(cfg, records)) return PM_EINVAL;
-    if (n >= 0xFFFFFFFFu) return PM_ERANGE;
-
-    pm_kdtree *t = calloc(1, sizeof *t);
-    /* The work array is later reused to gather the records in tree order. */
-    size_t wsz = cfg->stride > sizeof(item) ? cfg->stride : sizeof(item);
-    item *w = malloc((n ? n : 1) * wsz);
-    uint32_t *order = malloc((n ? n : 1) * sizeof *order);
-    uint8_t *ax = NULL;
-    if (!t || !w || !order) goto nomem;
-
-    t->rec = records;
-    t->stride = cfg->stride;
-    t->pos_offset = cfg->pos_offset;
-    t->axis_offset = cfg->axis_offset;
-    t->bucket = cfg->bucket;
-    /* The tree owns bits 4-7 of the axis byte in its own array and in pm_photon's flag. */
-    t->tight = cfg->axis_offset < 0 ||
-               (cfg->stride == 20 && cfg->pos_offset == 0 && cfg->axis_offset == 18);
-
-    /* Finite records to the work array; non-finite ones to the tail, in original order. */
-    char *base = records;
+/* pm_kdtree_build's first step: the finite records of base[0..n) to the work array w (their
+ * positions and indices; their bounds into t->lo and t->hi), the non-finite ones to the tail of
+ * order, in original order; t->n and t->dropped. Returns the number of finite records. */
+static size_t gather_finite(pm_kdtree *t, const char *base, size_t n, const pm_kdtree_config *cfg,
+                            item *w, uint32_t *order) {
     size_t m = 0, nd = 0;
     for (size_t i = 0; i < n; i++) {
         const float *p = (const float *)(base + i * cfg->stride + cfg->pos_offset);
@@ -395,19 +374,47 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
     }
     t->n = (uint32_t)m;
     t->dropped = (uint32_t)nd;
+    return m;
+}
 
-    /* Shape: smallest D with m + 1 <= (B + 1) * 2^D. */
-    int D = 0;
-    while ((uint64_t)m + 1 > ((uint64_t)cfg->bucket + 1) << D) D++;
-    t->depth = (uint32_t)D;
-    t->nleaves = (uint32_t)1 << D;
-    t->ninternal = t->nleaves - 1;
-    t->leaf_q = (uint32_t)((m - t->ninternal) / t->nleaves);
-    t->leaf_extra = (uint32_t)((m - t->ninternal) % t->nleaves);
+/* The tight bounding box of w[lo..hi) (lo < hi) into mn and mx; 1 when one of the records
+ * is at (pm0, pm1, pm2), a copy of the parent's split record. */
+static inline int node_box(const item *w, size_t lo, size_t hi, float pm0, float pm1, float pm2,
+                           float mn[3], float mx[3]) {
+    int dup = 0;
+#if defined(__SSE2__)
+    { /* an item is one vector (x, y, z, index bits); lane 3 is ignored */
+        __m128 vmn = _mm_loadu_ps(w[lo].p), vmx = vmn;
+        const __m128 vpm = _mm_setr_ps(pm0, pm1, pm2, 0.0f);
+        for (size_t i = lo; i < hi; i++) {
+            const __m128 v = _mm_loadu_ps(w[i].p);
+            vmn = _mm_min_ps(v, vmn); /* v < vmn ? v : vmn, as the scalar loop below */
+            vmx = _mm_max_ps(v, vmx);
+            dup |= (_mm_movemask_ps(_mm_cmpeq_ps(v, vpm)) & 7) == 7;
+        }
+        float t4[4];
+        _mm_storeu_ps(t4, vmn);
+        mn[0] = t4[0], mn[1] = t4[1], mn[2] = t4[2];
+        _mm_storeu_ps(t4, vmx);
+        mx[0] = t4[0], mx[1] = t4[1], mx[2] = t4[2];
+    }
+#else
+    for (int a = 0; a < 3; a++) mn[a] = mx[a] = w[lo].p[a];
+    for (size_t i = lo; i < hi; i++) {
+        float x = w[i].p[0], y = w[i].p[1], z = w[i].p[2];
+        mn[0] = x < mn[0] ? x : mn[0], mx[0] = x > mx[0] ? x : mx[0];
+        mn[1] = y < mn[1] ? y : mn[1], mx[1] = y > mx[1] ? y : mx[1];
+        mn[2] = z < mn[2] ? z : mn[2], mx[2] = z > mx[2] ? z : mx[2];
+        dup |= (x == pm0) & (y == pm1) & (z == pm2);
+    }
+#endif
+    return dup;
+}
 
-    ax = malloc(t->ninternal ? t->ninternal : 1);
-    if (!ax) goto nomem;
-
+/* pm_kdtree_build's walk over the nodes: each internal node's split record (order) and axis
+ * byte (ax: axis, or uniform, and the tightening code), each bucket's records placed; w[0..m)
+ * is the work array of finite records, reordered as it goes. */
+static void build_nodes(pm_kdtree *t, item *w, size_t m, uint32_t *order, uint8_t *ax) {
     /* Depth-first walk with an explicit stack: (node, range, level, parent's split). */
     struct {
         uint64_t p;
@@ -440,33 +447,7 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
         }
         /* Tight bounding box, and whether this node holds copies of its parent's split. */
         float mn[3], mx[3];
-        int dup = 0;
-#if defined(__SSE2__)
-        { /* an item is one vector (x, y, z, index bits); lane 3 is ignored */
-            __m128 vmn = _mm_loadu_ps(w[lo].p), vmx = vmn;
-            const __m128 vpm = _mm_setr_ps(pm0, pm1, pm2, 0.0f);
-            for (size_t i = lo; i < hi; i++) {
-                const __m128 v = _mm_loadu_ps(w[i].p);
-                vmn = _mm_min_ps(v, vmn); /* v < vmn ? v : vmn, as the scalar loop below */
-                vmx = _mm_max_ps(v, vmx);
-                dup |= (_mm_movemask_ps(_mm_cmpeq_ps(v, vpm)) & 7) == 7;
-            }
-            float t4[4];
-            _mm_storeu_ps(t4, vmn);
-            mn[0] = t4[0], mn[1] = t4[1], mn[2] = t4[2];
-            _mm_storeu_ps(t4, vmx);
-            mx[0] = t4[0], mx[1] = t4[1], mx[2] = t4[2];
-        }
-#else
-        for (int a = 0; a < 3; a++) mn[a] = mx[a] = w[lo].p[a];
-        for (size_t i = lo; i < hi; i++) {
-            float x = w[i].p[0], y = w[i].p[1], z = w[i].p[2];
-            mn[0] = x < mn[0] ? x : mn[0], mx[0] = x > mx[0] ? x : mx[0];
-            mn[1] = y < mn[1] ? y : mn[1], mx[1] = y > mx[1] ? y : mx[1];
-            mn[2] = z < mn[2] ? z : mn[2], mx[2] = z > mx[2] ? z : mx[2];
-            dup |= (x == pm0) & (y == pm1) & (z == pm2);
-        }
-#endif
+        int dup = node_box(w, lo, hi, pm0, pm1, pm2, mn, mx);
         float ext[3] = {mx[0] - mn[0], mx[1] - mn[1], mx[2] - mn[2]};
         unsigned code = t->tight ? choose_code(clo, chi, mn, mx) : 0;
         pm__tighten(clo, chi, code);
@@ -501,34 +482,88 @@ int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_co
             sp++;
         }
     }
-    /* Gather the records in tree order into the work array's memory (sized for this), with
-     * the random reads prefetched well ahead, then copy them back in one sweep. */
-    {
-        char *dst = (char *)w;
-        const size_t S = cfg->stride, ahead = 16;
-        for (size_t i = 0; i < n; i++) {
-            if (i + ahead < n) __builtin_prefetch(base + (size_t)order[i + ahead] * S);
-            if (S == 20) /* pm_photon: a fixed-size copy the compiler inlines */
-                memcpy(dst + i * 20, base + (size_t)order[i] * 20, 20);
-            else
-                memcpy(dst + i * S, base + (size_t)order[i] * S, S);
-        }
-        if (n > 0) memcpy(base, dst, n * S);
+}
+
+/* The records of base[0..n) (stride S) into tree order (slot i gets the record order[i]) through
+ * dst (room for n records), with the random reads prefetched well ahead, then copied back in
+ * one sweep. */
+static void records_to_tree_order(char *base, char *dst, const uint32_t *order, size_t n, size_t S) {
+    const size_t ahead = 16;
+    for (size_t i = 0; i < n; i++) {
+        if (i + ahead < n) __builtin_prefetch(base + (size_t)order[i + ahead] * S);
+        if (S == 20) /* pm_photon: a fixed-size copy the compiler inlines */
+            memcpy(dst + i * 20, base + (size_t)order[i] * 20, 20);
+        else
+            memcpy(dst + i * S, base + (size_t)order[i] * S, S);
     }
+    if (n > 0) memcpy(base, dst, n * S);
+}
+
+/* The axis bytes ax of the internal nodes written into the records' axis bytes (cfg->axis_offset
+ * >= 0). */
+static void write_axis_bits(const pm_kdtree *t, char *base, size_t m, const pm_kdtree_config *cfg,
+                            const uint8_t *ax) {
+    /* Axis bits in the records: internal nodes get their axis (or 3, uniform), and their
+     * tightening code when the tree owns bits 4-7 too; bucket records get 0 there. The
+     * byte's other bits are preserved. */
+    unsigned own = t->tight ? PM__AXIS_MASK | PM__CODE_MAX << PM__CODE_SHIFT : PM__AXIS_MASK;
+    for (size_t i = 0; i < m; i++) {
+        uint8_t *b = (uint8_t *)base + i * cfg->stride + cfg->axis_offset;
+        unsigned v = i < t->ninternal ? ax[i] & own : 0;
+        *b = (uint8_t)((*b & ~own) | v);
+    }
+}
+
+int pm_kdtree_build(pm_kdtree **out, void *records, size_t n, const pm_kdtree_config *cfg,
+                    uint32_t *perm) {
+    if (!out) return PM_EINVAL;
+    *out = NULL;
+    if (!cfg || (n > 0 && !records) || !config_ok(cfg, records)) return PM_EINVAL;
+    if (n >= 0xFFFFFFFFu) return PM_ERANGE;
+
+    pm_kdtree *t = calloc(1, sizeof *t);
+    /* The work array is later reused to gather the records in tree order. */
+    size_t wsz = cfg->stride > sizeof(item) ? cfg->stride : sizeof(item);
+    item *w = malloc((n ? n : 1) * wsz);
+    uint32_t *order = malloc((n ? n : 1) * sizeof *order);
+    uint8_t *ax = NULL;
+    if (!t || !w || !order) goto nomem;
+
+    t->rec = records;
+    t->stride = cfg->stride;
+    t->pos_offset = cfg->pos_offset;
+    t->axis_offset = cfg->axis_offset;
+    t->bucket = cfg->bucket;
+    /* The tree owns bits 4-7 of the axis byte in its own array and in pm_photon's flag. */
+    t->tight = cfg->axis_offset < 0 ||
+               (cfg->stride == 20 && cfg->pos_offset == 0 && cfg->axis_offset == 18);
+
+    /* Finite records to the work array; non-finite ones to the tail, in original order. */
+    char *base = records;
+    size_t m = gather_finite(t, base, n, cfg, w, order);
+
+    /* Shape: smallest D with m + 1 <= (B + 1) * 2^D. */
+    int D = 0;
+    while ((uint64_t)m + 1 > ((uint64_t)cfg->bucket + 1) << D) D++;
+    t->depth = (uint32_t)D;
+    t->nleaves = (uint32_t)1 << D;
+    t->ninternal = t->nleaves - 1;
+    t->leaf_q = (uint32_t)((m - t->ninternal) / t->nleaves);
+    t->leaf_extra = (uint32_t)((m - t->ninternal) % t->nleaves);
+
+    ax = malloc(t->ninternal ? t->ninternal : 1);
+    if (!ax) goto nomem;
+
+    build_nodes(t, w, m, order, ax);
+    /* Gather the records in tree order into the work array's memory (sized for this). */
+    records_to_tree_order(base, (char *)w, order, n, cfg->stride);
     free(w);
     w = NULL;
     if (perm) memcpy(perm, order, n * sizeof *perm);
 
     if (cfg->axis_offset >= 0) {
-        /* Axis bits in the records: internal nodes get their axis (or 3, uniform), and their
-         * tightening code when the tree owns bits 4-7 too; bucket records get 0 there. The
-         * byte's other bits are preserved. */
-        unsigned own = t->tight ? PM__AXIS_MASK | PM__CODE_MAX << PM__CODE_SHIFT : PM__AXIS_MASK;
-        for (size_t i = 0; i < m; i++) {
-            uint8_t *b = (uint8_t *)base + i * cfg->stride + cfg->axis_offset;
-            unsigned v = i < t->ninternal ? ax[i] & own : 0;
-            *b = (uint8_t)((*b & ~own) | v);
-        }
+        /* Axis bits in the records (write_axis_bits); the tree keeps no array of its own. */
+        write_axis_bits(t, base, m, cfg, ax);
         free(ax);
         t->axes = NULL;
     } else {
