@@ -13,7 +13,7 @@
  *    camera in it looking at an emitter outside at 1.5 units of the medium: the radiance is
  *    Le exp(-sigma_a 1.5) per channel (Beer), path within 4 standard errors, pm (marched,
  *    deterministic transmittance) within 0.1%.
- * 3. The Tungsten scene of the issue (data/scenes/gas_room_tungsten.json: a null front quad
+ * 3. The shipped Tungsten scene (data/scenes/gas_room_tungsten.json: a null front quad
  *    with int_medium, walls naming no medium, a glass sphere and the lamp with ext_medium):
  *    the interfaces it converts to, and it renders in path and pm with no inconsistency.
  * 4. Bad interfaces: an open boundary, keeps_medium with a medium, an unknown exterior
@@ -268,9 +268,9 @@ TEST(interfaces_camera_inside_medium_matches_beer) {
     scene_free(&s);
 }
 
-/* ---- 3. the Tungsten scene of the issue ---------------------------------------------------- */
+/* ---- 3. the shipped Tungsten scene, gas_room_tungsten ------------------------------------- */
 
-TEST(interfaces_tungsten_issue_scene_loads_and_renders) {
+TEST(interfaces_tungsten_gas_room_loads_and_renders) {
     char path[2048];
     snprintf(path, sizeof path, "%s/data/scenes/gas_room_tungsten.json", pm_test_source_dir());
     scene s;

@@ -97,7 +97,7 @@ int tg_convert_settings(const char *file, const cJSON *root, cJSON *out, long *s
     int known = strcmp(type, "path_tracer") == 0 || strcmp(type, "photon_map") == 0 ||
                 strcmp(type, "progressive_photon_map") == 0;
     if (!known) {
-        /* An integrator we lack is no reason to refuse the scene (issue 29): the scene is the
+        /* An integrator we lack is no reason to refuse the scene: the scene is the
          * same, only the method differs. Path tracing renders its expected image; --mode or
          * render.mode chooses another. Its own keys are ignored, each named. */
         tg_warn(file, "%s.type: integrator \"%s\" is not supported: rendering with \"path\" (path tracing; "
