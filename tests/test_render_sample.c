@@ -194,40 +194,67 @@ TEST(render_pm_fit_photons_to_the_render) {
 /* Caustics at a stride (pm_sample.h, CAUSTICS AT A STRIDE): for every strata S (1 to 20) and
  * stride c (1 to 5), at every pixel offset, the weights of a pixel's n = S^2 samples sum to n
  * exactly (the old lattice, which chose (S mod c) more columns at some offsets, fails this for
- * S = 4, c = 3: sums 36, 18, 9 instead of 16), each weight is 0 or n / m with m =
- * pm_caustic_reads(S, c), and over the offsets each sample is chosen equally often: its mean
- * weight is 1 (the estimate stays unbiased). Offsets: u, v on a grid fine enough to reach every
- * lattice offset and every raster offset (n x c points: u = (i + 0.5) / n, v = (j + 0.5) / c). */
+ * S = 4, c = 3: sums 36, 18, 9 instead of 16), exactly m = pm_caustic_reads(S, c) samples are
+ * read, one in each block, weighted by its block's area; over the offsets each sample is chosen
+ * equally often: its mean weight is 1 (the estimate stays unbiased); and pm_caustic_factor is
+ * sum(weight^2) / n over a pixel's reads (c^2 when c divides S). Oracle: the blocks rebuilt here
+ * from their definition, m = round(S / c), edges floor(i S / m). Offsets: u, v on a P x P grid,
+ * P the least common multiple of the block widths, which reaches every offset equally often. */
+static int stride_block_of(int S, int m, int x, int *w) {
+    for (int i = 0; i < m; i++) {
+        int lo = i * S / m, hi = (i + 1) * S / m;
+        if (x >= lo && x < hi) {
+            *w = hi - lo;
+            return i;
+        }
+    }
+    return -1;
+}
+
 TEST(render_pm_caustic_stride_weights_sum_exactly) {
     static double mean[400];
     for (int S = 1; S <= 20; S++)
         for (int c = 1; c <= 5; c++) {
-            int n = S * S, m = pm_caustic_reads(S, c), bad = 0;
-            double expect_w = c <= 1 || S < c ? 1.0 : (double)n / m;
-            ASSERT(m >= 1 && m <= n);
-            if (c > 1 && S >= c && S % c == 0) ASSERT_EQ_INT(m, (S / c) * (S / c));
+            int n = S * S, bad = 0, strided = c > 1 && S >= c;
+            int m = strided ? (int)lround((double)S / c) : S;
+            if (m < 1) m = 1;
+            int P = 1, wx = 1, wy = 1;
+            for (int x = 0; x < S; x++) {
+                stride_block_of(S, m, x, &wx);
+                int a = P, b = wx;
+                while (b) { int t = a % b; a = b; b = t; }
+                P = P / a * wx;
+            }
+            ASSERT_EQ_INT(pm_caustic_reads(S, c), strided ? m * m : n);
+            if (strided && S % c == 0) ASSERT_EQ_INT(m, S / c);
             for (int k = 0; k < n; k++) mean[k] = 0;
-            int no = 0;
-            for (int i = 0; i < n; i++)
-                for (int j = 0; j < c; j++) {
-                    double u = (i + 0.5) / n, v = (j + 0.5) / c, sum = 0;
-                    int chosen = 0;
+            double factor = -1;
+            for (int i = 0; i < P; i++)
+                for (int j = 0; j < P; j++) {
+                    double u = (i + 0.5) / P, v = (j + 0.5) / P, sum = 0, sq = 0;
+                    int chosen = 0, per_block[400] = {0};
                     for (int k = 0; k < n; k++) {
                         double w = pm_caustic_weight(S, c, k, u, v);
-                        if (w != 0 && w != expect_w) bad++;
+                        int bx = stride_block_of(S, m, k % S, &wx), by = stride_block_of(S, m, k / S, &wy);
+                        double expect = strided ? (double)wx * wy : 1.0;
+                        if (w != 0 && w != expect) bad++;
+                        if (w != 0) per_block[strided ? by * m + bx : k]++;
                         chosen += w != 0;
                         sum += w;
+                        sq += w * w;
                         mean[k] += w;
                     }
-                    if (fabs(sum - n) > 1e-9 * n || chosen != (c <= 1 || S < c ? n : m)) bad++;
-                    no++;
+                    for (int b = 0; b < (strided ? m * m : n); b++) bad += per_block[b] != 1;
+                    if (fabs(sum - n) > 1e-9 * n || chosen != pm_caustic_reads(S, c)) bad++;
+                    if (factor < 0) factor = sq / n;
+                    else if (fabs(factor - sq / n) > 1e-12 * factor) bad++;
                 }
             double worst = 0;
-            for (int k = 0; k < n; k++) worst = fmax(worst, fabs(mean[k] / no - 1));
-            /* the lattice case's offsets are a c x c grid, reached exactly by the n x c points
-             * only when n is a multiple of c (it is: c divides S); the raster case's by the n
-             * values of u: both exact to rounding */
+            for (int k = 0; k < n; k++) worst = fmax(worst, fabs(mean[k] / ((double)P * P) - 1));
             ASSERT_MSG(!bad && worst <= 1e-9, "S %d c %d: %d bad pixels or weights, mean weight off by %g", S,
                        c, bad, worst);
+            EXPECT_MSG(fabs(pm_caustic_factor(S, c) - factor) <= 1e-12 * factor, "S %d c %d: factor %g, weights %g",
+                       S, c, pm_caustic_factor(S, c), factor);
+            if (strided && S % c == 0) EXPECT_MSG(fabs(factor - (double)c * c) <= 1e-12, "S %d c %d: factor %g", S, c, factor);
         }
 }
