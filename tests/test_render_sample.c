@@ -191,6 +191,62 @@ TEST(render_pm_fit_photons_to_the_render) {
                "pass 1: %g global photons at f %g of the targets: %.300s", g1, f1, p1);
 }
 
+/* render data/scenes/NAME.json --mode pm at 24x24, 4 spp, seed 5, with ARGS. */
+static int run_small(const char *name, const char *args) {
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "timeout 300 '%s/render' '%s/data/scenes/%s.json' --mode pm --width 24 --height 24 "
+             "--spp 4 --threads 2 --seed 5 %s -o a.png", pm_test_build_dir(), pm_test_source_dir(), name, args);
+    return rt_run(cmd, g_out, sizeof g_out);
+}
+
+/* The "Photons:" line's counts: global stored and emitted, caustic stored and emitted. */
+static int photons_line(double v[4]) {
+    const char *p = strstr(g_out, "\nPhotons: ");
+    return p && sscanf(p, "\nPhotons: %lf global, %*u shadow-map (from %lf emitted); %lf caustic (from %lf emitted",
+                       &v[0], &v[1], &v[2], &v[3]) == 4;
+}
+
+/* THE CAUSTIC FLOOR (pm_passes.c). Oracle: the rule and the renderer's own maps. cornell_spheres
+ * (its caustic map carries under 10% of the pilot's luminance) keeps a caustic map of 1/8 of the
+ * target, 62,500 photons, and the line says why; those photons are exactly the ones a render
+ * given caustic_photons=62500 and global_photons=100000 stores and emits (the same seed's
+ * streams). water_caustic (over 10%) traces its caustic map again, alone, at the global maps'
+ * half: 250,000 photons, the same count, emitted photons and statistics counter as a render given
+ * the half of both targets (so the first stage's caustic photons are taken back out of the
+ * counters and the retrace traces the photons a whole trace does). Control: the emitted count
+ * differs between the two caustic sizes (the comparison can fail). */
+TEST(render_pm_caustic_floor_where_the_map_carries_little) {
+    static const char *names[] = {"cornell_spheres", "water_caustic"};
+    static const char *given[] = {"--pm global_photons=100000 --pm caustic_photons=62500",
+                                  "--pm global_photons=100000 --pm caustic_photons=250000"};
+    double caustic_emitted[2] = {0, 0};
+    for (int i = 0; i < 2; i++) {
+        double a[4], b[4];
+        ASSERT_MSG(run_small(names[i], "") == 0, "%s: %s", names[i], g_out);
+        const char *l = strstr(g_out, "  photons: ");
+        ASSERT_MSG(l && photons_line(a), "%s: %s", names[i], g_out);
+        double q = after(l, "(the caustic map carries ") / 100;
+        EXPECT_MSG(i == 0 ? q < 0.10 : q >= 0.10, "%s: caustic share %g", names[i], q);
+        EXPECT_MSG(strstr(l, i == 0 ? "; the caustic map at 0.125 x its target (under 10% of the luminance: its floor 0.125)"
+                                    : "; the caustic map at 0.5 x its target (at least 10% of the luminance: its floor 0.5)"),
+                   "%s: %.600s", names[i], l);
+        EXPECT_MSG(strstr(l, i == 0 ? "; the first stage's maps kept" : "; the caustic map traced again"), "%s: %.600s",
+                   names[i], l);
+        double counter = after(strstr(g_out, "Emitted, caustic pass"), "Emitted, caustic pass");
+        ASSERT_MSG(run_small(names[i], given[i]) == 0, "%s: %s", names[i], g_out);
+        ASSERT_MSG(photons_line(b), "%s: %s", names[i], g_out);
+        double counter_given = after(strstr(g_out, "Emitted, caustic pass"), "Emitted, caustic pass");
+        EXPECT_MSG(a[0] == b[0] && a[1] == b[1] && a[2] == b[2] && a[3] == b[3],
+                   "%s: defaults %g global from %g, %g caustic from %g; given %g from %g, %g from %g", names[i], a[0],
+                   a[1], a[2], a[3], b[0], b[1], b[2], b[3]);
+        EXPECT_MSG(a[2] == (i == 0 ? 62500 : 250000), "%s: %g caustic photons", names[i], a[2]);
+        EXPECT_MSG(counter > 0 && counter == counter_given, "%s: caustic pass emitted counter %g, given %g", names[i],
+                   counter, counter_given);
+        caustic_emitted[i] = a[3];
+    }
+    EXPECT(caustic_emitted[0] != caustic_emitted[1]);
+}
+
 /* Caustics at a stride (pm_sample.h, CAUSTICS AT A STRIDE): for every strata S (1 to 20) and
  * stride c (1 to 5), at every pixel offset, the weights of a pixel's n = S^2 samples sum to n
  * exactly (the old lattice, which chose (S mod c) more columns at some offsets, fails this for
