@@ -81,6 +81,7 @@ ln -s "$out.partial" "$work/out"
 echo "scene,mode,spp,cpu_s,wall_s" > "$work/out/calib.csv"
 echo "scene,mode,budget_cpu_s,spp,cpu_s,wall_s,rmse,ref_spp" > "$work/out/runs.csv"
 
+maxb=$(echo "$budgets" | awk '{ m = 0; for (i = 1; i <= NF; i++) if ($i + 0 > m) m = $i + 0; print m }')
 before="${ET_BEFORE_BIN:-}"
 prog_scenes="${ET_PROG_SCENES-cornell_spheres water_caustic}"
 prog_passes="${ET_PROG_PASSES:-1 4 16 64}"
@@ -112,13 +113,18 @@ for name in $scenes; do
     # its time is not one line in spp: it gets a third point between, and each budget is read
     # on the segment it falls in (water_caustic at 4 CPU-s: the line through 4 and 400 spp gave
     # 4 spp where 16 spp took no more time)
+    # (volumetric_caustic at 96x96: about 2.8 CPU-s per pm sample, so 64 and 400 spp would
+    # take far longer than the budgets): where 16 x the cost of s1 is over 4 x the largest
+    # budget, s2 is 16; s3 runs only where s2 cost less than the largest budget
     case $mode in path) s1=16 s2=400 s3= ;; *) s1=4 s2=64 s3=400 ;; esac
     run "$name" $mode $s1 7
     c1=$cpu; echo "$name,$mode,$spp_used,$cpu,$wall" >> "$work/out/calib.csv"
     [ $mode = pm ] && grep -E '^  [a-z ]+: ' "$work/log" > "$work/out/plan_$name.txt"
+    [ $mode != path ] && awk -v c="$c1" -v m="$maxb" 'BEGIN { exit !(c * 16 > 4 * m) }' && s2=16
     run "$name" $mode $s2 8
     c2=$cpu; echo "$name,$mode,$spp_used,$cpu,$wall" >> "$work/out/calib.csv"
     c3=
+    awk -v c="$c2" -v m="$maxb" 'BEGIN { exit !(c >= m) }' && s3=
     if [ -n "$s3" ]; then
       run "$name" $mode $s3 9
       c3=$cpu; echo "$name,$mode,$spp_used,$cpu,$wall" >> "$work/out/calib.csv"
