@@ -57,6 +57,19 @@ int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, 
     return 0;
 }
 
+/* The surface tracer's options for pass 0's maps: the settings' targets, budgets and projection,
+ * as the plan read them (plan_joins); which maps, the importance table and the pilot's photons
+ * are the plan's. */
+static void plan_trace_opts(const mapper_state *st, const scene *s, trace_opts *o) {
+    trace_opts_settings(o, s, &st->cfg);
+    o->global = st->plan.global.on;
+    o->caustic = st->plan.caustics.on;
+    o->shadow = st->plan.shadow.on;
+    o->importance = st->plan.imp; /* importance-driven emission, when the plan chose it */
+    o->reuse = st->plan.pilot;    /* the plan's pilot photons join the global maps */
+    o->caustic_cap = st->caustic_cap;
+}
+
 /* Trace (or load) the maps of st->pass at the targets in st->cfg, build their trees and
  * readers. Quiet while pass 0's first stage runs (pm_passes.c, PASS 0'S PHOTONS). */
 static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t errcap) {
@@ -91,16 +104,8 @@ static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t e
         printf("Loaded photon maps from %s: %zu global, %zu caustic, %zu shadow-map photons\n",
                st->cfg.load_dir, m->nglobal, m->ncaustic, m->nshadow);
     } else {
-        /* The settings' targets, budgets and projection, as the plan read them (plan_joins);
-         * which maps, the importance table and the pilot's photons are the plan's. */
         trace_opts o;
-        trace_opts_settings(&o, s, &st->cfg);
-        o.global = st->plan.global.on;
-        o.caustic = st->plan.caustics.on;
-        o.shadow = st->plan.shadow.on;
-        o.importance = st->plan.imp; /* importance-driven emission, when the plan chose it */
-        o.reuse = st->plan.pilot;    /* the plan's pilot photons join the global maps */
-        o.caustic_cap = st->caustic_cap;
+        plan_trace_opts(st, s, &o);
         if (st->pass) { /* a later pass: its own photons only (the pilot joined pass 0) */
             o.seed = st->pass_seed;
             o.reuse = NULL;
@@ -144,12 +149,8 @@ static int retrace_caustic(mapper_state *st, const scene *s, char *err, size_t e
     photon_maps *m = &st->maps, c;
     double t0 = stats_now();
     trace_opts o;
-    trace_opts_settings(&o, s, &st->cfg);
+    plan_trace_opts(st, s, &o);
     o.global = o.shadow = 0;
-    o.caustic = 1;
-    o.importance = st->plan.imp;
-    o.reuse = st->plan.pilot;
-    o.caustic_cap = st->caustic_cap;
     o.cap_global_emitted = m->global_emitted;
     scene sp;
     int rc = photon_trace(ports_found_scene(s, &st->plan.found, &sp), &o, &c, err, errcap);
