@@ -63,7 +63,8 @@ m() { awk -v k="$1" '$1 == k { sub(/^[^ ]+ /, ""); print; exit }' "$dir/measurem
 . "$here/scripts/measured-table.sh"
 scenes=$(awk -F, 'NR > 1 && !seen[$1]++ { printf "%s ", $1 }' "$dir/runs.csv")
 ratios=$(mktemp)
-trap 'rm -f "$ratios"' EXIT
+cons=$(mktemp)
+trap 'rm -f "$ratios" "$cons"' EXIT
 
 if [ $survey = 1 ]; then
   echo "## Every shipped scene, small"
@@ -125,7 +126,7 @@ for s in $scenes; do
     echo "Progressive runs, pass 0 as printed: \`$(cat "$dir/passes_$s.txt")\`"
     echo
   fi
-  awk -F, -v s="$s" -v calib="$dir/calib.csv" -v rf="$ratios" -v before="$(m before)" '
+  awk -F, -v s="$s" -v calib="$dir/calib.csv" -v rf="$ratios" -v cf="$cons" -v before="$(m before)" '
     function ln(x) { return log(x) }
     BEGIN {
       while ((getline line < calib) > 0) {
@@ -170,6 +171,7 @@ for s in $scenes; do
             }
           }
           if (want == "pm" && !(e2 > 0)) printf "%s NA\n", s >> rf
+          if (want == "pm_passes") printf "%s %s %.6g %s\n", s, bud[i], cpu[i], (e2 > 0 ? sprintf("%.6g", sqrt(e2)) : "NA") >> cf
           bd = want == "pm_passes" ? bud[i] " passes" : bud[i]
           printf "| %s | %s | %d | %.2f | %.2f | %.4g | %.0f%% | %s | %s | %s |\n", label[want], bd, spp[i], cpu[i], wall[i], rmse[i], 100 * (c / nref) / rmse[i] ^ 2, cr, pt, r
         }
@@ -211,3 +213,37 @@ done
 echo
 echo "The targets are for 2 threads at the scenes' own size and budgets of 10 s and more; this"
 echo "table applies them to the scaled-down protocol above."
+if [ -s "$cons" ]; then
+  echo
+  echo "### Consistency (progressive photon mapping)"
+  echo
+  echo "The target: the corrected RMSE keeps falling from 10 s to 1000 s by at least 1.8x for each 10x of"
+  echo "time, with no floor, and region means within 1% of the reference at the longest time. Here, scaled"
+  echo "down: the progressive runs above, each step from one run to the next longer one as its fall per 10x of"
+  echo "CPU time, (RMSE before / RMSE after)^(1 / log10(CPU after / CPU before)); the regions are the"
+  echo 'image and a 3 x 3 grid of blocks of the longest run (`regions_prog.csv`).'
+  echo
+  echo "| scene | passes | CPU-s | falls per 10x of time, step by step | over the whole range | lowest step (a floor shows here) | image mean | blocks within 1% | largest block difference |"
+  echo "|---|---|---|---|---:|---:|---:|---:|---:|"
+  for s in $scenes; do
+    awk -v s="$s" -v reg="$dir/regions_prog.csv" '
+      $1 == s && $4 != "NA" { n++; p[n] = $2; t[n] = $3; e[n] = $4 }
+      END {
+        if (n < 2) exit
+        steps = ""; low = 1e300
+        for (i = 2; i <= n; i++) {
+          fall = (e[i - 1] / e[i]) ^ (1 / (log(t[i] / t[i - 1]) / log(10)))
+          steps = steps (i > 2 ? ", " : "") sprintf("%.2fx", fall); if (fall < low) low = fall
+        }
+        all = (e[1] / e[n]) ^ (1 / (log(t[n] / t[1]) / log(10)))
+        img = "-"; nb = 0; ok = 0; worst = -1; wname = ""
+        while ((getline line < reg) > 0) {
+          split(line, f, ","); if (f[1] != s) continue
+          d = f[6] + 0; a = d < 0 ? -d : d
+          if (f[3] == "image") img = sprintf("%+.2f%%", 100 * d)
+          else { nb++; if (a <= 0.01) ok++; if (a > worst) { worst = a; wname = sprintf("%+.2f%% (%s)", 100 * d, f[3]) } }
+        }
+        printf "| %s | %s to %s | %.3g to %.3g | %s | %.2fx | %.2fx | %s | %d of %d | %s |\n", s, p[1], p[n], t[1], t[n], steps, all, low, img, ok, nb, nb ? wname : "-"
+      }' "$cons"
+  done
+fi
