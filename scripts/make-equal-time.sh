@@ -43,14 +43,14 @@
 # are added as mode pm_before (its own timing runs).
 #
 # Environment: PM_BUILD_DIR (default build/release), ET_SCENES (default "cornell_box
-# cornell_spheres water_caustic").
+# cornell_spheres water_caustic volumetric_caustic").
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 bin="${PM_BUILD_DIR:-$here/build/release}/render"
 res="${ET_RES:-96}"
 threads="${ET_THREADS:-2}"
 budgets="${ET_BUDGETS:-4 12 40}"
-scenes="${ET_SCENES:-cornell_box cornell_spheres water_caustic}"
+scenes="${ET_SCENES:-cornell_box cornell_spheres water_caustic volumetric_caustic}"
 out="${ET_OUT:-$here/docs/results/equal_time}"
 refdir="${ET_REF_DIR:-$here/data/reference/et96}"
 case "${1:-}" in
