@@ -12,11 +12,13 @@
 #   make run             photon mapping of cornell_spheres to out/ (45 s; SCENE=, RUNFLAGS=)
 #   make bench           run the full benchmarks, write bench/results/*.csv, plots and docs
 #   make bench-quick     a small benchmark subset (also run by the test suite)
-#   make results         docs/RESULTS.md: the path-traced references when missing (128x128,
-#                        make-reference.sh, ~8 min on 2 cores; and the equal-time section's
-#                        96x96 ones), then make-equal-time.sh, make-results.sh (~8.5 min on 2
-#                        shared cores) and media-results.sh (the committed data/reference-media/);
-#                        README.md's paragraph "How it compares with path-traced references"
+#   make results         docs/RESULTS.md and docs/HARD_SCENES.md: the path-traced references
+#                        when missing (128x128, make-reference.sh, ~8 min on 2 cores; the
+#                        equal-time section's 96x96 ones and the survey's 32x32 ones), then
+#                        make-equal-time.sh, make-survey.sh, make-results.sh (~8.5 min on 2
+#                        shared cores), media-results.sh (the committed data/reference-media/)
+#                        and make-hard-scenes.sh; README.md's paragraph "How it compares with
+#                        path-traced references"
 #   make deps            install the missing Debian packages (scripts/install-deps.sh)
 #   make install PREFIX=/usr/local DESTDIR=
 #                        headers, libphotonmap.a, libphotonmap.so.2, photonmap.pc, bin/render
@@ -299,19 +301,23 @@ bench-quick: $(BENCH_DEPS)
 # Photon mapping against long path-traced references (data/reference/, not in git).
 # First photon mapping at its defaults against path tracing at equal CPU time (make-equal-time.sh;
 # 96x96 references of its scenes made in data/reference/et96/ when missing), then the
-# correctness and time-to-error sections at the references' size, 128x128 (make-results.sh;
-# references made in data/reference/ when missing), and the media section (media-results.sh).
-ET_SCENES ?= cornell_box cornell_spheres water_caustic
+# correctness and time-to-error sections at 128x128 (make-results.sh), the media section, every
+# shipped scene small (make-survey.sh, its 32x32 references made when missing) and the hard
+# scenes (make-hard-scenes.sh, docs/HARD_SCENES.md).
+ET_SCENES ?= cornell_box cornell_spheres water_caustic volumetric_caustic
 results: $(RENDER_BIN)
 	@command -v gnuplot >/dev/null 2>&1 || sh scripts/install-deps.sh --bench
 	@for s in $(ET_SCENES); do [ -f data/reference/et96/$$s.pfm ] || \
 	    REF_RES=96 REF_OUT=data/reference/et96 REF_SPP_cornell_spheres=8192 REF_SPP_water_caustic=2048 \
-	    REF_SPP_cornell_box=8192 PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-reference.sh $$s || exit 1; done
+	    REF_SPP_cornell_box=8192 REF_SPP_volumetric_caustic=16384 \
+	    PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-reference.sh $$s || exit 1; done
 	ET_SCENES="$(ET_SCENES)" PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-equal-time.sh
+	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-survey.sh
 	@for s in cornell_spheres cornell_diffuse; do [ -f data/reference/$$s.pfm ] || \
 	    PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-reference.sh $$s || exit 1; done
 	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-results.sh
 	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/media-results.sh
+	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-hard-scenes.sh
 
 # ---- install -------------------------------------------------------------------------------
 # photonmap.pc: -lphotonmap in Libs; what a static link also needs (libm, the OpenMP runtime
