@@ -150,21 +150,30 @@ int pmv_beam_build(pmv_beam *b, const scene *s, const pm_kdtree *t, const pm_pho
     return 0;
 }
 
-/* The integral of exp(-s t) over [a, b]: exp(-s m) 2 sinh(s h) / s, m the chord's middle and
- * h its half length, with sinh(x) / x by its series where x = s h < 0.1 (the next term,
- * x^6 / 5040, is below 2e-10), so one exp per photon. */
-static double tr_integral(double s, double a, double b) {
+/* exp(-x) for 0 <= x < PMV_BEAM_SERIES_X by its series to x^4 (relative error below
+ * x^5 / 120 < 1e-8), else exp. */
+#define PMV_BEAM_SERIES_X 0.04
+static inline double exp_neg(double x) {
+    if (x < PMV_BEAM_SERIES_X) return 1 - x * (1 - x * (0.5 - x * (1.0 / 6 - x * (1.0 / 24))));
+    return exp(-x);
+}
+
+/* The integral of exp(-s t) over [a, b] divided by exp(-s t_ref) (t_ref <= a, where the
+ * caller knows the transmittance): exp(-s (m - t_ref)) 2 sinh(s h) / s, m the chord's middle
+ * and h its half length, with sinh(x) / x by its series where x = s h < 0.1 (the next term,
+ * x^6 / 5040, is below 2e-10). Within a leaf of the hierarchy s (m - t_ref) is small, so most
+ * photons need no exp. */
+static inline double tr_integral(double s, double a, double b, double t_ref) {
     double h = 0.5 * (b - a), x = s * h;
     if (x < 0.1) {
         double x2 = x * x;
-        return exp(-s * (a + h)) * 2 * h * (1 + x2 * (1.0 / 6 + x2 * (1.0 / 120)));
+        return exp_neg(s * (a + h - t_ref)) * 2 * h * (1 + x2 * (1.0 / 6 + x2 * (1.0 / 120)));
     }
-    return (exp(-s * a) - exp(-s * b)) / s;
+    return (exp_neg(s * (a - t_ref)) - exp_neg(s * (b - t_ref))) / s;
 }
 
-/* The entry and exit of r (inverse direction id) through a node's box, clipped to [0, T]:
- * 1 if they meet. */
-static int box_hit(const pmv_beam_node *nd, const double o[3], const double id[3], double T) {
+/* Where r (inverse direction id) enters a node's box within [0, T] (*t_in); 0 if it misses. */
+static int box_hit(const pmv_beam_node *nd, const double o[3], const double id[3], double T, double *t_in) {
     double t0 = 0, t1 = T;
     for (int a = 0; a < 3; a++) {
         double ta = ((double)nd->lo[a] - o[a]) * id[a], tb = ((double)nd->hi[a] - o[a]) * id[a];
@@ -177,23 +186,26 @@ static int box_hit(const pmv_beam_node *nd, const double o[3], const double id[3
         if (tb < t1) t1 = tb;
         if (!(t0 <= t1)) return 0;
     }
+    *t_in = t0;
     return 1;
 }
 
 rgb pmv_beam_segment(const pmv_beam *b, ray r, double T, rgb sigma_t, double g, uint64_t *nphotons) {
     if (!b || b->n == 0 || !(T > 0)) return v3s(0);
     double o[3] = {r.o.x, r.o.y, r.o.z}, dd[3] = {r.d.x, r.d.y, r.d.z}, id[3];
-    for (int a = 0; a < 3; a++) id[a] = dd[a] != 0 ? 1 / dd[a] : (dd[a] < 0 || signbit(dd[a]) ? -INFINITY : INFINITY);
+    for (int a = 0; a < 3; a++) id[a] = dd[a] != 0 ? 1 / dd[a] : (signbit(dd[a]) ? -INFINITY : INFINITY);
     double st[3] = {sigma_t.x, sigma_t.y, sigma_t.z}, acc[3] = {0, 0, 0};
     int iso = fabs(g) <= 1e-3, grey = st[0] == st[1] && st[1] == st[2];
-    double iso_phase = 1 / (4 * M_PI);
+    /* HG: (1 - g^2) / (4 pi) / (1 + g^2 - 2 g cos)^(3/2) */
+    double hg_k = iso ? 1 / (4 * M_PI) : (1 - g * g) / (4 * M_PI), hg_a = 1 + g * g, hg_b = 2 * g;
     uint32_t stack[64];
     int sp = 0;
     uint64_t hits = 0;
     stack[sp++] = 0;
     while (sp > 0) {
         const pmv_beam_node *nd = &b->nodes[stack[--sp]];
-        if (!box_hit(nd, o, id, T)) continue;
+        double t_in;
+        if (!box_hit(nd, o, id, T, &t_in)) continue;
         if (nd->count == 0) {
             uint32_t self = (uint32_t)(nd - b->nodes);
             if (sp + 2 > 64) continue; /* cannot happen: the tree is balanced, depth < 40 */
@@ -201,22 +213,31 @@ rgb pmv_beam_segment(const pmv_beam *b, ray r, double T, rgb sigma_t, double g, 
             stack[sp++] = self + 1;
             continue;
         }
+        /* the transmittance where the ray enters the leaf's box; its photons' chords start
+         * there or later */
+        double tr_in[3];
+        for (int c = 0; c < 3; c++) tr_in[c] = grey && c ? tr_in[0] : exp(-st[c] * t_in);
         for (uint32_t i = nd->first; i < nd->first + nd->count; i++) {
             const pmv_beam_photon *p = &b->ph[i];
             double v[3] = {p->p[0] - o[0], p->p[1] - o[1], p->p[2] - o[2]};
             double tc = v[0] * dd[0] + v[1] * dd[1] + v[2] * dd[2];
             double d2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2] - tc * tc;
             if (!(d2 < (double)p->r2)) continue;
-            double h = sqrt((double)p->r2 - d2), t0 = fmax(0, tc - h), t1 = fmin(T, tc + h);
+            double h = sqrt((double)p->r2 - d2), t0 = fmax(t_in, tc - h), t1 = fmin(T, tc + h);
             if (!(t0 < t1)) continue;
             hits++;
-            /* HG phase toward the eye: the photon travelled along p->d, the light leaves along -r.d */
-            double ph = iso ? iso_phase : hg_phase(g, -(p->d[0] * dd[0] + p->d[1] * dd[1] + p->d[2] * dd[2]));
+            /* the phase toward the eye: the photon travelled along p->d, the light leaves
+             * along -r.d */
+            double ph = hg_k;
+            if (!iso) {
+                double den = hg_a + hg_b * (p->d[0] * dd[0] + p->d[1] * dd[1] + p->d[2] * dd[2]);
+                ph = hg_k / (den * sqrt(den));
+            }
             if (grey) {
-                double w = ph * tr_integral(st[0], t0, t1);
+                double w = ph * tr_in[0] * tr_integral(st[0], t0, t1, t_in);
                 for (int c = 0; c < 3; c++) acc[c] += w * (double)p->w[c];
             } else
-                for (int c = 0; c < 3; c++) acc[c] += ph * (double)p->w[c] * tr_integral(st[c], t0, t1);
+                for (int c = 0; c < 3; c++) acc[c] += ph * tr_in[c] * (double)p->w[c] * tr_integral(st[c], t0, t1, t_in);
         }
     }
     if (nphotons) *nphotons += hits;
