@@ -141,6 +141,9 @@ static const setting_def k_settings[] = {
     {"volume_beam", ST_BOOL, F(volume_beam), 1, NONE,
      "eye rays read the volume maps by beam estimates, one per segment (pm_beam.h); false: a "
      "k-nearest estimate at every ray-marching step"},
+    {"volume_stride", ST_INT, F(volume_stride), 1, 1, 64,
+     "in-scattering in media (the march and the beam estimates) at one camera sample in "
+     "stride x stride, weighted stride^2, as caustic_stride does for the caustic map"},
     {"ppm_alpha", ST_NUMBER, F(ppm_alpha), 2.0 / 3.0, 0.01, 1,
      "progressive photon mapping (a photon mode rendered in passes, render --time or "
      "--passes): pass i+1's squared radii are pass i's times (i + alpha) / (i + 1), i = 1, 2, "
