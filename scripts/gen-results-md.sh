@@ -9,7 +9,8 @@
 # (sections 1 and 2, with a "Measured sources" line carrying measurement.txt's commit); and,
 # if present, media/ from scripts/media-results.sh (the media section, with its own stamp) and
 # equal_time/ from scripts/make-equal-time.sh (the section at the defaults, with its own stamp,
-# by scripts/gen-equal-time-md.sh).
+# by scripts/gen-equal-time-md.sh), and survey/ from scripts/make-survey.sh (every shipped
+# scene, small: gen-equal-time-md.sh --survey).
 # Every figure and stamp in the document comes from those files, never from the checkout or
 # the clock at generation time, and every sentence that states a result is computed from them
 # (whether path tracing's error follows 1/sqrt(N), whether the 5x target is met, how many
@@ -263,6 +264,11 @@ if [ -f "$res/equal_time/runs.csv" ]; then
   # (scripts/make-equal-time.sh), with its own stamp.
   echo
   sh "$here/scripts/gen-equal-time-md.sh" "$res/equal_time"
+fi
+if [ -f "$res/survey/runs.csv" ]; then
+  # Every shipped scene, small (scripts/make-survey.sh), with its own stamp.
+  echo
+  sh "$here/scripts/gen-equal-time-md.sh" --survey "$res/survey"
 fi
 } > "$tmp"
 if [ "$doc" = - ]; then

@@ -1311,7 +1311,10 @@ TEST(render_pm_caustic_pilot_runaway_message) {
  * CAP) and the render's own figures. glass_hole's caustic map lies behind a wall the camera
  * does not see through: at its defaults (the fit applies) its caustic pass stops at the cap,
  * max(4194304, 4 x the global pass's emitted photons) of its own, plus the plan's 8192 pilot
- * photons that join it, exactly (the emission budget is exact), and says so. Control: with
+ * photons that join it, exactly (the emission budget is exact), and says so (the first stage
+ * traces 1/8 of the caustic target, THE CAUSTIC FLOOR in pm_passes.c, whose budget at the default
+ * max_emitted_factor 64, 4.0M, is below the cap: max_emitted_factor 256, not a photon count,
+ * leaves the fit on and the cap the first limit). Control: with
  * caustic_photons set (no fit) the cap does not apply: the same scene emits past it and stops
  * by photon_mapping.max_emitted_factor. */
 TEST(render_pm_caustic_cap_at_the_defaults_only) {
@@ -1321,7 +1324,8 @@ TEST(render_pm_caustic_cap_at_the_defaults_only) {
         snprintf(cmd, sizeof cmd,
                  "%s/render '%s/data/scenes/glass_hole.json' --mode pm --width 16 --height 16 --spp 1 --quiet "
                  "--pm gather_rays=4 %s --hdr '%s/cap%d.pfm'",
-                 pm_test_build_dir(), pm_test_source_dir(), set ? "--pm caustic_photons=66000" : "",
+                 pm_test_build_dir(), pm_test_source_dir(),
+                 set ? "--pm caustic_photons=66000" : "--pm max_emitted_factor=256",
                  pm_test_tmpdir(), set);
         int rc = pm_test_run(cmd, out, sizeof out);
         ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);

@@ -191,43 +191,126 @@ TEST(render_pm_fit_photons_to_the_render) {
                "pass 1: %g global photons at f %g of the targets: %.300s", g1, f1, p1);
 }
 
+/* render data/scenes/NAME.json --mode pm at 24x24, 4 spp, seed 5, with ARGS. */
+static int run_small(const char *name, const char *args) {
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "timeout 300 '%s/render' '%s/data/scenes/%s.json' --mode pm --width 24 --height 24 "
+             "--spp 4 --threads 2 --seed 5 %s -o a.png", pm_test_build_dir(), pm_test_source_dir(), name, args);
+    return rt_run(cmd, g_out, sizeof g_out);
+}
+
+/* The "Photons:" line's counts: global stored and emitted, caustic stored and emitted. */
+static int photons_line(double v[4]) {
+    const char *p = strstr(g_out, "\nPhotons: ");
+    return p && sscanf(p, "\nPhotons: %lf global, %*u shadow-map (from %lf emitted); %lf caustic (from %lf emitted",
+                       &v[0], &v[1], &v[2], &v[3]) == 4;
+}
+
+/* THE CAUSTIC FLOOR (pm_passes.c). Oracle: the rule and the renderer's own maps. cornell_spheres
+ * (its caustic map carries under 10% of the pilot's luminance) keeps a caustic map of 1/8 of the
+ * target, 62,500 photons, and the line says why; those photons are exactly the ones a render
+ * given caustic_photons=62500 and global_photons=100000 stores and emits (the same seed's
+ * streams). water_caustic (over 10%) traces its caustic map again, alone, at the global maps'
+ * half: 250,000 photons, the same count, emitted photons and statistics counter as a render given
+ * the half of both targets (so the first stage's caustic photons are taken back out of the
+ * counters and the retrace traces the photons a whole trace does). Control: the emitted count
+ * differs between the two caustic sizes (the comparison can fail). */
+TEST(render_pm_caustic_floor_where_the_map_carries_little) {
+    static const char *names[] = {"cornell_spheres", "water_caustic"};
+    static const char *given[] = {"--pm global_photons=100000 --pm caustic_photons=62500",
+                                  "--pm global_photons=100000 --pm caustic_photons=250000"};
+    double caustic_emitted[2] = {0, 0};
+    for (int i = 0; i < 2; i++) {
+        double a[4], b[4];
+        ASSERT_MSG(run_small(names[i], "") == 0, "%s: %s", names[i], g_out);
+        const char *l = strstr(g_out, "  photons: ");
+        ASSERT_MSG(l && photons_line(a), "%s: %s", names[i], g_out);
+        double q = after(l, "(the caustic map carries ") / 100;
+        EXPECT_MSG(i == 0 ? q < 0.10 : q >= 0.10, "%s: caustic share %g", names[i], q);
+        EXPECT_MSG(strstr(l, i == 0 ? "; the caustic map at 0.125 x its target (under 10% of the luminance: its floor 0.125)"
+                                    : "; the caustic map at 0.5 x its target (at least 10% of the luminance: its floor 0.5)"),
+                   "%s: %.600s", names[i], l);
+        EXPECT_MSG(strstr(l, i == 0 ? "; the first stage's maps kept" : "; the caustic map traced again"), "%s: %.600s",
+                   names[i], l);
+        double counter = after(strstr(g_out, "Emitted, caustic pass"), "Emitted, caustic pass");
+        ASSERT_MSG(run_small(names[i], given[i]) == 0, "%s: %s", names[i], g_out);
+        ASSERT_MSG(photons_line(b), "%s: %s", names[i], g_out);
+        double counter_given = after(strstr(g_out, "Emitted, caustic pass"), "Emitted, caustic pass");
+        EXPECT_MSG(a[0] == b[0] && a[1] == b[1] && a[2] == b[2] && a[3] == b[3],
+                   "%s: defaults %g global from %g, %g caustic from %g; given %g from %g, %g from %g", names[i], a[0],
+                   a[1], a[2], a[3], b[0], b[1], b[2], b[3]);
+        EXPECT_MSG(a[2] == (i == 0 ? 62500 : 250000), "%s: %g caustic photons", names[i], a[2]);
+        EXPECT_MSG(counter > 0 && counter == counter_given, "%s: caustic pass emitted counter %g, given %g", names[i],
+                   counter, counter_given);
+        caustic_emitted[i] = a[3];
+    }
+    EXPECT(caustic_emitted[0] != caustic_emitted[1]);
+}
+
 /* Caustics at a stride (pm_sample.h, CAUSTICS AT A STRIDE): for every strata S (1 to 20) and
  * stride c (1 to 5), at every pixel offset, the weights of a pixel's n = S^2 samples sum to n
  * exactly (the old lattice, which chose (S mod c) more columns at some offsets, fails this for
- * S = 4, c = 3: sums 36, 18, 9 instead of 16), each weight is 0 or n / m with m =
- * pm_caustic_reads(S, c), and over the offsets each sample is chosen equally often: its mean
- * weight is 1 (the estimate stays unbiased). Offsets: u, v on a grid fine enough to reach every
- * lattice offset and every raster offset (n x c points: u = (i + 0.5) / n, v = (j + 0.5) / c). */
+ * S = 4, c = 3: sums 36, 18, 9 instead of 16), exactly m = pm_caustic_reads(S, c) samples are
+ * read, one in each block, weighted by its block's area; over the offsets each sample is chosen
+ * equally often: its mean weight is 1 (the estimate stays unbiased); and pm_caustic_factor is
+ * sum(weight^2) / n over a pixel's reads (c^2 when c divides S). Oracle: the blocks rebuilt here
+ * from their definition, m = round(S / c), edges floor(i S / m). Offsets: u, v on a P x P grid,
+ * P the least common multiple of the block widths, which reaches every offset equally often. */
+static int stride_block_of(int S, int m, int x, int *w) {
+    for (int i = 0; i < m; i++) {
+        int lo = i * S / m, hi = (i + 1) * S / m;
+        if (x >= lo && x < hi) {
+            *w = hi - lo;
+            return i;
+        }
+    }
+    return -1;
+}
+
 TEST(render_pm_caustic_stride_weights_sum_exactly) {
     static double mean[400];
     for (int S = 1; S <= 20; S++)
         for (int c = 1; c <= 5; c++) {
-            int n = S * S, m = pm_caustic_reads(S, c), bad = 0;
-            double expect_w = c <= 1 || S < c ? 1.0 : (double)n / m;
-            ASSERT(m >= 1 && m <= n);
-            if (c > 1 && S >= c && S % c == 0) ASSERT_EQ_INT(m, (S / c) * (S / c));
+            int n = S * S, bad = 0, strided = c > 1 && S >= c;
+            int m = strided ? (int)lround((double)S / c) : S;
+            if (m < 1) m = 1;
+            int P = 1, wx = 1, wy = 1;
+            for (int x = 0; x < S; x++) {
+                stride_block_of(S, m, x, &wx);
+                int a = P, b = wx;
+                while (b) { int t = a % b; a = b; b = t; }
+                P = P / a * wx;
+            }
+            ASSERT_EQ_INT(pm_caustic_reads(S, c), strided ? m * m : n);
+            if (strided && S % c == 0) ASSERT_EQ_INT(m, S / c);
             for (int k = 0; k < n; k++) mean[k] = 0;
-            int no = 0;
-            for (int i = 0; i < n; i++)
-                for (int j = 0; j < c; j++) {
-                    double u = (i + 0.5) / n, v = (j + 0.5) / c, sum = 0;
-                    int chosen = 0;
+            double factor = -1;
+            for (int i = 0; i < P; i++)
+                for (int j = 0; j < P; j++) {
+                    double u = (i + 0.5) / P, v = (j + 0.5) / P, sum = 0, sq = 0;
+                    int chosen = 0, per_block[400] = {0};
                     for (int k = 0; k < n; k++) {
                         double w = pm_caustic_weight(S, c, k, u, v);
-                        if (w != 0 && w != expect_w) bad++;
+                        int bx = stride_block_of(S, m, k % S, &wx), by = stride_block_of(S, m, k / S, &wy);
+                        double expect = strided ? (double)wx * wy : 1.0;
+                        if (w != 0 && w != expect) bad++;
+                        if (w != 0) per_block[strided ? by * m + bx : k]++;
                         chosen += w != 0;
                         sum += w;
+                        sq += w * w;
                         mean[k] += w;
                     }
-                    if (fabs(sum - n) > 1e-9 * n || chosen != (c <= 1 || S < c ? n : m)) bad++;
-                    no++;
+                    for (int b = 0; b < (strided ? m * m : n); b++) bad += per_block[b] != 1;
+                    if (fabs(sum - n) > 1e-9 * n || chosen != pm_caustic_reads(S, c)) bad++;
+                    if (factor < 0) factor = sq / n;
+                    else if (fabs(factor - sq / n) > 1e-12 * factor) bad++;
                 }
             double worst = 0;
-            for (int k = 0; k < n; k++) worst = fmax(worst, fabs(mean[k] / no - 1));
-            /* the lattice case's offsets are a c x c grid, reached exactly by the n x c points
-             * only when n is a multiple of c (it is: c divides S); the raster case's by the n
-             * values of u: both exact to rounding */
+            for (int k = 0; k < n; k++) worst = fmax(worst, fabs(mean[k] / ((double)P * P) - 1));
             ASSERT_MSG(!bad && worst <= 1e-9, "S %d c %d: %d bad pixels or weights, mean weight off by %g", S,
                        c, bad, worst);
+            EXPECT_MSG(fabs(pm_caustic_factor(S, c) - factor) <= 1e-12 * factor, "S %d c %d: factor %g, weights %g",
+                       S, c, pm_caustic_factor(S, c), factor);
+            if (strided && S % c == 0) EXPECT_MSG(fabs(factor - (double)c * c) <= 1e-12, "S %d c %d: factor %g", S, c, factor);
         }
 }

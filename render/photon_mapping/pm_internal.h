@@ -71,7 +71,7 @@ typedef struct mapper_state {
     long fit_target[4];
     int fit_stage;
     int caustic_cap; /* trace_opts.caustic_cap of the next trace (pm_passes.c, THE CAUSTIC CAP) */
-    double fit_scale;
+    double fit_scale, fit_scale_c; /* the global (and volume) maps', the caustic map's (THE CAUSTIC FLOOR) */
     char fit_reason[640];
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
         st_global_est, st_lookup_miss, st_side_rays, st_side_again;
@@ -128,6 +128,8 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
  * the maps were dropped and st->cfg holds the targets to trace again), and freeing a pass's
  * maps, trees and readers. */
 void pm__fit_begin(mapper_state *st, const scene *s);
+/* pm__fit_end's answers: stage A's maps stay, pass 0 is traced again, its caustic map only. */
+enum { PM_FIT_KEEP = 0, PM_FIT_AGAIN = 1, PM_FIT_CAUSTIC_AGAIN = 2 };
 int pm__fit_end(mapper_state *st, const scene *s);
 void pm__drop_maps(mapper_state *st);
 

@@ -17,9 +17,8 @@ enum { BUCKET_GLOBAL = 1, BUCKET_CAUSTIC = 8, BUCKET_SHADOW = 8 };
 /* What reads the maps at the pass's radii: the caustic side map, the estimates' options and
  * the precomputed irradiance (side cache). pm_passes.c calls it again when a progressive
  * render's first radii differ from the plain render's (ppm_radius), without tracing again. */
-int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, char *err, size_t errcap) {
+static int build_readers(mapper_state *st, const scene *s, const map_radii *rad, char *err, size_t errcap) {
     int rc;
-    double t0;
     if ((rc = side_map_init(&st->caus_side, s, st->tc, st->maps.ncaustic, rad->r2_caustic, err, errcap)) < 0) return rc;
     st->r2_global = rad->r2_global;
     st->r2_caustic = rad->r2_caustic;
@@ -34,7 +33,13 @@ int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, 
     pm_estimate_options_init(&st->glob_opt, PM_EST_DISC, (unsigned)st->cfg.k_global);
     st->glob_opt.max_dist2 = st->r2_global;
     st->glob_opt.reject_behind = 1;
+    return 0;
+}
 
+int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, char *err, size_t errcap) {
+    int rc;
+    double t0;
+    if ((rc = build_readers(st, s, rad, err, errcap)) < 0) return rc;
     st->t_irr = 0;
     if (st->nglobal_all && !st->direct_vis) {
         t0 = stats_now();
@@ -50,6 +55,19 @@ int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, 
         stats_time_add("Time/Precomputed irradiance", st->t_irr);
     }
     return 0;
+}
+
+/* The surface tracer's options for pass 0's maps: the settings' targets, budgets and projection,
+ * as the plan read them (plan_joins); which maps, the importance table and the pilot's photons
+ * are the plan's. */
+static void plan_trace_opts(const mapper_state *st, const scene *s, trace_opts *o) {
+    trace_opts_settings(o, s, &st->cfg);
+    o->global = st->plan.global.on;
+    o->caustic = st->plan.caustics.on;
+    o->shadow = st->plan.shadow.on;
+    o->importance = st->plan.imp; /* importance-driven emission, when the plan chose it */
+    o->reuse = st->plan.pilot;    /* the plan's pilot photons join the global maps */
+    o->caustic_cap = st->caustic_cap;
 }
 
 /* Trace (or load) the maps of st->pass at the targets in st->cfg, build their trees and
@@ -86,16 +104,8 @@ static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t e
         printf("Loaded photon maps from %s: %zu global, %zu caustic, %zu shadow-map photons\n",
                st->cfg.load_dir, m->nglobal, m->ncaustic, m->nshadow);
     } else {
-        /* The settings' targets, budgets and projection, as the plan read them (plan_joins);
-         * which maps, the importance table and the pilot's photons are the plan's. */
         trace_opts o;
-        trace_opts_settings(&o, s, &st->cfg);
-        o.global = st->plan.global.on;
-        o.caustic = st->plan.caustics.on;
-        o.shadow = st->plan.shadow.on;
-        o.importance = st->plan.imp; /* importance-driven emission, when the plan chose it */
-        o.reuse = st->plan.pilot;    /* the plan's pilot photons join the global maps */
-        o.caustic_cap = st->caustic_cap;
+        plan_trace_opts(st, s, &o);
         if (st->pass) { /* a later pass: its own photons only (the pilot joined pass 0) */
             o.seed = st->pass_seed;
             o.reuse = NULL;
@@ -138,6 +148,58 @@ static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t e
     stats_time_add("Time/Photon kd-trees", st->t_trees);
     return pm__build_estimates(st, s, &rad, err, errcap);
 }
+
+/* THE CAUSTIC FLOOR (pm_passes.c): pass 0's caustic map traced again alone, at the fitted
+ * target in st->cfg, with its tree and readers; the global maps, their trees and the
+ * precomputed irradiance stay. Its photons are those a trace of every map stores (the caustic
+ * pass has its own random streams; the cap scales with the global pass's emitted photons). */
+static int retrace_caustic(mapper_state *st, const scene *s, char *err, size_t errcap) {
+    photon_maps *m = &st->maps, c;
+    double t0 = stats_now();
+    trace_opts o;
+    plan_trace_opts(st, s, &o);
+    o.global = o.shadow = 0;
+    o.cap_global_emitted = m->global_emitted;
+    scene sp;
+    int rc = photon_trace(ports_found_scene(s, &st->plan.found, &sp), &o, &c, err, errcap);
+    if (rc < 0) return rc;
+    free(m->caustic);
+    m->caustic = c.caustic;
+    c.caustic = NULL;
+    m->ncaustic = c.ncaustic;
+    m->caustic_emitted = c.caustic_emitted;
+    m->caustic_fraction = c.caustic_fraction;
+    m->caustic_saved = c.caustic_saved;
+    m->caustic_first_specular = c.caustic_first_specular;
+    m->caustic_runaway = c.caustic_runaway;
+    m->pilot_emitted[1] = c.pilot_emitted[1];
+    m->pilot_stored[1] = c.pilot_stored[1];
+    m->whole_caustic = c.whole_caustic;
+    m->whole_max_power[1] = c.whole_max_power[1];
+    photon_maps_free(&c);
+    double dt = stats_now() - t0;
+    st->t_trace += dt;
+    stats_time_add("Time/Photon tracing (or loading)", dt);
+    map_radii rad;
+    photon_maps_radii(s, m, &st->cfg, &rad);
+    st->ncaustic_all = m->part ? m->whole_caustic : m->ncaustic;
+    pm__pass_radii(st, &rad);
+    side_map_free(&st->caus_side);
+    pm_kdtree_free(st->tc);
+    st->tc = NULL;
+    t0 = stats_now();
+    if ((rc = photon_tree_build(&st->tc, m->caustic, m->ncaustic, BUCKET_CAUSTIC, err, errcap)) < 0) return rc;
+    dt = stats_now() - t0;
+    st->t_trees += dt;
+    stats_time_add("Time/Photon kd-trees", dt);
+    return build_readers(st, s, &rad, err, errcap);
+}
+
+/* Stage A's caustic counters, taken back out when its caustic map is traced again alone. */
+static const char *const k_caustic_counters[] = {
+    "Photons/Emitted, caustic pass", "Photons/Caustic photons stored",
+    "Photons/Caustic emissions saved by the projection map", "Photons/Caustic-pass photons whose first hit is specular",
+    "Photons/Pilot photons reused in the caustic map (emitted)", "Photons/Pilot photons reused in the caustic map (stored)"};
 
 /* Pass 0's lines on stdout, once its maps are final: the photons traced (of a scene without
  * media: pmv_trace prints its own), the radii and the precomputed irradiance. */
@@ -188,10 +250,17 @@ int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
     }
     counters_now(c1);
     if ((rc = pm__decide_sample(st, s, err, errcap)) < 0) return rc;
-    if (first && pm__fit_end(st, s)) { /* pass 0 again, at the fitted targets */
+    int fit = first ? pm__fit_end(st, s) : PM_FIT_KEEP;
+    if (fit == PM_FIT_AGAIN) { /* pass 0 again, at the fitted targets */
         for (int id = 0; id < STATS_MAX; id++)
             if (stats_name(id)) stat_add(id, c0[id] - c1[id]); /* mod 2^64 */
         if ((rc = trace_and_build(st, s, err, errcap)) < 0) return rc;
+    } else if (fit == PM_FIT_CAUSTIC_AGAIN) { /* its caustic map again (THE CAUSTIC FLOOR) */
+        for (size_t i = 0; i < sizeof k_caustic_counters / sizeof *k_caustic_counters; i++) {
+            int id = stats_register(k_caustic_counters[i]);
+            stat_add(id, c0[id] - c1[id]); /* mod 2^64 */
+        }
+        if ((rc = retrace_caustic(st, s, err, errcap)) < 0) return rc;
     }
     if (first) {
         printf("  photons: %s\n", st->fit_reason);

@@ -135,11 +135,9 @@ void pm_emission_mask_free(pm_emission_mask *m) {
  * (pm_emission_mask_build measures it: on cornell_box the light's edges are most of the image's
  * error at equal time), and it falls with the samples a pixel gets, so it favours the cheaper
  * samples; it is added to each. A stride applies only where the strata (sqrt of spp) reach it, so the
- * strides above the render's strata are not candidates, and only strides that divide the
- * strata are weighed: the others read the raster pattern (pm_sample.h), less even over the
- * pixel than the model assumes (cornell_spheres 96x96, 4 passes of 16 spp, seed 7: the pilot
- * weighed stride 3 best, RMSE 0.0129, where stride 2 reads 0.0111). An explicit stride is kept
- * whatever the strata.
+ * strides above the render's strata are not candidates; a stride that does not divide the strata
+ * reads blocks of two widths (pm_sample.h) and is weighed by its exact reads and variance factor.
+ * An explicit stride is kept whatever the strata.
  * Of all (gather, secondary, stride) the lowest variance x cost, the time a pixel needs for a
  * given error, wins. The pilot's work is taken back out of the statistics, so they count the render only.
  * VOLUME STRIDE. In a scene with media (h->volume_stride) the in-scattering along the camera
@@ -249,25 +247,53 @@ static double work_of_current(const pm_sample_host *h, double *share) {
     return f.work + PILOT_CAUSTIC_COST * f.caus * pm_caustic_reads(strata, c) / ((double)strata * strata);
 }
 
+/* The blocks of a stride: m = round(S / c) per axis (at least 1), block i spanning strata
+ * floor(i S / m) to floor((i + 1) S / m) - 1 (all c wide when c divides S). */
+static int stride_blocks(int S, int c) {
+    long m = lround((double)S / c);
+    return m < 1 ? 1 : (int)m;
+}
+
 int pm_caustic_reads(int strata, int c) {
     if (c <= 1 || strata < c) return strata * strata;
-    if (strata % c == 0) return (strata / c) * (strata / c);
-    long m = lround((double)strata * strata / ((double)c * c));
-    return m < 1 ? 1 : (int)m;
+    int m = stride_blocks(strata, c);
+    return m * m;
+}
+
+double pm_caustic_factor(int strata, int c) {
+    if (c <= 1 || strata < c) return 1.0;
+    int S = strata, m = stride_blocks(S, c);
+    double sum = 0; /* sum over one axis's blocks of width^2; the areas' squares are its square */
+    for (int i = 0; i < m; i++) {
+        double w = (double)(((int64_t)(i + 1) * S) / m - ((int64_t)i * S) / m);
+        sum += w * w;
+    }
+    return sum * sum / ((double)S * S);
+}
+
+/* one axis: the weight factor (the block's width) of stratum x for offset u, or 0 */
+static double stride_axis(int S, int m, int x, double u) {
+    int64_t b = (((int64_t)x + 1) * m - 1) / S; /* the block holding x */
+    int64_t lo = b * S / m, w = (b + 1) * S / m - lo;
+    int64_t o = (int64_t)(u * (double)w);
+    return x - lo == (o < w ? o : w - 1) ? (double)w : 0.0;
 }
 
 double pm_caustic_weight(int strata, int c, int k, double u, double v) {
     int S = strata;
     if (c <= 1 || S < c) return 1.0;
-    if (S % c == 0) {
-        int ox = (int)(u * c), oy = (int)(v * c);
-        int sx = k % S, sy = k / S;
-        return sx % c == ox && sy % c == oy ? (double)c * c : 0.0;
-    }
-    int64_t n = (int64_t)S * S, m = pm_caustic_reads(S, c);
-    int64_t o = (int64_t)(u * (double)n);
-    int64_t j = ((int64_t)k + (o < n ? o : n - 1)) % n;
-    return j * m % n < m ? (double)n / (double)m : 0.0;
+    int m = stride_blocks(S, c);
+    double wx = stride_axis(S, m, k % S, u);
+    return wx == 0 ? 0.0 : wx * stride_axis(S, m, k / S, v);
+}
+
+/* A candidate's figures at stride k: a sample's variance (the caustic part's within-pixel
+ * variance grows by pm_caustic_factor - 1) and its cost (the caustic estimates' share falls to
+ * the reads). */
+static void stride_figures(const pilot_figures *f, int strata, int k, double emit_var, double *var,
+                           double *cost) {
+    *var = f->var + (pm_caustic_factor(strata, k) - 1) * f->varc + emit_var;
+    *cost = f->work + PILOT_CAUSTIC_COST * f->caus * pm_caustic_reads(strata, k) / ((double)strata * strata);
 }
 
 void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, int explicit_c, double emit_var,
@@ -328,14 +354,12 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
     /* the scores of (candidate, stride); a black image (all 0) falls to the cheapest */
     int bc = 0, bs = cmin;
     double best = INFINITY, bestcost = INFINITY;
-    double n = (double)strata * strata;
     for (int c = 0; c < nc; c++)
         for (int k = cmin; k <= cmax; k++) {
-            if (k > cmin && strata % k) continue; /* a weighed stride divides the strata (below) */
-            double k2 = n / pm_caustic_reads(strata, k), var = fig[c].var + (k2 - 1) * fig[c].varc + emit_var;
-            double cost = fig[c].work + PILOT_CAUSTIC_COST * fig[c].caus / k2, score = var * cost;
-            if (score < best || (score == best && cost < bestcost)) {
-                best = score;
+            double var, cost;
+            stride_figures(&fig[c], strata, k, emit_var, &var, &cost);
+            if (var * cost < best || (var * cost == best && cost < bestcost)) {
+                best = var * cost;
                 bestcost = cost;
                 bc = c;
                 bs = k;
@@ -365,11 +389,10 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
                                   cand[bc][0], cand[bc][1], bs, PILOT_SIDE * PILOT_SIDE * PILOT_SPP,
                                   PILOT_SIDE * PILOT_SIDE);
     for (int c = 0; c < nc && len < cap; c++) {
-        double k2 = n / pm_caustic_reads(strata, bs);
-        len += (size_t)snprintf(reason + len, cap - len,
-                                " %d/%d/%d %.3g x %.0f%s", cand[c][0], cand[c][1], bs,
-                                fig[c].var + (k2 - 1) * fig[c].varc + emit_var, fig[c].work + PILOT_CAUSTIC_COST * fig[c].caus / k2,
-                                c + 1 < nc ? "," : "");
+        double var, cost;
+        stride_figures(&fig[c], strata, bs, emit_var, &var, &cost);
+        len += (size_t)snprintf(reason + len, cap - len, " %d/%d/%d %.3g x %.0f%s", cand[c][0], cand[c][1],
+                                bs, var, cost, c + 1 < nc ? "," : "");
     }
     if (len < cap)
         len += (size_t)snprintf(reason + len, cap - len,
@@ -378,9 +401,9 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
     if (len < cap && cmax > cmin) {
         len += (size_t)snprintf(reason + len, cap - len, "; strides");
         for (int k = cmin; k <= cmax && len < cap; k++)
-            if (k == cmin || strata % k == 0)
-                len += (size_t)snprintf(reason + len, cap - len, "%s %d", k == cmin ? "" : ",", k);
-        if (len < cap) len += (size_t)snprintf(reason + len, cap - len, " weighed (those dividing the strata, %d)", strata);
+            len += (size_t)snprintf(reason + len, cap - len, "%s %d (%d of %d)", k == cmin ? "" : ",", k,
+                                    pm_caustic_reads(strata, k), strata * strata);
+        if (len < cap) len += (size_t)snprintf(reason + len, cap - len, " weighed");
     }
     if (len < cap && h->volume_stride)
         len += (size_t)snprintf(reason + len, cap - len,

@@ -70,21 +70,27 @@ void pm_emission_mask_free(pm_emission_mask *m);
  * samples' luminance read from the caustic map at the camera path's hits (0 likewise). */
 void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, int explicit_c, double emit_var,
                      char *reason, size_t cap, double *work, double *caus_share);
-/* CAUSTICS AT A STRIDE. With caustic_stride c > 1 the caustic map is read at m =
- * pm_caustic_reads(S, c) of a pixel's n = S x S samples (S = strata), each weighted n / m, the
- * others weighted 0. Every sample is chosen with probability m / n over the pixel's offset
- * (u, v uniform in [0, 1), drawn per pixel), so the pixel's expected value is unchanged, and
- * the weights sum to n in every pixel. When c divides S, m = (S / c)^2: one stratum in c x c,
- * those whose (sx mod c, sy mod c) equal (floor(u c), floor(v c)), spread evenly over the
- * pixel. Otherwise m = round(n / c^2) (at least 1): the samples whose index j = (k + floor(u n))
- * mod n has j m mod n < m, exactly m of them, spread along the strata's raster order. (The
- * lattice alone chose a varying count when c did not divide S: at 16 spp and c = 3 a pixel's
- * caustic was scaled by 2.25 or 0.56 at random, and cornell_spheres's RMSE at 96x96, seed 7,
- * rose from 0.020 to 0.029; with exact counts, 0.022.) The caustic radiance barely changes
- * within a pixel, so this costs little noise and saves most of the estimates' time.
- * pm_caustic_weight gives sample k's weight; S < c or c <= 1 reads every sample (weight 1). */
+/* CAUSTICS AT A STRIDE. With caustic_stride c > 1 a pixel's S x S strata (S = strata) are cut
+ * into m x m blocks, m = round(S / c) per axis (at least 1), block i spanning strata
+ * floor(i S / m) to floor((i + 1) S / m) - 1 along each axis, and the caustic map is read at one
+ * stratum of each block, weighted by the block's area, the others weighted 0. The stratum is
+ * the same offset (floor(u w), floor(v w')) in every block of widths w x w' (u, v uniform in
+ * [0, 1), drawn per pixel), so each sample is chosen with probability 1 / its block's area and
+ * the pixel's expected value is unchanged; the weights sum to S^2 in every pixel. When c divides
+ * S the blocks are c x c (a lattice: one stratum in c x c, m^2 = (S / c)^2 reads); otherwise
+ * they are floor(S / m) or ceil(S / m) wide, still one read per block, spread evenly over the
+ * pixel. (Earlier rules: the lattice alone chose a varying count when c did not divide S; then
+ * exact counts along the strata's raster order, which at 16 spp and c = 3 read two strata of
+ * one column, so the pilot weighed only strides that divide S, and prime strata such as 25 or
+ * 169 spp read every sample.) The caustic radiance barely changes within a pixel, so this costs
+ * little noise and saves most of the estimates' time.
+ * pm_caustic_weight gives sample k's weight (k = sy S + sx); S < c or c <= 1 reads every sample
+ * (weight 1). pm_caustic_reads: m^2, the estimates a pixel makes. pm_caustic_factor: the factor
+ * on the variance of the pixel's caustic part for samples independent within the pixel,
+ * sum(area^2) / S^2 (c^2 when c divides S). */
 double pm_caustic_weight(int strata, int c, int k, double u, double v);
 int pm_caustic_reads(int strata, int c);
+double pm_caustic_factor(int strata, int c);
 
 #ifdef __cplusplus
 }

@@ -267,7 +267,8 @@ static int caustic_pass(trace_run *t) {
         c.tail = rkc ? &rkc->c : NULL;
         c.tail_emitted = rkc ? rkc->c_emitted : 0;
         if (rkc) target = (long)rkc->c.n < target ? target - (long)rkc->c.n : 1;
-        double cap = fmax(CAUSTIC_CAP_MIN, CAUSTIC_CAP_FACTOR * (double)m->global_emitted);
+        double ge = (double)(m->global_emitted ? m->global_emitted : o->cap_global_emitted);
+        double cap = fmax(CAUSTIC_CAP_MIN, CAUSTIC_CAP_FACTOR * ge);
         double budget = o->max_emitted_factor * (double)target;
         if (o->max_emitted > 0 && o->max_emitted < budget) budget = o->max_emitted;
         if (o->caustic_cap && cap < budget) { /* CAUSTIC CAP in photon_trace.h */

@@ -183,6 +183,9 @@ typedef struct trace_opts {
     double max_emitted;              /* and after this many emitted (0: no absolute cap) */
     size_t max_memory_bytes;         /* photon buffers of a pass (0: no cap) */
     int caustic_cap;                 /* 1: the caustic pass emits at most CAUSTIC_CAP (below) */
+    uint64_t cap_global_emitted;     /* a trace without a global pass (the photon mapper's
+                                        caustic-only trace): the global photons emitted that
+                                        CAUSTIC_CAP scales with (0: none) */
     int max_bounces;                 /* photon path length cap below max_depth (0: none) */
     int projection, projection_cells;
     /* The global pass (and its shadow photons) emits by this table (importance.h; the plan
