@@ -142,11 +142,12 @@ void pm_emission_mask_free(pm_emission_mask *m) {
  * given error, wins. The pilot's work is taken back out of the statistics, so they count the render only.
  * VOLUME STRIDE. In a scene with media (h->volume_stride) the in-scattering along the camera
  * path's segments in media (pmv_march: single scattering by shadow rays, the beam estimates) is
- * read at one sample in v x v the same way (volume_stride, its own offset per pixel), weighted
- * v^2: the samples' tally (pm_sample_caustics) gives its variance between a pixel's samples
- * and its work (BVH work of those segments plus PILOT_BEAM_COST per beam photon crossed), and
- * given the chosen (gather, secondary, stride), the v of 1 to PILOT_MAX_STRIDE dividing the
- * strata with the lowest (variance + (v^2 - 1) varv) x (work - workv + workv / v^2) wins.
+ * read at one stratum per block the same way (volume_stride v, pm_caustic_weight with its own
+ * offset per pixel): the samples' tally (pm_sample_caustics) gives its variance between a
+ * pixel's samples (varv) and its work (workv: BVH work of those segments plus PILOT_BEAM_COST
+ * per beam photon crossed), and given the chosen (gather, secondary, stride), the v of 1 to
+ * PILOT_MAX_STRIDE with the lowest (variance + (pm_caustic_factor - 1) varv) x (work - workv +
+ * workv reads / S^2) wins.
  * Why: on sun_window_fog (16x16, 1024 spp) the beam estimates and the march were 65% of the
  * render, and the in-scattered light barely changes within a pixel: volume_stride 2 took the
  * run from 15.7 to 6.6 CPU-s at the same RMSE against the reference (0.0123). */
@@ -369,12 +370,12 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
     cfg->secondary_rays = cand[bc][1];
     cfg->caustic_stride = bs;
     /* the volume stride, given the rest (VOLUME STRIDE above) */
-    double k2c = n / pm_caustic_reads(strata, bs), var0 = fig[bc].var + (k2c - 1) * fig[bc].varc + emit_var;
-    double c0 = bestcost - fig[bc].workv, vbest = INFINITY;
+    double var0, c0, vbest = INFINITY, S2 = (double)strata * strata;
+    stride_figures(&fig[bc], strata, bs, emit_var, &var0, &c0);
+    c0 -= fig[bc].workv;
     for (int k = 1; h->volume_stride && k <= (strata < PILOT_MAX_STRIDE ? strata : PILOT_MAX_STRIDE); k++) {
-        if (k > 1 && strata % k) continue;
-        double k2 = n / pm_caustic_reads(strata, k), cost = c0 + fig[bc].workv / k2;
-        double score = (var0 + (k2 - 1) * fig[bc].varv) * cost;
+        double cost = c0 + fig[bc].workv * pm_caustic_reads(strata, k) / S2;
+        double score = (var0 + (pm_caustic_factor(strata, k) - 1) * fig[bc].varv) * cost;
         if (score < vbest) {
             vbest = score;
             cfg->volume_stride = k;
