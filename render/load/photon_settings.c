@@ -137,6 +137,13 @@ static const setting_def k_settings[] = {
     {"volume_boundary", ST_BOOL, F(volume_boundary), 1, NONE,
      "volume estimates near a medium's boundary divide by the part of their search ball inside "
      "the medium (pm_volume.h, BOUNDARIES); false: by the whole ball"},
+    {"volume_beam", ST_BOOL, F(volume_beam), 1, NONE,
+     "eye rays read the volume maps by beam estimates, one per segment (pm_beam.h); false: a "
+     "k-nearest estimate at every ray-marching step"},
+    {"volume_stride", ST_INT, F(volume_stride), 1, 1, 64,
+     "in-scattering in media (the march and the beam estimates) at one camera sample per "
+     "stride x stride block of strata, as caustic_stride does for the caustic map; absent, in a "
+     "scene with media the sample pilot picks it, 1 to 4 (\"sample:\")"},
     {"ppm_alpha", ST_NUMBER, F(ppm_alpha), 2.0 / 3.0, 0.01, 1,
      "progressive photon mapping (a photon mode rendered in passes, render --time or "
      "--passes): pass i+1's squared radii are pass i's times (i + alpha) / (i + 1), i = 1, 2, "

@@ -69,6 +69,8 @@ typedef struct photon_settings {
     int k_volume, k_volume_caustic;
     double volume_step; /* 0: automatic */
     int volume_boundary; /* volume estimates divide by the part of their ball inside the medium */
+    int volume_beam;     /* eye rays read the volume maps by beam estimates (pm_beam.h) */
+    int volume_stride;   /* in-scattering in media at one camera sample in stride x stride */
     int force_load; /* load_photons: a stamp mismatch is a warning, not an error */
     double ppm_alpha; /* progressive passes: the radius schedule's alpha (photonmapper.c) */
     double ppm_radius; /* progressive passes: the first radius / the typical radius; 0: the caps */

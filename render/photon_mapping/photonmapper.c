@@ -395,13 +395,13 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
 
 /* ---- the integrator ----------------------------------------------------------------------- */
 
-/* The weight of this camera sample's caustic estimates: with caustic_stride c > 1 only some
- * of a pixel's samples read the caustic map (pm_caustic_weight, pm_sample.h), at an offset
- * drawn per pixel. */
-static double caustic_weight(const mapper_state *st, const sample_id *id) {
-    int c = st->cfg.caustic_stride;
+/* The weight of this camera sample's caustic estimates (stride caustic_stride, stream
+ * "caustics") or of its in-scattering in media (volume_stride, "volume"): with a stride c > 1
+ * only some of a pixel's samples read them (pm_caustic_weight, pm_sample.h), at an offset drawn
+ * per pixel. */
+static double stride_weight(const sample_id *id, int c, uint64_t stream) {
     if (c <= 1 || !id || id->strata < c) return 1.0;
-    rng g = rng_stream(id->seed, id->pixel, 0x6361757374696373ULL); /* "caustics" */
+    rng g = rng_stream(id->seed, id->pixel, stream);
     double u = rng_uniform(&g), v = rng_uniform(&g);
     return pm_caustic_weight(id->strata, c, id->k, u, v);
 }
@@ -438,8 +438,8 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
         hit h;
         int got = scene_intersect(s, r, INFINITY, &h);
         if (st->vol.on) { /* media: march the segment in med; null surfaces are passed */
-            rgb tr, Lm = pmv_march(&st->vol, s, r, got ? h.t : INFINITY, med, what != EYE_EMIT, g, sc->est, &tr);
-            L = v3_add(L, v3_mul(beta, Lm));
+            rgb tr;
+            L = v3_add(L, pm__eye_medium(st, s, r, got ? h.t : INFINITY, med, what != EYE_EMIT, beta, g, sc, &tr));
             beta = v3_mul(beta, tr);
             if (got && scene_material(s, &h)->kind == MAT_NULL) {
                 if (++crossings > 1024 || v3_iszero(beta)) break;
@@ -540,11 +540,13 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
 rgb pm__li(const integrator *self, const scene *s, ray r, rng *g, const sample_id *id,
                  void *scratch) {
     const mapper_state *st = self->data;
-    if (scratch) ((mapper_scratch *)scratch)->id = id;
+    mapper_scratch *sc = scratch;
+    if (sc) sc->id = id, sc->vw = stride_weight(id, st->cfg.volume_stride, 0x766f6c756d65ULL); /* "volume" */
     int m = st->cfg.emission_strata;
+    double cw = stride_weight(id, st->cfg.caustic_stride, 0x6361757374696373ULL); /* "caustics" */
     if (m <= 0 || !id || id->strata <= 0 || (st->emit.mask && id->pixel < st->emit.pixels && !st->emit.mask[id->pixel]))
-        return eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_ALL, s->camera_medium, g, scratch);
-    rgb L = eye_radiance(st, s, r, 0, v3s(1), caustic_weight(st, id), EYE_SHADE, s->camera_medium, g, scratch);
+        return eye_radiance(st, s, r, 0, v3s(1), cw, EYE_ALL, s->camera_medium, g, scratch);
+    rgb L = eye_radiance(st, s, r, 0, v3s(1), cw, EYE_SHADE, s->camera_medium, g, scratch);
     rgb E = v3s(0);
     int n = id->strata, W = s->cam.width;
     double x = (double)(id->pixel % (uint64_t)W), y = (double)(id->pixel / (uint64_t)W);
@@ -562,6 +564,7 @@ rgb pm__li(const integrator *self, const scene *s, ray r, rng *g, const sample_i
 mapper_scratch *pm__scratch_new(const mapper_state *st) {
     mapper_scratch *sc = calloc(1, sizeof *sc);
     if (!sc) return NULL;
+    sc->vw = 1;
     sc->est = malloc(pm_estimate_scratch_bytes(st->kmax));
     sc->nb = malloc((size_t)st->cfg.k_shadow * sizeof *sc->nb);
     if (!sc->est || !sc->nb) {
@@ -589,6 +592,7 @@ rgb pm__sample_eye(void *user, ray r, int emit, rng *g, void *scratch, pm_sample
     mapper_scratch *sc = scratch;
     const scene *s = st->scene;
     sc->pc = pc;
+    sc->vw = 1;
     rgb L = eye_radiance(st, s, r, 0, v3s(1), emit ? 0 : 1.0, emit ? EYE_EMIT : EYE_SHADE, s->camera_medium, g, sc);
     sc->pc = NULL;
     return L;

@@ -49,7 +49,7 @@ typedef struct mapper_state {
     pm_emission_mask emit;
     const scene *scene; /* for pm_sample.c's eye rays (sample_eye), during the preprocess */
     int explicit_gather, explicit_secondary, explicit_stride; /* set in the scene or by --pm: kept */
-    char sample_reason[480], emit_reason[320]; /* the plan's "sample:" and "emission rays:" lines */
+    char sample_reason[640], emit_reason[320]; /* the plan's "sample:" and "emission rays:" lines */
     /* Progressive passes (mapper_begin_pass): the pass whose maps are built, its seed, its
      * squared radii's factor against pass 0's, pass 0's radii and volume radii. */
     int pass, progressive; /* progressive: ppm_radius applies (a render in passes) */
@@ -83,6 +83,7 @@ typedef struct mapper_scratch {
     pm_neighbor *nb;
     const sample_id *id; /* the camera sample being traced (for the lookup hook) */
     pm_sample_caustics *pc; /* the sample pilot's tally of camera-level caustics, else NULL */
+    double vw; /* the weight of this sample's in-scattering in media (volume_stride), 0: none */
 } mapper_scratch;
 
 /* photonmapper.c: the integrator's camera sample and its threads' scratch (integrator.h's li,
@@ -94,6 +95,11 @@ void *pm__thread_begin(const integrator *self);
 mapper_scratch *pm__scratch_new(const mapper_state *st); /* NULL when out of memory */
 void pm__thread_end(const integrator *self, void *scratch);
 rgb pm__sample_eye(void *user, ray r, int emit, rng *g, void *scratch, pm_sample_caustics *pc);
+/* pm_setup.c: the light an eye segment in a medium adds (pmv_march, times beta and the sample's
+ * volume weight sc->vw, none when vw is 0), and *tr its transmittance; tallied for the sample
+ * pilot when sc->pc is set. */
+rgb pm__eye_medium(const mapper_state *st, const scene *s, ray r, double tmax, int med, int inscatter, rgb beta,
+                   rng *g, mapper_scratch *sc, rgb *tr);
 int pm__gg_found(void *user, const scene *s, const hit *h, vec3 wo);
 int pm__gg_read(void *user, const scene *s, const guide_point *pt, vec3 d, rng *g, gather_guide_read *out);
 

@@ -199,6 +199,7 @@ static void drop_volume_maps(pmv_state *v) {
         for (int md = 0; maps[k] && md < v->nmedia; md++) {
             pm_kdtree_free(maps[k][md].t);
             free(maps[k][md].a);
+            pmv_beam_free(&maps[k][md].beam);
         }
         free(maps[k]);
     }

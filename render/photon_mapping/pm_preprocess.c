@@ -116,6 +116,14 @@ static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t e
     }
     st->t_trace = stats_now() - t0;
     stats_time_add("Time/Photon tracing (or loading)", st->t_trace);
+    if (st->vol.on) { /* the beam maps of the eye rays (pm_beam.h), at this pass's radii */
+        double tb = stats_now();
+        if ((rc = pmv_build_beams(&st->vol, s)) < 0) {
+            snprintf(err, errcap, "out of memory building the volume beam maps");
+            return rc;
+        }
+        stats_time_add("Time/Volume beam maps", stats_now() - tb);
+    }
     /* Saved before the trees reorder them: loading these files then gives the trees, the
      * precomputed irradiance and the image of this run exactly. */
     if (st->cfg.save_dir[0] && !st->made) {

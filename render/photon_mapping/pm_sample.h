@@ -28,6 +28,9 @@ extern "C" {
 typedef struct pm_sample_caustics {
     rgb L;
     uint64_t n;
+    rgb Lv;             /* the in-scattered light of media the path met (times its throughput) */
+    uint64_t workv;     /* the BVH work of those media segments (pm_setup.c, pm__eye_medium) */
+    uint64_t beamv;     /* the beam photons they crossed (pm_beam.h) */
 } pm_sample_caustics;
 
 /* What the mask and the pilot borrow from the photon mapper. */
@@ -37,6 +40,7 @@ typedef struct pm_sample_host {
     int st_lookup, st_caustic;  /* the ids of the irradiance-lookup and caustic-estimate counters */
     int caustics;               /* the scene has a caustic map */
     const char *no_pilot;       /* why the pilot cannot run (no final gather, ...), or NULL */
+    int volume_stride;          /* the pilot chooses cfg->volume_stride (a scene with media, not set) */
     int no_probe;               /* the eye rays cannot be traced before the render (partitioned
                                    render-mpi: its lookups are shared between processes) */
     void *user;

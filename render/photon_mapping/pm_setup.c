@@ -9,6 +9,8 @@
 
 #include "photon_mapping/pm_internal.h"
 
+#include "base/stats.h"
+
 /* ---- pass 0's camera-side decisions (pm_sample.h, gather_guide.h) ------------------------- */
 
 /* Scratch for the preprocess's own camera rays (the emission mask, the sample pilot). */
@@ -21,6 +23,20 @@ static void sample_scratch_free(void *user, void *scratch) {
     pm__thread_end(NULL, scratch);
 }
 
+rgb pm__eye_medium(const mapper_state *st, const scene *s, ray r, double tmax, int med, int inscatter, rgb beta,
+                   rng *g, mapper_scratch *sc, rgb *tr) {
+    int in = inscatter && sc->vw > 0;
+    pm_sample_caustics *pc = in ? sc->pc : NULL;
+    uint64_t w0 = pc ? stats_trace_work() : 0, b0 = pc ? stats_total(st->vol.st_beam_photons) : 0;
+    rgb c = v3_scale(v3_mul(beta, pmv_march(&st->vol, s, r, tmax, med, in, g, sc->est, tr)), sc->vw);
+    if (pc) {
+        pc->Lv = v3_add(pc->Lv, c);
+        pc->workv += stats_trace_work() - w0;
+        pc->beamv += stats_total(st->vol.st_beam_photons) - b0;
+    }
+    return c;
+}
+
 /* The emission mask and the sample pilot, once (pass 0's preprocess), and their plan lines. */
 static int sample_decide(mapper_state *st, const scene *s, char *err, size_t errcap) {
     st->scene = s;
@@ -29,6 +45,7 @@ static int sample_decide(mapper_state *st, const scene *s, char *err, size_t err
                            : pm__lookup ? "partitioned render-mpi: its lookups are shared between processes"
                                       : NULL;
     pm_sample_host h = {s, &st->cfg, st->st_lookup, st->st_caustic, st->ncaustic_all > 0, no_pilot,
+                        st->vol.on && !json_get(s->photon_mapping, "volume_stride"),
                         pm__lookup != NULL, st, sample_scratch_new, sample_scratch_free, pm__sample_eye};
     int rc = pm_emission_mask_build(&h, &st->emit, st->emit_reason, sizeof st->emit_reason, err, errcap);
     if (rc < 0) return rc;

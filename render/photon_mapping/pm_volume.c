@@ -98,10 +98,13 @@ int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
     v->k_ms = (unsigned)c->k_volume;
     v->k_caus = (unsigned)c->k_volume_caustic;
     v->boundary = c->volume_boundary;
+    v->beam = c->volume_beam;
     v->st_steps = stats_register("Photon mapping/Volume march steps");
     v->st_ms = stats_register("Photon mapping/Volume estimates (multiple scattering)");
     v->st_caus = stats_register("Photon mapping/Volume caustic estimates");
     v->st_gather = stats_register("Photon mapping/Volume estimates of gather rays");
+    v->st_beam = stats_register("Photon mapping/Volume beam estimates (eye segments x maps)");
+    v->st_beam_photons = stats_register("Photon mapping/Volume beam photons crossed");
     return pmv_index_scales(v, s);
 }
 
@@ -109,8 +112,22 @@ static void maps_free(pmv_map *m, int n) {
     for (int i = 0; m && i < n; i++) {
         pm_kdtree_free(m[i].t);
         free(m[i].a);
+        pmv_beam_free(&m[i].beam);
     }
     free(m);
+}
+
+int pmv_build_beams(pmv_state *v, const scene *s) {
+    if (!v->on || !v->beam) return 0;
+    pmv_map *maps[2] = {v->ms, v->caus};
+    for (int k = 0; k < 2; k++)
+        for (int md = 0; maps[k] && md < v->nmedia; md++) {
+            pmv_map *m = &maps[k][md];
+            pmv_beam_free(&m->beam);
+            int rc = pmv_beam_build(&m->beam, s, m->t, m->a, m->n, m->k, m->r2, v->boundary);
+            if (rc < 0) return rc;
+        }
+    return 0;
 }
 
 void pmv_free(pmv_state *v) {
@@ -483,7 +500,7 @@ rgb pmv_march(const pmv_state *v, const scene *s, ray r, double tmax, int med, i
     double T = isfinite(tmax) ? tmax : bounds_exit(v, r);
     *tr = isfinite(tmax) ? medium_tr(md, tmax) : medium_tr(md, INFINITY);
     if (!inscatter || !(T > 0) || v3_iszero(md->sigma_s)) return v3s(0);
-    static const pmv_map none = {NULL, NULL, 0, 0, 0};
+    static const pmv_map none = {0};
     const pmv_map *ms = v->ms ? &v->ms[med] : &none, *caus = v->caus ? &v->caus[med] : &none;
     double nf = ceil(T / v->step[med]);
     int n = nf > PMV_MAX_STEPS ? PMV_MAX_STEPS : nf < 1 ? 1 : (int)nf;
@@ -496,17 +513,27 @@ rgb pmv_march(const pmv_state *v, const scene *s, ray r, double tmax, int med, i
         double t = (i + u) * dt;
         vec3 x = ray_at(r, t);
         rgb src = v3_mul(md->sigma_s, direct_light_medium_mis(s, &seg, t, dens, g));
-        if (ms->t) {
+        if (ms->t && !ms->beam.n) {
             src = v3_add(src, volume_estimate_in(v, ms->t, ms->k, ms->r2, s, med, x, r.d, scratch, n2));
             stat_inc(v->st_ms);
         }
-        if (caus->t) {
+        if (caus->t && !caus->beam.n) {
             src = v3_add(src, volume_estimate_in(v, caus->t, caus->k, caus->r2, s, med, x, r.d, scratch, n2));
             stat_inc(v->st_caus);
         }
         L = v3_add(L, v3_scale(v3_mul(medium_tr(md, t), src), dt));
     }
     stat_add(v->st_steps, (uint64_t)n);
+    /* The beam maps: the exact integral of their estimate over the whole segment (pm_beam.h). */
+    const pmv_map *bm[2] = {ms, caus};
+    for (int k = 0; k < 2; k++) {
+        if (!bm[k]->beam.n) continue;
+        uint64_t hits = 0;
+        rgb e = pmv_beam_segment(&bm[k]->beam, r, T, md->sigma_t, md->g, &hits);
+        L = v3_add(L, n2 == 1 ? e : v3_scale(e, n2));
+        stat_inc(v->st_beam);
+        stat_add(v->st_beam_photons, hits);
+    }
     return L;
 }
 

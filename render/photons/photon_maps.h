@@ -26,7 +26,8 @@
  * the seed (it picks another sample of the same photon distribution, so loading one set of
  * maps under several seeds is how new camera noise is drawn over fixed photons), the thread
  * count (the maps do not depend on it), and everything the camera pass alone reads (image
- * size, samples, k_*, radii, filter, gather settings, volume_step, volume_boundary, tone).
+ * size, samples, k_*, radii, filter, gather settings, volume_step, volume_boundary, volume_beam,
+ * tone).
  * The global and caustic maps hold the plan's pilot photons that joined them (photon_trace.h,
  * PILOT PHOTONS), as traced (the saved caustic map is the pass's stores then the pilot's);
  * whether they join and what they are depends only on what the stamp covers and on the
