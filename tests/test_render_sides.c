@@ -497,7 +497,7 @@ TEST(render_sides_precomp_neighbours_match_brute_force) {
         int got = side_precomp_neighbours(&s, t, recs, hf, x, nf, hx, k, max_dist2, nb, &wall_got, &reach_got,
                                           rays_got);
         int same = got == (int)nwant && wall_got == wall_want && reach_got == reach_want &&
-                   rays_got[0] == rays_want[0] && rays_got[1] == rays_want[1];
+                   rays_got[0] <= rays_want[0] && rays_got[1] <= rays_want[1]; /* rays: only those traced */
         for (int a = 0; same && a < got; a++) same = nb[a].index == want[a];
         if (!same && bad++ < 5)
             EXPECT_MSG(0, "query %d at (%g, %g): %d neighbours (wall %d, reach2 %g, rays %llu+%llu), brute force %u "

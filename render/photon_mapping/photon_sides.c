@@ -81,16 +81,73 @@ int side_filter_shadow(void *user, const void *record, uint32_t index) {
     return pn[0] * n[0] + pn[1] * n[1] + pn[2] * n[2] >= SIDE_LOOKUP_COS;
 }
 
-int side_visible_h(const scene *s, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq) {
-    vec3 d = v3_sub(q, p);
-    double len = v3_len(d);
-    if (!(len > 0)) return 1;
+/* The ends of side_visible_h's segment; 0 when p and q coincide (visible, no segment). */
+static int side_lift(vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq, vec3 *pl, vec3 *ql) {
+    double len = v3_len(v3_sub(q, p));
+    if (!(len > 0)) return 0;
     /* Lift each end off its surface by L/4, on the side its normal points to (the side the
      * photon arrived on, or the side the query looks from), but at most halfway to the first
      * surface above it, so the lifted end stays in the space on that side; see the top of
      * photon_sides.h. */
-    vec3 pl = v3_madd(p, np, fmin(0.25 * len, 0.5 * hp)), ql = v3_madd(q, nq, fmin(0.25 * len, 0.5 * hq));
+    *pl = v3_madd(p, np, fmin(0.25 * len, 0.5 * hp));
+    *ql = v3_madd(q, nq, fmin(0.25 * len, 0.5 * hq));
+    return 1;
+}
+
+int side_visible_h(const scene *s, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq) {
+    vec3 pl, ql;
+    if (!side_lift(p, np, hp, q, nq, hq, &pl, &ql)) return 1;
     return scene_visible(s, pl, v3s(0), ql, v3s(0));
+}
+
+/* CLEAR SEGMENTS WITHOUT A RAY (side_precomp_neighbours). A precomputed estimate tests up to k
+ * segments, all inside a ball around x (an end lifted at most L/4, L at most the disc's
+ * radius: within 1.25 radii); in an open stretch of wall the only surfaces near are the
+ * photon's own plane and perhaps a corner's. A segment whose two ends lie on the same side of
+ * a triangle's plane, each farther from it than SIDE_CLEAR_MARGIN of the scene's scale, does
+ * not cross that plane, so no ray along it can meet the triangle (triangle_intersect's t for
+ * that plane lies outside [0, 1] by at least margin / length, far beyond its rounding in
+ * doubles). So the triangles whose boxes overlap the ball's box (bvh_overlap; at most
+ * SIDE_CLEAR_MAX, no sphere: side_planes_near) are listed once per estimate, and a segment
+ * clear of all their planes is visible without its ray (side_clear); any other segment
+ * traces its ray as before. The answer is the ray's, always: the cache, and the image, are
+ * the same bit for bit; only rays are saved. Measured (pinhole_room 8 x 8, 1024 spp, seed 1,
+ * one thread, a loaded machine): the precomputation's visibility rays 2,916,474 -> 338,709
+ * (100,001 of them the free heights), the whole run 1.71 -> 1.41 CPU-s; what is left of the
+ * precomputation is mostly its k-nearest searches. */
+void side_planes_near(const scene *s, vec3 x, double r2, side_planes *pl) {
+    pl->ok = 0;
+    pl->n = 0;
+    double scale = s->offset_floor + v3_maxabs(x);
+    pl->margin = SIDE_CLEAR_MARGIN * scale;
+    double R = 1.3 * sqrt(r2) + 2 * pl->margin;
+    if (!isfinite(R)) return;
+    double lo[3] = {x.x - R, x.y - R, x.z - R}, hi[3] = {x.x + R, x.y + R, x.z + R};
+    uint32_t ids[SIDE_CLEAR_MAX];
+    int n = bvh_overlap(&s->accel, lo, hi, ids, SIDE_CLEAR_MAX);
+    if (n > SIDE_CLEAR_MAX) return;
+    for (int i = 0; i < n; i++) {
+        if (ids[i] >= (uint32_t)s->accel.ntris) return;
+        const triangle *t = &s->accel.tris[ids[i]];
+        vec3 c = v3_cross(t->e1, t->e2);
+        double cl = v3_len(c);
+        if (!(cl > 1e-9 * v3_len(t->e1) * v3_len(t->e2))) return; /* no trustworthy plane */
+        pl->nrm[i] = v3_scale(c, 1.0 / cl);
+        pl->d[i] = v3_dot(pl->nrm[i], t->v0);
+    }
+    pl->n = n;
+    pl->ok = 1;
+}
+
+int side_clear(const side_planes *pl, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq) {
+    if (!pl->ok) return 0;
+    vec3 a, b;
+    if (!side_lift(p, np, hp, q, nq, hq, &a, &b)) return 1;
+    for (int i = 0; i < pl->n; i++) {
+        double sa = v3_dot(pl->nrm[i], a) - pl->d[i], sb = v3_dot(pl->nrm[i], b) - pl->d[i];
+        if (!((sa > pl->margin && sb > pl->margin) || (sa < -pl->margin && sb < -pl->margin))) return 0;
+    }
+    return 1;
 }
 
 int side_visible(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq) {
@@ -169,12 +226,17 @@ int side_precomp_neighbours(const scene *s, const pm_kdtree *t, const pm_photon 
     ko.flags = PM_SORT;
     int found = pm_kdtree_knn_ex(t, x, k, max_dist2, &ko, nb, NULL);
     if (found < 0) found = 0;
+    side_planes pl; /* CLEAR SEGMENTS WITHOUT A RAY */
+    pl.ok = 0;
+    if (found > 0) side_planes_near(s, xv, nb[found - 1].dist2, &pl);
     for (int i = 0; i < found && !*wall; i++) {
         if (nb[i].dist2 == 0) continue;
         float nq[3];
         pm_normal_decode(ph[nb[i].index].normal, nq);
+        vec3 qv = v3f(ph[nb[i].index].pos), nqv = v3f(nq);
+        if (side_clear(&pl, xv, nv, hx, qv, nqv, hfree[nb[i].index])) continue;
         if (rays) rays[0]++;
-        *wall = !side_visible_h(s, xv, nv, hx, v3f(ph[nb[i].index].pos), v3f(nq), hfree[nb[i].index]);
+        *wall = !side_visible_h(s, xv, nv, hx, qv, nqv, hfree[nb[i].index]);
     }
     if (!*wall) return found;
     /* A wall: SIDE_WIDEN x k candidates in order of distance, the visible ones kept until k
@@ -184,13 +246,17 @@ int side_precomp_neighbours(const scene *s, const pm_kdtree *t, const pm_photon 
     int n2 = pm_kdtree_knn_ex(t, x, want, max_dist2, &ko, nb, NULL);
     if (n2 < 0) n2 = 0;
     unsigned kept = 0;
+    if (n2 > 0) side_planes_near(s, xv, nb[n2 - 1].dist2, &pl);
     for (int i = 0; i < n2 && kept < k; i++) {
         int vis = 1;
         if (nb[i].dist2 > 0) {
             float nq[3];
             pm_normal_decode(ph[nb[i].index].normal, nq);
-            if (rays) rays[1]++;
-            vis = side_visible_h(s, xv, nv, hx, v3f(ph[nb[i].index].pos), v3f(nq), hfree[nb[i].index]);
+            vec3 qv = v3f(ph[nb[i].index].pos), nqv = v3f(nq);
+            if (!side_clear(&pl, xv, nv, hx, qv, nqv, hfree[nb[i].index])) {
+                if (rays) rays[1]++;
+                vis = side_visible_h(s, xv, nv, hx, qv, nqv, hfree[nb[i].index]);
+            }
         }
         if (vis) nb[kept++] = nb[i];
     }

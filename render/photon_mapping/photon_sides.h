@@ -119,6 +119,23 @@ int side_estimate_readable(unsigned paths);
  * (not known): every photon counts as a path of its own, which reads the estimate as often as
  * counting photons would. scratch: room for cap ids (read only with path). */
 unsigned side_count_paths(const uint32_t *path, const pm_neighbor *nb, int count, unsigned cap, uint32_t *scratch);
+/* Segments that side_visible_h would test, cleared without a ray (photon_sides.c, CLEAR
+ * SEGMENTS WITHOUT A RAY): side_planes_near lists the planes of the triangles near x (those
+ * whose boxes overlap the box of radius 1.3 sqrt(r2) around x; not ok when more than
+ * SIDE_CLEAR_MAX or a sphere are there), and side_clear is 1 when both lifted ends of
+ * side_visible_h(p, np, hp, q, nq, hq)'s segment lie on one side of each of those planes by
+ * more than SIDE_CLEAR_MARGIN of the scene's scale, so the ray would meet nothing and
+ * side_visible_h is 1; 0 when only the ray can tell. For p and q within sqrt(r2) of x. */
+#define SIDE_CLEAR_MAX 16
+#define SIDE_CLEAR_MARGIN 1e-7
+typedef struct side_planes {
+    int ok; /* 0: not listed (too many surfaces near, or a sphere): side_clear is always 0 */
+    int n;
+    vec3 nrm[SIDE_CLEAR_MAX];
+    double d[SIDE_CLEAR_MAX], margin;
+} side_planes;
+void side_planes_near(const scene *s, vec3 x, double r2, side_planes *pl);
+int side_clear(const side_planes *pl, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq);
 /* Candidates examined by a precomputed estimate that meets a wall, as a multiple of its k. */
 #define SIDE_WIDEN 4
 /* The neighbours of a precomputed estimate at the photon x (decoded normal n, free height hx)
@@ -130,7 +147,8 @@ unsigned side_count_paths(const uint32_t *path, const pm_neighbor *nb, int count
  * kept, in nb[0..) (room for SIDE_WIDEN x k); *wall: whether a wall was met; *reach2 the
  * radius^2 of the disc examined when fewer than k were kept after a wall (up to the last
  * candidate when all SIDE_WIDEN x k were examined), else max_dist2. rays (or NULL) gains the
- * visibility rays: [0] the first search's, [1] the widened search's. */
+ * visibility rays traced: [0] the first search's, [1] the widened search's (segments that
+ * side_clear clears need none and count in neither). */
 int side_precomp_neighbours(const scene *s, const pm_kdtree *t, const pm_photon *ph, const float *hfree,
                             const float x[3], const float n[3], double hx, unsigned k, float max_dist2,
                             pm_neighbor *nb, int *wall, float *reach2, unsigned long long rays[2]);

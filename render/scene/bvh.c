@@ -291,3 +291,52 @@ int bvh_occluded(const bvh *b, ray r, double tmin, double tmax) {
     if (!b->nnodes) return 0;
     return traverse(b, r, tmin, tmax, 1, NULL, NULL, NULL, NULL);
 }
+
+static int box_overlaps(const double alo[3], const double ahi[3], const double blo[3], const double bhi[3]) {
+    for (int a = 0; a < 3; a++)
+        if (!(alo[a] <= bhi[a] && blo[a] <= ahi[a])) return 0;
+    return 1;
+}
+
+static void prim_bounds(const bvh *b, uint32_t id, double lo[3], double hi[3]) {
+    if (id < (uint32_t)b->ntris) {
+        const triangle *t = &b->tris[id];
+        vec3 p[3] = {t->v0, v3_add(t->v0, t->e1), v3_add(t->v0, t->e2)};
+        for (int a = 0; a < 3; a++) {
+            double c0 = v3_idx(p[0], a), c1 = v3_idx(p[1], a), c2 = v3_idx(p[2], a);
+            lo[a] = c0 < c1 ? (c0 < c2 ? c0 : c2) : (c1 < c2 ? c1 : c2);
+            hi[a] = c0 > c1 ? (c0 > c2 ? c0 : c2) : (c1 > c2 ? c1 : c2);
+        }
+        return;
+    }
+    const sphere *sp = &b->spheres[id - (uint32_t)b->ntris];
+    for (int a = 0; a < 3; a++) {
+        lo[a] = v3_idx(sp->c, a) - sp->r;
+        hi[a] = v3_idx(sp->c, a) + sp->r;
+    }
+}
+
+int bvh_overlap(const bvh *b, const double lo[3], const double hi[3], uint32_t *out, int cap) {
+    if (!b->nnodes) return 0;
+    uint32_t stack[STACK_SIZE];
+    int sp = 0, n = 0;
+    stack[sp++] = 0;
+    while (sp) {
+        const bvh_node *nd = &b->nodes[stack[--sp]];
+        if (!box_overlaps(nd->lo, nd->hi, lo, hi)) continue;
+        if (!nd->count) {
+            if (sp + 2 > STACK_SIZE) return cap + 1; /* deeper than any built tree: give up */
+            stack[sp++] = nd->first;
+            stack[sp++] = (uint32_t)(nd - b->nodes) + 1;
+            continue;
+        }
+        for (uint32_t i = nd->first; i < nd->first + nd->count; i++) {
+            double plo[3], phi[3];
+            prim_bounds(b, b->prim_ids[i], plo, phi);
+            if (!box_overlaps(plo, phi, lo, hi)) continue;
+            if (n == cap) return cap + 1;
+            out[n++] = b->prim_ids[i];
+        }
+    }
+    return n;
+}

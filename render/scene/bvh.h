@@ -49,6 +49,11 @@ int bvh_intersect(const bvh *b, ray r, double tmin, double tmax, double *t, int 
                   double *v);
 /* Any hit with tmin < t < tmax (shadow rays): returns 1 if the segment is blocked. */
 int bvh_occluded(const bvh *b, ray r, double tmin, double tmax);
+/* The primitives whose bounds (a triangle's vertices' box, a sphere's cube) overlap the box
+ * [lo, hi]: their ids into out[0..cap) and their count, or cap + 1 when there are more than cap
+ * (out then holds cap of them). For a caller that wants to know which surfaces a set of
+ * segments inside the box could meet (photon_sides.c); counts no statistics. */
+int bvh_overlap(const bvh *b, const double lo[3], const double hi[3], uint32_t *out, int cap);
 
 #ifdef __cplusplus
 }
