@@ -18,6 +18,7 @@
 #include "test.h"
 #include "../render/photon_mapping/photon_sides.h"
 #include "../render/scene/bvh.h"
+#include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
 typedef struct { uint64_t s; } crng;
