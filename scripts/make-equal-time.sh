@@ -137,8 +137,12 @@ for name in $scenes; do
       spp=$(awk -v b="$b" -v c1="$c1" -v c2="$c2" -v c3="$c3" -v s1=$s1 -v s2=$s2 -v s3="$s3" \
         'BEGIN { lo_s = s1; lo_c = c1; hi_s = s2; hi_c = c2
                  if (s3 != "" && b > c2) { lo_s = s2; lo_c = c2; hi_s = s3; hi_c = c3 }
-                 k = (hi_c - lo_c) / (hi_s - lo_s); if (k <= 0) k = 1e-9; a = lo_c - k * lo_s
-                 n = int((b - a) / k); print n < 1 ? 1 : n }')
+                 k = (hi_c - lo_c) / (hi_s - lo_s); a = lo_c - k * lo_s
+                 # a cost that did not grow with spp (fixed costs that vary, e.g. the fit
+                 # tracing its maps again at one count and not at the other, lamp_shade at
+                 # 32x32): the line through 0 and the segment'"'"'s upper point
+                 n = k > 0 ? int((b - a) / k) : int(hi_s * b / hi_c)
+                 print (n < 1 ? 1 : (n > 1048576 ? 1048576 : n)) }')
       seed=$((seed + 1))
       run "$name" $mode "$spp" $seed
       rmse=$("$bin" --compare "$work/img.pfm" "$refdir/$name.pfm" | awk '$1 == "rmse" { print $2 }')
