@@ -110,6 +110,8 @@ TEST(docs_results_md_stamps_the_measurement) {
              "-e 's/^date .*/date 1999-12-30 23:59 UTC/' media/measurement.txt; } && "
              "{ [ ! -f equal_time/measurement.txt ] || sed -i -e 's/^commit .*/commit c0ffee2-test/' "
              "-e 's/^date .*/date 1999-12-29 23:59 UTC/' equal_time/measurement.txt; } && "
+             "{ [ ! -f survey/measurement.txt ] || sed -i -e 's/^commit .*/commit c0ffee3-test/' "
+             "-e 's/^date .*/date 1999-12-28 23:59 UTC/' survey/measurement.txt; } && "
              "sh '%s/scripts/gen-results-md.sh' --out '%s/R.md' '%s/res'",
              pm_test_source_dir(), dir, dir, pm_test_source_dir(), dir, dir);
     ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
@@ -128,6 +130,12 @@ TEST(docs_results_md_stamps_the_measurement) {
                        strstr(out, "Measured sources (stamp c0ffee2-test)"),
                    "no measured equal-time stamp in:\n%.400s",
                    strstr(out, "## Equal time") ? strstr(out, "## Equal time") : out);
+    snprintf(cmd, sizeof cmd, "%s/docs/results/survey/measurement.txt", pm_test_source_dir());
+    if (stat(cmd, &media) == 0)
+        EXPECT_MSG(strstr(out, "| commit | c0ffee3-test |") && strstr(out, "| date | 1999-12-28 23:59 UTC |") &&
+                       strstr(out, "Measured sources (stamp c0ffee3-test)"),
+                   "no measured survey stamp in:\n%.400s",
+                   strstr(out, "## Every shipped") ? strstr(out, "## Every shipped") : out);
     snprintf(cmd, sizeof cmd, "git -C '%s' rev-parse --short HEAD 2>/dev/null", pm_test_source_dir());
     if (pm_test_run(cmd, head, sizeof head) == 0 && head[0]) {
         head[strcspn(head, "\n")] = 0;
