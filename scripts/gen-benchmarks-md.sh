@@ -211,7 +211,7 @@ worth 1.6x there (3.8x fewer records evaluated). Near the data and on uniform po
 rule changes nothing and the library's own search is faster (1.67-1.96x nanoflann against
 1.04-1.29x for that explicit tree). The split axis, the one freedom a left-balanced tree has,
 was measured earlier (cycling, variance, five other rules: none better than the largest extent).
-So the cell's targets (1.0x nanoflann's best, 1.3x FLANN's) ask for what issue 28's constraint
+So the cell's targets (1.0x nanoflann's best, 1.3x FLANN's) ask for what the module's design
 rules out: the median splits of the left-balanced heap stay.
 
 Choosing B: how often each bucket size was the fastest (unsorted k-NN, over every cell), the worst loss of always using it instead of the cell's fastest, the geometric mean of its queries/s against the cell's fastest over every cell and over the cells of the targets (k = 10 and 50), and its queries/s against the fastest B in the worst cell of the headline (the lowest ours / nanoflann best at the smallest N). The default (PM_KDTREE_BUCKET_DEFAULT in kdtree.h) and the README's example follow this table:"

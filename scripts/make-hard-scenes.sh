@@ -1,5 +1,5 @@
 #!/bin/sh
-# make-hard-scenes.sh: the hard scenes of small openings (issue 30: pinhole_room, door_ajar,
+# make-hard-scenes.sh: the hard scenes of small openings (pinhole_room, door_ajar,
 # sun_window, lamp_shade, sun_window_fog), photon mapping at its defaults against path tracing,
 # each against its long path-traced reference (data/reference-hard/NAME.pfm); writes
 # docs/hard_scenes/ (CSV, plan lines, a stamp) and docs/HARD_SCENES.md (by
