@@ -63,15 +63,16 @@ esac
 . "$here/scripts/commit-stamp.sh"
 stamp=$(commit_stamp "$here" "$bin") || exit 2
 
-info() { awk -v k="$2" '$1 == k { print $2 }' "$refdir/$1.info"; }
+. "$here/scripts/reference-check.sh"
+info() { ref_info "$refdir" "$1" "$2"; }
 for name in $scenes; do
   scene="$here/data/scenes/$name.json"
-  [ -f "$refdir/$name.pfm" ] && [ -f "$refdir/$name.info" ] || {
-    echo "make-equal-time: no reference for $name in $refdir: REF_RES=$res REF_OUT=$refdir scripts/make-reference.sh $name" >&2; exit 2; }
+  case $(ref_state "$refdir" "$name" "$scene") in
+    missing) echo "make-equal-time: no reference for $name in $refdir: REF_RES=$res REF_OUT=$refdir scripts/make-reference.sh $name" >&2; exit 2 ;;
+    stale) echo "make-equal-time: $scene changed since its reference was rendered" >&2; exit 2 ;;
+  esac
   [ "$(info "$name" width)" = "$res" ] || {
     echo "make-equal-time: $refdir/$name is $(info "$name" width) wide, not $res: REF_RES=$res REF_OUT=$refdir scripts/make-reference.sh $name" >&2; exit 2; }
-  [ "$(info "$name" scene_sha256)" = "$(sha256sum "$scene" | cut -d' ' -f1)" ] || {
-    echo "make-equal-time: $scene changed since its reference was rendered" >&2; exit 2; }
 done
 
 # The images are scratch; the CSVs are written as the runs end into $out.partial (kept if the

@@ -48,7 +48,8 @@ esac
 . "$here/scripts/commit-stamp.sh"
 stamp=$(commit_stamp "$here" "$bin") || exit 2
 
-info() { awk -v k="$2" '$1 == k { print $2 }' "$refdir/$1.info"; }
+. "$here/scripts/reference-check.sh"
+info() { ref_info "$refdir" "$1" "$2"; }
 counts() { # NAME -> "PM_SPP_1 PM_SPP_2 PATH_SPP"
   if [ $quick = 1 ]; then echo "64 64 1024"; return; fi
   case $1 in
@@ -62,10 +63,10 @@ counts() { # NAME -> "PM_SPP_1 PM_SPP_2 PATH_SPP"
 for name in $scenes; do
   scene="$here/data/scenes/$name.json"
   counts "$name" > /dev/null
-  [ -f "$refdir/$name.pfm" ] && [ -f "$refdir/$name.info" ] || {
-    echo "make-hard-scenes: no reference for $name in $refdir" >&2; exit 2; }
-  [ "$(info "$name" scene_sha256)" = "$(sha256sum "$scene" | cut -d' ' -f1)" ] || {
-    echo "make-hard-scenes: $scene changed since its reference was rendered" >&2; exit 2; }
+  case $(ref_state "$refdir" "$name" "$scene") in
+    missing) echo "make-hard-scenes: no reference for $name in $refdir" >&2; exit 2 ;;
+    stale) echo "make-hard-scenes: $scene changed since its reference was rendered" >&2; exit 2 ;;
+  esac
 done
 
 # The images are scratch; the CSV is written as the runs end into $out.partial (kept if the

@@ -36,15 +36,13 @@ esac
 if [ $# -eq 0 ]; then
   set -- $(for f in "$here"/data/scenes/*.json; do basename "$f" .json; done)
 fi
+. "$here/scripts/reference-check.sh"
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 for name in "$@"; do
   scene="$here/data/scenes/$name.json"
   [ -f "$scene" ] || { echo "make-survey: no scene $scene" >&2; exit 2; }
-  if [ -f "$refdir/$name.pfm" ] && [ -f "$refdir/$name.info" ] &&
-     [ "$(awk '$1 == "scene_sha256" { print $2 }' "$refdir/$name.info")" = "$(sha256sum "$scene" | cut -d' ' -f1)" ]; then
-    continue
-  fi
+  [ "$(ref_state "$refdir" "$name" "$scene")" = ok ] && continue
   /usr/bin/time -f '%U %S' -o "$work/time" "$bin" "$scene" --mode path --width "$res" --height "$res" \
       --spp 64 --seed 999 --threads 2 --quiet --hdr "$work/t.pfm" -o "$work/t.png" > /dev/null
   spp=$(awk -v c="$refcpu" '{ t = $1 + $2; n = t > 0 ? int(c / t * 64) : 1024; print n < 1024 ? 1024 : n }' "$work/time")

@@ -1,0 +1,12 @@
+# reference-check.sh: sourced by make-equal-time.sh, make-hard-scenes.sh and make-survey.sh,
+# which judge renders against path-traced references made by make-reference.sh (NAME.pfm and
+# its NAME.info of "key value" lines).
+#   ref_info DIR NAME KEY     prints KEY's value from DIR/NAME.info
+#   ref_state DIR NAME SCENE  prints "missing" (no DIR/NAME.pfm or .info), "stale" (SCENE's
+#                             SHA-256 is not the one the reference was rendered from) or "ok"
+ref_info() { awk -v k="$3" '$1 == k { print $2 }' "$1/$2.info"; }
+ref_state() {
+  if [ ! -f "$1/$2.pfm" ] || [ ! -f "$1/$2.info" ]; then echo missing
+  elif [ "$(ref_info "$1" "$2" scene_sha256)" != "$(sha256sum "$3" | cut -d' ' -f1)" ]; then echo stale
+  else echo ok; fi
+}
