@@ -72,7 +72,7 @@ typedef struct mapper_state {
     int fit_stage;
     int caustic_cap; /* trace_opts.caustic_cap of the next trace (pm_passes.c, THE CAUSTIC CAP) */
     double fit_scale, fit_scale_c; /* the global (and volume) maps', the caustic map's (THE CAUSTIC FLOOR) */
-    char fit_reason[640];
+    char fit_reason[768];
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
         st_global_est, st_lookup_miss, st_side_rays, st_side_again;
 } mapper_state;
