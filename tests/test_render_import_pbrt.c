@@ -576,7 +576,7 @@ TEST(pbrt_cornell_scenes_match_json) {
             int spp = m ? (fog ? 16 : 64) : (fog ? 256 : 1024);
             snprintf(cmd, sizeof cmd,
                      "cd '%s' && R='%s/render' && O='--width 32 --height 32 --quiet --threads 2 --mode %s --spp %d' && "
-                     "$R '%s/data/pbrt/%s.pbrt' $O --seed 11 --hdr p.pfm >/dev/null 2>p.err && "
+                     "$R '%s/data/pbrt/%s.pbrt' $O --seed 11 --hdr p.pfm >/dev/null 2>p.err || { cat p.err; exit 1; }; "
                      "$R '%s/data/scenes/%s.json' $O --seed 12 --hdr j.pfm >/dev/null && cat p.err",
                      dir, pm_test_build_dir(), m ? "pm" : "path", spp, pm_test_source_dir(), names[i], pm_test_source_dir(),
                      names[i]);
