@@ -54,7 +54,7 @@ TEST(render_sample_pilot_prints_its_choice) {
         EXPECT_MSG(c >= 1 && c <= 4, "%s: %s", scenes[i], line);
         /* every candidate's figures are printed */
         EXPECT_MSG(strstr(line, " 1/1/") && strstr(line, " 2/1/") && strstr(line, " 4/2/"), "%s", line);
-        EXPECT_MSG(strstr(g_out, "  emission rays: 2x2 emission-only rays per sample at "), "%s", g_out);
+        EXPECT_MSG(strstr(g_out, "  emission rays: 4x4 emission-only rays per sample at "), "%s", g_out);
     }
 }
 
@@ -104,14 +104,14 @@ TEST(render_sample_emission_rays_where_emitters_are_seen) {
     int rc = run_pm("cornell_box", "-o a.png");
     ASSERT_MSG(rc == 0, "exit %d: %s", rc, g_out);
     unsigned long marked = 0, total = 0;
-    const char *p = strstr(g_out, "  emission rays: 2x2 emission-only rays per sample at ");
-    ASSERT_MSG(p && sscanf(p, "  emission rays: 2x2 emission-only rays per sample at %lu of %lu pixels", &marked,
+    const char *p = strstr(g_out, "  emission rays: 4x4 emission-only rays per sample at ");
+    ASSERT_MSG(p && sscanf(p, "  emission rays: 4x4 emission-only rays per sample at %lu of %lu pixels", &marked,
                            &total) == 2, "%s", g_out);
     EXPECT_MSG(total == 256 && marked > 0 && marked < total, "cornell_box: %lu of %lu marked", marked, total);
     rc = run_pm("water_caustic", "-o w.png");
     ASSERT_MSG(rc == 0, "exit %d: %s", rc, g_out);
-    p = strstr(g_out, "  emission rays: 2x2 emission-only rays per sample at ");
-    ASSERT_MSG(p && sscanf(p, "  emission rays: 2x2 emission-only rays per sample at %lu of %lu pixels", &marked,
+    p = strstr(g_out, "  emission rays: 4x4 emission-only rays per sample at ");
+    ASSERT_MSG(p && sscanf(p, "  emission rays: 4x4 emission-only rays per sample at %lu of %lu pixels", &marked,
                            &total) == 2, "%s", g_out);
     EXPECT_MSG(total == 256 && marked == 0, "water_caustic: %lu of %lu marked", marked, total);
     /* and none are traced */

@@ -80,7 +80,7 @@ static const setting_def k_settings[] = {
      "the caustic map is read at one camera sample in c x c strata (a stratified subset, "
      "the same count in every pixel, weighted to sum to the pixel's samples; 1: at every "
      "sample); absent, the sample pilot picks it, 1 to 4, dividing the strata (\"sample:\")"},
-    {"emission_strata", ST_INT, F(emission_strata), 2, 0, 16,
+    {"emission_strata", ST_INT, F(emission_strata), 4, 0, 16,
      "emission seen by the camera (directly or through mirrors and glass) comes from m x m "
      "extra emission-only rays per sample, at the pixels where probe rays see an emitter (the "
      "plan's \"emission rays:\" line); elsewhere, and with 0, from the sample's own path"},
