@@ -1309,15 +1309,16 @@ TEST(render_pm_caustic_pilot_runaway_message) {
 }
 
 /* Oracle: the rule of the caustic cap (photon_trace.h CAUSTIC CAP, pm_passes.c THE CAUSTIC
- * CAP) and the render's own figures. glass_hole's caustic map lies behind a wall the camera
- * does not see through: at its defaults (the fit applies) its caustic pass stops at the cap,
- * max(4194304, 4 x the global pass's emitted photons) of its own, plus the plan's 8192 pilot
- * photons that join it, exactly (the emission budget is exact), and says so (the first stage
- * traces 1/8 of the caustic target, THE CAUSTIC FLOOR in pm_passes.c, whose budget at the default
- * max_emitted_factor 64, 4.0M, is below the cap: max_emitted_factor 256, not a photon count,
- * leaves the fit on and the cap the first limit). Control: with
- * caustic_photons set (no fit) the cap does not apply: the same scene emits past it and stops
- * by photon_mapping.max_emitted_factor. */
+ * CAP, pm_preprocess.c THE CAUSTIC PROBE) and the render's own figures. glass_hole's caustic
+ * map lies behind a wall the camera does not see through: at its defaults (the fit applies)
+ * the first stage's caustic pass stops at the cap, max(min(4194304, width x height x spp),
+ * 4 x the global pass's own emitted photons) of its own, plus the plan's 8192 pilot photons
+ * that join it, exactly (the emission budget is exact), and says so with the floor it used
+ * (the first stage traces 1/8 of the caustic target, THE CAUSTIC FLOOR in pm_passes.c;
+ * max_emitted_factor 256, not a photon count, leaves the fit on and the cap the first limit).
+ * Before THE CAUSTIC PROBE the floor was 4194304 at any image size (4.0M caustic photons
+ * for a 16 x 16 x 1 render). Control: with caustic_photons set (no fit) the cap does not
+ * apply: the same scene emits past 4194304 and stops by photon_mapping.max_emitted_factor. */
 TEST(render_pm_caustic_cap_at_the_defaults_only) {
     static char out[65536];
     char cmd[8192];
@@ -1331,21 +1332,28 @@ TEST(render_pm_caustic_cap_at_the_defaults_only) {
         int rc = pm_test_run(cmd, out, sizeof out);
         ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
         const char *line = strstr(out, "\n  caustics: on ("), *at = line ? strstr(line, "the pilot's ") : NULL;
-        size_t n = 0, ng = 0, nc = 0;
-        unsigned long long ne = 0, ge = 0, ce = 0;
+        const char *gl = strstr(out, "\n  global: on ("), *gat = gl ? strstr(gl, "the pilot's ") : NULL;
+        size_t n = 0, ng = 0, nc = 0, ngp = 0;
+        unsigned long long ne = 0, ge = 0, ce = 0, gpe = 0;
         ASSERT_MSG(at && sscanf(at, "the pilot's %zu stores join the caustic map (its %llu photons", &n, &ne) == 2,
+                   "%s", out);
+        ASSERT_MSG(gat && sscanf(gat, "the pilot's %zu stores join the global map (its %llu photons", &ngp, &gpe) == 2,
                    "%s", out);
         const char *ph = strstr(out, "\nPhotons: ");
         ASSERT_MSG(ph && sscanf(ph, "\nPhotons: %zu global, %*u shadow-map (from %llu emitted); %zu caustic (from %llu "
                                     "emitted",
                                 &ng, &ge, &nc, &ce) == 4,
                    "%s", out);
-        double cap = 4.0 * (double)ge > 4194304.0 ? 4.0 * (double)ge : 4194304.0;
+        double own = (double)(ge - gpe), floor = 16.0 * 16.0 * 1.0; /* the camera samples, under 4194304 */
+        double cap = 4.0 * own > floor ? 4.0 * own : floor;
         if (!set) {
-            EXPECT_MSG(strstr(out, "stopped by the caustic pass's cap (4 times the global pass's photons emitted"),
+            EXPECT_MSG(strstr(out, "stopped by the caustic pass's cap (4 times the global pass's photons emitted, "
+                                   "at least 256;"),
                        "%s", out);
-            EXPECT_MSG((double)ce == cap + (double)ne, "caustic emitted %llu, cap %.0f + pilot %llu", ce, cap, ne);
+            EXPECT_MSG((double)ce == cap + (double)ne, "caustic emitted %llu, cap %.0f (4 x %.0f) + pilot %llu", ce,
+                       cap, own, ne);
         } else {
+            cap = 4.0 * (double)ge > 4194304.0 ? 4.0 * (double)ge : 4194304.0;
             EXPECT_MSG(strstr(out, "stopped by the photon_mapping.max_emitted_factor budget"), "%s", out);
             EXPECT_MSG((double)ce > cap + (double)ne, "caustic emitted %llu, cap %.0f + pilot %llu", ce, cap, ne);
         }

@@ -70,6 +70,28 @@ static void plan_trace_opts(const mapper_state *st, const scene *s, trace_opts *
     o->caustic_cap = st->caustic_cap;
 }
 
+/* THE CAUSTIC PROBE. Pass 0's first stage (pm_passes.c, PASS 0'S PHOTONS) traces its caustic
+ * map for the sample pilot to weigh (the share of the camera samples' luminance it carries),
+ * under the caustic cap (photon_trace.h CAUSTIC CAP: 4 x the global pass's photons emitted, at
+ * least 4194304). That floor is sized for a large render, not for the camera samples the map
+ * serves: glass_hole at 32x32 (its glass lit through a 10 x 10 hole: 26 caustic stores from
+ * 8192 aimed pilot photons) emitted 4.0M caustic photons in the first stage, about 1.8 of its
+ * 2.4 CPU-s at 4 spp and more than a whole 2 CPU-s budget, for a map the sample pilot then
+ * found carrying 0.0% of the luminance (and kept, as a map under 10% is). So the first
+ * stage's floor is the render's camera samples (width x height x spp) where they are fewer:
+ * one emission per camera sample, under a fifth of what the fit gives all photons
+ * (PM_FIT_SHARE of the camera samples' counted work; a camera sample counts 64 units or more
+ * in the shipped scenes' sample pilots, an emitted photon about 5). The cap still stops only
+ * a pass short of its target, so this changes only a map whose light rarely reaches a diffuse
+ * surface through specular ones; where the sample pilot finds it carries 10% or more of the
+ * luminance the fit traces it again to the settings' budgets. A first stage whose caustic
+ * pass then stores nothing is traced again at the usual floor (as it was before). */
+static double caustic_probe_floor(const mapper_state *st, const scene *s) {
+    if (!st->fit_stage || st->pass) return 0;
+    double cam = (double)s->cam.width * (double)s->cam.height * (double)s->cam.spp;
+    return cam < CAUSTIC_CAP_MIN ? cam : 0;
+}
+
 /* Trace (or load) the maps of st->pass at the targets in st->cfg, build their trees and
  * readers. Quiet while pass 0's first stage runs (pm_passes.c, PASS 0'S PHOTONS). */
 static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t errcap) {
@@ -110,8 +132,15 @@ static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t e
             o.seed = st->pass_seed;
             o.reuse = NULL;
         }
+        o.caustic_cap_min = caustic_probe_floor(st, s); /* THE CAUSTIC PROBE */
         scene sp; /* with the ports the plan's probe found (ports.h), if any */
-        if ((rc = photon_trace(ports_found_scene(s, &st->plan.found, &sp), &o, m, err, errcap)) < 0) return rc;
+        const scene *ps = ports_found_scene(s, &st->plan.found, &sp);
+        rc = photon_trace(ps, &o, m, err, errcap);
+        if (rc == PM_EEMPTY && o.caustic_cap_min > 0) {
+            o.caustic_cap_min = 0;
+            rc = photon_trace(ps, &o, m, err, errcap);
+        }
+        if (rc < 0) return rc;
         m->stamp = stamp;
     }
     st->t_trace = stats_now() - t0;

@@ -268,13 +268,17 @@ static int caustic_pass(trace_run *t) {
         c.tail_emitted = rkc ? rkc->c_emitted : 0;
         if (rkc) target = (long)rkc->c.n < target ? target - (long)rkc->c.n : 1;
         double ge = (double)(m->global_emitted ? m->global_emitted : o->cap_global_emitted);
-        double cap = fmax(CAUSTIC_CAP_MIN, CAUSTIC_CAP_FACTOR * ge);
+        double floor = o->caustic_cap_min > 0 && o->caustic_cap_min < CAUSTIC_CAP_MIN ? o->caustic_cap_min
+                                                                                      : CAUSTIC_CAP_MIN;
+        double cap = fmax(floor, CAUSTIC_CAP_FACTOR * ge);
         double budget = o->max_emitted_factor * (double)target;
         if (o->max_emitted > 0 && o->max_emitted < budget) budget = o->max_emitted;
+        char cap_name[160];
         if (o->caustic_cap && cap < budget) { /* CAUSTIC CAP in photon_trace.h */
+            snprintf(cap_name, sizeof cap_name, "caustic pass's cap (4 times the global pass's photons "
+                     "emitted, at least %.0f; photon_trace.h CAUSTIC CAP)", floor);
             c.limit = cap;
-            c.limit_name = "caustic pass's cap (4 times the global pass's photons emitted, at least "
-                           "4194304; photon_trace.h CAUSTIC CAP)";
+            c.limit_name = cap_name;
         }
         pass_out po = {0};
         rc = pass_run(&c, target, &t->cbuf, NULL, &po, "Tracing caustic photons", t->err, t->errcap);

@@ -165,7 +165,8 @@ typedef struct trace_pilot {
  * stops it there when the caller asks (trace_opts.caustic_cap; the media tracer always, in
  * pm_volume.c), and it keeps what it stored for the photons emitted (unbiased, a smaller
  * map). The photon mapper asks for it where it does not yet know the camera sees the caustic
- * map, or knows it barely does (pm_passes.c, THE CAUSTIC CAP). */
+ * map, or knows it barely does (pm_passes.c, THE CAUSTIC CAP). A caller may lower the floor
+ * (trace_opts.caustic_cap_min). */
 #define CAUSTIC_CAP_FACTOR 4.0
 #define CAUSTIC_CAP_MIN 4194304.0
 
@@ -176,6 +177,9 @@ typedef struct trace_opts {
     double max_emitted;              /* and after this many emitted (0: no absolute cap) */
     size_t max_memory_bytes;         /* photon buffers of a pass (0: no cap) */
     int caustic_cap;                 /* 1: the caustic pass emits at most CAUSTIC_CAP (below) */
+    double caustic_cap_min;          /* the cap's floor when above 0 and below CAUSTIC_CAP_MIN
+                                        (the photon mapper's first stage, pm_preprocess.c THE
+                                        CAUSTIC PROBE); else CAUSTIC_CAP_MIN */
     uint64_t cap_global_emitted;     /* a trace without a global pass (the photon mapper's
                                         caustic-only trace): the global photons emitted that
                                         CAUSTIC_CAP scales with (0: none) */
