@@ -6,6 +6,8 @@
 #   2. No file over 600 lines.
 #   3. No function over 120 lines (a function: a line at column 0 that ends in ") {", up to the
 #      next "}" at column 0; the style of every file in render/).
+#   4. No circle of includes among the headers (a.h includes b.h, which includes a.h, directly
+#      or further round): each header stands on the ones it includes.
 # What breaks a rule today is listed below as a known exception, each with its size, so the
 # debt is visible and cannot grow: an exception that no longer applies is reported too, so the
 # list only shrinks. Prints one line per violation; exit 1 if there is any, else 0.
@@ -38,6 +40,12 @@ awk -v stages="$STAGES" -v ex="$EXCEPTIONS" '
       }
     }
   }
+  FILENAME ~ /\.h$/ && /^#include "[a-z_0-9\/]+\.h"/ {
+    h = $2; gsub(/"/, "", h)
+    if (h !~ /\//) { d = FILENAME; sub(/\/[^\/]*$/, "", d); h = d "/" h } # "x.h": beside the file
+    if (!(FILENAME in hedge)) hdrs[++nh] = FILENAME
+    hedge[FILENAME] = hedge[FILENAME] " " h
+  }
   /^[A-Za-z_][^;=]*\(/ && !/^(typedef|struct|enum|union|static const|const)/ {
     name = $0; sub(/\(.*/, "", name); sub(/.*[ *]/, "", name); cand = FNR; pend = 1 }
   pend && /\) *\{ *$/ { start = cand; pend = 0; next }
@@ -49,6 +57,20 @@ awk -v stages="$STAGES" -v ex="$EXCEPTIONS" '
     start = 0
   }
   { lines[FILENAME] = FNR }
+  # rule 4: a depth-first walk of the headers; an include of a header still on the walk closes a circle
+  function visit(v,   n, i, j, w, E, c) {
+    color[v] = 1; path[++depth] = v
+    n = split(hedge[v], E, " ")
+    for (i = 1; i <= n; i++) {
+      w = E[i]
+      if (color[w] == 1) {
+        for (j = depth; j > 0 && path[j] != w; j--) {}
+        c = path[j]; for (j++; j <= depth; j++) c = c " -> " path[j]
+        printf "include circle: %s -> %s\n", c, w; bad = 1
+      } else if (!color[w]) visit(w)
+    }
+    color[v] = 2; depth--
+  }
   function end_file() {
     l = (prev in file_lim) ? file_lim[prev] : 600
     if (lines[prev] > l) { printf "long file: %s has %d lines (limit %d)\n", prev, lines[prev], l; bad = 1 }
@@ -56,6 +78,7 @@ awk -v stages="$STAGES" -v ex="$EXCEPTIONS" '
   }
   END {
     if (prev != "") end_file()
+    for (i = 1; i <= nh; i++) if (!color[hdrs[i]]) visit(hdrs[i])
     for (k in inc_ok) if (!(k in seen_inc)) { printf "stale exception: include %s\n", k; bad = 1 }
     exit bad
   }' */*.c */*.h

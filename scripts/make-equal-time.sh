@@ -162,8 +162,8 @@ for name in $prog_scenes; do
     echo "$name,pm_passes,$n,$((n * spp_used)),$cpu,$wall,$rmse,$refspp" >> "$work/out/runs.csv"
     echo "make-equal-time: $name pm --passes $n --pass-spp $prog_spp: $cpu CPU-s, RMSE $rmse" >&2
   done
-  # the longest run's region means against the reference (the 1% at the longest
-  # time): the whole image and a 3 x 3 grid of blocks
+  # the longest run's region means against the reference (the consistency target: within 1%
+  # at the longest time): the whole image and a 3 x 3 grid of blocks
   third=$((res / 3))
   for region in image 0 1 2 3 4 5 6 7 8; do
     case $region in

@@ -1,8 +1,9 @@
 /* test_layout.c: render/'s layout keeps its rules (render/README.md, scripts/check-layout.sh).
  *
  * Oracle: the rules themselves. Stages in pipeline order, an include of a later stage is an
- * import that runs back up; no file over 600 lines and no function over 120, except the
- * exceptions the script lists with their sizes (which may shrink, never grow). The checker is
+ * import that runs back up; no circle of includes among the headers; no file over 600 lines
+ * and no function over 120, except the exceptions the script lists with their sizes (which
+ * may shrink, never grow). The checker is
  * itself checked on a copy of the tree with one planted violation of each kind, so a checker
  * that stopped seeing them fails here too.
  */
@@ -47,6 +48,9 @@ TEST(layout_checker_sees_each_kind_of_violation) {
         {"{ echo 'int planted_long(int a) {'; for i in $(seq 119); do echo '    a++;'; done; echo '}'; } "
          "> base/planted.c",
          "long function: base/planted.c planted_long() has 121 lines"},
+        /* two headers that include each other (the second by its bare name, beside it) */
+        {"printf '#include \"base/pb.h\"\\n' > base/pa.h && printf '#include \"pa.h\"\\n' > base/pb.h",
+         "include circle: base/pa.h -> base/pb.h -> base/pa.h"},
         /* a listed exception that no longer applies (or never did) must be struck from the list */
         {"sed -i \"/^EXCEPTIONS='/a include load/scene_load.c photons/photon_maps.h\" ../check-layout.sh",
          "stale exception: include load/scene_load.c photons/photon_maps.h"},

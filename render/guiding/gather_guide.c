@@ -100,6 +100,37 @@ typedef struct gg_probe {
     float y[3];  /* the hit */
 } gg_probe;
 
+/* The probes of the points a pilot probes and the light they gather (gg_cell_light): what the
+ * pilot and its cheap test both hold. */
+typedef struct gg_light {
+    gg_probe *pr;          /* G2 probes a point */
+    double *v;             /* their values */
+    double *Lc, *Ln, *nc;  /* a cell each: the cells' values; scratch */
+} gg_light;
+
+static void gg_light_free(gg_light *gl) {
+    free(gl->pr);
+    free(gl->v);
+    free(gl->Lc);
+    free(gl->Ln);
+    free(gl->nc);
+    memset(gl, 0, sizeof *gl);
+}
+
+/* Room for nj points of G2 probes and ncell cells (at least one of each), the cells' values 0:
+ * 0, or PM_ENOMEM with nothing held. */
+static int gg_light_alloc(gg_light *gl, size_t nj, size_t G2, size_t ncell) {
+    const size_t nj1 = nj ? nj : 1, nc1 = ncell ? ncell : 1;
+    gl->pr = malloc(nj1 * G2 * sizeof *gl->pr);
+    gl->v = malloc(nj1 * G2 * sizeof *gl->v);
+    gl->Lc = calloc(nc1, sizeof *gl->Lc);
+    gl->Ln = calloc(nc1, sizeof *gl->Ln);
+    gl->nc = calloc(nc1, sizeof *gl->nc);
+    if (gl->pr && gl->v && gl->Lc && gl->Ln && gl->nc) return 0;
+    gg_light_free(gl);
+    return PM_ENOMEM;
+}
+
 static int gg_size_cmp(const void *a, const void *b) {
     size_t x = *(const size_t *)a, y = *(const size_t *)b;
     return x < y ? -1 : x > y;
@@ -333,13 +364,14 @@ static void gg_probe_points(const gather_guide_probe *probe, const scene *s, con
     }
 }
 
-/* The light gathered where the map has nothing: each round gives every cell the mean of its
- * points' probes, with the last round's cell values at the probes' hits (one more bounce). v:
- * the probes' values of the last round; Lc: the cells' values; Ln and nc: scratch, a cell each
- * (Lc, Ln, nc: room for at least one). */
-static void gg_cell_light(const gg_probe *pr, const int *jc, size_t nj, size_t ncell, size_t G2, double *v,
-                          double *Lc, double *Ln, double *nc) {
+/* The light gathered where the map has nothing, from gl's probes pr of the nj points in cells jc:
+ * each round gives every cell the mean of its points' probes, with the last round's cell values
+ * at the probes' hits (one more bounce). gl->v: the probes' values of the last round; gl->Lc: the
+ * cells' values. */
+static void gg_cell_light(gg_light *gl, const int *jc, size_t nj, size_t ncell, size_t G2) {
     const size_t nc1 = ncell ? ncell : 1;
+    const gg_probe *pr = gl->pr;
+    double *v = gl->v, *Lc = gl->Lc, *Ln = gl->Ln, *nc = gl->nc;
     for (int round = 0; round <= GG_BOUNCES; round++) {
         memset(Ln, 0, nc1 * sizeof *Ln);
         memset(nc, 0, nc1 * sizeof *nc);
@@ -365,16 +397,16 @@ static int gg_may_pay(const gather_guide_probe *probe, const scene *s, const gui
                       size_t ncell, const guide_point *pts, const size_t *jp, const int *jc, size_t nj, double size,
                       char *why, size_t cap) {
     const size_t G2 = (size_t)GG_CHEAP_G * GG_CHEAP_G, ns = (nj + GG_CHEAP_EVERY - 1) / GG_CHEAP_EVERY;
-    size_t ns1 = ns ? ns : 1, nc1 = ncell ? ncell : 1, nline = 0, np = 0;
+    size_t ns1 = ns ? ns : 1, nline = 0, np = 0;
     size_t *sp = malloc(ns1 * sizeof *sp);
     int *sc = malloc(ns1 * sizeof *sc), rc = PM_ENOMEM;
-    gg_probe *pr = malloc(ns1 * G2 * sizeof *pr);
-    double *v = malloc(ns1 * G2 * sizeof *v), *Lc = calloc(nc1, sizeof *Lc), *Ln = calloc(nc1, sizeof *Ln);
-    double *nc = calloc(nc1, sizeof *nc);
-    if (!sp || !sc || !pr || !v || !Lc || !Ln || !nc) goto done;
+    gg_light gl = {0};
+    if (!sp || !sc || gg_light_alloc(&gl, ns, G2, ncell) < 0) goto done;
+    const gg_probe *pr = gl.pr;
+    const double *v = gl.v;
     for (size_t j = 0; j < ns; j++) sp[j] = jp[j * GG_CHEAP_EVERY], sc[j] = jc[j * GG_CHEAP_EVERY];
-    gg_probe_points(probe, s, grid, ck, ncell, pts, sp, ns, pr, GG_CHEAP_G, 2);
-    gg_cell_light(pr, sc, ns, ncell, G2, v, Lc, Ln, nc);
+    gg_probe_points(probe, s, grid, ck, ncell, pts, sp, ns, gl.pr, GG_CHEAP_G, 2);
+    gg_cell_light(&gl, sc, ns, ncell, G2);
     double all = 0, bright = 0, rms = 0, prms = 0, share = 0;
     vec3 c, lit;
     int fit = gg_find_opening(pts, sp, ns, pr, v, G2, &nline, &all, &bright, &c, &rms, &lit);
@@ -394,11 +426,7 @@ static int gg_may_pay(const gather_guide_probe *probe, const scene *s, const gui
 done:
     free(sp);
     free(sc);
-    free(pr);
-    free(v);
-    free(Lc);
-    free(Ln);
-    free(nc);
+    gg_light_free(&gl);
     return rc;
 }
 
@@ -456,8 +484,7 @@ int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *w
     uint64_t *ck = malloc(n1 * sizeof *ck);
     size_t *jp = malloc(n1 * sizeof *jp);
     int *jc = malloc(n1 * sizeof *jc);
-    gg_probe *pr = NULL;
-    double *v = NULL, *Lc = NULL, *Ln = NULL, *nc = NULL;
+    gg_light gl = {0};
     if (!pk || !ck || !jp || !jc) goto oom;
     gg_pick_points(&grid, pts, npts, pk, ck, &ncell, jp, jc, &nj);
     double size = v3_maxc(v3_sub(s->bounds_hi, s->bounds_lo));
@@ -471,15 +498,11 @@ int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *w
             goto done;
         }
     }
-    size_t nj1 = nj ? nj : 1, nc1 = ncell ? ncell : 1;
-    pr = malloc(nj1 * G2 * sizeof *pr);
-    v = malloc(nj1 * G2 * sizeof *v);
-    Lc = calloc(nc1, sizeof *Lc);
-    Ln = calloc(nc1, sizeof *Ln);
-    nc = calloc(nc1, sizeof *nc);
-    if (!pr || !v || !Lc || !Ln || !nc) goto oom;
-    gg_probe_points(probe, s, &grid, ck, ncell, pts, jp, nj, pr, GG_G, 1);
-    gg_cell_light(pr, jc, nj, ncell, G2, v, Lc, Ln, nc);
+    if (gg_light_alloc(&gl, nj, G2, ncell) < 0) goto oom;
+    const gg_probe *pr = gl.pr;
+    const double *v = gl.v;
+    gg_probe_points(probe, s, &grid, ck, ncell, pts, jp, nj, gl.pr, GG_G, 1);
+    gg_cell_light(&gl, jc, nj, ncell, G2);
     /* The opening: rays that read the map and carry over 1/GG_OUTLIER of their point's light. */
     size_t nline = 0;
     double all = 0, bright = 0, rms = 0;
@@ -527,10 +550,6 @@ done:
     free(ck);
     free(jp);
     free(jc);
-    free(pr);
-    free(v);
-    free(Lc);
-    free(Ln);
-    free(nc);
+    gg_light_free(&gl);
     return rc;
 }

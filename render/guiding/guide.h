@@ -71,8 +71,8 @@
  * pinhole_room (~2% of a default pm render), 0.05-0.08 s where it stays off. Of the 20
  * shipped scenes only pinhole_room plans it on.
  *
- * THE GATHER'S SHADOW RAYS, with the ports the plan now finds (issue 30 item 3; measured
- * 2026-12-05 on ports3 at 89291b5 with a counting build, 16 x 16, 64 spp, seed 1, pm at the
+ * THE GATHER'S SHADOW RAYS, where the ports the plan finds fill the rooms with photons
+ * (measured 2026-12-05 at 89291b5 with a counting build, 16 x 16, 64 spp, seed 1, pm at the
  * defaults): of the light samples taken at gather hits (the hits that read the map's indirect
  * light, and the secondary gathers' own), 0.25% reach the light on pinhole_room (0.04% with the
  * guide forced off), 3.2% on door_ajar (1.8%), 0.54% on lamp_shade (0.23%); the camera hits'

@@ -1,6 +1,7 @@
 /* pbrt.c: pbrt-v3 scene files to our scene document; see pbrt.h, and pbrt_internal.h for how
- * the converter works. This file: the entry points, the conversion's start and end (pbrt's
- * defaults, the document written from the state), running files, and the matrices.
+ * the converter works. This file: the entry points and the conversion's start and end (pbrt's
+ * defaults, the document written from the state); running files is pbrt_directives.c's, the
+ * matrices pbrt_matrix.c's.
  */
 #define _XOPEN_SOURCE 700
 #include "load/pbrt_internal.h"
@@ -10,117 +11,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-
-#include "load/mesh.h"
-
-/* ---- matrices ----------------------------------------------------------------------------- */
-
-void pb_ident(double m[4][4]) {
-    memset(m, 0, 16 * sizeof(double));
-    for (int i = 0; i < 4; i++) m[i][i] = 1;
-}
-
-void pb_mul(double a[4][4], double b[4][4], double out[4][4]) {
-    double r[4][4];
-    for (int i = 0; i < 4; i++)
-        for (int j = 0; j < 4; j++) {
-            r[i][j] = 0;
-            for (int k = 0; k < 4; k++) r[i][j] += a[i][k] * b[k][j];
-        }
-    memcpy(out, r, sizeof r);
-}
-
-/* Inverse by Gauss-Jordan with partial pivoting; -1 when singular or not finite. */
-int pb_inv(double m[4][4], double out[4][4]) {
-    double a[4][8];
-    for (int i = 0; i < 4; i++)
-        for (int j = 0; j < 8; j++) a[i][j] = j < 4 ? m[i][j] : (j - 4 == i);
-    for (int col = 0; col < 4; col++) {
-        int p = col;
-        for (int r = col + 1; r < 4; r++)
-            if (fabs(a[r][col]) > fabs(a[p][col])) p = r;
-        if (!(fabs(a[p][col]) > 1e-300) || !isfinite(a[p][col])) return -1;
-        for (int j = 0; j < 8; j++) {
-            double t = a[col][j];
-            a[col][j] = a[p][j];
-            a[p][j] = t;
-        }
-        double d = a[col][col];
-        for (int j = 0; j < 8; j++) a[col][j] /= d;
-        for (int r = 0; r < 4; r++)
-            if (r != col) {
-                double f = a[r][col];
-                for (int j = 0; j < 8; j++) a[r][j] -= f * a[col][j];
-            }
-    }
-    for (int i = 0; i < 4; i++)
-        for (int j = 0; j < 4; j++) out[i][j] = a[i][j + 4];
-    return 0;
-}
-
-double pb_det3(double m[4][4]) {
-    return m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
-           m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
-}
-
-vec3 pb_point(double m[4][4], vec3 p) {
-    return v3(m[0][0] * p.x + m[0][1] * p.y + m[0][2] * p.z + m[0][3],
-              m[1][0] * p.x + m[1][1] * p.y + m[1][2] * p.z + m[1][3],
-              m[2][0] * p.x + m[2][1] * p.y + m[2][2] * p.z + m[2][3]);
-}
-vec3 pb_dir(double m[4][4], vec3 d) {
-    return v3(m[0][0] * d.x + m[0][1] * d.y + m[0][2] * d.z, m[1][0] * d.x + m[1][1] * d.y + m[1][2] * d.z,
-              m[2][0] * d.x + m[2][1] * d.y + m[2][2] * d.z);
-}
-
-/* Output coordinates: the world, mirrored in x when pbrt's camera frame is ours mirrored. */
-vec3 pb_out(const conv *c, vec3 p) { return c->mirror ? v3(0.0 - p.x, p.y, p.z) : p; } /* +0, not -0 */
-
-cJSON *pb_jv(vec3 v) {
-    double a[3] = {v.x, v.y, v.z};
-    return cJSON_CreateDoubleArray(a, 3);
-}
-
-/* ---- running files ---------------------------------------------------------------- */
-
-static int run_tokens(conv *c, const toks *ts) {
-    int i = 0;
-    while (i < ts->n) TRY(pb_directive(c, ts, &i));
-    return 0;
-}
-
-static int run_text(conv *c, const char *text, const char *name) {
-    if (c->nfiles == (int)(sizeof c->files / sizeof *c->files))
-        return json_fail(c->e, PM_EINVAL, "%s: more than %d files included", name, (int)(sizeof c->files / sizeof *c->files));
-    c->files[c->nfiles] = strdup(name);
-    if (!c->files[c->nfiles]) return PM_ENOMEM;
-    toks ts = {0};
-    int rc = pb_lex(c, text, c->nfiles++, &ts);
-    if (rc == PM_ENOMEM) json_fail(c->e, rc, "out of memory");
-    if (rc == 0) rc = run_tokens(c, &ts);
-    pb_toks_free(&ts);
-    return rc;
-}
-
-int pb_run_file(conv *c, const char *path, const tok *from) {
-    if (c->include_depth >= PB_MAX_INCLUDE)
-        return pb_fail(c, from, PM_EINVAL, "Include nested more than %d deep (a file including itself?)", PB_MAX_INCLUDE);
-    char *buf;
-    size_t len;
-    char err[600];
-    int rc = mesh_read_file(path, &buf, &len, err, sizeof err);
-    if (rc < 0) return from ? pb_fail(c, from, rc, "Include: %s", err) : json_fail(c->e, rc, "%s", err);
-    if (strlen(buf) != len) {
-        free(buf);
-        return from ? pb_fail(c, from, PM_EINVAL, "Include: %s: a NUL byte: not a pbrt text", path)
-                    : json_fail(c->e, PM_EINVAL, "a NUL byte: not a pbrt text");
-    }
-    c->include_depth++;
-    rc = run_text(c, buf, path);
-    c->include_depth--;
-    free(buf);
-    return rc;
-}
 
 int pbrt_is_file(const char *path) {
     size_t n = path ? strlen(path) : 0;
@@ -154,7 +44,7 @@ static int convert(const char *text, const char *path, cJSON **out, json_err *e)
         cJSON_AddItemToObject(c->mats, "pbrt:default", def);
         snprintf(c->g.mat, sizeof c->g.mat, "pbrt:default");
     }
-    if (rc == 0) rc = text ? run_text(c, text, path) : pb_run_file(c, path, NULL);
+    if (rc == 0) rc = text ? pb_run_text(c, text, path) : pb_run_file(c, path, NULL);
     if (rc == 0 && c->depth > 0) {
         rc = json_fail(e, PM_EINVAL, "%s: %d AttributeBegin/TransformBegin/ObjectBegin left open at the end", path, c->depth);
     }

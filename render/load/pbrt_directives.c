@@ -2,6 +2,7 @@
  * one function per directive, found by name in a table. A directive either reads its own
  * arguments (the transforms, the blocks, Include, the objects) or has a name and a parameter
  * list, which the dispatcher parses, hands over and frees, warning about what nobody asked for.
+ * Running a file's directives is here too (pb_run_file, for the top file and for Include).
  */
 #define _XOPEN_SOURCE 700
 #include "load/pbrt_internal.h"
@@ -10,6 +11,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+
+#include "load/mesh.h"
 
 static int apply(conv *c, const tok *at, double T[4][4]) {
     double r[4][4];
@@ -468,4 +471,45 @@ int pb_directive(conv *c, const toks *ts, int *i) {
     while (*i < ts->n && !(ts->t[*i].kind == K_WORD && strcmp(ts->t[*i].s, "true") != 0 && strcmp(ts->t[*i].s, "false") != 0))
         (*i)++;
     return 0;
+}
+
+/* ---- running files ---------------------------------------------------------------- */
+
+static int run_tokens(conv *c, const toks *ts) {
+    int i = 0;
+    while (i < ts->n) TRY(pb_directive(c, ts, &i));
+    return 0;
+}
+
+int pb_run_text(conv *c, const char *text, const char *name) {
+    if (c->nfiles == (int)(sizeof c->files / sizeof *c->files))
+        return json_fail(c->e, PM_EINVAL, "%s: more than %d files included", name, (int)(sizeof c->files / sizeof *c->files));
+    c->files[c->nfiles] = strdup(name);
+    if (!c->files[c->nfiles]) return PM_ENOMEM;
+    toks ts = {0};
+    int rc = pb_lex(c, text, c->nfiles++, &ts);
+    if (rc == PM_ENOMEM) json_fail(c->e, rc, "out of memory");
+    if (rc == 0) rc = run_tokens(c, &ts);
+    pb_toks_free(&ts);
+    return rc;
+}
+
+int pb_run_file(conv *c, const char *path, const tok *from) {
+    if (c->include_depth >= PB_MAX_INCLUDE)
+        return pb_fail(c, from, PM_EINVAL, "Include nested more than %d deep (a file including itself?)", PB_MAX_INCLUDE);
+    char *buf;
+    size_t len;
+    char err[600];
+    int rc = mesh_read_file(path, &buf, &len, err, sizeof err);
+    if (rc < 0) return from ? pb_fail(c, from, rc, "Include: %s", err) : json_fail(c->e, rc, "%s", err);
+    if (strlen(buf) != len) {
+        free(buf);
+        return from ? pb_fail(c, from, PM_EINVAL, "Include: %s: a NUL byte: not a pbrt text", path)
+                    : json_fail(c->e, PM_EINVAL, "a NUL byte: not a pbrt text");
+    }
+    c->include_depth++;
+    rc = pb_run_text(c, buf, path);
+    c->include_depth--;
+    free(buf);
+    return rc;
 }

@@ -1,7 +1,7 @@
-/* pbrt_internal.h: what the files of the pbrt-v3 converter share (pbrt.c the entry point and
- * the matrices, pbrt_lex.c the tokens and parameter lists, pbrt_directives.c the directives,
- * pbrt_shapes.c, pbrt_materials.c and pbrt_lights.c the conversions); not for use outside
- * render/load/pbrt*.c.
+/* pbrt_internal.h: what the files of the pbrt-v3 converter share (pbrt.c the entry point,
+ * pbrt_matrix.c the matrices, pbrt_lex.c the tokens and parameter lists, pbrt_directives.c
+ * the directives and running files, pbrt_shapes.c, pbrt_materials.c and pbrt_lights.c the
+ * conversions); not for use outside render/load/pbrt*.c.
  *
  * How it works: each file (and each Include) is read whole and cut into tokens (quoted strings,
  * numbers, bare words, [ and ]), each with its file and line. The directives are then run in
@@ -129,7 +129,7 @@ void pb_warn_unused(const conv *c, const tok *at, const char *what, const plist 
 int pb_nums(conv *c, const toks *ts, int *i, const tok *at, int n, double *v, const char *what);
 int pb_one_string(conv *c, const toks *ts, int *i, const tok *at, const char **s, const char *what);
 
-/* ---- pbrt.c: matrices, output coordinates, files ------------------------------------------ */
+/* ---- pbrt_matrix.c: matrices, output coordinates -------------------------------------------- */
 
 void pb_ident(double m[4][4]);
 void pb_mul(double a[4][4], double b[4][4], double out[4][4]);
@@ -141,10 +141,12 @@ vec3 pb_dir(double m[4][4], vec3 d);
 /* Output coordinates: the world, mirrored in x when pbrt's camera frame is ours mirrored. */
 vec3 pb_out(const conv *c, vec3 p);
 cJSON *pb_jv(vec3 v);
+/* ---- pbrt_directives.c ------------------------------------------------------------------- */
+
 /* Read and run the file at path (from: the Include token, NULL for the top file). */
 int pb_run_file(conv *c, const char *path, const tok *from);
-
-/* ---- pbrt_directives.c ------------------------------------------------------------------- */
+/* Run a text (name: its file's name, for messages), as pb_run_file runs a file's. */
+int pb_run_text(conv *c, const char *text, const char *name);
 
 /* Run the directive at *i with its arguments, moving *i past them. */
 int pb_directive(conv *c, const toks *ts, int *i);

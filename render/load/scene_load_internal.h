@@ -1,7 +1,7 @@
 /* scene_load_internal.h: what the files of the JSON scene loader share (scene_load.c the
  * document, camera, materials, lights and settings; scene_objects.c the objects;
  * scene_media.c the media; scene_lights.c the spot and infinite lights; scene_ports.c the
- * photon ports); not for use outside render/load/scene_*.c.
+ * photon ports; scene_shared.c what they all call); not for use outside render/load/scene_*.c.
  */
 #ifndef RENDER_SCENE_LOAD_INTERNAL_H
 #define RENDER_SCENE_LOAD_INTERNAL_H
@@ -29,7 +29,7 @@ typedef struct {
     int obj;          /* index in $.objects of the object being loaded */
 } caps;
 
-/* ---- scene_load.c -------------------------------------------------------------------------- */
+/* ---- scene_shared.c ------------------------------------------------------------------------ */
 
 /* Append one element of size sz to *arr (count *n, capacity *cap). */
 int sl_push(void **arr, int *n, int *cap, size_t sz, const void *elem);

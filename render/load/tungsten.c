@@ -8,7 +8,6 @@
  */
 #include "load/tungsten_internal.h"
 
-#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -37,62 +36,6 @@ void tungsten_rotation(vec3 deg, double R[3][3]) {
         }
 }
 
-/* Is key one of the NULL-terminated list? */
-static int in_list(const char *key, const char *const *list) {
-    for (; *list; list++)
-        if (strcmp(key, *list) == 0) return 1;
-    return 0;
-}
-
-/* A warning on stderr that names the scene file (NULL: a scene given as text), as render's
- * own warnings do: "render: FILE: warning: ...". */
-void tg_warn(const char *file, const char *fmt, ...) {
-    va_list ap;
-    va_start(ap, fmt);
-    fprintf(stderr, "render: %s%swarning: ", file ? file : "", file ? ": " : "");
-    vfprintf(stderr, fmt, ap);
-    fputc('\n', stderr);
-    va_end(ap);
-}
-
-/* Check every key of obj: in `ok` (handled by the caller), in `warn` (ignored with a warning
- * naming the file: they do not change the image), else an error naming the key and `what`. */
-int tg_check_keys(const char *file, const cJSON *obj, const char *P, const char *const *ok,
-                      const char *const *warn, const char *what, json_err *e) {
-    for (const cJSON *it = obj->child; it; it = it->next) {
-        const char *k = it->string ? it->string : "?";
-        if (in_list(k, ok)) continue;
-        if (warn && in_list(k, warn)) {
-            tg_warn(file, "%s.%s: ignored (does not change the image)", P, k);
-            continue;
-        }
-        /* The nearest key of the subset, as in our own format; worded for a real Tungsten key
-         * outside the subset too ("min_bounces" is not a misspelt "max_bounces"). */
-        const char *names[64];
-        size_t n = 0;
-        for (const char *const *l = ok; l && *l && n < 64; l++) names[n++] = *l;
-        for (const char *const *l = warn; l && *l && n < 64; l++) names[n++] = *l;
-        const char *near = json_nearest_key(k, names, n);
-        if (near)
-            return json_fail(e, PM_EINVAL, "%s.%s: not supported (%s; the nearest supported key is \"%s\")", P, k, what, near);
-        return json_fail(e, PM_EINVAL, "%s.%s: not supported (%s)", P, k, what);
-    }
-    return 0;
-}
-
-/* A colour that must be a number or [r, g, b] (textures are not supported). */
-int tg_color(const cJSON *obj, const char *P, const char *key, rgb *out, json_err *e) {
-    const cJSON *it = json_get(obj, key);
-    if (it && (cJSON_IsString(it) || cJSON_IsObject(it)))
-        return json_fail(e, PM_EINVAL, "%s.%s: textures are not supported (give a number or [r, g, b])", P, key);
-    return json_rgb(obj, P, key, 0, out, e);
-}
-
-cJSON *tg_jvec(vec3 v) {
-    double a[3] = {v.x, v.y, v.z};
-    return cJSON_CreateDoubleArray(a, 3);
-}
-
 static int read_bsdf(const cJSON *b, const char *P, tbsdf *o, json_err *e) {
     memset(o, 0, sizeof *o);
     if (!cJSON_IsObject(b)) return json_fail(e, PM_EINVAL, "%s: expected an object, got %s", P, json_type_name(b));
@@ -106,7 +49,7 @@ static int read_bsdf(const cJSON *b, const char *P, tbsdf *o, json_err *e) {
     o->albedo = v3s(1);
     o->ior = 1.5;
     o->refract = 1;
-    if (!in_list(o->type, (const char *const[]){"lambert", "dielectric", "mirror", "null", "forward", NULL}))
+    if (!tg_in_list(o->type, (const char *const[]){"lambert", "dielectric", "mirror", "null", "forward", NULL}))
         return json_fail(e, PM_EINVAL, "%s.type: bsdf type \"%s\" is not supported (lambert, dielectric, mirror, "
                          "null, forward)", P, o->type);
     TRY(tg_check_keys(NULL, b, P, ok, NULL, "a bsdf key outside the supported subset", e));

@@ -1,7 +1,7 @@
 /* tungsten_internal.h: what the files of the Tungsten converter share (tungsten.c the
  * primitives, bsdfs and the conversion, tungsten_media.c the media and the quads that bound
- * them, tungsten_settings.c the camera, renderer and integrator); not for use outside
- * render/load/tungsten*.c.
+ * them, tungsten_settings.c the camera, renderer and integrator, tungsten_shared.c what they
+ * all call); not for use outside render/load/tungsten*.c.
  */
 #ifndef RENDER_TUNGSTEN_INTERNAL_H
 #define RENDER_TUNGSTEN_INTERNAL_H
@@ -42,8 +42,10 @@ typedef struct conv {
     cJSON *out;            /* the converted document (its "lights" made by the first light) */
 } conv;
 
-/* ---- tungsten.c ---------------------------------------------------------------------------- */
+/* ---- tungsten_shared.c --------------------------------------------------------------------- */
 
+/* Is key one of the NULL-terminated list? */
+int tg_in_list(const char *key, const char *const *list);
 /* A warning on stderr that names the scene file (NULL: a scene given as text), as render's
  * own warnings do: "render: FILE: warning: ...". */
 void tg_warn(const char *file, const char *fmt, ...) __attribute__((format(printf, 2, 3)));

@@ -50,11 +50,6 @@ static int any_diffuse(const scene *s) {
     return 0;
 }
 
-void plan__set(plan_item *it, int on, const char *fmt, const char *arg) {
-    it->on = on;
-    snprintf(it->reason, sizeof it->reason, fmt, arg);
-}
-
 /* ---- surface maps ------------------------------------------------------------------------ */
 
 /* "\"white\" 120, \"red\" 31" : the (up to) three materials with the largest counts. */

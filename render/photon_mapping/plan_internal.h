@@ -2,10 +2,16 @@
 #ifndef RENDER_PLAN_INTERNAL_H
 #define RENDER_PLAN_INTERNAL_H
 
+#include <stdio.h>
+
 #include "photon_mapping/plan.h"
 
-/* it->on = on, it->reason = fmt with one string argument. */
-void plan__set(plan_item *it, int on, const char *fmt, const char *arg);
+/* it->on = on, it->reason = fmt with one string argument. Inline here, so that plan_emission.c,
+ * which plan.c calls, does not call back into plan.c for it. */
+static inline void plan__set(plan_item *it, int on, const char *fmt, const char *arg) {
+    it->on = on;
+    snprintf(it->reason, sizeof it->reason, fmt, arg);
+}
 /* Lights that emit photons: every light in the list with some power. */
 int plan__emitting_lights(const scene *s);
 /* The emission line from the pilots' importance table: p takes it when used (plan_emission.c). */

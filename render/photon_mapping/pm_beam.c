@@ -9,7 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "photon_mapping/pm_volume.h"
+#include "photon_mapping/pm_ball.h"
 #include "photonmap/common.h"
 #include "scene/medium.h"
 

@@ -53,8 +53,9 @@
  * the whole ball's volume reads low there, over a shell as thick as the radius; in a dense
  * medium seen from outside, all the light the camera gets comes from that shell. Each estimate
  * is therefore divided by the part of its ball (the radius it used: the k-th neighbour's, or
- * the search limit when fewer were found) that lies inside the medium, pmv_ball_fraction: rays
- * of length r in 14 directions (the 6 axes and the 8 diagonals) find the nearby surfaces; each
+ * the search limit when fewer were found) that lies inside the medium, pmv_ball_fraction
+ * (pm_ball.h): rays of length r in 14 directions (the 6 axes and the 8 diagonals) find the
+ * nearby surfaces; each
  * hit gives the surface's tangent plane there (its geometric normal, and its distance h from x
  * along it, not along the ray), equal planes are counted once, and the part of the ball on x's
  * side of every plane is the fraction: one plane cuts off a cap of (1 - h/r)^2 (2 + h/r) / 4 of
@@ -135,6 +136,7 @@
 #include "load/photon_settings.h"
 #include "photonmap/kdtree.h"
 #include "photon_mapping/plan.h"
+#include "photon_mapping/pm_ball.h"
 #include "photon_mapping/pm_beam.h"
 #include "base/rng.h"
 #include "scene/scene.h"
@@ -188,12 +190,6 @@ size_t pmv_scratch_bytes(const pmv_state *v);
  * inscatter = 0 gives only *tr (no random numbers used). med < 0: 0 and *tr = 1. */
 rgb pmv_march(const pmv_state *v, const scene *s, ray r, double tmax, int med, int inscatter, rng *g,
               void *scratch, rgb *tr);
-/* The part of the ball of radius r at x that lies inside the medium at x (BOUNDARIES above):
- * the part on x's side of the tangent planes of the surfaces that rays in 14 directions meet
- * within r; at least 1/8. Exact for one plane, and for axis-aligned edges and corners through
- * x; within 0.5% for several planes. 1 if no surface is within r along the 14 directions, or r
- * is not finite. */
-double pmv_ball_fraction(const scene *s, vec3 x, double r);
 /* The same for a final-gather ray: one point per segment from the "all" tree. */
 rgb pmv_gather(const pmv_state *v, const scene *s, ray r, double tmax, int med, rng *g, void *scratch,
                rgb *tr);

@@ -6,6 +6,7 @@
  *             of the emitted photon it came from) and a growable buffer of them (pass_buf),
  *             pushed, merged in photon order from per-thread buffers, and cut at a target by
  *             whole photon paths (the cut at the target, PASS BUDGETS in photon_trace.h);
+ *             photon_records.c, under the walk, the rounds and the driver alike;
  *   aim       the caustic passes' projection maps and the light choice by power times each
  *             light's active fraction (CAUSTIC PROJECTION MAP in photon_trace.h);
  *   walk      photon_walk (photon_walk.c): one photon of either tracer, from its emission
@@ -15,7 +16,8 @@
  *             traced by photon_walk, the maps cut at their targets, the budgets and, after
  *             photon_trace_set_dist / vol_set_dist, the distributed rounds (photon_rounds.c;
  *             its top comment states the rules);
- *   exchange  pass_allgather, every distributed exchange of both tracers (trace_dist);
+ *   exchange  pass_allgather, every distributed exchange of both tracers (trace_dist;
+ *             photon_records.c);
  *   messages  the texts on stderr and in err that both tracers print alike.
  */
 #ifndef RENDER_PHOTON_PASS_H

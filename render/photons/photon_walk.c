@@ -290,7 +290,10 @@ static int walk_medium(const pass_ctx *c, uint64_t i, walk_state *st, int got, c
     st->pp.scattered = st->vscattered = 1;
     if (!survive(&st->w.power, w, g)) return 2;
     vec3 nd;
-    hg_sample(s->media[st->med].g, r->d, rng_uniform(g), rng_uniform(g), &nd);
+    /* Two draws, named so their order is fixed: as arguments of one call it would be the
+     * compiler's (gcc drew u2 first, clang u1; the images have always been gcc's). */
+    double u2 = rng_uniform(g), u1 = rng_uniform(g);
+    hg_sample(s->media[st->med].g, r->d, u1, u2, &nd);
     r->o = x;
     r->d = nd;
     st->pp.depth++;

@@ -96,7 +96,11 @@ static int camera_path(const scene *s, uint64_t seed, long j, carrier *c, unsign
                        unsigned long long *passed) {
     rng g = rng_stream(seed, (uint64_t)j, PF_STREAM);
     const camera *cam = &s->cam;
-    ray ry = camera_ray(cam, rng_uniform(&g) * cam->width, rng_uniform(&g) * cam->height);
+    /* Two draws, named so their order is fixed: as arguments of one call it would be the
+     * compiler's (gcc drew the height's first, clang the width's; the images have always been
+     * gcc's). */
+    double uy = rng_uniform(&g), ux = rng_uniform(&g);
+    ray ry = camera_ray(cam, ux * cam->width, uy * cam->height);
     rgb beta = v3s(1);
     carrier path = {0};
     int nc = 0, nd = 0;
