@@ -226,19 +226,30 @@ int side_precomp_neighbours(const scene *s, const pm_kdtree *t, const pm_photon 
     ko.flags = PM_SORT;
     int found = pm_kdtree_knn_ex(t, x, k, max_dist2, &ko, nb, NULL);
     if (found < 0) found = 0;
+    /* A CORNER (photon_sides.h): one of them on a surface that faces another way; then the k
+     * nearest on x's own surface, and the caller divides by the part of their disc on it. */
+    for (int i = 0; i < found && !*wall; i++)
+        if (!side_filter_shadow((void *)n, &ph[nb[i].index], nb[i].index)) *wall = SIDE_CORNER;
+    if (*wall) {
+        ko.filter = side_filter_shadow;
+        found = pm_kdtree_knn_ex(t, x, k, max_dist2, &ko, nb, NULL);
+        if (found < 0) found = 0;
+    }
     side_planes pl; /* CLEAR SEGMENTS WITHOUT A RAY */
     pl.ok = 0;
     if (found > 0) side_planes_near(s, xv, nb[found - 1].dist2, &pl);
-    for (int i = 0; i < found && !*wall; i++) {
+    int hidden = 0;
+    for (int i = 0; i < found && !hidden; i++) {
         if (nb[i].dist2 == 0) continue;
         float nq[3];
         pm_normal_decode(ph[nb[i].index].normal, nq);
         vec3 qv = v3f(ph[nb[i].index].pos), nqv = v3f(nq);
         if (side_clear(&pl, xv, nv, hx, qv, nqv, hfree[nb[i].index])) continue;
         if (rays) rays[0]++;
-        *wall = !side_visible_h(s, xv, nv, hx, qv, nqv, hfree[nb[i].index]);
+        hidden = !side_visible_h(s, xv, nv, hx, qv, nqv, hfree[nb[i].index]);
     }
-    if (!*wall) return found;
+    if (!hidden) return found;
+    *wall |= SIDE_WALL;
     /* A wall: SIDE_WIDEN x k candidates in order of distance, the visible ones kept until k
      * are. Every photon closer than the last one tested was tested, so the estimate covers the
      * disc up to it (the k-th kept on its rim, or, short of k, the whole disc searched). */
@@ -290,10 +301,10 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
     }
     side_free_heights(s, ph, n, max_dist2, hfree);
     unsigned long long rays1 = n, rays2 = 0;
-    size_t again = 0, sparse = 0;
+    size_t again = 0, corners = 0, sparse = 0;
     int fail = 0;
 #ifdef _OPENMP
-#pragma omp parallel reduction(+ : rays1, rays2, again, sparse) reduction(| : fail)
+#pragma omp parallel reduction(+ : rays1, rays2, again, corners, sparse) reduction(| : fail)
 #endif
     {
         /* SIDE_WIDEN x k candidates for the estimates that meet a wall. */
@@ -322,7 +333,8 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
             int rim = (unsigned)found == k;
             double r2 = rim ? nb[found - 1].dist2 : (double)reach2, frac = 1.0;
             if (wall) {
-                again++;
+                again += (wall & SIDE_WALL) != 0;
+                corners += (wall & SIDE_CORNER) != 0;
                 frac = visible_disc_fraction(s, pp, pn, sqrt(r2));
                 rays[1] += SIDE_AREA_DIRS + 1;
                 if (frac < 1.0 / SIDE_AREA_DIRS) frac = 1.0 / SIDE_AREA_DIRS;
@@ -349,6 +361,7 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
     c->rays_first = rays1;
     c->rays_second = rays2;
     c->researched = again;
+    c->corners = corners;
     c->sparse = sparse;
     c->indirect_only = 1;
     if (m) {
