@@ -213,6 +213,24 @@ static void disc_irradiance(const pm_photon *ph, const pm_neighbor *nb, int coun
     for (int c = 0; c < 3; c++) e[c] = area > 0 && isfinite(area) ? (float)(sum[c] / area) : 0.0f;
 }
 
+/* side_precomp_neighbours' search filter: side_filter_shadow's rule, and the dist2 (bad2) of
+ * the nearest photon refused for its normal alone (a surface facing another way). */
+typedef struct corner_filter {
+    const float *n, *x; /* the query's unit normal and position */
+    float bad2;
+} corner_filter;
+
+static int corner_accepts(void *user, const void *record, uint32_t index) {
+    corner_filter *f = user;
+    const pm_photon *p = record;
+    if (!pm_filter_front((void *)f->n, record, index)) return 0;
+    if (side_filter_shadow((void *)f->n, record, index)) return 1;
+    float d[3] = {p->pos[0] - f->x[0], p->pos[1] - f->x[1], p->pos[2] - f->x[2]};
+    float d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    if (d2 < f->bad2) f->bad2 = d2;
+    return 0;
+}
+
 int side_precomp_neighbours(const scene *s, const pm_kdtree *t, const pm_photon *ph, const float *hfree,
                             const float x[3], const float n[3], double hx, unsigned k, float max_dist2,
                             pm_neighbor *nb, int *wall, float *reach2, unsigned long long rays[2]) {
@@ -220,21 +238,16 @@ int side_precomp_neighbours(const scene *s, const pm_kdtree *t, const pm_photon 
     *reach2 = max_dist2;
     if (!t) return 0;
     vec3 xv = v3f(x), nv = v3f(n);
+    /* The k nearest on x's own surface; A CORNER (photon_sides.h) if the search was offered a
+     * photon refused for its normal inside their disc (it offers every photon there). */
+    corner_filter cf = {n, x, INFINITY};
     pm_knn_options ko = {0};
-    ko.filter = pm_filter_front;
-    ko.filter_user = (void *)n;
+    ko.filter = corner_accepts;
+    ko.filter_user = &cf;
     ko.flags = PM_SORT;
     int found = pm_kdtree_knn_ex(t, x, k, max_dist2, &ko, nb, NULL);
     if (found < 0) found = 0;
-    /* A CORNER (photon_sides.h): one of them on a surface that faces another way; then the k
-     * nearest on x's own surface, and the caller divides by the part of their disc on it. */
-    for (int i = 0; i < found && !*wall; i++)
-        if (!side_filter_shadow((void *)n, &ph[nb[i].index], nb[i].index)) *wall = SIDE_CORNER;
-    if (*wall) {
-        ko.filter = side_filter_shadow;
-        found = pm_kdtree_knn_ex(t, x, k, max_dist2, &ko, nb, NULL);
-        if (found < 0) found = 0;
-    }
+    if (cf.bad2 < ((unsigned)found == k ? nb[found - 1].dist2 : max_dist2)) *wall = SIDE_CORNER;
     side_planes pl; /* CLEAR SEGMENTS WITHOUT A RAY */
     pl.ok = 0;
     if (found > 0) side_planes_near(s, xv, nb[found - 1].dist2, &pl);

@@ -39,12 +39,12 @@
  *                    every concave edge (+8.5% over that strip with constant irradiance,
  *                    tests/test_render_sides_corner.c), and in a dim room lit through a slit,
  *                    where the radii are a good part of the room, high nearly everywhere
- *                    (door_ajar +7% over 5 seeds at 1024 spp). So when one of the k nearest
- *                    faces another way (its normal past side_filter_shadow's 45 degrees), the
- *                    estimate takes the k nearest on its own surface instead (that filter) and
+ *                    (door_ajar +7% over 5 seeds at 1024 spp). So the estimate takes the k
+ *                    nearest on its own surface (side_filter_shadow: normal within 45 degrees),
+ *                    and when a photon of a surface facing another way lies inside their disc,
  *                    divides by the part of the disc on this side of every surface, as after a
- *                    wall (33 rays). An estimate that meets no such photon is as before, bit for
- *                    bit.
+ *                    wall (33 rays). An estimate with no such photon in its disc is as before,
+ *                    bit for bit (the k nearest are the same photons).
  *                    Sparse estimates: one whose photons come from fewer than SIDE_MIN_PATHS
  *                    (8) distinct photon paths keeps radius^2 0, so no lookup returns it (the
  *                    module's own-radius test, dist2 < r2, never holds) and the caller
@@ -158,10 +158,11 @@ int side_clear(const side_planes *pl, vec3 p, vec3 np, double hp, vec3 q, vec3 n
 /* The neighbours of a precomputed estimate at the photon x (decoded normal n, free height hx)
  * from the tree t (records ph, free heights hfree; t NULL: none), side_cache_build's rule,
  * shared with its distributed twin (render/mpi/lk_irradiance.c, each rank's part): the k
- * nearest photons that travelled toward n's side within radius^2 max_dist2, sorted; if one of
- * them faces another way (side_filter_shadow refuses it), a corner: the k nearest that
- * side_filter_shadow accepts instead (A CORNER above); if one of them (at a distance > 0) is
- * not side_visible_h from x, a wall: then the SIDE_WIDEN x k nearest (by the same filter),
+ * nearest photons on x's own surface (side_filter_shadow: travelled toward n's side, normal
+ * within 45 degrees) within radius^2 max_dist2, sorted, and a corner if a photon refused for
+ * its normal alone lies inside their disc (A CORNER above; where none does, these are the k
+ * nearest that travelled toward n's side, as before the rule); if one of them (at a distance
+ * > 0) is not side_visible_h from x, a wall: then the SIDE_WIDEN x k nearest (by the same filter),
  * keeping the visible ones, nearest first, until k are kept. Returns how many were kept, in
  * nb[0..) (room for SIDE_WIDEN x k); *wall: SIDE_CORNER | SIDE_WALL as met (0: neither;
  * either cuts the disc, and the caller divides by side_disc_fraction); *reach2 the
