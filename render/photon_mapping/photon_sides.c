@@ -213,6 +213,24 @@ static void disc_irradiance(const pm_photon *ph, const pm_neighbor *nb, int coun
     for (int c = 0; c < 3; c++) e[c] = area > 0 && isfinite(area) ? (float)(sum[c] / area) : 0.0f;
 }
 
+/* side_precomp_neighbours' search filter: side_filter_shadow's rule, and the dist2 (bad2) of
+ * the nearest photon refused for its normal alone (a surface facing another way). */
+typedef struct corner_filter {
+    const float *n, *x; /* the query's unit normal and position */
+    float bad2;
+} corner_filter;
+
+static int corner_accepts(void *user, const void *record, uint32_t index) {
+    corner_filter *f = user;
+    const pm_photon *p = record;
+    if (!pm_filter_front((void *)f->n, record, index)) return 0;
+    if (side_filter_shadow((void *)f->n, record, index)) return 1;
+    float d[3] = {p->pos[0] - f->x[0], p->pos[1] - f->x[1], p->pos[2] - f->x[2]};
+    float d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    if (d2 < f->bad2) f->bad2 = d2;
+    return 0;
+}
+
 int side_precomp_neighbours(const scene *s, const pm_kdtree *t, const pm_photon *ph, const float *hfree,
                             const float x[3], const float n[3], double hx, unsigned k, float max_dist2,
                             pm_neighbor *nb, int *wall, float *reach2, unsigned long long rays[2]) {
@@ -220,25 +238,31 @@ int side_precomp_neighbours(const scene *s, const pm_kdtree *t, const pm_photon 
     *reach2 = max_dist2;
     if (!t) return 0;
     vec3 xv = v3f(x), nv = v3f(n);
+    /* The k nearest on x's own surface; A CORNER (photon_sides.h) if the search was offered a
+     * photon refused for its normal inside their disc (it offers every photon there). */
+    corner_filter cf = {n, x, INFINITY};
     pm_knn_options ko = {0};
-    ko.filter = pm_filter_front;
-    ko.filter_user = (void *)n;
+    ko.filter = corner_accepts;
+    ko.filter_user = &cf;
     ko.flags = PM_SORT;
     int found = pm_kdtree_knn_ex(t, x, k, max_dist2, &ko, nb, NULL);
     if (found < 0) found = 0;
+    if (cf.bad2 < ((unsigned)found == k ? nb[found - 1].dist2 : max_dist2)) *wall = SIDE_CORNER;
     side_planes pl; /* CLEAR SEGMENTS WITHOUT A RAY */
     pl.ok = 0;
     if (found > 0) side_planes_near(s, xv, nb[found - 1].dist2, &pl);
-    for (int i = 0; i < found && !*wall; i++) {
+    int hidden = 0;
+    for (int i = 0; i < found && !hidden; i++) {
         if (nb[i].dist2 == 0) continue;
         float nq[3];
         pm_normal_decode(ph[nb[i].index].normal, nq);
         vec3 qv = v3f(ph[nb[i].index].pos), nqv = v3f(nq);
         if (side_clear(&pl, xv, nv, hx, qv, nqv, hfree[nb[i].index])) continue;
         if (rays) rays[0]++;
-        *wall = !side_visible_h(s, xv, nv, hx, qv, nqv, hfree[nb[i].index]);
+        hidden = !side_visible_h(s, xv, nv, hx, qv, nqv, hfree[nb[i].index]);
     }
-    if (!*wall) return found;
+    if (!hidden) return found;
+    *wall |= SIDE_WALL;
     /* A wall: SIDE_WIDEN x k candidates in order of distance, the visible ones kept until k
      * are. Every photon closer than the last one tested was tested, so the estimate covers the
      * disc up to it (the k-th kept on its rim, or, short of k, the whole disc searched). */
@@ -290,10 +314,10 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
     }
     side_free_heights(s, ph, n, max_dist2, hfree);
     unsigned long long rays1 = n, rays2 = 0;
-    size_t again = 0, sparse = 0;
+    size_t again = 0, corners = 0, sparse = 0;
     int fail = 0;
 #ifdef _OPENMP
-#pragma omp parallel reduction(+ : rays1, rays2, again, sparse) reduction(| : fail)
+#pragma omp parallel reduction(+ : rays1, rays2, again, corners, sparse) reduction(| : fail)
 #endif
     {
         /* SIDE_WIDEN x k candidates for the estimates that meet a wall. */
@@ -322,7 +346,8 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
             int rim = (unsigned)found == k;
             double r2 = rim ? nb[found - 1].dist2 : (double)reach2, frac = 1.0;
             if (wall) {
-                again++;
+                again += (wall & SIDE_WALL) != 0;
+                corners += (wall & SIDE_CORNER) != 0;
                 frac = visible_disc_fraction(s, pp, pn, sqrt(r2));
                 rays[1] += SIDE_AREA_DIRS + 1;
                 if (frac < 1.0 / SIDE_AREA_DIRS) frac = 1.0 / SIDE_AREA_DIRS;
@@ -349,6 +374,7 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
     c->rays_first = rays1;
     c->rays_second = rays2;
     c->researched = again;
+    c->corners = corners;
     c->sparse = sparse;
     c->indirect_only = 1;
     if (m) {

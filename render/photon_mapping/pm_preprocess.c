@@ -248,9 +248,9 @@ static void print_maps(const mapper_state *st) {
            rad->global, rad->caustic, st->sec_dist, rad->shadow);
     if (st->nglobal_all && !st->direct_vis)
         printf("Precomputed irradiance at %zu of %zu global photons (%zu estimates searched again "
-               "for a hidden neighbour; %zu of too few photon paths to be read: the light there is "
-               "computed)\n",
-               st->sides.n, st->nglobal_all, st->sides.researched, st->sides.sparse);
+               "for a hidden neighbour, %zu on their own surface at a corner; %zu of too few photon "
+               "paths to be read: the light there is computed)\n",
+               st->sides.n, st->nglobal_all, st->sides.researched, st->sides.corners, st->sides.sparse);
 }
 
 /* The counters stage A's trace and readers added (taken back out when it is traced again). */
