@@ -33,6 +33,7 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <stdint.h>
 
 /* 1 in a sanitizer build (ASan/UBSan): tests may shrink their problem sizes, keeping the same
  * oracle and tolerance, so that `make test SANITIZE=address,undefined` stays fast. */
@@ -129,5 +130,17 @@ int pm_test_run(const char *cmd, char *buf, size_t cap);
     } while (0)
 #define ASSERT_REL(a, b, rtol) PM__REL(a, b, rtol, return)
 #define EXPECT_REL(a, b, rtol) PM__REL(a, b, rtol, (void)0)
+
+/* A tiny deterministic generator of test data (splitmix64), the same stream on every machine:
+ * pm_test_rng r = {seed}; pm_test_unit(&r) is uniform in [0, 1) with 53 bits. */
+typedef struct {
+    uint64_t s;
+} pm_test_rng;
+static inline double pm_test_unit(pm_test_rng *r) {
+    uint64_t z = (r->s += 0x9E3779B97F4A7C15ull);
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return (double)((z ^ (z >> 31)) >> 11) * 0x1p-53;
+}
 
 #endif /* PM_TEST_H */

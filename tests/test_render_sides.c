@@ -20,14 +20,6 @@
 #include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
-typedef struct { uint64_t s; } srng;
-static double srng_unit(srng *r) {
-    uint64_t z = (r->s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return (double)((z ^ (z >> 31)) >> 11) * 0x1p-53;
-}
-
 static const char *SIDES_SCENE =
     "{\"camera\": {\"eye\": [0, -5, 3], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
     " \"materials\": {\"white\": {\"type\": \"lambert\", \"reflectance\": 0.5}},"
@@ -58,15 +50,15 @@ TEST(render_sides_cache_from_records_matches_brute_force) {
     pm_photon *recs = malloc(sizeof *recs * m), *orig = malloc(sizeof *orig * m);
     float *r2 = malloc(sizeof *r2 * m), *hf = malloc(sizeof *hf * m);
     sc_cand *cs = malloc(sizeof *cs * m);
-    srng r = {4242};
+    pm_test_rng r = {4242};
     for (size_t i = 0; i < m; i++) {
-        float pos[3] = {(float)(2 * srng_unit(&r) - 1), (float)(2 * srng_unit(&r) - 1), 0};
+        float pos[3] = {(float)(2 * pm_test_unit(&r) - 1), (float)(2 * pm_test_unit(&r) - 1), 0};
         if (pos[0] > 0 && pos[0] < 0.15f) pos[0] += 0.15f; /* a strip without photons right of the wall */
         float up[3] = {0, 0, 1}, tilt[3] = {0.8f, 0, 0.6f}, down[3] = {0, 0, -1};
-        float p[3] = {(float)srng_unit(&r), (float)srng_unit(&r), (float)(0.01 + srng_unit(&r))};
-        pm_photon_init(&recs[i], pos, p, down, srng_unit(&r) < 0.85 ? up : tilt, PM_KIND_INDIRECT);
-        r2[i] = (float)(0.002 + 0.03 * srng_unit(&r));
-        hf[i] = (float)(0.1 * srng_unit(&r));
+        float p[3] = {(float)pm_test_unit(&r), (float)pm_test_unit(&r), (float)(0.01 + pm_test_unit(&r))};
+        pm_photon_init(&recs[i], pos, p, down, pm_test_unit(&r) < 0.85 ? up : tilt, PM_KIND_INDIRECT);
+        r2[i] = (float)(0.002 + 0.03 * pm_test_unit(&r));
+        hf[i] = (float)(0.1 * pm_test_unit(&r));
     }
     memcpy(orig, recs, sizeof *recs * m);
     side_cache c;
@@ -78,7 +70,7 @@ TEST(render_sides_cache_from_records_matches_brute_force) {
     vec3 n = v3(0, 0, 1);
     float nf[3] = {0, 0, 1};
     for (int qi = 0; qi < queries; qi++) {
-        vec3 y = v3(qi % 4 ? 2 * srng_unit(&r) - 1 : 0.02 * srng_unit(&r), 2 * srng_unit(&r) - 1, 0);
+        vec3 y = v3(qi % 4 ? 2 * pm_test_unit(&r) - 1 : 0.02 * pm_test_unit(&r), 2 * pm_test_unit(&r) - 1, 0);
         float yf[3] = {(float)y.x, (float)y.y, (float)y.z};
         double hy = side_free_height(&s, y, n, 0.25 * sqrt((double)max_dist2));
         size_t nc = 0;
@@ -147,15 +139,15 @@ TEST(render_sides_free_height_past_float_rounding) {
         scene s;
         json_err e;
         ASSERT_MSG(scene_load_text(&s, txt, &e) == 0, "%s", e.msg);
-        srng r = {77 + (uint64_t)ri};
+        pm_test_rng r = {77 + (uint64_t)ri};
         enum { N = 500 };
         vec3 pos[N], nrm[N];
         double h[N];
         int short_h = 0, hidden = 0;
         for (int i = 0; i < N; i++) {
             /* where a photon lands: a ray from inside, its hit point as a float */
-            double z = 2 * srng_unit(&r) - 1, a = 2 * M_PI * srng_unit(&r), t = sqrt(1 - z * z);
-            ray ry = {v3_add(c, v3_scale(v3(srng_unit(&r) - 0.5, srng_unit(&r) - 0.5, srng_unit(&r) - 0.5), R)),
+            double z = 2 * pm_test_unit(&r) - 1, a = 2 * M_PI * pm_test_unit(&r), t = sqrt(1 - z * z);
+            ray ry = {v3_add(c, v3_scale(v3(pm_test_unit(&r) - 0.5, pm_test_unit(&r) - 0.5, pm_test_unit(&r) - 0.5), R)),
                       v3(t * cos(a), t * sin(a), z)};
             hit hh;
             ASSERT(scene_intersect(&s, ry, INFINITY, &hh));
@@ -203,10 +195,10 @@ TEST(render_sides_paths_numbered_from_direct_records) {
     m.nglobal = n;
     uint32_t *ref = malloc(n * sizeof *ref);
     ASSERT(m.global && ref);
-    srng r = {99};
+    pm_test_rng r = {99};
     for (size_t i = 0; i < n; i++) {
-        float pos[3] = {(float)i, (float)srng_unit(&r), (float)srng_unit(&r)}; /* x: the map index */
-        pm_photon_init(&m.global[i], pos, pw, d, up, srng_unit(&r) < 0.3 ? PM_KIND_DIRECT : PM_KIND_INDIRECT);
+        float pos[3] = {(float)i, (float)pm_test_unit(&r), (float)pm_test_unit(&r)}; /* x: the map index */
+        pm_photon_init(&m.global[i], pos, pw, d, up, pm_test_unit(&r) < 0.3 ? PM_KIND_DIRECT : PM_KIND_INDIRECT);
     }
     photon_paths(m.global, n, ref);
     pm_kdtree *t;
@@ -232,12 +224,12 @@ TEST(render_sides_paths_numbered_from_direct_records) {
 TEST(render_sides_count_paths_brute_force) {
     enum { N = 300, K = 64 };
     uint32_t path[N], scratch[K];
-    srng r = {5};
-    for (int i = 0; i < N; i++) path[i] = (uint32_t)(srng_unit(&r) * (i % 3 ? 12 : 4000)); /* many repeats */
+    pm_test_rng r = {5};
+    for (int i = 0; i < N; i++) path[i] = (uint32_t)(pm_test_unit(&r) * (i % 3 ? 12 : 4000)); /* many repeats */
     for (int trial = 0; trial < 200; trial++) {
         pm_neighbor nb[K];
-        int count = (int)(srng_unit(&r) * K);
-        for (int j = 0; j < count; j++) nb[j].index = (uint32_t)(srng_unit(&r) * N), nb[j].dist2 = 0;
+        int count = (int)(pm_test_unit(&r) * K);
+        for (int j = 0; j < count; j++) nb[j].index = (uint32_t)(pm_test_unit(&r) * N), nb[j].dist2 = 0;
         unsigned want = 0;
         for (int j = 0; j < count; j++) {
             int seen = 0;
@@ -266,9 +258,9 @@ TEST(render_sides_paths_of_parts_add_up) {
     uint32_t *whole = malloc(N * sizeof *whole), *part = malloc(N * sizeof *part), scratch[K];
     ASSERT(ph && whole && part);
     float pw[3] = {1, 1, 1}, d[3] = {0, 0, -1}, up[3] = {0, 0, 1}, pos[3] = {0, 0, 0};
-    srng r = {123};
+    pm_test_rng r = {123};
     for (int i = 0; i < N; i++)
-        pm_photon_init(&ph[i], pos, pw, d, up, srng_unit(&r) < 0.3 ? PM_KIND_DIRECT : PM_KIND_INDIRECT);
+        pm_photon_init(&ph[i], pos, pw, d, up, pm_test_unit(&r) < 0.3 ? PM_KIND_DIRECT : PM_KIND_INDIRECT);
     photon_paths(ph, N, whole);
     int exact = 0, over = 0;
     for (int M = 2; M <= 5; M++) {
@@ -276,12 +268,12 @@ TEST(render_sides_paths_of_parts_add_up) {
         for (int p = 0; p <= M; p++) lo[p] = (size_t)N * (size_t)p / (size_t)M;
         for (int p = 0; p < M; p++) photon_paths(ph + lo[p], lo[p + 1] - lo[p], part + lo[p]);
         for (int trial = 0; trial < 100; trial++) {
-            int count = 10 + (int)(srng_unit(&r) * (K - 10));
+            int count = 10 + (int)(pm_test_unit(&r) * (K - 10));
             pm_neighbor nb[K], sub[K];
             /* near a part's boundary half the time, so that straddling paths show */
-            size_t c0 = trial % 2 ? lo[1 + trial % (M - 1)] - 20 : (size_t)(srng_unit(&r) * (N - 60));
+            size_t c0 = trial % 2 ? lo[1 + trial % (M - 1)] - 20 : (size_t)(pm_test_unit(&r) * (N - 60));
             for (int j = 0; j < count; j++)
-                nb[j].index = (uint32_t)(c0 + (size_t)(srng_unit(&r) * 60)), nb[j].dist2 = 0;
+                nb[j].index = (uint32_t)(c0 + (size_t)(pm_test_unit(&r) * 60)), nb[j].dist2 = 0;
             unsigned want = side_count_paths(whole, nb, count, K, scratch), sum = 0, capped = 0;
             for (int p = 0; p < M; p++) { /* each part counts its own records with its own ids */
                 int ns = 0;
@@ -343,7 +335,7 @@ TEST(render_sides_sparse_by_distinct_paths) {
     ASSERT_MSG(scene_load_text(&s, SIDES_SCENE, &e) == 0, "%s", e.msg);
     const size_t n = 4 * 11 + 300 * 2 + 200;
     float pw[3] = {1, 1, 1}, d[3] = {0, 0, -1}, up[3] = {0, 0, 1};
-    srng r = {31};
+    pm_test_rng r = {31};
     for (int use_paths = 1; use_paths >= 0; use_paths--) {
         photon_maps m;
         memset(&m, 0, sizeof m);
@@ -352,20 +344,20 @@ TEST(render_sides_sparse_by_distinct_paths) {
         ASSERT(m.global);
         size_t at = 0;
         for (int p = 0; p < 4; p++) { /* left: 4 paths of 10 stores, first hits on the right */
-            float first[3] = {(float)(0.5 + srng_unit(&r)), (float)(-1.8 + 1.6 * srng_unit(&r)), 0};
+            float first[3] = {(float)(0.5 + pm_test_unit(&r)), (float)(-1.8 + 1.6 * pm_test_unit(&r)), 0};
             pm_photon_init(&m.global[at++], first, pw, d, up, PM_KIND_DIRECT);
             for (int j = 0; j < 10; j++) {
-                float pos[3] = {(float)(-1.8 + 1.6 * srng_unit(&r)), (float)(-1.8 + 1.6 * srng_unit(&r)), 0};
+                float pos[3] = {(float)(-1.8 + 1.6 * pm_test_unit(&r)), (float)(-1.8 + 1.6 * pm_test_unit(&r)), 0};
                 pm_photon_init(&m.global[at++], pos, pw, d, up, PM_KIND_INDIRECT);
             }
         }
         for (int p = 0; p < 300; p++) /* right: 300 paths */
             for (int j = 0; j < 2; j++) {
-                float pos[3] = {(float)(0.2 + 1.6 * srng_unit(&r)), (float)(-1.8 + 1.6 * srng_unit(&r)), 0};
+                float pos[3] = {(float)(0.2 + 1.6 * pm_test_unit(&r)), (float)(-1.8 + 1.6 * pm_test_unit(&r)), 0};
                 pm_photon_init(&m.global[at++], pos, pw, d, up, j ? PM_KIND_INDIRECT : PM_KIND_DIRECT);
             }
         for (int p = 0; p < 200; p++) { /* past the low wall: direct photons only */
-            float pos[3] = {(float)(0.2 + 1.6 * srng_unit(&r)), (float)(0.7 + 1.1 * srng_unit(&r)), 0};
+            float pos[3] = {(float)(0.2 + 1.6 * pm_test_unit(&r)), (float)(0.7 + 1.1 * pm_test_unit(&r)), 0};
             pm_photon_init(&m.global[at++], pos, pw, d, up, PM_KIND_DIRECT);
         }
         ASSERT(at == n);
@@ -379,9 +371,9 @@ TEST(render_sides_sparse_by_distinct_paths) {
         int left = 0, right = 0, direct = 0;
         for (int qi = 0; qi < 50; qi++) {
             float e3[3];
-            vec3 yl = v3(-1.6 + 1.2 * srng_unit(&r), -1.6 + 1.2 * srng_unit(&r), 0);
-            vec3 yr = v3(0.4 + 1.2 * srng_unit(&r), -1.6 + 1.2 * srng_unit(&r), 0);
-            vec3 yd = v3(0.4 + 1.2 * srng_unit(&r), 0.9 + 0.7 * srng_unit(&r), 0);
+            vec3 yl = v3(-1.6 + 1.2 * pm_test_unit(&r), -1.6 + 1.2 * pm_test_unit(&r), 0);
+            vec3 yr = v3(0.4 + 1.2 * pm_test_unit(&r), -1.6 + 1.2 * pm_test_unit(&r), 0);
+            vec3 yd = v3(0.4 + 1.2 * pm_test_unit(&r), 0.9 + 0.7 * pm_test_unit(&r), 0);
             left += side_cache_lookup(&c, &s, yl, v3(0, 0, 1), 16.0f, e3);
             right += side_cache_lookup(&c, &s, yr, v3(0, 0, 1), 16.0f, e3);
             direct += side_cache_lookup(&c, &s, yd, v3(0, 0, 1), 16.0f, e3);
@@ -427,12 +419,12 @@ TEST(render_sides_precomp_neighbours_match_brute_force) {
     pm_neighbor *nb = malloc(sizeof *nb * SIDE_WIDEN * k);
     uint32_t *perm = malloc(sizeof *perm * m);
     ASSERT(recs && hf && cs && nb && perm);
-    srng r = {777};
+    pm_test_rng r = {777};
     for (size_t i = 0; i < m; i++) {
-        float pos[3] = {(float)(srng_unit(&r) - 0.5), (float)(2 * srng_unit(&r) - 1), 0};
+        float pos[3] = {(float)(pm_test_unit(&r) - 0.5), (float)(2 * pm_test_unit(&r) - 1), 0};
         if (pos[0] > 0 && pos[0] < 0.12f) pos[0] += 0.12f; /* a strip without photons right of the wall */
         float up[3] = {0, 0, 1}, down[3] = {0, 0, -1}, p[3] = {1, 1, 1};
-        pm_photon_init(&recs[i], pos, p, srng_unit(&r) < 0.8 ? down : up, up, PM_KIND_INDIRECT);
+        pm_photon_init(&recs[i], pos, p, pm_test_unit(&r) < 0.8 ? down : up, up, PM_KIND_INDIRECT);
     }
     pm_kdtree *t = NULL;
     pm_kdtree_config kc = pm_kdtree_photon_config(8);
@@ -444,11 +436,11 @@ TEST(render_sides_precomp_neighbours_match_brute_force) {
         float x[3];
         double hx;
         if (qi % 2 == 0) { /* a record, as side_cache_build asks */
-            size_t j = (size_t)(srng_unit(&r) * (double)m);
+            size_t j = (size_t)(pm_test_unit(&r) * (double)m);
             memcpy(x, recs[j].pos, sizeof x);
             hx = hf[j];
         } else {
-            x[0] = (float)(0.3 * srng_unit(&r) - 0.15), x[1] = (float)(2 * srng_unit(&r) - 1), x[2] = 0;
+            x[0] = (float)(0.3 * pm_test_unit(&r) - 0.15), x[1] = (float)(2 * pm_test_unit(&r) - 1), x[2] = 0;
             hx = side_free_height(&s, v3(x[0], x[1], x[2]), v3(0, 0, 1), 0.25 * sqrt((double)max_dist2));
         }
         size_t nc = 0;

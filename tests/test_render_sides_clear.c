@@ -21,14 +21,6 @@
 #include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
-typedef struct { uint64_t s; } crng;
-static double crng_unit(crng *r) {
-    uint64_t z = (r->s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return (double)((z ^ (z >> 31)) >> 11) * 0x1p-53;
-}
-
 static void prim_box(const bvh *b, int id, double lo[3], double hi[3]) {
     if (id < b->ntris) {
         const triangle *t = &b->tris[id];
@@ -73,15 +65,15 @@ TEST(render_bvh_overlap_matches_a_scan) {
     json_err e;
     ASSERT(load_scene_file(&s[0], "pinhole_room.json") == 0);
     ASSERT_MSG(scene_load_text(&s[1], BOX_SPHERE, &e) == 0, "%s", e.msg);
-    crng r = {99};
+    pm_test_rng r = {99};
     int checked = 0, over = 0;
     for (int si = 0; si < 2; si++) {
         const bvh *b = &s[si].accel;
         double scale = si == 0 ? 1000 : 4, off = si == 0 ? 0 : -2;
         for (int q = 0; q < 3000; q++) {
-            double lo[3], hi[3], half = scale * 0.3 * crng_unit(&r) * crng_unit(&r);
+            double lo[3], hi[3], half = scale * 0.3 * pm_test_unit(&r) * pm_test_unit(&r);
             for (int a = 0; a < 3; a++) {
-                double c = off + scale * crng_unit(&r);
+                double c = off + scale * pm_test_unit(&r);
                 lo[a] = c - half;
                 hi[a] = c + half;
             }
@@ -121,8 +113,8 @@ TEST(render_bvh_overlap_matches_a_scan) {
 
 /* A random surface point of the scene near x: a ray from x in a random direction, its hit if
  * within reach. */
-static int near_point(const scene *s, vec3 x, double reach, crng *r, vec3 *p, vec3 *n) {
-    double z = 2 * crng_unit(r) - 1, a = 2 * M_PI * crng_unit(r), q = sqrt(fmax(0, 1 - z * z));
+static int near_point(const scene *s, vec3 x, double reach, pm_test_rng *r, vec3 *p, vec3 *n) {
+    double z = 2 * pm_test_unit(r) - 1, a = 2 * M_PI * pm_test_unit(r), q = sqrt(fmax(0, 1 - z * z));
     ray ry = {x, v3(q * cos(a), q * sin(a), z)};
     hit h;
     if (!scene_intersect(s, ry, reach, &h)) return 0;
@@ -138,17 +130,17 @@ TEST(render_sides_clear_implies_the_ray_sees) {
     json_err e;
     ASSERT(load_scene_file(&s[0], "pinhole_room.json") == 0);
     ASSERT_MSG(scene_load_text(&s[1], BOX_SPHERE, &e) == 0, "%s", e.msg);
-    crng r = {2024};
+    pm_test_rng r = {2024};
     int cleared = 0, tested = 0, blocked = 0, open_cleared = 0, open_tested = 0, sphere_cleared = 0;
     const int trials = PM_TEST_SANITIZED ? 800 : 4000;
     for (int si = 0; si < 2; si++) {
         for (int t = 0; t < trials; t++) {
             /* x: a surface point seen from a random point inside the scene's box */
-            vec3 o = si == 0 ? v3(1000 * crng_unit(&r), 1000 * crng_unit(&r), 1000 * crng_unit(&r))
-                             : v3(4 * crng_unit(&r) - 2, 4 * crng_unit(&r) - 2, 0.05 + 0.9 * crng_unit(&r));
+            vec3 o = si == 0 ? v3(1000 * pm_test_unit(&r), 1000 * pm_test_unit(&r), 1000 * pm_test_unit(&r))
+                             : v3(4 * pm_test_unit(&r) - 2, 4 * pm_test_unit(&r) - 2, 0.05 + 0.9 * pm_test_unit(&r));
             vec3 x, nx;
             if (!near_point(&s[si], o, INFINITY, &r, &x, &nx)) continue;
-            double rad = (si == 0 ? 60 : 0.6) * (0.05 + crng_unit(&r));
+            double rad = (si == 0 ? 60 : 0.6) * (0.05 + pm_test_unit(&r));
             side_planes pl;
             side_planes_near(&s[si], x, rad * rad, &pl);
             double hx = side_free_height(&s[si], x, nx, 0.25 * rad);
@@ -156,8 +148,8 @@ TEST(render_sides_clear_implies_the_ray_sees) {
                 vec3 q, nq;
                 /* q: a surface point seen from a random point near x, so often behind a wall from x */
                 vec3 o2 = v3_madd(x, nx, 1e-3 * rad);
-                if (j % 2) o2 = v3_add(o2, v3(rad * (2 * crng_unit(&r) - 1), rad * (2 * crng_unit(&r) - 1),
-                                              rad * (2 * crng_unit(&r) - 1)));
+                if (j % 2) o2 = v3_add(o2, v3(rad * (2 * pm_test_unit(&r) - 1), rad * (2 * pm_test_unit(&r) - 1),
+                                              rad * (2 * pm_test_unit(&r) - 1)));
                 if (!near_point(&s[si], o2, 2 * rad, &r, &q, &nq)) continue;
                 if (v3_len(v3_sub(q, x)) > rad) continue;
                 double hq = side_free_height(&s[si], q, nq, 0.25 * rad);

@@ -25,14 +25,6 @@
 #include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
-typedef struct { uint64_t s; } crng;
-static double crng_unit(crng *r) {
-    uint64_t z = (r->s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return (double)((z ^ (z >> 31)) >> 11) * 0x1p-53;
-}
-
 /* A floor 0..4 x -2..2 and a wall on its edge x = 0, 2 high, both facing into the corner. */
 static const char *CORNER_SCENE =
     "{\"camera\": {\"eye\": [3, 0, 3], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
@@ -43,11 +35,11 @@ static const char *CORNER_SCENE =
 
 /* Mean of side_cache_lookup's irradiance (first channel) over n floor points with x in
  * [x0, x1), y in [-1, 1]; *missed counts lookups that found nothing. */
-static double strip_mean(const side_cache *c, const scene *s, double x0, double x1, int n, crng *r, int *missed) {
+static double strip_mean(const side_cache *c, const scene *s, double x0, double x1, int n, pm_test_rng *r, int *missed) {
     double sum = 0;
     int got = 0;
     for (int i = 0; i < n; i++) {
-        vec3 y = v3(x0 + (x1 - x0) * crng_unit(r), 2 * crng_unit(r) - 1, 0);
+        vec3 y = v3(x0 + (x1 - x0) * pm_test_unit(r), 2 * pm_test_unit(r) - 1, 0);
         float e[3];
         if (side_cache_lookup(c, s, y, v3(0, 0, 1), 1.0f, e)) {
             sum += e[0];
@@ -67,7 +59,7 @@ TEST(render_sides_corner_reads_the_surface_irradiance) {
     const unsigned k = 40; /* radius about sqrt(k / (pi E)) = 0.18 */
     const int nx = 80, ny = 80, nz = 40;
     const size_t n = (size_t)nx * ny + (size_t)ny * nz;
-    crng r = {2024};
+    pm_test_rng r = {2024};
     photon_maps m;
     memset(&m, 0, sizeof m);
     m.global = calloc(n, sizeof *m.global);
@@ -78,12 +70,12 @@ TEST(render_sides_corner_reads_the_surface_irradiance) {
     size_t at = 0;
     for (int i = 0; i < nx; i++) /* the floor */
         for (int j = 0; j < ny; j++) {
-            float pos[3] = {(float)(h * (i + crng_unit(&r))), (float)(-2 + h * (j + crng_unit(&r))), 0};
+            float pos[3] = {(float)(h * (i + pm_test_unit(&r))), (float)(-2 + h * (j + pm_test_unit(&r))), 0};
             pm_photon_init(&m.global[at++], pos, pw, down, up, PM_KIND_INDIRECT);
         }
     for (int j = 0; j < ny; j++) /* the wall: travelling down and toward it */
         for (int i = 0; i < nz; i++) {
-            float pos[3] = {0, (float)(-2 + h * (j + crng_unit(&r))), (float)(h * (i + crng_unit(&r)))};
+            float pos[3] = {0, (float)(-2 + h * (j + pm_test_unit(&r))), (float)(h * (i + pm_test_unit(&r)))};
             pm_photon_init(&m.global[at++], pos, pw, down_wall, toward_wall, PM_KIND_INDIRECT);
         }
     ASSERT(at == n);
