@@ -132,15 +132,17 @@ int pm_test_run(const char *cmd, char *buf, size_t cap);
 #define EXPECT_REL(a, b, rtol) PM__REL(a, b, rtol, (void)0)
 
 /* A tiny deterministic generator of test data (splitmix64), the same stream on every machine:
- * pm_test_rng r = {seed}; pm_test_unit(&r) is uniform in [0, 1) with 53 bits. */
+ * pm_test_rng r = {seed}; pm_test_next(&r) is its next 64 bits, pm_test_unit(&r) uniform in
+ * [0, 1) with 53 bits (test_kdtree_util.h's kt_rng draws from the same step). */
 typedef struct {
     uint64_t s;
 } pm_test_rng;
-static inline double pm_test_unit(pm_test_rng *r) {
+static inline uint64_t pm_test_next(pm_test_rng *r) {
     uint64_t z = (r->s += 0x9E3779B97F4A7C15ull);
     z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
     z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return (double)((z ^ (z >> 31)) >> 11) * 0x1p-53;
+    return z ^ (z >> 31);
 }
+static inline double pm_test_unit(pm_test_rng *r) { return (double)(pm_test_next(r) >> 11) * 0x1p-53; }
 
 #endif /* PM_TEST_H */

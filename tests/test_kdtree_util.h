@@ -20,16 +20,9 @@
 #include "photon.h"
 #include "test.h"
 
-typedef struct {
-    uint64_t s;
-} kt_rng;
+typedef pm_test_rng kt_rng; /* test.h's splitmix64 */
 
-static inline uint64_t kt_next(kt_rng *r) {
-    uint64_t z = (r->s += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-}
+static inline uint64_t kt_next(kt_rng *r) { return pm_test_next(r); }
 /* uniform in [0, 1) */
 static inline float kt_uniform(kt_rng *r) { return (float)(kt_next(r) >> 40) * (1.0f / 16777216.0f); }
 
