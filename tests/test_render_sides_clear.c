@@ -58,13 +58,24 @@ static const char *BOX_SPHERE =
     "  {\"type\": \"quad\", \"vertices\": [[0, -2, 0], [0, 2, 0], [0, 2, 1], [0, -2, 1]], \"material\": \"white\"},"
     "  {\"type\": \"sphere\", \"center\": [1, 1, 0.3], \"radius\": 0.3, \"material\": \"white\"}]}";
 
+/* The two scenes both tests walk: the shipped pinhole room and BOX_SPHERE; 0, or -1 with
+ * neither loaded (the error printed). */
+static int load_both_scenes(scene s[2]) {
+    json_err e;
+    if (load_scene_file(&s[0], "pinhole_room.json") != 0) return -1;
+    if (scene_load_text(&s[1], BOX_SPHERE, &e) != 0) {
+        fprintf(stderr, "BOX_SPHERE: %s\n", e.msg);
+        scene_free(&s[0]);
+        return -1;
+    }
+    return 0;
+}
+
 /* bvh_overlap returns exactly the primitives whose boxes overlap the query box (as a set), or
  * cap + 1 when there are more than cap. */
 TEST(render_bvh_overlap_matches_a_scan) {
     scene s[2];
-    json_err e;
-    ASSERT(load_scene_file(&s[0], "pinhole_room.json") == 0);
-    ASSERT_MSG(scene_load_text(&s[1], BOX_SPHERE, &e) == 0, "%s", e.msg);
+    ASSERT(load_both_scenes(s) == 0);
     pm_test_rng r = {99};
     int checked = 0, over = 0;
     for (int si = 0; si < 2; si++) {
@@ -127,9 +138,7 @@ static int near_point(const scene *s, vec3 x, double reach, pm_test_rng *r, vec3
  * does clear most of them on an open floor, never near the sphere. */
 TEST(render_sides_clear_implies_the_ray_sees) {
     scene s[2];
-    json_err e;
-    ASSERT(load_scene_file(&s[0], "pinhole_room.json") == 0);
-    ASSERT_MSG(scene_load_text(&s[1], BOX_SPHERE, &e) == 0, "%s", e.msg);
+    ASSERT(load_both_scenes(s) == 0);
     pm_test_rng r = {2024};
     int cleared = 0, tested = 0, blocked = 0, open_cleared = 0, open_tested = 0, sphere_cleared = 0;
     const int trials = PM_TEST_SANITIZED ? 800 : 4000;
