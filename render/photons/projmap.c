@@ -46,8 +46,92 @@ static int specular_spheres(const scene *s, bsph **out) {
  * (u[2], u[3]) and point lights (u[0], u[1]), the disc position for directional lights. */
 int projmap_dim(const light *l) { return l->type == LIGHT_AREA ? 2 : 0; }
 
-/* Is cell (cx, cy) of light li's G x G grid able to send a photon into a sphere of sph? */
-static int cell_active(const scene *s, int li, int G, int cx, int cy, const bsph *sph, int nsph) {
+/* What a cell's cone test needs of light li, computed once per light rather than once per
+ * cell (the cones of area and point lights). Each sphere i seen from the light's centre:
+ * ocn[i] its direction, sh[i] = sin and ch[i] = cos of the half angle it subtends, half[i]
+ * that angle, asin(R / dist); R is the sphere's radius widened by the light's own. */
+typedef struct cone_view {
+    vec3 pc, normals[2];
+    double rl;
+    int nsides;
+    int inside; /* the light's centre lies within a widened sphere: every cell is active */
+    int last;   /* the sphere that met the previous cell's cone: neighbouring cells' cones
+                 * mostly meet the same one, so it is tried first (the answer is the same) */
+    vec3 *oc;
+    double *dist, *half, *sh, *ch;
+} cone_view;
+
+static void cone_view_free(cone_view *v) {
+    free(v->oc);
+    free(v->dist);
+    free(v->half);
+    free(v->sh);
+    free(v->ch);
+}
+
+static int cone_view_init(cone_view *v, const scene *s, int li, const bsph *sph, int nsph) {
+    const light *l = &s->lights[li];
+    memset(v, 0, sizeof *v);
+    v->nsides = 1;
+    if (l->type == LIGHT_AREA) {
+        const triangle *t = &s->tris[l->tri];
+        vec3 a = t->v0, b = v3_add(t->v0, t->e1), c = v3_add(t->v0, t->e2);
+        v->pc = v3_scale(v3_add(a, v3_add(b, c)), 1.0 / 3);
+        v->rl = sqrt(fmax(v3_len2(v3_sub(a, v->pc)), fmax(v3_len2(v3_sub(b, v->pc)), v3_len2(v3_sub(c, v->pc)))));
+        v->normals[0] = t->n;
+        v->normals[1] = v3_neg(t->n);
+        v->nsides = l->two_sided ? 2 : 1;
+    } else {
+        v->pc = l->pos;
+    }
+    size_t n = (size_t)(nsph > 0 ? nsph : 1);
+    v->oc = malloc(n * sizeof *v->oc);
+    v->dist = malloc(n * sizeof *v->dist);
+    v->half = malloc(n * sizeof *v->half);
+    v->sh = malloc(n * sizeof *v->sh);
+    v->ch = malloc(n * sizeof *v->ch);
+    if (!v->oc || !v->dist || !v->half || !v->sh || !v->ch) {
+        cone_view_free(v);
+        return PM_ENOMEM;
+    }
+    for (int i = 0; i < nsph; i++) {
+        v->oc[i] = v3_sub(sph[i].c, v->pc);
+        v->dist[i] = v3_len(v->oc[i]);
+        double R = sph[i].r + v->rl;
+        if (v->dist[i] <= R) {
+            v->inside = 1;
+            continue;
+        }
+        v->sh[i] = R / v->dist[i];
+        v->half[i] = asin(v->sh[i]);
+        v->ch[i] = sqrt(fmax(0.0, 1 - v->sh[i] * v->sh[i]));
+    }
+    return 0;
+}
+
+/* Does a cone of half angle ang around dc meet sphere i? The exact test compares the angle
+ * between dc and the sphere, acos(c), with half[i] + ang. The cosines decide first: cos is
+ * 1-Lipschitz and decreasing on [0, pi], so where c differs from cos(half[i] + ang) (from the
+ * sum formula with ca = cos ang, sa = sin ang) by more than CONE_MARGIN, far above those few
+ * roundings, the exact test gives the same answer; only the cases within the margin pay for
+ * the two inverse cosines (the same cells are active as with the trigonometry alone). */
+#define CONE_MARGIN 1e-9
+static int cone_meets(const cone_view *v, int i, vec3 dc, double ang, double ca, double sa) {
+    double c = v3_dot(v->oc[i], dc) / v->dist[i]; /* dist > 0: not NaN */
+    if (c > 1) c = 1;
+    if (c < -1) c = -1;
+    double th = v->half[i] + ang;
+    if (th >= M_PI) return 1;
+    double cth = v->ch[i] * ca - v->sh[i] * sa;
+    if (c > cth + CONE_MARGIN) return 1;
+    if (c < cth - CONE_MARGIN) return 0;
+    return acos(c) <= th;
+}
+
+/* Is cell (cx, cy) of light li's G x G grid able to send a photon into a sphere of sph?
+ * cv: the light's cone view (area, point and spot lights; NULL for the others). */
+static int cell_active(const scene *s, int li, int G, int cx, int cy, const bsph *sph, int nsph,
+                       cone_view *cv) {
     const light *l = &s->lights[li];
     /* A sphere light's normal changes over its surface, so a cell of directions bounds no
      * cone: every cell stays active (no saving, no loss). */
@@ -86,21 +170,8 @@ static int cell_active(const scene *s, int li, int G, int cx, int cy, const bsph
     /* Area or point: a cone of directions from the light's centre, widened by the light's
      * own radius (a ray from a point within r_l of the centre hitting a sphere of radius R
      * means the parallel ray from the centre passes within R + r_l of its centre). */
-    vec3 pc, normals[2];
-    double rl = 0;
-    int nsides = 1;
-    if (l->type == LIGHT_AREA) {
-        const triangle *t = &s->tris[l->tri];
-        vec3 a = t->v0, b = v3_add(t->v0, t->e1), c = v3_add(t->v0, t->e2);
-        pc = v3_scale(v3_add(a, v3_add(b, c)), 1.0 / 3);
-        rl = sqrt(fmax(v3_len2(v3_sub(a, pc)), fmax(v3_len2(v3_sub(b, pc)), v3_len2(v3_sub(c, pc)))));
-        normals[0] = t->n;
-        normals[1] = v3_neg(t->n);
-        nsides = l->two_sided ? 2 : 1;
-    } else {
-        pc = l->pos;
-    }
-    for (int side = 0; side < nsides; side++) {
+    if (cv->inside) return 1;
+    for (int side = 0; side < cv->nsides; side++) {
         vec3 dirs[9];
         for (int j = 0; j < 9; j++)
             if (l->type == LIGHT_SPOT) { /* the spot's own map of (u[0], u[1]) to directions */
@@ -109,21 +180,20 @@ static int cell_active(const scene *s, int li, int G, int cx, int cy, const bsph
                 light_sample_le(s, li, u, &p, &n, &dirs[j]);
             } else {
                 dirs[j] = l->type == LIGHT_AREA
-                              ? sampling_to_world(sample_cosine_hemisphere(pu[j], pv[j]), normals[side])
+                              ? sampling_to_world(sample_cosine_hemisphere(pu[j], pv[j]), cv->normals[side])
                               : sample_uniform_sphere(pu[j], pv[j]);
             }
         vec3 dc = dirs[4];
         double ang = 0;
         for (int j = 0; j < 9; j++) ang = fmax(ang, acos(fmin(1.0, fmax(-1.0, v3_dot(dirs[j], dc)))));
         ang = ang * 1.25 + 1e-3;
-        for (int i = 0; i < nsph; i++) {
-            vec3 oc = v3_sub(sph[i].c, pc);
-            double dist = v3_len(oc), R = sph[i].r + rl;
-            if (dist <= R) return 1;
-            double half = asin(R / dist);
-            double a = acos(fmin(1.0, fmax(-1.0, v3_dot(oc, dc) / dist)));
-            if (a <= half + ang) return 1;
-        }
+        double ca = cos(ang), sa = sin(ang);
+        if (cv->last < nsph && cone_meets(cv, cv->last, dc, ang, ca, sa)) return 1;
+        for (int i = 0; i < nsph; i++)
+            if (cone_meets(cv, i, dc, ang, ca, sa)) {
+                cv->last = i;
+                return 1;
+            }
     }
     return 0;
 }
@@ -133,9 +203,18 @@ static int projmap_build(projmap *pm, const scene *s, int li, int G, const bsph 
     pm->nactive = 0;
     pm->active = malloc((size_t)G * (size_t)G * sizeof *pm->active);
     if (!pm->active) return PM_ENOMEM;
+    int type = s->lights[li].type;
+    int cone = type != LIGHT_SPHERE && type != LIGHT_INFINITE && type != LIGHT_DIRECTIONAL;
+    cone_view cv;
+    if (cone && cone_view_init(&cv, s, li, sph, nsph) != 0) {
+        free(pm->active);
+        pm->active = NULL;
+        return PM_ENOMEM;
+    }
     for (int cy = 0; cy < G; cy++)
         for (int cx = 0; cx < G; cx++)
-            if (cell_active(s, li, G, cx, cy, sph, nsph)) pm->active[pm->nactive++] = cy * G + cx;
+            if (cell_active(s, li, G, cx, cy, sph, nsph, cone ? &cv : NULL)) pm->active[pm->nactive++] = cy * G + cx;
+    if (cone) cone_view_free(&cv);
     pm->fraction = (double)pm->nactive / ((double)G * G);
     return 0;
 }
