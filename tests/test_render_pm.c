@@ -1360,6 +1360,47 @@ TEST(render_pm_caustic_cap_at_the_defaults_only) {
     }
 }
 
+/* Oracle: the same rule in a scene with media (pm_volume.c's cap, which stops the caustic pass
+ * of a scene with media at 4 x the global pass's photons, at least CAUSTIC_CAP_MIN or, at the
+ * defaults, the render's camera samples: pm_preprocess.c, THE CAUSTIC PROBE). glass_of_smoke
+ * (a smoke-filled glass: surface caustics rare) at 16 x 16 x 1 and its defaults: the caustic
+ * pass stops under 4194304, between 4 x the global pass's surface photons emitted and 4 x all
+ * it emitted (surface and volume), and says the cap's floor was the camera samples; the kept
+ * first-stage maps get their "Photons (scene with media)" line (before, a kept first stage of
+ * a scene with media printed none). Before THE CAUSTIC PROBE reached media, this render
+ * emitted 4194304 caustic photons (8.6 CPU-s at 32 x 32 x 4; 1.9 after). Control: with
+ * caustic_photons set (no fit) the floor is 4194304, exactly what the pass emits. */
+TEST(render_pm_media_caustic_cap_at_the_defaults_only) {
+    static char out[65536];
+    char cmd[8192];
+    for (int set = 0; set < 2; set++) {
+        snprintf(cmd, sizeof cmd,
+                 "%s/render '%s/data/scenes/glass_of_smoke.json' --mode pm --width 16 --height 16 --spp 1 %s "
+                 "--hdr '%s/smoke%d.pfm' -o '%s/smoke%d.png' 2>&1",
+                 pm_test_build_dir(), pm_test_source_dir(), set ? "--pm caustic_photons=66000" : "",
+                 pm_test_tmpdir(), set, pm_test_tmpdir(), set);
+        int rc = pm_test_run(cmd, out, sizeof out);
+        ASSERT_MSG(rc == 0, "exit %d: %s", rc, out);
+        const char *ph = strstr(out, "\nPhotons (scene with media): ");
+        size_t ng = 0, nc = 0, nv = 0;
+        unsigned long long ge = 0, ce = 0, ve = 0;
+        ASSERT_MSG(ph && sscanf(ph, "\nPhotons (scene with media): %zu global (from %llu emitted), %zu caustic (from "
+                                    "%llu emitted); volume: %zu (from %llu emitted)",
+                                &ng, &ge, &nc, &ce, &nv, &ve) == 6,
+                   "no photon line: %s", out);
+        if (!set) {
+            EXPECT_MSG(strstr(out, "stopped by the caustic pass's cap in a scene with media (4 times the global "
+                                   "pass's photons emitted, at least the render's camera samples; pm_volume.c)"),
+                       "%s", out);
+            EXPECT_MSG(ce < 4194304ull && ce >= 4 * ge && ce <= 4 * (ge + ve),
+                       "caustic emitted %llu: global %llu, volume %llu", ce, ge, ve);
+        } else {
+            EXPECT_MSG(strstr(out, "at least 4194304; pm_volume.c)"), "%s", out);
+            EXPECT_MSG(ce == 4194304ull, "caustic emitted %llu, the floor 4194304 (global %llu)", ce, ge);
+        }
+    }
+}
+
 /* Oracle: the fault-injection hook PM_PLAN_TEST_ENOMEM (plan.c) makes one pilot pass fail as
  * if it had run out of memory. Before, run_pilot ignored photon_trace's code and the plan read
  * a pass cut short as evidence ("nothing reaches there"). Now plan_make returns PM_ENOMEM with

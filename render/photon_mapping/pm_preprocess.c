@@ -113,6 +113,7 @@ static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t e
         scene sp = *s;
         sp.settings.seed = st->pass_seed;
         st->vol.quiet = st->fit_stage; /* the fit's first stage prints no maps (pm_passes.c) */
+        st->vol.caustic_cap_min = caustic_probe_floor(st, s); /* THE CAUSTIC PROBE */
         if ((rc = pmv_trace(&st->vol, &sp, &st->cfg, &st->plan, m, err, errcap)) < 0) return rc;
         if (!loaded) m->stamp = stamp;
         if ((rc = pm__pass_volume_radii(st, s)) < 0) return rc;
@@ -232,9 +233,11 @@ static const char *const k_caustic_counters[] = {
 
 /* Pass 0's lines on stdout, once its maps are final: the photons traced (of a scene without
  * media: pmv_trace prints its own), the radii and the precomputed irradiance. */
-static void print_maps(const mapper_state *st) {
+static void print_maps(const mapper_state *st, const scene *s) {
     const photon_maps *m = &st->maps;
     const map_radii *rad = &st->rad0;
+    if (st->vol.on && st->vol.quiet) /* the first stage's maps, kept: their line is not out yet */
+        pmv_print_maps(&st->vol, s, m, st->cfg.load_dir[0] ? st->cfg.load_dir : NULL);
     if (!st->vol.on && !st->cfg.load_dir[0])
         printf("Photons: %zu global, %zu shadow-map (from %llu emitted); %zu caustic (from %llu "
                "emitted; projection maps cover %.2f%% of the light's power, saving %llu "
@@ -293,7 +296,7 @@ int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
     }
     if (first) {
         printf("  photons: %s\n", st->fit_reason);
-        print_maps(st);
+        print_maps(st, s);
     }
     st->made = 1;
     if (pm__lookup) {

@@ -216,6 +216,25 @@ static void pass_opts(vol_pass_opts *o, const pmv_state *v, const scene *s, cons
     o->hi = v->hi;
 }
 
+void pmv_print_maps(const pmv_state *v, const scene *s, const photon_maps *m, const char *loaded_from) {
+    double r_ms = 0, r_caus = 0; /* the largest radius and smallest k over the media, for the message */
+    unsigned k_ms = v->k_ms, k_caus = v->k_caus;
+    for (int md = 0; md < s->nmedia; md++) {
+        if (v->ms[md].n) r_ms = fmax(r_ms, sqrt((double)v->ms[md].r2));
+        if (v->caus[md].n) r_caus = fmax(r_caus, sqrt((double)v->caus[md].r2));
+        if (v->ms[md].n && v->ms[md].k < k_ms) k_ms = v->ms[md].k;
+        if (v->caus[md].n && v->caus[md].k < k_caus) k_caus = v->caus[md].k;
+    }
+    if (loaded_from) printf("Loaded photon maps from %s", loaded_from);
+    else printf("Photons");
+    printf(" (scene with media): %zu global (from %llu emitted), %zu caustic (from %llu "
+           "emitted); volume: %zu (from %llu emitted), %zu of them for multiple scattering (radius "
+           "%.4g, k %u), %zu volume-caustic (from %llu emitted, radius %.4g, k %u)\n",
+           m->nglobal, (unsigned long long)m->global_emitted, m->ncaustic,
+           (unsigned long long)m->caustic_emitted, v->n_all, (unsigned long long)m->volume_emitted,
+           v->n_ms, r_ms, k_ms, v->n_caus, (unsigned long long)m->volume_caustic_emitted, r_caus, k_caus);
+}
+
 int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const render_plan *p,
               photon_maps *m, char *err, size_t errcap) {
     /* Maps loaded by photon_maps_load (m->loaded): their photons, not traced ones. */
@@ -250,14 +269,29 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
         o.projection_cells = c->projection ? c->projection_cells : 0;
         /* Light that reaches a wall through a smoke-filled glass is rare: do not let that map
          * take more than CAUSTIC_CAP_FACTOR times the global pass's photons (at least
-         * CAUSTIC_CAP_MIN); it keeps what it stored, for the photons emitted. */
-        double cap = fmax(CAUSTIC_CAP_MIN, CAUSTIC_CAP_FACTOR * (double)g.emitted);
-        if (cap < o.max_emitted) {
-            o.max_emitted = cap;
-            o.max_emitted_budget = "caustic pass's cap in a scene with media (4 times the global "
-                                   "pass's photons emitted, at least 4194304; pm_volume.c)";
+         * CAUSTIC_CAP_MIN, or the caller's lower floor: pm_preprocess.c, THE CAUSTIC PROBE);
+         * it keeps what it stored, for the photons emitted. A pass under the lower floor that
+         * stores nothing is traced again at CAUSTIC_CAP_MIN, as a surface pass is. */
+        double floor = v->caustic_cap_min > 0 && v->caustic_cap_min < CAUSTIC_CAP_MIN ? v->caustic_cap_min
+                                                                                       : CAUSTIC_CAP_MIN;
+        double max0 = o.max_emitted;
+        for (;;) {
+            double cap = fmax(floor, CAUSTIC_CAP_FACTOR * (double)g.emitted);
+            o.max_emitted = max0;
+            if (cap < o.max_emitted) {
+                o.max_emitted = cap;
+                o.max_emitted_budget = floor < CAUSTIC_CAP_MIN
+                                           ? "caustic pass's cap in a scene with media (4 times the global "
+                                             "pass's photons emitted, at least the render's camera samples; "
+                                             "pm_volume.c)"
+                                           : "caustic pass's cap in a scene with media (4 times the global "
+                                             "pass's photons emitted, at least 4194304; pm_volume.c)";
+            }
+            rc = vol_trace_pass(s, &o, &k);
+            if (rc != PM_EEMPTY || floor >= CAUSTIC_CAP_MIN) break;
+            floor = CAUSTIC_CAP_MIN;
         }
-        if ((rc = vol_trace_pass(s, &o, &k)) < 0) goto fail;
+        if (rc < 0) goto fail;
     }
     /* Split the volume photons by medium and by use (pm_volume.h), and build the trees. */
     v->nmedia = s->nmedia;
@@ -300,24 +334,7 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
     m->nvolume_caustic = k.nvolume, m->volume_caustic_emitted = k.volume_emitted;
     g.volume = k.volume = NULL;
     g.volume_medium = k.volume_medium = NULL;
-    double r_ms = 0, r_caus = 0; /* the largest radius and smallest k over the media, for the message */
-    unsigned k_ms = v->k_ms, k_caus = v->k_caus;
-    for (int md = 0; md < s->nmedia; md++) {
-        if (v->ms[md].n) r_ms = fmax(r_ms, sqrt((double)v->ms[md].r2));
-        if (v->caus[md].n) r_caus = fmax(r_caus, sqrt((double)v->caus[md].r2));
-        if (v->ms[md].n && v->ms[md].k < k_ms) k_ms = v->ms[md].k;
-        if (v->caus[md].n && v->caus[md].k < k_caus) k_caus = v->caus[md].k;
-    }
-    if (v->quiet) goto done;
-    if (loaded) printf("Loaded photon maps from %s", c->load_dir);
-    else printf("Photons");
-    printf(" (scene with media): %zu global (from %llu emitted), %zu caustic (from %llu "
-           "emitted); volume: %zu (from %llu emitted), %zu of them for multiple scattering (radius "
-           "%.4g, k %u), %zu volume-caustic (from %llu emitted, radius %.4g, k %u)\n",
-           m->nglobal, (unsigned long long)m->global_emitted, m->ncaustic,
-           (unsigned long long)m->caustic_emitted, v->n_all, (unsigned long long)m->volume_emitted,
-           v->n_ms, r_ms, k_ms, v->n_caus, (unsigned long long)m->volume_caustic_emitted, r_caus, k_caus);
-done:
+    if (!v->quiet) pmv_print_maps(v, s, m, loaded ? c->load_dir : NULL);
     vol_pass_free(&g);
     vol_pass_free(&k);
     return 0;

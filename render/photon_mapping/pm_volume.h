@@ -158,6 +158,8 @@ typedef struct pmv_map {
 typedef struct pmv_state {
     int on;                      /* the scene has a medium or a null surface */
     int quiet;                   /* pmv_trace prints no "Photons" line (the fit's first stage) */
+    double caustic_cap_min;      /* the caustic pass's cap floor when above 0 and below
+                                  * CAUSTIC_CAP_MIN (pm_preprocess.c, THE CAUSTIC PROBE) */
     int nmedia;
     pmv_map *ms, *caus, *all;    /* per medium (nmedia each): the three trees above */
     size_t n_ms, n_caus, n_all;  /* photons in all media */
@@ -180,6 +182,10 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
 /* Build the beam maps (pm_beam.h) of the multiple-scattering and volume-caustic trees of every
  * medium, with their radii as they are now (after pm_passes.c scaled them), when settings
  * volume_beam is on; without it, or for an empty tree, none. 0 or PM_ENOMEM. */
+/* The "Photons (scene with media)" line of the maps in v and m on stdout (pmv_trace prints it
+ * unless v->quiet; the caller prints it for maps a quiet trace made and the render kept);
+ * loaded_from: the directory the maps were loaded from, or NULL. */
+void pmv_print_maps(const pmv_state *v, const scene *s, const photon_maps *m, const char *loaded_from);
 int pmv_build_beams(pmv_state *v, const scene *s);
 void pmv_free(pmv_state *v);
 /* Bytes of scratch per thread. */
