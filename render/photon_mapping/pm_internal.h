@@ -27,6 +27,7 @@
 #include "photon_mapping/plan.h"
 #include "photon_mapping/pm_sample.h"
 #include "photon_mapping/pm_volume.h"
+#include "scene/medium.h"
 #include "base/stats.h"
 
 typedef struct mapper_state {

@@ -50,7 +50,6 @@
 #include "base/json.h"
 #include "scene/light.h"
 #include "scene/material.h"
-#include "scene/medium.h"
 #include "scene/port.h"
 #include "base/sampling.h"
 #include "scene/shapes.h"
@@ -59,6 +58,10 @@
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+/* medium.h stands on this header (its queries carry rays through the scene): the scene holds
+ * its media by pointer, and a file that reads them includes medium.h. */
+struct medium;
 
 #define SCENE_LENGTH_MAX 1e100  /* |coordinate|, radius */
 #define SCENE_LENGTH_MIN 1e-100 /* the scene's bounding radius; a triangle's longest edge */
@@ -102,7 +105,7 @@ typedef struct scene {
     int env_light;           /* 1 + the index of the infinite light (light.h); 0: none */
     struct envmap *env_map;  /* its image (envmap.h; owned), NULL: a constant radiance */
     double medium_ior;       /* index of refraction of the space between objects; default 1 */
-    medium *media;           /* participating media ($.media; medium.h), nmedia of them */
+    struct medium *media;    /* participating media ($.media; medium.h), nmedia of them */
     int nmedia;
     int global_medium;       /* index in media of $.medium (between objects), or -1 */
     int camera_medium;       /* the medium the camera is in (found from the nearest surface) */
