@@ -180,6 +180,40 @@ static inline int scene_prim_is_light(const scene *s, int prim) {
     return prim < s->ntris ? s->tris[prim].light >= 0 : s->spheres[prim - s->ntris].light >= 0;
 }
 
+/* ---- the scene's lights sampled (light_sample.c; the lights are light.h's) ---------------- */
+
+/* Sample light number li as seen from p with (u1, u2). Returns 1 if the sample can carry
+ * light (before the visibility test), 0 otherwise. */
+int light_sample_li(const scene *s, int li, vec3 p, double u1, double u2, light_sample *ls);
+
+/* A ray of light leaving light number li, for photon emission; u[0..3] uniform in [0,1).
+ *   area:        a uniform point on the triangle and a cosine-weighted direction about its
+ *                front normal (two-sided: u[0] < 0.5 picks the front, the rest the back);
+ *   sphere:      the same with a uniform point on the sphere (front: the outside);
+ *   point:       the light's position and a uniform direction;
+ *   spot:        the light's position and a direction of density f / (2 pi W) (light_spot_pdf):
+ *                u[0] gives cos by the inverse of its distribution, u[1] the angle about dir;
+ *   infinite:    a uniform direction d (u[0], u[1], as sample_uniform_sphere; with an image,
+ *                minus envmap_sample's direction) and a uniform point (u[2], u[3]) on the
+ *                disc of radius R perpendicular to d, R before the bounding sphere's centre,
+ *                travelling along d;
+ *   directional: a uniform point on the disc of radius R (the scene's bounding sphere)
+ *                perpendicular to the light, R in front of the scene, travelling along dir.
+ * With these densities every emitted photon of light li carries power light.power / n_emitted
+ * (for n_emitted photons from that light), times light_emit_weight. *p is the origin, *n the
+ * surface normal at it (zero for point and directional lights: no offset needed), *d the unit
+ * direction. */
+void light_sample_le(const scene *s, int li, const double u[4], vec3 *p, vec3 *n, vec3 *d);
+
+/* The radiance that a ray leaving the scene along d sees: the infinite light's, or 0. */
+rgb light_env_radiance(const scene *s, vec3 d);
+
+/* What a photon of light li leaving along d carries, per channel, relative to the equal share
+ * light.power / n_emitted: 1 for every light but an infinite light with an image
+ * (scene.env_map, envmap.h), whose photons are drawn by luminance and so carry each its own
+ * colour (L / lum(L)) Sigma / integral. */
+rgb light_emit_weight(const scene *s, int li, vec3 d);
+
 #ifdef __cplusplus
 }
 #endif
