@@ -308,7 +308,7 @@ static int write_map_exr(const char *path, const rgb rows[8]) {
         for (int x = 0; x < 8; x++) film_set(&f, x, y, rows[y]);
     FILE *fp = fopen(path, "wb");
     char err[256];
-    int rc = fp ? exr_write_fp(&f, fp, EXR_FLOAT, err, sizeof err) : -1;
+    int rc = fp ? exr_write_fp(f.px, f.width, f.height, fp, EXR_FLOAT, err, sizeof err) : -1;
     if (fp && fclose(fp) != 0) rc = -1;
     film_free(&f);
     return rc;

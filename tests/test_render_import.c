@@ -23,6 +23,7 @@
 #include "../render/load/mesh.h"
 #include "../render/load/obj.h"
 #include "../render/load/scene_load.h"
+#include "../render/scene/medium.h"
 #include "../render/scene/scene.h"
 #include "../render/load/tungsten.h"
 #include "../render/load/wo3.h"

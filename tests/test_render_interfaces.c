@@ -30,6 +30,7 @@
 #include "../render/integrators/integrator.h"
 #include "../render/base/rng.h"
 #include "../render/load/scene_load.h"
+#include "../render/scene/medium.h"
 #include "../render/scene/scene.h"
 
 static int write_text(const char *path, const char *text) {

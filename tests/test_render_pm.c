@@ -1308,13 +1308,13 @@ TEST(render_pm_caustic_pilot_runaway_message) {
     EXPECT_MSG(n > 0 && nc < 2000 && strstr(out, want), "expected \"%s\" in %s", want, out);
 }
 
-/* Oracle: the rule of the caustic cap (photon_trace.h CAUSTIC CAP, pm_passes.c THE CAUSTIC
+/* Oracle: the rule of the caustic cap (photon_trace.h CAUSTIC CAP, pm_fit.c THE CAUSTIC
  * CAP, pm_preprocess.c THE CAUSTIC PROBE) and the render's own figures. glass_hole's caustic
  * map lies behind a wall the camera does not see through: at its defaults (the fit applies)
  * the first stage's caustic pass stops at the cap, max(min(4194304, width x height x spp),
  * 4 x the global pass's own emitted photons) of its own, plus the plan's 8192 pilot photons
  * that join it, exactly (the emission budget is exact), and says so with the floor it used
- * (the first stage traces 1/8 of the caustic target, THE CAUSTIC FLOOR in pm_passes.c;
+ * (the first stage traces 1/8 of the caustic target, THE CAUSTIC FLOOR in pm_fit.c;
  * max_emitted_factor 256, not a photon count, leaves the fit on and the cap the first limit).
  * Before THE CAUSTIC PROBE the floor was 4194304 at any image size (4.0M caustic photons
  * for a 16 x 16 x 1 render). Control: with caustic_photons set (no fit) the cap does not

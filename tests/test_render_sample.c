@@ -121,7 +121,7 @@ TEST(render_sample_emission_rays_where_emitters_are_seen) {
                p ? p : g_out);
 }
 
-/* ---- pass 0's photons fitted to the render (pm_passes.c, PASS 0'S PHOTONS) ---------------- */
+/* ---- pass 0's photons fitted to the render (pm_fit.c, PASS 0'S PHOTONS) ------------------- */
 
 /* render data/scenes/cornell_box.json --mode pm at its photon defaults (no count given). */
 static int run_box_defaults(const char *args) {
@@ -206,7 +206,7 @@ static int photons_line(double v[4]) {
                        &v[0], &v[1], &v[2], &v[3]) == 4;
 }
 
-/* THE CAUSTIC FLOOR (pm_passes.c). Oracle: the rule and the renderer's own maps. The first stage
+/* THE CAUSTIC FLOOR (pm_fit.c). Oracle: the rule and the renderer's own maps. The first stage
  * traces the caustic map at 1/8 of its target; the fit scales it by s_c = k x 0.2 W_r / W_p (k 1
  * where the map carries under 10% of the pilot's luminance, 2 where it carries more: its photons
  * at 0.4 of the camera samples' work), within [1/8, the global maps' scale], and keeps the first

@@ -3,9 +3,9 @@
  * Writing uses OpenEXRCore's custom write callback to fill a growing memory buffer (the
  * library writes the header, then the chunks, then goes back to fill the chunk offset table,
  * so a plain stream would not do), and the buffer is written to the caller's stream at the
- * end. Each chunk is encoded by the library's default pipeline from the film's interleaved
+ * end. Each chunk is encoded by the library's default pipeline from the caller's interleaved
  * floats (pixel stride 12 bytes, one pointer per channel), converting to half where asked.
- * Reading is base/exr_read.c's, into the film's floats. Errors come through base/exr_read.h's
+ * Reading is base/exr_read.c's (exr_read_rgb). Errors come through base/exr_read.h's
  * callback into the call's own buffer, so nothing global is kept.
  */
 #include "image/exr.h"
@@ -45,7 +45,7 @@ static int64_t mem_write(exr_const_context_t c, void *ud, const void *buf, uint6
 
 /* ---- writing ------------------------------------------------------------------------------ */
 
-int exr_write_fp(const film *f, FILE *fp, int pixel_type, char *err, size_t cap) {
+int exr_write_fp(const float *px, int width, int height, FILE *fp, int pixel_type, char *err, size_t cap) {
     exr_io io;
     memset(&io, 0, sizeof io);
     exr_context_initializer_t init = EXR_DEFAULT_CONTEXT_INITIALIZER;
@@ -58,7 +58,7 @@ int exr_write_fp(const film *f, FILE *fp, int pixel_type, char *err, size_t cap)
     const char *what = "starting the file";
     exr_result_t rc = exr_start_write(&c, "render.exr", EXR_WRITE_FILE_DIRECTLY, &init);
     if (rc == EXR_ERR_SUCCESS) rc = exr_add_part(c, "render", EXR_STORAGE_SCANLINE, &part);
-    if (rc == EXR_ERR_SUCCESS) rc = exr_initialize_required_attr_simple(c, part, f->width, f->height, EXR_COMPRESSION_ZIP);
+    if (rc == EXR_ERR_SUCCESS) rc = exr_initialize_required_attr_simple(c, part, width, height, EXR_COMPRESSION_ZIP);
     exr_pixel_type_t pt = pixel_type == EXR_HALF ? EXR_PIXEL_HALF : EXR_PIXEL_FLOAT;
     static const char *const names[3] = {"B", "G", "R"}; /* EXR keeps channels sorted by name */
     static const int comp[3] = {2, 1, 0};
@@ -71,7 +71,7 @@ int exr_write_fp(const film *f, FILE *fp, int pixel_type, char *err, size_t cap)
     int32_t lines = 1;
     if (rc == EXR_ERR_SUCCESS) rc = exr_get_scanlines_per_chunk(c, part, &lines);
     what = "encoding the pixels";
-    for (int y = 0; y < f->height && rc == EXR_ERR_SUCCESS; y += lines) {
+    for (int y = 0; y < height && rc == EXR_ERR_SUCCESS; y += lines) {
         exr_chunk_info_t ci;
         rc = exr_write_scanline_chunk_info(c, part, y, &ci);
         if (rc != EXR_ERR_SUCCESS) break;
@@ -85,8 +85,8 @@ int exr_write_fp(const film *f, FILE *fp, int pixel_type, char *err, size_t cap)
             ch->user_bytes_per_element = 4;
             ch->user_data_type = EXR_PIXEL_FLOAT;
             ch->user_pixel_stride = 12;
-            ch->user_line_stride = 12 * f->width;
-            ch->encode_from_ptr = (const uint8_t *)(f->px + 3 * ((size_t)(ci.start_y) * (size_t)f->width) + cc);
+            ch->user_line_stride = 12 * width;
+            ch->encode_from_ptr = (const uint8_t *)(px + 3 * ((size_t)(ci.start_y) * (size_t)width) + cc);
         }
         if (!have_enc) rc = exr_encoding_choose_default_routines(c, part, &enc);
         have_enc = 1;
@@ -107,11 +107,4 @@ int exr_write_fp(const film *f, FILE *fp, int pixel_type, char *err, size_t cap)
     }
     free(io.b);
     return ret;
-}
-
-/* ---- reading ------------------------------------------------------------------------------ */
-
-int exr_read(film *f, const char *path, char *err, size_t cap) {
-    memset(f, 0, sizeof *f);
-    return exr_read_rgb(path, &f->width, &f->height, &f->px, err, cap);
 }

@@ -10,12 +10,16 @@
  * through output.h's atomic outputs like every other image (a temporary renamed into place;
  * a FIFO written through).
  *
- * Reading: base/exr_read.h's exr_read_rgb into a film (the first part of a scanline file, R G B
- * or Y, any pixel type converted to float); exr_is_exr and exr_has_ext are declared there.
+ * Reading: base/exr_read.h's exr_read_rgb (the first part of a scanline file, R G B or Y, any
+ * pixel type converted to float; film.h's film_read_image reads a film with it); exr_is_exr
+ * and exr_has_ext are declared there too.
+ *
+ * The pixels are the caller's interleaved floats, not a film: film.c (film_write_outputs_ex,
+ * film_read_image) calls this file, so this file stands under film.h and does not include it.
  *
  * Errors: a negative PM_E* code (PM_EIO: cannot open or write; PM_EFORMAT: not an EXR file we
  * read, with OpenEXRCore's own message; PM_ENOMEM) and a message in err naming the file.
- * Nothing here keeps state; a film read is the caller's (film_free).
+ * Nothing here keeps state.
  */
 #ifndef RENDER_EXR_H
 #define RENDER_EXR_H
@@ -24,7 +28,6 @@
 #include <stdio.h>
 
 #include "base/exr_read.h"
-#include "image/film.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -32,11 +35,9 @@ extern "C" {
 
 enum { EXR_FLOAT = 0, EXR_HALF = 1 };
 
-/* Write f as an EXR file to fp (pixel type EXR_FLOAT or EXR_HALF). */
-int exr_write_fp(const film *f, FILE *fp, int pixel_type, char *err, size_t cap);
-
-/* Read an EXR file into f (zeroed first). */
-int exr_read(film *f, const char *path, char *err, size_t cap);
+/* Write width x height pixels px (3 floats each, R G B, row-major, top row first, as a film
+ * holds them) as an EXR file to fp (pixel type EXR_FLOAT or EXR_HALF). */
+int exr_write_fp(const float *px, int width, int height, FILE *fp, int pixel_type, char *err, size_t cap);
 
 #ifdef __cplusplus
 }

@@ -261,7 +261,10 @@ int film_write_outputs(const film *f, const char *pfm, const char *png, int tone
 }
 
 int film_read_image(film *f, const char *path, char *err, size_t errcap) {
-    if (exr_is_exr(path)) return exr_read(f, path, err, errcap);
+    if (exr_is_exr(path)) {
+        memset(f, 0, sizeof *f);
+        return exr_read_rgb(path, &f->width, &f->height, &f->px, err, errcap);
+    }
     int rc = film_read_pfm(f, path);
     if (rc < 0)
         snprintf(err, errcap, "%s: %s%s", path, render_strerror(rc), rc == PM_EFORMAT ? " (PFM or OpenEXR expected)" : "");
@@ -281,7 +284,7 @@ int film_write_outputs_ex(const film *f, const char *pfm, int exr_type, const ch
         n++;
         if (exr_has_ext(pfm)) {
             char eerr[400];
-            if ((rc = exr_write_fp(f, o[n - 1].fp, exr_type, eerr, sizeof eerr)) < 0 ||
+            if ((rc = exr_write_fp(f->px, f->width, f->height, o[n - 1].fp, exr_type, eerr, sizeof eerr)) < 0 ||
                 (rc = fflush(o[n - 1].fp) ? PM_EIO : 0) < 0) {
                 snprintf(err, errcap, "%s: %s", pfm, rc == PM_EIO ? strerror(errno) : eerr);
                 goto fail;

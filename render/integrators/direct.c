@@ -68,8 +68,8 @@ rgb direct_light_medium(const scene *s, vec3 p, vec3 d, int med, rng *g) {
     return v3_scale(v3_mul(tr, ls.L), f / pl);
 }
 
-/* The point that light_sample_li(s, li, any p, u1, u2) samples on light li (light.h: it does not
- * depend on p); 0 for a light at infinity. */
+/* The point that light_sample_li(s, li, any p, u1, u2) samples on light li (light_sample.c: it does
+ * not depend on p); 0 for a light at infinity. */
 static int light_point(const scene *s, int li, double u1, double u2, vec3 *y) {
     const light *l = &s->lights[li];
     switch (l->type) {

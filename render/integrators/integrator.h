@@ -34,7 +34,7 @@
  *   - scene.h: scene_intersect / scene_visible / scene_visible_dir; hit.ng is the unit
  *     geometric normal (not flipped toward the ray); scene->photon_mapping is the file's
  *     "photon_mapping" object, to read with json.h getters under the path "$.photon_mapping";
- *   - light.h: light_sample_le() emits a photon ray (photon power = light.power / n emitted
+ *   - scene.h: light_sample_le() emits a photon ray (photon power = light.power / n emitted
  *     from that light); scene->light_distrib picks a light in proportion to its power;
  *   - material.h: material_weights() gives R, (1-R)T, (1-R)(1-T); material_sample() works
  *     for photons too (pass wo = -photon direction; wi is the scattered direction);

@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "photonmap/common.h"
+#include "scene/medium.h"
 
 /* A medium's coefficient (per unit length): in [0, 1 / SCENE_LENGTH_MIN], a mean free path no
  * shorter than the shortest length the scene may have. */

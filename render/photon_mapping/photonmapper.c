@@ -1,8 +1,8 @@
 /* photonmapper.c: the photon-mapping integrators, "--mode pm" (Jensen's two-pass method with
  * final gathering) and "--mode preview" (the global map shown directly).
  *
- * PREPROCESS: pm_setup.c (settings, plan, pass 0's camera-side decisions), pm_preprocess.c
- * (maps traced or loaded, kd-trees, radii, precomputed irradiance), pm_passes.c (passes).
+ * PREPROCESS: pm_setup.c (settings, plan, hooks), pm_preprocess.c (maps, kd-trees, readers,
+ * pass 0's camera-side decisions), pm_fit.c (photons, radii), pm_passes.c; none calls here back.
  *
  * RENDERING: Jensen's split of the rendering equation. A camera ray follows specular
  * reflection and refraction (both branches, weighted, for the first split_depth bounces;
@@ -439,7 +439,8 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
         int got = scene_intersect(s, r, INFINITY, &h);
         if (st->vol.on) { /* media: march the segment in med; null surfaces are passed */
             rgb tr;
-            L = v3_add(L, pm__eye_medium(st, s, r, got ? h.t : INFINITY, med, what != EYE_EMIT, beta, g, sc, &tr));
+            L = v3_add(L, pmv_march_eye(&st->vol, s, r, got ? h.t : INFINITY, med, what != EYE_EMIT, beta, sc->vw, g,
+                                            sc->est, sc->pc, &tr));
             beta = v3_mul(beta, tr);
             if (got && scene_material(s, &h)->kind == MAT_NULL) {
                 if (++crossings > 1024 || v3_iszero(beta)) break;

@@ -29,6 +29,7 @@
 #include "photons/importance.h"
 #include "photons/photon_trace.h"
 #include "photons/volume.h"
+#include "scene/medium.h"
 
 /* ---- probes ------------------------------------------------------------------------------ */
 

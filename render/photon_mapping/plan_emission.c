@@ -11,6 +11,7 @@
 #include "photon_mapping/plan_internal.h"
 #include "photons/importance.h"
 #include "photons/ports.h"
+#include "scene/medium.h"
 
 /* Importance-driven emission of the global pass, from the table the pilot stage built (its
  * evidence); the plan takes the table when it is used, else plan_pilots_free frees it. */

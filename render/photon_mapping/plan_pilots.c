@@ -28,6 +28,7 @@
 #include "base/stats.h"
 #include "photonmap/common.h"
 #include "photons/importance.h"
+#include "scene/medium.h"
 
 uint64_t plan_pilot_seed(const scene *s) { return rng_mix64(PLAN_SEED ^ rng_mix64(s->settings.seed)); }
 

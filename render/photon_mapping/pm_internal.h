@@ -1,6 +1,8 @@
-/* pm_internal.h: the photon-mapping integrator's state, shared by its files (photonmapper.c,
- * the camera sample and preprocess; pm_passes.c, the progressive passes). Not an interface:
- * nothing outside photon_mapping/ includes it.
+/* pm_internal.h: the photon-mapping integrator's state, shared by its files (pm_setup.c,
+ * create and destroy; pm_passes.c, the progressive passes; pm_preprocess.c, the maps and
+ * pass 0's camera-side decisions; pm_fit.c, pass 0's photons and the passes' radii;
+ * photonmapper.c, the camera sample). Not an interface: nothing outside photon_mapping/
+ * includes it.
  */
 #ifndef RENDER_PM_INTERNAL_H
 #define RENDER_PM_INTERNAL_H
@@ -25,6 +27,7 @@
 #include "photon_mapping/plan.h"
 #include "photon_mapping/pm_sample.h"
 #include "photon_mapping/pm_volume.h"
+#include "scene/medium.h"
 #include "base/stats.h"
 
 typedef struct mapper_state {
@@ -66,11 +69,11 @@ typedef struct mapper_state {
     int fraction_made;
     char fraction_reason[320];
     float *vol_r2_0; /* 3 per medium: ms, caus, all */
-    /* Pass 0's photons fitted to its camera samples (pm_passes.c, PASS 0'S PHOTONS): the
+    /* Pass 0's photons fitted to its camera samples (pm_fit.c, PASS 0'S PHOTONS): the
      * settings' counts, stage A running (1), the scale of the targets pass 0 traced, why. */
     long fit_target[4];
     int fit_stage;
-    int caustic_cap; /* trace_opts.caustic_cap of the next trace (pm_passes.c, THE CAUSTIC CAP) */
+    int caustic_cap; /* trace_opts.caustic_cap of the next trace (pm_fit.c, THE CAUSTIC CAP) */
     double fit_scale, fit_scale_c; /* the global (and volume) maps', the caustic map's (THE CAUSTIC FLOOR) */
     char fit_reason[768];
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
@@ -86,6 +89,10 @@ typedef struct mapper_scratch {
     double vw; /* the weight of this sample's in-scattering in media (volume_stride), 0: none */
 } mapper_scratch;
 
+/* The files below are listed from the bottom up: each calls only files listed before it
+ * (pm_fit.c reads photonmapper.c's pm__lookup), and what a file needs from one above it is
+ * data in mapper_state, never a call (pm_setup.c's opening comment has the whole order). */
+
 /* photonmapper.c: the integrator's camera sample and its threads' scratch (integrator.h's li,
  * thread_begin, thread_end); an eye ray for pm_sample.c's pilots (emission alone, or the
  * shading alone with the camera path's caustics tallied into pc); the gather guide's two
@@ -95,35 +102,24 @@ void *pm__thread_begin(const integrator *self);
 mapper_scratch *pm__scratch_new(const mapper_state *st); /* NULL when out of memory */
 void pm__thread_end(const integrator *self, void *scratch);
 rgb pm__sample_eye(void *user, ray r, int emit, rng *g, void *scratch, pm_sample_caustics *pc);
-/* pm_setup.c: the light an eye segment in a medium adds (pmv_march, times beta and the sample's
- * volume weight sc->vw, none when vw is 0), and *tr its transmittance; tallied for the sample
- * pilot when sc->pc is set. */
-rgb pm__eye_medium(const mapper_state *st, const scene *s, ray r, double tmax, int med, int inscatter, rgb beta,
-                   rng *g, mapper_scratch *sc, rgb *tr);
 int pm__gg_found(void *user, const scene *s, const hit *h, vec3 wo);
 int pm__gg_read(void *user, const scene *s, const guide_point *pt, vec3 d, rng *g, gather_guide_read *out);
 
 /* A distributed render's lookups (photon_lookup.h); NULL in one process. */
 extern const photon_lookup_hook *pm__lookup;
 
-/* pm_preprocess.c: trace the maps of st->pass (pass 0 at first) and build what reads them. */
-int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap);
-
-/* pm_setup.c: the gather guide and the camera sample, decided once on pass 0. */
-int pm__decide_sample(mapper_state *st, const scene *s, char *err, size_t errcap);
-
-/* pm_preprocess.c: the caustic side map, the estimates' options and the precomputed
- * irradiance of st's maps at the radii rad (the readers; st->sides and st->caus_side empty). */
-int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, char *err, size_t errcap);
-
-/* pm_passes.c: the radii of the pass being built (pass 0: records them as the start, with
+/* pm_fit.c: the radii of the pass being built (pass 0: records them as the start, with
  * ppm_radius applied in a progressive render), the same for each medium's volume maps, and
- * the integrator's begin_pass hook (integrator.h). */
+ * ppm_radius's first radii from pass 0's radii and photon counts (in place). */
 void pm__pass_radii(mapper_state *st, map_radii *rad);
 int pm__pass_volume_radii(mapper_state *st, const scene *s);
-int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, char *err,
-                   size_t errcap);
-/* pm_passes.c: pass 0's photons fitted to its camera samples (PASS 0'S PHOTONS): before the
+void pm__start_radii(const mapper_state *st, map_radii *rad);
+/* pm_fit.c: the counted photon work of st's maps at sg x the settings' targets (sc x for the
+ * caustic map), and the counted work of a pass's camera samples (pm_passes.c, PHOTONS PER
+ * PASS, has the model). */
+double pm__photon_work_at(const mapper_state *st, double sg, double sc);
+double pm__camera_work(const mapper_state *st, const scene *s);
+/* pm_fit.c: pass 0's photons fitted to its camera samples (PASS 0'S PHOTONS): before the
  * first trace (stage A's targets into st->cfg, or why not), after stage A's sample pilot (1:
  * the maps were dropped and st->cfg holds the targets to trace again), and freeing a pass's
  * maps, trees and readers. */
@@ -132,5 +128,17 @@ void pm__fit_begin(mapper_state *st, const scene *s);
 enum { PM_FIT_KEEP = 0, PM_FIT_AGAIN = 1, PM_FIT_CAUSTIC_AGAIN = 2 };
 int pm__fit_end(mapper_state *st, const scene *s);
 void pm__drop_maps(mapper_state *st);
+
+/* pm_preprocess.c: trace the maps of st->pass (pass 0 at first) and build what reads them;
+ * on pass 0 also the gather guide and the camera sample, decided once (the integrator's
+ * preprocess hook). */
+int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap);
+/* pm_preprocess.c: the caustic side map, the estimates' options and the precomputed
+ * irradiance of st's maps at the radii rad (the readers; st->sides and st->caus_side empty). */
+int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, char *err, size_t errcap);
+
+/* pm_passes.c: the integrator's begin_pass hook (integrator.h). */
+int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, char *err,
+                   size_t errcap);
 
 #endif /* RENDER_PM_INTERNAL_H */

@@ -1,8 +1,14 @@
 /* pm_preprocess.c: the photon mapper's preprocess, for pass 0 and each progressive pass:
  * trace (or load) the maps as the plan says, build their kd-trees, then what reads them at the
  * pass's radii (the caustic side map and the precomputed irradiance); on pass 0 also the
- * camera-side decisions (photonmapper.c, pm__decide_sample). See photonmapper.c for the
- * integrator these serve, pm_passes.c for the passes.
+ * camera-side decisions (the gather guide, the emission mask and the sample pilot, through
+ * photonmapper.c's eye rays). See photonmapper.c for the integrator these serve, pm_passes.c
+ * for the passes.
+ *
+ * Calls run one way: pm_setup.c wires pm__preprocess and pm_passes.c calls it and
+ * pm__build_estimates; this file calls pm_fit.c (pass 0's photons fitted between its traces,
+ * the pass's radii) and photonmapper.c (eye rays, scratch, the gather guide's probes), and
+ * neither calls back here.
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -12,7 +18,7 @@
 
 enum { BUCKET_GLOBAL = 1, BUCKET_CAUSTIC = 8, BUCKET_SHADOW = 8 };
 
-/* Progressive passes: pm_passes.c (pm__pass_radii, pm__begin_pass). */
+/* Progressive passes: pm_passes.c (pm__begin_pass), their radii pm_fit.c's (pm__pass_radii). */
 
 /* What reads the maps at the pass's radii: the caustic side map, the estimates' options and
  * the precomputed irradiance (side cache). pm_passes.c calls it again when a progressive
@@ -70,7 +76,7 @@ static void plan_trace_opts(const mapper_state *st, const scene *s, trace_opts *
     o->caustic_cap = st->caustic_cap;
 }
 
-/* THE CAUSTIC PROBE. Pass 0's first stage (pm_passes.c, PASS 0'S PHOTONS) traces its caustic
+/* THE CAUSTIC PROBE. Pass 0's first stage (pm_fit.c, PASS 0'S PHOTONS) traces its caustic
  * map for the sample pilot to weigh (the share of the camera samples' luminance it carries),
  * under the caustic cap (photon_trace.h CAUSTIC CAP: 4 x the global pass's photons emitted, at
  * least 4194304). That floor is sized for a large render, not for the camera samples the map
@@ -83,9 +89,15 @@ static void plan_trace_opts(const mapper_state *st, const scene *s, trace_opts *
  * (PM_FIT_SHARE of the camera samples' counted work; a camera sample counts 64 units or more
  * in the shipped scenes' sample pilots, an emitted photon about 5). The cap still stops only
  * a pass short of its target, so this changes only a map whose light rarely reaches a diffuse
- * surface through specular ones; where the sample pilot finds it carries 10% or more of the
- * luminance the fit traces it again to the settings' budgets. A first stage whose caustic
- * pass then stores nothing is traced again at the usual floor (as it was before). */
+ * surface through specular ones. Where the sample pilot finds it carries 10% or more of the
+ * luminance and the fit traces the caustic map again (stage B, or the caustic map alone), that
+ * trace goes to the settings' budgets. But on a small render the fit may keep the first
+ * stage's caustic map (pm_fit.c, THE CAUSTIC FLOOR: its fitted scale within 1.25 x its floor),
+ * and then a map the probe stopped short is the render's map, whatever share it carries
+ * (unbiased, with fewer photons): water_caustic at 24x24 and 4 spp keeps 40,034 of 62,500
+ * caustic photons and prints the cap's message, which at that size is expected (README.md,
+ * "the caustic probe"). A first stage whose caustic pass then stores nothing is traced again
+ * at the usual floor (as it was before). */
 static double caustic_probe_floor(const mapper_state *st, const scene *s) {
     if (!st->fit_stage || st->pass) return 0;
     double cam = (double)s->cam.width * (double)s->cam.height * (double)s->cam.spp;
@@ -93,7 +105,7 @@ static double caustic_probe_floor(const mapper_state *st, const scene *s) {
 }
 
 /* Trace (or load) the maps of st->pass at the targets in st->cfg, build their trees and
- * readers. Quiet while pass 0's first stage runs (pm_passes.c, PASS 0'S PHOTONS). */
+ * readers. Quiet while pass 0's first stage runs (pm_fit.c, PASS 0'S PHOTONS). */
 static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t errcap) {
     photon_maps *m = &st->maps;
     int rc;
@@ -112,7 +124,7 @@ static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t e
         /* A later pass traces with its own seed (the scene's copy carries it to pmv_trace). */
         scene sp = *s;
         sp.settings.seed = st->pass_seed;
-        st->vol.quiet = st->fit_stage; /* the fit's first stage prints no maps (pm_passes.c) */
+        st->vol.quiet = st->fit_stage; /* the fit's first stage prints no maps (pm_fit.c) */
         st->vol.caustic_cap_min = caustic_probe_floor(st, s); /* THE CAUSTIC PROBE */
         if ((rc = pmv_trace(&st->vol, &sp, &st->cfg, &st->plan, m, err, errcap)) < 0) return rc;
         if (!loaded) m->stamp = stamp;
@@ -179,7 +191,7 @@ static int trace_and_build(mapper_state *st, const scene *s, char *err, size_t e
     return pm__build_estimates(st, s, &rad, err, errcap);
 }
 
-/* THE CAUSTIC FLOOR (pm_passes.c): pass 0's caustic map traced again alone, at the fitted
+/* THE CAUSTIC FLOOR (pm_fit.c): pass 0's caustic map traced again alone, at the fitted
  * target in st->cfg, with its tree and readers; the global maps, their trees and the
  * precomputed irradiance stay. Its photons are those a trace of every map stores (the caustic
  * pass has its own random streams; the cap scales with the global pass's emitted photons). */
@@ -256,6 +268,66 @@ static void print_maps(const mapper_state *st, const scene *s) {
                st->sides.n, st->nglobal_all, st->sides.researched, st->sides.corners, st->sides.sparse);
 }
 
+/* ---- pass 0's camera-side decisions (pm_sample.h, gather_guide.h) ------------------------- */
+
+
+/* Scratch for the preprocess's own camera rays (the emission mask, the sample pilot). */
+static void *sample_scratch_new(void *user) {
+    return pm__scratch_new(user);
+}
+
+static void sample_scratch_free(void *user, void *scratch) {
+    (void)user;
+    pm__thread_end(NULL, scratch);
+}
+
+/* The emission mask and the sample pilot, once (pass 0's preprocess), and their plan lines. */
+static int sample_decide(mapper_state *st, const scene *s, char *err, size_t errcap) {
+    st->scene = s;
+    const char *no_pilot = !st->plan.final_gather.on || st->direct_vis ? "no final gather"
+                           : !st->sides.irr ? "no precomputed irradiance to gather from"
+                           : pm__lookup ? "partitioned render-mpi: its lookups are shared between processes"
+                                      : NULL;
+    pm_sample_host h = {s, &st->cfg, st->st_lookup, st->st_caustic, st->ncaustic_all > 0, no_pilot,
+                        st->vol.on && !json_get(s->photon_mapping, "volume_stride"),
+                        pm__lookup != NULL, st, sample_scratch_new, sample_scratch_free, pm__sample_eye};
+    int rc = pm_emission_mask_build(&h, &st->emit, st->emit_reason, sizeof st->emit_reason, err, errcap);
+    if (rc < 0) return rc;
+    if (st->cfg.emission_strata <= 0)
+        snprintf(st->emit_reason, sizeof st->emit_reason, "none (photon_mapping.emission_strata is 0): "
+                 "a sample's own path collects emission");
+    pm_sample_pilot(&h, st->explicit_gather, st->explicit_secondary, st->explicit_stride, st->emit.var,
+                    st->sample_reason, sizeof st->sample_reason, &st->sample_work,
+                    &st->sample_caustic);
+    return 0;
+}
+
+/* Once, on pass 0: the gather guide (gather_guide.h) and the camera sample (pm_sample.h), both
+ * from probes through photonmapper.c's eye rays, with the plan's lines they print. */
+static int camera_side_decisions(mapper_state *st, const scene *s, char *err, size_t errcap) {
+    int rc;
+    double t0;
+    t0 = stats_now();
+    {
+        const char *why = !st->plan.final_gather.on || st->direct_vis ? "no final gather"
+                          : !st->sides.irr                             ? "no precomputed irradiance to probe"
+                          : st->vol.on ? "participating media: its probes do not march"
+                          : pm__lookup   ? "partitioned render-mpi: its probes would read one process's records"
+                                       : NULL;
+        gather_guide_probe probe = {st, pm__gg_found, pm__gg_read, s->nports > 0 || st->plan.found.n > 0};
+        if ((rc = gather_guide_make(&st->gg, s, st->cfg.force_gather_guide, why, &probe, err, errcap)) < 0)
+            return rc;
+    }
+    stats_time_add("Time/Gather guide pilot", stats_now() - t0);
+    printf("  gather guide: %s\n", st->gg.reason);
+    t0 = stats_now();
+    if ((rc = sample_decide(st, s, err, errcap)) < 0) return rc;
+    stats_time_add("Time/Sample pilot and emission mask", stats_now() - t0);
+    printf("  sample: %s\n", st->sample_reason);
+    printf("  emission rays: %s\n", st->emit_reason);
+    return 0;
+}
+
 /* The counters stage A's trace and readers added (taken back out when it is traced again). */
 static void counters_now(uint64_t *v) {
     for (int id = 0; id < STATS_MAX; id++) v[id] = stats_name(id) ? stats_total(id) : 0;
@@ -281,7 +353,7 @@ int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
         return 0;
     }
     counters_now(c1);
-    if ((rc = pm__decide_sample(st, s, err, errcap)) < 0) return rc;
+    if ((rc = camera_side_decisions(st, s, err, errcap)) < 0) return rc;
     int fit = first ? pm__fit_end(st, s) : PM_FIT_KEEP;
     if (fit == PM_FIT_AGAIN) { /* pass 0 again, at the fitted targets */
         for (int id = 0; id < STATS_MAX; id++)

@@ -29,7 +29,7 @@ typedef struct pm_sample_caustics {
     rgb L;
     uint64_t n;
     rgb Lv;             /* the in-scattered light of media the path met (times its throughput) */
-    uint64_t workv;     /* the BVH work of those media segments (pm_setup.c, pm__eye_medium) */
+    uint64_t workv;     /* the BVH work of those media segments (pm_volume.h, pmv_march_eye) */
     uint64_t beamv;     /* the beam photons they crossed (pm_beam.h) */
 } pm_sample_caustics;
 

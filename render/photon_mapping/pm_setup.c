@@ -1,8 +1,13 @@
 /* pm_setup.c: the photon-mapping integrators' life around the camera sample (photonmapper.c
- * renders it): create ("$.photon_mapping" read, the plan made, the counters registered),
- * pass 0's camera-side decisions after its maps (the gather guide's pilot, the emission mask
- * and the sample pilot, through photonmapper.c's eye rays) and destroy. pm_preprocess.c
- * traces and reads the maps in between; pm_passes.c runs the progressive passes.
+ * renders it): create ("$.photon_mapping" read, the plan made, the counters registered, the
+ * integrator's hooks wired) and destroy.
+ *
+ * Calls run one way among the photon mapper's files, from this file down: pm_setup.c wires
+ * the hooks (preprocess, begin_pass, li, thread_begin, thread_end) -> pm_passes.c (the
+ * progressive passes) -> pm_preprocess.c (the maps traced or loaded, their trees and readers,
+ * pass 0's camera-side decisions) -> pm_fit.c (pass 0's photons fitted, the passes' radii) ->
+ * photonmapper.c (the camera sample, its eye rays and the gather guide's probes). Nothing
+ * below calls back up: what a lower file needs from a higher one is data in mapper_state.
  */
 #include <stdio.h>
 #include <stdlib.h>
@@ -10,53 +15,6 @@
 #include "photon_mapping/pm_internal.h"
 
 #include "base/stats.h"
-
-/* ---- pass 0's camera-side decisions (pm_sample.h, gather_guide.h) ------------------------- */
-
-/* Scratch for the preprocess's own camera rays (the emission mask, the sample pilot). */
-static void *sample_scratch_new(void *user) {
-    return pm__scratch_new(user);
-}
-
-static void sample_scratch_free(void *user, void *scratch) {
-    (void)user;
-    pm__thread_end(NULL, scratch);
-}
-
-rgb pm__eye_medium(const mapper_state *st, const scene *s, ray r, double tmax, int med, int inscatter, rgb beta,
-                   rng *g, mapper_scratch *sc, rgb *tr) {
-    int in = inscatter && sc->vw > 0;
-    pm_sample_caustics *pc = in ? sc->pc : NULL;
-    uint64_t w0 = pc ? stats_trace_work() : 0, b0 = pc ? stats_total(st->vol.st_beam_photons) : 0;
-    rgb c = v3_scale(v3_mul(beta, pmv_march(&st->vol, s, r, tmax, med, in, g, sc->est, tr)), sc->vw);
-    if (pc) {
-        pc->Lv = v3_add(pc->Lv, c);
-        pc->workv += stats_trace_work() - w0;
-        pc->beamv += stats_total(st->vol.st_beam_photons) - b0;
-    }
-    return c;
-}
-
-/* The emission mask and the sample pilot, once (pass 0's preprocess), and their plan lines. */
-static int sample_decide(mapper_state *st, const scene *s, char *err, size_t errcap) {
-    st->scene = s;
-    const char *no_pilot = !st->plan.final_gather.on || st->direct_vis ? "no final gather"
-                           : !st->sides.irr ? "no precomputed irradiance to gather from"
-                           : pm__lookup ? "partitioned render-mpi: its lookups are shared between processes"
-                                      : NULL;
-    pm_sample_host h = {s, &st->cfg, st->st_lookup, st->st_caustic, st->ncaustic_all > 0, no_pilot,
-                        st->vol.on && !json_get(s->photon_mapping, "volume_stride"),
-                        pm__lookup != NULL, st, sample_scratch_new, sample_scratch_free, pm__sample_eye};
-    int rc = pm_emission_mask_build(&h, &st->emit, st->emit_reason, sizeof st->emit_reason, err, errcap);
-    if (rc < 0) return rc;
-    if (st->cfg.emission_strata <= 0)
-        snprintf(st->emit_reason, sizeof st->emit_reason, "none (photon_mapping.emission_strata is 0): "
-                 "a sample's own path collects emission");
-    pm_sample_pilot(&h, st->explicit_gather, st->explicit_secondary, st->explicit_stride, st->emit.var,
-                    st->sample_reason, sizeof st->sample_reason, &st->sample_work,
-                    &st->sample_caustic);
-    return 0;
-}
 
 static void mapper_destroy(integrator *self) {
     mapper_state *st = self->data;
@@ -75,31 +33,6 @@ static void mapper_destroy(integrator *self) {
     free(st);
 }
 
-/* Once, on pass 0: the gather guide (gather_guide.h) and the camera sample (pm_sample.h), both
- * from probes through this file's eye rays, with the plan's lines they print. */
-int pm__decide_sample(mapper_state *st, const scene *s, char *err, size_t errcap) {
-    int rc;
-    double t0;
-    t0 = stats_now();
-    {
-        const char *why = !st->plan.final_gather.on || st->direct_vis ? "no final gather"
-                          : !st->sides.irr                             ? "no precomputed irradiance to probe"
-                          : st->vol.on ? "participating media: its probes do not march"
-                          : pm__lookup   ? "partitioned render-mpi: its probes would read one process's records"
-                                       : NULL;
-        gather_guide_probe probe = {st, pm__gg_found, pm__gg_read, s->nports > 0 || st->plan.found.n > 0};
-        if ((rc = gather_guide_make(&st->gg, s, st->cfg.force_gather_guide, why, &probe, err, errcap)) < 0)
-            return rc;
-    }
-    stats_time_add("Time/Gather guide pilot", stats_now() - t0);
-    printf("  gather guide: %s\n", st->gg.reason);
-    t0 = stats_now();
-    if ((rc = sample_decide(st, s, err, errcap)) < 0) return rc;
-    stats_time_add("Time/Sample pilot and emission mask", stats_now() - t0);
-    printf("  sample: %s\n", st->sample_reason);
-    printf("  emission rays: %s\n", st->emit_reason);
-    return 0;
-}
 
 /* ---- create -------------------------------------------------------------------------------- */
 

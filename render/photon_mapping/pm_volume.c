@@ -11,6 +11,7 @@
 
 #include "integrators/direct.h"
 #include "photon_mapping/pm_ball.h"
+#include "photon_mapping/pm_sample.h"
 #include "scene/medium.h"
 #include "photonmap/common.h"
 #include "photonmap/estimate.h"
@@ -490,4 +491,18 @@ rgb pmv_gather(const pmv_state *v, const scene *s, ray r, double tmax, int med, 
     stat_inc(v->st_gather);
     rgb src = volume_estimate_in(v, all->t, all->k, all->r2, s, med, x, r.d, scratch, pmv_segment_scale(v, s, med, r));
     return v3_scale(v3_mul(medium_tr(md, t), src), 1 / pdf);
+}
+
+rgb pmv_march_eye(const pmv_state *v, const scene *s, ray r, double tmax, int med, int inscatter, rgb beta,
+                  double vw, rng *g, void *scratch, pm_sample_caustics *pc, rgb *tr) {
+    int in = inscatter && vw > 0;
+    if (!in) pc = NULL;
+    uint64_t w0 = pc ? stats_trace_work() : 0, b0 = pc ? stats_total(v->st_beam_photons) : 0;
+    rgb c = v3_scale(v3_mul(beta, pmv_march(v, s, r, tmax, med, in, g, scratch, tr)), vw);
+    if (pc) {
+        pc->Lv = v3_add(pc->Lv, c);
+        pc->workv += stats_trace_work() - w0;
+        pc->beamv += stats_total(v->st_beam_photons) - b0;
+    }
+    return c;
 }

@@ -141,6 +141,8 @@
 #include "base/rng.h"
 #include "scene/scene.h"
 
+struct pm_sample_caustics; /* pm_sample.h */
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -180,7 +182,7 @@ int pmv_init(pmv_state *v, const scene *s, const photon_settings *c);
 int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const render_plan *p,
               photon_maps *m, char *err, size_t errcap);
 /* Build the beam maps (pm_beam.h) of the multiple-scattering and volume-caustic trees of every
- * medium, with their radii as they are now (after pm_passes.c scaled them), when settings
+ * medium, with their radii as they are now (after pm_fit.c's pm__pass_volume_radii scaled them), when settings
  * volume_beam is on; without it, or for an empty tree, none. 0 or PM_ENOMEM. */
 /* The "Photons (scene with media)" line of the maps in v and m on stdout (pmv_trace prints it
  * unless v->quiet; the caller prints it for maps a quiet trace made and the render kept);
@@ -196,6 +198,12 @@ size_t pmv_scratch_bytes(const pmv_state *v);
  * inscatter = 0 gives only *tr (no random numbers used). med < 0: 0 and *tr = 1. */
 rgb pmv_march(const pmv_state *v, const scene *s, ray r, double tmax, int med, int inscatter, rng *g,
               void *scratch, rgb *tr);
+/* pmv_march for an eye segment of a camera sample: the light it adds times beta and the
+ * sample's volume weight vw (inscatter with vw 0: only *tr), tallied into pc (the sample
+ * pilot's, pm_sample.h: the light, the counted BVH work, the beam photons crossed) unless
+ * pc is NULL. */
+rgb pmv_march_eye(const pmv_state *v, const scene *s, ray r, double tmax, int med, int inscatter, rgb beta,
+                  double vw, rng *g, void *scratch, struct pm_sample_caustics *pc, rgb *tr);
 /* The same for a final-gather ray: one point per segment from the "all" tree. */
 rgb pmv_gather(const pmv_state *v, const scene *s, ray r, double tmax, int med, rng *g, void *scratch,
                rgb *tr);

@@ -165,7 +165,7 @@ typedef struct trace_pilot {
  * stops it there when the caller asks (trace_opts.caustic_cap; the media tracer always, in
  * pm_volume.c), and it keeps what it stored for the photons emitted (unbiased, a smaller
  * map). The photon mapper asks for it where it does not yet know the camera sees the caustic
- * map, or knows it barely does (pm_passes.c, THE CAUSTIC CAP). A caller may lower the floor
+ * map, or knows it barely does (photon_mapping/pm_fit.c, THE CAUSTIC CAP). A caller may lower the floor
  * (trace_opts.caustic_cap_min). */
 #define CAUSTIC_CAP_FACTOR 4.0
 #define CAUSTIC_CAP_MIN 4194304.0

@@ -1,5 +1,9 @@
 /* light.h: area, point, spot, directional and infinite lights, and sampling them for next-event estimation.
  *
+ * This header is the lights themselves and the spot's profile (light.c); sampling a scene's
+ * lights reads its shapes, so light_sample_li, light_sample_le, light_env_radiance and
+ * light_emit_weight are declared in scene.h (light_sample.c), which stands on this header.
+ *
  * Area lights are the scene's triangles (and quads, as two triangles) whose material emits:
  * the loader makes one light per emissive triangle. They emit Le from the front side (or
  * both, two_sided) and are sampled by a uniform point on the triangle, whose area pdf 1/A is
@@ -65,30 +69,6 @@ typedef struct light_sample {
                     zero when the light faces away. Divide by the light's choice probability. */
 } light_sample;
 
-struct scene;
-/* Sample light number li as seen from p with (u1, u2). Returns 1 if the sample can carry
- * light (before the visibility test), 0 otherwise. */
-int light_sample_li(const struct scene *s, int li, vec3 p, double u1, double u2, light_sample *ls);
-
-/* A ray of light leaving light number li, for photon emission; u[0..3] uniform in [0,1).
- *   area:        a uniform point on the triangle and a cosine-weighted direction about its
- *                front normal (two-sided: u[0] < 0.5 picks the front, the rest the back);
- *   sphere:      the same with a uniform point on the sphere (front: the outside);
- *   point:       the light's position and a uniform direction;
- *   spot:        the light's position and a direction of density f / (2 pi W) (light_spot_pdf):
- *                u[0] gives cos by the inverse of its distribution, u[1] the angle about dir;
- *   infinite:    a uniform direction d (u[0], u[1], as sample_uniform_sphere; with an image,
- *                minus envmap_sample's direction) and a uniform point (u[2], u[3]) on the
- *                disc of radius R perpendicular to d, R before the bounding sphere's centre,
- *                travelling along d;
- *   directional: a uniform point on the disc of radius R (the scene's bounding sphere)
- *                perpendicular to the light, R in front of the scene, travelling along dir.
- * With these densities every emitted photon of light li carries power light.power / n_emitted
- * (for n_emitted photons from that light), times light_emit_weight. *p is the origin, *n the
- * surface normal at it (zero for point and directional lights: no offset needed), *d the unit
- * direction. */
-void light_sample_le(const struct scene *s, int li, const double u[4], vec3 *p, vec3 *n, vec3 *d);
-
 /* The spot's falloff f for a unit direction d leaving it (0 outside the cone), and the
  * density per steradian of light_sample_le's direction d (f / (2 pi W)). */
 double light_spot_falloff(const light *l, vec3 d);
@@ -98,6 +78,9 @@ double light_spot_w(const light *l);
 /* The (u[0], u[1]) that light_sample_le maps to the direction d of spot l; 0 if l sends no
  * light along d. */
 int light_spot_invert(const light *l, vec3 d, double *u0, double *u1);
+/* The direction light_sample_le gives spot l for (u0, u1): u0 the cos by the inverse of its
+ * distribution, u1 the angle about dir. */
+vec3 light_spot_dir(const light *l, double u0, double u1);
 
 /* The light is at infinity (directional, infinite): its shadow rays never end at a point. */
 static inline int light_at_infinity(const light *l) {
@@ -105,15 +88,6 @@ static inline int light_at_infinity(const light *l) {
 }
 /* The light is a point in space (point, spot): no area, no normal. */
 static inline int light_is_point(const light *l) { return l->type == LIGHT_POINT || l->type == LIGHT_SPOT; }
-
-/* The radiance that a ray leaving the scene along d sees: the infinite light's, or 0. */
-rgb light_env_radiance(const struct scene *s, vec3 d);
-
-/* What a photon of light li leaving along d carries, per channel, relative to the equal share
- * light.power / n_emitted: 1 for every light but an infinite light with an image
- * (scene.env_map, envmap.h), whose photons are drawn by luminance and so carry each its own
- * colour (L / lum(L)) Sigma / integral. */
-rgb light_emit_weight(const struct scene *s, int li, vec3 d);
 
 #ifdef __cplusplus
 }

@@ -50,7 +50,6 @@
 #include "base/json.h"
 #include "scene/light.h"
 #include "scene/material.h"
-#include "scene/medium.h"
 #include "scene/port.h"
 #include "base/sampling.h"
 #include "scene/shapes.h"
@@ -59,6 +58,10 @@
 #ifdef __cplusplus
 extern "C" {
 #endif
+
+/* medium.h stands on this header (its queries carry rays through the scene): the scene holds
+ * its media by pointer, and a file that reads them includes medium.h. */
+struct medium;
 
 #define SCENE_LENGTH_MAX 1e100  /* |coordinate|, radius */
 #define SCENE_LENGTH_MIN 1e-100 /* the scene's bounding radius; a triangle's longest edge */
@@ -102,7 +105,7 @@ typedef struct scene {
     int env_light;           /* 1 + the index of the infinite light (light.h); 0: none */
     struct envmap *env_map;  /* its image (envmap.h; owned), NULL: a constant radiance */
     double medium_ior;       /* index of refraction of the space between objects; default 1 */
-    medium *media;           /* participating media ($.media; medium.h), nmedia of them */
+    struct medium *media;    /* participating media ($.media; medium.h), nmedia of them */
     int nmedia;
     int global_medium;       /* index in media of $.medium (between objects), or -1 */
     int camera_medium;       /* the medium the camera is in (found from the nearest surface) */
@@ -176,6 +179,40 @@ static inline int scene_prim_object(const scene *s, int prim) {
 static inline int scene_prim_is_light(const scene *s, int prim) {
     return prim < s->ntris ? s->tris[prim].light >= 0 : s->spheres[prim - s->ntris].light >= 0;
 }
+
+/* ---- the scene's lights sampled (light_sample.c; the lights are light.h's) ---------------- */
+
+/* Sample light number li as seen from p with (u1, u2). Returns 1 if the sample can carry
+ * light (before the visibility test), 0 otherwise. */
+int light_sample_li(const scene *s, int li, vec3 p, double u1, double u2, light_sample *ls);
+
+/* A ray of light leaving light number li, for photon emission; u[0..3] uniform in [0,1).
+ *   area:        a uniform point on the triangle and a cosine-weighted direction about its
+ *                front normal (two-sided: u[0] < 0.5 picks the front, the rest the back);
+ *   sphere:      the same with a uniform point on the sphere (front: the outside);
+ *   point:       the light's position and a uniform direction;
+ *   spot:        the light's position and a direction of density f / (2 pi W) (light_spot_pdf):
+ *                u[0] gives cos by the inverse of its distribution, u[1] the angle about dir;
+ *   infinite:    a uniform direction d (u[0], u[1], as sample_uniform_sphere; with an image,
+ *                minus envmap_sample's direction) and a uniform point (u[2], u[3]) on the
+ *                disc of radius R perpendicular to d, R before the bounding sphere's centre,
+ *                travelling along d;
+ *   directional: a uniform point on the disc of radius R (the scene's bounding sphere)
+ *                perpendicular to the light, R in front of the scene, travelling along dir.
+ * With these densities every emitted photon of light li carries power light.power / n_emitted
+ * (for n_emitted photons from that light), times light_emit_weight. *p is the origin, *n the
+ * surface normal at it (zero for point and directional lights: no offset needed), *d the unit
+ * direction. */
+void light_sample_le(const scene *s, int li, const double u[4], vec3 *p, vec3 *n, vec3 *d);
+
+/* The radiance that a ray leaving the scene along d sees: the infinite light's, or 0. */
+rgb light_env_radiance(const scene *s, vec3 d);
+
+/* What a photon of light li leaving along d carries, per channel, relative to the equal share
+ * light.power / n_emitted: 1 for every light but an infinite light with an image
+ * (scene.env_map, envmap.h), whose photons are drawn by luminance and so carry each its own
+ * colour (L / lum(L)) Sigma / integral. */
+rgb light_emit_weight(const scene *s, int li, vec3 d);
 
 #ifdef __cplusplus
 }

@@ -8,6 +8,7 @@
 
 #include "base/hash.h"
 #include "scene/envmap.h"
+#include "scene/medium.h"
 
 static uint64_t hash_u64(uint64_t h, uint64_t v) {
     unsigned char b[8];
