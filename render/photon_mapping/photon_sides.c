@@ -26,6 +26,10 @@
 #define SIDE_PLANE_TOL 1e-3
 /* A lookup's normal rule (irradiance.h): the photon's normal within about 45 degrees of y's. */
 #define SIDE_LOOKUP_COS 0.7f
+/* A lookup's plane rule (photon_sides.h, side_cache_lookup): a candidate on a curved surface
+ * higher above or below y's tangent plane than this fraction of its distance is on another
+ * surface (one on a flat surface: SIDE_PLANE_SLAB of it). */
+#define SIDE_LOOKUP_SLOPE 0.1
 
 static vec3 v3f(const float f[3]) { return v3(f[0], f[1], f[2]); }
 
@@ -166,14 +170,10 @@ int side_visible(const scene *s, vec3 p, vec3 np, vec3 q, vec3 nq) {
  * would run into the surface itself within a few of its free heights. */
 static double visible_disc_fraction(const scene *s, vec3 p, vec3 n, double r) {
     if (!(r > 0) || !isfinite(r)) return 1.0;
-    double scale = s->offset_floor + v3_maxabs(p), delta = 1e-5 * scale;
-    ray down = {v3_madd(p, n, delta), v3_neg(n)};
+    double scale = s->offset_floor + v3_maxabs(p);
     hit h;
-    vec3 base = p, ng = n;
-    if (scene_intersect(s, down, 3 * delta, &h)) {
-        base = h.p;
-        ng = v3_dot(h.ng, n) >= 0 ? h.ng : v3_neg(h.ng);
-    }
+    int flat;
+    vec3 base, ng = side_surface_normal(s, p, n, &base, &flat);
     vec3 t1, t2;
     v3_basis(ng, &t1, &t2);
     vec3 o = v3_madd(base, ng, 4 * 64e-9 * scale); /* a few times v3_offset's epsilon */
@@ -213,81 +213,6 @@ static void disc_irradiance(const pm_photon *ph, const pm_neighbor *nb, int coun
     for (int c = 0; c < 3; c++) e[c] = area > 0 && isfinite(area) ? (float)(sum[c] / area) : 0.0f;
 }
 
-/* side_precomp_neighbours' search filter: side_filter_shadow's rule, and the dist2 (bad2) of
- * the nearest photon refused for its normal alone (a surface facing another way). */
-typedef struct corner_filter {
-    const float *n, *x; /* the query's unit normal and position */
-    float bad2;
-} corner_filter;
-
-static int corner_accepts(void *user, const void *record, uint32_t index) {
-    corner_filter *f = user;
-    const pm_photon *p = record;
-    if (!pm_filter_front((void *)f->n, record, index)) return 0;
-    if (side_filter_shadow((void *)f->n, record, index)) return 1;
-    float d[3] = {p->pos[0] - f->x[0], p->pos[1] - f->x[1], p->pos[2] - f->x[2]};
-    float d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    if (d2 < f->bad2) f->bad2 = d2;
-    return 0;
-}
-
-int side_precomp_neighbours(const scene *s, const pm_kdtree *t, const pm_photon *ph, const float *hfree,
-                            const float x[3], const float n[3], double hx, unsigned k, float max_dist2,
-                            pm_neighbor *nb, int *wall, float *reach2, unsigned long long rays[2]) {
-    *wall = 0;
-    *reach2 = max_dist2;
-    if (!t) return 0;
-    vec3 xv = v3f(x), nv = v3f(n);
-    /* The k nearest on x's own surface; A CORNER (photon_sides.h) if the search was offered a
-     * photon refused for its normal inside their disc (it offers every photon there). */
-    corner_filter cf = {n, x, INFINITY};
-    pm_knn_options ko = {0};
-    ko.filter = corner_accepts;
-    ko.filter_user = &cf;
-    ko.flags = PM_SORT;
-    int found = pm_kdtree_knn_ex(t, x, k, max_dist2, &ko, nb, NULL);
-    if (found < 0) found = 0;
-    if (cf.bad2 < ((unsigned)found == k ? nb[found - 1].dist2 : max_dist2)) *wall = SIDE_CORNER;
-    side_planes pl; /* CLEAR SEGMENTS WITHOUT A RAY */
-    pl.ok = 0;
-    if (found > 0) side_planes_near(s, xv, nb[found - 1].dist2, &pl);
-    int hidden = 0;
-    for (int i = 0; i < found && !hidden; i++) {
-        if (nb[i].dist2 == 0) continue;
-        float nq[3];
-        pm_normal_decode(ph[nb[i].index].normal, nq);
-        vec3 qv = v3f(ph[nb[i].index].pos), nqv = v3f(nq);
-        if (side_clear(&pl, xv, nv, hx, qv, nqv, hfree[nb[i].index])) continue;
-        if (rays) rays[0]++;
-        hidden = !side_visible_h(s, xv, nv, hx, qv, nqv, hfree[nb[i].index]);
-    }
-    if (!hidden) return found;
-    *wall |= SIDE_WALL;
-    /* A wall: SIDE_WIDEN x k candidates in order of distance, the visible ones kept until k
-     * are. Every photon closer than the last one tested was tested, so the estimate covers the
-     * disc up to it (the k-th kept on its rim, or, short of k, the whole disc searched). */
-    unsigned want = (unsigned)SIDE_WIDEN * k;
-    int n2 = pm_kdtree_knn_ex(t, x, want, max_dist2, &ko, nb, NULL);
-    if (n2 < 0) n2 = 0;
-    unsigned kept = 0;
-    if (n2 > 0) side_planes_near(s, xv, nb[n2 - 1].dist2, &pl);
-    for (int i = 0; i < n2 && kept < k; i++) {
-        int vis = 1;
-        if (nb[i].dist2 > 0) {
-            float nq[3];
-            pm_normal_decode(ph[nb[i].index].normal, nq);
-            vec3 qv = v3f(ph[nb[i].index].pos), nqv = v3f(nq);
-            if (!side_clear(&pl, xv, nv, hx, qv, nqv, hfree[nb[i].index])) {
-                if (rays) rays[1]++;
-                vis = side_visible_h(s, xv, nv, hx, qv, nqv, hfree[nb[i].index]);
-            }
-        }
-        if (vis) nb[kept++] = nb[i];
-    }
-    if (kept < k && (unsigned)n2 == want) *reach2 = nb[n2 - 1].dist2; /* examined up to there */
-    return (int)kept;
-}
-
 int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
                      const uint32_t *path, size_t n, unsigned k, float max_dist2, char *err, size_t errcap) {
     memset(c, 0, sizeof *c);
@@ -306,7 +231,8 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
      * use (a quarter of the search radius): one ray per photon, so that each visibility test
      * below, and each lookup's, is a single ray. */
     float *hfree = c->hfree = malloc(n * sizeof *hfree);
-    if (!val || !r2v || !hfree) {
+    c->flat = calloc(n, 1);
+    if (!val || !r2v || !hfree || !c->flat) {
         free(val);
         free(r2v);
         free(which);
@@ -335,6 +261,10 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
             pm_normal_decode(p->normal, nf);
             vec3 pp = v3f(p->pos), pn = v3f(nf);
             double hp = hfree[which[j]];
+            vec3 at;
+            int flat;
+            side_surface_normal(s, pp, pn, &at, &flat);
+            c->flat[which[j]] = (uint8_t)flat;
             int wall;
             float reach2;
             int found = side_precomp_neighbours(s, global, ph, hfree, p->pos, nf, hp, k, max_dist2, nb, &wall,
@@ -441,6 +371,7 @@ done:
 void side_cache_free(side_cache *c) {
     pm_irradiance_free(c->irr);
     free(c->hfree);
+    free(c->flat);
     memset(c, 0, sizeof *c);
 }
 
@@ -459,6 +390,11 @@ typedef struct side_rule {
 static int side_accepts(void *user, uint32_t photon, const float pos[3], const float normal[3]) {
     side_rule *r = user;
     r->asked = 1;
+    /* The plane rule's twin (photon_corner.h): a value from another surface nearly parallel
+     * to y's (a door beside its wall) lies off y's tangent plane. */
+    vec3 d = v3_sub(v3f(pos), r->y);
+    double slope = r->c->flat && r->c->flat[photon] ? SIDE_PLANE_SLAB : SIDE_LOOKUP_SLOPE;
+    if (fabs(v3_dot(d, r->n)) > slope * v3_len(d) + 1e-6 * (r->s->offset_floor + v3_maxabs(r->y))) return 0;
     int ok = side_visible_h(r->s, r->y, r->n, r->hy, v3f(pos), v3f(normal), r->c->hfree[photon]);
     if (ok) memcpy(r->pos, pos, sizeof r->pos);
     return ok;

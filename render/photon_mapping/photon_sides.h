@@ -44,7 +44,9 @@
  *                    and when a photon of a surface facing another way lies inside their disc,
  *                    divides by the part of the disc on this side of every surface, as after a
  *                    wall (33 rays). An estimate with no such photon in its disc is as before,
- *                    bit for bit (the k nearest are the same photons).
+ *                    bit for bit (the k nearest are the same photons). Where a
+ *                    surface meets it at less than 45 degrees (a door beside its wall), the
+ *                    plane rule of photon_corner.h keeps the estimate to x's plane.
  *                    Sparse estimates: one whose photons come from fewer than SIDE_MIN_PATHS
  *                    (8) distinct photon paths keeps radius^2 0, so no lookup returns it (the
  *                    module's own-radius test, dist2 < r2, never holds) and the caller
@@ -80,13 +82,15 @@
  *                    gather reads: +4.4% there over 8 photon seeds at 200,000 photons.
  *                    The values, their radii and the lookup structure belong to the module
  *                    (pm_irradiance_build_values, photonmap/irradiance.h); the cache adds the
- *                    free height of every photon of the global map.
+ *                    free height of every photon of the global map, and whether each
+ *                    precomputed photon lies on a flat surface (the plane rule's).
  *   side_cache_lookup what a final-gather ray reads at its hit y: pm_irradiance_lookup_if
  *                    with the module's normal rule at cos_min 0.7 (about 45 degrees; y within
  *                    the photon's own estimate radius) and side_visible from y as the caller's
- *                    rule, tried on the 8 nearest candidates. Why: the value of a photon
- *                    behind a wall is the irradiance of another room. With none, the lookup
- *                    reports "none" (the caller computes y's light otherwise).
+ *                    rule, tried on the 8 nearest candidates, with photon_corner.h's plane
+ *                    rule (a candidate off y's tangent plane is another surface's). Why: the
+ *                    value of a photon behind a wall is the irradiance of another room. With
+ *                    none, the lookup reports "none" (the caller computes y's light otherwise).
  *   side_filter_shadow the shadow-photon hint's search: photons on the query's own surface
  *                    only (the normal rule), below with its why.
  *   side_estimate    a map's radiance estimate read directly (the caustic map): neighbours off
@@ -105,6 +109,7 @@
 #include "photonmap/irradiance.h"
 #include "photonmap/kdtree.h"
 #include "photonmap/photon.h"
+#include "photon_mapping/photon_corner.h"
 #include "scene/scene.h"
 
 #ifdef __cplusplus
@@ -149,30 +154,6 @@ typedef struct side_planes {
 } side_planes;
 void side_planes_near(const scene *s, vec3 x, double r2, side_planes *pl);
 int side_clear(const side_planes *pl, vec3 p, vec3 np, double hp, vec3 q, vec3 nq, double hq);
-/* Candidates examined by a precomputed estimate that meets a wall, as a multiple of its k. */
-#define SIDE_WIDEN 4
-/* What side_precomp_neighbours met (its *wall, bits; 0: neither): a hidden neighbour, or a
- * neighbour on a surface facing another way (a corner). Either cuts the disc. */
-#define SIDE_WALL 1
-#define SIDE_CORNER 2
-/* The neighbours of a precomputed estimate at the photon x (decoded normal n, free height hx)
- * from the tree t (records ph, free heights hfree; t NULL: none), side_cache_build's rule,
- * shared with its distributed twin (render/mpi/lk_irradiance.c, each rank's part): the k
- * nearest photons on x's own surface (side_filter_shadow: travelled toward n's side, normal
- * within 45 degrees) within radius^2 max_dist2, sorted, and a corner if a photon refused for
- * its normal alone lies inside their disc (A CORNER above; where none does, these are the k
- * nearest that travelled toward n's side, as before the rule); if one of them (at a distance
- * > 0) is not side_visible_h from x, a wall: then the SIDE_WIDEN x k nearest (by the same filter),
- * keeping the visible ones, nearest first, until k are kept. Returns how many were kept, in
- * nb[0..) (room for SIDE_WIDEN x k); *wall: SIDE_CORNER | SIDE_WALL as met (0: neither;
- * either cuts the disc, and the caller divides by side_disc_fraction); *reach2 the
- * radius^2 of the disc examined when fewer than k were kept after a wall (up to the last
- * candidate when all SIDE_WIDEN x k were examined), else max_dist2. rays (or NULL) gains the
- * visibility rays traced: [0] the first search's, [1] the widened search's (segments that
- * side_clear clears need none and count in neither). */
-int side_precomp_neighbours(const scene *s, const pm_kdtree *t, const pm_photon *ph, const float *hfree,
-                            const float x[3], const float n[3], double hx, unsigned k, float max_dist2,
-                            pm_neighbor *nb, int *wall, float *reach2, unsigned long long rays[2]);
 /* The shadow-photon map's search filter (the photon mapper's shadow hint; user: the query's
  * unit normal, float[3]): pm_filter_front (the photon travelled toward the query's side),
  * and the photon's surface normal within about 45 degrees of the query's (cos >= 0.7, as
@@ -197,6 +178,8 @@ double side_disc_fraction(const scene *s, vec3 p, vec3 n, double r);
 typedef struct side_cache {
     pm_irradiance *irr; /* the values E with their radii^2 and the lookup (NULL when n == 0) */
     float *hfree;    /* the free height (side_free_height) of every photon of the global map */
+    uint8_t *flat;   /* 1: the precomputed photon lies on a flat surface (side_surface_normal), by
+                      * map index (NULL: none known, side_cache_from_records) */
     size_t n;        /* photons precomputed */
     unsigned long long rays_first, rays_second; /* shadow rays of the build (first, second search) */
     size_t researched;                          /* estimates searched again (a neighbour was hidden) */
