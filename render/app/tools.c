@@ -135,6 +135,7 @@ int tools_compare(int argc, char **argv) {
             return 2;
         }
     }
+    /* Each tool checks its own arguments with its own messages (--tonemap below is alike). */
     if (!fa || !fb) {
         fprintf(stderr, "render: --compare needs two PFM files\n");
         return 2;

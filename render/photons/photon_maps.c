@@ -17,6 +17,7 @@
 #include "base/output.h"
 #include "scene/scene_hash.h"
 
+/* Member by member: the maps' own arrays (guide.c and scene.c free other structs alike). */
 void photon_maps_free(photon_maps *m) {
     free(m->global);
     free(m->global_path);
