@@ -77,6 +77,12 @@ static int read_pfm_or_say(film *f, const char *path) { /* PFM or OpenEXR (film_
     return rc;
 }
 
+/* A usage error of a tool's arguments: the message on stderr, and the exit status 2. */
+static int usage(const char *msg) {
+    fprintf(stderr, "render: %s\n", msg);
+    return 2;
+}
+
 /* A tool's next positional argument, into *first, then *second: 0, or -1 when both are taken. */
 static int positional(const char *arg, const char **first, const char **second) {
     if (!*first)
@@ -95,10 +101,8 @@ int tools_compare(int argc, char **argv) {
     double dscale = 0.25;
     for (int i = 2; i < argc; i++) {
         if (strcmp(argv[i], "--rect") == 0) {
-            if (i + 4 >= argc) {
-                fprintf(stderr, "render: --rect needs X Y W H\n");
-                return 2;
-            }
+            if (i + 4 >= argc)
+                return usage("--rect needs X Y W H");
             for (int k = 0; k < 4; k++)
                 if (cli_parse_long(argv[i + 1 + k], -100000, 100000, &rect[k]) < 0) {
                     fprintf(stderr, "render: --rect: bad number '%s'\n", argv[i + 1 + k]);
@@ -114,10 +118,8 @@ int tools_compare(int argc, char **argv) {
             i++;
         } else if (strcmp(argv[i], "--id") == 0) {
             long v;
-            if (i + 1 >= argc || cli_parse_long(argv[i + 1], 0, 1000000, &v) < 0) {
-                fprintf(stderr, "render: --id needs an object id (a whole number >= 0)\n");
-                return 2;
-            }
+            if (i + 1 >= argc || cli_parse_long(argv[i + 1], 0, 1000000, &v) < 0)
+                return usage("--id needs an object id (a whole number >= 0)");
             if (nids == (int)(sizeof ids / sizeof ids[0])) {
                 fprintf(stderr, "render: at most %d --id options\n", nids);
                 return 2;
@@ -125,24 +127,17 @@ int tools_compare(int argc, char **argv) {
             ids[nids++] = (int)v;
             i++;
         } else if (strcmp(argv[i], "--diff-scale") == 0) {
-            if (cli_parse_positive(i + 1 < argc ? argv[i + 1] : NULL, &dscale) < 0) {
-                fprintf(stderr, "render: --diff-scale needs a positive number\n");
-                return 2;
-            }
+            if (cli_parse_positive(i + 1 < argc ? argv[i + 1] : NULL, &dscale) < 0)
+                return usage("--diff-scale needs a positive number");
             i++;
         } else if (positional(argv[i], &fa, &fb) < 0) {
-            fprintf(stderr, "render: --compare takes two files\n");
-            return 2;
+            return usage("--compare takes two files");
         }
     }
-    if (!fa || !fb) {
-        fprintf(stderr, "render: --compare needs two PFM files\n");
-        return 2;
-    }
-    if (!fmask != !nids) {
-        fprintf(stderr, "render: --mask and --id go together\n");
-        return 2;
-    }
+    if (!fa || !fb)
+        return usage("--compare needs two PFM files");
+    if (!fmask != !nids)
+        return usage("--mask and --id go together");
     film a = {0}, b = {0}, mask = {0};
     int rc = read_pfm_or_say(&a, fa);
     if (rc == 0) rc = read_pfm_or_say(&b, fb);
@@ -183,26 +178,19 @@ int tools_tonemap(int argc, char **argv) {
     int tone = FILM_TONE_FILMIC;
     for (int i = 2; i < argc; i++) {
         if (strcmp(argv[i], "--exposure") == 0) {
-            if (cli_parse_positive(i + 1 < argc ? argv[i + 1] : NULL, &exposure) < 0) {
-                fprintf(stderr, "render: --exposure needs a positive number\n");
-                return 2;
-            }
+            if (cli_parse_positive(i + 1 < argc ? argv[i + 1] : NULL, &exposure) < 0)
+                return usage("--exposure needs a positive number");
             i++;
         } else if (strcmp(argv[i], "--tone") == 0) {
-            if (i + 1 >= argc || (strcmp(argv[i + 1], "filmic") && strcmp(argv[i + 1], "srgb"))) {
-                fprintf(stderr, "render: --tone must be filmic or srgb\n");
-                return 2;
-            }
+            if (i + 1 >= argc || (strcmp(argv[i + 1], "filmic") && strcmp(argv[i + 1], "srgb")))
+                return usage("--tone must be filmic or srgb");
             tone = strcmp(argv[++i], "srgb") == 0 ? FILM_TONE_SRGB : FILM_TONE_FILMIC;
         } else if (positional(argv[i], &in, &out) < 0) {
-            fprintf(stderr, "render: --tonemap takes one PFM and one PNG\n");
-            return 2;
+            return usage("--tonemap takes one PFM and one PNG");
         }
     }
-    if (!in || !out) {
-        fprintf(stderr, "render: --tonemap needs IN.pfm OUT.png\n");
-        return 2;
-    }
+    if (!in || !out)
+        return usage("--tonemap needs IN.pfm OUT.png");
     film f;
     if (read_pfm_or_say(&f, in) < 0) return 2;
     double used = 0;

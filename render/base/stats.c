@@ -25,6 +25,7 @@ static char g_timer_names[MAX_TIMERS][80];
 static double g_timers[MAX_TIMERS];
 static int g_ntimers;
 
+/* A table: one name a core counter, alike by design. */
 static const char *const core_names[STAT_CORE_COUNT] = {
     [STAT_CAMERA_RAYS] = "Integrator/Camera rays",
     [STAT_INDIRECT_RAYS] = "Integrator/Indirect rays",

@@ -108,6 +108,8 @@ typedef struct gg_light {
     double *Lc, *Ln, *nc;  /* a cell each: the cells' values; scratch */
 } gg_light;
 
+/* Member by member: the light's own arrays (other structs' free functions, guide.c's and
+ * projmap.c's, look alike by design). */
 static void gg_light_free(gg_light *gl) {
     free(gl->pr);
     free(gl->v);

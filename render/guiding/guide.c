@@ -90,6 +90,7 @@ typedef struct row_ref {
     size_t k; /* row number */
 } row_ref;
 
+/* A comparator of this struct's keys in order (importance.c's rec_cmp is alike for another). */
 static int row_cmp(const void *a, const void *b) {
     const row_ref *x = a, *y = b;
     if (x->cell != y->cell) return x->cell < y->cell ? -1 : 1;
@@ -194,6 +195,8 @@ int guide_build(guide *g, const guide_grid *grid, int G, double alpha, const gui
     return 0;
 }
 
+/* Member by member: the guide's own arrays (other structs' free functions, as in
+ * gather_guide.c, photon_maps.c and mpi/lk_tiles.c, look alike by design). */
 void guide_free(guide *g) {
     if (!g) return;
     free(g->hkey);

@@ -239,6 +239,8 @@ void guide_light_pilot_run(const scene *s, guide_light_pilot *pl) {
     free(pa);
 }
 
+/* Free, then clear, member by member: the pilot's own arrays (photon_rounds.c frees another
+ * struct's alike). */
 void guide_light_pilot_free(guide_light_pilot *pl) {
     free(pl->pts);
     free(pl->jp);

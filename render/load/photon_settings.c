@@ -39,6 +39,8 @@ typedef struct setting_def {
 #define F(field) offsetof(photon_settings, field)
 #define NONE 0, 0 /* lo, hi: no range */
 
+/* Rows of one table, alike by design (key, type, field, default, range, help): each row is a
+ * setting, not repeated logic. */
 static const setting_def k_settings[] = {
     {"caustics", ST_FORCE, F(force_caustics), PLAN_AUTO, 0, 0,
      "build the caustic map or not; absent, the plan decides from the scene and prints why"},

@@ -72,6 +72,25 @@ static void top_mats(const scene *s, const pilot_counts *pc, char *buf, size_t c
     }
 }
 
+/* A map's line off for want of a light that emits photons; nonzero if so. */
+static int no_emitting_light(const scene *s, plan_item *it) {
+    if (plan__emitting_lights(s)) return 0;
+    plan__set(it, 0, "no light emits photons%s", "");
+    return 1;
+}
+
+/* A map's line on when the pilot stored photons of its kind (pc): fmt takes pc's total, its
+ * first materials (top_mats) and the pilot photons emitted, in that order. Nonzero if on. */
+static int stored_on(const scene *s, const pilot_counts *pc, unsigned long long emitted,
+                     plan_item *it, const char *fmt) {
+    if (pc->total == 0) return 0;
+    char mats[128], buf[300];
+    top_mats(s, pc, mats, sizeof mats);
+    snprintf(buf, sizeof buf, fmt, pc->total, mats, emitted);
+    plan__set(it, 1, "%s", buf);
+    return 1;
+}
+
 static void plan_caustics(const scene *s, const plan_pilots *r, render_plan *p) {
     int nspec = 0;
     for (int i = 0; i < prim_count(s); i++)
@@ -80,24 +99,16 @@ static void plan_caustics(const scene *s, const plan_pilots *r, render_plan *p) 
         plan__set(&p->caustics, 0, "no specular surface%s", "");
         return;
     }
-    if (!plan__emitting_lights(s)) {
-        plan__set(&p->caustics, 0, "no light emits photons%s", "");
-        return;
-    }
+    if (no_emitting_light(s, &p->caustics)) return;
     if (!any_diffuse(s)) {
         plan__set(&p->caustics, 0, "no diffuse surface to receive them%s", "");
         return;
     }
-    char mats[128], buf[300];
-    if (r->c.caustic.total > 0) {
-        top_mats(s, &r->c.caustic, mats, sizeof mats);
-        snprintf(buf, sizeof buf,
-                 "L S+ D paths: %llu photons stored through specular surfaces (first %s), from "
-                 "%llu pilot photons aimed at them",
-                 r->c.caustic.total, mats, (unsigned long long)r->c.emitted);
-        plan__set(&p->caustics, 1, "%s", buf);
+    if (stored_on(s, &r->c.caustic, r->c.emitted, &p->caustics,
+                  "L S+ D paths: %llu photons stored through specular surfaces (first %s), from "
+                  "%llu pilot photons aimed at them"))
         return;
-    }
+    char mats[128], buf[300];
     if (r->c.emitted == 0) {
         plan__set(&p->caustics, 0,
             "no specular surface reachable from a light (no light faces one: the "
@@ -114,20 +125,12 @@ static void plan_caustics(const scene *s, const plan_pilots *r, render_plan *p) 
 }
 
 static void plan_global(const scene *s, const plan_pilots *r, render_plan *p) {
-    if (!plan__emitting_lights(s)) {
-        plan__set(&p->global, 0, "no light emits photons%s", "");
+    if (no_emitting_light(s, &p->global)) return;
+    if (stored_on(s, &r->g.diffuse_bounce, r->g.emitted, &p->global,
+                  "diffuse surfaces reflect onto each other: %llu photons stored after a diffuse "
+                  "bounce off %s, from %llu pilot photons: indirect diffuse light"))
         return;
-    }
     char mats[128], buf[300];
-    if (r->g.diffuse_bounce.total > 0) {
-        top_mats(s, &r->g.diffuse_bounce, mats, sizeof mats);
-        snprintf(buf, sizeof buf,
-                 "diffuse surfaces reflect onto each other: %llu photons stored after a diffuse "
-                 "bounce off %s, from %llu pilot photons: indirect diffuse light",
-                 r->g.diffuse_bounce.total, mats, (unsigned long long)r->g.emitted);
-        plan__set(&p->global, 1, "%s", buf);
-        return;
-    }
     top_mats(s, &r->g.first_hits, mats, sizeof mats);
     if (r->g_stored == 0)
         snprintf(buf, sizeof buf,
@@ -174,6 +177,7 @@ static void plan_shadow(const scene *s, const photon_settings *cfg, const plan_p
         plan__set(&p->shadow, 0, "%s", buf);
         return;
     }
+    /* Off, as plan_global's tail: the same two cases, but each line its own words and figures. */
     top_mats(s, &r->g.first_hits, mats, sizeof mats);
     if (r->g_stored == 0)
         snprintf(buf, sizeof buf,

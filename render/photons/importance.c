@@ -188,6 +188,7 @@ typedef struct rec {
     uint32_t light, slot;
 } rec;
 
+/* A comparator of this struct's keys in order (guide.c's row_cmp is alike for another). */
 static int rec_cmp(const void *pa, const void *pb) {
     const rec *a = pa, *b = pb;
     if (a->light != b->light) return a->light < b->light ? -1 : 1;
@@ -366,6 +367,8 @@ int importance_build(const scene *s, long paths, double a, uint64_t seed, int th
         ray ry = camera_ray(cam, px, py);
         rgb beta = v3s(1);
         int v = 0;
+        /* The walk's steps are camera_walk_hit's; ports_find.c's walk declares the same
+         * outputs, but what each does at a hit differs. */
         for (int b = 0; b < IMP_MAX_BOUNCES && v < IMP_DEPTH; b++) {
             hit h;
             const material *m;

@@ -17,6 +17,7 @@
 #include "base/output.h"
 #include "scene/scene_hash.h"
 
+/* Member by member: the maps' own arrays (guide.c and scene.c free other structs alike). */
 void photon_maps_free(photon_maps *m) {
     free(m->global);
     free(m->global_path);
@@ -363,6 +364,21 @@ static double diffuse_area(const scene *s) {
     return a;
 }
 
+/* A surface map's maximum radius: r, or where r is not positive the automatic radius of a
+ * k-photon estimate (pm_auto_radius_surface) from the brightest of the map's n photons (the
+ * whole map's, whole_max_power[which], for one part of a partitioned pass); infinite for a map
+ * of no photons (nwhole, of all parts). */
+static double surface_radius(double r, int k, size_t nwhole, const photon_maps *m, int which,
+                             const pm_photon *ph, size_t n, double Lt) {
+    if (r <= 0)
+        r = nwhole ? pm_auto_radius_surface((unsigned)k,
+                                            m->part ? m->whole_max_power[which]
+                                                    : pm_photons_max_power(ph, n),
+                                            Lt)
+                   : INFINITY;
+    return r;
+}
+
 void photon_maps_radii(const scene *s, const photon_maps *m, const photon_settings *cfg, map_radii *r) {
     double area = diffuse_area(s);
     double phi = 0;
@@ -372,18 +388,8 @@ void photon_maps_radii(const scene *s, const photon_maps *m, const photon_settin
     /* The whole maps' figures (of all parts, for one part of a partitioned pass). */
     size_t ng = m->part ? m->whole_global : m->nglobal, nc = m->part ? m->whole_caustic : m->ncaustic;
     size_t ns = m->part ? m->whole_shadow : m->nshadow;
-    if (rg <= 0)
-        rg = ng ? pm_auto_radius_surface((unsigned)cfg->k_global,
-                                         m->part ? m->whole_max_power[0]
-                                                 : pm_photons_max_power(m->global, m->nglobal),
-                                         Lt)
-                : INFINITY;
-    if (rc_ <= 0)
-        rc_ = nc ? pm_auto_radius_surface((unsigned)cfg->k_caustic,
-                                          m->part ? m->whole_max_power[1]
-                                                  : pm_photons_max_power(m->caustic, m->ncaustic),
-                                          Lt)
-                 : INFINITY;
+    rg = surface_radius(rg, cfg->k_global, ng, m, 0, m->global, m->nglobal, Lt);
+    rc_ = surface_radius(rc_, cfg->k_caustic, nc, m, 1, m->caustic, m->ncaustic, Lt);
     r->global = rg;
     r->caustic = rc_;
     r->r2_global = (float)(rg * rg);

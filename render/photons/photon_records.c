@@ -15,6 +15,7 @@
 _Static_assert(sizeof(pass_rec) == 64, "pass_rec is 64 bytes");
 
 int pass_buf_push(pass_buf *b, const pass_rec *p) {
+    /* Doubling growth of this array (photon_rounds.c grows another type's alike). */
     if (b->n == b->cap) {
         size_t nc = b->cap ? 2 * b->cap : 1024;
         pass_rec *nv = realloc(b->v, nc * sizeof *nv);

@@ -317,6 +317,7 @@ static void vgrow(pass_buf *b, uint64_t k, size_t cap_max) {
 
 int pass_part_count(const pass_ctx *c, pass_rounds *rb, uint64_t nmain, uint64_t nshadow, uint64_t end,
                     pass_buf *main_buf, pass_buf *shadow_buf) {
+    /* Doubling growth of this array (photon_records.c grows another type's alike). */
     if (rb->nbc == rb->capbc) {
         size_t nc = rb->capbc ? 2 * rb->capbc : 64;
         pass_batch_count *nv = realloc(rb->bc, nc * sizeof *nv);
@@ -345,6 +346,8 @@ int pass_dist_batch(const pass_ctx *c, pass_rounds *rb, uint64_t n_e, pass_buf *
     return fail == 2 ? 2 : fail ? 1 : 0; /* 2: over the memory budget (pass_run) */
 }
 
+/* Free, then clear, member by member: the rounds' own arrays (light_guide.c frees another
+ * struct's alike). */
 void pass_rounds_free(pass_rounds *rb) {
     free(rb->all);
     free(rb->sizes);

@@ -382,11 +382,13 @@ int photon_trace(const scene *s, const trace_opts *o, photon_maps *m, char *err,
     if (errcap) err[0] = 0;
     trace_run t;
     memset(&t, 0, sizeof t);
+    /* Field by field (as renderer.c does its loop): the run's own members, of another struct. */
     t.s = s;
     t.o = o;
     t.m = m;
     t.err = err;
     t.errcap = errcap;
+    /* One registration a counter, deliberately unrolled: each names its own field and line. */
     t.st_emit_g = stats_register("Photons/Emitted, global pass");
     t.st_emit_c = stats_register("Photons/Emitted, caustic pass");
     t.st_glob = stats_register("Photons/Global photons stored");

@@ -104,6 +104,8 @@ static int camera_path(const scene *s, uint64_t seed, long j, carrier *c, unsign
     rgb beta = v3s(1);
     carrier path = {0};
     int nc = 0, nd = 0;
+    /* camera_walk_hit takes the steps (importance.c's walk declares the same outputs); what this
+     * walk keeps at a hit is its own. */
     for (int b = 0; b < PF_VERTS && nd < PF_DEPTH; b++) {
         hit h;
         const material *m;

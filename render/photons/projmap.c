@@ -61,6 +61,7 @@ typedef struct cone_view {
     double *dist, *half, *sh, *ch;
 } cone_view;
 
+/* Member by member: the view's own arrays (gather_guide.c frees another struct's alike). */
 static void cone_view_free(cone_view *v) {
     free(v->oc);
     free(v->dist);

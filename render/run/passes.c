@@ -30,6 +30,7 @@ int pass_state_init(pass_state *ps, int width, int height) {
     return 0;
 }
 
+/* Member by member, as render_state_free (renderer.c) for another struct's arrays. */
 void pass_state_free(pass_state *ps) {
     free(ps->sum);
     free(ps->sum2);

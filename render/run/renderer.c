@@ -37,6 +37,7 @@ int render_state_init(render_state *st, int width, int height, int spp) {
     return 0;
 }
 
+/* Member by member, as pass_state_free (passes.c) for another struct's arrays. */
 void render_state_free(render_state *st) {
     free(st->sum);
     free(st->count);
@@ -160,6 +161,7 @@ int render_image_ctl(const scene *s, const integrator *it, const render_job *job
     }
     loop L;
     memset(&L, 0, sizeof L);
+    /* Field by field (as photon_trace.c does its run): the loop's own members. */
     L.s = s;
     L.it = it;
     L.job = job;

@@ -210,6 +210,7 @@ int scene_check_photon_range(const scene *s, json_err *e) {
     return 0;
 }
 
+/* Member by member: the scene's own arrays (photon_maps.c frees another struct's alike). */
 void scene_free(scene *s) {
     free(s->mats);
     free(s->tris);

@@ -28,6 +28,8 @@ static uint64_t hash_vec(uint64_t h, vec3 v) {
     return hash_double(hash_double(hash_double(h, v.x), v.y), v.z);
 }
 
+/* Field by field, in a fixed order, not a hash of the bytes: padding and pointers would change
+ * the hash. hash_light below is alike for another struct. */
 static uint64_t hash_material(uint64_t h, const material *m) {
     h = hash_vec(h, m->diffuse);
     h = hash_double(h, m->sigma);
