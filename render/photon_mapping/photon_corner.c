@@ -13,7 +13,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "photon_mapping/photon_sides.h"
+#include "photon_mapping/side_visibility.h"
 #include "photonmap/common.h"
 #include "photonmap/estimate.h"
 
@@ -105,7 +105,7 @@ int side_precomp_neighbours(const scene *s, const pm_kdtree *t, const pm_photon 
     ko.filter_user = &cf;
     ko.flags = PM_SORT;
     int found = nearest_on_surface(s, t, ph, k, max_dist2, &cf, &ko, nb, wall);
-    side_planes pl; /* CLEAR SEGMENTS WITHOUT A RAY (photon_sides.c) */
+    side_planes pl; /* CLEAR SEGMENTS WITHOUT A RAY (side_visibility.c) */
     pl.ok = 0;
     if (found > 0) side_planes_near(s, xv, nb[found - 1].dist2, &pl);
     int hidden = 0;
