@@ -35,6 +35,25 @@ static const char *CORNER_SCENE =
 
 /* Mean of side_cache_lookup's irradiance (first channel) over n floor points with x in
  * [x0, x1), y in [-1, 1]; *missed counts lookups that found nothing. */
+/* The global tree over m's photons and its precomputed irradiance (k photons an estimate,
+ * search radius 1), as the three tests below build them: 0, or the failing call's code (the
+ * message on stdout). corner_cache_free frees all three. */
+static int corner_cache(const scene *s, photon_maps *m, unsigned k, pm_kdtree **t, side_cache *c) {
+    char err[256];
+    int rc = photon_tree_build_global(t, m, 8, err, sizeof err);
+    if (rc == 0 && (rc = side_cache_build(c, s, *t, pm_kdtree_records(*t), NULL, m->nglobal, k, 1.0f, err,
+                                          sizeof err)) != 0)
+        pm_kdtree_free(*t);
+    if (rc != 0) printf("    %s\n", err);
+    return rc;
+}
+
+static void corner_cache_free(side_cache *c, pm_kdtree *t, photon_maps *m) {
+    side_cache_free(c);
+    pm_kdtree_free(t);
+    photon_maps_free(m);
+}
+
 static double strip_mean(const side_cache *c, const scene *s, double x0, double x1, int n, pm_test_rng *r, int *missed) {
     double sum = 0;
     int got = 0;
@@ -80,10 +99,8 @@ TEST(render_sides_corner_reads_the_surface_irradiance) {
         }
     ASSERT(at == n);
     pm_kdtree *t;
-    char err[256];
-    ASSERT_EQ_INT(photon_tree_build_global(&t, &m, 8, err, sizeof err), 0);
     side_cache c;
-    ASSERT_EQ_INT(side_cache_build(&c, &s, t, pm_kdtree_records(t), NULL, n, k, 1.0f, err, sizeof err), 0);
+    ASSERT_EQ_INT(corner_cache(&s, &m, k, &t, &c), 0);
     const double E = 1.0 / (h * h);
     int missed = 0;
     double corner = strip_mean(&c, &s, 0.0, 0.18, 800, &r, &missed) / E - 1;
@@ -95,9 +112,7 @@ TEST(render_sides_corner_reads_the_surface_irradiance) {
     EXPECT_MSG(fabs(corner) < 0.03, "the corner strip reads %+.2f%% (the wall's photons counted on the floor?)",
                100 * corner);
     EXPECT(c.corners > 0 && missed < 16);
-    side_cache_free(&c);
-    pm_kdtree_free(t);
-    photon_maps_free(&m);
+    corner_cache_free(&c, t, &m);
     scene_free(&s);
 }
 
@@ -201,10 +216,8 @@ TEST(render_sides_corner_keeps_a_door_off_its_wall) {
         }
     ASSERT(at == n);
     pm_kdtree *t;
-    char err[256];
-    ASSERT_EQ_INT(photon_tree_build_global(&t, &m, 8, err, sizeof err), 0);
     side_cache c;
-    ASSERT_EQ_INT(side_cache_build(&c, &s, t, pm_kdtree_records(t), NULL, n, k, 1.0f, err, sizeof err), 0);
+    ASSERT_EQ_INT(corner_cache(&s, &m, k, &t, &c), 0);
     const double E = 1.0 / (h * h);
     int missed = 0;
     double wall = surface_mean(&c, &s, wall_point, 1.82, 2.0, 800, &r, &missed) / E - 1;
@@ -221,9 +234,7 @@ TEST(render_sides_corner_keeps_a_door_off_its_wall) {
     EXPECT_MSG(fabs(door) < 0.03, "the door by the hinge reads %+.2f%% (the wall's photons counted on it?)",
                100 * door);
     EXPECT(c.corners > 0 && missed < 64); /* 2% of the lookups computed otherwise, by the hinge */
-    side_cache_free(&c);
-    pm_kdtree_free(t);
-    photon_maps_free(&m);
+    corner_cache_free(&c, t, &m);
     scene_free(&s);
 }
 
@@ -256,10 +267,8 @@ TEST(render_sides_corner_leaves_a_sphere_alone) {
         pm_photon_init(&m.global[i], pos, pw, dir, pos, PM_KIND_INDIRECT);
     }
     pm_kdtree *t;
-    char err[256];
-    ASSERT_EQ_INT(photon_tree_build_global(&t, &m, 8, err, sizeof err), 0);
     side_cache c;
-    ASSERT_EQ_INT(side_cache_build(&c, &s, t, pm_kdtree_records(t), NULL, n, k, 1.0f, err, sizeof err), 0);
+    ASSERT_EQ_INT(corner_cache(&s, &m, k, &t, &c), 0);
     const double E = (double)n / (4 * M_PI);
     int missed = 0;
     double mean = surface_mean(&c, &s, sphere_point, -0.9, 0.9, 800, &r, &missed) / E - 1;
@@ -267,8 +276,6 @@ TEST(render_sides_corner_leaves_a_sphere_alone) {
            c.corners, missed);
     EXPECT_MSG(fabs(mean) < 0.03, "the sphere reads %+.2f%%", 100 * mean);
     EXPECT(c.corners == 0 && missed < 16);
-    side_cache_free(&c);
-    pm_kdtree_free(t);
-    photon_maps_free(&m);
+    corner_cache_free(&c, t, &m);
     scene_free(&s);
 }
