@@ -117,34 +117,41 @@ TEST(render_progressive_furnace_converges_and_mean_of_passes) {
 /* Oracle: the recurrence r^2_{i+1} = r^2_i (i + alpha) / (i + 1), i = 1 for the first pass
  * (Knaus and Zwicker 2011), stepped here from the r^2 pass 0 prints, against the r^2 of the
  * global and caustic estimates each pass prints, to float precision (the searches take r^2 as
- * a float: relative 2^-23, so 1e-6), for the default alpha 2/3 and for ppm_alpha=0.4. */
+ * a float: relative 2^-23, so 1e-6), for the default alpha 2/3 and for ppm_alpha=0.4; and the
+ * lookup's r^2, pass 0's times the same factor to the power ppm_lookup_shrink (default 3, and
+ * 1.5 set). */
 TEST(render_progressive_radius_schedule) {
     static const struct {
         const char *extra;
-        double alpha;
-    } cases[] = {{"", 2.0 / 3.0}, {"--pm ppm_alpha=0.4", 0.4}};
+        double alpha, shrink;
+    } cases[] = {{"", 2.0 / 3.0, 3}, {"--pm ppm_alpha=0.4", 0.4, 3}, {"--pm ppm_lookup_shrink=1.5", 2.0 / 3.0, 1.5}};
     char out[65536], args[512];
-    for (int c = 0; c < 2; c++) {
+    for (int c = 0; c < 3; c++) {
         snprintf(args, sizeof args, "--passes 5 --threads 2 --quiet --hdr r.pfm -o r.png %s", cases[c].extra);
         ASSERT_MSG(rt_render(BOX_PM, args, out, sizeof out) == 0, "%s", out);
         const char *p0 = strstr(out, "Pass 0: ");
         ASSERT_MSG(p0 && strstr(p0, "r^2 global "), "no pass line: %s", out);
         double g = num_after(p0, "r^2 global "), k = num_after(strstr(p0, "r^2 global "), "caustic ");
-        ASSERT(g > 0 && k > 0 && isfinite(g) && isfinite(k));
+        double l0 = num_after(strstr(p0, "r^2 global "), "lookup "), f = 1;
+        ASSERT(g > 0 && k > 0 && l0 > 0 && isfinite(g) && isfinite(k) && isfinite(l0));
         for (int i = 1; i < 5; i++) {
             g *= (i + cases[c].alpha) / (i + 1);
             k *= (i + cases[c].alpha) / (i + 1);
+            f *= (i + cases[c].alpha) / (i + 1);
+            double l = l0 * pow(f, cases[c].shrink);
             char key[32];
             snprintf(key, sizeof key, "Pass %d: ", i);
             const char *pl = strstr(out, key);
             ASSERT_MSG(pl, "no line for pass %d", i);
             const char *r2 = strstr(pl, "r^2 global ");
             ASSERT(r2);
-            double rg = num_after(r2, "r^2 global "), rc = num_after(r2, "caustic ");
+            double rg = num_after(r2, "r^2 global "), rc = num_after(r2, "caustic "), rl = num_after(r2, "lookup ");
             EXPECT_MSG(fabs(rg - g) <= 1e-6 * g, "alpha %g pass %d: global r^2 %.9g, expected %.9g",
                        cases[c].alpha, i, rg, g);
             EXPECT_MSG(fabs(rc - k) <= 1e-6 * k, "alpha %g pass %d: caustic r^2 %.9g, expected %.9g",
                        cases[c].alpha, i, rc, k);
+            EXPECT_MSG(fabs(rl - l) <= 1e-6 * l, "alpha %g shrink %g pass %d: lookup r^2 %.9g, expected %.9g",
+                       cases[c].alpha, cases[c].shrink, i, rl, l);
         }
     }
 }

@@ -154,6 +154,12 @@ static const setting_def k_settings[] = {
      "progressive photon mapping: the first pass's radius of the global and caustic estimates, "
      "in units of a k-photon estimate's radius at the map's mean density over the diffuse "
      "area (at most the maximum radius); 0: the maximum radii of max_radius_global/_caustic"},
+    {"ppm_lookup_shrink", ST_NUMBER, F(ppm_lookup_shrink), 3, 1, 10,
+     "progressive photon mapping: the precomputed-irradiance lookup's squared radius shrinks "
+     "as the estimates' squared radii to this power (pass p: pass 0's times the schedule's "
+     "factor to this power; 3 at the default alpha: about 1 / p), so the lookups' bias falls "
+     "faster than the estimates' and a lookup that finds no point computes its light instead "
+     "(README.md, Progressive photon mapping); 1: as the estimates"},
     {"ppm_photons", ST_NUMBER, F(ppm_photons), 0, 0, 1,
      "progressive photon mapping: the fraction of the photon targets (global, caustic, volume) "
      "each pass after the first traces; 0: chosen from counted work so that a pass's photons "

@@ -74,6 +74,7 @@ typedef struct photon_settings {
     int force_load; /* load_photons: a stamp mismatch is a warning, not an error */
     double ppm_alpha; /* progressive passes: the radius schedule's alpha (photonmapper.c) */
     double ppm_radius; /* progressive passes: the first radius / the typical radius; 0: the caps */
+    double ppm_lookup_shrink; /* progressive passes: the lookup's r^2 shrinks as the estimates' to this power */
     double ppm_photons; /* progressive passes: the fraction of the targets a later pass traces; 0: the plan's */
     /* Directories for save_photons and load_photons; empty: none. */
     char save_dir[PHOTON_SETTINGS_PATH_MAX], load_dir[PHOTON_SETTINGS_PATH_MAX];

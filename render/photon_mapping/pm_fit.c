@@ -52,7 +52,10 @@ void pm__pass_radii(mapper_state *st, map_radii *rad) {
     rad->typical = r0->typical;
     rad->r2_global = (float)((double)r0->r2_global * f);
     rad->r2_caustic = (float)((double)r0->r2_caustic * f);
-    rad->r2_lookup = (float)((double)r0->r2_lookup * f);
+    /* The lookup (photon_sides.h) reads a neighbouring point's estimate: its bias grows with
+     * the distance, so its cap shrinks faster than the estimates' (README.md, Progressive
+     * photon mapping, "The lookup's radius"). */
+    rad->r2_lookup = (float)((double)r0->r2_lookup * pow(f, st->cfg.ppm_lookup_shrink));
 }
 
 /* The same for the volume maps of each medium (pm_volume.h): pass 0's r^2 (where pass 0 had

@@ -113,10 +113,10 @@ static void print_pass(const mapper_state *st, int pass) {
             if (st->vol.ms[md].n && (double)st->vol.ms[md].r2 > r2v) r2v = (double)st->vol.ms[md].r2;
         printf(", %zu volume (r^2 %.9g), %zu volume-caustic", st->vol.n_all, r2v, st->vol.n_caus);
     }
-    printf("; trace %.3f s, kd-trees %.3f s, irradiance %.3f s; r^2 global %.9g, caustic %.9g "
-           "(pass 0's x %.9g)",
+    printf("; trace %.3f s, kd-trees %.3f s, irradiance %.3f s; r^2 global %.9g, caustic %.9g, "
+           "lookup %.9g (pass 0's x %.9g; the lookup's x that to the power %g)",
            st->t_trace, st->t_trees, st->t_irr, (double)st->r2_global, (double)st->r2_caustic,
-           st->r2_scale);
+           (double)st->r2_lookup, st->r2_scale, st->cfg.ppm_lookup_shrink);
     if (pass > 0)
         printf("; %.4g of the photon targets, estimates of %d global and %d caustic photons (%s)",
                st->pass_fraction, st->cfg.k_global, st->cfg.k_caustic, st->fraction_reason);
