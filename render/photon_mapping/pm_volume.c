@@ -96,6 +96,7 @@ int pmv_init(pmv_state *v, const scene *s, const photon_settings *c) {
     v->k_caus = (unsigned)c->k_volume_caustic;
     v->boundary = c->volume_boundary;
     v->beam = c->volume_beam;
+    /* The media's counters, one per line like pm_setup.c's (deliberately the same shape). */
     v->st_steps = stats_register("Photon mapping/Volume march steps");
     v->st_ms = stats_register("Photon mapping/Volume estimates (multiple scattering)");
     v->st_caus = stats_register("Photon mapping/Volume caustic estimates");
@@ -315,6 +316,9 @@ int pmv_trace(pmv_state *v, const scene *s, const photon_settings *c, const rend
         v->n_caus += v->caus[md].n;
     }
     if (rc < 0) goto fail;
+    /* The surface maps move into photon_maps field by field, as pm_preprocess.c's caustic
+     * retrace does from its own result type (a deliberate same-shape run: the two result
+     * types differ). */
     if (!loaded) {
         m->global = g.surface;
         m->nglobal = g.nsurface;
