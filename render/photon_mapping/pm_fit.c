@@ -356,9 +356,12 @@ int pm__fit_end(mapper_state *st, const scene *s) {
  * k_global 100 has about 6, an eighth at 50, a quarter below 48). At a thirty-second the lookups finding no point
  * on their side rose from under 0.03% to 1% (cornell_box and cornell_spheres at 96x96, 64 spp),
  * at a sixty-fourth to 15%. Stage A (before the sample pilot gives the work per sample) takes
- * PM_SAMPLE_WORK_MIN, the least of the shipped scenes' pilots, so it never computes fewer than
- * the fit then asks for; where the fit keeps stage A's maps and asks for more points,
- * side_cache_refine adds them (the same values as a build there). At the render sizes where
+ * PM_SAMPLE_WORK_MIN, about the least a shipped scene's sample costs (42 to 2,763 units in the
+ * survey's plans, most 60 to 130), so it seldom computes more points than the fit then asks
+ * for; where the fit keeps stage A's maps and asks for more, side_cache_refine adds them (the
+ * same values as a build there), and where it asks for fewer, stage A's stay. The sample pilot
+ * ran on stage A's points, so where they were refined its choice may differ from a pilot on
+ * the final ones (it chooses sampling, never the mean). At the render sizes where
  * the quarter's work is under PM_IRR_SHARE of the camera samples' (cornell_box at 96x96 from
  * about 256 spp) nothing changes. Counted work, never seconds: the same points for any thread
  * count. Measured: README.md, "Photons fitted to the render". */
