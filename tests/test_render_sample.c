@@ -136,6 +136,25 @@ static double after(const char *text, const char *key) {
     return p ? strtod(p + strlen(key), NULL) : -1;
 }
 
+/* PRECOMPUTED POINTS FITTED TO THE RENDER (pm_fit.c) in g_out's "Precomputed irradiance" line:
+ * at the photons of height >= h of a balanced tree of G (one a bucket: floor(G / 2^h) of them),
+ * h the lowest in [2, hmax] (hmax as printed) whose floor(G / 2^h) estimates are at most 0.2 x
+ * the printed camera work / 800; want: the h expected. 1 if all holds (failures recorded). */
+static int precomputed_points_by_the_rule(int want) {
+    const char *l = strstr(g_out, "\nPrecomputed irradiance at ");
+    double n = -1, g = -1;
+    EXPECT_MSG(l && sscanf(l, "\nPrecomputed irradiance at %lf of %lf global photons", &n, &g) == 2, "%s", g_out);
+    if (!l) return 0;
+    double h = after(l, "(the photons of height >= "), hmax = after(l, "in the map's kd-tree, 2 to ");
+    double wr = after(l, "of the camera samples' ");
+    EXPECT_MSG(h >= 2 && hmax >= h && wr > 0, "%.500s", l);
+    int rule = 2;
+    while (rule < hmax && floor(g / ldexp(1, rule)) > 0.2 * wr / 800) rule++;
+    EXPECT_MSG(rule == (int)h && rule == want, "height %g printed, %d by the rule, %d expected: %.500s", h, rule, want, l);
+    EXPECT_MSG(n == floor(g / ldexp(1, (int)h)), "%g points of %g at height %g", n, g, h);
+    return rule == (int)h && rule == want && n == floor(g / ldexp(1, (int)h));
+}
+
 /* Oracle: the documented rule applied to the counted work the "photons:" line prints:
  * s = clamp(0.2 W_r / W_p, 1/2, ceiling), the ceiling 1 + 3 clamp((q - 0.1) / 0.15, 0, 1) from the
  * caustic map's printed share q of the luminance, traced again when s > 1.25 / 2, else the first stage's
@@ -144,10 +163,12 @@ static double after(const char *text, const char *key) {
  * a render of about 800 times the camera samples traces again; the same line for 1 and 2 threads
  * (counted work, never timed); a count given with --pm is traced as given and the line says
  * why; a render in passes fits pass 0 to one pass, and a later pass traces its printed
- * fraction of the settings' targets. */
+ * fraction of the settings' targets. Also the precomputed irradiance's points by their rule
+ * (precomputed_points_by_the_rule: a sixteenth at 16 x 16 x 16, the quarter at 40 x 40 x 2025,
+ * the quarter without a fit) and the fitted render's image bit for bit on 1 and 2 threads. */
 TEST(render_pm_fit_photons_to_the_render) {
-    static const char *runs[] = {"--width 16 --height 16 --spp 16 --threads 1 -o a.png",
-                                 "--width 16 --height 16 --spp 16 --threads 2 -o a.png",
+    static const char *runs[] = {"--width 16 --height 16 --spp 16 --threads 1 -o a.png --hdr r0.pfm",
+                                 "--width 16 --height 16 --spp 16 --threads 2 -o a.png --hdr r1.pfm",
                                  "--width 40 --height 40 --spp 2025 --threads 2 -o a.png"};
     char first[1024] = "";
     for (int r = 0; r < 3; r++) {
@@ -169,12 +190,18 @@ TEST(render_pm_fit_photons_to_the_render) {
         double g = after(g_out, "\nPhotons: ");
         EXPECT_MSG(g >= 200000 * s * (1 - 5e-3) - 1 && g <= 200000 * s * (1 + 5e-3) + 64, "%s: %g global photons at s %g",
                    runs[r], g, s);
+        EXPECT_MSG(precomputed_points_by_the_rule(r < 2 ? 4 : 2), "%s", runs[r]);
         size_t n = strcspn(l, "\n");
         if (r == 0) snprintf(first, sizeof first, "%.*s", (int)n, l);
         if (r == 1) EXPECT_MSG(strlen(first) == n && strncmp(first, l, n) == 0, "1 thread: %s\n2 threads: %.*s", first, (int)n, l);
     }
+    /* PRECOMPUTED POINTS FITTED TO THE RENDER: the same image on 1 and 2 threads */
+    EXPECT_MSG(rt_same_file("r0.pfm", "r1.pfm"), "the fitted render's image differs on 1 and 2 threads");
     ASSERT_MSG(run_box_defaults("--width 16 --height 16 --spp 16 --pm global_photons=20000 -o a.png") == 0, "%s", g_out);
     EXPECT_MSG(strstr(g_out, "  photons: the targets (photon_mapping.global_photons is set)") != NULL, "%s", g_out);
+    double n0 = after(g_out, "\nPrecomputed irradiance at "), g0 = after(strstr(g_out, "\nPrecomputed irradiance at "), " of ");
+    EXPECT_MSG(g0 >= 20000 && g0 <= 20064 && n0 == floor(g0 / 4) && !strstr(g_out, "of them (the photons of height"),
+               "counts set: the quarter, no fit: %s", g_out);
     EXPECT_MSG(after(g_out, "\nPhotons: ") >= 20000 && after(g_out, "\nPhotons: ") <= 20064, "%s", g_out);
     /* a render in passes: pass 0 fitted to one pass's camera samples (the half, here); a later
      * pass's photons are its printed fraction of the settings' targets, not of pass 0's half */

@@ -101,33 +101,14 @@ static void disc_irradiance(const pm_photon *ph, const pm_neighbor *nb, int coun
     for (int c = 0; c < 3; c++) e[c] = area > 0 && isfinite(area) ? (float)(sum[c] / area) : 0.0f;
 }
 
-int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
-                     const uint32_t *path, size_t n, unsigned k, float max_dist2, char *err, size_t errcap) {
-    memset(c, 0, sizeof *c);
-    if (!global || n == 0) return 0;
-    /* Which photons: the quarter that pm_irradiance_build precomputes (neither leaves nor
-     * parents of leaves), numbered by rank. */
-    size_t m = 0;
-    uint32_t *which = malloc(n * sizeof *which);
-    if (!which) goto nomem;
-    for (size_t i = 0; i < n; i++)
-        if (pm_kdtree_height(global, (uint32_t)i) >= 2) which[m++] = (uint32_t)i;
-    /* The estimates by map index (read only at the chosen photons), for
-     * pm_irradiance_build_values. */
-    float *val = malloc(n * 3 * sizeof *val), *r2v = malloc(n * sizeof *r2v);
-    /* Every photon's free height along its normal, up to the largest lift an estimate can
-     * use (a quarter of the search radius): one ray per photon, so that each visibility test
-     * below, and each lookup's, is a single ray. */
-    float *hfree = c->hfree = malloc(n * sizeof *hfree);
-    c->flat = calloc(n, 1);
-    if (!val || !r2v || !hfree || !c->flat) {
-        free(val);
-        free(r2v);
-        free(which);
-        goto nomem;
-    }
-    side_free_heights(s, ph, n, max_dist2, hfree);
-    unsigned long long rays1 = n, rays2 = 0;
+/* The estimates at the map photons which[0..m) (map indices), into c->val and c->r2v by map
+ * index; the build's counters add up in c. Each estimate depends on the map alone, so an
+ * estimate is the same whichever call, thread or order computes it. 0 or PM_ENOMEM. */
+static int precompute_at(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
+                         const uint32_t *path, const uint32_t *which, size_t m, unsigned k, float max_dist2) {
+    const float *hfree = c->hfree;
+    float *val = c->val, *r2v = c->r2v;
+    unsigned long long rays1 = 0, rays2 = 0;
     size_t again = 0, corners = 0, sparse = 0;
     int fail = 0;
 #ifdef _OPENMP
@@ -182,42 +163,142 @@ int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, con
         rays1 += rays[0];
         rays2 += rays[1];
     }
-    free(which);
-    if (fail) {
-        free(val);
-        free(r2v);
-        goto nomem;
-    }
-    c->n = m;
-    c->rays_first = rays1;
-    c->rays_second = rays2;
-    c->researched = again;
-    c->corners = corners;
-    c->sparse = sparse;
-    c->indirect_only = 1;
-    if (m) {
-        /* The module keeps the values, the radii and the lookup (irradiance.h). */
-        pm_irradiance_options io;
-        pm_irradiance_options_init(&io, k);
-        io.fraction = PM_PRECOMP_QUARTER;
-        io.store_radius = 1;
-        io.store_index = 1;
-        int rc = pm_irradiance_build_values(&c->irr, global, &io, val, r2v);
-        if (rc < 0) {
-            free(val);
-            free(r2v);
-            side_cache_free(c);
-            snprintf(err, errcap, "precomputing irradiance: %s", pm_strerror(rc));
-            return rc;
-        }
-    }
-    free(val);
-    free(r2v);
+    if (fail) return PM_ENOMEM;
+    c->n += m;
+    c->rays_first += rays1;
+    c->rays_second += rays2;
+    c->researched += again;
+    c->corners += corners;
+    c->sparse += sparse;
     return 0;
-nomem:
+}
+
+/* The map photons of height in [lo, hi) (hi 0: no bound) in global, by map index, into which
+ * (room for n); their count. */
+static size_t photons_of_height(const pm_kdtree *global, size_t n, int lo, int hi, uint32_t *which) {
+    size_t m = 0;
+    for (size_t i = 0; i < n; i++) {
+        int h = pm_kdtree_height(global, (uint32_t)i);
+        if (h >= lo && (hi <= 0 || h < hi)) which[m++] = (uint32_t)i;
+    }
+    return m;
+}
+
+/* The lookup structure over the values computed at the photons of height >= c->height. At
+ * height SIDE_HEIGHT_QUARTER the module's own choice over the map's tree (the values, radii
+ * and lookup of the quarter, as always); above it, a tree over copies of the chosen photons
+ * alone (a lookup never walks the photons left out), with the free heights and flat flags the
+ * lookup's rule reads copied into that tree's order. */
+static int cache_finish(side_cache *c, const pm_kdtree *global, const pm_photon *ph, size_t n, unsigned k) {
+    pm_irradiance_options io;
+    pm_irradiance_options_init(&io, k);
+    io.store_radius = 1;
+    io.store_index = 1;
+    if (c->height <= SIDE_HEIGHT_QUARTER) {
+        c->look_hfree = c->hfree;
+        c->look_flat = c->flat;
+        io.fraction = PM_PRECOMP_QUARTER;
+        return c->n ? pm_irradiance_build_values(&c->irr, global, &io, c->val, c->r2v) : 0;
+    }
+    size_t m = c->n;
+    if (!m) return 0;
+    uint32_t *which = malloc(n * sizeof *which), *perm = malloc(m * sizeof *perm);
+    pm_photon *recs = malloc(m * sizeof *recs);
+    float *val = malloc(3 * m * sizeof *val), *r2 = malloc(m * sizeof *r2);
+    c->own_hfree = malloc(m * sizeof *c->own_hfree);
+    c->own_flat = malloc(m);
+    pm_kdtree *t = NULL;
+    int rc = PM_ENOMEM;
+    if (!which || !perm || !recs || !val || !r2 || !c->own_hfree || !c->own_flat) goto done;
+    photons_of_height(global, n, c->height, 0, which);
+    for (size_t j = 0; j < m; j++) recs[j] = ph[which[j]];
+    pm_kdtree_config kc = pm_kdtree_photon_config(8);
+    if ((rc = pm_kdtree_build(&t, recs, m, &kc, perm)) < 0) goto done;
+    for (size_t i = 0; i < m; i++) { /* tree order: record i was which[perm[i]] */
+        uint32_t q = which[perm[i]];
+        memcpy(&val[3 * i], &c->val[3 * (size_t)q], 3 * sizeof *val);
+        r2[i] = c->r2v[q];
+        c->own_hfree[i] = c->hfree[q];
+        c->own_flat[i] = c->flat[q];
+    }
+    io.fraction = PM_PRECOMP_ALL;
+    rc = pm_irradiance_build_values(&c->irr, t, &io, val, r2);
+    c->look_hfree = c->own_hfree;
+    c->look_flat = c->own_flat;
+done:
+    pm_kdtree_free(t);
+    free(which);
+    free(perm);
+    free(recs);
+    free(val);
+    free(r2);
+    return rc;
+}
+
+int side_cache_build_at(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
+                        const uint32_t *path, size_t n, unsigned k, float max_dist2, int height, char *err,
+                        size_t errcap) {
+    memset(c, 0, sizeof *c);
+    if (!global || n == 0) return 0;
+    c->height = height < SIDE_HEIGHT_QUARTER ? SIDE_HEIGHT_QUARTER : height;
+    int rc = PM_ENOMEM;
+    uint32_t *which = malloc(n * sizeof *which);
+    /* The estimates by map index (read only at the chosen photons), kept for
+     * side_cache_refine; every photon's free height along its normal, up to the largest lift
+     * an estimate can use (a quarter of the search radius): one ray per photon, so that each
+     * visibility test below, and each lookup's, is a single ray. */
+    c->val = malloc(n * 3 * sizeof *c->val);
+    c->r2v = malloc(n * sizeof *c->r2v);
+    c->hfree = malloc(n * sizeof *c->hfree);
+    c->flat = calloc(n, 1);
+    if (!which || !c->val || !c->r2v || !c->hfree || !c->flat) goto fail;
+    side_free_heights(s, ph, n, max_dist2, c->hfree);
+    c->rays_first = n;
+    c->quarter = photons_of_height(global, n, SIDE_HEIGHT_QUARTER, 0, which);
+    size_t m = c->height == SIDE_HEIGHT_QUARTER ? c->quarter : photons_of_height(global, n, c->height, 0, which);
+    c->indirect_only = 1;
+    if ((rc = precompute_at(c, s, global, ph, path, which, m, k, max_dist2)) < 0) goto fail;
+    if ((rc = cache_finish(c, global, ph, n, k)) < 0) goto fail;
+    free(which);
+    return 0;
+fail:
+    free(which);
     side_cache_free(c);
-    snprintf(err, errcap, "precomputing irradiance: out of memory");
-    return PM_ENOMEM;
+    snprintf(err, errcap, "precomputing irradiance: %s", pm_strerror(rc));
+    return rc;
+}
+
+int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
+                     const uint32_t *path, size_t n, unsigned k, float max_dist2, char *err, size_t errcap) {
+    return side_cache_build_at(c, s, global, ph, path, n, k, max_dist2, SIDE_HEIGHT_QUARTER, err, errcap);
+}
+
+int side_cache_refine(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
+                      const uint32_t *path, size_t n, unsigned k, float max_dist2, int height, char *err,
+                      size_t errcap) {
+    if (height < SIDE_HEIGHT_QUARTER) height = SIDE_HEIGHT_QUARTER;
+    if (!c->val || !global || n == 0 || height >= c->height) return 0;
+    int rc = PM_ENOMEM;
+    uint32_t *which = malloc(n * sizeof *which);
+    if (!which) goto fail;
+    size_t m = photons_of_height(global, n, height, c->height, which);
+    if ((rc = precompute_at(c, s, global, ph, path, which, m, k, max_dist2)) < 0) goto fail;
+    free(which);
+    which = NULL;
+    pm_irradiance_free(c->irr);
+    free(c->own_hfree);
+    free(c->own_flat);
+    c->irr = NULL;
+    c->own_hfree = NULL;
+    c->own_flat = NULL;
+    c->height = height;
+    if ((rc = cache_finish(c, global, ph, n, k)) < 0) goto fail;
+    return 0;
+fail:
+    free(which);
+    side_cache_free(c);
+    snprintf(err, errcap, "precomputing irradiance: %s", pm_strerror(rc));
+    return rc;
 }
 
 int side_cache_from_records(side_cache *c, pm_photon *recs, const float *r2, const float *hfree,
@@ -244,6 +325,7 @@ int side_cache_from_records(side_cache *c, pm_photon *recs, const float *r2, con
     io.store_index = 1;
     rc = pm_irradiance_build_values(&c->irr, t, &io, val, r2t);
     c->n = m;
+    c->look_hfree = c->hfree;
 done:
     pm_kdtree_free(t);
     free(perm);
@@ -260,6 +342,10 @@ void side_cache_free(side_cache *c) {
     pm_irradiance_free(c->irr);
     free(c->hfree);
     free(c->flat);
+    free(c->val);
+    free(c->r2v);
+    free(c->own_hfree);
+    free(c->own_flat);
     memset(c, 0, sizeof *c);
 }
 
@@ -281,9 +367,9 @@ static int side_accepts(void *user, uint32_t photon, const float pos[3], const f
     /* The plane rule's twin (photon_corner.h): a value from another surface nearly parallel
      * to y's (a door beside its wall) lies off y's tangent plane. */
     vec3 d = v3_sub(v3f(pos), r->y);
-    double slope = r->c->flat && r->c->flat[photon] ? SIDE_PLANE_SLAB : SIDE_LOOKUP_SLOPE;
+    double slope = r->c->look_flat && r->c->look_flat[photon] ? SIDE_PLANE_SLAB : SIDE_LOOKUP_SLOPE;
     if (fabs(v3_dot(d, r->n)) > slope * v3_len(d) + 1e-6 * (r->s->offset_floor + v3_maxabs(r->y))) return 0;
-    int ok = side_visible_h(r->s, r->y, r->n, r->hy, v3f(pos), v3f(normal), r->c->hfree[photon]);
+    int ok = side_visible_h(r->s, r->y, r->n, r->hy, v3f(pos), v3f(normal), r->c->look_hfree[photon]);
     if (ok) memcpy(r->pos, pos, sizeof r->pos);
     return ok;
 }

@@ -136,11 +136,26 @@ unsigned side_count_paths(const uint32_t *path, const pm_neighbor *nb, int count
  * For a distributed build (render/mpi/lk_irradiance.c) that combines such estimates. */
 double side_disc_fraction(const scene *s, vec3 p, vec3 n, double r);
 
+/* The photons side_cache_build precomputes: height >= 2 in the map's kd-tree
+ * (pm_kdtree_height), neither leaves nor parents of leaves, about a quarter of them. */
+#define SIDE_HEIGHT_QUARTER 2
+
 typedef struct side_cache {
     pm_irradiance *irr; /* the values E with their radii^2 and the lookup (NULL when n == 0) */
     float *hfree;    /* the free height (side_free_height) of every photon of the global map */
     uint8_t *flat;   /* 1: the precomputed photon lies on a flat surface (side_surface_normal), by
                       * map index (NULL: none known, side_cache_from_records) */
+    /* What a lookup's rule reads of the photon irr names (its index in the tree irr was built
+     * over): hfree and flat themselves when that is the global map's tree (height
+     * SIDE_HEIGHT_QUARTER), else own_hfree and own_flat, copied into the order of the tree over
+     * the chosen photons alone (side_cache_build_at); look_flat NULL: none known. */
+    const float *look_hfree;
+    const uint8_t *look_flat;
+    float *own_hfree;
+    uint8_t *own_flat;
+    int height;      /* the photons of height >= this in the global map's tree were precomputed */
+    float *val, *r2v; /* their values and radii^2 by map index (side_cache_refine adds to them) */
+    size_t quarter;  /* the photons of height >= SIDE_HEIGHT_QUARTER (what a quarter build takes) */
     size_t n;        /* photons precomputed */
     unsigned long long rays_first, rays_second; /* shadow rays of the build (first, second search) */
     size_t researched;                          /* estimates searched again (a neighbour was hidden) */
@@ -161,6 +176,23 @@ typedef struct side_cache {
  * 0, or a negative PM_E* code with a message. */
 int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
                      const uint32_t *path, size_t n, unsigned k, float max_dist2, char *err, size_t errcap);
+/* PRECOMPUTED POINTS FITTED TO THE RENDER (pm_fit.c, pm__irr_height). side_cache_build_at is
+ * side_cache_build at the photons of height >= height in the global map's kd-tree (at least
+ * SIDE_HEIGHT_QUARTER: side_cache_build itself, bit for bit; each height above halves them, so
+ * 3 an eighth, 4 a sixteenth, in a balanced tree spread over the map as the quarter is). The
+ * estimates are the same at every photon whatever the height (each is a function of the map
+ * alone); a lookup reads the nearest precomputed one by the same rules, so fewer points move
+ * the nearest value farther from the query, never change a value. side_cache_refine computes
+ * the photons of height in [height, c->height) that c lacks, keeping those c has, and rebuilds
+ * the lookup: a cache refined to a height equals one built there, bit for bit, for any thread
+ * count (tests/test_render_sides.c). It does nothing when height >= c->height. Both return 0, or
+ * a negative PM_E* code with a message (the cache freed). */
+int side_cache_build_at(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
+                        const uint32_t *path, size_t n, unsigned k, float max_dist2, int height, char *err,
+                        size_t errcap);
+int side_cache_refine(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
+                      const uint32_t *path, size_t n, unsigned k, float max_dist2, int height, char *err,
+                      size_t errcap);
 void side_cache_free(side_cache *c);
 /* A cache from m precomputed photons computed elsewhere (render-mpi gathers them from its
  * ranks): recs (power = E, RGBE; reordered in place into a kd-tree's order), their radii^2 r2

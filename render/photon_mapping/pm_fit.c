@@ -98,15 +98,19 @@ double pm__photon_work_at(const mapper_state *st, double sg, double sc) {
     double wg = st->plan.work_emit[0] > 0 ? st->plan.work_emit[0] : st->sample_work;
     double wc = st->plan.work_emit[1] > 0 ? st->plan.work_emit[1] : st->sample_work;
     double nshadow = (double)(m->part ? m->whole_shadow : m->nshadow);
+    /* the precomputed irradiance at the quarter of the map a build at the targets takes (the
+     * fit's own points, PRECOMPUTED POINTS FITTED TO THE RENDER, are fewer only on small
+     * renders: the photons' scale and the passes' fraction stay what they were without it) */
+    double nirr = (double)(st->sides.quarter > st->sides.n ? st->sides.quarter : st->sides.n);
     double vol = st->sample_work * (double)(m->volume_emitted + m->volume_caustic_emitted);
     if (sg == sc) { /* one scale for all maps */
         double stored = (double)st->nglobal_all + (double)st->ncaustic_all + nshadow + (double)st->vol.n_all +
                         (double)st->vol.n_caus;
         return ((wg + PPM_EMIT_COST) * (double)m->global_emitted + (wc + PPM_EMIT_COST) * (double)m->caustic_emitted +
-                vol + PPM_IRR_COST * (double)st->sides.n + PPM_STORE_COST * stored) / sg;
+                vol + PPM_IRR_COST * nirr + PPM_STORE_COST * stored) / sg;
     }
     double stored_g = (double)st->nglobal_all + nshadow + (double)st->vol.n_all + (double)st->vol.n_caus;
-    double g = (wg + PPM_EMIT_COST) * (double)m->global_emitted + vol + PPM_IRR_COST * (double)st->sides.n +
+    double g = (wg + PPM_EMIT_COST) * (double)m->global_emitted + vol + PPM_IRR_COST * nirr +
                PPM_STORE_COST * stored_g;
     double c = (wc + PPM_EMIT_COST) * (double)m->caustic_emitted + PPM_STORE_COST * (double)st->ncaustic_all;
     return g / sg + c / sc;
@@ -273,6 +277,7 @@ void pm__fit_begin(mapper_state *st, const scene *s) {
                  "the targets (partitioned render-mpi: no sample pilot to weigh them by)");
     else {
         st->fit_stage = 1;
+        st->irr_fit = 1; /* PRECOMPUTED POINTS FITTED TO THE RENDER */
         st->caustic_cap = 1; /* THE CAUSTIC CAP: until the sample pilot has weighed the map */
         fit_scale(st, 1 / PM_FIT_FIRST);
         st->fit_scale_c = 1 / PM_FIT_FIRST;
@@ -337,4 +342,52 @@ int pm__fit_end(mapper_state *st, const scene *s) {
     if (!again) return PM_FIT_KEEP;
     pm__drop_maps(st);
     return PM_FIT_AGAIN;
+}
+
+/* PRECOMPUTED POINTS FITTED TO THE RENDER. Precomputed irradiance at a quarter of the global
+ * photons costs PPM_IRR_COST units an estimate whatever the render's size: at 32x32 and 4 spp
+ * (pass 0's first stage, 100,000 global photons, 25,000 estimates) 0.5 to 1 CPU-s, most of the
+ * run, for a few thousand lookups (perf: 30 to 58% of the CPU of cornell_point, cornell_spheres,
+ * sun_window, door_ajar, partition_thin and water_caustic there, four fifths of it the
+ * estimates' neighbour searches). Points closer than an estimate's radius carry little that
+ * their neighbours do not (their discs share most of their photons), so where the fit applies
+ * pass 0 computes them at the photons of height >= h in the global map's kd-tree
+ * (side_cache_build_at: h 2 the quarter, 3 an eighth, 4 a sixteenth), h the lowest whose
+ * estimates' counted work is at most PM_IRR_SHARE of the camera samples' (pixels x spp x the
+ * sample pilot's work per sample), within [2, PM_IRR_HEIGHT_MAX] and with at least
+ * PM_IRR_PER_DISC points in an estimate's disc (k_global / 2^h: a sixteenth at the default
+ * k_global 100 has about 6, an eighth at 50, a quarter below 48). At a thirty-second the lookups finding no point
+ * on their side rose from under 0.03% to 1% (cornell_box and cornell_spheres at 96x96, 64 spp),
+ * at a sixty-fourth to 15%. Stage A (before the sample pilot gives the work per sample) takes
+ * PM_SAMPLE_WORK_MIN, about the least a shipped scene's sample costs (42 to 2,763 units in the
+ * survey's plans, most 60 to 130), so it seldom computes more points than the fit then asks
+ * for; where the fit keeps stage A's maps and asks for more, side_cache_refine adds them (the
+ * same values as a build there), and where it asks for fewer, stage A's stay. The sample pilot
+ * ran on stage A's points, so where they were refined its choice may differ from a pilot on
+ * the final ones (it chooses sampling, never the mean). At the render sizes where
+ * the quarter's work is under PM_IRR_SHARE of the camera samples' (cornell_box at 96x96 from
+ * about 256 spp) nothing changes. Counted work, never seconds: the same points for any thread
+ * count. Measured: README.md, "Photons fitted to the render". */
+#define PM_IRR_SHARE 0.2
+#define PM_IRR_HEIGHT_MAX 4
+#define PM_IRR_PER_DISC 6.0
+#define PM_SAMPLE_WORK_MIN 64.0
+
+int pm__irr_height(mapper_state *st, const scene *s, size_t n) {
+    st->irr_reason[0] = 0;
+    double work = st->fit_stage ? PM_SAMPLE_WORK_MIN : st->sample_work;
+    if (st->pass || !st->irr_fit || !(work > 0) || n == 0) return SIDE_HEIGHT_QUARTER;
+    double wr = (double)s->cam.width * (double)s->cam.height * (double)s->cam.spp * work;
+    double points = PM_IRR_SHARE * wr / PPM_IRR_COST; /* the estimates the share pays for */
+    int h = SIDE_HEIGHT_QUARTER;
+    /* at least PM_IRR_PER_DISC points in an estimate's disc of k_global photons */
+    int hmax = PM_IRR_HEIGHT_MAX;
+    while (hmax > SIDE_HEIGHT_QUARTER && ldexp((double)st->cfg.k_global, -hmax) < PM_IRR_PER_DISC) hmax--;
+    while (h < hmax && ldexp((double)n, -h) > points) h++;
+    static const char *const k_part[] = {"all", "half", "a quarter", "an eighth", "a sixteenth"};
+    snprintf(st->irr_reason, sizeof st->irr_reason,
+             "at %s of them (the photons of height >= %d in the map's kd-tree, %d to %d allowed): estimates "
+             "of counted work %.0f each at %.2g of the camera samples' %.3g", k_part[h], h, SIDE_HEIGHT_QUARTER,
+             hmax, PPM_IRR_COST, PM_IRR_SHARE, wr);
+    return h;
 }

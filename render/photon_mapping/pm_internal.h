@@ -76,6 +76,10 @@ typedef struct mapper_state {
     int caustic_cap; /* trace_opts.caustic_cap of the next trace (pm_fit.c, THE CAUSTIC CAP) */
     double fit_scale, fit_scale_c; /* the global (and volume) maps', the caustic map's (THE CAUSTIC FLOOR) */
     char fit_reason[768];
+    /* Pass 0's precomputed irradiance fitted to its camera samples (pm_fit.c, PRECOMPUTED POINTS
+     * FITTED TO THE RENDER): 1 where the fit applies; the height chosen and why. */
+    int irr_fit;
+    char irr_reason[320];
     int st_traced, st_saved_lit, st_saved_dark, st_caustic, st_gather, st_secondary, st_lookup,
         st_global_est, st_lookup_miss, st_side_rays, st_side_again;
 } mapper_state;
@@ -127,6 +131,9 @@ void pm__fit_begin(mapper_state *st, const scene *s);
 /* pm__fit_end's answers: stage A's maps stay, pass 0 is traced again, its caustic map only. */
 enum { PM_FIT_KEEP = 0, PM_FIT_AGAIN = 1, PM_FIT_CAUSTIC_AGAIN = 2 };
 int pm__fit_end(mapper_state *st, const scene *s);
+/* pm_fit.c: the height in the global map's kd-tree above which pass 0's precomputed irradiance
+ * is computed (side_cache_build_at), for a global map of n photons; sets st->irr_reason. */
+int pm__irr_height(mapper_state *st, const scene *s, size_t n);
 void pm__drop_maps(mapper_state *st);
 
 /* pm_preprocess.c: trace the maps of st->pass (pass 0 at first) and build what reads them;

@@ -12,6 +12,7 @@
  */
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "base/stats.h"
 #include "photon_mapping/pm_internal.h"
@@ -52,14 +53,41 @@ int pm__build_estimates(mapper_state *st, const scene *s, const map_radii *rad, 
         rc = pm__lookup ? pm__lookup->side_build(pm__lookup->user, &st->sides, s, st->tg,
                                              st->tg ? pm_kdtree_records(st->tg) : NULL, st->maps.nglobal,
                                              (unsigned)st->cfg.k_global, st->r2_global, err, errcap)
-                      : side_cache_build(&st->sides, s, st->tg, pm_kdtree_records(st->tg), st->maps.global_path,
-                                         st->maps.nglobal, (unsigned)st->cfg.k_global, st->r2_global, err, errcap);
+                      : side_cache_build_at(&st->sides, s, st->tg, pm_kdtree_records(st->tg), st->maps.global_path,
+                                            st->maps.nglobal, (unsigned)st->cfg.k_global, st->r2_global,
+                                            pm__irr_height(st, s, st->maps.nglobal), err, errcap);
         if (rc < 0) return rc;
         stat_add(st->st_side_rays, st->sides.rays_first + st->sides.rays_second);
         stat_add(st->st_side_again, st->sides.researched);
         st->t_irr = stats_now() - t0;
         stats_time_add("Time/Precomputed irradiance", st->t_irr);
     }
+    return 0;
+}
+
+/* PRECOMPUTED POINTS FITTED TO THE RENDER (pm_fit.c): where pass 0 keeps its first stage's
+ * global map, the points the fit asks for beyond the first stage's (none when it asks for no
+ * more). */
+static int refine_estimates(mapper_state *st, const scene *s, char *err, size_t errcap) {
+    side_cache *c = &st->sides;
+    if (pm__lookup || !c->val) return 0;
+    int h = pm__irr_height(st, s, st->maps.nglobal);
+    if (h > c->height) { /* fewer than the first stage's: those stay */
+        size_t len = strlen(st->irr_reason);
+        snprintf(st->irr_reason + len, sizeof st->irr_reason - len, "; the first stage's %zu kept", c->n);
+    }
+    if (h >= c->height) return 0;
+    double t0 = stats_now();
+    unsigned long long rays0 = c->rays_first + c->rays_second;
+    size_t again0 = c->researched;
+    int rc = side_cache_refine(c, s, st->tg, pm_kdtree_records(st->tg), st->maps.global_path, st->maps.nglobal,
+                               (unsigned)st->cfg.k_global, st->r2_global, h, err, errcap);
+    if (rc < 0) return rc;
+    stat_add(st->st_side_rays, c->rays_first + c->rays_second - rays0);
+    stat_add(st->st_side_again, c->researched - again0);
+    double dt = stats_now() - t0;
+    st->t_irr += dt;
+    stats_time_add("Time/Precomputed irradiance", dt);
     return 0;
 }
 
@@ -264,8 +292,9 @@ static void print_maps(const mapper_state *st, const scene *s) {
     if (st->nglobal_all && !st->direct_vis)
         printf("Precomputed irradiance at %zu of %zu global photons (%zu estimates searched again "
                "for a hidden neighbour, %zu on their own surface at a corner; %zu of too few photon "
-               "paths to be read: the light there is computed)\n",
-               st->sides.n, st->nglobal_all, st->sides.researched, st->sides.corners, st->sides.sparse);
+               "paths to be read: the light there is computed)%s%s\n",
+               st->sides.n, st->nglobal_all, st->sides.researched, st->sides.corners, st->sides.sparse,
+               st->irr_reason[0] ? "; " : "", st->irr_reason);
 }
 
 /* ---- pass 0's camera-side decisions (pm_sample.h, gather_guide.h) ------------------------- */
@@ -366,6 +395,7 @@ int pm__preprocess(integrator *self, const scene *s, char *err, size_t errcap) {
         }
         if ((rc = retrace_caustic(st, s, err, errcap)) < 0) return rc;
     }
+    if (first && fit != PM_FIT_AGAIN && (rc = refine_estimates(st, s, err, errcap)) < 0) return rc;
     if (first) {
         printf("  photons: %s\n", st->fit_reason);
         print_maps(st, s);
