@@ -235,6 +235,14 @@ done:
     return rc;
 }
 
+/* A build or refine that failed: nothing half made is left (the cache is emptied). */
+static int cache_fail(side_cache *c, uint32_t *which, int rc, char *err, size_t errcap) {
+    free(which);
+    side_cache_free(c);
+    snprintf(err, errcap, "precomputing irradiance: %s", pm_strerror(rc));
+    return rc;
+}
+
 int side_cache_build_at(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
                         const uint32_t *path, size_t n, unsigned k, float max_dist2, int height, char *err,
                         size_t errcap) {
@@ -262,10 +270,7 @@ int side_cache_build_at(side_cache *c, const scene *s, const pm_kdtree *global, 
     free(which);
     return 0;
 fail:
-    free(which);
-    side_cache_free(c);
-    snprintf(err, errcap, "precomputing irradiance: %s", pm_strerror(rc));
-    return rc;
+    return cache_fail(c, which, rc, err, errcap);
 }
 
 int side_cache_build(side_cache *c, const scene *s, const pm_kdtree *global, const pm_photon *ph,
@@ -295,10 +300,7 @@ int side_cache_refine(side_cache *c, const scene *s, const pm_kdtree *global, co
     if ((rc = cache_finish(c, global, ph, n, k)) < 0) goto fail;
     return 0;
 fail:
-    free(which);
-    side_cache_free(c);
-    snprintf(err, errcap, "precomputing irradiance: %s", pm_strerror(rc));
-    return rc;
+    return cache_fail(c, which, rc, err, errcap);
 }
 
 int side_cache_from_records(side_cache *c, pm_photon *recs, const float *r2, const float *hfree,

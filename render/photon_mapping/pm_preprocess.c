@@ -233,6 +233,8 @@ static int retrace_caustic(mapper_state *st, const scene *s, char *err, size_t e
     scene sp;
     int rc = photon_trace(ports_found_scene(s, &st->plan.found, &sp), &o, &c, err, errcap);
     if (rc < 0) return rc;
+    /* The new caustic map replaces the old field by field (the same shape as pm_volume.c's
+     * move of the volume tracer's surface maps, deliberately: the result types differ). */
     free(m->caustic);
     m->caustic = c.caustic;
     c.caustic = NULL;
