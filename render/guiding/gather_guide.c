@@ -23,6 +23,7 @@
 #define GG_PATHS 4096
 #define GG_CELL_POINTS 4
 #define GG_MAX_JOBS 768
+#define GG_MIN_JOBS 96 /* THE PILOT'S SIZE (gather_guide.h): at least this many points */
 #define GG_BOUNCES 4
 #define GG_OUTLIER 16
 #define GG_MIN_LINES 16
@@ -344,6 +345,24 @@ static void gg_pick_points(const guide_grid *grid, const guide_point *pts, size_
     for (size_t j = 0; j < *nj; j++) jc[j] = gg_cell_index(ck, *ncell, guide_cell(grid, pts[jp[j]].h.p, pts[jp[j]].n));
 }
 
+/* THE PILOT'S SIZE (gather_guide.h): the full pilot's points for the render s's camera is set
+ * for, at most its camera samples' worth of probes, within [GG_MIN_JOBS, GG_MAX_JOBS]. */
+size_t gather_guide_pilot_points(const scene *s) {
+    const double samples = (double)s->cam.width * (double)s->cam.height * (double)s->cam.spp;
+    const double n = ceil(samples / ((double)GG_G * GG_G));
+    return n >= GG_MAX_JOBS ? GG_MAX_JOBS : n <= GG_MIN_JOBS ? GG_MIN_JOBS : (size_t)n;
+}
+
+/* Keep want of the nj points jp (cells jc), evenly in their order, as gg_pick_points thins them. */
+static void gg_thin(size_t *jp, int *jc, size_t *nj, size_t want) {
+    if (*nj <= want) return;
+    for (size_t j = 0; j < want; j++) {
+        jp[j] = jp[j * *nj / want];
+        jc[j] = jc[j * *nj / want];
+    }
+    *nj = want;
+}
+
 /* One probe per stratum of each chosen point, jittered, into pr[j GG_G^2 + stratum]; each point on
  * its own stream (thread-count free). */
 static void gg_probe_points(const gather_guide_probe *probe, const scene *s, const guide_grid *grid,
@@ -500,6 +519,8 @@ int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *w
             goto done;
         }
     }
+    size_t picked = nj; /* the cheap test's points; the full pilot's follow the render (THE PILOT'S SIZE) */
+    gg_thin(jp, jc, &nj, gather_guide_pilot_points(s));
     if (gg_light_alloc(&gl, nj, G2, ncell) < 0) goto oom;
     const gg_probe *pr = gl.pr;
     const double *v = gl.v;
@@ -534,12 +555,13 @@ int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *w
                  nline < GG_MIN_LINES ? "too few" : "not meeting within 2% of the scene's size", pw);
     snprintf(gg->reason, sizeof gg->reason,
              "%s (%zu of %zu camera points find no precomputed irradiance; the pilot probed %zu points in %zu "
-             "cells, %zu probes: %s)",
+             "cells (of %zu picked: at most the %d x %d x %d camera samples' worth of probes, at least %d points), "
+             "%zu probes: %s)",
              force == PLAN_ON && !gg->aim ? "on (forced; no opening: gathers stay cosine)"
              : force == PLAN_ON           ? "on (forced)"
              : gg->on                     ? "on"
                                           : "off",
-             starved, cam, nj, ncell, nj * G2, what);
+             starved, cam, nj, ncell, picked, s->cam.width, s->cam.height, s->cam.spp, GG_MIN_JOBS, nj * G2, what);
     rc = 0;
     goto done;
 oom:

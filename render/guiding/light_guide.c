@@ -255,8 +255,25 @@ int guide_light_wanted(int force, const guide_light_pilot *pl) {
     return force == PLAN_ON || (pl->e.blocked > 0 && pl->e.blocked_share >= GUIDE_MIN_SHARE);
 }
 
+/* STAGE B'S SIZE (guide.h): of nj jobs, how many the render s's camera is set for pays for. */
+size_t guide_light_jobs(const scene *s, size_t nj) {
+    const double G2 = (double)GUIDE_G * GUIDE_G;
+    double probes = fmax(GUIDE_B_PER_SAMPLE * (double)s->cam.width * (double)s->cam.height * (double)s->cam.spp, GUIDE_B_MIN);
+    double want = floor(probes / G2);
+    return want >= (double)nj ? nj : (size_t)want;
+}
+
 guide *guide_light_learn(const scene *s, guide_light_pilot *pl) {
     if (!pl->ran || pl->rc < 0 || pl->nj == 0) return NULL;
+    /* Evenly in (point, light) order, which stays sorted as guide_learn_jobs wants. */
+    size_t want = guide_light_jobs(s, pl->nj);
+    pl->e.jobs_all = pl->nj;
+    for (size_t j = 0; want < pl->nj && j < want; j++) {
+        pl->jp[j] = pl->jp[j * pl->nj / want];
+        pl->js[j] = pl->js[j * pl->nj / want];
+    }
+    pl->nj = want;
+    pl->e.jobs = want;
     guide *gd = malloc(sizeof *gd);
     if (!gd || guide_learn_jobs_spread(gd, s, &pl->grid, GUIDE_G, GUIDE_ALPHA, pl->pts, pl->jp, pl->js, pl->nj,
                                        light_probe, NULL, pl->seed, 0, &pl->e.probes) < 0) {
@@ -295,11 +312,11 @@ void guide_light_say(int force, const char *skip, const guide_light_pilot *pl, c
         *on = 1;
         snprintf(reason, cap,
                  "%s: in %zu of %zu lit regions %.1f%% of the unshadowed light passes, and they carry "
-                 "%.0f%% of the light that passes; %llu probes made %zu tables in %zu cells (pilot: "
-                 "%zu points, %llu light samples, %.1f%% pass)",
+                 "%.0f%% of the light that passes; %llu probes (%zu of %zu jobs: at most %d a camera sample, at "
+                 "least %d) made %zu tables in %zu cells (pilot: %zu points, %llu light samples, %.1f%% pass)",
                  force == PLAN_ON ? "forced by photon_mapping.light_guide" : "light samples are mostly blocked",
-                 e.blocked, e.cells, 100 * e.blocked_pass, 100 * e.blocked_share, e.probes, gd->ntables, gd->ncells,
-                 e.points, e.samples, 100 * rate);
+                 e.blocked, e.cells, 100 * e.blocked_pass, 100 * e.blocked_share, e.probes, e.jobs, e.jobs_all,
+                 GUIDE_B_PER_SAMPLE, GUIDE_B_MIN, gd->ntables, gd->ncells, e.points, e.samples, 100 * rate);
         return;
     }
     /* Nothing to learn from: say so, rather than "mostly pass" over evidence of none. */
