@@ -519,8 +519,9 @@ int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *w
             goto done;
         }
     }
-    size_t picked = nj; /* the cheap test's points; the full pilot's follow the render (THE PILOT'S SIZE) */
-    gg_thin(jp, jc, &nj, gather_guide_pilot_points(s));
+    /* The cheap test's points; a pilot that only looks for a patch follows the render (THE PILOT'S SIZE). */
+    size_t picked = nj;
+    if (!starving && force != PLAN_ON) gg_thin(jp, jc, &nj, gather_guide_pilot_points(s));
     if (gg_light_alloc(&gl, nj, G2, ncell) < 0) goto oom;
     const gg_probe *pr = gl.pr;
     const double *v = gl.v;
@@ -543,7 +544,10 @@ int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *w
     }
     gg->aim = opening || patch;
     gg->on = gg->aim || force == PLAN_ON;
-    char what[320];
+    char what[320], sized[160] = "";
+    if (nj < picked)
+        snprintf(sized, sizeof sized, " (of %zu picked: at most the %d x %d x %d camera samples' worth of probes, at least %d "
+                 "points)", picked, s->cam.width, s->cam.height, s->cam.spp, GG_MIN_JOBS);
     if (patch)
         snprintf(what, sizeof what, "no opening, but %s", pw);
     else if (opening)
@@ -555,13 +559,12 @@ int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *w
                  nline < GG_MIN_LINES ? "too few" : "not meeting within 2% of the scene's size", pw);
     snprintf(gg->reason, sizeof gg->reason,
              "%s (%zu of %zu camera points find no precomputed irradiance; the pilot probed %zu points in %zu "
-             "cells (of %zu picked: at most the %d x %d x %d camera samples' worth of probes, at least %d points), "
-             "%zu probes: %s)",
+             "cells%s, %zu probes: %s)",
              force == PLAN_ON && !gg->aim ? "on (forced; no opening: gathers stay cosine)"
              : force == PLAN_ON           ? "on (forced)"
              : gg->on                     ? "on"
                                           : "off",
-             starved, cam, nj, ncell, picked, s->cam.width, s->cam.height, s->cam.spp, GG_MIN_JOBS, nj * G2, what);
+             starved, cam, nj, ncell, sized, nj * G2, what);
     rc = 0;
     goto done;
 oom:

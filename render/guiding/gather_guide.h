@@ -102,12 +102,14 @@
  * 4 spp): bright rays meeting within 94 (an opening: 20), hits over radius 1090 (a patch: 300);
  * 2.82 CPU-s before, 1.64 after, the same image.
  *
- * THE PILOT'S SIZE. Its probes serve the render's gather rays, so the full pilot probes at most
+ * THE PILOT'S SIZE. Where it only looks for a bright patch (the camera points are not starved,
+ * the guide not forced), its probes serve the render's gather rays, so the full pilot probes at most
  * the render's camera samples' worth (width x height x spp of the camera it is made for; a probe
  * costs about half a camera sample), GG_G^2 probes a point, between GG_MIN_JOBS (96) and
  * GG_MAX_JOBS (768) of the points picked (evenly, as they are picked): 768 points (786,432
  * probes) from 786,432 camera samples up, 96 (98,304 probes) at 98,304 and below (32 x 32 x 96).
- * The cheap test keeps all the picked points. A render in passes (--time, --passes) is sized by
+ * The cheap test keeps all the picked points, and so does a pilot looking for an opening (starved
+ * points: at 96 points pinhole_room_no_ports's 8 x 8 test found 12 bright rays, too few). A render in passes (--time, --passes) is sized by
  * its first pass (the pilot runs once, before it). Measured by hand on 84ae036 with this rule,
  * 16 x 16 x 16 (the scenes' own size): 96 points find the same patch as 768 on lamp_shade
  * (centre within 7 of (199, 152, 200), radius 104-106 against 109) and sun_window (within 1,

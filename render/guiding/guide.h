@@ -91,7 +91,8 @@
  * STAGE B'S SIZE. Its tables serve the render's light samples, so stage B probes at most
  * GUIDE_B_PER_SAMPLE (4) per camera sample of the render the camera is set for (width x height x
  * spp; a render in passes: its first pass), and at least GUIDE_B_MIN (262,144): of the jobs stage
- * A made, evenly in (point, light) order, floor(that / G^2) (guide_light_jobs). The decision
+ * A made, evenly in (point, light) order, floor(that / G^2) (guide_light_jobs; the plan's
+ * learn; guide_light_make, for tests and callers without a render size, keeps all). The decision
  * (stage A's) is unchanged; cells whose jobs are dropped sample uniformly (no gain, no loss).
  * door_ajar's 7,292 jobs (1.87M probes) are all kept from 466,688 camera samples up (32 x 32 x
  * 456); at 32 x 32 x 4 it keeps 1,024 (stage B 0.42-0.51 -> 0.06 CPU-s, measured by hand on
@@ -136,6 +137,7 @@ extern "C" {
 #define GUIDE_MIN_SHARE 0.25   /* light guide: plan on when blocked regions carry this share */
 #define GUIDE_B_PER_SAMPLE 4   /* light guide: stage-B probes per camera sample, at most (STAGE B'S SIZE) */
 #define GUIDE_B_MIN 262144     /* light guide: stage-B probes always allowed (1024 jobs of G^2) */
+#define GUIDE_B_SAY "4 probes a camera sample, at least 262144" /* the two above, in the plan's line */
 
 typedef struct guide_grid {
     vec3 lo;  /* the scene's lower bound, less a margin */
@@ -292,7 +294,8 @@ void guide_light_pilot_run(const scene *s, guide_light_pilot *pl);
 void guide_light_pilot_free(guide_light_pilot *pl);
 int guide_light_wanted(int force, const guide_light_pilot *pl);
 size_t guide_light_jobs(const scene *s, size_t nj);
-guide *guide_light_learn(const scene *s, guide_light_pilot *pl);
+/* max_jobs: stage B's jobs at most (0: all; the plan passes guide_light_jobs, STAGE B'S SIZE). */
+guide *guide_light_learn(const scene *s, guide_light_pilot *pl, size_t max_jobs);
 void guide_light_say(int force, const char *skip, const guide_light_pilot *pl, const guide *gd, int *on,
                      char *reason, size_t cap);
 

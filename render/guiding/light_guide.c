@@ -263,10 +263,10 @@ size_t guide_light_jobs(const scene *s, size_t nj) {
     return want >= (double)nj ? nj : (size_t)want;
 }
 
-guide *guide_light_learn(const scene *s, guide_light_pilot *pl) {
+guide *guide_light_learn(const scene *s, guide_light_pilot *pl, size_t max_jobs) {
     if (!pl->ran || pl->rc < 0 || pl->nj == 0) return NULL;
     /* Evenly in (point, light) order, which stays sorted as guide_learn_jobs wants. */
-    size_t want = guide_light_jobs(s, pl->nj);
+    size_t want = max_jobs && max_jobs < pl->nj ? max_jobs : pl->nj;
     pl->e.jobs_all = pl->nj;
     for (size_t j = 0; want < pl->nj && j < want; j++) {
         pl->jp[j] = pl->jp[j * pl->nj / want];
@@ -312,11 +312,12 @@ void guide_light_say(int force, const char *skip, const guide_light_pilot *pl, c
         *on = 1;
         snprintf(reason, cap,
                  "%s: in %zu of %zu lit regions %.1f%% of the unshadowed light passes, and they carry "
-                 "%.0f%% of the light that passes; %llu probes (%zu of %zu jobs: at most %d a camera sample, at "
-                 "least %d) made %zu tables in %zu cells (pilot: %zu points, %llu light samples, %.1f%% pass)",
+                 "%.0f%% of the light that passes; %llu probes (%zu of %zu jobs%s) made %zu tables in %zu cells "
+                 "(pilot: %zu points, %llu light samples, %.1f%% pass)",
                  force == PLAN_ON ? "forced by photon_mapping.light_guide" : "light samples are mostly blocked",
                  e.blocked, e.cells, 100 * e.blocked_pass, 100 * e.blocked_share, e.probes, e.jobs, e.jobs_all,
-                 GUIDE_B_PER_SAMPLE, GUIDE_B_MIN, gd->ntables, gd->ncells, e.points, e.samples, 100 * rate);
+                 e.jobs < e.jobs_all ? ": at most " GUIDE_B_SAY : "", gd->ntables, gd->ncells, e.points, e.samples,
+                 100 * rate);
         return;
     }
     /* Nothing to learn from: say so, rather than "mostly pass" over evidence of none. */
@@ -345,7 +346,7 @@ guide *guide_light_make(const scene *s, int force, int usable, int *on, char *re
     memset(&pl, 0, sizeof pl);
     const char *skip = guide_light_skip(s, force, usable);
     if (!skip) guide_light_pilot_run(s, &pl);
-    guide *gd = guide_light_wanted(force, &pl) && pl.rc == 0 ? guide_light_learn(s, &pl) : NULL;
+    guide *gd = guide_light_wanted(force, &pl) && pl.rc == 0 ? guide_light_learn(s, &pl, 0) : NULL;
     guide_light_say(force, skip, &pl, gd, on, reason, cap);
     if (ev) *ev = pl.e;
     guide_light_pilot_free(&pl);
