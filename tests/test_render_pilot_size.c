@@ -48,14 +48,14 @@ TEST(render_pilot_size_gather_guide_formula) {
     }
 }
 
-/* Oracle: jobs = min(nj, floor(max(4 w h spp, 262144) / 256)). */
+/* Oracle: jobs = min(nj, floor(max(4 w h spp, 524288) / 256)). */
 TEST(render_pilot_size_light_guide_formula) {
     const struct { int w, h, spp; size_t nj, want; } c[] = {
-        {32, 32, 4, 7292, 1024},    /* the floor: 262144 / 256 */
-        {32, 32, 4, 500, 500},      /* fewer jobs than the floor: all */
-        {32, 32, 64, 7292, 1024},   /* 4 x 65536 = 262144 */
+        {32, 32, 4, 7292, 2048},    /* the floor: 524288 / 256 */
+        {32, 32, 4, 1428, 1428},    /* fewer jobs than the floor (pinhole_room): all */
+        {32, 32, 128, 7292, 2048},  /* 4 x 131072 = 524288 */
+        {32, 32, 200, 7292, 3200},  /* 4 x 204800 / 256 */
         {32, 32, 456, 7292, 7292},  /* 1867776 / 256 = 7296 >= 7292: all */
-        {64, 64, 16, 7292, 1024},   /* 4 x 65536 */
         {96, 96, 64, 100000, 9216}, /* 4 x 589824 / 256 */
     };
     for (size_t i = 0; i < sizeof c / sizeof c[0]; i++) {
@@ -107,5 +107,5 @@ TEST(render_pilot_size_same_decisions_at_own_size) {
     ASSERT_EQ_INT(plan_line("door_ajar", "light guide: ", line, sizeof line), 0);
     printf("    door_ajar: %s\n", line);
     EXPECT_MSG(strncmp(line, "light guide: on (light samples are mostly blocked", 49) == 0, "door_ajar: %s", line);
-    EXPECT_MSG(strstr(line, "(1024 of ") != NULL, "door_ajar: stage B not sized: %s", line);
+    EXPECT_MSG(strstr(line, "(2048 of 7292 jobs") != NULL, "door_ajar: stage B not sized: %s", line);
 }

@@ -90,13 +90,15 @@
  *
  * STAGE B'S SIZE. Its tables serve the render's light samples, so stage B probes at most
  * GUIDE_B_PER_SAMPLE (4) per camera sample of the render the camera is set for (width x height x
- * spp; a render in passes: its first pass), and at least GUIDE_B_MIN (262,144): of the jobs stage
- * A made, evenly in (point, light) order, floor(that / G^2) (guide_light_jobs; the plan's
- * learn; guide_light_make, for tests and callers without a render size, keeps all). The decision
- * (stage A's) is unchanged; cells whose jobs are dropped sample uniformly (no gain, no loss).
- * door_ajar's 7,292 jobs (1.87M probes) are all kept from 466,688 camera samples up (32 x 32 x
- * 456); at 32 x 32 x 4 it keeps 1,024 (stage B 0.42-0.51 -> 0.06 CPU-s, measured by hand on
- * 84ae036 with this rule). pinhole_room's 1,428 jobs: all from 91,392 samples up.
+ * spp; a render in passes: its first pass), and at least GUIDE_B_MIN (524,288, about 0.15 CPU-s):
+ * of the jobs stage A made, evenly in (point, light) order, floor(that / G^2) (guide_light_jobs;
+ * the plan's learn; guide_light_make, for tests and callers without a render size, keeps all).
+ * The decision (stage A's) is unchanged; cells whose jobs are dropped sample uniformly (no gain,
+ * no loss). Of the shipped scenes that plan it on, only door_ajar's is cut (at its own size,
+ * 32 x 32 x 16, too): its 7,292 jobs (1.87M probes) are all kept from 466,688 camera samples up (32 x 32 x 456), 2,048
+ * below 131,072; pinhole_room's 1,428 and lamp_shade's 1,786 are always kept. The floor: at
+ * 262,144 (1,024 jobs) pinhole_room's 32 x 32 RMSE rose 2-22% (seeds 1-2, 16 and 64 spp, the
+ * same maps) for 0.05 CPU-s (measured by hand on 84ae036 with this rule).
  * LIMITS. A cell's table is the sum over a few points in it: where what a light sample can
  * reach changes within a cell (the window onto a lamp through a hole moves with the receiver),
  * the table covers the union, so guided samples pass less often than at one point. Cells the
@@ -136,8 +138,8 @@ extern "C" {
 #define GUIDE_CELL_POINTS 2    /* light guide: stage-B points per cell of a blocked region */
 #define GUIDE_MIN_SHARE 0.25   /* light guide: plan on when blocked regions carry this share */
 #define GUIDE_B_PER_SAMPLE 4   /* light guide: stage-B probes per camera sample, at most (STAGE B'S SIZE) */
-#define GUIDE_B_MIN 262144     /* light guide: stage-B probes always allowed (1024 jobs of G^2) */
-#define GUIDE_B_SAY "4 probes a camera sample, at least 262144" /* the two above, in the plan's line */
+#define GUIDE_B_MIN 524288     /* light guide: stage-B probes always allowed (2048 jobs of G^2) */
+#define GUIDE_B_SAY "4 probes a camera sample, at least 524288" /* the two above, in the plan's line */
 
 typedef struct guide_grid {
     vec3 lo;  /* the scene's lower bound, less a margin */
