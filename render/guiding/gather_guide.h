@@ -108,14 +108,19 @@
  * costs about half a camera sample), GG_G^2 probes a point, between GG_MIN_JOBS (96) and
  * GG_MAX_JOBS (768) of the points picked (evenly, as they are picked): 768 points (786,432
  * probes) from 786,432 camera samples up, 96 (98,304 probes) at 98,304 and below (32 x 32 x 96).
+ * When the smaller pilot's answer rests on fewer than GG_CLEAR_LINES (64) bright rays (a patch's
+ * hits after its outliers are dropped, else all bright rays), the full pilot runs on all the
+ * picked points, on the same streams, so its answer is the 768-point pilot's (at the cost of the
+ * smaller pilot on top of it): lamp_shade at 96 x 96 x 16 found a patch of radius 53 on 29
+ * rays with 144 points, and now finds the full pilot's (radius 111, 563 rays); the line says so.
  * The cheap test keeps all the picked points, and so does a pilot looking for an opening (starved
- * points: at 96 points pinhole_room_no_ports's 8 x 8 test found 12 bright rays, too few). A render in passes (--time, --passes) is sized by
- * its first pass (the pilot runs once, before it). Measured by hand on 84ae036 with this rule,
- * 16 x 16 x 16 (the scenes' own size): 96 points find the same patch as 768 on lamp_shade
- * (centre within 7 of (199, 152, 200), radius 104-106 against 109) and sun_window (within 1,
- * radius 33.7-34 against 35.1), photon seeds 1-3; at 48 lamp_shade's bright hits were too few
- * to fit one. The pilot at 32 x 32 x 4: lamp_shade 0.96-1.55 -> 0.15 CPU-s, sun_window
- * 1.10-1.36 -> 0.19.
+ * points: at 96 points pinhole_room_no_ports's 8 x 8 test found 12 bright rays, too few). A
+ * render in passes (--time, --passes) is sized by its first pass (the pilot runs once, before
+ * it). Measured by hand on 84ae036 with this rule, 16 x 16 x 16 (the scenes' own size): 96
+ * points find the same patch as 768 on lamp_shade (centre within 7 of (199, 152, 200), radius
+ * 104-106 against 109) and sun_window (within 1, radius 33.7-34 against 35.1), photon seeds
+ * 1-3; at 48 lamp_shade's bright hits were too few to fit one. The pilot at 32 x 32 x 4:
+ * lamp_shade 0.96-1.55 -> 0.15-0.19 CPU-s, sun_window 1.10-1.36 -> 0.17-0.19.
  * LIMITS. One opening: rays through two are fitted as one, or, if they do not meet, none
  * (unbiased either way). The light samples at the gather hits are the light guide's (guide.h).
  * The caller turns it off (off_why) with media (the probes do not march), without a final

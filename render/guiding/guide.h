@@ -158,6 +158,11 @@ typedef struct guide_cell_ref {
 } guide_cell_ref;
 int guide_cell_ref_cmp(const void *a, const void *b);
 
+/* want of the n jobs (jp[k], js[k]), evenly in their order (k = j n / want), into tp and ts (which
+ * may be jp and js themselves); how many: n if want >= n. The pilots sized by the render (STAGE
+ * B'S SIZE; gather_guide.h, THE PILOT'S SIZE) thin their jobs so. */
+size_t guide_thin(const size_t *jp, const int *js, size_t n, size_t want, size_t *tp, int *ts);
+
 /* One learned row: G^2 values (stratum k = i + G j, i along u1) for (cell, slot). */
 typedef struct guide_row {
     uint64_t cell;

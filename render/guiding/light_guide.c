@@ -258,7 +258,8 @@ int guide_light_wanted(int force, const guide_light_pilot *pl) {
 /* STAGE B'S SIZE (guide.h): of nj jobs, how many the render s's camera is set for pays for. */
 size_t guide_light_jobs(const scene *s, size_t nj) {
     const double G2 = (double)GUIDE_G * GUIDE_G;
-    double probes = fmax(GUIDE_B_PER_SAMPLE * (double)s->cam.width * (double)s->cam.height * (double)s->cam.spp, GUIDE_B_MIN);
+    double samples = (double)s->cam.width * (double)s->cam.height * (double)s->cam.spp;
+    double probes = fmax(GUIDE_B_PER_SAMPLE * samples, GUIDE_B_MIN);
     double want = floor(probes / G2);
     return want >= (double)nj ? nj : (size_t)want;
 }
@@ -266,14 +267,8 @@ size_t guide_light_jobs(const scene *s, size_t nj) {
 guide *guide_light_learn(const scene *s, guide_light_pilot *pl, size_t max_jobs) {
     if (!pl->ran || pl->rc < 0 || pl->nj == 0) return NULL;
     /* Evenly in (point, light) order, which stays sorted as guide_learn_jobs wants. */
-    size_t want = max_jobs && max_jobs < pl->nj ? max_jobs : pl->nj;
     pl->e.jobs_all = pl->nj;
-    for (size_t j = 0; want < pl->nj && j < want; j++) {
-        pl->jp[j] = pl->jp[j * pl->nj / want];
-        pl->js[j] = pl->js[j * pl->nj / want];
-    }
-    pl->nj = want;
-    pl->e.jobs = want;
+    pl->nj = pl->e.jobs = guide_thin(pl->jp, pl->js, pl->nj, max_jobs ? max_jobs : pl->nj, pl->jp, pl->js);
     guide *gd = malloc(sizeof *gd);
     if (!gd || guide_learn_jobs_spread(gd, s, &pl->grid, GUIDE_G, GUIDE_ALPHA, pl->pts, pl->jp, pl->js, pl->nj,
                                        light_probe, NULL, pl->seed, 0, &pl->e.probes) < 0) {
