@@ -23,6 +23,8 @@
 #define GG_PATHS 4096
 #define GG_CELL_POINTS 4
 #define GG_MAX_JOBS 768
+#define GG_MIN_JOBS 96 /* THE PILOT'S SIZE (gather_guide.h): at least this many points */
+#define GG_CLEAR_LINES 64 /* THE PILOT'S SIZE: a smaller pilot's answer stands on this many bright rays */
 #define GG_BOUNCES 4
 #define GG_OUTLIER 16
 #define GG_MIN_LINES 16
@@ -302,11 +304,13 @@ static int gg_find_patch(const size_t nj, const gg_probe *pr, const double *v, s
  * hits: 1 with gg's centre, radius and lit set, and its evidence in pw; 0 with why not in pw
  * ("; no bright patch..."). size: the scene's largest side. */
 static int gg_patch(gather_guide *gg, size_t nj, const gg_probe *pr, const double *v, size_t G2, double all,
-                    double size, char *pw, size_t cap) {
+                    double size, char *pw, size_t cap, size_t *hits) {
     size_t n = 0;
     double share = 0, rms = 0;
     vec3 c = v3s(0);
-    if (!gg_find_patch(nj, pr, v, G2, all, &c, &rms, &n, &share)) {
+    int found = gg_find_patch(nj, pr, v, G2, all, &c, &rms, &n, &share);
+    *hits = n;
+    if (!found) {
         snprintf(pw, cap, "; no bright patch (too few bright hits)");
         return 0;
     }
@@ -342,6 +346,13 @@ static void gg_pick_points(const guide_grid *grid, const guide_point *pts, size_
         *nj = GG_MAX_JOBS;
     }
     for (size_t j = 0; j < *nj; j++) jc[j] = gg_cell_index(ck, *ncell, guide_cell(grid, pts[jp[j]].h.p, pts[jp[j]].n));
+}
+
+/* THE PILOT'S SIZE (gather_guide.h): the full pilot's points for the render s's camera is set
+ * for, at most its camera samples' worth of probes, within [GG_MIN_JOBS, GG_MAX_JOBS]. */
+size_t gather_guide_pilot_points(const scene *s) {
+    const double n = ceil((double)s->cam.width * (double)s->cam.height * (double)s->cam.spp / ((double)GG_G * GG_G));
+    return n >= GG_MAX_JOBS ? GG_MAX_JOBS : n <= GG_MIN_JOBS ? GG_MIN_JOBS : (size_t)n;
 }
 
 /* One probe per stratum of each chosen point, jittered, into pr[j GG_G^2 + stratum]; each point on
@@ -445,6 +456,34 @@ static size_t gg_starved(const gather_guide_probe *probe, const scene *s, const 
     return starved;
 }
 
+/* A round of the pilot (THE PILOT'S SIZE): nj points tp (cells tc) probed into gl, and what they fit: an
+ * opening, else (patches: the scene has ports) a bright patch (gg's disc; evidence in f->pw). 0, or PM_ENOMEM. */
+typedef struct gg_fit {
+    size_t nline, hits; /* bright rays; the patch's bright hits (outliers dropped) */
+    double all, bright, rms;
+    vec3 c, lit;
+    int opening, patch;
+    char pw[224];
+} gg_fit;
+static int gg_round(const gather_guide_probe *probe, const scene *s, const guide_grid *grid, const uint64_t *ck,
+                    size_t ncell, const guide_point *pts, const size_t *tp, const int *tc, size_t nj, int patches,
+                    double size, gather_guide *gg, gg_light *gl, gg_fit *f) {
+    const size_t G2 = (size_t)GG_G * GG_G;
+    gg_light_free(gl);
+    memset(f, 0, sizeof *f);
+    if (gg_light_alloc(gl, nj, G2, ncell) < 0) return PM_ENOMEM;
+    gg_probe_points(probe, s, grid, ck, ncell, pts, tp, nj, gl->pr, GG_G, 1);
+    gg_cell_light(gl, tc, nj, ncell, G2);
+    /* The opening: rays that read the map and carry over 1/GG_OUTLIER of their point's light. */
+    int fit = gg_find_opening(pts, tp, nj, gl->pr, gl->v, G2, &f->nline, &f->all, &f->bright, &f->c, &f->rms,
+                              &f->lit);
+    if (fit < 0) return PM_ENOMEM;
+    f->opening = fit && f->nline >= GG_MIN_LINES && GG_AP_SPREAD * f->rms <= 0.02 * size && f->rms > 0;
+    f->patch = !f->opening && patches &&
+               gg_patch(gg, nj, gl->pr, gl->v, G2, f->all, size, f->pw, sizeof f->pw, &f->hits);
+    return 0;
+}
+
 int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *why,
                       const gather_guide_probe *probe, char *err, size_t errcap) {
     gg->on = 0;
@@ -485,9 +524,10 @@ int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *w
     guide_cell_ref *pk = malloc(n1 * sizeof *pk);
     uint64_t *ck = malloc(n1 * sizeof *ck);
     size_t *jp = malloc(n1 * sizeof *jp);
-    int *jc = malloc(n1 * sizeof *jc);
+    int *jc = malloc(n1 * sizeof *jc), *tc = malloc(n1 * sizeof *tc);
+    size_t *tp = malloc(n1 * sizeof *tp); /* the points a round probes */
     gg_light gl = {0};
-    if (!pk || !ck || !jp || !jc) goto oom;
+    if (!pk || !ck || !jp || !jc || !tp || !tc) goto oom;
     gg_pick_points(&grid, pts, npts, pk, ck, &ncell, jp, jc, &nj);
     double size = v3_maxc(v3_sub(s->bounds_hi, s->bounds_lo));
     if (force != PLAN_ON && patches && !starving) { /* THE CHEAP TEST */
@@ -500,46 +540,47 @@ int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *w
             goto done;
         }
     }
-    if (gg_light_alloc(&gl, nj, G2, ncell) < 0) goto oom;
-    const gg_probe *pr = gl.pr;
-    const double *v = gl.v;
-    gg_probe_points(probe, s, &grid, ck, ncell, pts, jp, nj, gl.pr, GG_G, 1);
-    gg_cell_light(&gl, jc, nj, ncell, G2);
-    /* The opening: rays that read the map and carry over 1/GG_OUTLIER of their point's light. */
-    size_t nline = 0;
-    double all = 0, bright = 0, rms = 0;
-    vec3 c = v3s(0);
-    vec3 lit = v3s(0);
-    int fit = gg_find_opening(pts, jp, nj, pr, v, G2, &nline, &all, &bright, &c, &rms, &lit);
-    if (fit < 0) goto oom;
-    int opening = fit && nline >= GG_MIN_LINES && GG_AP_SPREAD * rms <= 0.02 * size && rms > 0;
-    char pw[224] = "";
-    int patch = !opening && patches && gg_patch(gg, nj, pr, v, G2, all, size, pw, sizeof pw);
-    if (!patch) {
-        gg->centre = c;
-        gg->radius = GG_AP_SPREAD * rms;
-        gg->lit = lit;
+    size_t picked = nj, first_n = 0, first_lines = 0; /* first_*: a smaller pilot whose answer was unclear */
+    gg_fit f; /* THE PILOT'S SIZE: a patch's pilot as the render pays for, again on all points if unclear */
+    for (size_t want = !starving && force != PLAN_ON ? gather_guide_pilot_points(s) : nj;; want = picked) {
+        nj = guide_thin(jp, jc, picked, want, tp, tc);
+        if (gg_round(probe, s, &grid, ck, ncell, pts, tp, tc, nj, patches, size, gg, &gl, &f) < 0) goto oom;
+        size_t clear = f.patch ? f.hits : f.nline; /* the bright rays the answer rests on */
+        if (nj >= picked || clear >= GG_CLEAR_LINES) break;
+        first_n = nj;
+        first_lines = clear;
     }
-    gg->aim = opening || patch;
+    if (!f.patch) {
+        gg->centre = f.c;
+        gg->radius = GG_AP_SPREAD * f.rms;
+        gg->lit = f.lit;
+    }
+    gg->aim = f.opening || f.patch;
     gg->on = gg->aim || force == PLAN_ON;
-    char what[320];
-    if (patch)
-        snprintf(what, sizeof what, "no opening, but %s", pw);
-    else if (opening)
+    char what[320], sized[224] = "";
+    if (nj < picked)
+        snprintf(sized, sizeof sized, " (of %zu picked: at most the %d x %d x %d camera samples' worth of probes, "
+                 "at least %d points)", picked, s->cam.width, s->cam.height, s->cam.spp, GG_MIN_JOBS);
+    else if (first_n)
+        snprintf(sized, sizeof sized, " (all picked: the %d x %d x %d camera samples' %zu points found %zu bright "
+                 "rays, under %d)", s->cam.width, s->cam.height, s->cam.spp, first_n, first_lines, GG_CLEAR_LINES);
+    if (f.patch)
+        snprintf(what, sizeof what, "no opening, but %s", f.pw);
+    else if (f.opening)
         snprintf(what, sizeof what, "an opening at (%.4g, %.4g, %.4g), radius %.3g, its light along (%.2f, %.2f, %.2f): "
-                 "%zu rays that read the photon map meet there, carrying %.1f%% of the probed light",
-                 c.x, c.y, c.z, gg->radius, lit.x, lit.y, lit.z, nline, all > 0 ? 100 * bright / all : 0);
+                 "%zu rays that read the photon map meet there, carrying %.1f%% of the probed light", f.c.x, f.c.y,
+                 f.c.z, gg->radius, f.lit.x, f.lit.y, f.lit.z, f.nline, f.all > 0 ? 100 * f.bright / f.all : 0);
     else
-        snprintf(what, sizeof what, "no opening (%zu bright rays that read the photon map, %s)%s", nline,
-                 nline < GG_MIN_LINES ? "too few" : "not meeting within 2% of the scene's size", pw);
+        snprintf(what, sizeof what, "no opening (%zu bright rays that read the photon map, %s)%s", f.nline,
+                 f.nline < GG_MIN_LINES ? "too few" : "not meeting within 2% of the scene's size", f.pw);
     snprintf(gg->reason, sizeof gg->reason,
              "%s (%zu of %zu camera points find no precomputed irradiance; the pilot probed %zu points in %zu "
-             "cells, %zu probes: %s)",
+             "cells%s, %zu probes: %s)",
              force == PLAN_ON && !gg->aim ? "on (forced; no opening: gathers stay cosine)"
              : force == PLAN_ON           ? "on (forced)"
              : gg->on                     ? "on"
                                           : "off",
-             starved, cam, nj, ncell, nj * G2, what);
+             starved, cam, nj, ncell, sized, nj * G2, what);
     rc = 0;
     goto done;
 oom:
@@ -552,6 +593,8 @@ done:
     free(ck);
     free(jp);
     free(jc);
+    free(tp);
+    free(tc);
     gg_light_free(&gl);
     return rc;
 }

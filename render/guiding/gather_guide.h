@@ -102,6 +102,25 @@
  * 4 spp): bright rays meeting within 94 (an opening: 20), hits over radius 1090 (a patch: 300);
  * 2.82 CPU-s before, 1.64 after, the same image.
  *
+ * THE PILOT'S SIZE. Where it only looks for a bright patch (the camera points are not starved,
+ * the guide not forced), its probes serve the render's gather rays, so the full pilot probes at most
+ * the render's camera samples' worth (width x height x spp of the camera it is made for; a probe
+ * costs about half a camera sample), GG_G^2 probes a point, between GG_MIN_JOBS (96) and
+ * GG_MAX_JOBS (768) of the points picked (evenly, as they are picked): 768 points (786,432
+ * probes) from 786,432 camera samples up, 96 (98,304 probes) at 98,304 and below (32 x 32 x 96).
+ * When the smaller pilot's answer rests on fewer than GG_CLEAR_LINES (64) bright rays (a patch's
+ * hits after its outliers are dropped, else all bright rays), the full pilot runs on all the
+ * picked points, on the same streams, so its answer is the 768-point pilot's (at the cost of the
+ * smaller pilot on top of it): lamp_shade at 96 x 96 x 16 found a patch of radius 53 on 29
+ * rays with 144 points, and now finds the full pilot's (radius 111, 563 rays); the line says so.
+ * The cheap test keeps all the picked points, and so does a pilot looking for an opening (starved
+ * points: at 96 points pinhole_room_no_ports's 8 x 8 test found 12 bright rays, too few). A
+ * render in passes (--time, --passes) is sized by its first pass (the pilot runs once, before
+ * it). Measured by hand on 84ae036 with this rule, 16 x 16 x 16 (the scenes' own size): 96
+ * points find the same patch as 768 on lamp_shade (centre within 7 of (199, 152, 200), radius
+ * 104-106 against 109) and sun_window (within 1, radius 33.7-34 against 35.1), photon seeds
+ * 1-3; at 48 lamp_shade's bright hits were too few to fit one. The pilot at 32 x 32 x 4:
+ * lamp_shade 0.96-1.55 -> 0.15-0.19 CPU-s, sun_window 1.10-1.36 -> 0.17-0.19.
  * LIMITS. One opening: rays through two are fitted as one, or, if they do not meet, none
  * (unbiased either way). The light samples at the gather hits are the light guide's (guide.h).
  * The caller turns it off (off_why) with media (the probes do not march), without a final
@@ -134,7 +153,7 @@ typedef struct gather_guide {
     double radius;    /* the disc's radius */
     vec3 lit;         /* unit: the side the opening's light comes from (the pilot's lines through
                        * it, WHO AIMS); zero: not known, every point in front may aim */
-    char reason[640]; /* the decision and its evidence ("on (...)", "off (...)") */
+    char reason[768]; /* the decision and its evidence ("on (...)", "off (...)") */
     int stat_aimed;   /* a stats.h counter of aimed directions, or -1 (none) */
 } gather_guide;
 
@@ -167,6 +186,9 @@ void gather_guide_init(gather_guide *gg);
 /* Decide the guide for scene s and find its opening (see THE PILOT, DECISION). force is
  * PLAN_AUTO/ON/OFF (photon_settings.h); off_why, when not NULL, is why the caller cannot use it
  * (the reason then says so and no pilot runs). 0, or PM_ENOMEM with a message in err. */
+/* THE PILOT'S SIZE: how many points the full pilot probes for the render s's camera is set for. */
+size_t gather_guide_pilot_points(const scene *s);
+
 int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *off_why,
                       const gather_guide_probe *probe, char *err, size_t errcap);
 void gather_guide_free(gather_guide *gg);

@@ -82,6 +82,15 @@ int guide_cell_ref_cmp(const void *a, const void *b) {
     return x->k < y->k ? -1 : x->k > y->k;
 }
 
+size_t guide_thin(const size_t *jp, const int *js, size_t n, size_t want, size_t *tp, int *ts) {
+    size_t m = n <= want ? n : want;
+    for (size_t j = 0; j < m; j++) { /* j n / m >= j: in place reads ahead of what it writes */
+        tp[j] = jp[j * n / m];
+        ts[j] = js[j * n / m];
+    }
+    return m;
+}
+
 /* ---- building ----------------------------------------------------------------------------- */
 
 typedef struct row_ref {

@@ -88,6 +88,17 @@
  * noise (a seed's region means move by +-5% on both and do not move with more spp), not the
  * gathers' light samples, so it was not kept.
  *
+ * STAGE B'S SIZE. Its tables serve the render's light samples, so stage B probes at most
+ * GUIDE_B_PER_SAMPLE (4) per camera sample of the render the camera is set for (width x height x
+ * spp; a render in passes: its first pass), and at least GUIDE_B_MIN (524,288, about 0.15 CPU-s):
+ * of the jobs stage A made, evenly in (point, light) order, floor(that / G^2) (guide_light_jobs;
+ * the plan's learn; guide_light_make, for tests and callers without a render size, keeps all).
+ * The decision (stage A's) is unchanged; cells whose jobs are dropped sample uniformly (no gain,
+ * no loss). Of the shipped scenes that plan it on, only door_ajar's is cut (at its own size,
+ * 32 x 32 x 16, too): its 7,292 jobs (1.87M probes) are all kept from 466,688 camera samples up (32 x 32 x 456), 2,048
+ * below 131,072; pinhole_room's 1,428 and lamp_shade's 1,786 are always kept. The floor: at
+ * 262,144 (1,024 jobs) pinhole_room's 32 x 32 RMSE rose 2-22% (seeds 1-2, 16 and 64 spp, the
+ * same maps) for 0.05 CPU-s (measured by hand on 84ae036 with this rule).
  * LIMITS. A cell's table is the sum over a few points in it: where what a light sample can
  * reach changes within a cell (the window onto a lamp through a hole moves with the receiver),
  * the table covers the union, so guided samples pass less often than at one point. Cells the
@@ -126,6 +137,9 @@ extern "C" {
 #define GUIDE_PASS_MAX 0.5     /* light guide: a region is blocked below this pass share */
 #define GUIDE_CELL_POINTS 2    /* light guide: stage-B points per cell of a blocked region */
 #define GUIDE_MIN_SHARE 0.25   /* light guide: plan on when blocked regions carry this share */
+#define GUIDE_B_PER_SAMPLE 4   /* light guide: stage-B probes per camera sample, at most (STAGE B'S SIZE) */
+#define GUIDE_B_MIN 524288     /* light guide: stage-B probes always allowed (2048 jobs of G^2) */
+#define GUIDE_B_SAY "4 probes a camera sample, at least 524288" /* the two above, in the plan's line */
 
 typedef struct guide_grid {
     vec3 lo;  /* the scene's lower bound, less a margin */
@@ -143,6 +157,11 @@ typedef struct guide_cell_ref {
     size_t k;
 } guide_cell_ref;
 int guide_cell_ref_cmp(const void *a, const void *b);
+
+/* want of the n jobs (jp[k], js[k]), evenly in their order (k = j n / want), into tp and ts (which
+ * may be jp and js themselves); how many: n if want >= n. The pilots sized by the render (STAGE
+ * B'S SIZE; gather_guide.h, THE PILOT'S SIZE) thin their jobs so. */
+size_t guide_thin(const size_t *jp, const int *js, size_t n, size_t want, size_t *tp, int *ts);
 
 /* One learned row: G^2 values (stratum k = i + G j, i along u1) for (cell, slot). */
 typedef struct guide_row {
@@ -254,6 +273,7 @@ typedef struct guide_light_evidence {
     double blocked_pass;              /* share of the unshadowed light that passes there */
     unsigned long long probes;        /* stage-B probes */
     size_t tables;                    /* (cell, light) tables built */
+    size_t jobs, jobs_all;            /* stage-B jobs (point, light) probed, of those stage A made */
 } guide_light_evidence;
 
 /* The light guide in its steps, for a caller that runs its pilot with others and decides
@@ -280,7 +300,9 @@ const char *guide_light_skip(const scene *s, int force, int usable);
 void guide_light_pilot_run(const scene *s, guide_light_pilot *pl);
 void guide_light_pilot_free(guide_light_pilot *pl);
 int guide_light_wanted(int force, const guide_light_pilot *pl);
-guide *guide_light_learn(const scene *s, guide_light_pilot *pl);
+size_t guide_light_jobs(const scene *s, size_t nj);
+/* max_jobs: stage B's jobs at most (0: all; the plan passes guide_light_jobs, STAGE B'S SIZE). */
+guide *guide_light_learn(const scene *s, guide_light_pilot *pl, size_t max_jobs);
 void guide_light_say(int force, const char *skip, const guide_light_pilot *pl, const guide *gd, int *on,
                      char *reason, size_t cap);
 

@@ -255,8 +255,20 @@ int guide_light_wanted(int force, const guide_light_pilot *pl) {
     return force == PLAN_ON || (pl->e.blocked > 0 && pl->e.blocked_share >= GUIDE_MIN_SHARE);
 }
 
-guide *guide_light_learn(const scene *s, guide_light_pilot *pl) {
+/* STAGE B'S SIZE (guide.h): of nj jobs, how many the render s's camera is set for pays for. */
+size_t guide_light_jobs(const scene *s, size_t nj) {
+    const double G2 = (double)GUIDE_G * GUIDE_G;
+    double samples = (double)s->cam.width * (double)s->cam.height * (double)s->cam.spp;
+    double probes = fmax(GUIDE_B_PER_SAMPLE * samples, GUIDE_B_MIN);
+    double want = floor(probes / G2);
+    return want >= (double)nj ? nj : (size_t)want;
+}
+
+guide *guide_light_learn(const scene *s, guide_light_pilot *pl, size_t max_jobs) {
     if (!pl->ran || pl->rc < 0 || pl->nj == 0) return NULL;
+    /* Evenly in (point, light) order, which stays sorted as guide_learn_jobs wants. */
+    pl->e.jobs_all = pl->nj;
+    pl->nj = pl->e.jobs = guide_thin(pl->jp, pl->js, pl->nj, max_jobs ? max_jobs : pl->nj, pl->jp, pl->js);
     guide *gd = malloc(sizeof *gd);
     if (!gd || guide_learn_jobs_spread(gd, s, &pl->grid, GUIDE_G, GUIDE_ALPHA, pl->pts, pl->jp, pl->js, pl->nj,
                                        light_probe, NULL, pl->seed, 0, &pl->e.probes) < 0) {
@@ -295,11 +307,12 @@ void guide_light_say(int force, const char *skip, const guide_light_pilot *pl, c
         *on = 1;
         snprintf(reason, cap,
                  "%s: in %zu of %zu lit regions %.1f%% of the unshadowed light passes, and they carry "
-                 "%.0f%% of the light that passes; %llu probes made %zu tables in %zu cells (pilot: "
-                 "%zu points, %llu light samples, %.1f%% pass)",
+                 "%.0f%% of the light that passes; %llu probes (%zu of %zu jobs%s) made %zu tables in %zu cells "
+                 "(pilot: %zu points, %llu light samples, %.1f%% pass)",
                  force == PLAN_ON ? "forced by photon_mapping.light_guide" : "light samples are mostly blocked",
-                 e.blocked, e.cells, 100 * e.blocked_pass, 100 * e.blocked_share, e.probes, gd->ntables, gd->ncells,
-                 e.points, e.samples, 100 * rate);
+                 e.blocked, e.cells, 100 * e.blocked_pass, 100 * e.blocked_share, e.probes, e.jobs, e.jobs_all,
+                 e.jobs < e.jobs_all ? ": at most " GUIDE_B_SAY : "", gd->ntables, gd->ncells, e.points, e.samples,
+                 100 * rate);
         return;
     }
     /* Nothing to learn from: say so, rather than "mostly pass" over evidence of none. */
@@ -328,7 +341,7 @@ guide *guide_light_make(const scene *s, int force, int usable, int *on, char *re
     memset(&pl, 0, sizeof pl);
     const char *skip = guide_light_skip(s, force, usable);
     if (!skip) guide_light_pilot_run(s, &pl);
-    guide *gd = guide_light_wanted(force, &pl) && pl.rc == 0 ? guide_light_learn(s, &pl) : NULL;
+    guide *gd = guide_light_wanted(force, &pl) && pl.rc == 0 ? guide_light_learn(s, &pl, 0) : NULL;
     guide_light_say(force, skip, &pl, gd, on, reason, cap);
     if (ev) *ev = pl.e;
     guide_light_pilot_free(&pl);

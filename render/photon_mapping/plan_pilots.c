@@ -222,7 +222,7 @@ int plan_make(const scene *s, const photon_settings *c, int preview, render_plan
     }
     plan_decide(c, preview, pl, p);
     /* The tracer the plan drives itself: the light guide's tables, when it wants them. */
-    guide *gd = p->light_guide.on ? guide_light_learn(pl->s, &pl->guide) : NULL;
+    guide *gd = p->light_guide.on ? guide_light_learn(pl->s, &pl->guide, guide_light_jobs(pl->s, pl->guide.nj)) : NULL;
     plan_light_guide(c, pl, gd, p);
     plan_pilots_free(pl);
     free(pl);

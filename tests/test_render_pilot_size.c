@@ -1,0 +1,114 @@
+/* test_render_pilot_size.c: the plan's pilots sized by the render they serve: the gather guide's
+ * patch pilot (gather_guide.h, THE PILOT'S SIZE) and the light guide's stage B (guide.h, STAGE
+ * B'S SIZE).
+ *
+ * Oracles: the stated formulas, evaluated by hand for cameras of known size; and the plan's
+ * decisions on shipped scenes at their own size, from the render program's own plan lines: the
+ * 768-point pilot (before the rule) found lamp_shade's bright patch at (199.2, 151.9, 200.4),
+ * radius 109, and sun_window's at (260.9, 0, 155.9), radius 35.1 (photon seed 1, 16 x 16 x 16);
+ * the smaller pilot must find a patch there too (centre within a quarter of that radius, radius
+ * within 25%), and door_ajar's light guide (decided by stage A) must stay on.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "test.h"
+#include "test_render_run.h"
+#include "../render/guiding/gather_guide.h"
+#include "../render/guiding/guide.h"
+#include "../render/scene/scene.h"
+
+static scene sized(int w, int h, int spp) {
+    scene s;
+    memset(&s, 0, sizeof s);
+    s.cam.width = w;
+    s.cam.height = h;
+    s.cam.spp = spp;
+    return s;
+}
+
+/* Oracle: points = ceil(w h spp / 1024) within [96, 768]. */
+TEST(render_pilot_size_gather_guide_formula) {
+    const struct { int w, h, spp; size_t want; } c[] = {
+        {16, 16, 16, 96},   /* 4096 samples: the floor */
+        {32, 32, 4, 96},    /* 4096 */
+        {32, 32, 96, 96},   /* 98304: exactly the floor's probes */
+        {64, 64, 64, 256},  /* 262144 / 1024 */
+        {96, 96, 16, 144},  /* 147456 / 1024 */
+        {100, 100, 10, 98}, /* 100000 / 1024 = 97.7: up */
+        {96, 96, 100, 768}, /* 921600: the ceiling */
+        {512, 512, 256, 768},
+    };
+    for (size_t i = 0; i < sizeof c / sizeof c[0]; i++) {
+        scene s = sized(c[i].w, c[i].h, c[i].spp);
+        size_t got = gather_guide_pilot_points(&s);
+        EXPECT_MSG(got == c[i].want, "%d x %d x %d: %zu points, want %zu", c[i].w, c[i].h, c[i].spp, got,
+                   c[i].want);
+    }
+}
+
+/* Oracle: jobs = min(nj, floor(max(4 w h spp, 524288) / 256)). */
+TEST(render_pilot_size_light_guide_formula) {
+    const struct { int w, h, spp; size_t nj, want; } c[] = {
+        {32, 32, 4, 7292, 2048},    /* the floor: 524288 / 256 */
+        {32, 32, 4, 1428, 1428},    /* fewer jobs than the floor (pinhole_room): all */
+        {32, 32, 128, 7292, 2048},  /* 4 x 131072 = 524288 */
+        {32, 32, 200, 7292, 3200},  /* 4 x 204800 / 256 */
+        {32, 32, 456, 7292, 7292},  /* 1867776 / 256 = 7296 >= 7292: all */
+        {96, 96, 64, 100000, 9216}, /* 4 x 589824 / 256 */
+    };
+    for (size_t i = 0; i < sizeof c / sizeof c[0]; i++) {
+        scene s = sized(c[i].w, c[i].h, c[i].spp);
+        size_t got = guide_light_jobs(&s, c[i].nj);
+        EXPECT_MSG(got == c[i].want, "%d x %d x %d, %zu jobs: %zu kept, want %zu", c[i].w, c[i].h, c[i].spp,
+                   c[i].nj, got, c[i].want);
+    }
+}
+
+/* The plan line starting with key of a shipped scene rendered at its own size (size NULL) or
+ * with the options size, seed 1. */
+static int plan_line(const char *name, const char *size, const char *key, char *line, size_t cap) {
+    char cmd[4096], out[32768];
+    snprintf(cmd, sizeof cmd,
+             "%s/render '%s/data/scenes/%s.json' --mode pm %s --threads 2 --seed 1 --quiet --hdr '%s/%s.pfm'",
+             pm_test_build_dir(), pm_test_source_dir(), name, size ? size : "", pm_test_tmpdir(), name);
+    int rc = pm_test_run(cmd, out, sizeof out);
+    const char *p = strstr(out, key);
+    line[0] = 0;
+    if (p)
+        snprintf(line, cap, "%.*s", (int)strcspn(p, "\n"), p);
+    else
+        printf("    %s printed no \"%s\" line:\n%.2000s\n", name, key, out);
+    return rc;
+}
+
+/* Oracle: the 768-point pilot's patches (the file's comment; at 96 x 96 x 16 lamp_shade's 144
+ * points found 29 bright hits, so the full pilot runs there and must say so). */
+TEST(render_pilot_size_same_decisions_at_own_size) {
+    const struct { const char *name, *size, *pilot; double x, y, z, r; } c[] = {
+        {"lamp_shade", NULL, "the pilot probed 96 points", 199.2, 151.9, 200.4, 109},
+        {"sun_window", NULL, "the pilot probed 96 points", 260.9, 0, 155.9, 35.1},
+        {"lamp_shade", "--width 96 --height 96 --spp 16", "the pilot probed 768 points in 1883 cells (all picked: ",
+         199.1, 151.4, 198.6, 111},
+    };
+    char line[1024];
+    for (size_t i = 0; i < sizeof c / sizeof c[0]; i++) {
+        ASSERT_EQ_INT(plan_line(c[i].name, c[i].size, "gather guide: ", line, sizeof line), 0);
+        printf("    %s: %s\n", c[i].name, line);
+        EXPECT_MSG(strncmp(line, "gather guide: on", 16) == 0, "%s: %s", c[i].name, line);
+        EXPECT_MSG(strstr(line, c[i].pilot) != NULL, "%s: not \"%s\": %s", c[i].name, c[i].pilot, line);
+        const char *q = strstr(line, "a bright patch (the scene has photon ports) at (");
+        ASSERT_MSG(q != NULL, "%s: no patch: %s", c[i].name, line);
+        double x, y, z, r;
+        ASSERT(sscanf(q, "a bright patch (the scene has photon ports) at (%lf, %lf, %lf), radius %lf", &x, &y, &z,
+                      &r) == 4);
+        double d = sqrt((x - c[i].x) * (x - c[i].x) + (y - c[i].y) * (y - c[i].y) + (z - c[i].z) * (z - c[i].z));
+        EXPECT_MSG(d <= c[i].r / 4, "%s: centre %.3g from the full pilot's (at most %.3g)", c[i].name, d, c[i].r / 4);
+        EXPECT_MSG(fabs(r / c[i].r - 1) <= 0.25, "%s: radius %.3g, the full pilot's %.3g", c[i].name, r, c[i].r);
+    }
+    ASSERT_EQ_INT(plan_line("door_ajar", NULL, "light guide: ", line, sizeof line), 0);
+    printf("    door_ajar: %s\n", line);
+    EXPECT_MSG(strncmp(line, "light guide: on (light samples are mostly blocked", 49) == 0, "door_ajar: %s", line);
+    EXPECT_MSG(strstr(line, "(2048 of 7292 jobs") != NULL, "door_ajar: stage B not sized: %s", line);
+}
