@@ -85,7 +85,7 @@ echo "path tracing with \`--mode path\`. A scaled-down protocol (the full one is
 echo "the scenes' own size): $(m resolution)x$(m resolution) pixels, $(m threads) threads, budgets of"
 echo "$(m budgets) CPU-seconds (user + sys of the whole process: the photon pass and the plan's pilots"
 echo "count). The renderer's --time budget is wall-clock time, which a shared machine's load distorts, so each"
-echo "budget is met in CPU time by choosing spp from timing runs (path two, pm three: its photons grow with spp$(m refine | awk '$1 != "" { printf "; a run that spends under %d%% of its budget runs once more with more spp (those the timing slope adds for the rest of the budget, at most spp x budget / CPU time), one over 125%% runs once more at spp x budget / CPU time, and that run is kept", $1 * 100 }')); the runs are compared by the CPU"
+echo "budget is met in CPU time by choosing spp from timing runs (path two, pm three: its photons grow with spp$(m refine | awk '$1 != "" { printf "; a run that spends under %d%% of its budget runs once more with more spp (those the timing slope adds for the rest of the budget, at most spp x budget / CPU time)", $1 * 100 }')$(m rerun_over | awk '$1 != "" { printf ", one over %d%% runs once more at spp x budget / CPU time", $1 * 100 }')$(m refine | awk '$1 != "" { printf ", and that run is kept" }')); the runs are compared by the CPU"
 echo "time they really took."
 fi
 echo

@@ -52,6 +52,7 @@ res="${ET_RES:-96}"
 threads="${ET_THREADS:-2}"
 budgets="${ET_BUDGETS:-4 12 40}"
 refine=0.85 # a run under this share of its budget runs again (below)
+rerun_over=1.25 # a run over this share of its budget runs again at spp x budget / CPU
 scenes="${ET_SCENES:-cornell_box cornell_spheres water_caustic volumetric_caustic}"
 out="${ET_OUT:-$here/docs/results/equal_time}"
 refdir="${ET_REF_DIR:-$here/data/reference/et96}"
@@ -159,10 +160,10 @@ for name in $scenes; do
       # then costs at most the budget plus the fixed cost a): a slope read between timing runs
       # whose fixed costs differed (lamp_shade at 32x32: 16 and 400 spp cost 2.26 and 2.34
       # CPU-s) had run 27889 spp in 65.5 CPU-s for a budget of 8.
-      spp2=$(awk -v f="$refine" -v b="$b" -v c="$cpu" -v n="$spp_used" -v k="$slope" \
+      spp2=$(awk -v f="$refine" -v o="$rerun_over" -v b="$b" -v c="$cpu" -v n="$spp_used" -v k="$slope" \
         'BEGIN { p = c > 0 ? int(n * b / c) : n; m = n
                  if (c < f * b && k > 0) { m = int(n + (b - c) / k); if (m > p) m = p }
-                 else if (c > 1.25 * b) m = p
+                 else if (c > o * b) m = p
                  if (m < 1) m = 1
                  if (m > 1048576) m = 1048576
                  r = int(sqrt(m)); if (r * r < m) r++
@@ -213,6 +214,7 @@ done
   echo "threads $threads"
   echo "budgets $budgets"
   echo "refine $refine"
+  echo "rerun_over $rerun_over"
   for name in $scenes; do echo "ref_$name $(info "$name" spp) spp, seed $(info "$name" seed), $(info "$name" cpu_seconds) CPU-s, commit $(info "$name" commit)"; done
   # a scene whose light a path tracer cannot render (render warns: L S+ D paths from point or
   # directional lights): its path-traced reference misses that light, so no ratio against it holds
