@@ -355,10 +355,15 @@ int pm__fit_end(mapper_state *st, const scene *s) {
  * (side_cache_build_at: h 2 the quarter, 3 an eighth, 4 a sixteenth), h the lowest whose
  * estimates' counted work is at most PM_IRR_SHARE of the camera samples' (pixels x spp x the
  * sample pilot's work per sample), within [2, PM_IRR_HEIGHT_MAX] and with at least
- * PM_IRR_PER_DISC points in an estimate's disc (k_global / 2^h: a sixteenth at the default
- * k_global 100 has about 6, an eighth at 50, a quarter below 48). At a thirty-second the lookups finding no point
- * on their side rose from under 0.03% to 1% (cornell_box and cornell_spheres at 96x96, 64 spp),
- * at a sixty-fourth to 15%. Stage A (before the sample pilot gives the work per sample) takes
+ * PM_IRR_PER_DISC points in an estimate's disc (k_global / 2^h: an eighth at k_global 50 and
+ * more, a quarter below 48). At a thirty-second the lookups finding no point on their side
+ * rose from under 0.03% to 1% (cornell_box and cornell_spheres at 96x96, 64 spp), at a
+ * sixty-fourth to 15%. The limit is an eighth, not a sixteenth, for the bias: a lookup reads
+ * the nearest point, and points sit where photons are dense, so sparser points read brighter
+ * neighbours. cornell_spheres' ceiling at 32x32, 64 spp, one gather ray, seeds 12 to 19, against
+ * a 65,536-spp path-traced render: mean +1.62% at the quarter, +2.01% at an eighth, +2.55% at a
+ * sixteenth (seed 12: +3.09/+4.11/+4.49%; the sixteenth failed render_pm_agrees_with_path_tracing
+ * in the sanitized run). Stage A (before the sample pilot gives the work per sample) takes
  * PM_SAMPLE_WORK_MIN, about the least a shipped scene's sample costs (42 to 2,763 units in the
  * survey's plans, most 60 to 130), so it seldom computes more points than the fit then asks
  * for; where the fit keeps stage A's maps and asks for more, side_cache_refine adds them (the
@@ -369,7 +374,7 @@ int pm__fit_end(mapper_state *st, const scene *s) {
  * about 256 spp) nothing changes. Counted work, never seconds: the same points for any thread
  * count. Measured: README.md, "Photons fitted to the render". */
 #define PM_IRR_SHARE 0.2
-#define PM_IRR_HEIGHT_MAX 4
+#define PM_IRR_HEIGHT_MAX 3
 #define PM_IRR_PER_DISC 6.0
 #define PM_SAMPLE_WORK_MIN 64.0
 
