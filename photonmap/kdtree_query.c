@@ -239,7 +239,9 @@ PM__INLINE void knn_bucket(knn_state *s, const view *v, uint64_t node, int metri
          * r2 as it was on entry, with no branch; then the records of the mask in order, each
          * tested again against the current r2 (a push shrinks it), exactly as the scalar loop
          * would take them. (One pass, branching on each group of four and narrowing its mask
-         * after each push, was 0.95-0.97x this on clustered data: experiments.csv.) */
+         * after each push, was 0.95-0.97x this on clustered data: experiments.csv.)
+         * bench/experiments/midsplit.c holds a copy of this scan on purpose (a standalone
+         * experiment on its own tree layout, which must scan as the library does). */
         const __m128 qx = _mm_set1_ps(s->q[0]), qy = _mm_set1_ps(s->q[1]),
                      qz = _mm_set1_ps(s->q[2]);
         while (i + 4 <= e) {
@@ -419,6 +421,10 @@ PM__KNN_REC(knn_rec_ph_cnt, 0, 0, 1, 1)
 static void knn_iter_gen(knn_state *s, const view *v) { knn_iter(s, v, 0, 0, 0, 1); }
 static void knn_iter_ph(knn_state *s, const view *v) { knn_iter(s, v, 0, 0, 1, 0); }
 static void knn_iter_ph_cnt(knn_state *s, const view *v) { knn_iter(s, v, 0, 0, 1, 1); }
+/* The eight instances of the counting search, metric and filter chosen per query. The two
+ * halves repeat on purpose: the same dispatch written once through an always_inline helper
+ * taking ph compiles to a differently laid out function (objdump), a change of the
+ * pm_kdtree_knn_ex and nearest_if code that a pure refactor should not make. */
 static void knn_iter_general(knn_state *s, const view *v, int ph) {
     int metric = s->nrm != NULL, filter = s->filter != NULL;
     if (ph) {

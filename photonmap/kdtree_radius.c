@@ -120,6 +120,16 @@ static void rad_iter(rad_state *s, const view *v) {
     }
 }
 
+/* The search, and its counts added to stats (when given). */
+PM__INLINE void rad_run(rad_state *s, const pm_kdtree *t, pm_query_stats *stats) {
+    view v = make_view(t);
+    rad_iter(s, &v);
+    if (stats) {
+        stats->nodes_visited += s->nodes;
+        stats->dist_evals += s->evals;
+    }
+}
+
 static int rad_setup(rad_state *s, const pm_kdtree *t, const float q[3], float r2) {
     int rc = check_query(t, q, r2);
     if (rc < 0) return rc;
@@ -140,12 +150,7 @@ long pm_kdtree_radius(const pm_kdtree *tree, const float q[3], float r2, pm_neig
     if (!out && cap > 0) return PM_EINVAL;
     s.out = out;
     s.cap = cap;
-    view v = make_view(tree);
-    rad_iter(&s, &v);
-    if (stats) {
-        stats->nodes_visited += s.nodes;
-        stats->dist_evals += s.evals;
-    }
+    rad_run(&s, tree, stats);
     if ((flags & PM_SORT) && s.total <= cap) {
         if (s.total <= PM__SORT_KEYS_MAX) pm__nb_sort_keys(out, (unsigned)s.total);
         else pm__nb_sort(out, (size_t)s.total);
@@ -161,11 +166,6 @@ long pm_kdtree_radius_cb(const pm_kdtree *tree, const float q[3], float r2, pm_v
     if (rc <= 0) return rc;
     s.fn = fn;
     s.user = user;
-    view v = make_view(tree);
-    rad_iter(&s, &v);
-    if (stats) {
-        stats->nodes_visited += s.nodes;
-        stats->dist_evals += s.evals;
-    }
+    rad_run(&s, tree, stats);
     return (long)s.total;
 }
