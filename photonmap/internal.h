@@ -335,7 +335,10 @@ static PM__TARGET_AVX2 unsigned pm__rank_avx2(const int16_t *key, int16_t *rank,
  * keys A[0..G): out[u] = -(the number of keys kk[0..n) below each of A[u]'s keys). Eight keys
  * are broadcast from one load by an unpack and four shuffles each (one shuffle a key, against
  * three instructions for a _mm_set1_epi16 from memory), and every broadcast serves all G
- * vectors with G independent counters. */
+ * vectors with G independent counters. The repeated lines are deliberate: the eight counters
+ * are separate variables (registers, where an array could be spilled) and _mm_shuffle_epi32
+ * takes its lane as an immediate, so neither the counters nor the eight broadcasts can be a
+ * loop without leaving the unrolling to the compiler on the sort's hot path. */
 #define PM__RANK_STEP(b)                                                                         \
     do {                                                                                         \
         c0 = _mm_add_epi16(c0, _mm_cmpgt_epi16(A[0], b));                                        \

@@ -48,7 +48,7 @@ static int accept_normal(void *user, const void *record, uint32_t index) {
  * that the same records are offered to the predicate in the same order, plus one more cut: a
  * subtree is skipped when its cell's distance from x is >= its reach (REACH in irradiance.c), as every
  * record in it would fail the radius rule. The cell distance is the same float lower bound as
- * kdtree_query.c's box_dist2 (offset max(lo - x, x - hi, 0) per axis, squares summed x, y, z),
+ * kdtree_query_internal.h's box_dist2 (offset max(lo - x, x - hi, 0) per axis, squares summed x, y, z),
  * never above a record's own dist2 in accept_normal. */
 typedef struct reach_state {
     const pm_irradiance *irr;

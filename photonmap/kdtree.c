@@ -25,11 +25,12 @@
  *
  * DUPLICATES. A subtree whose records all share one position (zero extent) is marked with
  * axis code 3, "uniform", and is not split further: queries handle it as a single distance
- * (kdtree_query.c). When a node holds copies of its parent's split record (the median cut a
- * run of identical records), it keeps the parent's axis if it still has extent there: the
- * copies then sit at its boundary along that axis and gather into few uniform subtrees
- * instead of being scattered over many mixed nodes by splits on other axes. This lowers the
- * nodes a query visits next to a heavy duplicate (tests/test_kdtree_queries.c measures it).
+ * (kdtree_query.c, kdtree_radius.c). When a node holds copies of its parent's split record
+ * (the median cut a run of identical records), it keeps the parent's axis if it still has
+ * extent there: the copies then sit at its boundary along that axis and gather into few
+ * uniform subtrees instead of being scattered over many mixed nodes by splits on other
+ * axes. This lowers the nodes a query visits next to a heavy duplicate
+ * (tests/test_kdtree_queries.c measures it).
  */
 #include <math.h>
 #include <stdlib.h>

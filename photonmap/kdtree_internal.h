@@ -1,6 +1,6 @@
-/* kdtree_internal.h: the layout of a built pm_kdtree, shared by kdtree.c (build) and
- * kdtree_query.c (queries). Internal: nothing here is part of the public API, and every
- * name carries the pm__ prefix (or is a struct member).
+/* kdtree_internal.h: the layout of a built pm_kdtree, shared by kdtree.c (build) and the
+ * queries (kdtree_query.c, kdtree_radius.c, kdtree_query_internal.h). Internal: nothing here
+ * is part of the public API, and every name carries the pm__ prefix (or is a struct member).
  *
  * The tree is fully described by its depth D and the bucket fill (q, extra): see the SHAPE
  * paragraph at the top of kdtree.c. The axis of internal node p (record p - 1) is the low two

@@ -3,6 +3,9 @@
  * lattice), included by photon.c alone; photon.c's top comment says how they are made and
  * used. Static data in a header of its own so that photon.c stays short and the tables stay
  * constants of its translation unit (no initialization call, no lookup through another file).
+ * The tables share runs of values on purpose (sines and cosines of their bin angles repeat
+ * across them, up to order and sign): each is one direct load per decode, without the index
+ * arithmetic or sign fix that a shared table would put on the decoding path.
  */
 #ifndef PM_PHOTON_TABLES_INTERNAL_H
 #define PM_PHOTON_TABLES_INTERNAL_H

@@ -2,7 +2,7 @@
  * work bound.
  *
  * The searches skip a subtree when the squared distance from the query to the subtree's cell
- * is not below the current radius (kdtree_query.c, CELL DISTANCE). That pruning must never
+ * is not below the current radius (kdtree_query_internal.h, CELL DISTANCE). That pruning must never
  * lose a record, and it must make a query beside the data cost about what a query among the
  * data costs. Every test here states its oracle: a brute-force scan in the same float
  * arithmetic (test_kdtree_util.h), or, for the work bound, the same tree's work on an

@@ -28,7 +28,7 @@ int main(int argc, char **argv) {
     }
     pm_photon *photons = malloc(N * sizeof *photons);
     if (!photons) return 1;
-    unsigned seed = 1;
+    unsigned seed = 1; /* tests/test_example.c repeats these points as its oracle */
     for (int i = 0; i < N; i++) {
         seed = seed * 1664525u + 1013904223u;
         float x = (float)(seed >> 8) / 16777216.0f;
