@@ -136,20 +136,32 @@ static int counters_equal(const side_cache *a, const side_cache *b) {
            a->height == b->height && a->quarter == b->quarter;
 }
 
+/* The fixture of both oracles: FIT_SCENE, n photons of fit_map from seed, and the global map's
+ * tree with the renderer's buckets. 0, or -1 with a message (nothing left to free). */
+static int fit_setup(scene *s, photon_maps *m, pm_kdtree **t, size_t n, unsigned seed) {
+    json_err e;
+    if (scene_load_text(s, FIT_SCENE, &e) != 0) {
+        printf("    %s\n", e.msg);
+        return -1;
+    }
+    pm_test_rng r = {seed};
+    fit_map(m, n, &r);
+    char err[256];
+    if (m->global && photon_tree_build_global(t, m, 1, err, sizeof err) == 0) return 0;
+    printf("    %s\n", m->global ? err : "out of memory");
+    photon_maps_free(m);
+    scene_free(s);
+    return -1;
+}
+
 /* Oracle 1 above. */
 TEST(render_sides_refined_cache_equals_built) {
-    scene s;
-    json_err e;
-    ASSERT_MSG(scene_load_text(&s, FIT_SCENE, &e) == 0, "%s", e.msg);
     const size_t n = PM_TEST_SANITIZED ? 3000 : 12000;
     const int q = PM_TEST_SANITIZED ? 400 : 2000;
-    pm_test_rng r = {977};
+    scene s;
     photon_maps m;
-    fit_map(&m, n, &r);
-    ASSERT(m.global);
     pm_kdtree *t;
-    char err[256];
-    ASSERT_EQ_INT(photon_tree_build_global(&t, &m, 1, err, sizeof err), 0); /* the renderer's buckets */
+    ASSERT(fit_setup(&s, &m, &t, n, 977) == 0);
     int saved = 1;
 #ifdef _OPENMP
     saved = omp_get_max_threads();
@@ -199,18 +211,12 @@ TEST(render_sides_refined_cache_equals_built) {
 
 /* Oracle 2 above. */
 TEST(render_sides_fewer_points_answer_as_the_quarter_masked) {
-    scene s;
-    json_err e;
-    ASSERT_MSG(scene_load_text(&s, FIT_SCENE, &e) == 0, "%s", e.msg);
     const size_t n = PM_TEST_SANITIZED ? 3000 : 12000;
     const int q = PM_TEST_SANITIZED ? 400 : 3000;
-    pm_test_rng r = {1201};
+    scene s;
     photon_maps m;
-    fit_map(&m, n, &r);
-    ASSERT(m.global);
     pm_kdtree *t;
-    char err[256];
-    ASSERT_EQ_INT(photon_tree_build_global(&t, &m, 1, err, sizeof err), 0);
+    ASSERT(fit_setup(&s, &m, &t, n, 1201) == 0);
     side_cache quarter;
     ASSERT_EQ_INT(build_at(&quarter, &s, t, &m, 2), 0);
     float *r2m = malloc(n * sizeof *r2m);
