@@ -20,13 +20,7 @@
 #include "../render/load/scene_load.h"
 #include "../render/scene/scene.h"
 
-static const char *SIDES_SCENE =
-    "{\"camera\": {\"eye\": [0, -5, 3], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
-    " \"materials\": {\"white\": {\"type\": \"lambert\", \"reflectance\": 0.5}},"
-    " \"objects\": ["
-    "  {\"type\": \"quad\", \"vertices\": [[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]], \"material\": \"white\"},"
-    "  {\"type\": \"quad\", \"vertices\": [[0, -2, 0], [0, 2, 0], [0, 2, 1], [0, -2, 1]], \"material\": \"white\"},"
-    "  {\"type\": \"quad\", \"vertices\": [[-2, 0.5, 0], [2, 0.5, 0], [2, 0.5, 0.02], [-2, 0.5, 0.02]], \"material\": \"white\"}]}";
+#include "test_sides_scene.h"
 
 typedef struct sc_cand { float d2; uint32_t i; } sc_cand;
 static int sc_cmp(const void *a, const void *b) {

@@ -26,14 +26,7 @@
 #include <omp.h>
 #endif
 
-/* A floor -2..2 x -2..2, a tall wall at x = 0 (1 high) and a low wall at y = 0.5. */
-static const char *FIT_SCENE =
-    "{\"camera\": {\"eye\": [0, -5, 3], \"look_at\": [0, 0, 0], \"fov_deg\": 40, \"width\": 8, \"height\": 8},"
-    " \"materials\": {\"white\": {\"type\": \"lambert\", \"reflectance\": 0.5}},"
-    " \"objects\": ["
-    "  {\"type\": \"quad\", \"vertices\": [[-2, -2, 0], [2, -2, 0], [2, 2, 0], [-2, 2, 0]], \"material\": \"white\"},"
-    "  {\"type\": \"quad\", \"vertices\": [[0, -2, 0], [0, 2, 0], [0, 2, 1], [0, -2, 1]], \"material\": \"white\"},"
-    "  {\"type\": \"quad\", \"vertices\": [[-2, 0.5, 0], [2, 0.5, 0], [2, 0.5, 0.02], [-2, 0.5, 0.02]], \"material\": \"white\"}]}";
+#include "test_sides_scene.h"
 
 enum { FIT_K = 20 };
 static const float FIT_R2 = 0.1f;
@@ -136,11 +129,11 @@ static int counters_equal(const side_cache *a, const side_cache *b) {
            a->height == b->height && a->quarter == b->quarter;
 }
 
-/* The fixture of both oracles: FIT_SCENE, n photons of fit_map from seed, and the global map's
+/* The fixture of both oracles: SIDES_SCENE, n photons of fit_map from seed, and the global map's
  * tree with the renderer's buckets. 0, or -1 with a message (nothing left to free). */
 static int fit_setup(scene *s, photon_maps *m, pm_kdtree **t, size_t n, unsigned seed) {
     json_err e;
-    if (scene_load_text(s, FIT_SCENE, &e) != 0) {
+    if (scene_load_text(s, SIDES_SCENE, &e) != 0) {
         printf("    %s\n", e.msg);
         return -1;
     }
