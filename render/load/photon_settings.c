@@ -150,10 +150,11 @@ static const setting_def k_settings[] = {
      "progressive photon mapping (a photon mode rendered in passes, render --time or "
      "--passes): pass i+1's squared radii are pass i's times (i + alpha) / (i + 1), i = 1, 2, "
      "... (Knaus and Zwicker 2011); 1: the radii do not shrink"},
-    {"ppm_radius", ST_NUMBER, F(ppm_radius), 0, 0, 1000,
+    {"ppm_radius", ST_NUMBER, F(ppm_radius), 2, 0, 1000,
      "progressive photon mapping: the first pass's radius of the global and caustic estimates, "
      "in units of a k-photon estimate's radius at the map's mean density over the diffuse "
-     "area (at most the maximum radius); 0: the maximum radii of max_radius_global/_caustic"},
+     "area (at most the maximum radius), so that the passes' shrinking radii bind (README.md, "
+     "Progressive photon mapping); 0: the maximum radii of max_radius_global/_caustic"},
     {"ppm_lookup_shrink", ST_NUMBER, F(ppm_lookup_shrink), 3, 1, 10,
      "progressive photon mapping: the precomputed-irradiance lookup's squared radius shrinks "
      "as the estimates' squared radii to this power (pass p: pass 0's times the schedule's "

@@ -83,16 +83,18 @@ double side_disc_fraction(const scene *s, vec3 p, vec3 n, double r) {
 
 /* The disc estimate of irradiance from the photons nb[0..count) over the disc of radius^2
  * r2: with rim = 1 the farthest of them lies on the rim (a k-th nearest), and the area is
- * scaled by k / (k - 0.5) as pm_estimate's PM_BIAS_AREA does; with rim = 0 the whole disc
- * was searched and the area is used as it is. area_fraction: the part of the disc on this
- * side of every wall (1 without walls). Direct photons count in the radius but not in the
- * sum: the value is the indirect irradiance (see "Direct light" in photon_sides.h). */
+ * scaled by k / (k - 0.5) as pm_estimate's PM_BIAS_AREA does; with rim = 0 the area is used as
+ * it is. skip: the map photon the disc is centred on when the whole disc of the cap was
+ * searched, left out of the sum ("Fixed-radius estimates" in photon_sides.h); UINT32_MAX: none.
+ * area_fraction: the part of the disc on this side of every wall (1 without walls). Direct
+ * photons count in the radius but not in the sum: the value is the indirect irradiance (see
+ * "Direct light" in photon_sides.h). */
 static void disc_irradiance(const pm_photon *ph, const pm_neighbor *nb, int count, double r2,
-                            int rim, double area_fraction, float e[3]) {
+                            int rim, double area_fraction, uint32_t skip, float e[3]) {
     double sum[3] = {0, 0, 0};
     for (int j = 0; j < count; j++) {
         float pw[3];
-        if (pm_photon_kind(&ph[nb[j].index]) == PM_KIND_DIRECT) continue;
+        if (pm_photon_kind(&ph[nb[j].index]) == PM_KIND_DIRECT || nb[j].index == skip) continue;
         pm_rgbe_decode(ph[nb[j].index].power, pw);
         for (int c = 0; c < 3; c++) sum[c] += pw[c];
     }
@@ -152,8 +154,13 @@ static int precompute_at(side_cache *c, const scene *s, const pm_kdtree *global,
                 if (frac < 1.0 / SIDE_AREA_DIRS) frac = 1.0 / SIDE_AREA_DIRS;
             }
             float e[3];
-            disc_irradiance(ph, nb, found, r2, rim, frac, e);
-            int readable = side_estimate_readable(side_count_paths(path, nb, found, SIDE_MIN_PATHS, ids));
+            /* Fewer than k in the whole disc of the cap: a fixed-radius estimate, its centre
+             * left out and read whatever its paths ("Fixed-radius estimates" in
+             * photon_sides.h). Short of k after a wall, the disc ends at the last candidate
+             * examined, which the photons set: the paths rule holds there. */
+            int whole = !rim && reach2 >= max_dist2;
+            disc_irradiance(ph, nb, found, r2, rim, frac, whole ? which[j] : UINT32_MAX, e);
+            int readable = whole || side_estimate_readable(side_count_paths(path, nb, found, SIDE_MIN_PATHS, ids));
             r2v[which[j]] = readable ? (float)r2 : 0.0f;
             sparse += !readable;
             memcpy(&val[3 * (size_t)which[j]], e, sizeof e);
