@@ -26,9 +26,10 @@
 #define FURNACE_PM                                                                         \
     "'%s/data/scenes/furnace.json' --mode pm --pm global_photons=20000 --width 8 --height 8 " \
     "--pass-spp 4"
-#define BOX_PM                                                                             \
+#define BOX_PM_SCENE                                                                       \
     "'%s/data/scenes/cornell_spheres.json' --mode pm --pm global_photons=8000 --pm "       \
-    "caustic_photons=8000 --width 16 --height 16 --pass-spp 4"
+    "caustic_photons=8000 --width 16 --height 16"
+#define BOX_PM BOX_PM_SCENE " --pass-spp 4"
 
 /* The number after key in text (the first occurrence after from), or NAN. */
 static double num_after(const char *text, const char *key) {
@@ -298,6 +299,31 @@ TEST(render_progressive_threads_bit_identical) {
         if (!strstr(out, ", 2 threads,")) SKIP("a build without OpenMP renders one thread");
         EXPECT_MSG(rt_same_file("one.pfm", "two.pfm") && rt_same_file("one.png", "two.png"),
                    "%s: 1 and 2 threads differ", k ? "path" : "pm");
+    }
+}
+
+/* Oracle: the plain render (--spp), byte for byte. One pass is that render in path tracing,
+ * and in photon mapping with ppm_radius 0 (the caps); at the default start radius (2) pass 0's
+ * precomputed irradiance and caustic side map are made again at it, so its image differs
+ * (README.md, "A time budget, and passes"). BOX_PM at 4 spp, seed 3. */
+TEST(render_progressive_one_pass_is_the_plain_render) {
+    char out[65536];
+    static const struct {
+        const char *scene, *extra;
+        int same;
+    } cases[] = {{BOX_PM_SCENE, "--pm ppm_radius=0", 1},
+                 {BOX_PM_SCENE, "", 0},
+                 {"'%s/data/scenes/cornell_box.json' --width 16 --height 16", "", 1}};
+    for (int c = 0; c < 3; c++) {
+        char args[512];
+        snprintf(args, sizeof args, "--spp 4 --seed 3 --threads 2 --quiet --hdr plain.pfm -o plain.png %s",
+                 cases[c].extra);
+        ASSERT_MSG(rt_render(cases[c].scene, args, out, sizeof out) == 0, "%s", out);
+        snprintf(args, sizeof args, "--passes 1 --pass-spp 4 --seed 3 --threads 2 --quiet --hdr one.pfm -o one.png %s",
+                 cases[c].extra);
+        ASSERT_MSG(rt_render(cases[c].scene, args, out, sizeof out) == 0, "%s", out);
+        EXPECT_MSG(rt_same_file("plain.pfm", "one.pfm") == cases[c].same, "case %d (%s): one pass %s the plain render",
+                   c, cases[c].extra[0] ? cases[c].extra : "the defaults", cases[c].same ? "differs from" : "equals");
     }
 }
 
