@@ -270,6 +270,11 @@ if [ -f "$res/survey/runs.csv" ]; then
   echo
   sh "$here/scripts/gen-equal-time-md.sh" --survey "$res/survey"
 fi
+if [ -f "$res/survey96/runs.csv" ]; then
+  # The survey's misses measured again at 96x96 (scripts/make-survey.sh), with its own stamp.
+  echo
+  sh "$here/scripts/gen-equal-time-md.sh" --survey "$res/survey96"
+fi
 } > "$tmp"
 if [ "$doc" = - ]; then
   cat "$tmp"

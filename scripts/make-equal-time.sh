@@ -37,7 +37,10 @@
 # --pass-spp ET_PROG_SPP` (default 16) for N in ET_PROG_PASSES (default "1 4 16 64 256"), rows of mode
 # pm_passes whose budget column is N, for the error-against-time slope; the last (longest) run's
 # means over the image and a 3 x 3 grid of blocks against the reference's: regions_prog.csv
-# (scene, passes, region, pm_mean, ref_mean, rel_diff).
+# (scene, passes, region, pm_mean, ref_mean, rel_diff, seed). The whole chain runs once for
+# each seed in ET_PROG_SEEDS (default "7 8 9"): one run's fall from 64 to 256 passes spread
+# 1.78x to 2.19x between seeds 7 and 8 (water_caustic), so the consistency table gives each
+# seed's chain and their median. runs.csv's last column is each run's seed.
 #
 # Before and after: with ET_BEFORE_BIN=PATH (a render binary of an older commit) and
 # ET_BEFORE_NAME=TEXT (its commit, for the document), pm runs of that binary at each budget
@@ -85,14 +88,15 @@ trap 'rm -rf "$work"' EXIT
 mkdir -p "$out.partial"
 ln -s "$out.partial" "$work/out"
 echo "scene,mode,spp,cpu_s,wall_s" > "$work/out/calib.csv"
-echo "scene,mode,budget_cpu_s,spp,cpu_s,wall_s,rmse,ref_spp" > "$work/out/runs.csv"
-echo "scene,passes,region,pm_mean,ref_mean,rel_diff" > "$work/out/regions_prog.csv"
+echo "scene,mode,budget_cpu_s,spp,cpu_s,wall_s,rmse,ref_spp,seed" > "$work/out/runs.csv"
+echo "scene,passes,region,pm_mean,ref_mean,rel_diff,seed" > "$work/out/regions_prog.csv"
 
 maxb=$(echo "$budgets" | awk '{ m = 0; for (i = 1; i <= NF; i++) if ($i + 0 > m) m = $i + 0; print m }')
 before="${ET_BEFORE_BIN:-}"
 prog_scenes="${ET_PROG_SCENES-cornell_spheres water_caustic}"
 prog_passes="${ET_PROG_PASSES:-1 4 16 64 256}"
 prog_spp="${ET_PROG_SPP:-16}"
+prog_seeds="${ET_PROG_SEEDS:-7 8 9}"
 [ -z "$before" ] || [ -x "$before" ] || { echo "make-equal-time: ET_BEFORE_BIN=$before is not a program" >&2; exit 2; }
 
 # run NAME MODE SPP SEED [FLAGS...]: render; sets cpu, wall, spp_used; the image is
@@ -173,7 +177,7 @@ for name in $scenes; do
         run "$name" $mode "$spp2" $seed
       fi
       rmse=$("$bin" --compare "$work/img.pfm" "$refdir/$name.pfm" | awk '$1 == "rmse" { print $2 }')
-      echo "$name,$mode,$b,$spp_used,$cpu,$wall,$rmse,$refspp" >> "$work/out/runs.csv"
+      echo "$name,$mode,$b,$spp_used,$cpu,$wall,$rmse,$refspp,$seed" >> "$work/out/runs.csv"
       echo "make-equal-time: $name $mode budget $b CPU-s (timing: $s1 spp $c1, $s2 spp $c2${s3:+, $s3 spp $c3} CPU-s): $spp_used spp, $cpu CPU-s, $wall s, RMSE $rmse" >&2
     done
   done
@@ -181,12 +185,13 @@ done
 for name in $prog_scenes; do
   case " $scenes " in *" $name "*) ;; *) continue ;; esac
   refspp=$(info "$name" spp)
+  for pseed in $prog_seeds; do
   for n in $prog_passes; do
-    run "$name" pm - 7 --passes "$n" --pass-spp "$prog_spp"
+    run "$name" pm - "$pseed" --passes "$n" --pass-spp "$prog_spp"
     grep -E '^Pass 0:' "$work/log" | head -1 > "$work/out/passes_$name.txt"
     rmse=$("$bin" --compare "$work/img.pfm" "$refdir/$name.pfm" | awk '$1 == "rmse" { print $2 }')
-    echo "$name,pm_passes,$n,$((n * spp_used)),$cpu,$wall,$rmse,$refspp" >> "$work/out/runs.csv"
-    echo "make-equal-time: $name pm --passes $n --pass-spp $prog_spp: $cpu CPU-s, RMSE $rmse" >&2
+    echo "$name,pm_passes,$n,$((n * spp_used)),$cpu,$wall,$rmse,$refspp,$pseed" >> "$work/out/runs.csv"
+    echo "make-equal-time: $name pm --passes $n --pass-spp $prog_spp --seed $pseed: $cpu CPU-s, RMSE $rmse" >&2
   done
   # the longest run's region means against the reference (the consistency target: within 1%
   # at the longest time): the whole image and a 3 x 3 grid of blocks
@@ -198,15 +203,17 @@ for name in $prog_scenes; do
     esac
     # shellcheck disable=SC2086
     "$bin" --compare "$work/img.pfm" "$refdir/$name.pfm" $args |
-      awk -v s="$name" -v n="$n" -v r="$region" '{ v[$1] = $2 }
-        END { printf "%s,%s,%s,%.6g,%.6g,%.5f\n", s, n, r == "image" ? r : "block" r, v["mean_a"], v["mean_b"], v["rel_mean"] }' \
+      awk -v s="$name" -v n="$n" -v r="$region" -v seed="$pseed" '{ v[$1] = $2 }
+        END { printf "%s,%s,%s,%.6g,%.6g,%.5f,%s\n", s, n, r == "image" ? r : "block" r, v["mean_a"], v["mean_b"], v["rel_mean"], seed }' \
       >> "$work/out/regions_prog.csv"
+  done
   done
 done
 {
   echo "commit $stamp"
   [ -z "$before" ] || echo "before ${ET_BEFORE_NAME:-$before}"
   echo "prog_spp $prog_spp"
+  echo "prog_seeds $prog_seeds"
   echo "date $(date -u '+%Y-%m-%d %H:%M UTC')"
   echo "machine $(nproc) cores, $(awk -F': ' '/model name/ { print $2; exit }' /proc/cpuinfo)"
   echo "load $(cut -d' ' -f1-3 /proc/loadavg) (1, 5, 15 min, at the end)"

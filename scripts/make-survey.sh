@@ -18,8 +18,18 @@
 # size does; read a ratio below 1 here as "not ahead at this size", not as the scene's verdict.
 # It takes about 15 minutes on 2 idle cores once the references exist (about 5 more to make them).
 #
+# The misses, larger: the scenes that did not meet their target at this size (the verdict
+# column of the targets' table, `gen-equal-time-md.sh --misses`) are measured again at
+# SV_FOLLOW_RES x SV_FOLLOW_RES pixels (default 96; empty: not at all) with the equal-time
+# section's budgets "4 12 40" (SV_FOLLOW_BUDGETS), against references of about
+# SV_FOLLOW_REF_CPU CPU-s (default 240) in data/reference/et96/ (made when missing, about 2 min
+# of wall time each on 2 cores), into docs/results/survey96/ (SV_FOLLOW_OUT); its
+# measurement.txt says which survey the scenes came from (follow_up_of), and
+# gen-equal-time-md.sh --survey prints it as the section after this one. About 1.5 minutes a
+# scene once the references exist.
+#
 # Environment: PM_BUILD_DIR (default build/release), SV_RES, SV_BUDGETS, SV_REF_CPU,
-# SV_REF_DIR, SV_OUT.
+# SV_REF_DIR, SV_OUT, SV_FOLLOW_RES, SV_FOLLOW_BUDGETS, SV_FOLLOW_REF_CPU, SV_FOLLOW_OUT.
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 bin="${PM_BUILD_DIR:-$here/build/release}/render"
@@ -50,5 +60,21 @@ for name in "$@"; do
   env "REF_SPP_$name=$spp" REF_RES="$res" REF_OUT="$refdir" sh "$here/scripts/make-reference.sh" "$name" >&2
 done
 [ $refs_only = 1 ] && exit 0
+out="${SV_OUT:-$here/docs/results/survey}"
 ET_RES="$res" ET_SCENES="$*" ET_BUDGETS="${SV_BUDGETS:-2 8}" ET_PROG_SCENES= ET_REF_DIR="$refdir" \
-  ET_OUT="${SV_OUT:-$here/docs/results/survey}" sh "$here/scripts/make-equal-time.sh"
+  ET_OUT="$out" sh "$here/scripts/make-equal-time.sh"
+follow="${SV_FOLLOW_RES-96}"
+[ -n "$follow" ] || exit 0
+misses=$(sh "$here/scripts/gen-equal-time-md.sh" --misses "$out")
+if [ -z "$misses" ]; then
+  echo "make-survey: every scene met its target at ${res}x$res; no follow-up at ${follow}x$follow" >&2
+  exit 0
+fi
+echo "make-survey: missed at ${res}x$res, measured again at ${follow}x$follow:" $misses >&2
+fout="${SV_FOLLOW_OUT:-$here/docs/results/survey$follow}"
+rm -rf "$fout"
+# shellcheck disable=SC2086
+SV_RES="$follow" SV_BUDGETS="${SV_FOLLOW_BUDGETS:-4 12 40}" SV_REF_CPU="${SV_FOLLOW_REF_CPU:-240}" \
+  SV_REF_DIR="${SV_FOLLOW_REF_DIR:-$here/data/reference/et$follow}" SV_OUT="$fout" SV_FOLLOW_RES= \
+  sh "$0" $misses
+echo "follow_up_of $res" >> "$fout/measurement.txt"
