@@ -18,8 +18,9 @@
 # size does; read a ratio below 1 here as "not ahead at this size", not as the scene's verdict.
 # It takes about 15 minutes on 2 idle cores once the references exist (about 5 more to make them).
 #
-# The misses, larger: the scenes that did not meet their target at this size (the verdict
-# column of the targets' table, `gen-equal-time-md.sh --misses`) are measured again at
+# The misses, larger: the scenes that did not meet their target at this size, or that it could
+# not measure (no run above the reference's noise; the verdict column of the targets' table,
+# `gen-equal-time-md.sh --misses`), are measured again at
 # SV_FOLLOW_RES x SV_FOLLOW_RES pixels (default 96; empty: not at all) with the equal-time
 # section's budgets "4 12 40" (SV_FOLLOW_BUDGETS), against references of about
 # SV_FOLLOW_REF_CPU CPU-s (default 240) in data/reference/et96/ (made when missing, about 2 min
