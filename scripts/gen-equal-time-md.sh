@@ -145,7 +145,7 @@ for s in $scenes; do
     echo
   fi
   if [ -f "$dir/passes_$s.txt" ]; then
-    echo "Progressive runs, pass 0 as printed: \`$(cat "$dir/passes_$s.txt")\`"
+    echo "Progressive runs, pass 0 as printed$(m prog_seeds | awk 'NF > 1 { printf " (seed %s, the last chain)", $NF }'): \`$(cat "$dir/passes_$s.txt")\`"
     echo
   fi
   awk -F, -v s="$s" -v calib="$dir/calib.csv" -v rf="$ratios" -v cf="$cons" -v before="$(m before)" '
@@ -286,7 +286,6 @@ if [ -s "$cons" ]; then
           }
           all = (e[sd, 1] / e[sd, n]) ^ (1 / (log(t[sd, n] / t[sd, 1]) / log(10)))
           lows[rows] = low; alls[rows] = all; nn = n
-          if (sd in img) imgs[rows] = img[sd]
           tb += nb[sd]; tok += ok[sd]
           if (sd in worst && (wsd == "" || worst[sd] > wmax)) { wmax = worst[sd]; wsd = sd }
           printf "| %s | %s | %s to %s | %.3g to %.3g | %s | %.2fx | %.2fx | %s | %d of %d | %s |\n", s, sd, p[sd, 1], p[sd, n], t[sd, 1], t[sd, n], steps, all, low,
@@ -298,8 +297,8 @@ if [ -s "$cons" ]; then
           for (r = 1; r <= rows; r++) col[r] = st[i, r]
           m = med(col, rows); steps = steps (i > 2 ? ", " : "") sprintf("%.2fx", m); if (m < low) low = m
         }
-        printf "| %s | median of %d | | | %s | %.2fx | %.2fx (each seed'"'"'s lowest: %.2fx) | - | %d of %d | worst %s (seed %s) |\n", s, rows, steps, med(alls, rows), low, med(lows, rows), tok, tb,
-          sprintf("%+.2f%% (%s)", 100 * wd[wsd], wn[wsd]), wsd
+        printf "| %s | median of %d | | | %s | %.2fx | %.2fx (each seed'"'"'s lowest: %.2fx) | - | %d of %d | %s |\n", s, rows, steps, med(alls, rows), low, med(lows, rows), tok, tb,
+          wsd == "" ? "-" : sprintf("worst %+.2f%% (%s) (seed %s)", 100 * wd[wsd], wn[wsd], wsd)
       }' "$cons"
   done
 fi

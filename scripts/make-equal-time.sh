@@ -40,7 +40,8 @@
 # (scene, passes, region, pm_mean, ref_mean, rel_diff, seed). The whole chain runs once for
 # each seed in ET_PROG_SEEDS (default "7 8 9"): one run's fall from 64 to 256 passes spread
 # 1.78x to 2.19x between seeds 7 and 8 (water_caustic), so the consistency table gives each
-# seed's chain and their median. runs.csv's last column is each run's seed.
+# seed's chain and their median. runs.csv's last column is each run's seed; passes_SCENE.txt
+# keeps the pass-0 line of the last seed's chain.
 #
 # Before and after: with ET_BEFORE_BIN=PATH (a render binary of an older commit) and
 # ET_BEFORE_NAME=TEXT (its commit, for the document), pm runs of that binary at each budget

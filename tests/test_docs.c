@@ -538,3 +538,54 @@ TEST(docs_survey_misses_follow_the_verdict) {
                    strstr(out, "9 times the pixels") && !strstr(out, "## Every shipped"),
                "the follow-up's header:\n%.1500s", out);
 }
+
+/* The consistency table with several seeds (gen-equal-time-md.sh): a row per seed's chain and a
+ * median row. Oracle: progressive runs built here over one decade of CPU time (1 -> 10 CPU-s),
+ * whose RMSEs fall 2x, 3x and 1.5x (seeds 7, 8, 9; a reference of 1e12 samples, so its noise is
+ * nothing), and blocks all +0.10% but seed 8's block3 (-0.80%) and seed 9's block0 (+1.20%):
+ * the steps per 10x are those falls, their median 2.00x, 26 of the 27 blocks are within 1%,
+ * and the worst is seed 9's block0. */
+TEST(docs_consistency_table_gives_each_seed_and_the_median) {
+    char cmd[8192], out[65536];
+    const char *t = pm_test_tmpdir(), *src = pm_test_source_dir();
+    FILE *f;
+    snprintf(cmd, sizeof cmd, "%s/runs.csv", t);
+    ASSERT((f = fopen(cmd, "w")) != NULL);
+    fprintf(f, "scene,mode,budget_cpu_s,spp,cpu_s,wall_s,rmse,ref_spp,seed\n");
+    fprintf(f, "water_caustic,path,1,100,1.00,0.5,%.9g,1000000000000,101\n", sqrt(1.0 / 100));
+    fprintf(f, "water_caustic,path,4,400,4.00,2.0,%.9g,1000000000000,102\n", sqrt(1.0 / 400));
+    const double first[3] = {0.2, 0.3, 0.15};
+    for (int k = 0; k < 3; k++) {
+        fprintf(f, "water_caustic,pm_passes,1,16,1.00,0.5,%.9g,1000000000000,%d\n", first[k], 7 + k);
+        fprintf(f, "water_caustic,pm_passes,4,64,10.00,5.0,0.1,1000000000000,%d\n", 7 + k);
+    }
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "%s/calib.csv", t);
+    ASSERT((f = fopen(cmd, "w")) != NULL);
+    fprintf(f, "scene,mode,spp,cpu_s,wall_s\nwater_caustic,path,16,0.16,0.1\n");
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "%s/regions_prog.csv", t);
+    ASSERT((f = fopen(cmd, "w")) != NULL);
+    fprintf(f, "scene,passes,region,pm_mean,ref_mean,rel_diff,seed\n");
+    for (int k = 0; k < 3; k++) {
+        fprintf(f, "water_caustic,4,image,1,1,-0.00100,%d\n", 7 + k);
+        for (int b = 0; b < 9; b++) {
+            double d = (k == 1 && b == 3) ? -0.008 : (k == 2 && b == 0) ? 0.012 : 0.001;
+            fprintf(f, "water_caustic,4,block%d,1,1,%.5f,%d\n", b, d, 7 + k);
+        }
+    }
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "%s/measurement.txt", t);
+    ASSERT((f = fopen(cmd, "w")) != NULL);
+    fprintf(f, "commit c0ffee6-test\nprog_spp 16\nprog_seeds 7 8 9\ndate 1999-12-25 23:59 UTC\nmachine 2 cores\n"
+               "load 0 0 0\nresolution 96\nthreads 2\nbudgets 1 4\n");
+    fclose(f);
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-equal-time-md.sh' '%s' | grep '^| water_caustic |'", src, t);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "| water_caustic | 7 | 1 to 4 | 1 to 10 | 2.00x | 2.00x | 2.00x | -0.10% | 9 of 9 | +0.10% (block0) |") &&
+                   strstr(out, "| water_caustic | 8 | 1 to 4 | 1 to 10 | 3.00x | 3.00x | 3.00x | -0.10% | 9 of 9 | -0.80% (block3) |") &&
+                   strstr(out, "| water_caustic | 9 | 1 to 4 | 1 to 10 | 1.50x | 1.50x | 1.50x | -0.10% | 8 of 9 | +1.20% (block0) |") &&
+                   strstr(out, "| water_caustic | median of 3 | | | 2.00x | 2.00x | 2.00x (each seed's lowest: 2.00x) | - | 26 of 27 | "
+                               "worst +1.20% (block0) (seed 9) |"),
+               "the consistency rows:\n%s", out);
+}
