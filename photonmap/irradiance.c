@@ -62,6 +62,7 @@ void pm_irradiance_free(pm_irradiance *irr) {
     free(irr->r2);
     free(irr->photon);
     free(irr->reach);
+    free(irr->nmask);
     free(irr);
 }
 
@@ -210,7 +211,10 @@ static int irr_alloc(pm_irradiance **out, const pm_kdtree *tree, const pm_irradi
     pm_irradiance *irr = calloc(1, sizeof *irr);
     if (!irr) return PM_ENOMEM;
     irr->n = n;
-    for (int c = 0; c < 256; c++) pm_normal_decode((uint8_t)c, irr->normals[c]);
+    for (int c = 0; c < 256; c++) {
+        pm_normal_decode((uint8_t)c, irr->normals[c]);
+        irr->nbucket[c] = pm__normal_bucket(irr->normals[c]);
+    }
     size_t nwords = (n + 63) / 64;
     irr->mask = calloc(nwords, sizeof *irr->mask);
     irr->rank = malloc(nwords * sizeof *irr->rank);
@@ -234,17 +238,26 @@ static int reach_build(pm_irradiance *irr) {
     uint64_t L = t->nleaves;
     irr->reach = malloc(2 * L * sizeof *irr->reach);
     if (!irr->reach) return PM_ENOMEM;
+    irr->nmask = malloc(2 * L);
+    if (!irr->nmask) return PM_ENOMEM;
     irr->reach[0] = 0;
+    irr->nmask[0] = 0;
     for (uint64_t j = 0; j < L; j++) {
         uint64_t b = t->ninternal + pm__cum(t, j), e = b + t->leaf_q + (j < t->leaf_extra);
         float m = -INFINITY;
-        for (uint64_t i = b; i < e; i++) m = irr->r2[i] > m ? irr->r2[i] : m;
+        uint8_t nm = 0;
+        for (uint64_t i = b; i < e; i++) {
+            m = irr->r2[i] > m ? irr->r2[i] : m;
+            nm |= irr->nbucket[irr->recs[i].ncode];
+        }
         irr->reach[L + j] = m;
+        irr->nmask[L + j] = nm;
     }
     for (uint64_t p = L; p-- > 1;) {
         float m = irr->r2[p - 1], a = irr->reach[2 * p], b = irr->reach[2 * p + 1];
         m = a > m ? a : m;
         irr->reach[p] = b > m ? b : m;
+        irr->nmask[p] = (uint8_t)(irr->nbucket[irr->recs[p - 1].ncode] | irr->nmask[2 * p] | irr->nmask[2 * p + 1]);
     }
     return PM_OK;
 }
@@ -374,7 +387,8 @@ size_t pm_irradiance_bytes(const pm_irradiance *irr) {
            nd * (sizeof *irr->slot + sizeof *irr->recs + (irr->r2 ? sizeof *irr->r2 : 0) +
                  (irr->photon ? sizeof *irr->photon : 0)) +
            pm_kdtree_index_bytes(irr->tree) +
-           (irr->reach ? 2 * (size_t)irr->tree->nleaves * sizeof *irr->reach : 0);
+           (irr->reach ? 2 * (size_t)irr->tree->nleaves * sizeof *irr->reach : 0) +
+           (irr->nmask ? 2 * (size_t)irr->tree->nleaves : 0);
 }
 
 double pm_irradiance_bytes_per_photon(const pm_irradiance *irr) {

@@ -55,6 +55,7 @@ typedef struct reach_state {
     lookup_ctx *c;
     float q[3];
     float r2; /* the result set's bound (lim); NaN = none (every test is !(d2 >= r2)) */
+    uint8_t qmask; /* the normal buckets that may hold a normal the rule accepts */
     pm_neighbor *out;
     unsigned k, found;
     uint64_t nodes, evals;
@@ -117,7 +118,8 @@ static void reach_knn(reach_state *s) {
     memcpy(lo, t->lo, sizeof lo);
     memcpy(hi, t->hi, sizeof hi);
     float rd = cell_dist2(s->q, lo, hi);
-    if (rd >= s->r2 || rd >= reach[1]) return;
+    const uint8_t *nmask = s->irr->nmask, qm = s->qmask;
+    if (rd >= s->r2 || rd >= reach[1] || !(nmask[1] & qm)) return;
     for (;;) {
         while (node < L) {
             s->nodes++;
@@ -142,7 +144,7 @@ static void reach_knn(reach_state *s) {
             if (near & 1) lo[a] = split;
             else hi[a] = split;
             node = near;
-            if (cell_dist2(s->q, lo, hi) >= reach[node]) goto pop;
+            if (cell_dist2(s->q, lo, hi) >= reach[node] || !(nmask[node] & qm)) goto pop;
         }
         s->nodes++;
         {
@@ -157,7 +159,7 @@ static void reach_knn(reach_state *s) {
             if (stack[sp].rr >= s->r2) continue;
             node = stack[sp].node;
             reach_consider(s, (node >> 1) - 1); /* the parent's record, in the split plane */
-            if (stack[sp].rr >= s->r2 || stack[sp].rr >= reach[node]) continue;
+            if (stack[sp].rr >= s->r2 || stack[sp].rr >= reach[node] || !(nmask[node] & qm)) continue;
             memcpy(lo, stack[sp].lo, sizeof lo);
             memcpy(hi, stack[sp].hi, sizeof hi);
             break;
@@ -189,6 +191,7 @@ static int irr_knn(const pm_irradiance *irr, lookup_ctx *c, const float q[3], un
     s.r2 = max_dist2 == INFINITY ? NAN : max_dist2;
     s.out = out;
     s.k = k;
+    s.qmask = pm__normal_query_mask(c->n, c->cos_min);
     reach_knn(&s);
     if (stats) {
         stats->nodes_visited += s.nodes;

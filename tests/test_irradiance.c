@@ -1268,3 +1268,58 @@ TEST(irradiance_squash_uses_an_exact_normal) {
     }
     free(perm), free(tn), free(nrm), free(ph);
 }
+
+/* NORMAL BUCKETS (irradiance_internal.h): the lookup skips a subtree whose records' normal
+ * buckets all miss the query's mask, so the mask must hold the bucket of every normal the rule
+ * n . m >= c passes. Oracle: brute force over random unit normals m (and the 256 decoded
+ * ones) against random query normals n of random lengths, for c from -1 to 1, including the
+ * normals on the buckets' boundaries (the cube's corners and edges); and the mask is not
+ * trivially full: at c = 0.7 a query along -y never meets the +y bucket. */
+#include "irradiance_internal.h"
+TEST(irradiance_normal_buckets_keep_every_accepted_normal) {
+    uint64_t st = 0x9e3779b97f4a7c15ull;
+    float dec[256][3];
+    for (int i = 0; i < 256; i++) pm_normal_decode((uint8_t)i, dec[i]);
+    const float edge[][3] = {{0.57735027f, 0.57735027f, 0.57735027f}, {-0.57735027f, 0.57735027f, -0.57735027f},
+                             {0.70710678f, 0.70710678f, 0}, {0, -0.70710678f, 0.70710678f}, {1, 0, 0}, {0, 0, -1}};
+    long missed = 0, tested = 0;
+    for (int q = 0; q < 4000; q++) {
+        float n[3], len = 0;
+        do {
+            for (int a = 0; a < 3; a++) {
+                st = st * 6364136223846793005ull + 1442695040888963407ull;
+                n[a] = (float)((double)(st >> 11) / 9007199254740992.0 * 2 - 1);
+            }
+            len = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        } while (len < 0.1f || len > 1);
+        float scale = 0.5f + (float)(q % 7) * 0.5f; /* query normals need not be unit */
+        for (int a = 0; a < 3; a++) n[a] = n[a] / len * scale;
+        if (q < 6) memcpy(n, edge[q], sizeof n);
+        float c = -1 + 2 * (float)(q % 41) / 40;
+        uint8_t mask = pm__normal_query_mask(n, c);
+        for (int i = 0; i < 256 + 6 + 200; i++) {
+            float m[3];
+            if (i < 256) memcpy(m, dec[i], sizeof m);
+            else if (i < 262) memcpy(m, edge[i - 256], sizeof m);
+            else {
+                float l;
+                do {
+                    for (int a = 0; a < 3; a++) {
+                        st = st * 6364136223846793005ull + 1442695040888963407ull;
+                        m[a] = (float)((double)(st >> 11) / 9007199254740992.0 * 2 - 1);
+                    }
+                    l = sqrtf(m[0] * m[0] + m[1] * m[1] + m[2] * m[2]);
+                } while (l < 0.1f || l > 1);
+                for (int a = 0; a < 3; a++) m[a] /= l;
+            }
+            if (m[0] * n[0] + m[1] * n[1] + m[2] * n[2] < c) continue;
+            tested++;
+            if (!(mask & pm__normal_bucket(m))) missed++;
+        }
+    }
+    EXPECT_MSG(missed == 0, "%ld of %ld accepted normals outside the query's buckets", missed, tested);
+    EXPECT(tested > 100000);
+    const float down[3] = {0, -1, 0}, up[3] = {0, 1, 0};
+    EXPECT(!(pm__normal_query_mask(down, 0.7f) & pm__normal_bucket(up)));
+    EXPECT(pm__normal_query_mask(down, -0.6f) == 0x3f);
+}
