@@ -75,6 +75,11 @@ static const setting_def k_settings[] = {
      "secondary_distance; absent, the sample pilot picks it with gather_rays"},
     {"secondary_distance", ST_NUMBER, F(secondary_distance), 0, 0, INFINITY,
      "0: the radius of a k_global estimate at the global map's mean density"},
+    {"miss_survival", ST_NUMBER, F(miss_survival), 1, 0.01, 1,
+     "where a gather ray's irradiance lookup finds nothing on its side (a photon-starved or "
+     "dark region), the chance that the light there is computed rather than taken as 0 (Russian "
+     "roulette, weighted by its inverse: no bias); absent, the sample pilot picks 1, 1/2 or 1/4 by "
+     "variance x cost when a quarter or more of its lookups find nothing (\"sample:\")"},
     {"split_depth", ST_INT, F(split_depth), 2, 0, 16,
      "camera-path bounces at which glass traces both its reflected and its refracted ray "
      "(weighted) instead of choosing one"},

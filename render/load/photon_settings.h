@@ -52,6 +52,7 @@ typedef struct photon_settings {
     int caustic_stride; /* caustic estimates at one camera sample in stride x stride */
     int emission_strata; /* m: m x m emission-only camera rays per sample (0: none) */
     double secondary_distance; /* 0: automatic */
+    double miss_survival;      /* after a lookup miss, the chance the gather is computed (1: always) */
     double max_emitted_factor;
     double max_emitted; /* pass budgets: photons emitted, MiB of buffers, bounces per photon */
     long max_memory_mb;

@@ -305,25 +305,26 @@ int pm__gg_read(void *user, const scene *s, const guide_point *pt, vec3 d, rng *
 
 /* Indirect diffuse at a diffuse point by gathering n rays; level 0 for the gather of a camera
  * path, level >= 1 inside a secondary gather (its rays read the map, or recurse where the map
- * has nothing, see gather). */
+ * has nothing, see gather). ms: the miss survival still to apply on this chain (MISS
+ * SURVIVAL in gather: miss_survival until a miss has applied it, then 1). */
 static rgb gather(const mapper_state *st, const scene *s, const material *m, const hit *h, vec3 ns,
-                  vec3 wo, int n, int level, int med, rng *g, mapper_scratch *sc);
+                  vec3 wo, int n, int level, double ms, int med, rng *g, mapper_scratch *sc);
 
 /* Outgoing light at a gather hit y, computed instead of read from the map: y's direct light,
  * caustics and a gather of its own at `level` (secondary_rays rays at level 1, one ray deeper,
  * so a chain of them costs one ray per bounce, like a path). */
 static rgb secondary_radiance(const mapper_state *st, const scene *s, const hit *y, vec3 wo, int level,
-                              int med, rng *g, mapper_scratch *sc) {
+                              double ms, int med, rng *g, mapper_scratch *sc) {
     const material *m = scene_material(s, y);
     vec3 ns = v3_dot(wo, y->ng) >= 0 ? y->ng : v3_neg(y->ng);
     rgb L = direct_light(st, s, m, y, ns, wo, med, g, sc);
     L = v3_add(L, caustics_at(st, s, m, y, ns, wo, sc));
     int n = level <= 1 ? st->cfg.secondary_rays : 1;
-    return v3_add(L, gather(st, s, m, y, ns, wo, n, level, med, g, sc));
+    return v3_add(L, gather(st, s, m, y, ns, wo, n, level, ms, med, g, sc));
 }
 
 static rgb gather(const mapper_state *st, const scene *s, const material *m, const hit *h, vec3 ns,
-                  vec3 wo, int n, int level, int med, rng *g, mapper_scratch *sc) {
+                  vec3 wo, int n, int level, double ms, int med, rng *g, mapper_scratch *sc) {
     if (n <= 0 || !st->sides.irr) return v3s(0);
     rgb sum = v3s(0);
     vec3 nsh = material_shading_side(wo, h->ng, h->ns);
@@ -357,7 +358,7 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
         rgb Lo;
         int found = 0;
         if (!level && steps == 1 && y.t < st->sec_dist)
-            Lo = secondary_radiance(st, s, &y, v3_neg(din), 1, ymed, g, sc);
+            Lo = secondary_radiance(st, s, &y, v3_neg(din), 1, ms, ymed, g, sc);
         else {
             Lo = lookup_radiance(st, s, &y, v3_neg(din), &found);
             /* The cache holds indirect irradiance only (photon_sides.h, "Direct light"): y's
@@ -372,17 +373,28 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
              * one ray per level, continued by Russian roulette on y's diffuse albedo, so
              * where the map has nothing the gather becomes a path tracer. (Counting such y
              * as dark, as this did, dropped every bounce after the second: -18% on
-             * pinhole_room, with the shadow photons off.) */
+             * pinhole_room, with the shadow photons off.)
+             * MISS SURVIVAL: the first miss of a camera sample's gather chain computes it
+             * with chance miss_survival ms only, weighted 1/ms (a Russian roulette: the
+             * expected value is unchanged), and the misses under it survive as before (ms
+             * passed down as 1: applied at every miss of a chain, the weights would compound
+             * to ms^-depth). ms < 1 pays where most misses are dark (a sealed room: its
+             * lookups miss and its light is 0, so each miss computed is work for nothing);
+             * the sample pilot picks it by variance x cost (pm_sample.c). ms = 1 draws no
+             * number: the same image as without it. */
             if (!found) {
                 stat_inc(st->st_lookup_miss);
-                if (!level)
-                    Lo = secondary_radiance(st, s, &y, v3_neg(din), 1, ymed, g, sc);
-                else {
-                    rgb a = diffuse_albedo(s, scene_material(s, &y), v3_neg(din), y.ng);
-                    double q = fmin(0.95, v3_maxc(a));
-                    if (level < st->max_depth && rng_uniform(g) < q)
-                        Lo = v3_scale(secondary_radiance(st, s, &y, v3_neg(din), level + 1, ymed, g, sc),
-                                      1.0 / q);
+                if (ms >= 1 || rng_uniform(g) < ms) {
+                    if (!level)
+                        Lo = secondary_radiance(st, s, &y, v3_neg(din), 1, 1, ymed, g, sc);
+                    else {
+                        rgb a = diffuse_albedo(s, scene_material(s, &y), v3_neg(din), y.ng);
+                        double q = fmin(0.95, v3_maxc(a));
+                        if (level < st->max_depth && rng_uniform(g) < q)
+                            Lo = v3_scale(secondary_radiance(st, s, &y, v3_neg(din), level + 1, 1, ymed, g, sc),
+                                          1.0 / q);
+                    }
+                    if (ms < 1) Lo = v3_scale(Lo, 1 / ms);
                 }
             }
         }
@@ -480,7 +492,7 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
                     double share = fmin(1.0, v3_maxc(beta));
                     int n = (int)ceil(st->cfg.gather_rays * share);
                     if (st->cfg.gather_rays > 0 && n < 1) n = 1;
-                    Ld = v3_add(Ld, gather(st, s, m, &h, ns, wo, n, 0, med, g, sc));
+                    Ld = v3_add(Ld, gather(st, s, m, &h, ns, wo, n, 0, st->cfg.miss_survival, med, g, sc));
                 }
             }
             L = v3_add(L, v3_mul(beta, Ld));

@@ -51,8 +51,9 @@ typedef struct mapper_state {
      * emit.mask NULL: at every pixel). */
     pm_emission_mask emit;
     const scene *scene; /* for pm_sample.c's eye rays (sample_eye), during the preprocess */
-    int explicit_gather, explicit_secondary, explicit_stride; /* set in the scene or by --pm: kept */
-    char sample_reason[640], emit_reason[320]; /* the plan's "sample:" and "emission rays:" lines */
+    int explicit_gather, explicit_secondary, explicit_stride, explicit_miss; /* set in the scene
+                                                                                or by --pm: kept */
+    char sample_reason[1024], emit_reason[320]; /* the plan's "sample:" and "emission rays:" lines */
     /* Progressive passes (mapper_begin_pass): the pass whose maps are built, its seed, its
      * squared radii's factor against pass 0's, pass 0's radii and volume radii. */
     int pass, progressive; /* progressive: ppm_radius applies (a render in passes) */

@@ -321,7 +321,8 @@ static int sample_decide(mapper_state *st, const scene *s, char *err, size_t err
                                       : NULL;
     pm_sample_host h = {s, &st->cfg, st->st_lookup, st->st_caustic, st->ncaustic_all > 0, no_pilot,
                         st->vol.on && !json_get(s->photon_mapping, "volume_stride"),
-                        pm__lookup != NULL, st, sample_scratch_new, sample_scratch_free, pm__sample_eye};
+                        pm__lookup != NULL, st, sample_scratch_new, sample_scratch_free, pm__sample_eye,
+                        st->st_lookup_miss, st->explicit_miss};
     int rc = pm_emission_mask_build(&h, &st->emit, st->emit_reason, sizeof st->emit_reason, err, errcap);
     if (rc < 0) return rc;
     if (st->cfg.emission_strata <= 0)

@@ -175,17 +175,37 @@ enum { PILOT_SIDE = 16, PILOT_SPP = 4, PILOT_MAX_STRIDE = 4 };
 static const int k_pilot_cand[][2] = {{1, 1}, {2, 1}, {4, 2}};
 #define PILOT_NCAND ((int)(sizeof k_pilot_cand / sizeof *k_pilot_cand))
 
+/* MISS SURVIVAL (photonmapper.c): where a gather's lookup finds nothing on its side, the light
+ * there is computed with chance miss_survival m, weighted 1/m. When at least
+ * PILOT_MISS_SHARE of the chosen candidate's lookups miss, the pilot renders its samples again
+ * at each m of k_pilot_miss (the same streams) and keeps the m of lowest variance x cost at
+ * the chosen stride; with fewer misses computing them costs little and m stays 1 (the image
+ * is the same as without the roulette, bit for bit). Why: partition_thick's lower half is a
+ * sealed room, dark, whose lookups all miss: 3.0 M of its 4.0 M lookups at 96x96 x 256 spp,
+ * each followed by a secondary gather that finds nothing, so a dark sample cost about 4 lit
+ * ones and photon mapping lost to path tracing at 4 CPU-s (README.md, "Where photon mapping
+ * still loses"). Where misses carry the light (a room lit through a pinhole) the variance
+ * the roulette adds outweighs the work it saves and the pilot keeps m = 1. m is never below
+ * the smallest candidate, so a pilot that misses a rare bright continuation multiplies that
+ * part's variance by at most 1 / that. Where the pilot does not run (gather_rays,
+ * secondary_rays and caustic_stride all set, no final gather) m is the setting's, 1 unless set. */
+#define PILOT_MISS_SHARE 0.25
+static const double k_pilot_miss[] = {0.5, 0.25};
+#define PILOT_NMISS ((int)(sizeof k_pilot_miss / sizeof *k_pilot_miss))
+
 typedef struct pilot_figures {
     double var, varc;  /* mean within-pixel variance of a sample, of its caustic part */
     double work, caus; /* per sample: work without the camera path's caustics, those estimates */
     double lum, lumc;  /* per sample: mean luminance, of its caustic part */
     double varv, workv; /* the in-scattering of media: its variance as varc, its work per sample */
+    double look, miss;  /* per sample: irradiance lookups, those finding nothing on their side */
 } pilot_figures;
 
 static void pilot_run(const pm_sample_host *h, void *sc, pilot_figures *f) {
     const scene *s = h->s;
     int W = s->cam.width, H = s->cam.height;
     uint64_t w0 = stats_trace_work(), l0 = stats_total(h->st_lookup), k0 = stats_total(h->st_caustic);
+    uint64_t m0 = stats_total(h->st_miss);
     double vsum = 0, vcsum = 0, lsum = 0, lcsum = 0, vvsum = 0;
     uint64_t ncam = 0, workv = 0, beamv = 0;
     for (int py = 0; py < PILOT_SIDE; py++)
@@ -229,6 +249,8 @@ static void pilot_run(const pm_sample_host *h, void *sc, pilot_figures *f) {
                PILOT_CAUSTIC_COST * (ncaus - (double)ncam) + PILOT_BEAM_COST * (double)beamv) / n;
     f->varv = vvsum / (PILOT_SIDE * PILOT_SIDE);
     f->workv = ((double)workv + PILOT_BEAM_COST * (double)beamv) / n;
+    f->look = (double)(stats_total(h->st_lookup) - l0) / n;
+    f->miss = (double)(stats_total(h->st_miss) - m0) / n;
 }
 
 /* The caustic map's share of the luminance the camera samples carry (0 for a black image). */
@@ -331,8 +353,8 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
                       : h->no_pilot;
     if (why) {
         snprintf(reason, cap,
-                 "gather_rays %d, secondary_rays %d, caustic_stride %d (%s)", cfg->gather_rays,
-                 cfg->secondary_rays, cfg->caustic_stride, why);
+                 "gather_rays %d, secondary_rays %d, caustic_stride %d, miss_survival %g (%s)",
+                 cfg->gather_rays, cfg->secondary_rays, cfg->caustic_stride, cfg->miss_survival, why);
         if (!h->no_probe) *work = work_of_current(h, caus_share);
         return;
     }
@@ -356,8 +378,6 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
         cfg->secondary_rays = cand[c][1];
         pilot_run(h, sc, &fig[c]);
     }
-    for (int i = 0; i < nundo; i++) stat_add(undo[i], before[i] - stats_total(undo[i])); /* mod 2^64 */
-    h->scratch_free(h->user, sc);
     cfg->gather_rays = keep_g;
     cfg->secondary_rays = keep_s;
     /* the scores of (candidate, stride); a black image (all 0) falls to the cheapest */
@@ -377,6 +397,38 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
     cfg->gather_rays = cand[bc][0];
     cfg->secondary_rays = cand[bc][1];
     cfg->caustic_stride = bs;
+    /* the miss survival, given the rest (MISS SURVIVAL above) */
+    char mwhy[320], mlist[160] = "";
+    double miss_share = fig[bc].look > 0 ? fig[bc].miss / fig[bc].look : 0;
+    if (h->explicit_miss)
+        snprintf(mwhy, sizeof mwhy, "miss_survival %g (set)", cfg->miss_survival);
+    else if (miss_share < PILOT_MISS_SHARE)
+        snprintf(mwhy, sizeof mwhy, "miss_survival 1 (%.1f%% of the pilot's lookups find nothing on their "
+                 "side, under %g%%: not weighed)", 100 * miss_share, 100 * PILOT_MISS_SHARE);
+    else {
+        double var, cost, mbest, mkeep = 1;
+        stride_figures(&fig[bc], strata, bs, emit_var, &var, &cost);
+        mbest = var * cost;
+        size_t ml = (size_t)snprintf(mlist, sizeof mlist, "1 %.3g x %.0f", var, cost);
+        for (int i = 0; i < PILOT_NMISS; i++) {
+            pilot_figures fm;
+            cfg->miss_survival = k_pilot_miss[i];
+            pilot_run(h, sc, &fm);
+            stride_figures(&fm, strata, bs, emit_var, &var, &cost);
+            if (ml < sizeof mlist)
+                ml += (size_t)snprintf(mlist + ml, sizeof mlist - ml, ", %g %.3g x %.0f", k_pilot_miss[i], var, cost);
+            if (var * cost < mbest) {
+                mbest = var * cost;
+                mkeep = k_pilot_miss[i];
+                fig[bc] = fm;
+            }
+        }
+        cfg->miss_survival = mkeep;
+        snprintf(mwhy, sizeof mwhy, "miss_survival %g (%.1f%% of the pilot's lookups find nothing on their "
+                 "side: lowest variance x cost of %s)", mkeep, 100 * miss_share, mlist);
+    }
+    for (int i = 0; i < nundo; i++) stat_add(undo[i], before[i] - stats_total(undo[i])); /* mod 2^64 */
+    h->scratch_free(h->user, sc);
     /* the volume stride, given the rest (VOLUME STRIDE above) */
     double var0, c0, vbest = INFINITY, S2 = (double)strata * strata;
     stride_figures(&fig[bc], strata, bs, emit_var, &var0, &c0);
@@ -419,5 +471,6 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
                                 "; volume_stride %d: in-scattering in media, variance %.3g and work %.0f of a "
                                 "sample's, read at one sample in %d x %d", cfg->volume_stride, fig[bc].varv,
                                 fig[bc].workv, cfg->volume_stride, cfg->volume_stride);
-    if (len < cap) snprintf(reason + len, cap - len, ")");
+    if (len < cap) len += (size_t)snprintf(reason + len, cap - len, ")");
+    if (len < cap) snprintf(reason + len, cap - len, "; %s", mwhy);
 }

@@ -36,7 +36,8 @@ typedef struct pm_sample_caustics {
 /* What the mask and the pilot borrow from the photon mapper. */
 typedef struct pm_sample_host {
     const scene *s;
-    photon_settings *cfg;       /* read; the pilot sets gather_rays, secondary_rays, caustic_stride */
+    photon_settings *cfg;       /* read; the pilot sets gather_rays, secondary_rays, caustic_stride,
+                                   miss_survival */
     int st_lookup, st_caustic;  /* the ids of the irradiance-lookup and caustic-estimate counters */
     int caustics;               /* the scene has a caustic map */
     const char *no_pilot;       /* why the pilot cannot run (no final gather, ...), or NULL */
@@ -49,6 +50,8 @@ typedef struct pm_sample_host {
     /* Radiance along a camera ray: emit = 1 the emission it meets alone (directly, mirrors,
      * glass), emit = 0 the shading alone, caustics read at weight 1 and tallied into pc. */
     rgb (*eye)(void *user, ray r, int emit, rng *g, void *scratch, pm_sample_caustics *pc);
+    int st_miss;       /* the id of the counter of lookups finding nothing on their side */
+    int explicit_miss; /* cfg->miss_survival was set: kept (MISS SURVIVAL in pm_sample.c) */
 } pm_sample_host;
 
 typedef struct pm_emission_mask {
@@ -62,8 +65,9 @@ typedef struct pm_emission_mask {
 int pm_emission_mask_build(const pm_sample_host *h, pm_emission_mask *m, char *reason, size_t cap, char *err,
                            size_t errcap);
 void pm_emission_mask_free(pm_emission_mask *m);
-/* The sample pilot: sets h->cfg's gather_rays, secondary_rays and caustic_stride (those the
- * user did not set: explicit_*) and writes the "sample:" reason. emit_var: the mask's var.
+/* The sample pilot: sets h->cfg's gather_rays, secondary_rays, caustic_stride and
+ * miss_survival (those the user did not set: explicit_*, h->explicit_miss) and writes the
+ * "sample:" reason. emit_var: the mask's var.
  * *work: the counted work of one camera sample as chosen (BVH node visits, primitive tests,
  * lookups and caustic estimates at their costs), measured by the pilot's samples even where
  * no choice is left to it; 0 when h->no_probe or out of memory. *caus_share: the share of the

@@ -53,6 +53,7 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
     st->explicit_gather = json_get(s->photon_mapping, "gather_rays") != NULL;
     st->explicit_secondary = json_get(s->photon_mapping, "secondary_rays") != NULL;
     st->explicit_stride = json_get(s->photon_mapping, "caustic_stride") != NULL;
+    st->explicit_miss = json_get(s->photon_mapping, "miss_survival") != NULL;
     if ((rc = plan_make(s, &st->cfg, preview, &st->plan, err, errcap)) < 0) {
         free(st);
         return rc;
