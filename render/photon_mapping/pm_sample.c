@@ -184,8 +184,9 @@ static const int k_pilot_cand[][2] = {{1, 1}, {2, 1}, {4, 2}};
  * sealed room, dark, whose lookups all miss: 3.0 M of its 4.0 M lookups at 96x96 x 256 spp,
  * each followed by a secondary gather that finds nothing, so a dark sample cost about 4 lit
  * ones and photon mapping lost to path tracing at 4 CPU-s (README.md, "Where photon mapping
- * still loses"). Where misses carry the light (a room lit through a pinhole) the variance
- * the roulette adds outweighs the work it saves and the pilot keeps m = 1. m is never below
+ * still loses"). Where misses carry the light (the furnace with 30 global photons, whose
+ * lookups nearly all miss: tests/test_render_sample.c) the variance the roulette adds
+ * outweighs the work it saves and the pilot keeps m = 1. m is never below
  * the smallest candidate, so a pilot that misses a rare bright continuation multiplies that
  * part's variance by at most 1 / that. Where the pilot does not run (gather_rays,
  * secondary_rays and caustic_stride all set, no final gather) m is the setting's, 1 unless set. */
