@@ -305,8 +305,7 @@ int pm__gg_read(void *user, const scene *s, const guide_point *pt, vec3 d, rng *
 
 /* Indirect diffuse at a diffuse point by gathering n rays; level 0 for the gather of a camera
  * path, level >= 1 inside a secondary gather (its rays read the map, or recurse where the map
- * has nothing, see gather). ms: the miss survival still to apply on this chain (MISS
- * SURVIVAL in gather: miss_survival until a miss has applied it, then 1). */
+ * has nothing, see gather). ms: the miss survival this chain has still to apply. */
 static rgb gather(const mapper_state *st, const scene *s, const material *m, const hit *h, vec3 ns,
                   vec3 wo, int n, int level, double ms, int med, rng *g, mapper_scratch *sc);
 
@@ -373,29 +372,15 @@ static rgb gather(const mapper_state *st, const scene *s, const material *m, con
              * one ray per level, continued by Russian roulette on y's diffuse albedo, so
              * where the map has nothing the gather becomes a path tracer. (Counting such y
              * as dark, as this did, dropped every bounce after the second: -18% on
-             * pinhole_room, with the shadow photons off.)
-             * MISS SURVIVAL: the first miss of a camera sample's gather chain computes it
-             * with chance miss_survival ms only, weighted 1/ms (a Russian roulette: the
-             * expected value is unchanged), and the misses under it survive as before (ms
-             * passed down as 1: applied at every miss of a chain, the weights would compound
-             * to ms^-depth). ms < 1 pays where most misses are dark (a sealed room: its
-             * lookups miss and its light is 0, so each miss computed is work for nothing);
-             * the sample pilot picks it by variance x cost (pm_sample.c). ms = 1 draws no
-             * number: the same image as without it. */
+             * pinhole_room, with the shadow photons off.) The chain's first miss computes
+             * it with chance ms only, weighted 1/ms, and passes 1 down (MISS SURVIVAL,
+             * pm_sample.c); ms = 1 draws no number. */
             if (!found) {
                 stat_inc(st->st_lookup_miss);
-                if (ms >= 1 || rng_uniform(g) < ms) {
-                    if (!level)
-                        Lo = secondary_radiance(st, s, &y, v3_neg(din), 1, 1, ymed, g, sc);
-                    else {
-                        rgb a = diffuse_albedo(s, scene_material(s, &y), v3_neg(din), y.ng);
-                        double q = fmin(0.95, v3_maxc(a));
-                        if (level < st->max_depth && rng_uniform(g) < q)
-                            Lo = v3_scale(secondary_radiance(st, s, &y, v3_neg(din), level + 1, 1, ymed, g, sc),
-                                          1.0 / q);
-                    }
-                    if (ms < 1) Lo = v3_scale(Lo, 1 / ms);
-                }
+                double q = ms < 1 ? ms : 1; /* the survival: ms, times y's albedo below level 0 */
+                if (level) q *= fmin(0.95, v3_maxc(diffuse_albedo(s, scene_material(s, &y), v3_neg(din), y.ng)));
+                if ((!level || level < st->max_depth) && (q >= 1 || rng_uniform(g) < q))
+                    Lo = v3_scale(secondary_radiance(st, s, &y, v3_neg(din), level + 1, 1, ymed, g, sc), 1.0 / q);
             }
         }
         /* cosine sampling: f cos / pdf = pi f (times wk when guided) */

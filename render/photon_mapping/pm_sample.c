@@ -328,6 +328,44 @@ static void stride_figures(const pilot_figures *f, int strata, int k, double emi
     *cost = f->work + PILOT_CAUSTIC_COST * f->caus * pm_caustic_reads(strata, k) / ((double)strata * strata);
 }
 
+/* MISS SURVIVAL: sets h->cfg->miss_survival (unless set) given the chosen candidate's figures
+ * *f at stride bs, which become the chosen survival's; writes the reason into why. */
+static void choose_miss_survival(const pm_sample_host *h, void *sc, int strata, int bs, double emit_var,
+                                 pilot_figures *f, char *why, size_t cap) {
+    photon_settings *cfg = h->cfg;
+    double share = f->look > 0 ? f->miss / f->look : 0;
+    if (h->explicit_miss) {
+        snprintf(why, cap, "miss_survival %g (set)", cfg->miss_survival);
+        return;
+    }
+    if (share < PILOT_MISS_SHARE) {
+        snprintf(why, cap, "miss_survival 1 (%.1f%% of the pilot's lookups find nothing on their side, under "
+                 "%g%%: not weighed)", 100 * share, 100 * PILOT_MISS_SHARE);
+        return;
+    }
+    char list[160];
+    double var, cost, best, keep = 1;
+    stride_figures(f, strata, bs, emit_var, &var, &cost);
+    best = var * cost;
+    size_t len = (size_t)snprintf(list, sizeof list, "1 %.3g x %.0f", var, cost);
+    for (int i = 0; i < PILOT_NMISS; i++) {
+        pilot_figures fm;
+        cfg->miss_survival = k_pilot_miss[i];
+        pilot_run(h, sc, &fm);
+        stride_figures(&fm, strata, bs, emit_var, &var, &cost);
+        if (len < sizeof list)
+            len += (size_t)snprintf(list + len, sizeof list - len, ", %g %.3g x %.0f", k_pilot_miss[i], var, cost);
+        if (var * cost < best) {
+            best = var * cost;
+            keep = k_pilot_miss[i];
+            *f = fm;
+        }
+    }
+    cfg->miss_survival = keep;
+    snprintf(why, cap, "miss_survival %g (%.1f%% of the pilot's lookups find nothing on their side: lowest "
+             "variance x cost of %s)", keep, 100 * share, list);
+}
+
 void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, int explicit_c, double emit_var,
                      char *reason, size_t cap, double *work, double *caus_share) {
     *work = 0;
@@ -399,35 +437,8 @@ void pm_sample_pilot(const pm_sample_host *h, int explicit_g, int explicit_s, in
     cfg->secondary_rays = cand[bc][1];
     cfg->caustic_stride = bs;
     /* the miss survival, given the rest (MISS SURVIVAL above) */
-    char mwhy[320], mlist[160] = "";
-    double miss_share = fig[bc].look > 0 ? fig[bc].miss / fig[bc].look : 0;
-    if (h->explicit_miss)
-        snprintf(mwhy, sizeof mwhy, "miss_survival %g (set)", cfg->miss_survival);
-    else if (miss_share < PILOT_MISS_SHARE)
-        snprintf(mwhy, sizeof mwhy, "miss_survival 1 (%.1f%% of the pilot's lookups find nothing on their "
-                 "side, under %g%%: not weighed)", 100 * miss_share, 100 * PILOT_MISS_SHARE);
-    else {
-        double var, cost, mbest, mkeep = 1;
-        stride_figures(&fig[bc], strata, bs, emit_var, &var, &cost);
-        mbest = var * cost;
-        size_t ml = (size_t)snprintf(mlist, sizeof mlist, "1 %.3g x %.0f", var, cost);
-        for (int i = 0; i < PILOT_NMISS; i++) {
-            pilot_figures fm;
-            cfg->miss_survival = k_pilot_miss[i];
-            pilot_run(h, sc, &fm);
-            stride_figures(&fm, strata, bs, emit_var, &var, &cost);
-            if (ml < sizeof mlist)
-                ml += (size_t)snprintf(mlist + ml, sizeof mlist - ml, ", %g %.3g x %.0f", k_pilot_miss[i], var, cost);
-            if (var * cost < mbest) {
-                mbest = var * cost;
-                mkeep = k_pilot_miss[i];
-                fig[bc] = fm;
-            }
-        }
-        cfg->miss_survival = mkeep;
-        snprintf(mwhy, sizeof mwhy, "miss_survival %g (%.1f%% of the pilot's lookups find nothing on their "
-                 "side: lowest variance x cost of %s)", mkeep, 100 * miss_share, mlist);
-    }
+    char mwhy[320];
+    choose_miss_survival(h, sc, strata, bs, emit_var, &fig[bc], mwhy, sizeof mwhy);
     for (int i = 0; i < nundo; i++) stat_add(undo[i], before[i] - stats_total(undo[i])); /* mod 2^64 */
     h->scratch_free(h->user, sc);
     /* the volume stride, given the rest (VOLUME STRIDE above) */
