@@ -172,26 +172,28 @@ TEST(render_sample_miss_survival_by_the_pilot) {
  * photons: most lookups miss, and the light is what the misses compute) renders the same
  * mean at miss survival 1/4 as at 1, both within 1% of 2: the roulette weights by 1/survival,
  * so the expected value is unchanged (at 32 x 32 x 64 the means differ by less than 0.1%
- * measured). There the survival buys less work with much more variance, and the pilot at its
+ * measured); at 1/4 the image is another one, the same bit for bit on 1 and 2 threads. There the survival buys less work with much more variance, and the pilot at its
  * defaults keeps 1 (variance x cost: 6.7 at 1, 13 at 1/2, 31 at 1/4 measured). */
 TEST(render_pm_miss_survival_keeps_the_furnace) {
     const char *spp = PM_TEST_SANITIZED ? "16" : "64";
-    double mean[2];
-    const char *ms[2] = {"1", "0.25"};
-    for (int i = 0; i < 2; i++) {
-        char cmd[4096], pfm[1024];
-        snprintf(pfm, sizeof pfm, "%s/furnace_m%d.pfm", pm_test_tmpdir(), i);
+    double mean[3];
+    const char *ms[3] = {"1", "0.25", "0.25"};
+    const int threads[3] = {2, 2, 1}; /* the roulette's draws are the sample's own: any thread count */
+    char pfm[3][1024];
+    for (int i = 0; i < 3; i++) {
+        char cmd[4096];
+        snprintf(pfm[i], sizeof pfm[i], "%s/furnace_m%d.pfm", pm_test_tmpdir(), i);
         snprintf(cmd, sizeof cmd,
-                 "timeout 300 '%s/render' '%s/data/scenes/furnace.json' --mode pm --spp %s --threads 2 --quiet "
+                 "timeout 300 '%s/render' '%s/data/scenes/furnace.json' --mode pm --spp %s --threads %d --quiet "
                  "--seed 3 --pm global_photons=30 --pm gather_rays=4 --pm secondary_rays=2 --pm miss_survival=%s "
                  "--hdr '%s' -o '%s/furnace_m%d.png'",
-                 pm_test_build_dir(), pm_test_source_dir(), spp, ms[i], pfm, pm_test_tmpdir(), i);
+                 pm_test_build_dir(), pm_test_source_dir(), spp, threads[i], ms[i], pfm[i], pm_test_tmpdir(), i);
         int rc = rt_run(cmd, g_out, sizeof g_out);
         ASSERT_MSG(rc == 0, "exit %d: %s", rc, g_out);
         double look = counter("Irradiance lookups "), miss = counter("Irradiance lookups finding nothing on their side");
         EXPECT_MSG(look > 0 && miss > 0.5 * look, "lookups %.0f, misses %.0f: %s", look, miss, g_out);
         film f;
-        ASSERT_EQ_INT(film_read_pfm(&f, pfm), 0);
+        ASSERT_EQ_INT(film_read_pfm(&f, pfm[i]), 0);
         double sum = 0;
         long n = (long)f.width * f.height;
         for (long k = 0; k < 3 * n; k++) sum += f.px[k];
@@ -202,6 +204,8 @@ TEST(render_pm_miss_survival_keeps_the_furnace) {
     EXPECT_NEAR(mean[0], 2.0, 0.02);
     EXPECT_NEAR(mean[1], 2.0, 0.02);
     EXPECT_NEAR(mean[1], mean[0], 0.01);
+    EXPECT_MSG(rt_same_file(pfm[1], pfm[2]), "miss survival 1/4: 1 and 2 threads render different images");
+    EXPECT_MSG(!rt_same_file(pfm[0], pfm[1]), "miss survival 1/4 renders the image of 1: the setting is not applied");
     char cmd[4096];
     snprintf(cmd, sizeof cmd,
              "timeout 300 '%s/render' '%s/data/scenes/furnace.json' --mode pm --spp 4 --threads 2 --quiet --seed 3 "
