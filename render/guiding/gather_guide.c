@@ -1,5 +1,5 @@
-/* gather_guide.c: the photon mapper's gather guide (see gather_guide.h): the mixture of aimed and
- * cosine gather directions with its density, and the pilot that finds the opening.
+/* gather_guide.c: the photon mapper's gather guide (see gather_guide.h): the pilot that finds the
+ * opening or the bright patch (gather_guide_disc.c has the mixture and the port's disc).
  *
  * The pilot probes each point on its own stream (GG_SEED, point) and writes every probe into a
  * fixed slot before anything is summed, so its answer is the same for any thread count; the
@@ -47,48 +47,6 @@ void gather_guide_free(gather_guide *gg) {
     int id = gg->stat_aimed;
     memset(gg, 0, sizeof *gg);
     gg->stat_aimed = id;
-}
-
-/* ---- the mixture (WHY THE ESTIMATE STAYS UNBIASED) ---------------------------------------- */
-
-double gather_guide_disc_pdf(const gather_guide *gg, vec3 x, vec3 d) {
-    vec3 toc = v3_sub(gg->centre, x);
-    double dc = v3_len(toc), cd = v3_dot(d, toc) / dc;
-    if (!(cd > 0)) return 0;
-    double t = dc / cd, R = gg->radius;
-    if (v3_len2(v3_sub(v3_add(x, v3_scale(d, t)), gg->centre)) > R * R) return 0;
-    return t * t / (M_PI * R * R * cd);
-}
-
-double gather_guide_share(const gather_guide *gg, vec3 x, vec3 ns) {
-    if (!gg->aim) return 0;
-    vec3 toc = v3_sub(gg->centre, x);
-    if (v3_len2(gg->lit) > 0 && !(v3_dot(toc, gg->lit) > gg->radius)) return 0; /* WHO AIMS */
-    return v3_dot(toc, ns) > 0 && v3_len2(toc) > gg->radius * gg->radius ? GATHER_GUIDE_SHARE : 0;
-}
-
-double gather_guide_pdf(const gather_guide *gg, double a, vec3 x, vec3 nsh, vec3 d) {
-    double c = v3_dot(d, nsh);
-    return (1 - a) * (c > 0 ? c : 0) / M_PI + a * gather_guide_disc_pdf(gg, x, d);
-}
-
-vec3 gather_guide_direction(const gather_guide *gg, double a, vec3 x, vec3 nsh, double u1, double u2, rng *g,
-                            double *wk) {
-    vec3 d;
-    if (rng_uniform(g) < a) {
-        vec3 toc = v3_sub(gg->centre, x), ds, dt;
-        double dx, dy;
-        v3_basis(v3_norm(toc), &ds, &dt);
-        sample_concentric_disc(u1, u2, &dx, &dy);
-        vec3 q = v3_add(gg->centre, v3_add(v3_scale(ds, gg->radius * dx), v3_scale(dt, gg->radius * dy)));
-        d = v3_norm(v3_sub(q, x));
-        if (gg->stat_aimed >= 0) stat_inc(gg->stat_aimed);
-    } else
-        d = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
-    double c = v3_dot(d, nsh);
-    double p = gather_guide_pdf(gg, a, x, nsh, d);
-    *wk = c > 0 && p > 0 ? c / M_PI / p : 0;
-    return d;
 }
 
 /* ---- the pilot (THE PILOT, DECISION) ------------------------------------------------------- */
@@ -533,10 +491,12 @@ int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *w
     if (force != PLAN_ON && patches && !starving) { /* THE CHEAP TEST */
         char cheap[400];
         if ((rc = gg_may_pay(probe, s, &grid, ck, ncell, pts, jp, jc, nj, size, cheap, sizeof cheap)) < 0) goto oom;
-        if (!rc) { /* rc = 0: done, the guide off */
-            snprintf(gg->reason, sizeof gg->reason, "off (%zu of %zu camera points find no precomputed irradiance, "
-                     "under %.0f%%; the scene has photon ports, so an opening or a bright patch is looked for: %s)",
-                     starved, cam, 100 * GG_STARVED, cheap);
+        if (!rc) { /* rc = 0: done, the guide off or on the port (PORTS AS OPENINGS) */
+            char pw[400] = "";
+            if (probe->port) gather_guide_port(gg, s, probe->port, pw, sizeof pw);
+            snprintf(gg->reason, sizeof gg->reason, "%s (%zu of %zu camera points find no precomputed irradiance, "
+                     "under %.0f%%; the scene has photon ports, so an opening or a bright patch is looked for: %s%s)",
+                     gg->aim ? "on" : "off", starved, cam, 100 * GG_STARVED, cheap, pw);
             goto done;
         }
     }
@@ -555,9 +515,10 @@ int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *w
         gg->radius = GG_AP_SPREAD * f.rms;
         gg->lit = f.lit;
     }
-    gg->aim = f.opening || f.patch;
+    char what[720], sized[224] = "", pw[400] = "";
+    if (!f.opening && !f.patch && probe->port) gather_guide_port(gg, s, probe->port, pw, sizeof pw);
+    gg->aim = f.opening || f.patch || gg->aim;
     gg->on = gg->aim || force == PLAN_ON;
-    char what[320], sized[224] = "";
     if (nj < picked)
         snprintf(sized, sizeof sized, " (of %zu picked: at most the %d x %d x %d camera samples' worth of probes, "
                  "at least %d points)", picked, s->cam.width, s->cam.height, s->cam.spp, GG_MIN_JOBS);
@@ -571,8 +532,8 @@ int gather_guide_make(gather_guide *gg, const scene *s, int force, const char *w
                  "%zu rays that read the photon map meet there, carrying %.1f%% of the probed light", f.c.x, f.c.y,
                  f.c.z, gg->radius, f.lit.x, f.lit.y, f.lit.z, f.nline, f.all > 0 ? 100 * f.bright / f.all : 0);
     else
-        snprintf(what, sizeof what, "no opening (%zu bright rays that read the photon map, %s)%s", f.nline,
-                 f.nline < GG_MIN_LINES ? "too few" : "not meeting within 2% of the scene's size", f.pw);
+        snprintf(what, sizeof what, "no opening (%zu bright rays that read the photon map, %s)%s%s", f.nline,
+                 f.nline < GG_MIN_LINES ? "too few" : "not meeting within 2% of the scene's size", f.pw, pw);
     snprintf(gg->reason, sizeof gg->reason,
              "%s (%zu of %zu camera points find no precomputed irradiance; the pilot probed %zu points in %zu "
              "cells%s, %zu probes: %s)",

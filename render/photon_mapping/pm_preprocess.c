@@ -346,7 +346,12 @@ static int camera_side_decisions(mapper_state *st, const scene *s, char *err, si
                           : st->vol.on ? "participating media: its probes do not march"
                           : pm__lookup   ? "partitioned render-mpi: its probes would read one process's records"
                                        : NULL;
-        gather_guide_probe probe = {st, pm__gg_found, pm__gg_read, s->nports > 0 || st->plan.found.n > 0};
+        /* PORTS AS OPENINGS (gather_guide.h): the largest declared port, or the found port that
+         * threads the largest share of the carried light (ports.h keeps them in that order). */
+        const port *aim = st->plan.found.n > 0 ? &st->plan.found.p[0] : NULL;
+        for (int i = 0; i < s->nports; i++)
+            if (!aim || s->ports[i].area > aim->area) aim = &s->ports[i];
+        gather_guide_probe probe = {st, pm__gg_found, pm__gg_read, s->nports > 0 || st->plan.found.n > 0, aim};
         if ((rc = gather_guide_make(&st->gg, s, st->cfg.force_gather_guide, why, &probe, err, errcap)) < 0)
             return rc;
     }

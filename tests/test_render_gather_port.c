@@ -1,0 +1,183 @@
+/* test_render_gather_port.c: the gather guide aimed at a photon port (gather_guide.h, PORTS AS
+ * OPENINGS): where the scene has a port and the pilot finds neither an opening nor a bright
+ * patch, the gathers aim at a disc around the port, from its dark side.
+ *
+ * Oracles: the port's geometry (its centre; a quad's circumscribed radius, half its longer
+ * diagonal) and the lights' positions (which side of the port's plane holds their power); the
+ * photon mapper without the guide (gather_guide=false, the same maps loaded from a file) for
+ * the mean of pinhole_room's image with the port-aimed guide; the renderer's own output for
+ * thread independence.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "test.h"
+#include "../render/image/film.h"
+#include "../render/guiding/gather_guide.h"
+#include "../render/load/scene_load.h"
+
+/* A floor, a 10 x 10 port at height 3 and area lights given by LIGHTS (JSON objects). */
+static int gp_scene(scene *s, const char *ports, const char *lights) {
+    char text[4096];
+    snprintf(text, sizeof text,
+             "{\"camera\": {\"eye\": [0, 1, -5], \"look_at\": [0, 1, 0], \"fov_deg\": 60, \"width\": 8, \"height\": 8},"
+             " \"materials\": {\"white\": {\"type\": \"lambert\", \"reflectance\": 0.5},"
+             "  \"lamp\": {\"type\": \"lambert\", \"reflectance\": 0, \"emission\": 10}},"
+             " \"objects\": [{\"type\": \"quad\", \"vertices\": [[-20, 0, -20], [-20, 0, 20], [20, 0, 20], [20, 0, -20]],"
+             " \"material\": \"white\"}%s],"
+             " \"ports\": [%s]}",
+             lights, ports);
+    json_err e;
+    int rc = scene_load_text(s, text, &e);
+    if (rc != 0) printf("    scene: %s\n", e.msg);
+    return rc;
+}
+
+static const char *LAMP_ABOVE = ", {\"type\": \"quad\", \"vertices\": [[-1, 9, -1], [1, 9, -1], [1, 9, 1], [-1, 9, 1]],"
+                                " \"material\": \"lamp\"}";
+static const char *LAMP_BELOW = ", {\"type\": \"quad\", \"vertices\": [[-1, 1, -1], [-1, 1, 1], [1, 1, 1], [1, 1, -1]],"
+                                " \"material\": \"lamp\"}";
+static const char *QUAD_UP = "{\"type\": \"quad\", \"corner\": [-5, 3, -5], \"edge1\": [10, 0, 0], \"edge2\": [0, 0, 10]}";
+static const char *QUAD_DOWN = "{\"type\": \"quad\", \"corner\": [-5, 3, -5], \"edge1\": [0, 0, 10], \"edge2\": [10, 0, 0]}";
+
+/* Oracle: the geometry. A 10 x 10 quad port at y = 3 (centre (0, 3, 0), circumscribed radius
+ * 5 sqrt 2) with the lamp above it: lit points up (+y), whichever way the port's normal points,
+ * so a point 11 below it aims and a point 11 above does not (WHO AIMS: more than the radius
+ * away along lit); the lamp below: lit points down;
+ * a lamp on each side with the same power: lit unknown (zero), every point in front aims; a
+ * disc port keeps its own radius. The plan's words name the port. */
+TEST(render_gather_port_disc_and_side) {
+    struct {
+        const char *name, *port, *lights;
+        double lit_y, radius;
+    } c[] = {
+        {"quad up, lamp above", QUAD_UP, LAMP_ABOVE, 1, 5 * 1.4142135623730951},
+        {"quad down, lamp above", QUAD_DOWN, LAMP_ABOVE, 1, 5 * 1.4142135623730951},
+        {"quad up, lamp below", QUAD_UP, LAMP_BELOW, -1, 5 * 1.4142135623730951},
+        {"lamps on both sides", QUAD_UP, NULL, 0, 5 * 1.4142135623730951},
+        {"disc, lamp above", "{\"type\": \"disc\", \"center\": [0, 3, 0], \"normal\": [0, 1, 0], \"radius\": 2}",
+         LAMP_ABOVE, 1, 2},
+    };
+    char both[1024];
+    snprintf(both, sizeof both, "%s%s", LAMP_ABOVE, LAMP_BELOW);
+    for (size_t i = 0; i < sizeof c / sizeof c[0]; i++) {
+        scene s;
+        ASSERT_MSG(gp_scene(&s, c[i].port, c[i].lights ? c[i].lights : both) == 0, "%s", c[i].name);
+        ASSERT(s.nports == 1);
+        gather_guide gg;
+        gather_guide_init(&gg);
+        char what[400];
+        gather_guide_port(&gg, &s, &s.ports[0], what, sizeof what);
+        printf("    %-22s centre (%g, %g, %g), radius %.4g, lit (%g, %g, %g)\n", c[i].name, gg.centre.x, gg.centre.y,
+               gg.centre.z, gg.radius, gg.lit.x, gg.lit.y, gg.lit.z);
+        EXPECT_MSG(gg.on && gg.aim, "%s: not aimed", c[i].name);
+        EXPECT_MSG(fabs(gg.centre.x) < 1e-9 && fabs(gg.centre.y - 3) < 1e-9 && fabs(gg.centre.z) < 1e-9, "%s: centre",
+                   c[i].name);
+        EXPECT_MSG(fabs(gg.radius - c[i].radius) < 1e-9, "%s: radius %g, want %g", c[i].name, gg.radius, c[i].radius);
+        EXPECT_MSG(gg.lit.x == 0 && gg.lit.z == 0 && gg.lit.y == c[i].lit_y, "%s: lit (%g, %g, %g)", c[i].name,
+                   gg.lit.x, gg.lit.y, gg.lit.z);
+        EXPECT_MSG(strstr(what, "aim at the photon port"), "%s: %s", c[i].name, what);
+        double below = gather_guide_share(&gg, v3(0.5, -8, 0), v3(0, 1, 0));
+        double above = gather_guide_share(&gg, v3(0.5, 14, 0), v3(0, -1, 0));
+        double want_below = c[i].lit_y >= 0 ? GATHER_GUIDE_SHARE : 0;
+        double want_above = c[i].lit_y <= 0 ? GATHER_GUIDE_SHARE : 0;
+        EXPECT_MSG(below == want_below && above == want_above, "%s: share below %g, above %g", c[i].name, below,
+                   above);
+        gather_guide_free(&gg);
+        scene_free(&s);
+    }
+}
+
+/* Render data/scenes/NAME.json in pm mode with FLAGS into the temp dir as TAG.pfm; out: what it
+ * printed. */
+static int gp_render(const char *name, const char *flags, const char *tag, char *out, size_t cap) {
+    char cmd[4096];
+    snprintf(cmd, sizeof cmd, "%s/render '%s/data/scenes/%s.json' --mode pm --quiet --hdr '%s/%s.pfm' %s 2>&1",
+             pm_test_build_dir(), pm_test_source_dir(), name, pm_test_tmpdir(), tag, flags);
+    return pm_test_run(cmd, out, cap);
+}
+
+static double gp_mean(const char *tag) {
+    char p[1024];
+    snprintf(p, sizeof p, "%s/%s.pfm", pm_test_tmpdir(), tag);
+    film im;
+    if (film_read_pfm(&im, p) != 0) return NAN;
+    double s = 0;
+    for (size_t k = 0; k < (size_t)im.width * (size_t)im.height * 3; k++) s += im.px[k];
+    s /= (double)im.width * im.height * 3;
+    film_free(&im);
+    return s;
+}
+
+/* Oracle: the plan's geometry and the photon mapper without the guide. pinhole_room (the plan
+ * finds the port at the hole) and pinhole_room_ports (declared there) plan the guide on, aimed
+ * at the port's disc at (500, 300, 500) with its light along +y (the lamp is above the hole),
+ * and gathers are aimed; 1 and 2 threads give the same image. On the same photon maps (traced
+ * once, loaded), 4 x 4 at 1024 spp, seeds 1-4, light guide off so only the gathers differ, the
+ * port-aimed and the cosine means of the whole image agree within 4 standard errors of their
+ * difference. */
+TEST(render_gather_port_pinhole_room) {
+    static char out[65536];
+    const char *scn[2] = {"pinhole_room", "pinhole_room_ports"};
+    for (int i = 0; i < 2; i++) {
+        ASSERT_EQ_INT(gp_render(scn[i], "--width 8 --height 8 --spp 4 --threads 1", "gp1", out, sizeof out), 0);
+        const char *p = strstr(out, "gather guide: on (");
+        ASSERT_MSG(p, "%s: %s", scn[i], strstr(out, "gather guide") ? strstr(out, "gather guide") : out);
+        const char *q = strstr(p, "aim at the photon port instead: a disc of radius ");
+        ASSERT_MSG(q, "%s: %.600s", scn[i], p);
+        double r, x, y, z, lx, ly, lz;
+        ASSERT(sscanf(q, "aim at the photon port instead: a disc of radius %lf at (%lf, %lf, %lf)", &r, &x, &y, &z) == 4);
+        const char *l = strstr(q, "on its side along (");
+        ASSERT_MSG(l && sscanf(l, "on its side along (%lf, %lf, %lf)", &lx, &ly, &lz) == 3, "%.400s", q);
+        printf("    %s: disc radius %.3g at (%.1f, %.1f, %.1f), light along (%g, %g, %g)\n", scn[i], r, x, y, z, lx, ly,
+               lz);
+        EXPECT_MSG(fabs(x - 500) < 1 && fabs(y - 300) < 1 && fabs(z - 500) < 1 && r > 6.5 && r < 7.5 && ly > 0.99,
+                   "%s: radius %g at (%g, %g, %g), lit y %g", scn[i], r, x, y, z, ly);
+        const char *aimed = strstr(out, "Gather rays aimed at the opening (gather guide)");
+        EXPECT_MSG(aimed && atol(aimed + strlen("Gather rays aimed at the opening (gather guide)")) > 0, "%s: none aimed",
+                   scn[i]);
+        ASSERT_EQ_INT(gp_render(scn[i], "--width 8 --height 8 --spp 4 --threads 2", "gp2", out, sizeof out), 0);
+        film a, b;
+        char pa[1024], pb[1024];
+        snprintf(pa, sizeof pa, "%s/gp1.pfm", pm_test_tmpdir());
+        snprintf(pb, sizeof pb, "%s/gp2.pfm", pm_test_tmpdir());
+        ASSERT(film_read_pfm(&a, pa) == 0 && film_read_pfm(&b, pb) == 0);
+        EXPECT_MSG(memcmp(a.px, b.px, sizeof *a.px * 3 * (size_t)a.width * a.height) == 0, "%s: 1 and 2 threads differ",
+                   scn[i]);
+        film_free(&a);
+        film_free(&b);
+    }
+
+    enum { N = 4 };
+    char flags[2048], tag[64];
+    snprintf(flags, sizeof flags, "--width 4 --height 4 --spp 1 --save-photons '%s/gp_maps'", pm_test_tmpdir());
+    ASSERT_EQ_INT(gp_render("pinhole_room", flags, "gp_maps", out, sizeof out), 0);
+    double m[2][N], s1[2] = {0, 0}, s2[2] = {0, 0};
+    for (int on = 0; on < 2; on++)
+        for (int i = 0; i < N; i++) {
+            snprintf(flags, sizeof flags,
+                     "--width 4 --height 4 --spp 1024 --seed %d --load-photons '%s/gp_maps' --pm light_guide=false "
+                     "--pm gather_rays=1 --pm secondary_rays=1%s",
+                     i + 1, pm_test_tmpdir(), on ? "" : " --pm gather_guide=false");
+            snprintf(tag, sizeof tag, "gp%d_%d", on, i);
+            ASSERT_EQ_INT(gp_render("pinhole_room", flags, tag, out, sizeof out), 0);
+            if (on) ASSERT_MSG(strstr(out, "aim at the photon port instead"), "%s", strstr(out, "gather guide"));
+            m[on][i] = gp_mean(tag);
+            s1[on] += m[on][i];
+            s2[on] += m[on][i] * m[on][i];
+        }
+    double mean[2], var[2];
+    for (int on = 0; on < 2; on++) {
+        mean[on] = s1[on] / N;
+        var[on] = fmax(0, (s2[on] - N * mean[on] * mean[on]) / (N - 1));
+    }
+    double se = sqrt((var[0] + var[1]) / N), d = mean[1] - mean[0];
+    printf("    pinhole_room whole image: cosine %.5g (sd %.1f%%), aimed at the port %.5g (sd %.1f%%), difference "
+           "%+.2f%% (se %.2f%%)\n",
+           mean[0], 100 * sqrt(var[0]) / mean[0], mean[1], 100 * sqrt(var[1]) / mean[1], 100 * d / mean[0],
+           100 * se / mean[0]);
+    EXPECT_MSG(fabs(d) <= 4 * se, "aimed %g vs cosine %g: %+.2f%% (4 se %.2f%%)", mean[1], mean[0], 100 * d / mean[0],
+               400 * se / mean[0]);
+}
