@@ -213,6 +213,9 @@ void gather_guide_free(gather_guide *gg);
 /* PORTS AS OPENINGS: aim gg at the disc around pt (on, aimed), lit from the lights' side of it;
  * what gets the words for the plan's line, starting "; so the gathers aim at the photon port". */
 void gather_guide_port(gather_guide *gg, const scene *s, const port *pt, char *what, size_t cap);
+/* The unit side of pt's plane that holds at least GG_PORT_SIDE of the lights' power (luminance;
+ * an infinite light counts on both sides), or zero; *share: the larger side's share. */
+vec3 gather_guide_port_lit(const scene *s, const port *pt, double *share);
 
 /* The share a of x's gather rays aimed at the opening: GATHER_GUIDE_SHARE when one was found, it
  * is in front of x (side normal ns), farther than the disc's radius, and x is on its dark side

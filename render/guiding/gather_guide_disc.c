@@ -54,11 +54,11 @@ vec3 gather_guide_direction(const gather_guide *gg, double a, vec3 x, vec3 nsh, 
 
 /* ---- a photon port as the opening (PORTS AS OPENINGS) ------------------------------------- */
 
-/* The side of pt's plane the lights shine from, each weighted by its power (luminance): an
+/* gather_guide.h: the side of pt's plane the lights shine from, each weighted by its power: an
  * area light's triangle or a sphere light by its centre, a point or spot light by its
  * position, a directional light by where it comes from; an infinite light counts on both
  * sides. *share: the larger side's share of the power. */
-static vec3 gg_port_lit(const scene *s, const port *pt, double *share) {
+vec3 gather_guide_port_lit(const scene *s, const port *pt, double *share) {
     double side[2] = {0, 0};
     for (int i = 0; i < s->nlights; i++) {
         const light *l = &s->lights[i];
@@ -87,7 +87,7 @@ void gather_guide_port(gather_guide *gg, const scene *s, const port *pt, char *w
     gg->centre = pt->c;
     gg->radius = pt->type == PORT_DISC ? pt->r
                                        : 0.5 * fmax(v3_len(v3_add(pt->e1, pt->e2)), v3_len(v3_sub(pt->e1, pt->e2)));
-    gg->lit = gg_port_lit(s, pt, &share);
+    gg->lit = gather_guide_port_lit(s, pt, &share);
     gg->aim = gg->on = 1;
     if (v3_len2(gg->lit) > 0)
         snprintf(what, cap, "; so the gathers aim at the photon port instead: a disc of radius %.3g at (%.4g, %.4g, "

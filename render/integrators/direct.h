@@ -32,6 +32,26 @@
  * part of the light the guide aims at). With gd NULL, or no table there, it is
  * direct_light_surface exactly: same numbers, same result (the path tracer passes no guide).
  *
+ * THROUGH A PORT (direct_light_surface_guided with o->port; the photon mapper). Light through a
+ * small opening (pinhole_room: a 10 x 10 hole shows a 33 x 33 part of a 200 x 200 lamp to the
+ * floor under it, and the part moves with the point) is found by few light samples, and a
+ * guide's table per receiver cell is the union over the cell's points. At a point x on the
+ * port's dark side (the port's centre in front of x's surface and ahead of x along port_lit)
+ * the call takes two samples: the light sample as above, and a ray from x through a uniform
+ * point of the port (two more numbers: five in all there), traced to the first surface; where
+ * that is an area or sphere light seen from its front, its light counts. They are combined by
+ * Veach's balance heuristic with the counts b = DIRECT_PORT_SHARE and 1 - b: the sum
+ * b F_port + (1 - b) F_light, each sample of direction w divided by
+ * b p_port(w) + (1 - b) p_light(w), p_port = t^2 / (area cos) at the port crossing (0 off the
+ * port), p_light the solid-angle density with which the (guided) light sampling draws that
+ * point of that light (its choice, its table's density at the point's (u1, u2), 1 / area, turned
+ * into solid angle). A point or directional light's sample (no density; no port ray finds it)
+ * keeps its whole weight. Every direction the port sample can draw the light sample can draw
+ * too, so the estimate is unbiased for any port: a wrong one costs its rays and no noise.
+ * Measured on the hole scene of tests/test_render_guide.c: 4.5x lower standard error than the
+ * guide alone, within 0.1% of the quadrature. Elsewhere (b = 0), and with media, the same three
+ * numbers and the same result as without a port.
+ *
  * In a medium (direct_light_medium) the phase function replaces f * cos, and the shadow segment
  * always carries the transmittance.
  *
@@ -56,6 +76,7 @@ typedef enum direct_bsdf {
  * 0 dark, -1 trace the shadow ray. */
 typedef int (*direct_shadow_hint)(void *user, const scene *s, int li, const hit *h, vec3 n);
 
+struct port;
 typedef struct direct_options {
     direct_bsdf bsdf;
     int media;                /* 1: shadow segments carry the media's transmittance */
@@ -63,6 +84,9 @@ typedef struct direct_options {
     void *hint_user;
     int med;                  /* with media: the medium the path is in at the surface (a surface
                                * that keeps the ray's medium, medium.h, needs it) */
+    const struct port *port;  /* THROUGH A PORT (below): aim a share of the samples through it;
+                               * NULL: none (ignored when media = 1) */
+    vec3 port_lit;            /* unit: the side of the port its light comes from */
 } direct_options;
 
 /* Direct light leaving the surface at h toward wo (material m, n the geometric normal on wo's
@@ -75,6 +99,11 @@ rgb direct_light_surface(const scene *s, const material *m, const hit *h, vec3 n
 struct guide;
 rgb direct_light_surface_guided(const scene *s, const material *m, const hit *h, vec3 n, vec3 wo, rng *g,
                                 const direct_options *o, const struct guide *gd);
+
+/* THROUGH A PORT: the port sample's count b at x (shading normal nsh): DIRECT_PORT_SHARE on the
+ * port's dark side, else 0. */
+#define DIRECT_PORT_SHARE 0.5
+double direct_port_share(const direct_options *o, vec3 x, vec3 nsh);
 
 /* Direct light scattered at p, inside medium med, into a path travelling along d: phase *
  * Li * Tr / p_light, from one light sample: 3 numbers from g. */

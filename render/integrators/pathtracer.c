@@ -91,7 +91,7 @@ static int surface_event(const pt_state *st, const scene *s, const hit *h, ray *
     int alive = material_sample_ns(m, wo, h->ng, h->ns, s->medium_ior, ul, u1, u2, &bs);
     if (bs.lobe == LOBE_DIFFUSE) {
         vec3 n = v3_dot(wo, h->ng) >= 0 ? h->ng : v3_neg(h->ng);
-        direct_options o = {DIRECT_BSDF_DIFFUSE_LOBE, med != NO_MEDIA, NULL, NULL, med};
+        direct_options o = {DIRECT_BSDF_DIFFUSE_LOBE, med != NO_MEDIA, NULL, NULL, med, NULL, {0, 0, 0}};
         pp->L = v3_add(pp->L, v3_mul(pp->beta, direct_light_surface(s, m, h, n, wo, g, &o)));
         pp->count_emission = 0;
     } else {

@@ -177,7 +177,8 @@ static int shadow_hint(void *user, const scene *s, int li, const hit *h, vec3 n)
 static rgb direct_light(const mapper_state *st, const scene *s, const material *m, const hit *h,
                         vec3 ns, vec3 wo, int med, rng *g, mapper_scratch *sc) {
     shadow_hint_ctx c = {st, sc, g, 1.0};
-    direct_options o = {DIRECT_BSDF_FULL, st->vol.on, shadow_hint, &c, med}; /* media: transmittance */
+    direct_options o = {DIRECT_BSDF_FULL, st->vol.on, shadow_hint, &c, med, /* media: transmittance */
+                        st->dport, st->dport_lit}; /* and through the port (direct.h) */
     /* the plan's light guide (guide.h; NULL: light samples as direct_light_surface draws them) */
     rgb L = direct_light_surface_guided(s, m, h, ns, wo, g, &o, st->plan.guide);
     return c.weight == 1.0 ? L : v3_scale(L, c.weight);
@@ -290,7 +291,7 @@ int pm__gg_read(void *user, const scene *s, const guide_point *pt, vec3 d, rng *
     vec3 ny = v3_dot(din, y.ng) <= 0 ? y.ng : v3_neg(y.ng);
     rgb Lo = lookup_radiance_ex(st, s, &y, v3_neg(din), &found, 0);
     if (!found || st->sides.indirect_only) {
-        direct_options o = {DIRECT_BSDF_FULL, 0, NULL, NULL, -1};
+        direct_options o = {DIRECT_BSDF_FULL, 0, NULL, NULL, -1, NULL, {0, 0, 0}};
         Lo = v3_add(Lo, direct_light_surface_guided(s, scene_material(s, &y), &y, ny, v3_neg(din), g, &o,
                                                     st->plan.guide));
     }

@@ -41,6 +41,9 @@ typedef struct mapper_state {
     side_cache sides; /* precomputed irradiance that keeps to each query's side (photon_sides.h) */
     side_map caus_side; /* the caustic map's estimates keep to the query's side (photon_sides.h) */
     gather_guide gg; /* the opening the gathers aim a share of their rays at (gather_guide.h) */
+    const port *dport; /* the port direct light is also sampled through (direct.h, THROUGH A
+                        * PORT), or NULL; dport_lit: the side its light comes from */
+    vec3 dport_lit;
     float r2_global, r2_caustic, r2_shadow, r2_lookup;
     size_t nglobal_all, ncaustic_all; /* photons in the whole maps (all processes' parts) */
     double sec_dist;

@@ -15,7 +15,9 @@
 #include <string.h>
 
 #include "base/stats.h"
+#include "integrators/direct.h"
 #include "photon_mapping/pm_internal.h"
+#include "scene/light.h"
 
 enum { BUCKET_GLOBAL = 1, BUCKET_CAUSTIC = 8, BUCKET_SHADOW = 8 };
 
@@ -334,6 +336,52 @@ static int sample_decide(mapper_state *st, const scene *s, char *err, size_t err
     return 0;
 }
 
+/* The port the gathers and the direct light aim at (gather_guide.h PORTS AS OPENINGS, direct.h
+ * THROUGH A PORT): the largest declared port, or the found port that threads the largest share
+ * of the carried light (ports.h keeps them in that order); NULL: none. */
+static const port *aim_port(const mapper_state *st, const scene *s) {
+    const port *aim = st->plan.found.n > 0 ? &st->plan.found.p[0] : NULL;
+    for (int i = 0; i < s->nports; i++)
+        if (!aim || s->ports[i].area > aim->area) aim = &s->ports[i];
+    return aim;
+}
+
+/* direct.h, THROUGH A PORT: on where the scene has a port, no media (their shadow segments carry
+ * transmittance), a known lit side and area or sphere lights there with at least half the
+ * lights' power (a port sample finds only those). The words in why. */
+static void port_direct_decide(mapper_state *st, const scene *s, char *why, size_t cap) {
+    const port *pt = aim_port(st, s);
+    st->dport = NULL;
+    if (!pt) {
+        snprintf(why, cap, "off (no photon port)");
+        return;
+    }
+    if (st->vol.on) {
+        snprintf(why, cap, "off (participating media)");
+        return;
+    }
+    double share, reach = 0, all = 0;
+    vec3 lit = gather_guide_port_lit(s, pt, &share);
+    for (int i = 0; i < s->nlights; i++) {
+        const light *l = &s->lights[i];
+        double w = rgb_lum(l->power);
+        all += w;
+        if ((l->type == LIGHT_AREA || l->type == LIGHT_SPHERE) && w > 0) reach += w;
+    }
+    if (v3_len2(lit) == 0 || !(reach >= 0.5 * all)) {
+        snprintf(why, cap, "off (the port at (%.4g, %.4g, %.4g): %s)", pt->c.x, pt->c.y, pt->c.z,
+                 v3_len2(lit) == 0 ? "the lights' power is on both of its sides" :
+                 "area and sphere lights carry under half the lights' power (a ray through the port finds no other)");
+        return;
+    }
+    st->dport = pt;
+    st->dport_lit = lit;
+    snprintf(why, cap, "on (the port at (%.4g, %.4g, %.4g), its light along (%.2f, %.2f, %.2f): at points on its "
+             "dark side each light sample is joined by a ray through the port, weighted %.2f : %.2f by the balance "
+             "heuristic; area and sphere lights carry %.0f%% of the lights' power)", pt->c.x, pt->c.y, pt->c.z, lit.x,
+             lit.y, lit.z, DIRECT_PORT_SHARE, 1 - DIRECT_PORT_SHARE, all > 0 ? 100 * reach / all : 0);
+}
+
 /* Once, on pass 0: the gather guide (gather_guide.h) and the camera sample (pm_sample.h), both
  * from probes through photonmapper.c's eye rays, with the plan's lines they print. */
 static int camera_side_decisions(mapper_state *st, const scene *s, char *err, size_t errcap) {
@@ -348,15 +396,16 @@ static int camera_side_decisions(mapper_state *st, const scene *s, char *err, si
                                        : NULL;
         /* PORTS AS OPENINGS (gather_guide.h): the largest declared port, or the found port that
          * threads the largest share of the carried light (ports.h keeps them in that order). */
-        const port *aim = st->plan.found.n > 0 ? &st->plan.found.p[0] : NULL;
-        for (int i = 0; i < s->nports; i++)
-            if (!aim || s->ports[i].area > aim->area) aim = &s->ports[i];
-        gather_guide_probe probe = {st, pm__gg_found, pm__gg_read, s->nports > 0 || st->plan.found.n > 0, aim};
+        gather_guide_probe probe = {st, pm__gg_found, pm__gg_read, s->nports > 0 || st->plan.found.n > 0,
+                                    aim_port(st, s)};
         if ((rc = gather_guide_make(&st->gg, s, st->cfg.force_gather_guide, why, &probe, err, errcap)) < 0)
             return rc;
     }
     stats_time_add("Time/Gather guide pilot", stats_now() - t0);
     printf("  gather guide: %s\n", st->gg.reason);
+    char dwhy[400];
+    port_direct_decide(st, s, dwhy, sizeof dwhy);
+    printf("  direct light through the port: %s\n", dwhy);
     t0 = stats_now();
     if ((rc = sample_decide(st, s, err, errcap)) < 0) return rc;
     stats_time_add("Time/Sample pilot and emission mask", stats_now() - t0);
