@@ -49,7 +49,11 @@
  * keeps its whole weight. Every direction the port sample can draw the light sample can draw
  * too, so the estimate is unbiased for any port: a wrong one costs its rays and no noise.
  * Measured on the hole scene of tests/test_render_guide.c: 4.5x lower standard error than the
- * guide alone, within 0.1% of the quadrature. Elsewhere (b = 0), and with media, the same three
+ * guide alone, within 0.1% of the quadrature. On pinhole_room (96 x 96, 64 spp, seeds 1-3,
+ * against data/reference/et96, with the gathers aimed at the port as well) the lit patch's
+ * squared error went from 3.6e-8, 3.2e-8, 3.3e-8 to 1.4e-9, 5.6e-9, 7.7e-9 (the image's from
+ * 5.1e-8 to 1.3e-8, 2.8e-8, 1.4e-8, the rest mostly the camera's own view of the lit big room
+ * through the hole, four pixels) at about the same CPU time (2.4-3.4 s against 2.9-3.4 s). Elsewhere (b = 0), and with media, the same three
  * numbers and the same result as without a port.
  *
  * In a medium (direct_light_medium) the phase function replaces f * cos, and the shadow segment
