@@ -3,9 +3,12 @@
 #ifndef TEST_FILM_H
 #define TEST_FILM_H
 
+#include <math.h>
 #include <stddef.h>
+#include <stdio.h>
 
 #include "../render/image/film.h"
+#include "test.h"
 
 /* Mean of the three channels over the rectangle [x0, x1) x [y0, y1) (top-left origin); 0 for
  * an empty rectangle. */
@@ -19,6 +22,23 @@ static inline double rt_rect_mean(const film *f, int x0, int y0, int x1, int y1)
             n++;
         }
     return n ? sum / n : 0;
+}
+
+/* Mean of the three channels over the whole image in the PFM file at path; NAN if it cannot be
+ * read. */
+static inline double rt_file_mean(const char *path) {
+    film im;
+    if (film_read_pfm(&im, path) != 0) return NAN;
+    double s = rt_rect_mean(&im, 0, 0, im.width, im.height);
+    film_free(&im);
+    return s;
+}
+
+/* rt_file_mean of the test directory's TAG.pfm. */
+static inline double rt_tmp_mean(const char *tag) {
+    char p[1024];
+    snprintf(p, sizeof p, "%s/%s.pfm", pm_test_tmpdir(), tag);
+    return rt_file_mean(p);
 }
 
 #endif /* TEST_FILM_H */

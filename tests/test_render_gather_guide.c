@@ -16,6 +16,7 @@
 
 #include "test.h"
 #include "../render/image/film.h"
+#include "test_film.h"
 #include "../render/guiding/gather_guide.h"
 #include "../render/base/rng.h"
 
@@ -52,18 +53,6 @@ static int gg_same_file(const char *a, const char *b) {
     if (fa) fclose(fa);
     if (fb) fclose(fb);
     return same;
-}
-
-static double gg_mean(const char *tag) {
-    char p[1024];
-    snprintf(p, sizeof p, "%s/%s.pfm", pm_test_tmpdir(), tag);
-    film im;
-    if (film_read_pfm(&im, p) != 0) return NAN;
-    double s = 0;
-    for (size_t k = 0; k < (size_t)im.width * (size_t)im.height * 3; k++) s += im.px[k];
-    s /= (double)im.width * im.height * 3;
-    film_free(&im);
-    return s;
 }
 
 /* Oracle: the geometry and the renderer's own images. pinhole_room plans the guide on, with
@@ -124,7 +113,7 @@ TEST(render_gather_guide_same_mean) {
             snprintf(tag, sizeof tag, "g%d_%d", on, i);
             ASSERT_EQ_INT(gg_render("pinhole_room", flags, tag, out, sizeof out), 0);
             if (on) ASSERT_MSG(strstr(out, "gather guide: on (forced)"), "%s", out);
-            m[on][i] = gg_mean(tag);
+            m[on][i] = rt_tmp_mean(tag);
             s1[on] += m[on][i];
             s2[on] += m[on][i] * m[on][i];
         }

@@ -15,7 +15,9 @@
 #include <string.h>
 
 #include "test.h"
+#include "test_render_run.h"
 #include "../render/image/film.h"
+#include "test_film.h"
 #include "../render/guiding/gather_guide.h"
 #include "../render/load/scene_load.h"
 
@@ -94,22 +96,10 @@ TEST(render_gather_port_disc_and_side) {
 /* Render data/scenes/NAME.json in pm mode with FLAGS into the temp dir as TAG.pfm; out: what it
  * printed. */
 static int gp_render(const char *name, const char *flags, const char *tag, char *out, size_t cap) {
-    char cmd[4096];
-    snprintf(cmd, sizeof cmd, "%s/render '%s/data/scenes/%s.json' --mode pm --quiet --hdr '%s/%s.pfm' %s 2>&1",
-             pm_test_build_dir(), pm_test_source_dir(), name, pm_test_tmpdir(), tag, flags);
-    return pm_test_run(cmd, out, cap);
-}
-
-static double gp_mean(const char *tag) {
-    char p[1024];
-    snprintf(p, sizeof p, "%s/%s.pfm", pm_test_tmpdir(), tag);
-    film im;
-    if (film_read_pfm(&im, p) != 0) return NAN;
-    double s = 0;
-    for (size_t k = 0; k < (size_t)im.width * (size_t)im.height * 3; k++) s += im.px[k];
-    s /= (double)im.width * im.height * 3;
-    film_free(&im);
-    return s;
+    char sc[256], args[4096];
+    snprintf(sc, sizeof sc, "'%%s/data/scenes/%s.json'", name);
+    snprintf(args, sizeof args, "--mode pm --quiet --hdr '%s.pfm' %s 2>&1", tag, flags);
+    return rt_render(sc, args, out, cap);
 }
 
 /* Oracle: the plan's geometry and the photon mapper without the guide. pinhole_room (the plan
@@ -165,7 +155,7 @@ TEST(render_gather_port_pinhole_room) {
             snprintf(tag, sizeof tag, "gp%d_%d", on, i);
             ASSERT_EQ_INT(gp_render("pinhole_room", flags, tag, out, sizeof out), 0);
             if (on) ASSERT_MSG(strstr(out, "aim at the photon port instead"), "%s", strstr(out, "gather guide"));
-            m[on][i] = gp_mean(tag);
+            m[on][i] = rt_tmp_mean(tag);
             s1[on] += m[on][i];
             s2[on] += m[on][i] * m[on][i];
         }
@@ -207,7 +197,7 @@ TEST(render_gather_port_forced_on_keeps_the_means) {
                  "--spp 4096 --seed 99 --hdr '%s/gpf_path.pfm' 2>&1", pm_test_build_dir(), pm_test_source_dir(),
                  scn[k], pm_test_tmpdir());
         ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
-        double path = gp_mean("gpf_path"), m[2] = {0, 0}, v[2] = {0, 0};
+        double path = rt_tmp_mean("gpf_path"), m[2] = {0, 0}, v[2] = {0, 0};
         enum { N = 4 };
         for (int on = 0; on < 2; on++)
             for (int i = 0; i < N; i++) {
@@ -225,7 +215,7 @@ TEST(render_gather_port_forced_on_keeps_the_means) {
                                strstr(out, "direct light through"));
                     EXPECT_MSG(strstr(out, "gather guide: on"), "%s: %s", scn[k], strstr(out, "gather guide"));
                 }
-                double x = gp_mean(tag);
+                double x = rt_tmp_mean(tag);
                 m[on] += x / N;
                 v[on] += x * x / N;
             }
