@@ -150,7 +150,20 @@ TEST(render_hard_shelf_glass_regions) {
  * is not shown to be a bias either (these checks ran before the dark-side rule). The bounds:
  * whole 5%, patch 5%, walls 5% (the target set for this scene); the walls' bound is 2.2 of
  * their standard deviations above their mean, so a new seed would land outside it about 1 time in 60 (a
- * normal law), and the test's seed 1 reads +1.10%. */
+ * normal law), and the test's seed 1 reads +1.10%.
+ * AT 983b284 (the gathers aim at the found port and the direct light takes a ray through it:
+ * gather_guide.h PORTS AS OPENINGS, direct.h THROUGH A PORT) seeds 1-12 read whole -4.54..-0.15%
+ * (mean -1.93, sd 1.38), patch -3.30..-0.23% (mean -1.77, sd 0.97), walls -5.36..+1.94% (mean
+ * -1.66, sd 2.20); seed 1, the test's: -0.15, -0.23, +0.57%. The patch's noise fell (sd 0.97
+ * against about 2 before) and left an offset: every seed reads it low. It is the photon map's:
+ * the patch's indirect light comes through the hole from the big room's precomputed
+ * irradiance, and at 1,000,000 global photons (10x the 100,000 the plan stores here at the
+ * defaults, half the 200,000 target; seeds 1-4) the patch
+ * reads -0.62, +0.26, -0.27, +1.72% (mean +0.27%). Seed 7 reads whole -4.54% and walls -5.36%,
+ * outside the 5% bounds: with the offset a new seed lands outside one about 1 time in 13 (a
+ * normal law on these twelve; one of the twelve did), so
+ * the fixed seed 1 keeps this a check of the estimators, and the spread is measured here by hand
+ * (the 2% the issue asks for is not met over seeds). */
 TEST(render_hard_pinhole_room_regions) {
     const region r[] = {{"whole image", 0, 0, 8, 8, 0.05},
                         {"lit patch", 2, 6, 6, 8, 0.05},
