@@ -41,4 +41,15 @@ static inline double rt_tmp_mean(const char *tag) {
     return rt_file_mean(p);
 }
 
+/* The mean and the sample variance (n - 1) of x[0..n), n >= 2; the variance at least 0. */
+static inline void rt_mean_var(const double *x, int n, double *mean, double *var) {
+    double s1 = 0, s2 = 0;
+    for (int i = 0; i < n; i++) {
+        s1 += x[i];
+        s2 += x[i] * x[i];
+    }
+    *mean = s1 / n;
+    *var = fmax(0, (s2 - n * *mean * *mean) / (n - 1));
+}
+
 #endif /* TEST_FILM_H */

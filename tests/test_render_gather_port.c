@@ -145,7 +145,7 @@ TEST(render_gather_port_pinhole_room) {
     char flags[2048], tag[64];
     snprintf(flags, sizeof flags, "--width 4 --height 4 --spp 1 --save-photons '%s/gp_maps'", pm_test_tmpdir());
     ASSERT_EQ_INT(gp_render("pinhole_room", flags, "gp_maps", out, sizeof out), 0);
-    double m[2][N], s1[2] = {0, 0}, s2[2] = {0, 0};
+    double m[2][N];
     for (int on = 0; on < 2; on++)
         for (int i = 0; i < N; i++) {
             snprintf(flags, sizeof flags,
@@ -156,14 +156,9 @@ TEST(render_gather_port_pinhole_room) {
             ASSERT_EQ_INT(gp_render("pinhole_room", flags, tag, out, sizeof out), 0);
             if (on) ASSERT_MSG(strstr(out, "aim at the photon port instead"), "%s", strstr(out, "gather guide"));
             m[on][i] = rt_tmp_mean(tag);
-            s1[on] += m[on][i];
-            s2[on] += m[on][i] * m[on][i];
         }
     double mean[2], var[2];
-    for (int on = 0; on < 2; on++) {
-        mean[on] = s1[on] / N;
-        var[on] = fmax(0, (s2[on] - N * mean[on] * mean[on]) / (N - 1));
-    }
+    for (int on = 0; on < 2; on++) rt_mean_var(m[on], N, &mean[on], &var[on]);
     double se = sqrt((var[0] + var[1]) / N), d = mean[1] - mean[0];
     printf("    pinhole_room whole image: cosine %.5g (sd %.1f%%), aimed at the port %.5g (sd %.1f%%), difference "
            "%+.2f%% (se %.2f%%)\n",
