@@ -474,3 +474,46 @@ TEST(render_progressive_checkpoint_v2_file) {
     render_state_free(&rs);
     pass_state_free(&ps);
 }
+
+/* Oracle: the documented default of samples per pass (render/app/run.c, THE DEFAULT SAMPLES PER
+ * PASS), computed here on its own: 4, or at fewer than 16,384 pixels the least square s^2 with
+ * pixels x s^2 >= 65,536. The run's "In passes of N spp" line and its film's sample count
+ * (pixels x N x passes) must both follow it; --pass-spp and the scene's render.pass_spp keep
+ * their value (rounded up to a square as before). Path tracing, one pass each. */
+TEST(render_progressive_default_pass_spp) {
+    char out[65536];
+    static const struct {
+        int w, h, asked;   /* asked: --pass-spp (0: none) */
+        const char *scene; /* NULL: cornell_box.json */
+    } cases[] = {{8, 8, 0, NULL},   {20, 12, 0, NULL}, {96, 96, 0, NULL}, {128, 128, 0, NULL},
+                 {300, 2, 0, NULL}, {8, 8, 4, NULL},   {8, 8, 0, "ps.json"}};
+    ASSERT_EQ_INT(write_box_with_render("ps.json", "\"pass_spp\": 6"), 0); /* rounded up to 9 */
+    for (int c = 0; c < 7; c++) {
+        long px = (long)cases[c].w * cases[c].h, want = 4;
+        if (cases[c].asked || cases[c].scene)
+            want = cases[c].asked ? cases[c].asked : 9;
+        else
+            for (long side = 1; px * 4 < 65536; side++)
+                if (px * side * side >= 65536) {
+                    want = side * side;
+                    break;
+                }
+        char scn[1100], args[512];
+        if (cases[c].scene)
+            snprintf(scn, sizeof scn, "'%s'", rt_path(cases[c].scene));
+        else
+            snprintf(scn, sizeof scn, "'%%s/data/scenes/cornell_box.json'");
+        snprintf(args, sizeof args, "--mode path --width %d --height %d --passes 1 --threads 2 --hdr d.pfm %s%.0d",
+                 cases[c].w, cases[c].h, cases[c].asked ? "--pass-spp " : "", cases[c].asked);
+        ASSERT_MSG(rt_render(scn, args, out, sizeof out) == 0, "case %d: %s", c, out);
+        double got = num_after(out, "In passes of "), samples = num_after(out, "    Samples");
+        EXPECT_MSG(got == (double)want, "case %d (%dx%d): %g spp a pass, the rule says %ld", c, cases[c].w,
+                   cases[c].h, got, want);
+        EXPECT_MSG(samples == (double)(px * want), "case %d: the film has %g samples, not %ld x %ld", c, samples, px,
+                   want);
+        int said = strstr(out, "camera samples; --pass-spp sets it") != NULL;
+        int defaulted = !cases[c].asked && !cases[c].scene;
+        EXPECT_MSG(said == (defaulted && want != 4), "case %d: the run %s why the pass is not 4 spp", c,
+                   said ? "says" : "does not say");
+    }
+}

@@ -74,7 +74,8 @@ static const option_def k_options[] = {
      "the same seed and passes give the same image on any threads", NULL},
     {"--pass-spp", NULL, "N", OPT_LONG, 1, 1 << 20, F(pass_spp), NULL,
      "samples per pixel of each pass (default: the scene's\n"
-     "render.pass_spp, else 4; rounded up to a square)\n"
+     "render.pass_spp, else 4, or more below 128x128 pixels: at\n"
+     "least 65536 samples a pass; rounded up to a square)\n"
      "The image is the mean of the pass images. Pass 0 is the plain\n"
      "render with --seed; pass p > 0 has its own seed. In pm and\n"
      "preview each pass traces fresh photon maps and the radii shrink\n"

@@ -85,8 +85,41 @@ static int choose_passes(app_run *r) {
         return 2;
     }
     r->budget = o->time_budget > 0 ? o->time_budget : r->cli_passes ? 0 : s->settings.time;
-    r->pspp = o->pass_spp ? (int)o->pass_spp : s->settings.pass_spp ? s->settings.pass_spp : 4;
-    if (r->in_passes) camera_set_spp(&s->cam, r->pspp);
+    r->pspp = o->pass_spp ? (int)o->pass_spp : s->settings.pass_spp; /* 0: pass_spp_default */
+    return APP_GO;
+}
+
+/* THE DEFAULT SAMPLES PER PASS: 4, or at a small image the least square whose pass has
+ * PASS_MIN_SAMPLES camera samples (8x8: 1024, 16x16: 256, 32x32: 64, 64x64: 16, 96x96: 9;
+ * 128x128 and up: 4). Why: a pass has costs of its own whatever its size (in pm and preview a
+ * later pass traces at least 1/64 of the photon targets, builds their kd-trees and precomputes
+ * their irradiance; pm_passes.c, PHOTONS PER PASS), and a tiny image's pass of 4 spp spent most
+ * of its time there: pinhole_room at 8x8 with --time 10 spent 8 s of 10 on photon maps.
+ * Measured by hand at ed0f409 (pm, --time, 2 threads, RMSE against the hard and
+ * s32 references, samples per pass 4 / 16 / 64 / 256 / 1024 ...): pinhole_room 8x8, 10 s, seeds
+ * 1-4, mean MSE 11.7 / 7.2 / 3.3 / 2.3 / 0.87 e-10 (2304: 0.90, its walls lower: fewer passes
+ * shrink the radii less); door_ajar 16x16, 5 s, 4 / 64 / 256 / 576 spp: RMSE 5.5 / 3.9 / 3.1 /
+ * 3.5 e-4; cornell_box 32x32, 5 s, 4 / 16 / 64 / 144: 2.1 / 1.56 / 1.29 / 1.29 e-3;
+ * cornell_spheres 32x32: 5.5 / 4.2 / 4.0 / 4.2 e-3; at 96x96, 10 s, 4 / 9 / 16 spp:
+ * cornell_box 2.31 / 2.13 / 2.10 e-3, cornell_spheres 4.5 / 4.3 / 3.6 e-3. Past about 65,536
+ * samples a pass the error stops falling; a larger pass only makes the budget coarser (a run
+ * ends within the budget plus about one pass). */
+#define PASS_MIN_SAMPLES 65536.0
+#define PASS_DEFAULT_SPP 4
+
+static int pass_spp_default(const camera *cam) {
+    double px = (double)cam->width * cam->height, want = ceil(PASS_MIN_SAMPLES / (px > 0 ? px : 1));
+    if (want <= PASS_DEFAULT_SPP) return PASS_DEFAULT_SPP;
+    int side = (int)ceil(sqrt(want));
+    return side * side;
+}
+
+/* The samples of each pass, at the image's final size: as asked, else pass_spp_default. */
+static int set_pass_spp(app_run *r) {
+    if (!r->in_passes) return APP_GO;
+    r->pspp_default = !r->pspp;
+    if (!r->pspp) r->pspp = pass_spp_default(&r->s.cam);
+    camera_set_spp(&r->s.cam, r->pspp);
     return APP_GO;
 }
 
@@ -184,7 +217,7 @@ int run_load_scene(app_run *r) {
     stats_time_add("Time/Scene loading and BVH build", r->t_load);
     if (o->spp) camera_set_spp(&r->s.cam, (int)o->spp);
     int rc;
-    if ((rc = choose_passes(r)) != APP_GO || (rc = resize(r)) != APP_GO ||
+    if ((rc = choose_passes(r)) != APP_GO || (rc = resize(r)) != APP_GO || (rc = set_pass_spp(r)) != APP_GO ||
         (rc = apply_photon_settings(r)) != APP_GO)
         return rc;
     return apply_render_settings(r);
@@ -246,6 +279,9 @@ int run_create_integrator(app_run *r) {
            r->nthreads == 1 ? "" : "s", (unsigned long long)s->settings.seed);
     if (r->in_passes) {
         printf("In passes of %d spp", s->cam.spp);
+        if (r->pspp_default && s->cam.spp != PASS_DEFAULT_SPP)
+            printf(" (not %d: at %dx%d a pass has at least %.0f camera samples; --pass-spp sets it)",
+                   PASS_DEFAULT_SPP, s->cam.width, s->cam.height, PASS_MIN_SAMPLES);
         if (o->only_pass >= 0) printf(": pass %ld alone", o->only_pass);
         if (o->passes > 0 && o->only_pass < 0) printf(": %ld passes", o->passes);
         if (r->budget > 0 && o->only_pass < 0)

@@ -31,6 +31,7 @@ typedef struct app_run {
     int in_passes, cli_passes, uses_photons;
     double budget; /* seconds (0: none) */
     int pspp;      /* samples per pass, as asked (before rounding) */
+    int pspp_default; /* pspp is run.c's default (THE DEFAULT SAMPLES PER PASS), not asked for */
     double t_start, t_load, t_prep0, t_render;
     ckpt_session cs;
     render_state rstate;
