@@ -302,3 +302,64 @@ TEST(render_gather_port_direct_light_sphere_lamp) {
     guide_destroy(gd);
     scene_free(&s);
 }
+
+/* photon_mapping.direct_port (direct.h, THROUGH A PORT), on pinhole_room_ports (its hole
+ * declared as a port), 8 x 8 pm. (a) Absent, the plan turns it on; false turns it off, and the
+ * port's rays go: fewer shadow rays, the same photon maps (the line of stored photons is the
+ * same). (b) With a point lamp of 5x the area lamp's power added over the hole, the plan keeps
+ * it off (area and sphere lights under half the power) and true forces it on; the two image
+ * means agree within 4 standard errors plus 0.5% (the oracle: both are unbiased estimates of
+ * the same image). Paired by seed (1-4, 1024 spp): a seed's photon maps are the same either
+ * way, so the seeds' differences hold the camera samples' noise alone, not the maps'. */
+TEST(render_direct_port_setting) {
+    static char out[65536];
+    char cmd[4096], file[1024], src[1024];
+    snprintf(src, sizeof src, "%s/data/scenes/pinhole_room_ports.json", pm_test_source_dir());
+    double shadow[2], stored[2];
+    for (int off = 0; off < 2; off++) {
+        snprintf(cmd, sizeof cmd, "%s/render '%s' --mode pm --width 8 --height 8 --spp 16 --seed 1 --threads 2 "
+                 "--hdr '%s/dp.pfm' %s 2>&1", pm_test_build_dir(), src, pm_test_tmpdir(),
+                 off ? "--pm direct_port=false" : "");
+        ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+        const char *want = off ? "direct light through the port: off (photon_mapping.direct_port=false)"
+                               : "direct light through the port: on (the port at (500, 300, 500)";
+        EXPECT_MSG(strstr(out, want), "%s: %s", want, strstr(out, "direct light through"));
+        const char *p = strstr(out, "Shadow rays"), *q = strstr(out, "Photons: ");
+        shadow[off] = p ? strtod(p + strlen("Shadow rays"), NULL) : NAN;
+        stored[off] = q ? strtod(q + strlen("Photons: "), NULL) : NAN;
+    }
+    EXPECT_MSG(shadow[1] < shadow[0], "shadow rays: on %g, off %g", shadow[0], shadow[1]);
+    EXPECT_MSG(stored[1] == stored[0] && stored[0] > 0, "global photons: on %g, off %g", stored[0], stored[1]);
+
+    snprintf(file, sizeof file, "%s/pinhole_point.json", pm_test_tmpdir());
+    snprintf(cmd, sizeof cmd, "sed '1s/^{/{\"lights\": [{\"type\": \"point\", \"position\": [500, 900, 500], "
+             "\"power\": [10000000, 7000000, 2500000]}],/' '%s' > '%s'", src, file);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    enum { N = 4 };
+    double x[2][N], m[2] = {0, 0}, d = 0, dd = 0;
+    for (int on = 0; on < 2; on++)
+        for (int i = 0; i < N; i++) {
+            char tag[32];
+            snprintf(tag, sizeof tag, "dpp%d_%d", on, i);
+            snprintf(cmd, sizeof cmd, "%s/render '%s' --mode pm --width 8 --height 8 --spp 1024 --seed %d --threads 2 "
+                     "--hdr '%s/%s.pfm' %s 2>&1", pm_test_build_dir(), file, i + 1, pm_test_tmpdir(), tag,
+                     on ? "--pm direct_port=true" : "");
+            ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+            if (i == 0) {
+                const char *want = on ? "direct light through the port: on (photon_mapping.direct_port=true; the port"
+                                      : "direct light through the port: off (the port at (500, 300, 500): area and "
+                                        "sphere lights carry under half";
+                EXPECT_MSG(strstr(out, want), "%s: %s", want, strstr(out, "direct light through"));
+            }
+            x[on][i] = rt_tmp_mean(tag);
+            m[on] += x[on][i] / N;
+        }
+    for (int i = 0; i < N; i++) {
+        d += (x[1][i] - x[0][i]) / N;
+        dd += (x[1][i] - x[0][i]) * (x[1][i] - x[0][i]) / N;
+    }
+    double se = sqrt(fmax(0, (dd - d * d) * N / (N - 1)) / N);
+    printf("    point lamp over the hole: plan's choice (off) %.5g, forced on %.5g (%+.3f%%, se of the paired "
+           "difference %.3f%%)\n", m[0], m[1], 100 * d / m[0], 100 * se / m[0]);
+    EXPECT_MSG(fabs(d) <= 4 * se + 0.005 * m[0], "forced on %.5g, off %.5g", m[1], m[0]);
+}

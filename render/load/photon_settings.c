@@ -122,6 +122,12 @@ static const setting_def k_settings[] = {
      "through an opening; guide.h, unbiased for any table) or not; absent, the photon mapper "
      "turns it on where the probes find most of the gathered light in a small part of the "
      "hemisphere"},
+    {"direct_port", ST_FORCE, F(force_direct_port), PLAN_AUTO, 0, 0,
+     "join each direct-light sample at points on a photon port's dark side by a ray through "
+     "the port (direct.h, THROUGH A PORT; unbiased by the balance heuristic) or not; absent, "
+     "the plan turns it on where a port is used, the scene has no media, the lights' power "
+     "is on one side of the port and area or sphere lights carry at least half of it (true "
+     "drops the last condition only)"},
     {"progress", ST_BOOL, F(progress), 1, NONE,
      "progress lines while tracing photons (render --quiet sets it false)"},
     {"volume", ST_FORCE, F(force_volume), PLAN_AUTO, 0, 0,

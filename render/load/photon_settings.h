@@ -63,6 +63,7 @@ typedef struct photon_settings {
     double importance_defensive; /* share of global photons emitted uniformly */
     int force_light_guide;       /* PLAN_*: guided light samples in direct light (guide.h) */
     int force_gather_guide;      /* PLAN_*: guided final-gather directions (guide.h) */
+    int force_direct_port;       /* PLAN_*: direct light through a photon port (direct.h) */
     int progress; /* progress bars while tracing (render --quiet sets it false) */
     /* Participating media (volume.h, pm_volume.h). */
     int force_volume, force_volume_caustics; /* PLAN_* */

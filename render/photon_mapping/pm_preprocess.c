@@ -351,13 +351,19 @@ static const port *aim_port(const mapper_state *st, const scene *s) {
  * lights' power (a port sample finds only those). The words in why. */
 static void port_direct_decide(mapper_state *st, const scene *s, char *why, size_t cap) {
     const port *pt = aim_port(st, s);
+    int force = st->cfg.force_direct_port;
+    const char *forced = force == PLAN_ON ? ", though photon_mapping.direct_port=true" : "";
     st->dport = NULL;
+    if (force == PLAN_OFF) {
+        snprintf(why, cap, "off (photon_mapping.direct_port=false)");
+        return;
+    }
     if (!pt) {
-        snprintf(why, cap, "off (no photon port)");
+        snprintf(why, cap, "off (no photon port%s)", forced);
         return;
     }
     if (st->vol.on) {
-        snprintf(why, cap, "off (participating media)");
+        snprintf(why, cap, "off (participating media: a ray through the port does not attenuate%s)", forced);
         return;
     }
     double share, reach = 0, all = 0;
@@ -368,17 +374,19 @@ static void port_direct_decide(mapper_state *st, const scene *s, char *why, size
         all += w;
         if ((l->type == LIGHT_AREA || l->type == LIGHT_SPHERE) && w > 0) reach += w;
     }
-    if (v3_len2(lit) == 0 || !(reach >= 0.5 * all)) {
-        snprintf(why, cap, "off (the port at (%.4g, %.4g, %.4g): %s)", pt->c.x, pt->c.y, pt->c.z,
-                 v3_len2(lit) == 0 ? "the lights' power is on both of its sides" :
-                 "area and sphere lights carry under half the lights' power (a ray through the port finds no other)");
+    if (v3_len2(lit) == 0 || (!(reach >= 0.5 * all) && force != PLAN_ON)) {
+        snprintf(why, cap, "off (the port at (%.4g, %.4g, %.4g): %s%s)", pt->c.x, pt->c.y, pt->c.z,
+                 v3_len2(lit) == 0 ? "the lights' power is on both of its sides, so it has no dark side" :
+                 "area and sphere lights carry under half the lights' power (a ray through the port finds no other)",
+                 v3_len2(lit) == 0 ? forced : "");
         return;
     }
     st->dport = pt;
     st->dport_lit = lit;
-    snprintf(why, cap, "on (the port at (%.4g, %.4g, %.4g), its light along (%.2f, %.2f, %.2f): at points on its "
+    snprintf(why, cap, "on (%sthe port at (%.4g, %.4g, %.4g), its light along (%.2f, %.2f, %.2f): at points on its "
              "dark side each light sample is joined by a ray through the port, weighted %.2f : %.2f by the balance "
-             "heuristic; area and sphere lights carry %.0f%% of the lights' power)", pt->c.x, pt->c.y, pt->c.z, lit.x,
+             "heuristic; area and sphere lights carry %.0f%% of the lights' power)",
+             force == PLAN_ON ? "photon_mapping.direct_port=true; " : "", pt->c.x, pt->c.y, pt->c.z, lit.x,
              lit.y, lit.z, DIRECT_PORT_SHARE, 1 - DIRECT_PORT_SHARE, all > 0 ? 100 * reach / all : 0);
 }
 
