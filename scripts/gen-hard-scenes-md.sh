@@ -18,6 +18,10 @@
 #           ratio to the run's own (the same figure both ways: above 1, photon mapping is
 #           ahead; the target is 10).
 #   per sample count, the same from the mean of the seeds' corrected MSE and CPU time.
+# From budget.csv (runs at a time budget, when the file is there), per scene: each run's
+# corrected MSE, and the ratio measured at the budget: path tracing's mean corrected MSE times
+# its mean CPU-s over photon mapping's (path tracing's error falls as 1 / time, so this is the
+# time-to-equal-error ratio at photon mapping's CPU time).
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 case "${1:-}" in -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;; esac
@@ -29,7 +33,10 @@ m() { awk -v k="$1" '$1 == k { sub(/^[^ ]+ /, ""); print; exit }' "$dir/measurem
 . "$here/scripts/measured-table.sh"
 scenes=$(awk -F, 'NR > 1 && !seen[$1]++ { printf "%s ", $1 }' "$dir/runs.csv")
 summary=$(mktemp)
-trap 'rm -f "$summary"' EXIT
+bsummary=$(mktemp)
+trap 'rm -f "$summary" "$bsummary"' EXIT
+budget_csv="$dir/budget.csv"
+[ -f "$budget_csv" ] || budget_csv=
 
 echo "# Hard scenes: light through small openings"
 echo
@@ -107,20 +114,50 @@ for s in $scenes; do
       printf "\n"
     }' "$dir/runs.csv"
   echo
+  [ -n "$budget_csv" ] && awk -F, -v s="$s" -v sf="$bsummary" '
+    FNR == 1 { file++ }
+    file == 1 && FNR > 1 && $1 == s && $2 == "path" { np++; c += $8 / (1 / $4 + 1 / $9) }
+    file == 2 && FNR > 1 && $1 == s { n++; mode[n] = $2; T = $4; seed[n] = $5; passes[n] = $6; pspp[n] = $7; cpu[n] = $8; wall[n] = $9; mse[n] = $10; nref = $11 }
+    END {
+      if (n == 0 || np == 0) exit
+      noise = c / np / nref
+      printf "At a time budget of %s s (`render --time %s` at the defaults: no flag but the size, seed and threads; the passes'"'"' samples are the default'"'"'s):\n\n", T, T
+      print "| mode | seed | passes | spp a pass | CPU-s | wall s | MSE | corrected MSE |"
+      print "|---|---:|---:|---:|---:|---:|---:|---:|"
+      for (i = 1; i <= n; i++) {
+        e = mse[i] - noise
+        ce = e > 0 ? sprintf("%.4g", e) : "< ref"
+        printf "| %s | %d | %d | %d | %.2f | %.2f | %.4g | %s |\n", mode[i], seed[i], passes[i], pspp[i], cpu[i], wall[i], mse[i], ce
+        if (e > 0) { se[mode[i]] += e; sc[mode[i]] += cpu[i]; sn[mode[i]]++ } else low[mode[i]]++
+      }
+      if (sn["pm"] > 0 && sn["path"] > 0 && !low["pm"] && !low["path"]) {
+        r = (se["path"] / sn["path"]) * (sc["path"] / sn["path"]) / ((se["pm"] / sn["pm"]) * (sc["pm"] / sn["pm"]))
+        printf "\nMeasured at the budget: path tracing'"'"'s mean corrected MSE %.4g in %.3g CPU-s, photon mapping'"'"'s %.4g in %.3g CPU-s: ratio %.2fx.\n", se["path"] / sn["path"], sc["path"] / sn["path"], se["pm"] / sn["pm"], sc["pm"] / sn["pm"], r
+        printf "%s %.6g %s\n", s, r, T >> sf
+      } else {
+        printf "\nA run below the reference'"'"'s noise: no ratio.\n"
+        printf "%s NA %s\n", s, T >> sf
+      }
+      printf "\n"
+    }' "$dir/runs.csv" "$budget_csv"
 done
 echo "## Against the target"
 echo
-echo "| scene | ratio at the lower spp | ratio at the higher spp | 10x met |"
-echo "|---|---:|---:|---|"
+echo "| scene | ratio at the lower spp | ratio at the higher spp | ratio at a time budget | 10x met |"
+echo "|---|---:|---:|---:|---|"
 for s in $scenes; do
   awk -v s="$s" '
-    $1 == s { n++; r[n] = $3; q[n] = $2 }
+    FNR == 1 { file++ }
+    file == 1 && $1 == s { n++; r[n] = $3; q[n] = $2 }
+    file == 2 && $1 == s { b = $2; T = $3 }
     END {
-      met = "no"
-      for (i = 1; i <= n; i++) if (r[i] != "NA" && r[i] >= 10) met = "yes, at " q[i] " spp"
-      printf "| %s | %s | %s | %s |\n", s, r[1] == "NA" ? "n/a" : sprintf("%.2fx (%d spp)", r[1], q[1]),
-             n < 2 ? "-" : r[2] == "NA" ? "n/a" : sprintf("%.2fx (%d spp)", r[2], q[2]), met
-    }' "$summary"
+      met = ""
+      for (i = 1; i <= n; i++) if (r[i] != "NA" && r[i] >= 10) met = met (met == "" ? "" : ", ") "at " q[i] " spp"
+      if (b != "" && b != "NA" && b >= 10) met = met (met == "" ? "" : ", ") "at " T " s"
+      printf "| %s | %s | %s | %s | %s |\n", s, r[1] == "NA" ? "n/a" : sprintf("%.2fx (%d spp)", r[1], q[1]),
+             n < 2 ? "-" : r[2] == "NA" ? "n/a" : sprintf("%.2fx (%d spp)", r[2], q[2]),
+             b == "" ? "-" : b == "NA" ? "n/a" : sprintf("%.2fx (%s s)", b, T), met == "" ? "no" : "yes, " met
+    }' "$summary" "$bsummary"
 done
 echo
 echo "The target is for 2 threads at the defaults within a time budget; this table applies it"

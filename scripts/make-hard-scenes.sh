@@ -23,6 +23,11 @@
 # sun_window 1024 4096 / 8192; lamp_shade 1024 4096 / 16384; sun_window_fog 16 64 / 8192.
 # HS_SCENES (default all five) picks scenes.
 #
+# At a time budget: each scene again with `render --time HS_BUDGET` (default 10 seconds of wall
+# time; no other flag but the size, seed and threads: the passes' samples are the default's)
+# in both modes, seeds 1 and 2: what a user who gives a budget gets. Into budget.csv (scene,
+# mode, width, budget_s, seed, passes, pass_spp, cpu_s, wall_s, mse, ref_spp).
+#
 # Output (HS_OUT, default docs/hard_scenes): runs.csv (scene, mode, width, spp, seed, cpu_s,
 # wall_s, mse, ref_spp), plan_NAME.txt (pm's plan lines for ports and the gather guide, as
 # printed, seed 1 at the lower spp), measurement.txt (commit stamp, date, machine, load,
@@ -75,6 +80,9 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 mkdir -p "$out.partial"
 echo "scene,mode,width,spp,seed,cpu_s,wall_s,mse,ref_spp" > "$out.partial/runs.csv"
+echo "scene,mode,width,budget_s,seed,passes,pass_spp,cpu_s,wall_s,mse,ref_spp" > "$out.partial/budget.csv"
+budget="${HS_BUDGET:-10}"
+[ $quick = 1 ] && budget=2
 
 # run NAME MODE SPP SEED: render and compare; appends a row.
 run() {
@@ -93,6 +101,26 @@ run() {
   echo "make-hard-scenes: $r_name $r_mode $r_spp spp seed $r_seed: $cpu CPU-s, $wall s, MSE $mse" >&2
 }
 
+# run_budget NAME MODE SEED: render --time $budget and compare; appends a row to budget.csv.
+run_budget() {
+  r_name=$1 r_mode=$2 r_seed=$3
+  r_w=$(info "$r_name" width)
+  r_h=$(info "$r_name" height)
+  /usr/bin/time -f '%U %S %e' -o "$work/time" "$bin" "$here/data/scenes/$r_name.json" --mode "$r_mode" \
+      --width "$r_w" --height "$r_h" --time "$budget" --seed "$r_seed" --threads "$threads" \
+      --hdr "$work/img.pfm" -o "$work/img.png" > "$work/log" 2> "$work/err" || {
+    echo "make-hard-scenes: $r_name $r_mode --time $budget failed:" >&2; cat "$work/err" >&2; exit 1; }
+  cpu=$(awk '{ printf "%.2f", $1 + $2 }' "$work/time")
+  wall=$(awk '{ print $3 }' "$work/time")
+  passes=$(sed -n 's/^Passes: \([0-9]*\) done.*/\1/p' "$work/log")
+  pspp=$(sed -n 's/^In passes of \([0-9]*\) spp.*/\1/p' "$work/log")
+  [ -n "$passes" ] && [ -n "$pspp" ] || { echo "make-hard-scenes: $r_name $r_mode: no passes line" >&2; exit 1; }
+  rmse=$("$bin" --compare "$work/img.pfm" "$refdir/$r_name.pfm" | awk '$1 == "rmse" { print $2 }')
+  mse=$(awk -v r="$rmse" 'BEGIN { printf "%.6g", r * r }')
+  echo "$r_name,$r_mode,$r_w,$budget,$r_seed,$passes,$pspp,$cpu,$wall,$mse,$(info "$r_name" spp)" >> "$out.partial/budget.csv"
+  echo "make-hard-scenes: $r_name $r_mode --time $budget seed $r_seed: $passes passes of $pspp spp, $cpu CPU-s, MSE $mse" >&2
+}
+
 for name in $scenes; do
   set -- $(counts "$name")
   p1=$1 p2=$2 ps=$3
@@ -106,6 +134,8 @@ for name in $scenes; do
     fi
     [ $quick = 1 ] || run "$name" pm "$p2" "$seed"
     run "$name" path "$ps" "$seed"
+    run_budget "$name" pm "$seed"
+    run_budget "$name" path "$seed"
   done
 done
 {
