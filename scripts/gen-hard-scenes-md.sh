@@ -49,6 +49,10 @@ echo "openings and chooses the rest), path tracing with \`--mode path\`, each at
 echo "$(m threads) threads, seeds 1 and 2. Error: the mean squared error of RGB over the pixels against the"
 echo "reference (\`render --compare\`, rmse squared), less the reference's own noise. Time: CPU seconds of the"
 echo "whole process (user + sys: the plan's probe and pilots and the photon passes count)."
+if [ -n "$budget_csv" ]; then
+  echo "Each scene also runs at a time budget, \`render --time T\` in both modes at the defaults (the"
+  echo "passes' samples too), seeds 1 and 2: what a user who gives a budget gets, measured directly."
+fi
 echo
 measured_table "$dir" "$scenes"
 echo
