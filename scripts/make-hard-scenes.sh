@@ -84,41 +84,37 @@ echo "scene,mode,width,budget_s,seed,passes,pass_spp,cpu_s,wall_s,mse,ref_spp" >
 budget="${HS_BUDGET:-10}"
 [ $quick = 1 ] && budget=2
 
-# run NAME MODE SPP SEED: render and compare; appends a row.
-run() {
-  r_name=$1 r_mode=$2 r_spp=$3 r_seed=$4
+# render_compare NAME MODE SEED WHAT FLAG VALUE: render at the reference's size with FLAG VALUE
+# (--spp N or --time S; WHAT names it in messages) and compare; sets r_w, cpu, wall and mse.
+render_compare() {
+  r_name=$1 r_mode=$2 r_seed=$3 r_what=$4
   r_w=$(info "$r_name" width)
   r_h=$(info "$r_name" height)
   /usr/bin/time -f '%U %S %e' -o "$work/time" "$bin" "$here/data/scenes/$r_name.json" --mode "$r_mode" \
-      --width "$r_w" --height "$r_h" --spp "$r_spp" --seed "$r_seed" --threads "$threads" \
+      --width "$r_w" --height "$r_h" "$5" "$6" --seed "$r_seed" --threads "$threads" \
       --hdr "$work/img.pfm" -o "$work/img.png" > "$work/log" 2> "$work/err" || {
-    echo "make-hard-scenes: $r_name $r_mode $r_spp spp failed:" >&2; cat "$work/err" >&2; exit 1; }
+    echo "make-hard-scenes: $r_name $r_mode $r_what failed:" >&2; cat "$work/err" >&2; exit 1; }
   cpu=$(awk '{ printf "%.2f", $1 + $2 }' "$work/time")
   wall=$(awk '{ print $3 }' "$work/time")
   rmse=$("$bin" --compare "$work/img.pfm" "$refdir/$r_name.pfm" | awk '$1 == "rmse" { print $2 }')
   mse=$(awk -v r="$rmse" 'BEGIN { printf "%.6g", r * r }')
-  echo "$r_name,$r_mode,$r_w,$r_spp,$r_seed,$cpu,$wall,$mse,$(info "$r_name" spp)" >> "$out.partial/runs.csv"
-  echo "make-hard-scenes: $r_name $r_mode $r_spp spp seed $r_seed: $cpu CPU-s, $wall s, MSE $mse" >&2
+}
+
+# run NAME MODE SPP SEED: render and compare; appends a row.
+run() {
+  render_compare "$1" "$2" "$4" "$3 spp" --spp "$3"
+  echo "$1,$2,$r_w,$3,$4,$cpu,$wall,$mse,$(info "$1" spp)" >> "$out.partial/runs.csv"
+  echo "make-hard-scenes: $1 $2 $3 spp seed $4: $cpu CPU-s, $wall s, MSE $mse" >&2
 }
 
 # run_budget NAME MODE SEED: render --time $budget and compare; appends a row to budget.csv.
 run_budget() {
-  r_name=$1 r_mode=$2 r_seed=$3
-  r_w=$(info "$r_name" width)
-  r_h=$(info "$r_name" height)
-  /usr/bin/time -f '%U %S %e' -o "$work/time" "$bin" "$here/data/scenes/$r_name.json" --mode "$r_mode" \
-      --width "$r_w" --height "$r_h" --time "$budget" --seed "$r_seed" --threads "$threads" \
-      --hdr "$work/img.pfm" -o "$work/img.png" > "$work/log" 2> "$work/err" || {
-    echo "make-hard-scenes: $r_name $r_mode --time $budget failed:" >&2; cat "$work/err" >&2; exit 1; }
-  cpu=$(awk '{ printf "%.2f", $1 + $2 }' "$work/time")
-  wall=$(awk '{ print $3 }' "$work/time")
+  render_compare "$1" "$2" "$3" "--time $budget" --time "$budget"
   passes=$(sed -n 's/^Passes: \([0-9]*\) done.*/\1/p' "$work/log")
   pspp=$(sed -n 's/^In passes of \([0-9]*\) spp.*/\1/p' "$work/log")
-  [ -n "$passes" ] && [ -n "$pspp" ] || { echo "make-hard-scenes: $r_name $r_mode: no passes line" >&2; exit 1; }
-  rmse=$("$bin" --compare "$work/img.pfm" "$refdir/$r_name.pfm" | awk '$1 == "rmse" { print $2 }')
-  mse=$(awk -v r="$rmse" 'BEGIN { printf "%.6g", r * r }')
-  echo "$r_name,$r_mode,$r_w,$budget,$r_seed,$passes,$pspp,$cpu,$wall,$mse,$(info "$r_name" spp)" >> "$out.partial/budget.csv"
-  echo "make-hard-scenes: $r_name $r_mode --time $budget seed $r_seed: $passes passes of $pspp spp, $cpu CPU-s, MSE $mse" >&2
+  [ -n "$passes" ] && [ -n "$pspp" ] || { echo "make-hard-scenes: $1 $2: no passes line" >&2; exit 1; }
+  echo "$1,$2,$r_w,$budget,$3,$passes,$pspp,$cpu,$wall,$mse,$(info "$1" spp)" >> "$out.partial/budget.csv"
+  echo "make-hard-scenes: $1 $2 --time $budget seed $3: $passes passes of $pspp spp, $cpu CPU-s, MSE $mse" >&2
 }
 
 for name in $scenes; do
