@@ -171,11 +171,9 @@ static void light_point_uv(const scene *s, const light *l, vec3 y, double *u1, d
     *u2 = *u2 < 0 ? 0 : *u2 < 1 ? *u2 : 0x1.fffffffffffffp-1;
 }
 
-/* The solid-angle density with which pick_light_with draws the point y (normal ny) of area or
- * sphere light li seen from p (geometric normal n on the sample's side): the light's choice
- * (by power, or the guide's mixture there), its table's density at y's (u1, u2), 1 / area,
- * times dist^2 / cos at the light. 0 when y faces away. */
-static double light_point_pdf(const scene *s, vec3 p, vec3 n, const guide *gd, int li, vec3 y, vec3 ny) {
+/* dist^2 / (cos area) of the point y (normal ny) of area or sphere light li seen from p: what
+ * turns a density over the light's (u1, u2) into one over solid angle. 0 when y faces away. */
+static double light_point_jacobian(const scene *s, vec3 p, int li, vec3 y, vec3 ny) {
     const light *l = &s->lights[li];
     vec3 d = v3_sub(y, p);
     double dist2 = v3_len2(d), cos_l = -v3_dot(d, ny) / sqrt(dist2);
@@ -183,6 +181,18 @@ static double light_point_pdf(const scene *s, vec3 p, vec3 n, const guide *gd, i
     if (!(cos_l > 0) || !(dist2 > 0)) return 0;
     double area = l->type == LIGHT_AREA ? s->tris[l->tri].area
                                         : 4 * M_PI * s->spheres[l->sphere].r * s->spheres[l->sphere].r;
+    return dist2 / (cos_l * area);
+}
+
+/* The solid-angle density with which pick_light_with draws the point y (normal ny) of area or
+ * sphere light li seen from p (geometric normal n on the sample's side): the light's choice
+ * (by power, or the guide's mixture there), its table's density at y's (u1, u2), 1 / area,
+ * times dist^2 / cos at the light. 0 when y faces away. For the light sample's own point,
+ * pick_light_with's pl times light_point_jacobian is the same figure without the inversion. */
+static double light_point_pdf(const scene *s, vec3 p, vec3 n, const guide *gd, int li, vec3 y, vec3 ny) {
+    const light *l = &s->lights[li];
+    double jac = light_point_jacobian(s, p, li, y, ny);
+    if (!(jac > 0)) return 0;
     double pc = distrib1d_prob(&s->light_distrib, li);
     long c = gd ? guide_cell_index(gd, p, n) : -1;
     if (c >= 0) {
@@ -191,7 +201,7 @@ static double light_point_pdf(const scene *s, vec3 p, vec3 n, const guide *gd, i
         pc = (gd->alpha * pc + (1 - gd->alpha) * guide_slot_weight(gd, c, li)) *
              guide_pdf(gd, guide_cell_table(gd, c, li), u1, u2);
     }
-    return pc / area * dist2 / cos_l;
+    return pc * jac;
 }
 
 /* The port's density of the unit direction d from x: t^2 / (area cos) where the ray crosses it. */
@@ -208,7 +218,10 @@ static rgb direct_through_port(const scene *s, const material *m, const hit *h, 
     double len = v3_len(d);
     if (!(len > 0)) return v3s(0);
     d = v3_scale(d, 1 / len);
-    double cos_s = v3_dot(d, nsh), pp = port_dir_pdf(o->port, h->p, d);
+    /* the port's density of d, t^2 / (area cos), from the point itself (port_dir_pdf would
+     * find it again, and could miss it at the port's edge by rounding) */
+    double cp = fabs(v3_dot(d, o->port->n)), pp = cp > 0 ? len * len / (o->port->area * cp) : 0;
+    double cos_s = v3_dot(d, nsh);
     if (cos_s <= 0 || v3_dot(d, n) <= 0 || !(pp > 0)) return v3s(0);
     stat_inc(STAT_SHADOW_RAYS);
     hit y;
@@ -251,7 +264,7 @@ rgb direct_light_surface_guided(const scene *s, const material *m, const hit *h,
     if (b > 0) {
         const light *l = &s->lights[li];
         if (l->type == LIGHT_AREA || l->type == LIGHT_SPHERE) {
-            double pa = light_point_pdf(s, h->p, n, gd, li, ls.p, ls.n);
+            double pa = pl * light_point_jacobian(s, h->p, li, ls.p, ls.n);
             w = pa > 0 ? (1 - b) * pa / (b * port_dir_pdf(o->port, h->p, ls.wi) + (1 - b) * pa) : 0;
         }
     }

@@ -348,7 +348,8 @@ static const port *aim_port(const mapper_state *st, const scene *s) {
 
 /* direct.h, THROUGH A PORT: on where the scene has a port, no media (their shadow segments carry
  * transmittance), a known lit side and area or sphere lights there with at least half the
- * lights' power (a port sample finds only those). The words in why. */
+ * lights' power (a port sample finds only those); photon_mapping.direct_port=false turns it off,
+ * true drops the last condition. The words in why. */
 static void port_direct_decide(mapper_state *st, const scene *s, char *why, size_t cap) {
     const port *pt = aim_port(st, s);
     int force = st->cfg.force_direct_port;
@@ -402,8 +403,7 @@ static int camera_side_decisions(mapper_state *st, const scene *s, char *err, si
                           : st->vol.on ? "participating media: its probes do not march"
                           : pm__lookup   ? "partitioned render-mpi: its probes would read one process's records"
                                        : NULL;
-        /* PORTS AS OPENINGS (gather_guide.h): the largest declared port, or the found port that
-         * threads the largest share of the carried light (ports.h keeps them in that order). */
+        /* PORTS AS OPENINGS (gather_guide.h): aim_port's port */
         gather_guide_probe probe = {st, pm__gg_found, pm__gg_read, s->nports > 0 || st->plan.found.n > 0,
                                     aim_port(st, s)};
         if ((rc = gather_guide_make(&st->gg, s, st->cfg.force_gather_guide, why, &probe, err, errcap)) < 0)
