@@ -336,7 +336,7 @@ TEST(render_direct_port_setting) {
              "\"power\": [10000000, 7000000, 2500000]}],/' '%s' > '%s'", src, file);
     ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
     enum { N = 4 };
-    double x[2][N], m[2] = {0, 0}, d = 0, dd = 0;
+    double x[2][N], m[2] = {0, 0};
     for (int on = 0; on < 2; on++)
         for (int i = 0; i < N; i++) {
             char tag[32];
@@ -354,11 +354,10 @@ TEST(render_direct_port_setting) {
             x[on][i] = rt_tmp_mean(tag);
             m[on] += x[on][i] / N;
         }
-    for (int i = 0; i < N; i++) {
-        d += (x[1][i] - x[0][i]) / N;
-        dd += (x[1][i] - x[0][i]) * (x[1][i] - x[0][i]) / N;
-    }
-    double se = sqrt(fmax(0, (dd - d * d) * N / (N - 1)) / N);
+    double diff[N], d, var;
+    for (int i = 0; i < N; i++) diff[i] = x[1][i] - x[0][i];
+    rt_mean_var(diff, N, &d, &var);
+    double se = sqrt(var / N);
     printf("    point lamp over the hole: plan's choice (off) %.5g, forced on %.5g (%+.3f%%, se of the paired "
            "difference %.3f%%)\n", m[0], m[1], 100 * d / m[0], 100 * se / m[0]);
     EXPECT_MSG(fabs(d) <= 4 * se + 0.005 * m[0], "forced on %.5g, off %.5g", m[1], m[0]);
