@@ -517,3 +517,48 @@ TEST(render_progressive_default_pass_spp) {
                    said ? "says" : "does not say");
     }
 }
+
+/* Oracle: the uninterrupted render, byte for byte. A checkpoint made in passes of the default
+ * samples before the default changed (at 16x16 it was 4 before 3982015, 256 now) is made here
+ * from one of --pass-spp 4 by taking that option out of its stored arguments (ckpt_info.args):
+ * resumed without --pass-spp, the render takes the checkpoint's 4 (and says so), where it
+ * refused it before ("the checkpoint has other settings"), and its 4 passes equal 4 passes of
+ * --pass-spp 4 at once. */
+TEST(render_progressive_resume_keeps_the_checkpoints_pass_spp) {
+    char out[65536], cmd[8192], err[512];
+    const char *box = "'%s/data/scenes/cornell_box.json' --mode path --width 16 --height 16 --pass-spp 4";
+    ASSERT_MSG(rt_render(box, "--passes 4 --threads 2 --quiet --hdr ref.pfm -o ref.png", out, sizeof out) == 0, "%s",
+               out);
+    ASSERT_MSG(rt_render(box, "--passes 2 --threads 2 --quiet --hdr o.pfm -o o.png --checkpoint old.ckpt", out,
+                         sizeof out) == 0, "%s", out);
+    static ckpt_info ci;
+    pass_state ps;
+    const char *p = rt_path("old.ckpt");
+    ASSERT_MSG(ckpt_read_passes(p, &ci, &ps, err, sizeof err) == 0, "%s", err);
+    EXPECT_MSG(ci.spp == 4 && ci.passes == 2, "the checkpoint says %u spp a pass, %u passes", ci.spp, ci.passes);
+    size_t w = 0, removed = 0;
+    for (size_t r = 0; r < ci.args_len;) { /* drop "--pass-spp" and its value */
+        size_t len = strlen(ci.args + r) + 1;
+        if (strcmp(ci.args + r, "--pass-spp") == 0) {
+            r += len;
+            r += strlen(ci.args + r) + 1;
+            removed = 1;
+            continue;
+        }
+        memmove(ci.args + w, ci.args + r, len);
+        w += len;
+        r += len;
+    }
+    ASSERT_MSG(removed, "no --pass-spp among the stored arguments");
+    ci.args_len = w;
+    ASSERT_MSG(ckpt_write_passes(p, &ci, &ps, 4, err, sizeof err) == 0, "%s", err);
+    pass_state_free(&ps);
+    snprintf(cmd, sizeof cmd, "'%s/render' '%s/data/scenes/cornell_box.json' --resume old.ckpt --passes 4 --threads 1",
+             pm_test_build_dir(), pm_test_source_dir());
+    int rc = rt_run(cmd, out, sizeof out);
+    ASSERT_MSG(rc == 0, "status %d: %s", rc, out);
+    EXPECT_MSG(strstr(out, "rendered in passes of 4 spp") && strstr(out, "In passes of 4 spp"), "%s", out);
+    EXPECT_MSG(strstr(out, "Passes: 4 done (2 by this run)"), "%s", out);
+    EXPECT_MSG(rt_same_file("o.pfm", "ref.pfm") && rt_same_file("o.png", "ref.png"),
+               "resumed at the checkpoint's pass spp: the image differs from 4 passes at once");
+}

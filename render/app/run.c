@@ -107,19 +107,36 @@ static int choose_passes(app_run *r) {
 #define PASS_MIN_SAMPLES 65536.0
 #define PASS_DEFAULT_SPP 4
 
+/* The default's camera samples a pass before rounding to a square (camera_set_spp rounds). */
 static int pass_spp_default(const camera *cam) {
     double px = (double)cam->width * cam->height, want = ceil(PASS_MIN_SAMPLES / (px > 0 ? px : 1));
-    if (want <= PASS_DEFAULT_SPP) return PASS_DEFAULT_SPP;
-    int side = (int)ceil(sqrt(want));
-    return side * side;
+    return want <= PASS_DEFAULT_SPP ? PASS_DEFAULT_SPP : (int)want;
 }
 
-/* The samples of each pass, at the image's final size: as asked, else pass_spp_default. */
+/* The samples of each pass, at the image's final size: as asked, else pass_spp_default. A
+ * resumed render not asked for them takes its checkpoint's: the default may have been another
+ * when it was made (it was 4 at every size before 3982015), and the checkpoint refuses other
+ * settings. A checkpoint that cannot be read is left to checkpoint_setup to report. */
 static int set_pass_spp(app_run *r) {
     if (!r->in_passes) return APP_GO;
     r->pspp_default = !r->pspp;
-    if (!r->pspp) r->pspp = pass_spp_default(&r->s.cam);
-    camera_set_spp(&r->s.cam, r->pspp);
+    if (r->pspp) {
+        camera_set_spp(&r->s.cam, r->pspp);
+        return APP_GO;
+    }
+    camera_set_spp(&r->s.cam, pass_spp_default(&r->s.cam));
+    if (r->o->resume) {
+        static ckpt_info ci; /* 13 KiB: not on the stack */
+        char err[512];
+        if (ckpt_read_passes(r->o->resume, &ci, NULL, err, sizeof err) == 0 && ci.version == 2 &&
+            ci.spp != (uint32_t)r->s.cam.spp) {
+            fprintf(stderr, "render: note: %s was rendered in passes of %u spp (then the default at "
+                    "%dx%d); resuming with them\n", r->o->resume, ci.spp, r->s.cam.width, r->s.cam.height);
+            camera_set_spp(&r->s.cam, (int)ci.spp);
+            r->pspp_default = 0; /* the run's line gives no reason of the default's */
+        }
+    }
+    r->pspp = r->s.cam.spp;
     return APP_GO;
 }
 

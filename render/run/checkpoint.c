@@ -168,6 +168,7 @@ static int read_any(const char *path, ckpt_info *ci, render_state *st, pass_stat
     }
     ci->version = version;
     ci->passes = npass;
+    ci->spp = spp;
     /* A state of the other kind than the caller's render is refused before it is read. */
     if ((st && version != 1) || (ps && version != 2)) {
         rc = fail(err, errcap, PM_EINVAL, path,

@@ -60,6 +60,7 @@ extern "C" {
 
 typedef struct ckpt_info {
     uint32_t version, passes; /* set by the readers: the file's version; passes done (version 2) */
+    uint32_t spp;             /* set by the readers: samples per pixel (version 2: of each pass) */
     uint64_t scene_hash, photon_hash;
     char settings[4096];
     char args[8192]; /* NUL-terminated arguments, one after another */
