@@ -166,3 +166,30 @@ done
 echo
 echo "The target is for 2 threads at the defaults within a time budget; this table applies it"
 echo "to the small images and the few seeds above."
+regions_csv="$dir/regions.csv"
+if [ -f "$regions_csv" ] && [ "$(wc -l < "$regions_csv")" -gt 1 ]; then
+  echo
+  echo "## pinhole_room's region means at a time budget"
+  echo
+  echo "The issue's other target: pinhole_room's region means within 2% of the reference (the regions of"
+  echo "tests/test_render_hard.c; \`render --compare --rect\`), photon mapping at the defaults with"
+  echo "\`render --time T\`, one run per seed:"
+  echo
+  echo "| seed | passes | CPU-s | region | reference | photon mapping | relative |"
+  echo "|---:|---:|---:|---|---:|---:|---:|"
+  awk -F, 'NR > 1 { printf "| %d | %d | %.2f | %s | %.5g | %.5g | %+.2f%% |\n", $3, $4, $5, $6, $7, $8, 100 * $9 }' "$regions_csv"
+  echo
+  awk -F, '
+    NR > 1 {
+      T = $2; if (!($3 in s)) { s[$3] = 1; ns++ }
+      if (!($6 in lo)) { order[++nr] = $6; lo[$6] = $9; hi[$6] = $9 }
+      if ($9 < lo[$6]) lo[$6] = $9; if ($9 > hi[$6]) hi[$6] = $9
+      if ($9 > 0.02 || $9 < -0.02) out++
+    }
+    END {
+      printf "At %s s, %d seeds:", T, ns
+      for (i = 1; i <= nr; i++) printf " %s %+.2f..%+.2f%%%s", order[i], 100 * lo[order[i]], 100 * hi[order[i]], i < nr ? ";" : "."
+      if (out) printf " %d of the %d region means are outside 2%%: the target is not met at this budget.\n", out, ns * nr
+      else printf " All %d region means are within 2%%: the target is met at this budget, on these seeds.\n", ns * nr
+    }' "$regions_csv"
+fi
