@@ -111,6 +111,7 @@ static const option_def k_options[] = {
      "seconds between checkpoints", NULL},
     {"--resume", NULL, "FILE", OPT_TEXT, NONE, F(resume), NULL,
      "continue the render saved in FILE (its options are replayed;\n"
+     "with no --pass-spp among them, its samples per pass are kept;\n"
      "another scene, other settings or version are refused)", NULL},
     {"--snapshot-every", NULL, "S", OPT_POSITIVE, NONE, F(snap_every), NULL,
      "rewrite the PNG (atomically) every S seconds while rendering", NULL},
