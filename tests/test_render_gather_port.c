@@ -110,6 +110,8 @@ static int gp_render(const char *name, const char *flags, const char *tag, char 
 /* Oracle: the plan's geometry and the photon mapper without the guide. pinhole_room (the plan
  * finds the port at the hole) and pinhole_room_ports (declared there) plan the guide on, aimed
  * at the port's disc at (500, 300, 500) with its light along +y (the lamp is above the hole),
+ * of radius about 7.07 (the 10 x 10 hole's half diagonal; the found port is grown 5% at each
+ * edge, ports.h THE FIT: about 7.8),
  * and gathers are aimed; 1 and 2 threads give the same image. On the same photon maps (traced
  * once, loaded), 4 x 4 at 1024 spp, seeds 1-4, light guide off so only the gathers differ, the
  * port-aimed and the cosine means of the whole image agree within 4 standard errors of their
@@ -129,7 +131,7 @@ TEST(render_gather_port_pinhole_room) {
         ASSERT_MSG(l && sscanf(l, "on its side along (%lf, %lf, %lf)", &lx, &ly, &lz) == 3, "%.400s", q);
         printf("    %s: disc radius %.3g at (%.1f, %.1f, %.1f), light along (%g, %g, %g)\n", scn[i], r, x, y, z, lx, ly,
                lz);
-        EXPECT_MSG(fabs(x - 500) < 1 && fabs(y - 300) < 1 && fabs(z - 500) < 1 && r > 6.5 && r < 7.5 && ly > 0.99,
+        EXPECT_MSG(fabs(x - 500) < 1 && fabs(y - 300) < 1 && fabs(z - 500) < 1 && r > 6.5 && r < 8 && ly > 0.99,
                    "%s: radius %g at (%g, %g, %g), lit y %g", scn[i], r, x, y, z, ly);
         const char *aimed = strstr(out, "Gather rays aimed at the opening (gather guide)");
         EXPECT_MSG(aimed && atol(aimed + strlen("Gather rays aimed at the opening (gather guide)")) > 0, "%s: none aimed",

@@ -211,7 +211,8 @@ static void trimmed(double *v, long m, double *lo, double *hi) {
 }
 
 /* The smallest-area rectangle (32 rotations) around the crossings of group gi's segments with
- * the plane (c, n), by trimmed: 0 when fewer than PF_MIN_THREADS cross, PM_ENOMEM. */
+ * the plane (c, n), by trimmed, grown by PF_GROW: 0 when fewer than PF_MIN_THREADS cross,
+ * PM_ENOMEM. */
 static int fit_rect(const thread_rec *t, long nt, int gi, vec3 c, vec3 n, port *out) {
     vec3 e1, e2;
     v3_basis(n, &e1, &e2);
@@ -245,6 +246,8 @@ static int fit_rect(const thread_rec *t, long nt, int gi, vec3 c, vec3 n, port *
     free(xs);
     double sx = bx[1] - bx[0], sy = bx[3] - bx[2];
     if (!(sx > 0 && sy > 0)) return 0;
+    bx[0] -= PF_GROW * sx, bx[2] -= PF_GROW * sy; /* THE FIT in ports.h: grown at each edge */
+    sx *= 1 + 2 * PF_GROW, sy *= 1 + 2 * PF_GROW;
     vec3 corner = v3_add(c, v3_add(v3_scale(bu, bx[0]), v3_scale(bv, bx[2])));
     vec3 q1 = v3_scale(bu, sx), q2 = v3_scale(bv, sy);
     if (v3_dot(v3_cross(q1, q2), n) < 0) { /* keep the wall's normal: e1 x e2 along n */

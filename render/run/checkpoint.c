@@ -166,9 +166,7 @@ static int read_any(const char *path, ckpt_info *ci, render_state *st, pass_stat
         rc = fail(err, errcap, PM_EFORMAT, path, "corrupt header (a size out of range)");
         goto out;
     }
-    ci->version = version;
-    ci->passes = npass;
-    ci->spp = spp;
+    ci->version = version, ci->passes = npass, ci->spp = spp;
     /* A state of the other kind than the caller's render is refused before it is read. */
     if ((st && version != 1) || (ps && version != 2)) {
         rc = fail(err, errcap, PM_EINVAL, path,
