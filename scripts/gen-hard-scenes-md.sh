@@ -187,7 +187,7 @@ if [ -f "$regions_csv" ] && [ "$(wc -l < "$regions_csv")" -gt 1 ]; then
       if ($9 > 0.02 || $9 < -0.02) out++
     }
     END {
-      printf "At %s s, %d seeds:", T, ns
+      printf "At %s s, %d seed%s:", T, ns, ns == 1 ? "" : "s"
       for (i = 1; i <= nr; i++) printf " %s %+.2f..%+.2f%%%s", order[i], 100 * lo[order[i]], 100 * hi[order[i]], i < nr ? ";" : "."
       if (out) printf " %d of the %d region means are outside 2%%: the target is not met at this budget.\n", out, ns * nr
       else printf " All %d region means are within 2%%: the target is met at this budget, on these seeds.\n", ns * nr
