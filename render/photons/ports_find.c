@@ -34,6 +34,7 @@ typedef struct thread_rec {
     vec3 q, n;
     double w;
     int group;
+    int prim; /* the wall's primitive where the segment crosses it */
 } thread_rec;
 
 /* The first surface along ry (unit direction) within tmax that is not a null surface (ports.h,
@@ -185,6 +186,7 @@ static int threads(const scene *s, vec3 a, vec3 na, vec3 b, thread_rec *r) {
                 best = t;
                 r->q = v3_madd(a, d, t);
                 r->n = v3_dot(h->ng, d) < 0 ? v3_neg(h->ng) : h->ng; /* along the way toward the light */
+                r->prim = h->prim;
             }
         }
     }
@@ -210,40 +212,83 @@ static void trimmed(double *v, long m, double *lo, double *hi) {
     *hi = (a + b) / 2 + half;
 }
 
-/* The smallest-area rectangle (32 rotations) around the crossings of group gi's segments with
- * the plane (c, n), by trimmed, grown by PF_GROW: 0 when fewer than PF_MIN_THREADS cross,
- * PM_ENOMEM. */
-static int fit_rect(const thread_rec *t, long nt, int gi, vec3 c, vec3 n, port *out) {
+/* The turns (angles from e1 about n, in [0, pi/2)) of the edges of the walls that group gi's
+ * segments cross, as far as they lie in the plane (ports.h, THE TURN): at most PF_TURNS of them,
+ * each once. Their count. */
+static int wall_turns(const scene *s, const thread_rec *t, long nt, int gi, vec3 n, vec3 e1, vec3 e2, double *turn) {
+    int nturn = 0;
+    for (long i = 0; i < nt && nturn < PF_TURNS; i++) {
+        if (t[i].group != gi || t[i].prim < 0 || t[i].prim >= s->ntris) continue;
+        const triangle *tr = &s->tris[t[i].prim];
+        vec3 e[3] = {tr->e1, tr->e2, v3_sub(tr->e2, tr->e1)};
+        for (int k = 0; k < 3 && nturn < PF_TURNS; k++) {
+            double l = v3_len(e[k]);
+            if (!(l > 0) || fabs(v3_dot(e[k], n)) > 0.01 * l) continue; /* not in the port's plane */
+            double a = atan2(v3_dot(e[k], e2), v3_dot(e[k], e1));
+            a = fmod(a, M_PI / 2);
+            if (a < 0) a += M_PI / 2;
+            int seen = 0;
+            for (int m = 0; m < nturn && !seen; m++) {
+                double dd = fabs(turn[m] - a);
+                seen = dd < 1e-6 || M_PI / 2 - dd < 1e-6;
+            }
+            if (!seen) turn[nturn++] = a;
+        }
+    }
+    return nturn;
+}
+
+/* The trimmed extents (lo[2], hi[2]) of group gi's crossings with the plane (c, n) along u and v;
+ * the number of crossings (xs, ys: room for nt each). */
+static long extents(const thread_rec *t, long nt, int gi, vec3 c, vec3 n, vec3 u, vec3 v, double *xs, double *ys,
+                    double lo[2], double hi[2]) {
+    long m = 0;
+    for (long i = 0; i < nt; i++) {
+        double dn = v3_dot(t[i].d, n), tt = dn != 0 ? v3_dot(v3_sub(c, t[i].a), n) / dn : -1;
+        if (t[i].group != gi || !(tt > 0 && tt < t[i].len)) continue;
+        vec3 w = v3_sub(v3_madd(t[i].a, t[i].d, tt), c);
+        xs[m] = v3_dot(w, u), ys[m++] = v3_dot(w, v);
+    }
+    if (m < PF_MIN_THREADS) return m;
+    trimmed(xs, m, &lo[0], &hi[0]);
+    trimmed(ys, m, &lo[1], &hi[1]);
+    return m;
+}
+
+/* The rectangle around the crossings of group gi's segments with the plane (c, n), by trimmed
+ * (ports.h, THE FIT), turned by THE TURN and grown by PF_GROW: 0 when fewer than PF_MIN_THREADS
+ * cross, PM_ENOMEM. */
+static int fit_rect(const scene *s, const thread_rec *t, long nt, int gi, vec3 c, vec3 n, port *out) {
     vec3 e1, e2;
     v3_basis(n, &e1, &e2);
     vec3 bu = e1, bv = e2;
-    double best = INFINITY, bx[4] = {0};
+    double best = INFINITY, best_wall = INFINITY, bx[4] = {0}, wx[4] = {0}, turn[PF_TURNS + 32];
+    vec3 wu = e1, wv = e2;
     double *xs = malloc(2 * (size_t)nt * sizeof *xs), *ys = xs + nt;
     if (!xs) return PM_ENOMEM;
-    for (int r = 0; r < 32; r++) {
-        double ang = r * (M_PI / 2) / 32, ca = cos(ang), sa = sin(ang), lo[2], hi[2];
+    int nwall = wall_turns(s, t, nt, gi, n, e1, e2, turn);
+    for (int r = 0; r < 32; r++) turn[nwall + r] = r * (M_PI / 2) / 32;
+    for (int r = 0; r < nwall + 32; r++) {
+        double ca = cos(turn[r]), sa = sin(turn[r]), lo[2], hi[2];
         vec3 u = v3_add(v3_scale(e1, ca), v3_scale(e2, sa)), v = v3_add(v3_scale(e1, -sa), v3_scale(e2, ca));
-        long m = 0;
-        for (long i = 0; i < nt; i++) {
-            double dn = v3_dot(t[i].d, n), tt = dn != 0 ? v3_dot(v3_sub(c, t[i].a), n) / dn : -1;
-            if (t[i].group != gi || !(tt > 0 && tt < t[i].len)) continue;
-            vec3 w = v3_sub(v3_madd(t[i].a, t[i].d, tt), c);
-            xs[m] = v3_dot(w, u), ys[m++] = v3_dot(w, v);
-        }
-        if (m < PF_MIN_THREADS) {
+        if (extents(t, nt, gi, c, n, u, v, xs, ys, lo, hi) < PF_MIN_THREADS) {
             free(xs);
             return 0;
         }
-        trimmed(xs, m, &lo[0], &hi[0]);
-        trimmed(ys, m, &lo[1], &hi[1]);
         double area = (hi[0] - lo[0]) * (hi[1] - lo[1]);
-        if (area < best) {
-            best = area;
-            bu = u, bv = v;
-            bx[0] = lo[0], bx[1] = hi[0], bx[2] = lo[1], bx[3] = hi[1];
+        double *dst = r < nwall ? wx : bx, *b = r < nwall ? &best_wall : &best;
+        if (area < *b) {
+            *b = area;
+            if (r < nwall) wu = u, wv = v;
+            else bu = u, bv = v;
+            dst[0] = lo[0], dst[1] = hi[0], dst[2] = lo[1], dst[3] = hi[1];
         }
     }
     free(xs);
+    if (best_wall <= PF_TURN_SLACK * best) { /* THE TURN in ports.h: the wall's own, when near the best */
+        bu = wu, bv = wv;
+        for (int k = 0; k < 4; k++) bx[k] = wx[k];
+    }
     double sx = bx[1] - bx[0], sy = bx[3] - bx[2];
     if (!(sx > 0 && sy > 0)) return 0;
     bx[0] -= PF_GROW * sx, bx[2] -= PF_GROW * sy; /* THE FIT in ports.h: grown at each edge */
@@ -332,7 +377,7 @@ static int decide(const scene *s, thread_rec *t, long nt, double wsum, port_foun
         const char *no = NULL;
         if (gcount[k] < PF_MIN_THREADS) no = "too few carriers";
         else if (share < PF_MIN_SHARE) no = "too small a share";
-        else if ((rc = fit_rect(t, nt, k, v3_scale(gc[k], 1 / gw[k]), v3_norm(gn[k]), &pt)) <= 0) {
+        else if ((rc = fit_rect(s, t, nt, k, v3_scale(gc[k], 1 / gw[k]), v3_norm(gn[k]), &pt)) <= 0) {
             if (rc < 0) return rc;
             no = "no rectangle fits";
         } else {
