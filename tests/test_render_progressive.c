@@ -327,14 +327,38 @@ TEST(render_progressive_one_pass_is_the_plain_render) {
     }
 }
 
+/* Pass 1's fraction of the photon targets, with its counted work (W_p, W_r), from a render's
+ * output; checks it against the documented rule clamp(share W_r / W_p, 1/64, 1) (3 significant
+ * digits printed: relative 5e-3 plus the fraction's own 4) and that pass 1's global map holds
+ * that fraction of `targets` (-1: not checked). *fo gets the fraction. */
+static void check_fraction(const char *out, double share, double targets, double *fo) {
+    const char *l = strstr(out, "Pass 1: photons ");
+    ASSERT_MSG(l, "%s", out);
+    double wp = num_after(l, "the targets' photons ");
+    const char *cam = strstr(l, "camera samples ");
+    const char *fl = strstr(l, "); ");
+    double f = fl ? strtod(fl + 3, NULL) : NAN;
+    double wr = cam ? strtod(cam + strlen("camera samples "), NULL) : NAN;
+    ASSERT_MSG(isfinite(f) && wp > 0 && wr > 0, "no fraction or counted work in: %.400s", l);
+    double rule = fmin(1.0, fmax(1.0 / 64, share * wr / wp));
+    EXPECT_MSG(fabs(f - rule) <= 1e-2 * rule, "fraction %g, the rule at share %g gives %g (W_p %g, W_r %g)", f, share,
+               rule, wp, wr);
+    if (targets > 0) {
+        double g = num_after(l, "Pass 1: photons "), want = floor(targets * f);
+        EXPECT_MSG(g >= want - targets * 5e-4 - 1 && g <= want + targets * 5e-4 + 64, "pass 1: %g global photons at fraction %g",
+                   g, f);
+    }
+    *fo = f;
+}
+
 /* Oracle: photons per pass (pm_passes.c, PHOTONS PER PASS). (a) ppm_photons=0.25 on targets
  * of 8000: passes 1 and 2 store 2000 of each map, plus at most the last photon path's stores
  * (a path's stores are kept together: 64 is far above the few a path leaves), and pass 0 the
  * whole targets; a later pass's estimates read k f photons, at least 32 global and 8 caustic
  * (k_global 100 -> 32, k_caustic 60 -> 15). (b) At the default the fraction printed is the documented rule applied to
- * the counted work the same line prints: clamp(0.15 W_r / W_p, 1/64, 1) (3 significant
- * digits printed: relative 5e-3 plus the fraction's own 4), and the next pass's maps hold
- * that fraction of the targets; the same fraction for 1 and 2 threads (counted work, never
+ * the counted work the same line prints: clamp(0.15 W_r / W_p, 1/64, 1) (check_fraction),
+ * and the next pass's maps hold that fraction of the targets; the same fraction for 1 and 2
+ * threads (counted work, never
  * timed: the images' bit-identity is render_progressive_threads_bit_identical). */
 TEST(render_progressive_photons_per_pass) {
     char out[65536];
@@ -359,21 +383,36 @@ TEST(render_progressive_photons_per_pass) {
         ASSERT_MSG(rt_render(BOX_PM, t ? "--passes 2 --threads 2 --hdr b.pfm -o b.png"
                                        : "--passes 2 --threads 1 --hdr b.pfm -o b.png", out, sizeof out) == 0,
                    "%s", out);
-        const char *l = strstr(out, "Pass 1: photons ");
-        ASSERT_MSG(l, "%s", out);
-        double wp = num_after(l, "the targets' photons ");
-        const char *cam = l ? strstr(l, "camera samples ") : NULL;
-        const char *fl = strstr(l, "); ");
-        double f = fl ? strtod(fl + 3, NULL) : NAN;
-        double wr = cam ? strtod(cam + strlen("camera samples "), NULL) : NAN;
-        ASSERT_MSG(isfinite(f) && wp > 0 && wr > 0, "no fraction or counted work in: %.400s", l);
-        double rule = fmin(1.0, fmax(1.0 / 64, 0.15 * wr / wp));
-        EXPECT_MSG(fabs(f - rule) <= 1e-2 * rule, "fraction %g, the rule gives %g (W_p %g, W_r %g)", f, rule, wp, wr);
-        double g = num_after(l, "Pass 1: photons "), want = floor(8000 * f);
-        EXPECT_MSG(g >= want - 8000 * 5e-4 - 1 && g <= want + 8000 * 5e-4 + 64, "pass 1: %g global photons at fraction %g", g, f);
+        double f = NAN;
+        check_fraction(out, 0.15, 8000, &f);
         frac[t] = f;
     }
     EXPECT_MSG(frac[0] == frac[1], "the fraction differs for 1 and 2 threads: %g, %g", frac[0], frac[1]);
+}
+
+/* Oracle: where the plan's photon ports are on, a later pass's fraction is the same rule at the
+ * share 1.5 (pm_passes.c, PPM_PORT_SHARE), and the line says why: pinhole_room_ports.json declares
+ * its hole a port; pinhole_room.json, where the probe finds it; cornell_box has none, so 0.15
+ * (there clamped to 1/64 at this size: render_progressive_photons_per_pass checks 0.15 unclamped). */
+TEST(render_progressive_photons_per_pass_with_ports) {
+    char out[65536];
+    static const struct {
+        const char *scene;
+        double share;
+    } cases[] = {{"pinhole_room_ports", 1.5}, {"pinhole_room", 1.5}, {"cornell_box", 0.15}};
+    for (int i = 0; i < 3; i++) {
+        char sc[256];
+        snprintf(sc, sizeof sc, "'%%s/data/scenes/%s.json' --mode pm --width 8 --height 8", cases[i].scene);
+        ASSERT_MSG(rt_render(sc, "--passes 2 --pass-spp 1024 --hdr p.pfm -o p.png", out, sizeof out) == 0, "%s", out);
+        printf("    %s: %.300s\n", cases[i].scene, strstr(out, "Pass 1: photons ") ? strstr(out, "Pass 1: photons ") : "");
+        double f = NAN;
+        check_fraction(out, cases[i].share, -1, &f);
+        if (cases[i].share > 1) /* where the shares' fractions differ, 0.0235 against 0.235 here */
+            EXPECT_MSG(f > 10.0 / 64 && f < 1, "%s: fraction %g: the port share is not seen", cases[i].scene, f);
+        int says = strstr(out, "as photon ports are on") != NULL;
+        EXPECT_MSG(says == (cases[i].share > 1), "%s: the pass line %s the ports", cases[i].scene,
+                   says ? "names" : "does not name");
+    }
 }
 
 /* Oracle: the documented refusals: exit status 2, a message that names the option or the

@@ -38,7 +38,8 @@ static double ppm_r2_scale(int pass, double alpha) {
  *                      pilot ran: media)
  *                    + PPM_STORE_COST per stored photon (storing it, its kd-tree)
  *                    + PPM_IRR_COST per precomputed irradiance estimate;
- *   f = PPM_PHOTON_SHARE W_r / W_p, within [1/PPM_MIN_DIV, 1].
+ *   f = PPM_PHOTON_SHARE W_r / W_p, within [1/PPM_MIN_DIV, 1] (PPM_PORT_SHARE where the plan's
+ *       photon ports are on, below).
  * Why a share and not the targets: the passes' mean has the photons of all passes, so a pass
  * that spends most of its time on photons buys few camera samples, and at the defaults the
  * camera samples' noise is most of the error (cornell_spheres at 96x96, 16 spp a pass: 90% of
@@ -50,6 +51,15 @@ static double ppm_r2_scale(int pass, double alpha) {
  * (pm__photon_work_at) that pass 0's fit weighs too. */
 #define PPM_PHOTON_SHARE 0.15
 #define PPM_MIN_DIV 64.0
+/* Where the plan aims photons through ports (ports.h), the share is PPM_PORT_SHARE: the light the
+ * camera sees comes through a small opening, and the error is mostly the maps' noise, which a
+ * pass's camera samples do not reduce. Measured at --time 10 (pm at the defaults, 2 threads,
+ * MSE against the references, seeds 1 and 2; by hand at 75d9cf3), for shares of 0.15 / 0.6 / 1.5
+ * / 4: pinhole_room 2.6 / 1.4 / 0.43 / 0.82 e-10 and 0.19 / 0.57 / 0.23 / 1.5 e-10,
+ * sun_window_fog 2.9 / 1.1 / 0.65 / 0.53 e-4 and 2.3 / 0.84 / 0.60 / 0.55 e-4, sun_window 4.0 /
+ * 3.9 / 3.8 / 4.8 e-6 and 3.9 / 3.7 / 3.4 / 3.7 e-6, lamp_shade (no 4) 5.2 / 3.8 / 4.2 e-3 and 1.7
+ * / 30 / 2.8 e-3 (its maps' rare heavy photons: one pass can carry most of the error). */
+#define PPM_PORT_SHARE 1.5
 
 static void choose_fraction(mapper_state *st, const scene *s) {
     photon_settings *c = &st->cfg;
@@ -66,12 +76,14 @@ static void choose_fraction(mapper_state *st, const scene *s) {
         snprintf(st->fraction_reason, sizeof st->fraction_reason,
                  "the targets: no counted work to weigh (%s)", wr > 0 ? "no photons" : "no sample pilot");
     } else {
-        double f = PPM_PHOTON_SHARE * wr / wp;
+        int ports = st->plan.ports.on;
+        double share = ports ? PPM_PORT_SHARE : PPM_PHOTON_SHARE, f = share * wr / wp;
         st->pass_fraction = f > 1 ? 1 : f < 1 / PPM_MIN_DIV ? 1 / PPM_MIN_DIV : f;
         snprintf(st->fraction_reason, sizeof st->fraction_reason,
                  "counted work: the targets' photons %.3g, a pass's %d x %d x %d camera samples %.3g; "
-                 "photons at %.3g of that (ppm_photons sets it)",
-                 wp, s->cam.width, s->cam.height, s->cam.spp, wr, PPM_PHOTON_SHARE);
+                 "photons at %.3g of that%s (ppm_photons sets it)",
+                 wp, s->cam.width, s->cam.height, s->cam.spp, wr, share,
+                 ports ? ", as photon ports are on: the maps' noise is most of the error" : "");
     }
     st->fraction_made = 1;
 }
