@@ -7,6 +7,13 @@
 # Prints markdown on standard output. Every figure is read or computed from DIR's files; the
 # stamp is measurement.txt's.
 #
+#   scripts/gen-hard-scenes-md.sh --readme [DIR]
+# rewrites README.md's block between "<!-- hard scenes" and "<!-- end of hard scenes -->" with
+# the document's "Against the target" table and its verdict on pinhole_room's region means:
+# the figures of the document, nothing else.
+#   scripts/gen-hard-scenes-md.sh --readme-block [DIR]
+# prints that block instead (tests/test_docs.c compares it with README.md's).
+#
 # Computed here, per scene (N_ref: the reference's spp):
 #   c       path tracing's variance constant: the mean over its runs of MSE / (1/spp + 1/N_ref)
 #           (an unbiased estimator against a reference that is one too: MSE = c/spp + c/N_ref);
@@ -25,6 +32,36 @@
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 case "${1:-}" in -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;; esac
+if [ "${1:-}" = --readme ] || [ "${1:-}" = --readme-block ]; then
+  mode=$1
+  shift
+  tmpd=$(mktemp)
+  tmpr=$(mktemp)
+  trap 'rm -f "$tmpd" "$tmpr"' EXIT
+  sh "$0" "$@" > "$tmpd"
+  stampline=$(grep -m1 '^Measured sources (stamp ' "$tmpd" | sed 's/^Measured sources (stamp \([^)]*\)).*/\1/')
+  nthreads=$(grep -m1 -o '[0-9]* threads, seeds' "$tmpd" | awk '{ print $1 }')
+  awk -v stamp="$stampline" -v nthreads="${nthreads:-?}" '
+    /^## / { sec = substr($0, 4) }
+    sec == "Against the target" && /^\|/ { tab[++n] = $0 }
+    sec ~ /region means/ && /^At [0-9]/ { regions = $0 }
+    END {
+      printf "Measured by `scripts/make-hard-scenes.sh` (docs/HARD_SCENES.md, stamp %s): time to equal\n", stamp
+      printf "error against path tracing at the defaults, %s threads, two seeds each (read a factor 1.5 as noise):\n\n", nthreads
+      for (i = 1; i <= n; i++) print tab[i]
+      if (regions != "") printf "\npinhole_room'"'"'s region means against the reference (the 2%% target). %s\n", regions
+    }' "$tmpd" > "$tmpr"
+  grep -q '^| pinhole_room' "$tmpr" || { echo "gen-hard-scenes-md: no table in the document" >&2; exit 2; }
+  if [ "$mode" = --readme-block ]; then cat "$tmpr"; exit 0; fi
+  grep -q '^<!-- hard scenes' "$here/README.md" || { echo "gen-hard-scenes-md: README.md has no hard scenes block" >&2; exit 2; }
+  awk -v block="$tmpr" '
+    /^<!-- hard scenes/ { print; while ((getline l < block) > 0) print l; skip = 1; next }
+    /^<!-- end of hard scenes -->/ { skip = 0 }
+    !skip { print }' "$here/README.md" > "$here/README.md.tmp"
+  mv "$here/README.md.tmp" "$here/README.md"
+  echo "gen-hard-scenes-md: README.md's hard scenes block rewritten" >&2
+  exit 0
+fi
 dir="${1:-$here/docs/hard_scenes}"
 for f in runs.csv measurement.txt; do
   [ -f "$dir/$f" ] || { echo "gen-hard-scenes-md: $dir/$f missing: run scripts/make-hard-scenes.sh" >&2; exit 2; }

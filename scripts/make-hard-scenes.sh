@@ -181,4 +181,5 @@ echo "make-hard-scenes: wrote $out" >&2
 if [ $quick = 0 ] && [ -z "${HS_OUT:-}" ]; then
   sh "$here/scripts/gen-hard-scenes-md.sh" "$out" > "$here/docs/HARD_SCENES.md"
   echo "make-hard-scenes: wrote docs/HARD_SCENES.md" >&2
+  sh "$here/scripts/gen-hard-scenes-md.sh" --readme "$out"
 fi
