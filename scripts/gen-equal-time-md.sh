@@ -36,13 +36,10 @@
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 case "${1:-}" in -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;; esac
+. "$here/scripts/measured-table.sh"
 if [ "${1:-}" = --readme ]; then
   shift
-  tmpd=$(mktemp)
-  tmpr=$(mktemp)
-  trap 'rm -f "$tmpd" "$tmpr"' EXIT
-  sh "$0" "$@" > "$tmpd"
-  stampline=$(grep -m1 '^Measured sources (stamp ' "$tmpd" | sed 's/^Measured sources (stamp \([^)]*\)).*/\1/')
+  readme_doc "$0" "$@"
   awk -v stamp="$stampline" '
     /^### / { in_s = ($2 == "cornell_spheres") }
     /^Path tracing here/ { next }
@@ -55,11 +52,7 @@ if [ "${1:-}" = --readme ]; then
       printf "(docs/RESULTS.md, \"Equal time at the defaults\", stamp %s):\n\n", stamp
       for (i = 1; i <= n; i++) print line[i]
     }' "$tmpd" > "$tmpr"
-  awk -v block="$tmpr" '
-    /^<!-- make run comparison/ { print; while ((getline l < block) > 0) print l; skip = 1; next }
-    /^<!-- end of make run comparison -->/ { skip = 0 }
-    !skip { print }' "$here/README.md" > "$here/README.md.tmp"
-  mv "$here/README.md.tmp" "$here/README.md"
+  readme_put "<!-- make run comparison" "<!-- end of make run comparison -->"
   echo "gen-equal-time-md: README.md's make run comparison rewritten" >&2
   exit 0
 fi
@@ -76,7 +69,6 @@ for f in runs.csv calib.csv measurement.txt; do
   [ -f "$dir/$f" ] || { echo "gen-equal-time-md: $dir/$f missing: run scripts/make-equal-time.sh" >&2; exit 2; }
 done
 m() { awk -v k="$1" '$1 == k { sub(/^[^ ]+ /, ""); print; exit }' "$dir/measurement.txt"; }
-. "$here/scripts/measured-table.sh"
 scenes=$(awk -F, 'NR > 1 && !seen[$1]++ { printf "%s ", $1 }' "$dir/runs.csv")
 ratios=$(mktemp)
 cons=$(mktemp)

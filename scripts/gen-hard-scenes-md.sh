@@ -32,14 +32,11 @@
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 case "${1:-}" in -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;; esac
+. "$here/scripts/measured-table.sh"
 if [ "${1:-}" = --readme ] || [ "${1:-}" = --readme-block ]; then
   mode=$1
   shift
-  tmpd=$(mktemp)
-  tmpr=$(mktemp)
-  trap 'rm -f "$tmpd" "$tmpr"' EXIT
-  sh "$0" "$@" > "$tmpd"
-  stampline=$(grep -m1 '^Measured sources (stamp ' "$tmpd" | sed 's/^Measured sources (stamp \([^)]*\)).*/\1/')
+  readme_doc "$0" "$@"
   nthreads=$(grep -m1 -o '[0-9]* threads, seeds' "$tmpd" | awk '{ print $1 }')
   awk -v stamp="$stampline" -v nthreads="${nthreads:-?}" '
     /^## / { sec = substr($0, 4) }
@@ -54,11 +51,7 @@ if [ "${1:-}" = --readme ] || [ "${1:-}" = --readme-block ]; then
   grep -q '^| pinhole_room' "$tmpr" || { echo "gen-hard-scenes-md: no table in the document" >&2; exit 2; }
   if [ "$mode" = --readme-block ]; then cat "$tmpr"; exit 0; fi
   grep -q '^<!-- hard scenes' "$here/README.md" || { echo "gen-hard-scenes-md: README.md has no hard scenes block" >&2; exit 2; }
-  awk -v block="$tmpr" '
-    /^<!-- hard scenes/ { print; while ((getline l < block) > 0) print l; skip = 1; next }
-    /^<!-- end of hard scenes -->/ { skip = 0 }
-    !skip { print }' "$here/README.md" > "$here/README.md.tmp"
-  mv "$here/README.md.tmp" "$here/README.md"
+  readme_put "<!-- hard scenes" "<!-- end of hard scenes -->"
   echo "gen-hard-scenes-md: README.md's hard scenes block rewritten" >&2
   exit 0
 fi
@@ -67,7 +60,6 @@ for f in runs.csv measurement.txt; do
   [ -f "$dir/$f" ] || { echo "gen-hard-scenes-md: $dir/$f missing: run scripts/make-hard-scenes.sh" >&2; exit 2; }
 done
 m() { awk -v k="$1" '$1 == k { sub(/^[^ ]+ /, ""); print; exit }' "$dir/measurement.txt"; }
-. "$here/scripts/measured-table.sh"
 scenes=$(awk -F, 'NR > 1 && !seen[$1]++ { printf "%s ", $1 }' "$dir/runs.csv")
 summary=$(mktemp)
 bsummary=$(mktemp)
