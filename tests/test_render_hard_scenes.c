@@ -166,6 +166,42 @@ TEST(render_hard_scenes_probe_finds_the_opening) {
     }
 }
 
+/* Oracle: the geometry of an opening the shipped scenes do not have. tests/data/sun_window_turned.json
+ * is sun_window with its 40 x 40 window turned 30 degrees in its wall (the wall is four
+ * trapezoids from its corners to the window's). The found port must hold the four corners of
+ * the turned window (ports.h, THE TURN: the walls' own edges give the turn; 32 fixed turns
+ * include none at 30 + a multiple of 90 degrees... they include 28.1 and 30.9, the nearest). */
+TEST(render_hard_scenes_probe_finds_a_turned_window) {
+    char path[1024];
+    json_err e;
+    scene s;
+    snprintf(path, sizeof path, "%s/tests/data/sun_window_turned.json", pm_test_source_dir());
+    ASSERT_MSG(scene_load(&s, path, &e) == 0, "%s", e.msg);
+    const double c0[2] = {200, 220}, h = 20, a = 30 * M_PI / 180;
+    for (uint64_t seed = 1; seed <= 3; seed++) {
+        s.settings.seed = seed;
+        port_found f;
+        ASSERT_EQ_INT(ports_find(&s, plan_pilot_seed(&s), &f), 0);
+        ASSERT_MSG(f.n == 1, "seed %llu: %d ports found (%s)", (unsigned long long)seed, f.n, f.why);
+        const port *p = &f.p[0];
+        double la = v3_len(p->e1), lb = v3_len(p->e2);
+        int held = 1;
+        for (int k = 0; k < 4; k++) {
+            double x = (k % 2 ? h : -h), y = (k / 2 ? h : -h);
+            vec3 q = v3(c0[0] + x * cos(a) - y * sin(a), c0[1] + x * sin(a) + y * cos(a), 400);
+            vec3 dq = v3_sub(q, p->c);
+            held &= fabs(v3_dot(dq, p->e1)) / (la * la) <= 0.5 && fabs(v3_dot(dq, p->e2)) / (lb * lb) <= 0.5;
+        }
+        double turn = fmod(atan2(p->e1.y, p->e1.x) * 180 / M_PI + 360, 90);
+        printf("    seed %llu: quad %.2f x %.2f at (%.2f, %.2f, %.2f), turned %.2f degrees\n", (unsigned long long)seed,
+               la, lb, p->c.x, p->c.y, p->c.z, turn);
+        EXPECT_MSG(held, "seed %llu: the port does not hold every corner of the turned window", (unsigned long long)seed);
+        EXPECT_MSG(fabs(turn - 30) < 0.5, "seed %llu: the port is turned %.2f degrees, the window 30", (unsigned long long)seed,
+                   turn);
+    }
+    scene_free(&s);
+}
+
 typedef struct region {
     const char *name;
     int x0, y0, x1, y1;

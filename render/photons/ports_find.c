@@ -212,30 +212,45 @@ static void trimmed(double *v, long m, double *lo, double *hi) {
     *hi = (a + b) / 2 + half;
 }
 
-/* The turns (angles from e1 about n, in [0, pi/2)) of the edges of the walls that group gi's
- * segments cross, as far as they lie in the plane (ports.h, THE TURN): at most PF_TURNS of them,
- * each once. Their count. */
-static int wall_turns(const scene *s, const thread_rec *t, long nt, int gi, vec3 n, vec3 e1, vec3 e2, double *turn) {
+/* The distance from q to the segment from a to a + e. */
+static double seg_dist(vec3 q, vec3 a, vec3 e) {
+    double l2 = v3_len2(e), u = l2 > 0 ? v3_dot(v3_sub(q, a), e) / l2 : 0;
+    u = u < 0 ? 0 : u > 1 ? 1 : u;
+    return v3_len(v3_sub(q, v3_madd(a, e, u)));
+}
+
+/* The turn of the opening's rim (ports.h, THE TURN), an angle from e1 about n in [0, pi/2): each
+ * of group gi's crossings votes for the turn of the edge of its wall triangle nearest to it (in
+ * the port's plane); the turn with the most votes. -1 when no crossing has a wall triangle. */
+static double rim_turn(const scene *s, const thread_rec *t, long nt, int gi, vec3 n, vec3 e1, vec3 e2) {
+    double turn[PF_TURNS];
+    long votes[PF_TURNS];
     int nturn = 0;
-    for (long i = 0; i < nt && nturn < PF_TURNS; i++) {
+    for (long i = 0; i < nt; i++) {
         if (t[i].group != gi || t[i].prim < 0 || t[i].prim >= s->ntris) continue;
         const triangle *tr = &s->tris[t[i].prim];
-        vec3 e[3] = {tr->e1, tr->e2, v3_sub(tr->e2, tr->e1)};
-        for (int k = 0; k < 3 && nturn < PF_TURNS; k++) {
-            double l = v3_len(e[k]);
-            if (!(l > 0) || fabs(v3_dot(e[k], n)) > 0.01 * l) continue; /* not in the port's plane */
-            double a = atan2(v3_dot(e[k], e2), v3_dot(e[k], e1));
-            a = fmod(a, M_PI / 2);
-            if (a < 0) a += M_PI / 2;
-            int seen = 0;
-            for (int m = 0; m < nturn && !seen; m++) {
-                double dd = fabs(turn[m] - a);
-                seen = dd < 1e-6 || M_PI / 2 - dd < 1e-6;
-            }
-            if (!seen) turn[nturn++] = a;
+        vec3 o[3] = {tr->v0, tr->v0, v3_add(tr->v0, tr->e1)}, e[3] = {tr->e1, tr->e2, v3_sub(tr->e2, tr->e1)};
+        int best = -1;
+        double bd = INFINITY;
+        for (int k = 0; k < 3; k++) {
+            double l = v3_len(e[k]), d = seg_dist(t[i].q, o[k], e[k]);
+            if (l > 0 && fabs(v3_dot(e[k], n)) <= 0.01 * l && d < bd) bd = d, best = k;
         }
+        if (best < 0) continue;
+        double a = fmod(atan2(v3_dot(e[best], e2), v3_dot(e[best], e1)), M_PI / 2);
+        if (a < 0) a += M_PI / 2;
+        int m = 0;
+        while (m < nturn && !(fabs(turn[m] - a) < 1e-6 || M_PI / 2 - fabs(turn[m] - a) < 1e-6)) m++;
+        if (m == nturn) {
+            if (nturn == PF_TURNS) continue;
+            turn[nturn] = a, votes[nturn++] = 0;
+        }
+        votes[m]++;
     }
-    return nturn;
+    int top = -1;
+    for (int m = 0; m < nturn; m++)
+        if (top < 0 || votes[m] > votes[top]) top = m;
+    return top < 0 ? -1 : turn[top];
 }
 
 /* The trimmed extents (lo[2], hi[2]) of group gi's crossings with the plane (c, n) along u and v;
@@ -262,11 +277,13 @@ static int fit_rect(const scene *s, const thread_rec *t, long nt, int gi, vec3 c
     vec3 e1, e2;
     v3_basis(n, &e1, &e2);
     vec3 bu = e1, bv = e2;
-    double best = INFINITY, best_wall = INFINITY, bx[4] = {0}, wx[4] = {0}, turn[PF_TURNS + 32];
+    double best = INFINITY, best_wall = INFINITY, bx[4] = {0}, wx[4] = {0}, turn[33];
     vec3 wu = e1, wv = e2;
     double *xs = malloc(2 * (size_t)nt * sizeof *xs), *ys = xs + nt;
     if (!xs) return PM_ENOMEM;
-    int nwall = wall_turns(s, t, nt, gi, n, e1, e2, turn);
+    double rim = rim_turn(s, t, nt, gi, n, e1, e2);
+    int nwall = rim >= 0;
+    turn[0] = rim;
     for (int r = 0; r < 32; r++) turn[nwall + r] = r * (M_PI / 2) / 32;
     for (int r = 0; r < nwall + 32; r++) {
         double ca = cos(turn[r]), sa = sin(turn[r]), lo[2], hi[2];
