@@ -66,6 +66,8 @@ TEST(render_scene_errors_exit_2) {
          "$.objects[0].triangles[0][2]: vertex index 3"},
         {"quad_count", "{" CAM ", " MATS ", \"objects\": [{\"type\": \"quad\", \"vertices\": [[0,0,0],[1,0,0],[0,1,0]], \"material\": \"w\"}]}",
          "$.objects[0].vertices: expected 4 points, got 3"},
+        {"quad_inward", "{" CAM ", " MATS ", \"objects\": [{\"type\": \"quad\", \"vertices\": [[0,0,0],[4,0,0],[4,4,0],[3,1,0]], \"material\": \"w\"}]}",
+         "$.objects[0].vertices: the quad's corner 3 turns inward"},
         {"camera_nowhere", "{\"camera\": {\"eye\": [1,2,3], \"look_at\": [1,2,3], \"fov_deg\": 40, \"width\": 8, \"height\": 8}, " MATS ", " OK_OBJS "}",
          "$.camera: the camera points nowhere"},
         {"camera_up_parallel", "{\"camera\": {\"eye\": [0,0,0], \"forward\": [0,2,0], \"fov_deg\": 40, \"width\": 8, \"height\": 8}, " MATS ", " OK_OBJS "}",

@@ -127,6 +127,23 @@ static int load_mesh_file(scene *s, caps *cp, const cJSON *o, const char *P, jso
     return rc;
 }
 
+/* A quad is the fan (0 1 2) (0 2 3): that covers it when it is convex, or when its inner (reflex)
+ * corner is vertex 0 or 2, on the fan's diagonal. An inner corner at vertex 1 or 3 would put a
+ * triangle outside the quad and leave part of it open: refused, naming the corner to start from. */
+static int quad_fan_covers(const vec3 v[4], const char *P, json_err *e) {
+    vec3 n = {0, 0, 0};
+    for (int k = 0; k < 4; k++) n = v3_add(n, v3_cross(v[k], v[(k + 1) % 4])); /* the area's normal */
+    for (int k = 1; k < 4; k += 2) {
+        vec3 a = v3_sub(v[k], v[k - 1]), b = v3_sub(v[(k + 1) % 4], v[k]);
+        if (v3_dot(v3_cross(a, b), n) < -1e-9 * v3_len(a) * v3_len(b) * v3_len(n))
+            return json_fail(e, PM_EINVAL,
+                             "%s.vertices: the quad's corner %d turns inward, and a quad is the fan (0 1 2) (0 2 3), "
+                             "which would not cover it: list its vertices from that corner, or use two triangles",
+                             P, k);
+    }
+    return 0;
+}
+
 int sl_load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_err *e) {
     if (!cJSON_IsObject(o))
         return json_fail(e, PM_EINVAL, "%s: expected an object, got %s", P, json_type_name(o));
@@ -158,6 +175,7 @@ int sl_load_object(scene *s, caps *cp, const cJSON *o, const char *P, json_err *
              "interior_medium", "exterior_medium", "keeps_medium");
         vec3 v[4];
         TRY(read_points(o, P, "vertices", nv, v, e));
+        if (nv == 4) TRY(quad_fan_covers(v, P, e));
         TRY(find_material(s, o, P, &mat, e));
         for (int i = 1; i + 1 < nv; i++) TRY(add_tri(s, cp, v[0], v[i], v[i + 1], mat, P, e));
     } else if (strcmp(type, "mesh") == 0 && json_get(o, "file")) {

@@ -219,6 +219,28 @@ static double seg_dist(vec3 q, vec3 a, vec3 e) {
     return v3_len(v3_sub(q, v3_madd(a, e, u)));
 }
 
+/* The edge (origin *o, direction *e) of crossing t's wall triangle nearest to its crossing, among
+ * those in the plane of normal n; its turn from e1 about n in [0, pi/2). -1 when it has none. */
+static double rim_edge(const scene *s, const thread_rec *t, vec3 n, vec3 e1, vec3 e2, vec3 *o, vec3 *e) {
+    if (t->prim < 0 || t->prim >= s->ntris) return -1;
+    const triangle *tr = &s->tris[t->prim];
+    vec3 to[3] = {tr->v0, tr->v0, v3_add(tr->v0, tr->e1)}, te[3] = {tr->e1, tr->e2, v3_sub(tr->e2, tr->e1)};
+    int best = -1;
+    double bd = INFINITY;
+    for (int k = 0; k < 3; k++) {
+        double l = v3_len(te[k]), d = seg_dist(t->q, to[k], te[k]);
+        if (l > 0 && fabs(v3_dot(te[k], n)) <= 0.01 * l && d < bd) bd = d, best = k;
+    }
+    if (best < 0) return -1;
+    *o = to[best], *e = te[best];
+    double a = fmod(atan2(v3_dot(*e, e2), v3_dot(*e, e1)), M_PI / 2);
+    return a < 0 ? a + M_PI / 2 : a;
+}
+
+static int same_turn(double a, double b) {
+    return fabs(a - b) < 1e-6 || M_PI / 2 - fabs(a - b) < 1e-6;
+}
+
 /* The turn of the opening's rim (ports.h, THE TURN), an angle from e1 about n in [0, pi/2): each
  * of group gi's crossings votes for the turn of the edge of its wall triangle nearest to it (in
  * the port's plane); the turn with the most votes. -1 when no crossing has a wall triangle. */
@@ -227,20 +249,11 @@ static double rim_turn(const scene *s, const thread_rec *t, long nt, int gi, vec
     long votes[PF_TURNS];
     int nturn = 0;
     for (long i = 0; i < nt; i++) {
-        if (t[i].group != gi || t[i].prim < 0 || t[i].prim >= s->ntris) continue;
-        const triangle *tr = &s->tris[t[i].prim];
-        vec3 o[3] = {tr->v0, tr->v0, v3_add(tr->v0, tr->e1)}, e[3] = {tr->e1, tr->e2, v3_sub(tr->e2, tr->e1)};
-        int best = -1;
-        double bd = INFINITY;
-        for (int k = 0; k < 3; k++) {
-            double l = v3_len(e[k]), d = seg_dist(t[i].q, o[k], e[k]);
-            if (l > 0 && fabs(v3_dot(e[k], n)) <= 0.01 * l && d < bd) bd = d, best = k;
-        }
-        if (best < 0) continue;
-        double a = fmod(atan2(v3_dot(e[best], e2), v3_dot(e[best], e1)), M_PI / 2);
-        if (a < 0) a += M_PI / 2;
+        vec3 o, e;
+        double a = t[i].group == gi ? rim_edge(s, &t[i], n, e1, e2, &o, &e) : -1;
+        if (a < 0) continue;
         int m = 0;
-        while (m < nturn && !(fabs(turn[m] - a) < 1e-6 || M_PI / 2 - fabs(turn[m] - a) < 1e-6)) m++;
+        while (m < nturn && !same_turn(turn[m], a)) m++;
         if (m == nturn) {
             if (nturn == PF_TURNS) continue;
             turn[nturn] = a, votes[nturn++] = 0;
@@ -270,6 +283,46 @@ static long extents(const thread_rec *t, long nt, int gi, vec3 c, vec3 n, vec3 u
     return m;
 }
 
+/* Is the plane (c, n) open at p: no solid surface within d of it along n, either way? */
+static int open_at(const scene *s, vec3 p, vec3 n, double d) {
+    hit h;
+    return !solid_hit(s, (ray){v3_madd(p, n, -d), n}, 2 * d, &h);
+}
+
+/* THE RIM (ports.h): each side of the rectangle bx (lo u, hi u, lo v, hi v about c along u, v)
+ * moves to the wall: at PF_RIM_PROBES points along it, the edge between the open middle and the
+ * wall at most PF_RIM_REACH of the rectangle's size beyond the side is found by bisection in the
+ * plane (c, n), and the side goes to the farthest of them. A side where no probe finds an edge
+ * (the middle not open, or no wall within reach) stays. */
+static int rim_sides(const scene *s, vec3 c, vec3 n, vec3 u, vec3 v, double bx[4]) {
+    const double mid[2] = {(bx[0] + bx[1]) / 2, (bx[2] + bx[3]) / 2}, size[2] = {bx[1] - bx[0], bx[3] - bx[2]};
+    const double d = 1e-3 * (size[0] + size[1]);
+    double nb[4];
+    int found = 0;
+    for (int side = 0; side < 4; side++) {
+        int ax = side / 2, o = 1 - ax;
+        double sg = side % 2 ? 1 : -1, far = -INFINITY;
+        for (int k = 0; k < PF_RIM_PROBES; k++) {
+            double y = bx[2 * o] + size[o] * (k + 0.5) / PF_RIM_PROBES, in = mid[ax];
+            double out = bx[side] + sg * PF_RIM_REACH * size[ax];
+#define RIM_AT(x) (ax ? v3_add(c, v3_add(v3_scale(u, y), v3_scale(v, (x)))) \
+                      : v3_add(c, v3_add(v3_scale(u, (x)), v3_scale(v, y))))
+            if (!open_at(s, RIM_AT(in), n, d) || open_at(s, RIM_AT(out), n, d)) continue;
+            for (int it = 0; it < 40; it++) {
+                double m = (in + out) / 2;
+                if (open_at(s, RIM_AT(m), n, d)) in = m;
+                else out = m;
+            }
+#undef RIM_AT
+            if (sg * out > far) far = sg * out; /* the first point of wall: the port holds the opening */
+        }
+        nb[side] = far > -INFINITY ? sg * far : bx[side];
+        if (far > -INFINITY) found |= 1 << side;
+    }
+    for (int k = 0; k < 4; k++) bx[k] = nb[k];
+    return found;
+}
+
 /* The rectangle around the crossings of group gi's segments with the plane (c, n), by trimmed
  * (ports.h, THE FIT), turned by THE TURN and grown by PF_GROW: 0 when fewer than PF_MIN_THREADS
  * cross, PM_ENOMEM. */
@@ -281,9 +334,9 @@ static int fit_rect(const scene *s, const thread_rec *t, long nt, int gi, vec3 c
     vec3 wu = e1, wv = e2;
     double *xs = malloc(2 * (size_t)nt * sizeof *xs), *ys = xs + nt;
     if (!xs) return PM_ENOMEM;
-    double rim = rim_turn(s, t, nt, gi, n, e1, e2);
-    int nwall = rim >= 0;
-    turn[0] = rim;
+    double wall = rim_turn(s, t, nt, gi, n, e1, e2);
+    int nwall = wall >= 0, rim = 0; /* rim: the sides THE RIM gave, a bit each */
+    turn[0] = wall;
     for (int r = 0; r < 32; r++) turn[nwall + r] = r * (M_PI / 2) / 32;
     for (int r = 0; r < nwall + 32; r++) {
         double ca = cos(turn[r]), sa = sin(turn[r]), lo[2], hi[2];
@@ -301,15 +354,17 @@ static int fit_rect(const scene *s, const thread_rec *t, long nt, int gi, vec3 c
             dst[0] = lo[0], dst[1] = hi[0], dst[2] = lo[1], dst[3] = hi[1];
         }
     }
-    free(xs);
     if (best_wall <= PF_TURN_SLACK * best) { /* THE TURN in ports.h: the wall's own, when near the best */
         bu = wu, bv = wv;
         for (int k = 0; k < 4; k++) bx[k] = wx[k];
+        rim = rim_sides(s, c, n, bu, bv, bx);
     }
+    free(xs);
     double sx = bx[1] - bx[0], sy = bx[3] - bx[2];
     if (!(sx > 0 && sy > 0)) return 0;
-    bx[0] -= PF_GROW * sx, bx[2] -= PF_GROW * sy; /* THE FIT in ports.h: grown at each edge */
-    sx *= 1 + 2 * PF_GROW, sy *= 1 + 2 * PF_GROW;
+    for (int k = 0; k < 4; k++) /* THE FIT in ports.h: grown at each edge the rim did not give */
+        if (!(rim & 1 << k)) bx[k] += (k % 2 ? 1 : -1) * PF_GROW * (k < 2 ? sx : sy);
+    sx = bx[1] - bx[0], sy = bx[3] - bx[2];
     vec3 corner = v3_add(c, v3_add(v3_scale(bu, bx[0]), v3_scale(bv, bx[2])));
     vec3 q1 = v3_scale(bu, sx), q2 = v3_scale(bv, sy);
     if (v3_dot(v3_cross(q1, q2), n) < 0) { /* keep the wall's normal: e1 x e2 along n */
