@@ -437,14 +437,29 @@ void side_map_free(side_map *sm) {
     memset(sm, 0, sizeof *sm);
 }
 
+/* Both points on one plane (normal n): 1 when nothing stands between them just above it (a ray
+ * from x to p lifted by a few times the offset epsilon). */
+static int side_open_along(const scene *s, vec3 x, vec3 n, vec3 p) {
+    double scale = s->offset_floor + fmax(v3_maxabs(x), v3_maxabs(p));
+    vec3 lift = v3_scale(n, 4 * 64e-9 * scale * 16);
+    vec3 a = v3_add(x, lift), d = v3_sub(v3_add(p, lift), a);
+    double len = v3_len(d);
+    if (!(len > 0)) return 1;
+    ray r = {a, v3_scale(d, 1 / len)};
+    hit h;
+    return !scene_intersect(s, r, len, &h);
+}
+
 /* 1 if the neighbour at p (normal pn, free height hp) is on the query's side: with no ray when
  * it lies in the query's tangent plane (within SIDE_PLANE_TOL of its distance, and a float
  * step), else side_visible_h. *hx: the query's free height, computed at the first ray (< 0:
  * not yet). */
-static int side_keeps(const scene *s, vec3 x, vec3 n, double *hx, double cap, vec3 p, vec3 pn, double hp) {
+static int side_keeps(const scene *s, vec3 x, vec3 n, double *hx, double cap, vec3 p, vec3 pn, double hp,
+                      int in_plane_rays) {
     vec3 d = v3_sub(p, x);
     double off = fabs(v3_dot(d, n)), len = v3_len(d);
-    if (off <= SIDE_PLANE_TOL * len + 1e-6 * (s->offset_floor + v3_maxabs(x))) return 1;
+    if (off <= SIDE_PLANE_TOL * len + 1e-6 * (s->offset_floor + v3_maxabs(x)))
+        return !in_plane_rays || side_open_along(s, x, n, p);
     if (*hx < 0) *hx = side_free_height(s, x, n, cap);
     return side_visible_h(s, x, n, *hx, p, pn, hp);
 }
@@ -463,7 +478,7 @@ int side_neighbours(const side_map *sm, const float x[3], const float n[3], cons
         const pm_photon *p = &ph[nb[i].index];
         float pn[3];
         pm_normal_decode(p->normal, pn);
-        hidden = !side_keeps(s, xv, nv, &hx, cap, v3f(p->pos), v3f(pn), sm->hfree[nb[i].index]);
+        hidden = !side_keeps(s, xv, nv, &hx, cap, v3f(p->pos), v3f(pn), sm->hfree[nb[i].index], sm->in_plane_rays);
     }
     if (!hidden) return found;
     /* A neighbour behind a surface: as side_cache_build, take SIDE_WIDEN x k candidates in order
@@ -484,7 +499,7 @@ int side_neighbours(const side_map *sm, const float x[3], const float n[3], cons
             const pm_photon *p = &ph[wide[i].index];
             float pn[3];
             pm_normal_decode(p->normal, pn);
-            keep = side_keeps(s, xv, nv, &hx, cap, v3f(p->pos), v3f(pn), sm->hfree[wide[i].index]);
+            keep = side_keeps(s, xv, nv, &hx, cap, v3f(p->pos), v3f(pn), sm->hfree[wide[i].index], sm->in_plane_rays);
         }
         if (keep) nb[kept++] = wide[i];
     }

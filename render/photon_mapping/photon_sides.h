@@ -250,6 +250,8 @@ typedef struct side_map {
     const pm_kdtree *t; /* the map's tree (records in tree order), or NULL: empty */
     float *hfree;       /* the free height of each record (side_free_heights) */
     size_t n;
+    int in_plane_rays;  /* 1: a neighbour in the query's own plane is tested by a ray too (the
+                         * global map shown directly: a floor runs under a wall into the lit room) */
 } side_map;
 /* For the tree t of n records in scene s (kept: it must outlive sm), estimates within radius^2
  * max_dist2 (the lift's cap). 0, or PM_ENOMEM with a message. side_map_free frees it (a zeroed

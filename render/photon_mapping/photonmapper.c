@@ -100,7 +100,8 @@ static rgb estimate_at(const mapper_state *st, int which, vec3 x, vec3 ns, rgb a
     if (!pm__lookup)
         return which == PHOTON_LOOKUP_CAUSTIC
                    ? map_estimate(st->tc, &st->caus_side, &st->caus_opt, x, ns, albedo, sc->est)
-                   : map_estimate(st->tg, NULL, &st->glob_opt, x, ns, albedo, sc->est);
+                   : map_estimate(st->tg, st->glob_side.t ? &st->glob_side : NULL, &st->glob_opt, x, ns, albedo,
+                                  sc->est);
     double e[3];
     pm__lookup->estimate(pm__lookup->user, sc->id, which, x, ns, e);
     return v3(albedo.x * e[0] / M_PI, albedo.y * e[1] / M_PI, albedo.z * e[2] / M_PI);

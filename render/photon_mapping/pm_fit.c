@@ -139,6 +139,7 @@ static void drop_volume_maps(pmv_state *v) {
 void pm__drop_maps(mapper_state *st) {
     side_cache_free(&st->sides);
     side_map_free(&st->caus_side);
+    side_map_free(&st->glob_side);
     pm_kdtree_free(st->tg);
     pm_kdtree_free(st->tc);
     pm_kdtree_free(st->ts);

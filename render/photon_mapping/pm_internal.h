@@ -40,6 +40,7 @@ typedef struct mapper_state {
     pmv_state vol; /* participating media: volume maps and ray marching (pm_volume.h) */
     side_cache sides; /* precomputed irradiance that keeps to each query's side (photon_sides.h) */
     side_map caus_side; /* the caustic map's estimates keep to the query's side (photon_sides.h) */
+    side_map glob_side; /* direct_vis: the global map's estimates keep to the query's side too */
     gather_guide gg; /* the opening the gathers aim a share of their rays at (gather_guide.h) */
     const port *dport; /* the port direct light is also sampled through (direct.h, THROUGH A
                         * PORT), or NULL; dport_lit: the side its light comes from */

@@ -154,6 +154,7 @@ int pm__begin_pass(integrator *self, const scene *s, int pass, uint64_t seed, ch
     if (again && st->pass == 0 && !pm__lookup) {
         side_cache_free(&st->sides);
         side_map_free(&st->caus_side);
+        side_map_free(&st->glob_side);
         double t0 = stats_now();
         int rc = pm__build_estimates(st, s, &st->rad0, err, errcap);
         st->t_irr = stats_now() - t0;

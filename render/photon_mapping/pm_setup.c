@@ -21,6 +21,7 @@ static void mapper_destroy(integrator *self) {
     if (!st) return;
     side_cache_free(&st->sides);
     side_map_free(&st->caus_side);
+    side_map_free(&st->glob_side);
     gather_guide_free(&st->gg);
     pm_emission_mask_free(&st->emit);
     pmv_free(&st->vol);
