@@ -287,13 +287,16 @@ TEST(render_hard_scenes_sun_window_fog_regions) {
 }
 
 /* Oracle: the reference (region means; its five runs' spread is in its .info). pm is far from
- * converged here at a test's cost: the frozen photon-map noise of a seed moves the regions by
- * tens of percent (MEASURED, 2026-12-05, ports3, 1024 spp, seeds 1-3, load 11-13: whole image
- * +1.04, -1.13, -2.62%; top (the ceiling around the lamp's spot) -4.22, +1.76, +2.26%), so the bounds are wide, about
- * 3x the largest seen: they catch a lost light path (the light through the hole, or its bounce
- * off the ceiling), not a few percent. */
+ * converged here at a test's cost: the photon map of one pass (1024 spp at 16 x 16 is one pass of
+ * about 28,000 emitted photons) moves the regions by up to 10%. MEASURED (2026-12-06, 1024 spp,
+ * seeds 1-4): at e0ce057 whole image +7.45, -8.32, -4.95, -7.34%, top +2.23, -8.58, -1.91,
+ * -9.06%; with the found port the opening (ports.h THE RIM) whole +8.27, -9.22, -5.63, -6.92%,
+ * top +4.63, -9.70, -2.44, -8.25% (and at 2026-12-05, ports3, seeds 1-3: whole +1.04, -1.13,
+ * -2.62%). 64 passes of 64 spp, seed 2: whole -4.21%, top -7.61%. Bounds about 1.6x the largest
+ * seen: they catch a lost light path (the light through the hole, or its bounce off the
+ * ceiling, each more than a third of the image), not a few percent. */
 TEST(render_hard_scenes_lamp_shade_regions) {
-    const region r[] = {{"whole image", 0, 0, 16, 16, 0.08}, {"top", 0, 0, 16, 5, 0.13}};
+    const region r[] = {{"whole image", 0, 0, 16, 16, 0.15}, {"top", 0, 0, 16, 5, 0.16}};
     char out[16384];
     check_regions("lamp_shade", 1024, r, 2, out, sizeof out);
     EXPECT_MSG(strstr(out, "photon ports: on (found by a camera probe"), "%s", out);

@@ -84,24 +84,37 @@ static int plan_line(const char *name, const char *size, const char *key, char *
 }
 
 /* Oracle: the 768-point pilot's patches (the file's comment). At 80 x 80 x 16 lamp_shade's 100
- * points find too few bright rays, so the full pilot runs there and must say so; at 96 x 96 x 16
- * its 144 points found 97 since 75d9cf3 (29 before: the found port's turn changed its maps), so
- * their answer stands, and must be the full pilot's. */
+ * points find too few bright rays, so the full pilot runs there and must say so. At 96 x 96 x 16
+ * its 144 points find about as many as the rule asks (29 before 75d9cf3, 97 after it, 29 again
+ * after the found port became the opening, ports.h THE RIM): either their answer stands, or the
+ * line says they found fewer than 64 and the full pilot ran; either way the patch must be the
+ * full pilot's. */
 TEST(render_pilot_size_same_decisions_at_own_size) {
     const struct { const char *name, *size, *pilot; double x, y, z, r; } c[] = {
         {"lamp_shade", NULL, "the pilot probed 96 points", 199.2, 151.9, 200.4, 109},
         {"sun_window", NULL, "the pilot probed 96 points", 260.9, 0, 155.9, 35.1},
         {"lamp_shade", "--width 80 --height 80 --spp 16", "the pilot probed 768 points in 1897 cells (all picked: ",
          199.1, 151.4, 198.6, 111},
-        {"lamp_shade", "--width 96 --height 96 --spp 16", "the pilot probed 144 points in 1883 cells (of 768 picked: ",
-         199.1, 151.4, 198.6, 111},
+        {"lamp_shade", "--width 96 --height 96 --spp 16", NULL, 199.1, 151.4, 198.6, 111},
     };
     char line[1024];
     for (size_t i = 0; i < sizeof c / sizeof c[0]; i++) {
         ASSERT_EQ_INT(plan_line(c[i].name, c[i].size, "gather guide: ", line, sizeof line), 0);
         printf("    %s: %s\n", c[i].name, line);
         EXPECT_MSG(strncmp(line, "gather guide: on", 16) == 0, "%s: %s", c[i].name, line);
-        EXPECT_MSG(strstr(line, c[i].pilot) != NULL, "%s: not \"%s\": %s", c[i].name, c[i].pilot, line);
+        if (c[i].pilot) {
+            EXPECT_MSG(strstr(line, c[i].pilot) != NULL, "%s: not \"%s\": %s", c[i].name, c[i].pilot, line);
+        } else { /* the rule: 144 points stand, or they found under 64 bright rays and 768 ran */
+            const char *all = "the pilot probed 768 points in 1883 cells (all picked: the 96 x 96 x 16 camera samples' "
+                              "144 points found ";
+            const char *a = strstr(line, all);
+            int k = -1;
+            if (a) sscanf(a + strlen(all), "%d bright rays, under 64", &k);
+            EXPECT_MSG(strstr(line, "the pilot probed 144 points in 1883 cells (of 768 picked: ") != NULL ||
+                           (k >= 0 && k < 64),
+                       "%s: neither the 144 points' answer nor the full pilot after too few bright rays: %s",
+                       c[i].name, line);
+        }
         const char *q = strstr(line, "a bright patch (the scene has photon ports) at (");
         ASSERT_MSG(q != NULL, "%s: no patch: %s", c[i].name, line);
         double x, y, z, r;
