@@ -390,17 +390,23 @@ TEST(render_progressive_photons_per_pass) {
     EXPECT_MSG(frac[0] == frac[1], "the fraction differs for 1 and 2 threads: %g, %g", frac[0], frac[1]);
 }
 
-/* Oracle: where the plan's photon ports are on, a later pass's fraction is the same rule at the
- * share 1.5 (pm_passes.c, PPM_PORT_SHARE), and the line says why: pinhole_room_ports.json declares
- * its hole a port; pinhole_room.json, where the probe finds it; cornell_box has none, so 0.15
- * (there clamped to 1/64 at this size: render_progressive_photons_per_pass checks 0.15 unclamped). */
+/* Oracle: where the plan's photon ports are on, or its light guide (light samples mostly
+ * blocked), a later pass's fraction is the same rule at the share 1.5 (pm_passes.c,
+ * PPM_PORT_SHARE), and the line says why: pinhole_room_ports.json declares its hole a port;
+ * pinhole_room.json, where the probe finds it; door_ajar.json has no port but the light guide;
+ * cornell_box has neither, so 0.15 (there clamped to 1/64 at this size:
+ * render_progressive_photons_per_pass checks 0.15 unclamped). */
 TEST(render_progressive_photons_per_pass_with_ports) {
     char out[65536];
     static const struct {
         const char *scene;
         double share;
-    } cases[] = {{"pinhole_room_ports", 1.5}, {"pinhole_room", 1.5}, {"cornell_box", 0.15}};
-    for (int i = 0; i < 3; i++) {
+        const char *why;
+    } cases[] = {{"pinhole_room_ports", 1.5, "as photon ports are on"},
+                 {"pinhole_room", 1.5, "as photon ports are on"},
+                 {"door_ajar", 1.5, "as the light guide is on (light samples mostly blocked)"},
+                 {"cornell_box", 0.15, NULL}};
+    for (int i = 0; i < 4; i++) {
         char sc[256];
         snprintf(sc, sizeof sc, "'%%s/data/scenes/%s.json' --mode pm --width 8 --height 8", cases[i].scene);
         ASSERT_MSG(rt_render(sc, "--passes 2 --pass-spp 1024 --hdr p.pfm -o p.png", out, sizeof out) == 0, "%s", out);
@@ -409,9 +415,9 @@ TEST(render_progressive_photons_per_pass_with_ports) {
         check_fraction(out, cases[i].share, -1, &f);
         if (cases[i].share > 1) /* where the shares' fractions differ, 0.0235 against 0.235 here */
             EXPECT_MSG(f > 10.0 / 64 && f < 1, "%s: fraction %g: the port share is not seen", cases[i].scene, f);
-        int says = strstr(out, "as photon ports are on") != NULL;
-        EXPECT_MSG(says == (cases[i].share > 1), "%s: the pass line %s the ports", cases[i].scene,
-                   says ? "names" : "does not name");
+        int ports = strstr(out, "as photon ports are on") != NULL, guide = strstr(out, "as the light guide is on") != NULL;
+        EXPECT_MSG(cases[i].why ? strstr(out, cases[i].why) != NULL && ports + guide == 1 : !ports && !guide,
+                   "%s: the pass line does not say \"%s\"", cases[i].scene, cases[i].why ? cases[i].why : "(nothing)");
     }
 }
 

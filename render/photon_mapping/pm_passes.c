@@ -39,7 +39,7 @@ static double ppm_r2_scale(int pass, double alpha) {
  *                    + PPM_STORE_COST per stored photon (storing it, its kd-tree)
  *                    + PPM_IRR_COST per precomputed irradiance estimate;
  *   f = PPM_PHOTON_SHARE W_r / W_p, within [1/PPM_MIN_DIV, 1] (PPM_PORT_SHARE where the plan's
- *       photon ports are on, below).
+ *       photon ports or its light guide are on, below).
  * Why a share and not the targets: the passes' mean has the photons of all passes, so a pass
  * that spends most of its time on photons buys few camera samples, and at the defaults the
  * camera samples' noise is most of the error (cornell_spheres at 96x96, 16 spp a pass: 90% of
@@ -58,7 +58,14 @@ static double ppm_r2_scale(int pass, double alpha) {
  * / 4: pinhole_room 2.6 / 1.4 / 0.43 / 0.82 e-10 and 0.19 / 0.57 / 0.23 / 1.5 e-10,
  * sun_window_fog 2.9 / 1.1 / 0.65 / 0.53 e-4 and 2.3 / 0.84 / 0.60 / 0.55 e-4, sun_window 4.0 /
  * 3.9 / 3.8 / 4.8 e-6 and 3.9 / 3.7 / 3.4 / 3.7 e-6, lamp_shade (no 4) 5.2 / 3.8 / 4.2 e-3 and 1.7
- * / 30 / 2.8 e-3 (its maps' rare heavy photons: one pass can carry most of the error). */
+ * / 30 / 2.8 e-3 (its maps' rare heavy photons: one pass can carry most of the error).
+ * The same holds where no port is used but the light guide is on (most light samples are
+ * blocked: the light the camera sees comes round a wall, door_ajar's through the gap of a door
+ * ajar): door_ajar at --time 10, 16 x 16, seeds 1-4 (by hand at 8c01f39): MSE 4.4, 8.3, 15.0,
+ * 9.2 e-8 at 0.15 (fractions 0.027, 0.051, 0.016, 0.016), 3.4, 4.8, 3.8, 4.0 e-8 at 1.5
+ * (fractions 0.27, 0.51, 0.15, 0.15); fixed fractions 0.06 / 0.25 / 0.5 / 1 on seeds 1 and 2:
+ * 3.6 / 3.1 / 2.0 / 3.5 and 7.0 / 3.0 / 4.4 / 5.7 e-8. No other shipped scene has the light guide
+ * on without ports. */
 #define PPM_PORT_SHARE 1.5
 
 static void choose_fraction(mapper_state *st, const scene *s) {
@@ -76,14 +83,17 @@ static void choose_fraction(mapper_state *st, const scene *s) {
         snprintf(st->fraction_reason, sizeof st->fraction_reason,
                  "the targets: no counted work to weigh (%s)", wr > 0 ? "no photons" : "no sample pilot");
     } else {
-        int ports = st->plan.ports.on;
-        double share = ports ? PPM_PORT_SHARE : PPM_PHOTON_SHARE, f = share * wr / wp;
+        int ports = st->plan.ports.on, blocked = !ports && st->plan.light_guide.on;
+        double share = ports || blocked ? PPM_PORT_SHARE : PPM_PHOTON_SHARE, f = share * wr / wp;
         st->pass_fraction = f > 1 ? 1 : f < 1 / PPM_MIN_DIV ? 1 / PPM_MIN_DIV : f;
         snprintf(st->fraction_reason, sizeof st->fraction_reason,
                  "counted work: the targets' photons %.3g, a pass's %d x %d x %d camera samples %.3g; "
                  "photons at %.3g of that%s (ppm_photons sets it)",
                  wp, s->cam.width, s->cam.height, s->cam.spp, wr, share,
-                 ports ? ", as photon ports are on: the maps' noise is most of the error" : "");
+                 ports     ? ", as photon ports are on: the maps' noise is most of the error"
+                 : blocked ? ", as the light guide is on (light samples mostly blocked): the maps' noise is most "
+                             "of the error"
+                           : "");
     }
     st->fraction_made = 1;
 }
