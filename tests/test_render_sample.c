@@ -122,6 +122,36 @@ TEST(render_sample_emission_rays_where_emitters_are_seen) {
                p ? p : g_out);
 }
 
+/* DIRECT STRATA (pm_sample.c): the extra rays take the first hit's direct light where the
+ * probes find an edge of a delta light's light, at most 10% of the pixels. sun_window (the sun
+ * through a window onto the floor: its patch's edges cross a few pixels) marks some, and the
+ * extra rays run though the camera sees no emitter; lamp_shade (an area light) is refused with
+ * the reason; cornell_point's point light edges too many of 16 x 16 pixels; emission_strata 0
+ * turns the extra rays off. That the split keeps each pixel's mean is checked against the long
+ * reference by render_hard_scenes_sun_window_regions (its sunlit patch within 2%: taking the
+ * direct light from both parts would read it about twice, from neither about 0). */
+TEST(render_sample_direct_rays_at_edges_of_delta_light) {
+    ASSERT_MSG(run_pm("sun_window", "-o s.png") == 0, "%s", g_out);
+    unsigned long marked = 0;
+    const char *key = "they take the first hit's direct light too at ";
+    const char *p = strstr(g_out, key);
+    ASSERT_MSG(p && sscanf(p + strlen(key), "%lu pixels", &marked) == 1, "%s", g_out);
+    EXPECT_MSG(marked > 0 && marked <= 25, "sun_window: %lu of 256 pixels marked (at most 10%%)", marked);
+    p = strstr(g_out, "Emission-only camera rays");
+    double rays = p ? strtod(p + strlen("Emission-only camera rays"), NULL) : 0;
+    EXPECT_MSG(rays >= 16.0 * 16 * marked, "sun_window: %g extra rays for %lu marked pixels at 16 spp", rays, marked);
+    ASSERT_MSG(run_pm("lamp_shade", "-o l.png") == 0, "%s", g_out);
+    EXPECT_MSG(strstr(g_out, "the first hit's direct light from the sample's path (a light with an area"), "%s", g_out);
+    ASSERT_MSG(run_pm("cornell_point", "-o c.png") == 0, "%s", g_out);
+    EXPECT_MSG(strstr(g_out, "the first hit's direct light from the sample's path (the probes find an edge of it at "),
+               "%s", g_out);
+    EXPECT_MSG(strstr(g_out, "of 256 pixels, over 10%"), "%s", g_out);
+    ASSERT_MSG(run_pm("sun_window", "-o z.png --pm emission_strata=0") == 0, "%s", g_out);
+    EXPECT_MSG(!strstr(g_out, key) && strstr(g_out, "none (photon_mapping.emission_strata is 0)"), "%s", g_out);
+    p = strstr(g_out, "Emission-only camera rays");
+    EXPECT_MSG(p && strtod(p + strlen("Emission-only camera rays"), NULL) == 0, "%s", p ? p : g_out);
+}
+
 /* ---- the miss survival (pm_sample.c and photonmapper.c, MISS SURVIVAL) --------------------- */
 
 /* A counter of the statistics in g_out ("    NAME   count"), or -1. */

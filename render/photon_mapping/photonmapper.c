@@ -30,7 +30,9 @@
  *     it, weighted by the mixture's density (gather_guide.h; the plan's "gather guide:" line).
  * Emission seen by the camera (directly or through mirrors and glass) comes from
  * emission_strata^2 extra camera rays per sample that look for nothing else (mapper_li), so the
- * edges of lights are antialiased at a fraction of the cost of full samples.
+ * edges of lights are antialiased at a fraction of the cost of full samples; where a delta
+ * light's edge crosses a pixel, those rays take the first hit's direct light too (pm_sample.c,
+ * DIRECT STRATA).
  * In preview mode, or with final gathering forced off, the diffuse surface shows the
  * global map's radiance estimate (k_global photons) plus emission, and nothing else; without
  * a global map it gets direct light and caustics only.
@@ -405,7 +407,10 @@ static double stride_weight(const sample_id *id, int c, uint64_t stream) {
     return pm_caustic_weight(id->strata, c, id->k, u, v);
 }
 
-enum { EYE_ALL, EYE_SHADE, EYE_EMIT };
+/* What an eye path collects (bits): the emission it meets; the direct light at its first hit
+ * (a diffuse camera hit, no specular bounce before it); everything else it shades (direct light
+ * further on, caustics, gathers, media). A camera sample's parts add up to EYE_ALL. */
+enum { EYE_EMIT = 1, EYE_DIRECT0 = 2, EYE_REST = 4, EYE_SHADE = EYE_DIRECT0 | EYE_REST, EYE_ALL = 7 };
 
 /* Russian roulette for an eye path after rr_depth bounces: 0 ends the path. */
 static int eye_roulette(const mapper_state *st, int depth, rgb *beta, rng *g) {
@@ -438,7 +443,7 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
         int got = scene_intersect(s, r, INFINITY, &h);
         if (st->vol.on) { /* media: march the segment in med; null surfaces are passed */
             rgb tr;
-            L = v3_add(L, pmv_march_eye(&st->vol, s, r, got ? h.t : INFINITY, med, what != EYE_EMIT, beta, sc->vw, g,
+            L = v3_add(L, pmv_march_eye(&st->vol, s, r, got ? h.t : INFINITY, med, (what & EYE_REST) != 0, beta, sc->vw, g,
                                             sc->est, sc->pc, &tr));
             beta = v3_mul(beta, tr);
             if (got && scene_material(s, &h)->kind == MAT_NULL) {
@@ -449,24 +454,30 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
                 continue;
             }
         }
-        if (!got) { if (what != EYE_SHADE && s->env_light) L = v3_add(L, v3_mul(beta, light_env_radiance(s, r.d))); break; }
+        if (!got) { if ((what & EYE_EMIT) && s->env_light) L = v3_add(L, v3_mul(beta, light_env_radiance(s, r.d))); break; }
         stat_inc(STAT_PATH_VERTICES);
         const material *m = scene_material(s, &h);
         vec3 wo = v3_neg(r.d);
-        if (what != EYE_SHADE && material_is_emissive(m) && (v3_dot(wo, h.ng) > 0 || m->two_sided))
+        if ((what & EYE_EMIT) && material_is_emissive(m) && (v3_dot(wo, h.ng) > 0 || m->two_sided))
             L = v3_add(L, v3_mul(beta, m->emission));
         vec3 ns = v3_dot(wo, h.ng) >= 0 ? h.ng : v3_neg(h.ng);
         double w[LOBE_COUNT];
         material_weights(m, wo, h.ng, s->medium_ior, w);
-        if (what != EYE_EMIT && w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0) {
-            rgb Ld;
+        int direct = depth == 0 ? (what & EYE_DIRECT0) != 0 : (what & EYE_REST) != 0;
+        if ((direct || (what & EYE_REST)) && w[LOBE_DIFFUSE] > 0 && v3_maxc(m->diffuse) > 0) {
+            rgb Ld = v3s(0);
             if (st->direct_vis) {
                 stat_inc(st->st_global_est);
                 Ld = st->nglobal_all ? estimate_at(st, PHOTON_LOOKUP_GLOBAL, h.p, ns,
                                                    diffuse_albedo(s, m, wo, h.ng), sc)
                                      : v3s(0);
             } else {
-                Ld = direct_light(st, s, m, &h, ns, wo, med, g, sc);
+                if (direct) Ld = direct_light(st, s, m, &h, ns, wo, med, g, sc);
+                if (!(what & EYE_REST)) {
+                    L = v3_add(L, v3_mul(beta, Ld));
+                    if (!(what & EYE_EMIT)) break; /* the first hit's direct light alone */
+                    goto next;
+                }
                 if (cw > 0) {
                     rgb Lc = caustics_at(st, s, m, &h, ns, wo, sc);
                     Ld = v3_add(Ld, v3_scale(Lc, cw));
@@ -484,6 +495,8 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
             }
             L = v3_add(L, v3_mul(beta, Ld));
         }
+    next:;
+        if (!(what & (EYE_EMIT | EYE_REST))) break; /* the first hit's direct light was all */
         double ws = w[LOBE_REFLECT] + w[LOBE_TRANSMIT];
         if (!(ws > 0) || depth >= st->max_depth) break;
         vec3 nsh = material_shading_side(wo, h.ng, h.ns);
@@ -533,7 +546,9 @@ static rgb eye_radiance(const mapper_state *st, const scene *s, ray r, int depth
 
 /* A camera sample. With emission_strata m > 0, the emission the camera sees (directly or in
  * mirrors and glass) is not taken from the sample's own path but from m x m extra camera
- * rays, one in each sub-stratum of the sample's stratum, that look for emission alone. The
+ * rays, one in each sub-stratum of the sample's stratum, that look for emission alone (and,
+ * at the pixels of emit.direct, for the direct light at their first hit, which the sample's
+ * own path then leaves out: pm_sample.c, DIRECT STRATA). The
  * pixel integral is the same sum of two parts, each estimated without bias, but the bright
  * edges of a light, where the coverage of a pixel is what varies, get m^2 times the camera
  * rays for the price of a few ray casts instead of m^2 full shading samples. */
@@ -544,9 +559,14 @@ rgb pm__li(const integrator *self, const scene *s, ray r, rng *g, const sample_i
     if (sc) sc->id = id, sc->vw = stride_weight(id, st->cfg.volume_stride, 0x766f6c756d65ULL); /* "volume" */
     int m = st->cfg.emission_strata;
     double cw = stride_weight(id, st->cfg.caustic_stride, 0x6361757374696373ULL); /* "caustics" */
-    if (m <= 0 || !id || id->strata <= 0 || (st->emit.mask && id->pixel < st->emit.pixels && !st->emit.mask[id->pixel]))
-        return eye_radiance(st, s, r, 0, v3s(1), cw, EYE_ALL, s->camera_medium, g, scratch);
-    rgb L = eye_radiance(st, s, r, 0, v3s(1), cw, EYE_SHADE, s->camera_medium, g, scratch);
+    int split = 0; /* the parts the m x m extra rays take (pm_sample.c, EMISSION and DIRECT STRATA) */
+    if (m > 0 && id && id->strata > 0) {
+        int in = id->pixel < st->emit.pixels;
+        if (!st->emit.mask || (in && st->emit.mask[id->pixel])) split |= EYE_EMIT;
+        if (st->emit.direct && in && st->emit.direct[id->pixel]) split |= EYE_DIRECT0;
+    }
+    if (!split) return eye_radiance(st, s, r, 0, v3s(1), cw, EYE_ALL, s->camera_medium, g, scratch);
+    rgb L = eye_radiance(st, s, r, 0, v3s(1), cw, EYE_ALL & ~split, s->camera_medium, g, scratch);
     rgb E = v3s(0);
     int n = id->strata, W = s->cam.width;
     double x = (double)(id->pixel % (uint64_t)W), y = (double)(id->pixel / (uint64_t)W);
@@ -556,33 +576,9 @@ rgb pm__li(const integrator *self, const scene *s, ray r, rng *g, const sample_i
             double u = rng_uniform(g), v = rng_uniform(g);
             ray re = camera_ray(&s->cam, x + (sx + (a + u) / m) / n, y + (sy + (b + v) / m) / n);
             stat_inc(st->st_emission_rays);
-            E = v3_add(E, eye_radiance(st, s, re, 0, v3s(1), 0, EYE_EMIT, s->camera_medium, g, scratch));
+            E = v3_add(E, eye_radiance(st, s, re, 0, v3s(1), 0, split, s->camera_medium, g, scratch));
         }
     return v3_add(L, v3_scale(E, 1.0 / (m * m)));
-}
-
-mapper_scratch *pm__scratch_new(const mapper_state *st) {
-    mapper_scratch *sc = calloc(1, sizeof *sc);
-    if (!sc) return NULL;
-    sc->vw = 1;
-    sc->est = malloc(pm_estimate_scratch_bytes(st->kmax));
-    sc->nb = malloc((size_t)st->cfg.k_shadow * sizeof *sc->nb);
-    if (!sc->est || !sc->nb) {
-        pm__thread_end(NULL, sc);
-        return NULL;
-    }
-    return sc;
-}
-
-void *pm__thread_begin(const integrator *self) { return pm__scratch_new(self->data); }
-
-void pm__thread_end(const integrator *self, void *scratch) {
-    (void)self;
-    mapper_scratch *sc = scratch;
-    if (!sc) return;
-    free(sc->est);
-    free(sc->nb);
-    free(sc);
 }
 
 /* An eye ray for pm_sample.c (pm_internal.h; eye_radiance adds the camera path's caustics to
@@ -593,7 +589,8 @@ rgb pm__sample_eye(void *user, ray r, int emit, rng *g, void *scratch, pm_sample
     const scene *s = st->scene;
     sc->pc = pc;
     sc->vw = 1;
-    rgb L = eye_radiance(st, s, r, 0, v3s(1), emit ? 0 : 1.0, emit ? EYE_EMIT : EYE_SHADE, s->camera_medium, g, sc);
+    int what = emit == 2 ? EYE_DIRECT0 : emit ? EYE_EMIT : EYE_SHADE;
+    rgb L = eye_radiance(st, s, r, 0, v3s(1), emit ? 0 : 1.0, what, s->camera_medium, g, sc);
     sc->pc = NULL;
     return L;
 }

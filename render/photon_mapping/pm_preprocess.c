@@ -329,10 +329,18 @@ static int sample_decide(mapper_state *st, const scene *s, char *err, size_t err
                            : !st->sides.irr ? "no precomputed irradiance to gather from"
                            : pm__lookup ? "partitioned render-mpi: its lookups are shared between processes"
                                       : NULL;
+    int area = 0; /* DIRECT STRATA (pm_sample.c): delta lights only */
+    for (int i = 0; i < s->nlights; i++)
+        area |= !light_is_point(&s->lights[i]) && s->lights[i].type != LIGHT_DIRECTIONAL;
     pm_sample_host h = {s, &st->cfg, st->st_lookup, st->st_caustic, st->ncaustic_all > 0, no_pilot,
                         st->vol.on && !json_get(s->photon_mapping, "volume_stride"),
                         pm__lookup != NULL, st, sample_scratch_new, sample_scratch_free, pm__sample_eye,
-                        st->st_lookup_miss, st->explicit_miss};
+                        st->st_lookup_miss, st->explicit_miss,
+                        st->vol.on       ? "participating media"
+                        : st->direct_vis ? "the global map shown directly"
+                        : pm__lookup     ? "partitioned render-mpi"
+                        : area           ? "a light with an area: its samples' own noise, not an edge, would mark pixels"
+                                         : NULL};
     int rc = pm_emission_mask_build(&h, &st->emit, st->emit_reason, sizeof st->emit_reason, err, errcap);
     if (rc < 0) return rc;
     if (st->cfg.emission_strata <= 0)

@@ -16,9 +16,13 @@
 #include "photonmap/common.h"
 #include "scene/camera.h"
 
-/* Probe rays per pixel side of the emission mask, and its stream. */
+/* Probe rays per pixel side of the emission mask, and its streams. */
 enum { EMIT_PROBE = 4 };
-#define EMIT_SEED 0x656d6974ULL /* "emit" */
+#define EMIT_SEED 0x656d6974ULL   /* "emit" */
+#define DIRECT_SEED 0x64697265ULL /* "dire" */
+/* DIRECT STRATA: the largest share of the pixels that may take the first hit's direct light
+ * from the extra rays. */
+#define DIRECT_MAX_SHARE 0.1
 
 /* Emission-only rays only where the camera sees emitters. A pixel is marked when one of
  * EMIT_PROBE x EMIT_PROBE emission-only rays through fixed points of it, or of one of its eight
@@ -38,7 +42,28 @@ enum { EMIT_PROBE = 4 };
  * seconds are rough, RMSE against the references of docs/RESULTS.md): cornell_box RMSE
  * 0.0067/0.0068 at m = 2, 0.0052/0.0052 at 4, 0.0051/0.0050 at 6; cornell_spheres
  * 0.0089/0.0079, 0.0063/0.0064, 0.0062/0.0062 at 8; CPU time within the noise (2.1-3.1 s and
- * 3.8-4.5 s at every m). Above 4 the gain is a few percent for m^2 rays a sample. */
+ * 3.8-4.5 s at every m). Above 4 the gain is a few percent for m^2 rays a sample.
+ * DIRECT STRATA: the same extra rays also take the direct light at the camera's first hit (a
+ * diffuse surface seen directly), and the sample's own path leaves it out, at pixels where the
+ * probes find an edge of that light: of EMIT_PROBE^2 probes of the pixel or of a neighbour
+ * (one light sample each, their own stream), some lit and some not (the sun's patch through a
+ * window, a shadow's edge). There the light's coverage of the pixel is what varies, as at a
+ * light's edge, and a light sample costs a camera ray and a shadow ray instead of a sample's
+ * gathers. Unbiased the same way: the pixel integral of the first hit's direct light plus that
+ * of the rest. Not where more than DIRECT_MAX_SHARE of the pixels are marked (the direct light
+ * is noisy everywhere, not at edges: the extra rays would cost more than they save), and not
+ * with media or the global map shown directly, and only where every light is a delta light
+ * (point, spot, directional: a probe's light sample is then exact, lit or not; an area light's
+ * one sample is lit or blocked by chance in its penumbra and behind openings, which marked most
+ * pixels of lamp_shade and pinhole_room, and cost them passes) (host's no_direct).
+ * Measured by hand (pm at the defaults, --time 10, 2 threads, MSE against the long references;
+ * seeds 1 / 2): sun_window 16 x 16 (23 of 256 pixels marked) 2.7 / 3.2 e-6 without, 0.58 / 0.50
+ * e-6 with; at 16 x 16 its error had been mostly the sun's patch's edge pixels (2.65 of 3.05 e-6
+ * of a seed's luminance MSE), where path tracing, with more camera samples in the same time,
+ * was 3 times better. cornell_point at 96 x 96 (1698 of 9216 marked, --time 8): RMSE 0.00068 /
+ * 0.00089 with, 0.00067 / 0.00081 without (a pass costs more, and its shadows' edges are a small
+ * part of its error), so the share of marked pixels is capped at DIRECT_MAX_SHARE: at 10%
+ * cornell_point and sun_spheres at 32 x 32 and cornell_point at 96 x 96 keep their paths. */
 int pm_emission_mask_build(const pm_sample_host *h, pm_emission_mask *em, char *reason, size_t cap, char *err,
                            size_t errcap) {
     const scene *s = h->s;
@@ -46,9 +71,10 @@ int pm_emission_mask_build(const pm_sample_host *h, pm_emission_mask *em, char *
     int W = s->cam.width, H = s->cam.height;
     size_t n = (size_t)W * (size_t)H;
     unsigned char *seen = calloc(n ? n : 1, 1), *mask = calloc(n ? n : 1, 1);
+    unsigned char *edge = calloc(n ? n : 1, 1), *direct = calloc(n ? n : 1, 1);
     float *pvar = calloc(n ? n : 1, sizeof *pvar); /* the probes' luminance variance, per pixel */
-    int fail = 0;
-    if (!seen || !mask || !pvar) fail = 1;
+    int fail = 0, probe_direct = !h->no_direct && h->cfg->emission_strata > 0;
+    if (!seen || !mask || !pvar || !edge || !direct) fail = 1;
     if (!fail) {
 #ifdef _OPENMP
 #pragma omp parallel reduction(| : fail)
@@ -76,6 +102,16 @@ int pm_emission_mask_build(const pm_sample_host *h, pm_emission_mask *em, char *
                 }
                 const double np = EMIT_PROBE * EMIT_PROBE;
                 pvar[p] = seen[p] ? (float)fmax(0.0, (sum2 - sum * sum / np) / (np - 1)) : 0.0f;
+                if (probe_direct) { /* DIRECT STRATA: lit and unlit probes in one pixel */
+                    rng gd = rng_stream(s->settings.seed ^ DIRECT_SEED, (uint64_t)p, 0);
+                    int lit = 0;
+                    for (int k = 0; k < EMIT_PROBE * EMIT_PROBE; k++) {
+                        ray rd = camera_ray(&s->cam, x + (k % EMIT_PROBE + 0.5) / EMIT_PROBE,
+                                            y + (k / EMIT_PROBE + 0.5) / EMIT_PROBE);
+                        lit += rgb_lum(h->eye(h->user, rd, 2, &gd, sc, NULL)) > 0;
+                    }
+                    edge[p] = lit > 0 && lit < EMIT_PROBE * EMIT_PROBE;
+                }
             }
             if (sc) h->scratch_free(h->user, sc);
         }
@@ -84,21 +120,34 @@ int pm_emission_mask_build(const pm_sample_host *h, pm_emission_mask *em, char *
         free(seen);
         free(mask);
         free(pvar);
+        free(edge);
+        free(direct);
         snprintf(err, errcap, "emission mask: out of memory");
         return PM_ENOMEM;
     }
-    size_t marked = 0;
+    size_t marked = 0, dmarked = 0;
     for (int y = 0; y < H; y++)
         for (int x = 0; x < W; x++) {
-            int any = 0;
-            for (int dy = -1; dy <= 1 && !any; dy++)
-                for (int dx = -1; dx <= 1 && !any; dx++) {
+            int any = 0, de = 0;
+            for (int dy = -1; dy <= 1; dy++)
+                for (int dx = -1; dx <= 1; dx++) {
                     int xx = x + dx, yy = y + dy;
-                    any = xx >= 0 && yy >= 0 && xx < W && yy < H && seen[(size_t)yy * (size_t)W + (size_t)xx];
+                    if (!(xx >= 0 && yy >= 0 && xx < W && yy < H)) continue;
+                    any |= seen[(size_t)yy * (size_t)W + (size_t)xx];
+                    de |= edge[(size_t)yy * (size_t)W + (size_t)xx];
                 }
             mask[(size_t)y * (size_t)W + (size_t)x] = (unsigned char)any;
+            direct[(size_t)y * (size_t)W + (size_t)x] = (unsigned char)de;
             marked += (size_t)any;
+            dmarked += (size_t)de;
         }
+    free(edge);
+    const char *dwhy = h->no_direct;
+    int too_many = !dwhy && dmarked > DIRECT_MAX_SHARE * (double)n;
+    if (dwhy || too_many || !dmarked) {
+        free(direct);
+        direct = NULL;
+    }
     /* The variance a sample's emission adds to a pixel, over the image (in pixel order, so the
      * same for any thread count): the probes' variance over the m x m emission-only rays of a
      * marked pixel's sample (the sample pilot adds it to every candidate's: it costs them
@@ -112,15 +161,33 @@ int pm_emission_mask_build(const pm_sample_host *h, pm_emission_mask *em, char *
     em->mask = mask;
     em->pixels = n;
     em->marked = marked;
-    snprintf(reason, cap,
-             "%dx%d emission-only rays per sample at %zu of %zu pixels, where %dx%d probe rays of "
-             "the pixel or a neighbour see an emitter; elsewhere a sample's own path collects emission",
-             m, m, marked, n, EMIT_PROBE, EMIT_PROBE);
+    em->direct = direct;
+    em->direct_marked = direct ? dmarked : 0;
+    int len = snprintf(reason, cap,
+                       "%dx%d emission-only rays per sample at %zu of %zu pixels, where %dx%d probe rays of "
+                       "the pixel or a neighbour see an emitter; elsewhere a sample's own path collects emission",
+                       m, m, marked, n, EMIT_PROBE, EMIT_PROBE);
+    if (len > 0 && (size_t)len < cap) {
+        if (direct)
+            snprintf(reason + len, cap - (size_t)len,
+                     "; they take the first hit's direct light too at %zu pixels, where the probes of the pixel "
+                     "or a neighbour find an edge of it (lit and unlit)",
+                     dmarked);
+        else if (too_many)
+            snprintf(reason + len, cap - (size_t)len,
+                     "; the first hit's direct light from the sample's path (the probes find an edge of it at %zu "
+                     "of %zu pixels, over %g%%: extra rays there would cost more than they save)",
+                     dmarked, n, 100 * DIRECT_MAX_SHARE);
+        else
+            snprintf(reason + len, cap - (size_t)len, "; the first hit's direct light from the sample's path (%s)",
+                     dwhy ? dwhy : "the probes find no edge of it");
+    }
     return 0;
 }
 
 void pm_emission_mask_free(pm_emission_mask *m) {
     free(m->mask);
+    free(m->direct);
     memset(m, 0, sizeof *m);
 }
 

@@ -48,15 +48,21 @@ typedef struct pm_sample_host {
     void *(*scratch_new)(void *user); /* a thread's scratch for eye rays (NULL: out of memory) */
     void (*scratch_free)(void *user, void *scratch);
     /* Radiance along a camera ray: emit = 1 the emission it meets alone (directly, mirrors,
-     * glass), emit = 0 the shading alone, caustics read at weight 1 and tallied into pc. */
+     * glass), emit = 0 the shading alone, caustics read at weight 1 and tallied into pc;
+     * emit = 2 the direct light at its first hit alone (a diffuse surface the camera sees). */
     rgb (*eye)(void *user, ray r, int emit, rng *g, void *scratch, pm_sample_caustics *pc);
     int st_miss;       /* the id of the counter of lookups finding nothing on their side */
     int explicit_miss; /* cfg->miss_survival was set: kept (MISS SURVIVAL in pm_sample.c) */
+    const char *no_direct; /* why no pixel takes its first hit's direct light from the extra rays
+                              (DIRECT STRATA in pm_sample.c), or NULL */
 } pm_sample_host;
 
 typedef struct pm_emission_mask {
     unsigned char *mask; /* one byte per pixel (y * width + x): 1 = emission-only rays there */
     size_t pixels, marked;
+    unsigned char *direct; /* per pixel: 1 = the first hit's direct light from the extra rays
+                              (pm_sample.c, DIRECT STRATA); NULL: nowhere */
+    size_t direct_marked;
     double var; /* a sample's emission variance over m x m rays, the image's mean */
 } pm_emission_mask;
 
