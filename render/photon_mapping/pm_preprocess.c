@@ -336,8 +336,7 @@ static int sample_decide(mapper_state *st, const scene *s, char *err, size_t err
                         st->vol.on && !json_get(s->photon_mapping, "volume_stride"),
                         pm__lookup != NULL, st, sample_scratch_new, sample_scratch_free, pm__sample_eye,
                         st->st_lookup_miss, st->explicit_miss,
-                        st->vol.on       ? "participating media"
-                        : st->direct_vis ? "the global map shown directly"
+                        st->direct_vis   ? "the global map shown directly"
                         : pm__lookup     ? "partitioned render-mpi"
                         : area           ? "a light with an area: its samples' own noise, not an edge, would mark pixels"
                                          : NULL};
