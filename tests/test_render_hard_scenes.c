@@ -171,9 +171,11 @@ TEST(render_hard_scenes_probe_finds_the_opening) {
  * trapezoids from its corners to the window's). The found port must hold the four corners of
  * the turned window and be it (ports.h, THE TURN: the walls' own edges give the turn, which none
  * of the 32 fixed turns is; THE RIM: rays give its edges). Before THE TURN's rim vote the ports
- * were turned 15.3, 17.7 and 37.9 degrees (seeds 1-3), and before THE RIM they fell short of one
- * side (40.02 x 38 after the growth). The scene's quads start at their inner corners (a quad is
- * a fan from vertex 0: scene_objects.c refuses one that would leave a gap). */
+ * were turned 15.3, 17.7 and 37.9 degrees (seeds 1-3), and before THE RIM they missed corners on
+ * seeds 2 and 3 (one side 40.02 after the growth, the centre 1.1 off). Both figures are from this
+ * file's first version, whose top quad started at its inner corner's neighbour: the fan (0 1 2)
+ * (0 2 3) left a gap in the wall and covered part of the window, which THE RIM's rays found. The
+ * quads now start at their inner corners (scene_objects.c refuses the other order). */
 TEST(render_hard_scenes_probe_finds_a_turned_window) {
     char path[1024];
     json_err e;
