@@ -9,10 +9,11 @@
 #
 #   scripts/gen-hard-scenes-md.sh --readme [DIR]
 # rewrites README.md's block between "<!-- hard scenes" and "<!-- end of hard scenes -->" with
-# the document's "Against the target" table and its verdict on pinhole_room's region means:
-# the figures of the document, nothing else.
+# the document's "Against the target" table, its "10x met" line and its verdict on
+# pinhole_room's region means: the figures of the document, nothing else (the seeds it names
+# are read from DIR's CSV, as the document's are).
 #   scripts/gen-hard-scenes-md.sh --readme-block [DIR]
-# prints that block instead (tests/test_docs.c compares it with README.md's).
+# prints that block instead (tests/test_docs_hard.c compares it with README.md's).
 #
 # Computed here, per scene (N_ref: the reference's spp):
 #   c       path tracing's variance constant: the mean over its runs of MSE / (1/spp + 1/N_ref)
@@ -24,31 +25,58 @@
 #           and the CPU time path tracing needs for the run's corrected MSE, k c / MSE; their
 #           ratio to the run's own (the same figure both ways: above 1, photon mapping is
 #           ahead; the target is 10).
-#   per sample count, the same from the mean of the seeds' corrected MSE and CPU time.
-# From budget.csv (runs at a time budget, when the file is there), per scene: each run's
-# corrected MSE, and the ratio measured at the budget: path tracing's mean corrected MSE times
-# its mean CPU-s over photon mapping's (path tracing's error falls as 1 / time, so this is the
-# time-to-equal-error ratio at photon mapping's CPU time).
+#   per sample count, the same from the mean of the seeds' corrected MSE and CPU time, and the
+#           worst run's ratio.
+# From budget.csv (runs at a time budget, when the file is there; any number of seeds), per
+# scene: each run's corrected MSE; each seed's ratio, path tracing's corrected MSE times its
+# CPU-s over photon mapping's, the same seed (path tracing's error falls as 1 / time, so this
+# is the time-to-equal-error ratio at photon mapping's CPU time; the two ran the same wall
+# time, and the MSE ratio alone is shown beside it); the worst seed's ratio (the lowest), the
+# median (of an even count, the mean of the middle two) and the best; and the ratio of the
+# means, the same from the seeds' mean corrected MSE and mean CPU-s. A seed with a run below the
+# reference's noise or without CPU time, or without a run of either mode, has no ratio (two
+# runs of one mode and seed are an error).
+# "10x met" judges the worst: a sample count or the budget meets the target only when every
+# seed's ratio is 10 or more (at a sample count, every photon-mapping run's), whatever the mean
+# says; when a seed has no ratio and the others meet it, it is "not judged".
 set -eu
 here=$(cd "$(dirname "$0")/.." && pwd)
 case "${1:-}" in -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;; esac
 . "$here/scripts/measured-table.sh"
+# seeds_in CSV: the seeds of CSV (column 5) as "seed 1", "seeds 1 and 2", "seeds 1 to 6" or
+# "seeds 1, 3 and 4".
+seeds_in() {
+  awk -F, 'NR > 1 && !seen[$5]++ { v[++n] = $5 + 0 }
+    END {
+      for (i = 2; i <= n; i++) for (j = i; j > 1 && v[j] < v[j - 1]; j--) { t = v[j]; v[j] = v[j - 1]; v[j - 1] = t }
+      if (n < 2) { print n ? "seed " v[1] : "no seed"; exit }
+      run = 1; for (i = 2; i <= n; i++) if (v[i] != v[i - 1] + 1) run = 0
+      if (run && n > 2) { print "seeds " v[1] " to " v[n]; exit }
+      l = "seeds " v[1]; for (i = 2; i < n; i++) l = l ", " v[i]; print l " and " v[n]
+    }' "$1"
+}
 if [ "${1:-}" = --readme ] || [ "${1:-}" = --readme-block ]; then
   mode=$1
   shift
   readme_doc "$0" "$@"
-  nthreads=$(grep -m1 -o '[0-9]* threads, seeds' "$tmpd" | awk '{ print $1 }')
-  awk -v stamp="$stampline" -v nthreads="${nthreads:-?}" '
+  rdir="${1:-$here/docs/hard_scenes}"
+  nthreads=$(grep -m1 -o '[0-9]* threads, seed' "$tmpd" | awk '{ print $1 }')
+  bseeds=
+  [ -f "$rdir/budget.csv" ] && bseeds=$(seeds_in "$rdir/budget.csv")
+  awk -v stamp="$stampline" -v nthreads="${nthreads:-?}" -v fseeds="$(seeds_in "$rdir/runs.csv")" -v bseeds="$bseeds" '
     /^## / { sec = substr($0, 4) }
     sec == "Against the target" && /^\|/ { tab[++n] = $0 }
+    sec == "Against the target" && /^"10x met" judges/ { verdict = $0 }
     sec ~ /region means/ && /^At [0-9]/ { regions = $0 }
     END {
       printf "Measured by `scripts/make-hard-scenes.sh` (docs/HARD_SCENES.md, stamp %s): time to equal\n", stamp
-      printf "error against path tracing at the defaults, %s threads, two seeds each (read a factor 1.5 as noise):\n\n", nthreads
+      printf "error against path tracing at the defaults, %s threads. At a sample count: the mean of %s\n", nthreads, fseeds
+      printf "(read a factor 1.5 as noise) and the worst run%s.\n\n", bseeds == "" ? "" : "; at the time budget, " bseeds ": the worst seed,\nthe median, the best and the ratio of the means"
       for (i = 1; i <= n; i++) print tab[i]
+      if (verdict != "") printf "\n%s\n", verdict
       if (regions != "") printf "\npinhole_room'"'"'s region means against the reference (the 2%% target). %s\n", regions
     }' "$tmpd" > "$tmpr"
-  grep -q '^| pinhole_room' "$tmpr" || { echo "gen-hard-scenes-md: no table in the document" >&2; exit 2; }
+  grep -q '^|---' "$tmpr" || { echo "gen-hard-scenes-md: no table in the document" >&2; exit 2; }
   if [ "$mode" = --readme-block ]; then cat "$tmpr"; exit 0; fi
   grep -q '^<!-- hard scenes' "$here/README.md" || { echo "gen-hard-scenes-md: README.md has no hard scenes block" >&2; exit 2; }
   readme_put "<!-- hard scenes" "<!-- end of hard scenes -->"
@@ -63,9 +91,12 @@ m() { awk -v k="$1" '$1 == k { sub(/^[^ ]+ /, ""); print; exit }' "$dir/measurem
 scenes=$(awk -F, 'NR > 1 && !seen[$1]++ { printf "%s ", $1 }' "$dir/runs.csv")
 summary=$(mktemp)
 bsummary=$(mktemp)
-trap 'rm -f "$summary" "$bsummary"' EXIT
+notes=$(mktemp)
+trap 'rm -f "$summary" "$bsummary" "$notes"' EXIT
 budget_csv="$dir/budget.csv"
 [ -f "$budget_csv" ] || budget_csv=
+fseeds=$(seeds_in "$dir/runs.csv")
+nfseeds=$(awk -F, 'NR > 1 && !seen[$5]++ { n++ } END { print n + 0 }' "$dir/runs.csv")
 
 echo "# Hard scenes: light through small openings"
 echo
@@ -75,12 +106,12 @@ echo "sun_window, lamp_shade, sun_window_fog), each against its long path-traced
 echo "(data/reference-hard/NAME.pfm; NAME.info says how it was made). Photon mapping runs at its defaults"
 echo "(\`render SCENE --mode pm\` with no flag but the size, spp, seed and threads: the plan finds the"
 echo "openings and chooses the rest), path tracing with \`--mode path\`, each at the reference's size,"
-echo "$(m threads) threads, seeds 1 and 2. Error: the mean squared error of RGB over the pixels against the"
+echo "$(m threads) threads, $fseeds. Error: the mean squared error of RGB over the pixels against the"
 echo "reference (\`render --compare\`, rmse squared), less the reference's own noise. Time: CPU seconds of the"
 echo "whole process (user + sys: the plan's probe and pilots and the photon passes count)."
 if [ -n "$budget_csv" ]; then
   echo "Each scene also runs at a time budget, \`render --time T\` in both modes at the defaults (the"
-  echo "passes' samples too), seeds 1 and 2: what a user who gives a budget gets, measured directly."
+  echo "passes' samples too), $(seeds_in "$budget_csv"): what a user who gives a budget gets, measured directly."
 fi
 echo
 measured_table "$dir" "$scenes"
@@ -91,7 +122,7 @@ echo "sample), and the time it needs for that run's error is k c / MSE. The rati
 echo "photon-mapping run's is the same figure: the time-to-equal-error ratio, above 1 when photon mapping"
 echo "is ahead; the target is 10x. Photon mapping's error at a fixed sample count includes the"
 echo "frozen noise of its maps (a seed's maps are the same for every pixel), so its ratio moves with the"
-echo "sample count; two counts are measured. With two seeds a row's figures are rough: read a factor of"
+echo "sample count; two counts are measured. With $nfseeds seeds a row's figures are rough: read a factor of"
 echo "about 1.5 either way as noise."
 echo
 for s in $scenes; do
@@ -126,6 +157,8 @@ for s in $scenes; do
           if (mode[i] == "pm") {
             pe = sprintf("%.4g", c * k / cpu[i])
             if (e > 0) { pt = sprintf("%.3g", k * c / e); r = sprintf("%.2fx", k * c / e / cpu[i]) }
+            if (e > 0 && (!(spp[i] in worst) || k * c / e / cpu[i] < worst[spp[i]])) worst[spp[i]] = k * c / e / cpu[i]
+            if (e > 0 && (!(spp[i] in best) || k * c / e / cpu[i] > best[spp[i]])) best[spp[i]] = k * c / e / cpu[i]
             if (e > 0) { se[spp[i]] += e; sc[spp[i]] += cpu[i]; sn[spp[i]]++ }
             else below[spp[i]]++
             if (!(spp[i] in seen)) { seen[spp[i]] = 1; order[++no] = spp[i] }
@@ -137,11 +170,11 @@ for s in $scenes; do
         q = order[j]
         if (sn[q] > 0) {
           ratio = k * c / (se[q] / sn[q]) / (sc[q] / sn[q])
-          printf " %d spp, %.3g CPU-s, ratio %.2fx%s", q, sc[q] / sn[q], ratio, j < no ? ";" : "."
-          printf "%s %d %.6g %.6g\n", s, q, ratio, sc[q] / sn[q] >> sf
+          printf " %d spp, %.3g CPU-s, ratio %.2fx (the worst run %.2fx)%s", q, sc[q] / sn[q], ratio, worst[q], j < no ? ";" : "."
+          printf "%s %d %.6g %.6g %.6g %d %.6g\n", s, q, ratio, sc[q] / sn[q], worst[q], below[q], best[q] >> sf
         } else {
           printf " %d spp: every run below the reference'"'"'s noise%s", q, j < no ? ";" : "."
-          printf "%s %d NA 0\n", s, q >> sf
+          printf "%s %d NA 0 NA %d NA\n", s, q, below[q] >> sf
         }
       }
       printf "\n"
@@ -162,39 +195,104 @@ for s in $scenes; do
         ce = e > 0 ? sprintf("%.4g", e) : "< ref"
         printf "| %s | %d | %d | %d | %.2f | %.2f | %.4g | %s |\n", mode[i], seed[i], passes[i], pspp[i], cpu[i], wall[i], mse[i], ce
         if (e > 0) { se[mode[i]] += e; sc[mode[i]] += cpu[i]; sn[mode[i]]++ } else low[mode[i]]++
+        q = seed[i] + 0
+        if (!(q in has)) { has[q] = 1; sd[++ns] = q }
+        if (got[mode[i], q]) { printf "gen-hard-scenes-md: budget.csv has two %s runs of %s, seed %d\n", mode[i], s, q > "/dev/stderr"; exit 2 }
+        E[mode[i], q] = e; C[mode[i], q] = cpu[i]; got[mode[i], q] = 1
       }
-      if (sn["pm"] > 0 && sn["path"] > 0 && !low["pm"] && !low["path"]) {
-        r = (se["path"] / sn["path"]) * (sc["path"] / sn["path"]) / ((se["pm"] / sn["pm"]) * (sc["pm"] / sn["pm"]))
-        printf "\nMeasured at the budget: path tracing'"'"'s mean corrected MSE %.4g in %.3g CPU-s, photon mapping'"'"'s %.4g in %.3g CPU-s: ratio %.2fx.\n", se["path"] / sn["path"], sc["path"] / sn["path"], se["pm"] / sn["pm"], sc["pm"] / sn["pm"], r
-        printf "%s %.6g %s\n", s, r, T >> sf
-      } else {
-        printf "\nA run below the reference'"'"'s noise: no ratio.\n"
-        printf "%s NA %s\n", s, T >> sf
+      for (i = 2; i <= ns; i++) for (j = i; j > 1 && sd[j] < sd[j - 1]; j--) { t = sd[j]; sd[j] = sd[j - 1]; sd[j - 1] = t }
+      rm = "NA"
+      if (sn["pm"] > 0 && sn["path"] > 0 && !low["pm"] && !low["path"] && sc["pm"] > 0 && sc["path"] > 0)
+        rm = (se["path"] / sn["path"]) * (sc["path"] / sn["path"]) / ((se["pm"] / sn["pm"]) * (sc["pm"] / sn["pm"]))
+      printf "\nEach seed'"'"'s ratio: path tracing'"'"'s corrected MSE over photon mapping'"'"'s, the same seed and wall time, times path tracing'"'"'s CPU-s over photon mapping'"'"'s (the time-to-equal-error ratio at photon mapping'"'"'s CPU time):\n\n"
+      print "| seed | MSE, path / pm | CPU-s, path / pm | ratio |"
+      print "|---:|---:|---:|---:|"
+      for (j = 1; j <= ns; j++) {
+        q = sd[j]
+        if (!got["pm", q] || !got["path", q]) why = got["pm", q] ? "no path-traced run" : "no photon-mapping run"
+        else if (E["pm", q] <= 0 || E["path", q] <= 0) why = "a run below the reference'"'"'s noise"
+        else if (C["pm", q] <= 0 || C["path", q] <= 0) why = "a run without CPU time"
+        else why = ""
+        if (why != "") { printf "| %d | %s | | no ratio |\n", q, why; nm++; miss = miss (miss == "" ? "" : ", ") q; continue }
+        mr = E["path", q] / E["pm", q]; cr = C["path", q] / C["pm", q]
+        printf "| %d | %.2f | %.2f | %.2fx |\n", q, mr, cr, mr * cr
+        rv[++nr] = mr * cr; rs[nr] = q; if (mr * cr < 10) below++
       }
+      for (i = 2; i <= nr; i++)
+        for (j = i; j > 1 && rv[j] < rv[j - 1]; j--) { t = rv[j]; rv[j] = rv[j - 1]; rv[j - 1] = t; t = rs[j]; rs[j] = rs[j - 1]; rs[j - 1] = t }
       printf "\n"
+      if (nr == 0) {
+        printf "No seed has a ratio (seed%s %s): the 10x target is not judged at this budget.\n\n", nm == 1 ? "" : "s", miss
+        printf "%s %s %d 0 NA 0 NA NA 0 %s %d\n", s, T, ns, rm, nm >> sf
+        exit
+      }
+      med = nr % 2 ? rv[(nr + 1) / 2] : (rv[nr / 2] + rv[nr / 2 + 1]) / 2
+      printf "Over the %d seed%s with a ratio: the worst, seed %d, %.2fx; the median %.2fx; the best, seed %d, %.2fx", nr, nr == 1 ? "" : "s", rs[1], rv[1], med, rs[nr], rv[nr]
+      if (rm != "NA") printf ". The ratio of the means: path tracing'"'"'s mean corrected MSE %.4g in %.3g CPU-s, photon mapping'"'"'s %.4g in %.3g CPU-s, %.2fx", se["path"] / sn["path"], sc["path"] / sn["path"], se["pm"] / sn["pm"], sc["pm"] / sn["pm"], rm
+      else printf ". No ratio of the means (a run below the reference'"'"'s noise, or no CPU time)"
+      if (below) printf ". %d of the %d seeds below 10x: the 10x target is not met at this budget (the worst seed decides%s).\n", below, nr, (rm != "NA" && rm >= 10) ? sprintf(", though the ratio of the means, %.2fx, is above it", rm) : ""
+      else if (nm) printf ". Every seed with a ratio is at 10x or more, but seed%s %s ha%s none: the 10x target is not judged at this budget.\n", nm == 1 ? "" : "s", miss, nm == 1 ? "s" : "ve"
+      else printf ". Every seed at 10x or more: the 10x target is met at this budget, on these seeds.\n"
+      printf "\n"
+      printf "%s %s %d %d %.6g %d %.6g %.6g %d %s %d\n", s, T, ns, nr, rv[1], rs[1], med, rv[nr], rs[nr], rm == "NA" ? "NA" : sprintf("%.6g", rm), nm >> sf
     }' "$dir/runs.csv" "$budget_csv"
 done
 echo "## Against the target"
 echo
-echo "| scene | ratio at the lower spp | ratio at the higher spp | ratio at a time budget | 10x met |"
-echo "|---|---:|---:|---:|---|"
+bT=
+[ -n "$budget_csv" ] && bT=$(awk -F, 'NR == 2 { print $4 }' "$budget_csv")
+echo "| scene | ratio at the lower spp | ratio at the higher spp | at ${bT:-a time budget}${bT:+ s}: worst seed | median | best seed | ratio of the means | 10x met (every seed) |"
+echo "|---|---:|---:|---:|---:|---:|---:|---|"
 for s in $scenes; do
-  awk -v s="$s" '
+  awk -v s="$s" -v nf="$notes" '
     FNR == 1 { file++ }
-    file == 1 && $1 == s { n++; r[n] = $3; q[n] = $2 }
-    file == 2 && $1 == s { b = $2; T = $3 }
+    file == 1 && $1 == s { n++; q[n] = $2; r[n] = $3; w[n] = $5; lo[n] = $6; hi[n] = $7 }
+    file == 2 && $1 == s { hb = 1; T = $2; nr = $4; bw = $5; bws = $6; bm = $7; bb = $8; bbs = $9; bmeans = $10; bmiss = $11 }
+    function cell(i) { return i > n ? "-" : r[i] == "NA" ? "n/a" : sprintf("%.2fx (%d spp), worst %.2fx", r[i], q[i], w[i]) }
+    function add(l, x) { return l (l == "" ? "" : ", ") x }
+    function r2(x) { return sprintf("%.2f", x) + 0 }
+    function outside(m, lo, hi) { return r2(m) < r2(lo) || r2(m) > r2(hi) }
     END {
-      met = ""
-      for (i = 1; i <= n; i++) if (r[i] != "NA" && r[i] >= 10) met = met (met == "" ? "" : ", ") "at " q[i] " spp"
-      if (b != "" && b != "NA" && b >= 10) met = met (met == "" ? "" : ", ") "at " T " s"
-      printf "| %s | %s | %s | %s | %s |\n", s, r[1] == "NA" ? "n/a" : sprintf("%.2fx (%d spp)", r[1], q[1]),
-             n < 2 ? "-" : r[2] == "NA" ? "n/a" : sprintf("%.2fx (%d spp)", r[2], q[2]),
-             b == "" ? "-" : b == "NA" ? "n/a" : sprintf("%.2fx (%s s)", b, T), met == "" ? "no" : "yes, " met
+      for (i = 1; i <= n; i++)
+        if (r[i] != "NA" && outside(r[i], w[i], hi[i]))
+          printf "%s at %d spp (%.2fx; its runs %.2fx to %.2fx)\n", s, q[i], r[i], w[i], hi[i] >> nf
+      if (hb && nr > 0 && bmeans != "NA" && outside(bmeans, bw, bb))
+        printf "%s at %s s (%.2fx; its seeds %.2fx to %.2fx)\n", s, T, bmeans, bw, bb >> nf
+      met = ""; unj = ""
+      for (i = 1; i <= n; i++) if (r[i] != "NA" && w[i] >= 10) { if (lo[i]) unj = add(unj, "at " q[i] " spp"); else met = add(met, "at " q[i] " spp") }
+      if (hb && nr > 0 && bw >= 10) { if (bmiss) unj = add(unj, "at " T " s"); else met = add(met, "at " T " s") }
+      v = met == "" ? "" : "yes, " met
+      if (unj != "") v = v (v == "" ? "" : "; ") "not judged " unj
+      if (hb && nr > 0) b = sprintf("%.2fx (seed %d) | %.2fx | %.2fx (seed %d) | %s", bw, bws, bm, bb, bbs, bmeans == "NA" ? "n/a" : sprintf("%.2fx", bmeans))
+      else b = hb ? "n/a | n/a | n/a | n/a" : "- | - | - | -"
+      printf "| %s | %s | %s | %s | %s |\n", s, cell(1), cell(2), b, v == "" ? "no" : v
     }' "$summary" "$bsummary"
 done
 echo
 echo "The target is for 2 threads at the defaults within a time budget; this table applies it"
 echo "to the small images and the few seeds above."
+if [ -s "$notes" ]; then
+  echo
+  printf "The ratio of the means is not a mean of the seeds' ratios, and can lie outside their range (a product of\n"
+  printf "mean error and mean CPU time against each seed's own). Outside it here: "
+  awk '{ printf "%s%s", (NR > 1) ? "; " : "", $0 } END { printf ".\n" }' "$notes"
+fi
+if [ -s "$bsummary" ]; then
+  echo
+  awk -v seeds="$(seeds_in "$budget_csv")" '
+    { T = $2; nsc++ }
+    $4 == 0 || ($11 > 0 && $5 >= 10) { unj = unj (unj == "" ? "" : ", ") $1; next }
+    $5 >= 10 { nmet++; met = met (met == "" ? "" : ", ") sprintf("%s (worst seed %.2fx)", $1, $5); next }
+    { not = not (not == "" ? "" : ", ") sprintf("%s (%.2fx, seed %d)", $1, $5, $6) }
+    END {
+      printf "\"10x met\" judges the worst seed: a sample count or the budget meets the target only where every"
+      printf " seed'"'"'s ratio (at a sample count, every run'"'"'s) is 10x or more, whatever the mean. At the %s s budget,", T
+      printf " %s, the target is met by %d of the %d scenes%s", seeds, nmet, nsc, met == "" ? "" : ": " met
+      if (not != "") printf "; not met by %s", not
+      if (unj != "") printf "; not judged (a seed without a ratio) for %s", unj
+      printf ".\n"
+    }' "$bsummary"
+fi
 regions_csv="$dir/regions.csv"
 if [ -f "$regions_csv" ] && [ "$(wc -l < "$regions_csv")" -gt 1 ]; then
   echo

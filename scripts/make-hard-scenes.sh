@@ -7,17 +7,19 @@
 #
 #   scripts/make-hard-scenes.sh [--quick]
 #
-# The protocol, scaled to what 2 shared cores allow (the whole run takes a few minutes of CPU):
-# each scene at its reference's size (pinhole_room 8 x 8, the others 16 x 16), HS_THREADS
-# threads (default 2). `render SCENE --mode pm` at its defaults (no flag but the size, --spp,
-# --seed and the threads: the plan chooses the rest and prints it) at two sample counts, seeds
-# 1 and 2 each; `render SCENE --mode path` at one sample count, seeds 1 and 2. Each run's CPU
-# time (user + sys of the whole process: the plan's probe and pilots and the photon passes
-# count) and its mean squared error of RGB over the pixels against the reference (`render
-# --compare`: rmse squared) go into runs.csv. scripts/gen-hard-scenes-md.sh computes from them
-# path tracing's error at each photon-mapping run's CPU time and the ratio of times to equal
-# error (path tracing is unbiased: its squared error falls as 1 / spp, less the reference's own
-# noise, which is taken out of every run's error).
+# The protocol, scaled to what 2 shared cores allow (at the defaults the whole run takes about
+# 18 minutes of wall time: 5 scenes x 2 modes x 6 seeds x 10 s at the budget, 6 x 60 s for the
+# region means, about 1.5 minutes at fixed sample counts): each scene at its reference's size
+# (pinhole_room 8 x 8, the others 16 x 16), HS_THREADS threads (default 2). `render SCENE
+# --mode pm` at its defaults (no flag but the size, --spp, --seed and the threads: the plan
+# chooses the rest and prints it) at two sample counts, seeds 1 and 2 each; `render SCENE
+# --mode path` at one sample count, seeds 1 and 2. Each run's CPU time (user + sys of the
+# whole process: the plan's probe and pilots and the photon passes count) and its mean squared
+# error of RGB over the pixels against the reference (`render --compare`: rmse squared) go into
+# runs.csv. scripts/gen-hard-scenes-md.sh computes from them path tracing's error at each
+# photon-mapping run's CPU time and the ratio of times to equal error (path tracing is
+# unbiased: its squared error falls as 1 / spp, less the reference's own noise, which is taken
+# out of every run's error).
 #
 # Sample counts (scene: pm's two, path's one): pinhole_room 1024 4096 / 32768; door_ajar,
 # sun_window 1024 4096 / 8192; lamp_shade 1024 4096 / 16384; sun_window_fog 16 64 / 8192.
@@ -25,8 +27,12 @@
 #
 # At a time budget: each scene again with `render --time HS_BUDGET` (default 10 seconds of wall
 # time; no other flag but the size, seed and threads: the passes' samples are the default's)
-# in both modes, seeds 1 and 2: what a user who gives a budget gets. Into budget.csv (scene,
-# mode, width, budget_s, seed, passes, pass_spp, cpu_s, wall_s, mse, ref_spp).
+# in both modes, seeds 1 to HS_BUDGET_SEEDS (default 6; more than the fixed counts' two, as
+# photon mapping's error over seeds is heavy-tailed: one seed in four or five is far worse),
+# pm then path for each seed: what a user who gives a budget gets. Into budget.csv (scene,
+# mode, width, budget_s, seed, passes, pass_spp, cpu_s, wall_s, mse, ref_spp), from which
+# scripts/gen-hard-scenes-md.sh gives each seed's ratio, the worst, median and best, and
+# judges the 10x target by the worst seed.
 #
 # The issue's first target, pinhole_room's region means within 2% of the reference: `render
 # --time HS_REGION_BUDGET` (default 60 s) at the defaults, seeds 1 to HS_REGION_SEEDS (default
@@ -39,7 +45,8 @@
 # wall_s, mse, ref_spp), plan_NAME.txt (pm's plan lines for ports and the gather guide, as
 # printed, seed 1 at the lower spp), measurement.txt (commit stamp, date, machine, load,
 # threads, references). Then docs/HARD_SCENES.md is regenerated from HS_OUT (not with --quick).
-# --quick: pm and path once each at low counts, pinhole_room only, into build/hard-scenes-quick.
+# --quick: pinhole_room only (or HS_SCENES), seed 1, into build/hard-scenes-quick: pm and path
+# once each at low counts, once each at a budget of 2 s, and the region means at 2 s.
 #
 # Environment: PM_BUILD_DIR (default build/release).
 set -eu
@@ -50,6 +57,8 @@ scenes="${HS_SCENES:-pinhole_room door_ajar sun_window lamp_shade sun_window_fog
 out="${HS_OUT:-$here/docs/hard_scenes}"
 refdir="$here/data/reference-hard"
 quick=0
+bseeds="${HS_BUDGET_SEEDS:-6}"
+case $bseeds in ''|*[!0-9]*|0*) echo "make-hard-scenes: HS_BUDGET_SEEDS must be a whole number from 1 ('$bseeds')" >&2; exit 2 ;; esac
 case "${1:-}" in
   -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
   --quick) quick=1; scenes="${HS_SCENES:-pinhole_room}"; out="$here/build/hard-scenes-quick" ;;
@@ -90,7 +99,7 @@ echo "scene,mode,width,spp,seed,cpu_s,wall_s,mse,ref_spp" > "$out.partial/runs.c
 echo "scene,mode,width,budget_s,seed,passes,pass_spp,cpu_s,wall_s,mse,ref_spp" > "$out.partial/budget.csv"
 echo "scene,budget_s,seed,passes,cpu_s,region,ref_mean,mean,rel" > "$out.partial/regions.csv"
 budget="${HS_BUDGET:-10}"
-[ $quick = 1 ] && budget=2
+[ $quick = 1 ] && budget=2 && bseeds=1
 
 # render_compare NAME MODE SEED WHAT FLAG VALUE: render at the reference's size with FLAG VALUE
 # (--spp N or --time S; WHAT names it in messages) and compare; sets r_w, cpu, wall and mse.
@@ -155,8 +164,12 @@ for name in $scenes; do
     fi
     [ $quick = 1 ] || run "$name" pm "$p2" "$seed"
     run "$name" path "$ps" "$seed"
+  done
+  seed=1
+  while [ "$seed" -le "$bseeds" ]; do
     run_budget "$name" pm "$seed"
     run_budget "$name" path "$seed"
+    seed=$((seed + 1))
   done
   if [ "$name" = pinhole_room ]; then
     seed=1

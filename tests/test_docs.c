@@ -7,9 +7,9 @@
  * something other than its files (the clock, the checkout's commit, the machine) shows up.
  * Oracle: the committed document itself, byte for byte.
  *
- * docs/MEDIA.md (scripts/gen-media-md.sh from docs/media/) and docs/HARD_SCENES.md
- * (scripts/gen-hard-scenes-md.sh from docs/hard_scenes/) are checked here too. docs/MPI.md is
- * checked the same way in tests/test_mpi.c. docs/IMPORT.md is formatted from
+ * docs/MEDIA.md (scripts/gen-media-md.sh from docs/media/) is checked here too, and
+ * docs/HARD_SCENES.md (scripts/gen-hard-scenes-md.sh from docs/hard_scenes/) in
+ * tests/test_docs_hard.c. docs/MPI.md is checked the same way in tests/test_mpi.c. docs/IMPORT.md is formatted from
  * docs/import/ (scripts/gen-import-md.sh, whose --run renders and measures into that folder).
  */
 #include <stdio.h>
@@ -47,42 +47,6 @@ TEST(docs_benchmarks_md_regenerates_exactly) {
     snprintf(cmd, sizeof cmd, "cd '%s' && sh scripts/gen-benchmarks-md.sh bench/results bench > '%s'",
              pm_test_source_dir(), got);
     expect_regenerates(cmd, got, "docs/BENCHMARKS.md");
-}
-
-/* docs/HARD_SCENES.md from docs/hard_scenes/ (scripts/gen-hard-scenes-md.sh, which
- * scripts/make-hard-scenes.sh runs after measuring). */
-TEST(docs_hard_scenes_md_regenerates_exactly) {
-    char cmd[4096], got[2048];
-    snprintf(got, sizeof got, "%s/HARD_SCENES.md", pm_test_tmpdir());
-    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-hard-scenes-md.sh' > '%s'", pm_test_source_dir(), got);
-    expect_regenerates(cmd, got, "docs/HARD_SCENES.md");
-}
-
-/* Oracle: README.md's hard scenes block is what `scripts/gen-hard-scenes-md.sh --readme-block`
- * prints from docs/hard_scenes/ now (its figures were typed by hand before, and went stale). */
-TEST(docs_readme_hard_scenes_block_is_generated) {
-    char cmd[4096], gen[16384], path[1024], line[2048], block[16384] = "";
-    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-hard-scenes-md.sh' --readme-block", pm_test_source_dir());
-    ASSERT_EQ_INT(pm_test_run(cmd, gen, sizeof gen), 0);
-    ASSERT_MSG(strstr(gen, "| pinhole_room |") != NULL, "generator printed: %s", gen);
-    snprintf(path, sizeof path, "%s/README.md", pm_test_source_dir());
-    FILE *f = fopen(path, "r");
-    ASSERT_MSG(f != NULL, "cannot open %s", path);
-    size_t len = 0;
-    int in = 0, seen = 0;
-    while (fgets(line, sizeof line, f)) {
-        if (strncmp(line, "<!-- end of hard scenes -->", 27) == 0) break;
-        if (in) {
-            size_t l = strlen(line);
-            if (len + l < sizeof block) memcpy(block + len, line, l + 1), len += l;
-        }
-        if (strncmp(line, "<!-- hard scenes", 16) == 0) in = seen = 1;
-    }
-    fclose(f);
-    ASSERT_MSG(seen, "README.md has no \"<!-- hard scenes\" block");
-    EXPECT_MSG(strcmp(block, gen) == 0,
-               "README.md's hard scenes block is not the generated one (run scripts/gen-hard-scenes-md.sh "
-               "--readme):\n--- README:\n%s--- generated:\n%s", block, gen);
 }
 
 /* docs/IMPORT.md from docs/import/ (scripts/gen-import-md.sh, formatting only). */
