@@ -593,7 +593,8 @@ TEST(render_ports_plan_reason) {
  * pinhole_room_ports: a point of the big room's ceiling above the hole (it aims), a point 10
  * above the hole's plane whose horizon cuts the hole (it aims, and the part of the hole below
  * its horizon carries nothing), and a point on the small room's floor under the hole, on the
- * port's dark side: it never aims (k = 1, the cosine direction itself). */
+ * port's dark side: it never aims (k = 1, the cosine direction itself). Each case at a photon's
+ * first bounce (aim 1) and at a heavier photon's (aim 3: the share a / 3, ports.h BOUNCES). */
 TEST(render_ports_bounce_density) {
     enum { G = 32 };
     const long N = PM_TEST_SANITIZED ? 50000 : 400000;
@@ -610,10 +611,12 @@ TEST(render_ports_bounce_density) {
                  {"a wall whose horizon cuts the hole", {499, 310, 500}, {1, 0, 0}, 1},
                  {"the small room's floor", {500, 0, 500}, {0, 1, 0}, 0}};
     static double w1[G * G], w2[G * G];
-    for (int c = 0; c < 3; c++) {
+    for (int ca = 0; ca < 6; ca++) {
+        int c = ca % 3;
+        double aim = ca < 3 ? 1 : 3;
         memset(w1, 0, sizeof w1);
         memset(w2, 0, sizeof w2);
-        rng g = rng_stream(13, (uint64_t)c, 0);
+        rng g = rng_stream(13, (uint64_t)ca, 0);
         vec3 a, b;
         v3_basis(cases[c].n, &a, &b);
         double tot = 0, tot2 = 0;
@@ -621,7 +624,7 @@ TEST(render_ports_bounce_density) {
         for (long k = 0; k < N; k++) {
             vec3 nd;
             double u1 = rng_uniform(&g), u2 = rng_uniform(&g);
-            double wk = ports_scatter(&pp, cases[c].x, cases[c].n, &g, u1, u2, &nd);
+            double wk = ports_scatter(&pp, cases[c].x, cases[c].n, &g, u1, u2, aim, &nd);
             tot += wk;
             tot2 += wk * wk;
             if (wk != 1) not_one++;
@@ -647,17 +650,63 @@ TEST(render_ports_bounce_density) {
             df++;
         }
         double mean = tot / N, se = sqrt((tot2 / N - mean * mean) / N), bound = df + 5 * sqrt(2.0 * df);
-        printf("    %s: %.1f%% of the directions cross the hole, weights average %.5f (se %.5f), chi-square %.1f "
-               "over %d bins (bound %.0f)\n",
-               cases[c].name, 100.0 * aimed / N, mean, se, chi2, df, bound);
+        printf("    %s, aim %g: %.1f%% of the directions cross the hole, weights average %.5f (se %.5f), "
+               "chi-square %.1f over %d bins (bound %.0f)\n",
+               cases[c].name, aim, 100.0 * aimed / N, mean, se, chi2, df, bound);
         if (cases[c].aims) {
-            EXPECT_MSG(aimed > N / 4, "%s: only %ld of %ld directions cross the hole", cases[c].name, aimed, N);
+            double share = ports_bounce_share(pp.a, aim); /* the aimed share: at least half of it crosses */
+            EXPECT_MSG(aimed > share * N / 2, "%s, aim %g: only %ld of %ld directions cross the hole", cases[c].name,
+                       aim, aimed, N);
             EXPECT_MSG(fabs(mean - 1) < 4 * se, "%s: weights average %.5f", cases[c].name, mean);
             EXPECT_MSG(df > G * G / 2 && chi2 < bound, "%s: chi-square %.1f over %d", cases[c].name, chi2, df);
         } else {
             EXPECT_MSG(not_one == 0, "%s: %ld weights are not 1", cases[c].name, not_one);
         }
     }
+    ports_free(&pp);
+    scene_free(&s);
+}
+
+/* A photon that bounces n times on the lit side: the product K of its bounce weights (ports.h
+ * BOUNCES). Oracle: each weight has mean 1 given the path before it (the density it was drawn
+ * from), so K after 12 bounces averages 1 (within 4 standard errors), and no chain's K passes
+ * the bound 1 + n a / (1 - a) (13 at a = 0.5). Before the share fell with K, a chain that
+ * missed the hole at every bounce reached 2^n = 4096 at a = 0.5; the test checks that some
+ * chains missed it 12 times, so the bound is not met by luck. The chain bounces at
+ * the big room's ceiling each time, the photon's K carried over as photon_walk.c does. */
+TEST(render_ports_bounce_weight_grows_slowly) {
+    enum { NB = 12 };
+    const long N = PM_TEST_SANITIZED ? 20000 : 200000;
+    scene s;
+    ASSERT_EQ_INT(load_file(&s, "pinhole_room_ports.json"), 0);
+    photon_ports pp;
+    ASSERT_EQ_INT(ports_build(&pp, &s), 0);
+    ASSERT(pp.on && pp.a > 0 && pp.a < 1);
+    vec3 x = {520, 1000, 470}, n = {0, -1, 0};
+    double bound = 1 + NB * pp.a / (1 - pp.a), tot = 0, tot2 = 0, kmax = 0;
+    long all_missed = 0;
+    rng g = rng_stream(17, 0, 0);
+    for (long i = 0; i < N; i++) {
+        double K = 1;
+        int missed = 0;
+        for (int b = 0; b < NB && K > 0; b++) {
+            vec3 nd;
+            double u1 = rng_uniform(&g), u2 = rng_uniform(&g), t, ck;
+            double k = ports_scatter(&pp, x, n, &g, u1, u2, K, &nd);
+            K *= k;
+            missed += k > 0 && !port_cross(&s.ports[0], x, nd, &t, &ck);
+        }
+        all_missed += missed == NB;
+        tot += K;
+        tot2 += K * K;
+        if (K > kmax) kmax = K;
+    }
+    double mean = tot / N, se = sqrt((tot2 / N - mean * mean) / N);
+    printf("    %d bounces, a %g: K averages %.5f (se %.5f), at most %.3f (bound %.3f); %ld of %ld chains missed "
+           "the hole every time\n", NB, pp.a, mean, se, kmax, bound, all_missed, N);
+    EXPECT_MSG(fabs(mean - 1) < 4 * se, "K averages %.5f (se %.5f)", mean, se);
+    EXPECT_MSG(kmax <= bound * (1 + 1e-12), "K reached %.4f, over 1 + n a / (1 - a) = %.4f", kmax, bound);
+    EXPECT_MSG(all_missed > 0, "no chain missed the hole %d times: the old rule's 2^%d was not tried", NB, NB);
     ports_free(&pp);
     scene_free(&s);
 }

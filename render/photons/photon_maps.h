@@ -112,8 +112,9 @@ extern "C" {
  * longest prefix that fits, the emission budget is exact, no stop by rate, a map's first
  * store may come up to 131072 photons; 6: the media tracer emits a share of its photons through
  * photon ports, declared or found by the plan's probe, which now runs in scenes with media too
- * (ports.h, MEDIA). */
-#define PHOTON_TRACE_VERSION 6
+ * (ports.h, MEDIA); 7: a diffuse bounce aims at the ports with a share that falls with the
+ * photon's weight so far (ports.h, BOUNCES). */
+#define PHOTON_TRACE_VERSION 7
 
 /* A map set's stamp: scene_transport_hash and the tracer version + settings hash
  * (map_stamp_make). */

@@ -36,10 +36,11 @@ typedef struct photon_path {
     int specular;  /* a specular bounce so far */
     int scattered; /* a diffuse bounce or a scattering event so far */
     double n_src, n_here; /* the refraction chain (0: no refraction yet) */
+    double aim; /* the product of its aimed bounces' weights so far (ports.h, BOUNCES); 1 at first */
 } photon_path;
 
 static inline photon_path path_start(int max_depth, int max_bounces) {
-    photon_path p = {0, max_depth, max_depth, 0, 0, 0, 0};
+    photon_path p = {0, max_depth, max_depth, 0, 0, 0, 0, 1};
     if (max_bounces > 0 && max_bounces < max_depth) p.max_depth = max_bounces;
     return p;
 }

@@ -176,7 +176,7 @@ static int scatter_surface(const pass_ctx *c, photon_path *pp, const material *m
     if (u < pd) {
         if (c->caustic_pass) return 0; /* L S* D D...: not a caustic any more */
         double k = 1; /* a share aimed through the ports (ports.h): k = cosine pdf / mixture's */
-        if (c->ports) k = ports_scatter(c->ports, h->p, nsh, g, u1, u2, &nd);
+        if (c->ports) k = ports_scatter(c->ports, h->p, nsh, g, u1, u2, pp->aim, &nd), pp->aim *= k;
         else nd = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
         if (!(k > 0) || v3_dot(nd, ns) <= 0) return 0; /* below the real surface: absorbed */
         /* f cos / pdf = pi f for cosine sampling; branch weight over its probability. */

@@ -260,14 +260,14 @@ static int bounce_ports(const photon_ports *pp, vec3 x, vec3 nsh, double *w) {
     return 1;
 }
 
-double ports_scatter(const photon_ports *pp, vec3 x, vec3 nsh, rng *g, double u1, double u2, vec3 *nd) {
+double ports_scatter(const photon_ports *pp, vec3 x, vec3 nsh, rng *g, double u1, double u2, double aim, vec3 *nd) {
     double w[256]; /* PORTS_MAX of scene_ports.c */
     if (pp->np > 256 || !bounce_ports(pp, x, nsh, w)) {
         *nd = sampling_to_world(sample_cosine_hemisphere(u1, u2), nsh);
         return 1;
     }
     const scene *s = pp->s;
-    double a = pp->a, uc = rng_uniform(g);
+    double a = ports_bounce_share(pp->a, aim), uc = rng_uniform(g);
     if (uc < a) {
         double uk = uc / a, acc = 0;
         int k = 0;
