@@ -7,8 +7,8 @@
  * 768-point pilot (before the rule) found sun_window's bright patch at (260.9, 0, 155.9), radius
  * 35.1 (photon seed 1, 16 x 16 x 16), and now finds lamp_shade's at (198.7, 137.9, 200.4), radius
  * 54.5 (80 x 80 x 16; see the test); the sized pilot must find a patch there too (centre within
- * a quarter of that radius, radius within 25%, lamp_shade's within a factor 2), and door_ajar's
- * light guide (decided by stage A) must stay on.
+ * a quarter of that radius, radius within a factor 1.25, lamp_shade's within a factor 2), and
+ * door_ajar's light guide (decided by stage A) must stay on.
  */
 #include <math.h>
 #include <stdio.h>
@@ -93,13 +93,13 @@ static int plan_line(const char *name, const char *size, const char *key, char *
  * times the mean) the full pilot finds lamp_shade's patch at (198.7, 137.9, 200.4), radius
  * 54.5, at 80 x 80 (radius 111 before), and at 96 x 96 at (198.1, 146.1, 197.6), radius 94.2:
  * the centre holds within 9, the radius moves with the camera points, so lamp_shade's radius is
- * checked within a factor 2 (sun_window's within 25%). */
+ * checked within a factor 2 either way (sun_window's within a factor 1.25). */
 TEST(render_pilot_size_same_decisions_at_own_size) {
-    const struct { const char *name, *size, *pilot; double x, y, z, r, rtol; } c[] = {
-        {"lamp_shade", NULL, NULL, 198.7, 137.9, 200.4, 54.5, 1},
-        {"sun_window", NULL, "the pilot probed 96 points", 260.9, 0, 155.9, 35.1, 0.25},
-        {"lamp_shade", "--width 80 --height 80 --spp 16", NULL, 198.7, 137.9, 200.4, 54.5, 1},
-        {"lamp_shade", "--width 96 --height 96 --spp 16", NULL, 198.7, 137.9, 200.4, 54.5, 1},
+    const struct { const char *name, *size, *pilot; double x, y, z, r, rf; } c[] = {
+        {"lamp_shade", NULL, NULL, 198.7, 137.9, 200.4, 54.5, 2},
+        {"sun_window", NULL, "the pilot probed 96 points", 260.9, 0, 155.9, 35.1, 1.25},
+        {"lamp_shade", "--width 80 --height 80 --spp 16", NULL, 198.7, 137.9, 200.4, 54.5, 2},
+        {"lamp_shade", "--width 96 --height 96 --spp 16", NULL, 198.7, 137.9, 200.4, 54.5, 2},
     };
     char line[1024];
     for (size_t i = 0; i < sizeof c / sizeof c[0]; i++) {
@@ -124,7 +124,8 @@ TEST(render_pilot_size_same_decisions_at_own_size) {
                       &r) == 4);
         double d = sqrt((x - c[i].x) * (x - c[i].x) + (y - c[i].y) * (y - c[i].y) + (z - c[i].z) * (z - c[i].z));
         EXPECT_MSG(d <= c[i].r / 4, "%s: centre %.3g from the full pilot's (at most %.3g)", c[i].name, d, c[i].r / 4);
-        EXPECT_MSG(fabs(r / c[i].r - 1) <= c[i].rtol, "%s: radius %.3g, the full pilot's %.3g", c[i].name, r, c[i].r);
+        EXPECT_MSG(r >= c[i].r / c[i].rf && r <= c[i].r * c[i].rf, "%s: radius %.3g, the full pilot's %.3g (within a "
+                   "factor %g)", c[i].name, r, c[i].r, c[i].rf);
     }
     ASSERT_EQ_INT(plan_line("door_ajar", NULL, "light guide: ", line, sizeof line), 0);
     printf("    door_ajar: %s\n", line);
