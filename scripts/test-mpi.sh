@@ -776,12 +776,13 @@ for dmode in replicated partitioned; do
 done
 
 # ---- rendering in passes (render --passes, --time; run/passes.h) ---------------------------
-# Oracle: the one-process render of the same passes, byte for byte: 3 passes of progressive
-# photon mapping (fresh maps each pass, shrinking radii) and of path tracing at -np 1, 2 and 3;
-# a render in passes checkpointed by -np 2 and continued by render to 4 passes equals 4 passes
-# at once; --time ends with more than one pass; the partitioned mode is refused (exit 2, a
+# Oracle: the one-process render of the same passes, byte for byte: 6 passes of progressive
+# photon mapping (fresh maps each pass, shrinking radii) and of path tracing at -np 1, 2 and 3
+# (passes 4 and 5 take adaptive samples: rank 0's multipliers, shared); a render in passes
+# checkpointed by -np 2 after 5 passes (the multipliers decided) and continued by render to 6
+# equals 6 passes at once; --time ends with more than one pass; the partitioned mode is refused (exit 2, a
 # message naming it).
-PASSES="--width 24 --height 24 --pass-spp 4 --passes 3"
+PASSES="--width 24 --height 24 --pass-spp 4 --passes 6"
 for mode in path pm; do
   name=passes.$mode
   # shellcheck disable=SC2086
@@ -792,24 +793,24 @@ for mode in path pm; do
     # shellcheck disable=SC2086
     timeout 300 $MPIRUN -np $np "$M" data/scenes/cornell_spheres.json $PASSES $PMSMALL --mode $mode \
       --threads 1 --quiet --hdr "$T/$name.np$np.pfm" >"$T/$name.np$np.log" 2>&1
-    if cmp -s "$T/$name.np$np.pfm" "$T/$name.ref.pfm" && grep -q "^Passes: 3 done" "$T/$name.np$np.log"; then
+    if cmp -s "$T/$name.np$np.pfm" "$T/$name.ref.pfm" && grep -q "^Passes: 6 done" "$T/$name.np$np.log"; then
       same="$same $np"
     else
       differ="$differ $np"
     fi
   done
-  if [ -z "$differ" ]; then ok "$name: 3 passes, PFM bytes equal the one-process render at -np$same"
+  if [ -z "$differ" ]; then ok "$name: 6 passes, PFM bytes equal the one-process render at -np$same"
   else bad "$name" "differs from the one-process render at -np$differ"; fi
 done
 # shellcheck disable=SC2086
-"$R" data/scenes/cornell_spheres.json --width 24 --height 24 --pass-spp 4 --passes 4 $PMSMALL --mode pm \
-  --threads 2 --quiet --hdr "$T/passes.ref4.pfm" >"$T/passes.ref4.log" 2>&1
+"$R" data/scenes/cornell_spheres.json --width 24 --height 24 --pass-spp 4 --passes 6 $PMSMALL --mode pm \
+  --threads 2 --quiet --hdr "$T/passes.ref6.pfm" >"$T/passes.ref6.log" 2>&1
 # shellcheck disable=SC2086
-timeout 300 $MPIRUN -np 2 "$M" data/scenes/cornell_spheres.json --width 24 --height 24 --pass-spp 4 --passes 2 \
+timeout 300 $MPIRUN -np 2 "$M" data/scenes/cornell_spheres.json --width 24 --height 24 --pass-spp 4 --passes 5 \
   $PMSMALL --mode pm --threads 1 --quiet --hdr "$T/passes.c.pfm" --checkpoint "$T/passes.ckpt" >"$T/passes.c.log" 2>&1
-"$R" data/scenes/cornell_spheres.json --resume "$T/passes.ckpt" --passes 4 --quiet >"$T/passes.r.log" 2>&1
-if cmp -s "$T/passes.c.pfm" "$T/passes.ref4.pfm" && grep -q "^Passes: 4 done (2 by this run)" "$T/passes.r.log"; then
-  ok "passes: checkpointed by -np 2 after 2 passes, continued by render to 4: equal to 4 passes at once"
+"$R" data/scenes/cornell_spheres.json --resume "$T/passes.ckpt" --passes 6 --quiet >"$T/passes.r.log" 2>&1
+if cmp -s "$T/passes.c.pfm" "$T/passes.ref6.pfm" && grep -q "^Passes: 6 done (1 by this run)" "$T/passes.r.log"; then
+  ok "passes: checkpointed by -np 2 after 5 passes, continued by render to 6: equal to 6 passes at once"
 else
   bad "passes resume" "$(tail -2 "$T/passes.r.log")"
 fi

@@ -66,7 +66,7 @@ TEST(render_checkpoint_resume_bit_identical) {
     char err[512];
     ASSERT(integrator_create("path", &s, &it, err, sizeof err) == 0);
     film ref;
-    render_job job = {1, 1, s.settings.seed};
+    render_job job = {1, 1, s.settings.seed, NULL};
     ASSERT(render_image(&s, &it, &job, &ref) == 0);
     int stops[3] = {1, 3, 7};
     for (int k = 0; k < 3; k++) {
@@ -76,7 +76,7 @@ TEST(render_checkpoint_resume_bit_identical) {
         ASSERT(render_state_init(&st, 40, 24, 9) == 0);
         render_control ctl = {&st, 1e-9, on_pause, &sp, 0};
         film f;
-        render_job j2 = {2, 1, s.settings.seed};
+        render_job j2 = {2, 1, s.settings.seed, NULL};
         int rc = render_image_ctl(&s, &it, &j2, &ctl, &f);
         EXPECT_EQ_INT(rc, PM_EINVAL);
         uint64_t done = render_state_done(&st);
@@ -121,7 +121,7 @@ TEST(render_checkpoint_signal_stops_cleanly) {
     char err[512];
     ASSERT(integrator_create("path", &s, &it, err, sizeof err) == 0);
     film ref, f;
-    render_job job = {2, 1, s.settings.seed};
+    render_job job = {2, 1, s.settings.seed, NULL};
     ASSERT(render_image(&s, &it, &job, &ref) == 0);
     out_signals_install();
     out_defer_begin();
@@ -184,12 +184,12 @@ TEST(render_checkpoint_damaged_files_refused) {
     }
     unsigned char v[4096];
     memcpy(v, buf, n);
-    v[8] = 3; /* version 2 is a render in passes (test_render_progressive.c) */
+    v[8] = 4; /* versions 2 and 3 are renders in passes (test_render_progressive.c) */
     f = fopen(q, "wb");
     fwrite(v, 1, n, f);
     fclose(f);
     EXPECT_EQ_INT(ckpt_read(q, &back, &bs, err, sizeof err), PM_EVERSION);
-    EXPECT_MSG(strstr(err, "version 3"), "%s", err);
+    EXPECT_MSG(strstr(err, "version 4"), "%s", err);
     memcpy(v, buf, n);
     v[100] ^= 1;
     f = fopen(q, "wb");

@@ -18,6 +18,7 @@
 
 #include "test.h"
 #include "../photonmap/common.h"
+#include "../render/base/hash.h"
 #include "../render/image/film.h"
 #include "../render/run/checkpoint.h"
 #include "../render/run/passes.h"
@@ -90,7 +91,8 @@ TEST(render_progressive_furnace_converges_and_mean_of_passes) {
         ASSERT(film_read_pfm(&img[p], rt_path(name)) == 0);
         means[p] = pfm_mean(name);
     }
-    ASSERT_MSG(rt_render(FURNACE_PM, "--passes 6 --threads 2 --quiet --hdr all.pfm -o all.png", out,
+    /* --adaptive 0: a pass rendered alone has no adaptive samples (run/passes.h) */
+    ASSERT_MSG(rt_render(FURNACE_PM, "--passes 6 --adaptive 0 --threads 2 --quiet --hdr all.pfm -o all.png", out,
                          sizeof out) == 0, "%s", out);
     film all;
     ASSERT(film_read_pfm(&all, rt_path("all.pfm")) == 0);
@@ -460,12 +462,15 @@ TEST(render_progressive_bad_input) {
     EXPECT_MSG(access(rt_path("bad.pfm"), F_OK) != 0, "an image was written");
 }
 
-/* Oracle: the state written, bit for bit, and the documented refusals. A version 2 checkpoint
- * (a render in passes) reads back to the same passes and sums; truncated at several lengths or
+/* Oracle: the state written, bit for bit, and the documented refusals. A version 3 checkpoint
+ * (a render in passes) reads back to the same passes, sums and sample multipliers (none
+ * decided: read back as none; decided: the same bytes); a multiplier out of range, or some
+ * pixels decided and others not, under a valid checksum, is refused (PM_EFORMAT,
+ * "multiplier"); truncated at several lengths or
  * with a flipped byte it is refused (PM_EFORMAT, "truncated" / "checksum"); read as a state of
  * fixed work it is refused with a message naming the kind (PM_EINVAL), and a version 1 file
  * read as a render in passes likewise. */
-TEST(render_progressive_checkpoint_v2_file) {
+TEST(render_progressive_checkpoint_v3_file) {
     pass_state ps, back;
     ASSERT(pass_state_init(&ps, 5, 3) == 0);
     for (int i = 0; i < 45; i++) {
@@ -482,7 +487,8 @@ TEST(render_progressive_checkpoint_v2_file) {
     const char *p = rt_path("v2.ckpt");
     ASSERT_MSG(ckpt_write_passes(p, &ci, &ps, 4, err, sizeof err) == 0, "%s", err);
     ASSERT_MSG(ckpt_read_passes(p, &got, &back, err, sizeof err) == 0, "%s", err);
-    EXPECT(got.version == 2 && got.passes == 7 && back.done == 7 && back.width == 5 && back.height == 3);
+    EXPECT(got.version == 3 && got.passes == 7 && back.done == 7 && back.width == 5 && back.height == 3);
+    EXPECT_MSG(back.mult == NULL, "undecided multipliers read back as decided");
     EXPECT(memcmp(back.sum, ps.sum, 45 * sizeof(double)) == 0 && memcmp(back.sum2, ps.sum2, 45 * sizeof(double)) == 0);
     EXPECT(strcmp(got.settings, ci.settings) == 0 && got.args_len == 11);
     pass_state_free(&back);
@@ -492,7 +498,32 @@ TEST(render_progressive_checkpoint_v2_file) {
     EXPECT_MSG(strstr(err, "a checkpoint of a render in passes"), "%s", err);
     size_t n;
     char *buf = rt_slurp(p, &n);
-    ASSERT(buf && n == 56 + strlen(ci.settings) + 11 + 15 * 48 + 8);
+    ASSERT(buf && n == 56 + strlen(ci.settings) + 11 + 15 * 48 + 15 + 8);
+    /* decided multipliers, written and read back */
+    ASSERT((ps.mult = malloc(15)) != NULL);
+    for (int i = 0; i < 15; i++) ps.mult[i] = (unsigned char)(1 + (i * 7) % ADAPT_MAX);
+    const char *pm = rt_path("v3m.ckpt");
+    ASSERT_MSG(ckpt_write_passes(pm, &ci, &ps, 4, err, sizeof err) == 0, "%s", err);
+    ASSERT_MSG(ckpt_read_passes(pm, &got, &back, err, sizeof err) == 0, "%s", err);
+    EXPECT_MSG(back.mult && memcmp(back.mult, ps.mult, 15) == 0, "the multipliers differ when read back");
+    pass_state_free(&back);
+    size_t nm;
+    unsigned char *bm = (unsigned char *)rt_slurp(pm, &nm);
+    ASSERT(bm && nm == n);
+    const unsigned char bad[2][2] = {{ADAPT_MAX + 1, 3}, {0, 3}}; /* byte 0, byte 1 of the multipliers */
+    for (int b = 0; b < 2; b++) {
+        bm[nm - 8 - 15] = bad[b][0];
+        bm[nm - 8 - 14] = bad[b][1];
+        uint64_t h = hash_fnv1a(HASH_FNV_INIT, bm, nm - 8);
+        for (int k = 0; k < 8; k++) bm[nm - 8 + (size_t)k] = (unsigned char)(h >> (8 * k));
+        FILE *fm = fopen(pm, "wb");
+        ASSERT(fm);
+        fwrite(bm, 1, nm, fm);
+        fclose(fm);
+        EXPECT_EQ_INT(ckpt_read_passes(pm, &got, &back, err, sizeof err), PM_EFORMAT);
+        EXPECT_MSG(strstr(err, "multiplier"), "case %d: %s", b, err);
+    }
+    free(bm);
     size_t cuts[] = {30, 60, n / 2, n - 1};
     const char *q = rt_path("bad.ckpt");
     for (size_t k = 0; k < sizeof cuts / sizeof cuts[0]; k++) {

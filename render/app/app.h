@@ -25,6 +25,7 @@ typedef struct render_hooks {
     pass_image_fn image;        /* the image loop of a render of fixed work (render_image_ctl) */
     pass_image_fn pass_image;   /* the image loop of one pass (render_image_ctl) */
     int (*pass_agree)(int go);  /* before each pass (pass_run.agree); NULL: none */
+    int (*pass_share)(unsigned char *buf, size_t n); /* pass_run.share; NULL: none */
     void (*passes_end)(int rc); /* after the pass loop, with its result; NULL: none */
     const char *no_passes;      /* not NULL: rendering in passes is refused with this message
                                  * (exit status 2) */

@@ -26,6 +26,7 @@ typedef enum {
     OPT_LONG,     /* a whole number in [lo, hi]: a long field */
     OPT_POSITIVE, /* a positive, finite number: a double field */
     OPT_SECONDS,  /* a positive number up to hi, in seconds: a double field */
+    OPT_SHARE,    /* a finite number in [lo, hi]: a double field */
     OPT_PM,       /* a photon-mapping flag, kept in order with its value (pm_flag, pm_value) */
     OPT_PM_SET,   /* no value: the photon-mapping setting `extra` (as --pm extra) */
     OPT_HELP,     /* this text, then exit 0 */
@@ -81,7 +82,12 @@ static const option_def k_options[] = {
      "preview each pass traces fresh photon maps and the radii shrink\n"
      "(progressive photon mapping; --pm ppm_alpha=A; README.md)", NULL},
     {"--only-pass", NULL, "P", OPT_LONG, 0, 1 << 20, F(only_pass), NULL,
-     "render pass P of such a render alone (to check the mean)", NULL},
+     "render pass P of such a render alone (to check the mean;\n"
+     "it takes no adaptive samples: compare with --adaptive 0)", NULL},
+    {"--adaptive", NULL, "A", OPT_SHARE, 0, 31, F(adaptive), NULL,
+     "in passes, after the first 4: up to A x more samples a pass\n"
+     "(default 0.25), given to the pixels whose pass images vary most,\n"
+     "each up to 32 x its own (0: every pixel the same)", NULL},
     {"--tone", NULL, "T", OPT_CHOICE, NONE, F(tone), "filmic|srgb",
      "filmic or srgb (PNG tone curve)", NULL},
     {"--exposure", NULL, "X", OPT_POSITIVE, NONE, F(exposure), NULL,
@@ -193,6 +199,19 @@ static int apply(render_options *o, const option_def *d, const char *a, const ch
             return 2;
         }
         break;
+    case OPT_SHARE: {
+        char *end;
+        double x = strtod(v, &end);
+        if (end == v || *end || !(x >= d->lo && x <= d->hi)) {
+            char lo[32], hi[32];
+            short_number(d->lo, lo, sizeof lo);
+            short_number(d->hi, hi, sizeof hi);
+            fprintf(stderr, "render: %s: expected a number in [%s, %s], got '%s'\n", a, lo, hi, v);
+            return 2;
+        }
+        *(double *)field = x;
+        break;
+    }
     case OPT_PM: return add_pm(o, a, v);
     case OPT_PM_SET: return add_pm(o, "--pm", d->extra);
     case OPT_HELP: options_usage(stdout); return 0;
@@ -212,6 +231,7 @@ int options_parse(render_options *o, int argc, char **argv) {
     o->seed = -1;
     o->only_pass = -1;
     o->exposure = -1;
+    o->adaptive = 0.25;
     o->argc = argc;
     o->argv = argv;
     for (int i = 1; i < argc; i++) {

@@ -16,7 +16,7 @@ extern "C" {
 typedef struct render_options {
     const char *scene_path, *png, *pfm, *mode, *tone, *ckpt_path, *resume;
     int hdr_half, quiet;
-    double ckpt_every, snap_every, time_budget, exposure;
+    double ckpt_every, snap_every, time_budget, exposure, adaptive;
     long max_scene_mb, spp, threads, width, height, seed, passes, pass_spp, only_pass;
     /* Photon-mapping flags in order (--pm, --save-photons, --load-photons, and
      * --force-load-photons as --pm force_load_photons=true), applied to the scene's

@@ -22,7 +22,7 @@
 #include "run/checkpoint.h"
 #include "run/renderer.h"
 
-static const render_hooks k_render_hooks = {render_image_ctl, render_image_ctl, NULL, NULL, NULL};
+static const render_hooks k_render_hooks = {render_image_ctl, render_image_ctl, NULL, NULL, NULL, NULL};
 
 /* The programs that are not a render: APP_GO when argv asks for none of them. */
 static int run_tool(int argc, char **argv) {

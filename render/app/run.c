@@ -128,7 +128,7 @@ static int set_pass_spp(app_run *r) {
     if (r->o->resume) {
         static ckpt_info ci; /* 13 KiB: not on the stack */
         char err[512];
-        if (ckpt_read_passes(r->o->resume, &ci, NULL, err, sizeof err) == 0 && ci.version == 2 &&
+        if (ckpt_read_passes(r->o->resume, &ci, NULL, err, sizeof err) == 0 && ci.version >= 2 &&
             ci.spp != (uint32_t)r->s.cam.spp) {
             fprintf(stderr, "render: note: %s was rendered in passes of %u spp (then the default at "
                     "%dx%d); resuming with them\n", r->o->resume, ci.spp, r->s.cam.width, r->s.cam.height);
@@ -261,7 +261,7 @@ int run_setup_checkpoint(app_run *r) {
                     "or the other\n");
             return 2;
         }
-        ckpt_set_passes(&r->pstate);
+        ckpt_set_passes(&r->pstate, o->adaptive);
     }
     int rc = checkpoint_setup(s, o->scene_path, o->argc, o->argv, o->ckpt_path, o->resume,
                               r->uses_photons, &r->cs, &r->rstate);
@@ -358,6 +358,8 @@ static int render_in_passes(app_run *r, const render_job *job) {
     pr.stop_on_signal = o->ckpt_path != NULL;
     pr.image = r->hooks->pass_image;
     pr.agree = r->hooks->pass_agree;
+    pr.adapt = o->adaptive;
+    pr.share = r->hooks->pass_share;
     pr.on_pass = o->ckpt_path || o->snap_every > 0 ? ckpt_session_pass : NULL;
     pr.user = &r->cs;
     pr.quiet = o->quiet;
@@ -376,7 +378,7 @@ static int render_in_passes(app_run *r, const render_job *job) {
 int run_render(app_run *r) {
     const render_options *o = r->o;
     int rc;
-    render_job job = {r->nthreads, o->quiet, r->s.settings.seed};
+    render_job job = {r->nthreads, o->quiet, r->s.settings.seed, NULL};
     render_control ctl = {NULL, 0, NULL, NULL, 0};
     if (r->in_passes && !r->pstate.sum && pass_state_init(&r->pstate, r->s.cam.width, r->s.cam.height) < 0) {
         fprintf(stderr, "render: out of memory for the render state\n");

@@ -180,6 +180,15 @@ int dist_pass_agree(int go) {
     return v != 0;
 }
 
+int dist_pass_share(unsigned char *buf, size_t n) {
+    if (n > INT32_MAX) return PM_EINVAL;
+    dist_collective_begin();
+    MPI_Request r;
+    MPI_Ibcast(buf, (int)n, MPI_BYTE, 0, MPI_COMM_WORLD, &r);
+    dist_wait(&r);
+    return 0;
+}
+
 void dist_passes_end(int rc) {
     if (rc < 0) return; /* main.c says it; dist_finish stops the job */
     dist_film_gathered();

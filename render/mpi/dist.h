@@ -90,6 +90,9 @@ int dist_render_image_ctl(const scene *s, const integrator *it, const render_job
 int dist_pass_image(const scene *s, const integrator *it, const render_job *job,
                     const render_control *ctl, film *out);
 int dist_pass_agree(int go);
+/* Before each pass of a render with adaptive samples (run/passes.h): every rank gets rank 0's
+ * n bytes in buf (the sample multipliers), so the ranks render the same pass. 0. */
+int dist_pass_share(unsigned char *buf, size_t n);
 void dist_passes_end(int rc);
 
 #ifdef __cplusplus

@@ -63,9 +63,10 @@ static void trace_samples(const scene *s, const integrator *it, const render_job
             int x = (int)(sm->pixel % (uint64_t)c->width), y = (int)(sm->pixel / (uint64_t)c->width);
             rng g = rng_stream(job->seed, sm->pixel, (uint64_t)sm->k);
             double jx = rng_uniform(&g), jy = rng_uniform(&g);
-            double px = x + ((sm->k % strata) + jx) / strata, py = y + ((sm->k / strata) + jy) / strata;
+            int ks = sm->k % c->spp; /* its stratum (renderer.h, render_job.mult) */
+            double px = x + ((ks % strata) + jx) / strata, py = y + ((ks / strata) + jy) / strata;
             ray r = camera_ray(c, px, py);
-            sample_id id = {sm->pixel, job->seed, sm->k, c->spp, strata};
+            sample_id id = {sm->pixel, job->seed, ks, c->spp, strata};
             lk_tl_smp = sm;
             rgb Li = it->li(it, s, r, &g, &id, scratch);
             lk_tl_smp = NULL;
@@ -231,7 +232,7 @@ int lk_render_tiles(const scene *s, const integrator *it, const render_job *job,
             }
             uint64_t p = (uint64_t)(y0 + px / w) * (uint64_t)c->width + (uint64_t)(x0 + px % w);
             if (k < 0) k = (int)st->count[p];
-            if (k >= c->spp) {
+            if ((uint32_t)k >= render_pixel_spp(job, c->spp, p)) {
                 px++;
                 k = -1;
                 continue;

@@ -157,7 +157,8 @@ int main(int argc, char **argv) {
     ac += nadd;
     av[ac] = NULL;
     /* render's program with dist.c's image loops (app/app.h); passes only when replicated. */
-    render_hooks hooks = {dist_render_image_ctl, dist_pass_image, dist_pass_agree, dist_passes_end, NULL};
+    render_hooks hooks = {dist_render_image_ctl, dist_pass_image, dist_pass_agree, dist_pass_share, dist_passes_end,
+                          NULL};
     if (dist_partitioned()) /* each pass would partition fresh maps */
         hooks.no_passes = "render-mpi: rendering in passes (--time, --passes, --only-pass or the "
                           "scene's render.time) is not available with --pm distributed=partitioned (each "

@@ -51,11 +51,6 @@ static tile_box tile_of(const camera *c, int tile) {
     return b;
 }
 
-static int tile_pixels(const camera *c, int tile) {
-    tile_box b = tile_of(c, tile);
-    return (b.x1 - b.x0) * (b.y1 - b.y0);
-}
-
 /* Tiles for a rank with `threads` threads: one per thread, fewer as the queue empties so the
  * last chunks spread over the ranks. */
 static int chunk_size(int threads, int left) {
@@ -66,6 +61,7 @@ static int chunk_size(int threads, int left) {
 
 typedef struct queue {
     const scene *s;
+    const render_job *job;
     render_state *st;
     int ntiles, next, done;
     int *todo, ntodo; /* the tiles to render (a resumed render skips those done), in order */
@@ -75,7 +71,12 @@ typedef struct queue {
 
 static void add_tiles_done(queue *q, int rank, const int *tiles, int n) {
     int64_t samples = 0;
-    for (int i = 0; i < n; i++) samples += (int64_t)tile_pixels(&q->s->cam, tiles[i]) * q->st->spp;
+    for (int i = 0; i < n; i++) {
+        tile_box b = tile_of(&q->s->cam, tiles[i]);
+        for (int y = b.y0; y < b.y1; y++)
+            for (int x = b.x0; x < b.x1; x++)
+                samples += render_pixel_spp(q->job, q->st->spp, (uint64_t)y * (uint64_t)q->s->cam.width + (uint64_t)x);
+    }
     q->done += n;
     q->per_rank[rank] += n;
     progress_add(&q->prog, samples);
@@ -120,7 +121,7 @@ static void serve(queue *q, MPI_Status *ms, int *finished) {
                 size_t p = (size_t)y * (size_t)c->width + (size_t)b.x0, w = (size_t)(b.x1 - b.x0);
                 memcpy(q->st->sum + 3 * p, buf + off, 3 * w * sizeof(double));
                 off += 3 * w * sizeof(double);
-                for (size_t x = 0; x < w; x++) q->st->count[p + x] = (uint32_t)q->st->spp;
+                for (size_t x = 0; x < w; x++) q->st->count[p + x] = render_pixel_spp(q->job, q->st->spp, p + x);
             }
         }
         add_tiles_done(q, src, tiles, n);
@@ -196,11 +197,13 @@ static int root_pause(pauses *p, queue *q) {
 }
 
 /* A tile all of whose pixels have every sample. */
-static int tile_complete(const render_state *st, const camera *c, int tile) {
+static int tile_complete(const render_job *job, const render_state *st, const camera *c, int tile) {
     tile_box b = tile_of(c, tile);
     for (int y = b.y0; y < b.y1; y++)
         for (int x = b.x0; x < b.x1; x++)
-            if (st->count[(size_t)y * (size_t)c->width + (size_t)x] < (uint32_t)st->spp) return 0;
+            if (st->count[(size_t)y * (size_t)c->width + (size_t)x] <
+                render_pixel_spp(job, st->spp, (uint64_t)y * (uint64_t)c->width + (uint64_t)x))
+                return 0;
     return 1;
 }
 
@@ -242,6 +245,7 @@ int tq_root(const scene *s, const integrator *it, const render_job *job, render_
     queue q;
     memset(&q, 0, sizeof q);
     q.s = s;
+    q.job = job;
     q.st = st;
     int tx = (c->width + RENDER_TILE - 1) / RENDER_TILE;
     q.ntiles = tx * ((c->height + RENDER_TILE - 1) / RENDER_TILE);
@@ -254,7 +258,7 @@ int tq_root(const scene *s, const integrator *it, const render_job *job, render_
      * (from render's checkpoint) starts over, which gives the same sums, since a pixel's
      * samples are added in sample order from 0 on one rank. */
     for (int t = 0; t < q.ntiles; t++) {
-        if (tile_complete(st, c, t)) continue;
+        if (tile_complete(job, st, c, t)) continue;
         q.todo[q.ntodo++] = t;
         tile_box b = tile_of(c, t);
         for (int y = b.y0; y < b.y1; y++) {
@@ -263,7 +267,8 @@ int tq_root(const scene *s, const integrator *it, const render_job *job, render_
             memset(st->count + p, 0, w * sizeof(uint32_t));
         }
     }
-    int64_t total = (int64_t)c->width * c->height * c->spp, done = (int64_t)render_state_done(st);
+    int64_t total = 0, done = (int64_t)render_state_done(st);
+    for (uint64_t p = 0; p < (uint64_t)c->width * (uint64_t)c->height; p++) total += render_pixel_spp(job, c->spp, p);
     if (done > 0 && !job->quiet)
         fprintf(stderr, "Resuming: %lld of %lld samples done (%.1f%%)\n", (long long)done,
                 (long long)total, 100.0 * (double)done / (double)total);

@@ -21,14 +21,18 @@
 #include "base/stats.h"
 
 #define MAGIC "PMRCKPT\n"
-/* PIXEL_BYTES: version 1 (a render state: 3 sums, a count); PASS_PIXEL_BYTES: version 2 (a
- * render in passes: 3 sums of pass images, 3 sums of their squares). */
+/* PIXEL_BYTES: version 1 (a render state: 3 sums, a count); PASS_PIXEL_BYTES: versions 2 and 3
+ * (a render in passes: 3 sums of pass images, 3 of their squares; then version 3's multipliers). */
 enum { HEADER_BYTES = 56, PIXEL_BYTES = 28, PASS_PIXEL_BYTES = 48, MAX_SIDE = 1 << 14, MAX_SPP = 1 << 20,
        MAX_PASSES = 1 << 30 };
 
 static pass_state *g_ps; /* ckpt_set_passes: a render in passes, and its state */
+static double g_adapt;
 
-void ckpt_set_passes(pass_state *ps) { g_ps = ps; }
+void ckpt_set_passes(pass_state *ps, double adapt) {
+    g_ps = ps;
+    g_adapt = adapt;
+}
 
 /* ---- writing ------------------------------------------------------------------------------ */
 
@@ -53,7 +57,7 @@ static uint32_t get32(const unsigned char *b) {
 }
 static uint64_t get64(const unsigned char *b) { return (uint64_t)get32(b) | (uint64_t)get32(b + 4) << 32; }
 
-/* Version 1 from st, or version 2 from ps (spp: the samples of each pass). */
+/* Version 1 from st, or version 3 from ps (spp: the samples of each pass). */
 static int write_any(const char *path, const ckpt_info *ci, const render_state *st,
                      const pass_state *ps, int spp, char *err, size_t errcap) {
     out_file o;
@@ -64,7 +68,7 @@ static int write_any(const char *path, const ckpt_info *ci, const render_state *
     int width = ps ? ps->width : st->width, height = ps ? ps->height : st->height;
     unsigned char hd[HEADER_BYTES];
     memcpy(hd, MAGIC, 8);
-    le32(hd + 8, ps ? 2u : 1u);
+    le32(hd + 8, ps ? 3u : 1u);
     le32(hd + 12, (uint32_t)width);
     le32(hd + 16, (uint32_t)height);
     le32(hd + 20, (uint32_t)(ps ? spp : st->spp));
@@ -93,6 +97,11 @@ static int write_any(const char *path, const ckpt_info *ci, const render_state *
             if (!ps) le32(px + pb * m + 24, st->count[i]);
         }
         put(&w, px, pb * m);
+    }
+    for (size_t i = 0; ps && i < n; i += sizeof px) { /* version 3: the multipliers (0: undecided) */
+        size_t m = n - i < sizeof px ? n - i : sizeof px;
+        for (size_t j = 0; j < m; j++) px[j] = ps->mult ? ps->mult[i + j] : 0;
+        put(&w, px, m);
     }
     unsigned char tail[8];
     le64(tail, w.h);
@@ -130,6 +139,29 @@ static int get(FILE *f, void *p, size_t n, uint64_t *h) {
     return 0;
 }
 
+/* Pixels i0 .. i0 + m - 1 from their bytes px into st or ps (either may be NULL); 1 when a
+ * count is above spp (version 1). */
+static int decode_pixels(const unsigned char *px, size_t m, size_t i0, uint32_t version, uint32_t spp,
+                         render_state *st, pass_state *ps) {
+    size_t pb = version != 1 ? PASS_PIXEL_BYTES : PIXEL_BYTES;
+    int over = 0;
+    for (size_t j = 0, i = i0; j < m; j++, i++) {
+        for (int c = 0; version != 1 && ps && c < 6; c++) {
+            uint64_t u = get64(px + pb * j + 8 * (size_t)c);
+            memcpy(&(c < 3 ? ps->sum : ps->sum2)[3 * i + (size_t)(c % 3)], &u, 8);
+        }
+        if (version != 1) continue;
+        uint32_t cnt = get32(px + pb * j + 24);
+        over |= cnt > spp;
+        for (int c = 0; st && c < 3; c++) {
+            uint64_t u = get64(px + pb * j + 8 * (size_t)c);
+            memcpy(&st->sum[3 * i + (size_t)c], &u, 8);
+        }
+        if (st) st->count[i] = cnt;
+    }
+    return over;
+}
+
 static int read_any(const char *path, ckpt_info *ci, render_state *st, pass_state *ps, char *err,
                     size_t errcap) {
     memset(ci, 0, sizeof *ci);
@@ -153,9 +185,9 @@ static int read_any(const char *path, ckpt_info *ci, render_state *st, pass_stat
     }
     uint32_t version = get32(hd + 8), w = get32(hd + 12), ht = get32(hd + 16), spp = get32(hd + 20);
     uint32_t ls = get32(hd + 40), la = get32(hd + 44), lp = get32(hd + 48);
-    if (version != 1 && version != CKPT_VERSION) {
+    if (version < 1 || version > CKPT_VERSION) {
         snprintf(msg, sizeof msg, "checkpoint format version %u; this renderer reads versions 1 "
-                 "and %u", version, CKPT_VERSION);
+                 "to %u", version, CKPT_VERSION);
         rc = fail(err, errcap, PM_EVERSION, path, msg);
         goto out;
     }
@@ -168,16 +200,16 @@ static int read_any(const char *path, ckpt_info *ci, render_state *st, pass_stat
     }
     ci->version = version, ci->passes = npass, ci->spp = spp;
     /* A state of the other kind than the caller's render is refused before it is read. */
-    if ((st && version != 1) || (ps && version != 2)) {
+    if ((st && version != 1) || (ps && version == 1)) {
         rc = fail(err, errcap, PM_EINVAL, path,
-                  version == 2 ? "a checkpoint of a render in passes (--time, --passes, render.time); "
+                  version != 1 ? "a checkpoint of a render in passes (--time, --passes, render.time); "
                                  "this render is one pass of fixed work"
                                : "a checkpoint of one pass of fixed work (--spp); this render is in "
                                  "passes (--time, --passes, render.time)");
         goto out;
     }
-    size_t pb = version == 2 ? PASS_PIXEL_BYTES : PIXEL_BYTES;
-    uint64_t want = (uint64_t)HEADER_BYTES + ls + la + lp + (uint64_t)w * ht * pb + 8;
+    size_t pb = version != 1 ? PASS_PIXEL_BYTES : PIXEL_BYTES;
+    uint64_t want = (uint64_t)HEADER_BYTES + ls + la + lp + (uint64_t)w * ht * (pb + (version == 3)) + 8;
     if ((uint64_t)sb.st_size != want) {
         snprintf(msg, sizeof msg, "%s: %lld bytes, but its header says %llu",
                  (uint64_t)sb.st_size < want ? "truncated" : "has extra data", (long long)sb.st_size,
@@ -219,30 +251,21 @@ static int read_any(const char *path, ckpt_info *ci, render_state *st, pass_stat
             rc = fail(err, errcap, PM_EFORMAT, path, "truncated");
             break;
         }
-        for (size_t j = 0; j < m; j++, i++) {
-            if (version == 2) {
-                for (int c = 0; ps && c < 6; c++) {
-                    uint64_t u = get64(px + pb * j + 8 * (size_t)c);
-                    memcpy(&(c < 3 ? ps->sum : ps->sum2)[3 * i + (size_t)(c % 3)], &u, 8);
-                }
-                continue;
-            }
-            uint32_t cnt = get32(px + pb * j + 24);
-            over_spp |= cnt > spp;
-            if (!st) continue;
-            for (int c = 0; c < 3; c++) {
-                uint64_t u = get64(px + pb * j + 8 * (size_t)c);
-                memcpy(&st->sum[3 * i + (size_t)c], &u, 8);
-            }
-            st->count[i] = cnt;
-        }
+        over_spp |= decode_pixels(px, m, i, version, spp, st, ps);
+        i += m;
     }
+    unsigned char *mb = NULL; /* version 3's multipliers */
+    if (rc == 0 && version == 3 && (!(mb = malloc(n)) || get(f, mb, n, &h) != 0))
+        rc = fail(err, errcap, mb ? PM_EFORMAT : PM_ENOMEM, path, mb ? "truncated" : "out of memory");
     unsigned char tail[8];
     uint64_t body = h;
     if (rc == 0 && (fread(tail, 1, 8, f) != 8 || get64(tail) != body))
         rc = fail(err, errcap, PM_EFORMAT, path, "corrupt (checksum mismatch)");
     if (rc == 0 && over_spp)
         rc = fail(err, errcap, PM_EFORMAT, path, "corrupt (a pixel has more samples than spp)");
+    if (rc == 0 && mb && !pass_mult_valid(mb, n)) rc = fail(err, errcap, PM_EFORMAT, path, "corrupt (sample multipliers)");
+    if (rc == 0 && ps && mb && mb[0]) ps->mult = mb, mb = NULL;
+    free(mb);
     if (rc < 0 && st) render_state_free(st);
     if (rc < 0 && ps) pass_state_free(ps);
 out:
@@ -289,9 +312,11 @@ void ckpt_settings_text(const scene *s, const char *mode, char *buf, size_t cap)
             cJSON_Delete(copy);
         }
     }
-    snprintf(buf, cap, "renderer %s; mode %s; %dx%d; %s %d; seed %llu; photon_mapping %s%s",
+    char adapt[48] = "";
+    if (g_ps) snprintf(adapt, sizeof adapt, "; adaptive samples %g", g_adapt);
+    snprintf(buf, cap, "renderer %s; mode %s; %dx%d; %s %d; seed %llu%s; photon_mapping %s%s",
              PM_VERSION_STRING, mode, s->cam.width, s->cam.height, g_ps ? "in passes of spp" : "spp",
-             s->cam.spp, (unsigned long long)s->settings.seed, pm ? pm : "{}", g_extra);
+             s->cam.spp, (unsigned long long)s->settings.seed, adapt, pm ? pm : "{}", g_extra);
     free(pm);
 }
 

@@ -29,13 +29,16 @@
  * render needs none). A checkpoint is written at pass boundaries only (periodically, at the
  * end, and at a signal, which drops the pass being rendered), so resuming is bit-identical
  * to the uninterrupted render with the same passes; resuming with a larger --passes or
- * --time continues the render. Both versions are read; each kind of render refuses the
- * other's (with a message that says which is which), and a renderer of version 1 refuses
- * version 2 files by their version.
+ * --time continues the render. Version 3 (written since the adaptive samples, passes.h) is
+ * version 2 followed by one byte per pixel, rows top to bottom: the pixel's sample
+ * multiplier, or 0 at every pixel while none is decided; a version 2 file reads as
+ * undecided. All three versions are read; each kind of render refuses the other's (with a
+ * message that says which is which), and an older renderer refuses newer files by their
+ * version.
  *
  * ckpt_read checks the size the header implies against the file's size before it allocates
  * anything, so a truncated (or padded) file is refused at once with a message, as are a
- * count above spp and a checksum mismatch. It reads regular files only.
+ * count above spp, a multiplier above ADAPT_MAX (or some 0 and some not) and a checksum mismatch. It reads regular files only.
  * ckpt_write goes through output.h: the file is replaced atomically (or written through a
  * FIFO or device), and SIGINT/SIGTERM during the write leave the previous checkpoint.
  *
@@ -56,7 +59,7 @@
 extern "C" {
 #endif
 
-#define CKPT_VERSION 2u
+#define CKPT_VERSION 3u
 
 typedef struct ckpt_info {
     uint32_t version, passes; /* set by the readers: the file's version; passes done (version 2) */
@@ -80,8 +83,9 @@ int ckpt_write_passes(const char *path, const ckpt_info *ci, const pass_state *p
                       size_t errcap);
 int ckpt_read_passes(const char *path, ckpt_info *ci, pass_state *ps, char *err, size_t errcap);
 /* A render in passes: before checkpoint_setup, main.c gives the state that a resume fills and
- * that checkpoint_begin writes (settings text, VERSIONS). NULL (the default): one pass. */
-void ckpt_set_passes(pass_state *ps);
+ * that checkpoint_begin writes (settings text, VERSIONS), and the adaptive samples' share
+ * (passes.h; part of the settings text). NULL (the default): one pass. */
+void ckpt_set_passes(pass_state *ps, double adapt);
 
 /* ---- a distributed render (render/mpi/) ---------------------------------------------------
  *

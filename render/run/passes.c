@@ -23,6 +23,7 @@ int pass_state_init(pass_state *ps, int width, int height) {
     ps->done = 0;
     ps->sum = calloc(n, sizeof *ps->sum);
     ps->sum2 = calloc(n, sizeof *ps->sum2);
+    ps->mult = NULL;
     if (!ps->sum || !ps->sum2) {
         pass_state_free(ps);
         return PM_ENOMEM;
@@ -34,7 +35,9 @@ int pass_state_init(pass_state *ps, int width, int height) {
 void pass_state_free(pass_state *ps) {
     free(ps->sum);
     free(ps->sum2);
+    free(ps->mult);
     ps->sum = ps->sum2 = NULL;
+    ps->mult = NULL;
 }
 
 void pass_state_add(pass_state *ps, const film *f) {
@@ -68,6 +71,68 @@ double pass_state_rmse(const pass_state *ps, double *mean) {
     return sqrt(var / (double)n);
 }
 
+int pass_mult_valid(const unsigned char *m, size_t n) {
+    size_t zeros = 0;
+    for (size_t i = 0; i < n; i++) {
+        if (m[i] > ADAPT_MAX) return 0;
+        zeros += m[i] == 0;
+    }
+    return zeros == 0 || zeros == n;
+}
+
+/* The samples of multipliers min(ADAPT_MAX, max(1, floor(lambda s_p))), over the pixels. */
+static double adapt_total(const double *s, size_t n, double lambda) {
+    double t = 0;
+    for (size_t i = 0; i < n; i++) t += fmin(ADAPT_MAX, fmax(1.0, floor(lambda * s[i])));
+    return t;
+}
+
+int pass_state_adapt(pass_state *ps, double share, size_t *marked, double *extra) {
+    size_t n = (size_t)ps->width * (size_t)ps->height;
+    double *sd = malloc((n ? n : 1) * sizeof *sd), P = ps->done, smin = INFINITY;
+    unsigned char *m = malloc(n ? n : 1);
+    if (!sd || !m) {
+        free(sd);
+        free(m);
+        return PM_ENOMEM;
+    }
+    for (size_t i = 0; i < n; i++) {
+        double v = 0;
+        for (int c = 0; c < 3 && P > 1; c++) {
+            double mu = ps->sum[3 * i + (size_t)c] / P;
+            double vc = (ps->sum2[3 * i + (size_t)c] - P * mu * mu) / (P - 1);
+            if (vc > 0 && isfinite(vc)) v += vc;
+        }
+        sd[i] = sqrt(v);
+        if (sd[i] > 0 && sd[i] < smin) smin = sd[i];
+    }
+    /* the largest lambda within the budget, by bisection (the total rises with lambda) */
+    double lo = 0, budget = (double)n * (1 + share);
+    if (isfinite(smin)) {
+        double hi = 2.0 * ADAPT_MAX / smin;
+        if (adapt_total(sd, n, hi) <= budget) lo = hi;
+        else
+            for (int it = 0; it < 200; it++) {
+                double mid = 0.5 * (lo + hi);
+                if (adapt_total(sd, n, mid) <= budget) lo = mid;
+                else hi = mid;
+            }
+    }
+    size_t k = 0;
+    double added = 0;
+    for (size_t i = 0; i < n; i++) {
+        m[i] = (unsigned char)fmin(ADAPT_MAX, fmax(1.0, floor(lo * sd[i])));
+        k += m[i] > 1;
+        added += m[i] - 1;
+    }
+    free(sd);
+    free(ps->mult);
+    ps->mult = m;
+    if (marked) *marked = k;
+    if (extra) *extra = n ? added / (double)n : 0;
+    return 0;
+}
+
 uint64_t pass_seed(uint64_t seed, int pass) {
     if (pass == 0) return seed;
     return rng_mix64(seed ^ rng_mix64(UINT64_C(0x7061737300000000) + (uint64_t)pass)); /* "pass" */
@@ -78,6 +143,42 @@ uint64_t pass_seed(uint64_t seed, int pass) {
 static void test_pause_at(int pass) {
     const char *v = getenv("PM_RENDER_TEST_PAUSE");
     if (v && strncmp(v, "pass:", 5) == 0 && atoi(v + 5) == pass) out_test_pause("pass");
+}
+
+/* ADAPTIVE SAMPLES before a pass: decide once ADAPT_AFTER passes are done, then (render-mpi)
+ * give every rank rank 0's multipliers. */
+static int adapt_before_pass(const pass_run *run, pass_state *ps, char *err, size_t errcap) {
+    size_t n = (size_t)ps->width * (size_t)ps->height, marked = 0;
+    double extra = 0;
+    int fresh = !ps->mult && ps->done >= ADAPT_AFTER;
+    if (fresh && pass_state_adapt(ps, run->adapt, &marked, &extra) < 0) {
+        snprintf(err, errcap, "adaptive samples: out of memory");
+        return PM_ENOMEM;
+    }
+    if (run->share) {
+        if (!ps->mult && !(ps->mult = calloc(n ? n : 1, 1))) {
+            snprintf(err, errcap, "adaptive samples: out of memory");
+            return PM_ENOMEM;
+        }
+        if (!fresh && ps->done < ADAPT_AFTER) memset(ps->mult, 0, n); /* undecided */
+        int rc = run->share(ps->mult, n);
+        if (rc < 0) {
+            snprintf(err, errcap, "adaptive samples: sharing the multipliers failed");
+            return rc;
+        }
+        if (n == 0 || ps->mult[0] == 0) { /* rank 0 has not decided */
+            free(ps->mult);
+            ps->mult = NULL;
+        }
+    }
+    if (fresh && !run->quiet) {
+        int top = 1;
+        for (size_t i = 0; ps->mult && i < n; i++) top = ps->mult[i] > top ? ps->mult[i] : top;
+        fprintf(stderr, "Adaptive samples: from %d passes' spread, %zu of %zu pixels take up to %d times the "
+                "samples, %.1f%% more a pass (where the pass images vary most; --adaptive 0: none)\n",
+                ps->done, marked, n, top, 100 * extra);
+    }
+    return 0;
 }
 
 int render_passes(const scene *s, integrator *it, const render_job *job, const pass_run *run,
@@ -100,6 +201,7 @@ int render_passes(const scene *s, integrator *it, const render_job *job, const p
             interrupted = by_signal;
             break;
         }
+        if (run->adapt > 0 && (rc = adapt_before_pass(run, ps, err, errcap)) < 0) break;
         double t0 = rep->passes == 0 && run->t_first > 0 ? run->t_first : stats_now();
         uint64_t seed = pass_seed(job->seed, p);
         double tb = stats_now();
@@ -109,6 +211,7 @@ int render_passes(const scene *s, integrator *it, const render_job *job, const p
         render_job pj = *job;
         pj.seed = seed;
         pj.quiet = 1;
+        pj.mult = ps->mult;
         render_control ctl;
         memset(&ctl, 0, sizeof ctl);
         ctl.stop_on_signal = run->stop_on_signal;

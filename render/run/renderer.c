@@ -79,7 +79,9 @@ static int tile_done(const loop *L, int tile) {
     int x0 = (tile % L->tiles_x) * RENDER_TILE, y0 = (tile / L->tiles_x) * RENDER_TILE;
     for (int y = y0; y < y0 + RENDER_TILE && y < st->height; y++)
         for (int x = x0; x < x0 + RENDER_TILE && x < st->width; x++)
-            if (st->count[(size_t)y * (size_t)st->width + (size_t)x] < (uint32_t)st->spp) return 0;
+            if (st->count[(size_t)y * (size_t)st->width + (size_t)x] <
+                render_pixel_spp(L->job, st->spp, (uint64_t)y * (uint64_t)st->width + (uint64_t)x))
+                return 0;
     return 1;
 }
 
@@ -99,23 +101,27 @@ static void render_tile(loop *L, int tile, void *scratch) {
     int x1 = x0 + RENDER_TILE < c->width ? x0 + RENDER_TILE : c->width;
     int y1 = y0 + RENDER_TILE < c->height ? y0 + RENDER_TILE : c->height;
     int n = c->strata;
-    uint32_t kmin = UINT32_MAX;
+    uint32_t kmin = UINT32_MAX, kmax = 0;
     for (int y = y0; y < y1; y++)
         for (int x = x0; x < x1; x++) {
-            uint32_t k = st->count[(size_t)y * (size_t)c->width + (size_t)x];
+            uint64_t pixel = (uint64_t)y * (uint64_t)c->width + (uint64_t)x;
+            uint32_t k = st->count[pixel], t = render_pixel_spp(L->job, c->spp, pixel);
             if (k < kmin) kmin = k;
+            if (t > kmax) kmax = t;
         }
-    for (int k = (int)kmin; k < c->spp; k++) {
+    for (uint32_t k = kmin; k < kmax; k++) {
         uint64_t bad = 0, did = 0;
+        int ks = (int)(k % (uint32_t)c->spp); /* its stratum (renderer.h, render_job.mult) */
         for (int y = y0; y < y1; y++) {
             for (int x = x0; x < x1; x++) {
                 uint64_t pixel = (uint64_t)y * (uint64_t)c->width + (uint64_t)x;
-                if (st->count[pixel] > (uint32_t)k) continue; /* done before a resume */
+                if (st->count[pixel] > k) continue; /* done before a resume */
+                if (k >= render_pixel_spp(L->job, c->spp, pixel)) continue;
                 rng g = rng_stream(L->job->seed, pixel, (uint64_t)k);
                 double jx = rng_uniform(&g), jy = rng_uniform(&g);
-                double px = x + ((k % n) + jx) / n, py = y + ((k / n) + jy) / n;
+                double px = x + ((ks % n) + jx) / n, py = y + ((ks / n) + jy) / n;
                 ray r = camera_ray(c, px, py);
-                sample_id id = {pixel, L->job->seed, k, c->spp, n};
+                sample_id id = {pixel, L->job->seed, ks, c->spp, n};
                 rgb Li = L->it->li(L->it, L->s, r, &g, &id, scratch);
                 double *sum = st->sum + 3 * pixel;
                 if (v3_isfinite(Li)) {
@@ -125,7 +131,7 @@ static void render_tile(loop *L, int tile, void *scratch) {
                 } else {
                     bad++;
                 }
-                st->count[pixel] = (uint32_t)k + 1;
+                st->count[pixel] = k + 1;
                 did++;
             }
         }
@@ -133,7 +139,7 @@ static void render_tile(loop *L, int tile, void *scratch) {
         stat_add(STAT_SAMPLES, did);
         if (bad) stat_add(L->stat_nonfinite, bad);
         progress_add(&L->prog, (int64_t)did);
-        if (k + 1 < c->spp && should_stop(L)) return;
+        if (k + 1 < kmax && should_stop(L)) return;
     }
 }
 
@@ -170,7 +176,8 @@ int render_image_ctl(const scene *s, const integrator *it, const render_job *job
     L.tiles_x = (c->width + RENDER_TILE - 1) / RENDER_TILE;
     int ntiles = L.tiles_x * ((c->height + RENDER_TILE - 1) / RENDER_TILE);
     L.stat_nonfinite = stats_register("Film/Non-finite samples");
-    int64_t total = (int64_t)c->width * c->height * c->spp, done = (int64_t)render_state_done(st);
+    int64_t total = 0, done = (int64_t)render_state_done(st);
+    for (uint64_t p = 0; p < (uint64_t)c->width * (uint64_t)c->height; p++) total += render_pixel_spp(job, c->spp, p);
     double frac = out_test_pause_fraction();
     L.pause_at = frac >= 0 && done < (int64_t)(frac * (double)total) ? (int64_t)(frac * (double)total) : -1;
     if (done > 0 && !job->quiet)

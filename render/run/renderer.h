@@ -62,7 +62,17 @@ typedef struct render_job {
     int threads;   /* 0: OpenMP's default (all cores) */
     int quiet;     /* no progress output */
     uint64_t seed; /* usually scene.settings.seed */
+    /* NULL, or one multiplier per pixel (1 or more, row-major): pixel p takes spp x mult[p]
+     * samples (run/passes.h, ADAPTIVE SAMPLES). Sample k of a pixel lies in stratum k mod spp,
+     * with stream k: each further round of spp samples is stratified again, on its own
+     * streams, and the integrator sees sample k mod spp of spp (its strides stay whole). */
+    const unsigned char *mult;
 } render_job;
+
+/* The samples pixel p takes in job: spp x job->mult[p] (or spp). */
+static inline uint32_t render_pixel_spp(const render_job *job, int spp, uint64_t p) {
+    return (uint32_t)spp * (job->mult ? (uint32_t)job->mult[p] : 1u);
+}
 
 /* What a checkpointed or snapshotted render adds to the job (zero it, then set fields). */
 typedef struct render_control {
