@@ -802,6 +802,16 @@ for mode in path pm; do
   if [ -z "$differ" ]; then ok "$name: 6 passes, PFM bytes equal the one-process render at -np$same"
   else bad "$name" "differs from the one-process render at -np$differ"; fi
 done
+# The camera's focus (run/focus.h): pinhole_room's two pixels that see the roof's hole aim
+# samples at it on every rank alike (the plan's port is found on each rank from the same seed).
+name=passes.focus
+"$R" data/scenes/pinhole_room.json --width 8 --height 8 --pass-spp 16 --passes 2 --mode pm --threads 2 \
+  --hdr "$T/$name.ref.pfm" -o "$T/$name.ref.png" >"$T/$name.ref.log" 2>&1
+timeout 300 $MPIRUN -np 2 "$M" data/scenes/pinhole_room.json --width 8 --height 8 --pass-spp 16 --passes 2 \
+  --mode pm --threads 1 --quiet --hdr "$T/$name.np2.pfm" -o "$T/$name.np2.png" >"$T/$name.np2.log" 2>&1
+if grep -q "^Camera focus: 2 pixels" "$T/$name.ref.log" && cmp -s "$T/$name.np2.pfm" "$T/$name.ref.pfm"; then
+  ok "$name: pinhole_room with the camera's focus on 2 pixels, -np 2 equals the one-process render"
+else bad "$name" "no focus line, or -np 2 differs from the one-process render"; fi
 # shellcheck disable=SC2086
 "$R" data/scenes/cornell_spheres.json --width 24 --height 24 --pass-spp 4 --passes 6 $PMSMALL --mode pm \
   --threads 2 --quiet --hdr "$T/passes.ref6.pfm" >"$T/passes.ref6.log" 2>&1

@@ -66,7 +66,7 @@ TEST(render_checkpoint_resume_bit_identical) {
     char err[512];
     ASSERT(integrator_create("path", &s, &it, err, sizeof err) == 0);
     film ref;
-    render_job job = {1, 1, s.settings.seed, NULL};
+    render_job job = {1, 1, s.settings.seed, NULL, NULL};
     ASSERT(render_image(&s, &it, &job, &ref) == 0);
     int stops[3] = {1, 3, 7};
     for (int k = 0; k < 3; k++) {
@@ -76,7 +76,7 @@ TEST(render_checkpoint_resume_bit_identical) {
         ASSERT(render_state_init(&st, 40, 24, 9) == 0);
         render_control ctl = {&st, 1e-9, on_pause, &sp, 0};
         film f;
-        render_job j2 = {2, 1, s.settings.seed, NULL};
+        render_job j2 = {2, 1, s.settings.seed, NULL, NULL};
         int rc = render_image_ctl(&s, &it, &j2, &ctl, &f);
         EXPECT_EQ_INT(rc, PM_EINVAL);
         uint64_t done = render_state_done(&st);
@@ -121,7 +121,7 @@ TEST(render_checkpoint_signal_stops_cleanly) {
     char err[512];
     ASSERT(integrator_create("path", &s, &it, err, sizeof err) == 0);
     film ref, f;
-    render_job job = {2, 1, s.settings.seed, NULL};
+    render_job job = {2, 1, s.settings.seed, NULL, NULL};
     ASSERT(render_image(&s, &it, &job, &ref) == 0);
     out_signals_install();
     out_defer_begin();

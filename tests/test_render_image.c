@@ -32,7 +32,7 @@ static int render_text(const char *text, int w, int h, int spp, int threads, fil
     char err[256];
     int rc = integrator_create("path", &s, &it, err, sizeof err);
     if (rc == 0) {
-        render_job job = {threads, 1, s.settings.seed, NULL};
+        render_job job = {threads, 1, s.settings.seed, NULL, NULL};
         rc = render_image(&s, &it, &job, f);
         integrator_destroy(&it);
     }

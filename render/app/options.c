@@ -85,9 +85,9 @@ static const option_def k_options[] = {
      "render pass P of such a render alone (to check the mean;\n"
      "it takes no adaptive samples: compare with --adaptive 0)", NULL},
     {"--adaptive", NULL, "A", OPT_SHARE, 0, 31, F(adaptive), NULL,
-     "in passes, after the first 4: up to A x more samples a pass\n"
-     "(default 0.25), given to the pixels whose pass images vary most,\n"
-     "each up to 32 x its own (0: every pixel the same)", NULL},
+     "in passes, after the first 4: at most A times a plain pass's\n"
+     "samples more (default 0.25: 25% more), given to the pixels whose\n"
+     "pass images vary most, each up to 32 x its own (0: none)", NULL},
     {"--tone", NULL, "T", OPT_CHOICE, NONE, F(tone), "filmic|srgb",
      "filmic or srgb (PNG tone curve)", NULL},
     {"--exposure", NULL, "X", OPT_POSITIVE, NONE, F(exposure), NULL,

@@ -21,6 +21,7 @@
 #include "load/scene_load.h"
 #include "photonmap/common.h"
 #include "load/photon_settings.h"
+#include "run/focus.h"
 #include "scene/delta_lit.h"
 
 #ifdef _OPENMP
@@ -375,10 +376,33 @@ static int render_in_passes(app_run *r, const render_job *job) {
     return rc;
 }
 
+/* The footprints of the ports the integrator names (run/focus.h), and the line that says
+ * where they are. */
+static int build_focus(app_run *r, film_focus *f) {
+    const port *ports = NULL;
+    int n = r->it.camera_ports ? r->it.camera_ports(&r->it, &r->s, &ports) : 0;
+    if (n <= 0) return APP_GO;
+    if (focus_build(f, &r->s.cam, ports, n) < 0) {
+        fprintf(stderr, "render: out of memory for the camera's focus table\n");
+        return 1;
+    }
+    if (!f->npolys) return APP_GO;
+    double lo = 1, hi = 0;
+    for (int i = 0; i < f->npolys; i++) {
+        lo = fmin(lo, f->polys[i].area);
+        hi = fmax(hi, f->polys[i].area);
+    }
+    printf("Camera focus: %d pixel%s see%s a photon port in %.2g%% to %.2g%% of %s area: %g of "
+           "%s samples aimed at it, weighted (photon_mapping.camera_focus=false: none)\n",
+           f->npolys, f->npolys == 1 ? "" : "s", f->npolys == 1 ? "s" : "", 100 * lo, 100 * hi,
+           f->npolys == 1 ? "its" : "their", 1 - FOCUS_PLAIN, f->npolys == 1 ? "its" : "their");
+    return APP_GO;
+}
+
 int run_render(app_run *r) {
     const render_options *o = r->o;
     int rc;
-    render_job job = {r->nthreads, o->quiet, r->s.settings.seed, NULL};
+    render_job job = {r->nthreads, o->quiet, r->s.settings.seed, NULL, NULL};
     render_control ctl = {NULL, 0, NULL, NULL, 0};
     if (r->in_passes && !r->pstate.sum && pass_state_init(&r->pstate, r->s.cam.width, r->s.cam.height) < 0) {
         fprintf(stderr, "render: out of memory for the render state\n");
@@ -389,6 +413,9 @@ int run_render(app_run *r) {
     /* With a checkpoint, SIGINT/SIGTERM stop the render at the next sample boundary, write
      * the checkpoint, and then end the program by that signal. */
     if (o->ckpt_path) out_defer_begin();
+    film_focus focus = {0};
+    if ((rc = build_focus(r, &focus)) != APP_GO) return rc;
+    if (focus.npolys) job.focus = &focus;
     double t_render0 = stats_now();
     memset(&r->prep, 0, sizeof r->prep);
     if (r->in_passes)
@@ -398,6 +425,7 @@ int run_render(app_run *r) {
     r->t_render = stats_now() - t_render0;
     integrator_destroy(&r->it);
     r->have_it = 0;
+    focus_free(&focus);
     if (o->ckpt_path) {
         if (rc == 0 && out_pending_signal())
             rc = r->in_passes ? ckpt_session_pass(&r->cs, &r->pstate, RENDER_PAUSE_SIGNAL)

@@ -77,6 +77,9 @@ struct integrator {
     void (*destroy)(integrator *self);
     int (*begin_pass)(integrator *self, const scene *s, int pass, uint64_t seed, char *err,
                       size_t errcap);
+    /* NULL, or the openings (photon ports) whose footprints on the film the camera samples
+     * may aim at (run/focus.h): their count, and *ports; called after preprocess. */
+    int (*camera_ports)(const integrator *self, const scene *s, const port **ports);
     int in_passes; /* set by the caller before preprocess: the render runs in passes (its
                     * camera's spp is a pass's), so begin_pass follows */
 };

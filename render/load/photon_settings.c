@@ -128,6 +128,10 @@ static const setting_def k_settings[] = {
      "the plan turns it on where a port is used, the scene has no media, the lights' power "
      "is on one side of the port and area or sphere lights carry at least half of it (true "
      "drops the last condition only)"},
+    {"camera_focus", ST_BOOL, F(camera_focus), 1, NONE,
+     "where the camera sees a photon port in a sliver of a pixel (at most half of it), aim half "
+     "of that pixel's samples at the port's footprint, weighted (run/focus.h; unbiased for any "
+     "port); false: every sample uniform over its pixel"},
     {"progress", ST_BOOL, F(progress), 1, NONE,
      "progress lines while tracing photons (render --quiet sets it false)"},
     {"volume", ST_FORCE, F(force_volume), PLAN_AUTO, 0, 0,

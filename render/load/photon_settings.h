@@ -64,6 +64,7 @@ typedef struct photon_settings {
     int force_light_guide;       /* PLAN_*: guided light samples in direct light (guide.h) */
     int force_gather_guide;      /* PLAN_*: guided final-gather directions (guide.h) */
     int force_direct_port;       /* PLAN_*: direct light through a photon port (direct.h) */
+    int camera_focus;            /* camera samples aimed at ports seen in slivers (run/focus.h) */
     int progress; /* progress bars while tracing (render --quiet sets it false) */
     /* Participating media (volume.h, pm_volume.h). */
     int force_volume, force_volume_caustics; /* PLAN_* */

@@ -15,6 +15,7 @@
 #include "photonmap/common.h"
 #include "base/rng.h"
 #include "base/stats.h"
+#include "run/focus.h"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -64,11 +65,13 @@ static void trace_samples(const scene *s, const integrator *it, const render_job
             rng g = rng_stream(job->seed, sm->pixel, (uint64_t)sm->k);
             double jx = rng_uniform(&g), jy = rng_uniform(&g);
             int ks = sm->k % c->spp; /* its stratum (renderer.h, render_job.mult) */
-            double px = x + ((ks % strata) + jx) / strata, py = y + ((ks / strata) + jy) / strata;
+            double px, py, fw = focus_film_point(job->focus, x, y, ((ks % strata) + jx) / strata,
+                                                 ((ks / strata) + jy) / strata, &px, &py);
             ray r = camera_ray(c, px, py);
             sample_id id = {sm->pixel, job->seed, ks, c->spp, strata};
             lk_tl_smp = sm;
             rgb Li = it->li(it, s, r, &g, &id, scratch);
+            if (fw != 1) Li = v3_scale(Li, fw);
             lk_tl_smp = NULL;
             sm->L[0] = Li.x;
             sm->L[1] = Li.y;

@@ -267,8 +267,8 @@ int tq_root(const scene *s, const integrator *it, const render_job *job, render_
             memset(st->count + p, 0, w * sizeof(uint32_t));
         }
     }
-    int64_t total = 0, done = (int64_t)render_state_done(st);
-    for (uint64_t p = 0; p < (uint64_t)c->width * (uint64_t)c->height; p++) total += render_pixel_spp(job, c->spp, p);
+    int64_t total = (int64_t)render_image_spp(job, c->spp, c->width, c->height);
+    int64_t done = (int64_t)render_state_done(st);
     if (done > 0 && !job->quiet)
         fprintf(stderr, "Resuming: %lld of %lld samples done (%.1f%%)\n", (long long)done,
                 (long long)total, 100.0 * (double)done / (double)total);

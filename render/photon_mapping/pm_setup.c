@@ -37,6 +37,19 @@ static void mapper_destroy(integrator *self) {
 
 /* ---- create -------------------------------------------------------------------------------- */
 
+/* The ports the plan aims photons through (declared, or found by its probe), unless
+ * photon_mapping.camera_focus is false. */
+static int pm__camera_ports(const integrator *self, const scene *s, const port **ports) {
+    const mapper_state *st = self->data;
+    if (!st->plan.ports.on || !st->cfg.camera_focus) return 0;
+    if (st->plan.found.n) {
+        *ports = st->plan.found.p;
+        return st->plan.found.n;
+    }
+    *ports = s->ports;
+    return s->nports;
+}
+
 static int create_common(integrator *it, const scene *s, int preview, char *err, size_t errcap) {
     mapper_state *st = calloc(1, sizeof *st);
     if (!st) {
@@ -100,6 +113,7 @@ static int create_common(integrator *it, const scene *s, int preview, char *err,
     it->li = pm__li;
     it->destroy = mapper_destroy;
     it->begin_pass = pm__begin_pass;
+    it->camera_ports = pm__camera_ports;
     return 0;
 }
 

@@ -18,6 +18,7 @@
 #include "base/output.h"
 #include "base/progress.h"
 #include "base/stats.h"
+#include "run/focus.h"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -119,10 +120,12 @@ static void render_tile(loop *L, int tile, void *scratch) {
                 if (k >= render_pixel_spp(L->job, c->spp, pixel)) continue;
                 rng g = rng_stream(L->job->seed, pixel, (uint64_t)k);
                 double jx = rng_uniform(&g), jy = rng_uniform(&g);
-                double px = x + ((ks % n) + jx) / n, py = y + ((ks / n) + jy) / n;
+                double px, py, fw = focus_film_point(L->job->focus, x, y, ((ks % n) + jx) / n,
+                                                     ((ks / n) + jy) / n, &px, &py);
                 ray r = camera_ray(c, px, py);
                 sample_id id = {pixel, L->job->seed, ks, c->spp, n};
                 rgb Li = L->it->li(L->it, L->s, r, &g, &id, scratch);
+                if (fw != 1) Li = v3_scale(Li, fw);
                 double *sum = st->sum + 3 * pixel;
                 if (v3_isfinite(Li)) {
                     sum[0] += Li.x;
@@ -176,8 +179,8 @@ int render_image_ctl(const scene *s, const integrator *it, const render_job *job
     L.tiles_x = (c->width + RENDER_TILE - 1) / RENDER_TILE;
     int ntiles = L.tiles_x * ((c->height + RENDER_TILE - 1) / RENDER_TILE);
     L.stat_nonfinite = stats_register("Film/Non-finite samples");
-    int64_t total = 0, done = (int64_t)render_state_done(st);
-    for (uint64_t p = 0; p < (uint64_t)c->width * (uint64_t)c->height; p++) total += render_pixel_spp(job, c->spp, p);
+    int64_t total = (int64_t)render_image_spp(job, c->spp, c->width, c->height);
+    int64_t done = (int64_t)render_state_done(st);
     double frac = out_test_pause_fraction();
     L.pause_at = frac >= 0 && done < (int64_t)(frac * (double)total) ? (int64_t)(frac * (double)total) : -1;
     if (done > 0 && !job->quiet)

@@ -67,11 +67,21 @@ typedef struct render_job {
      * with stream k: each further round of spp samples is stratified again, on its own
      * streams, and the integrator sees sample k mod spp of spp (its strides stay whole). */
     const unsigned char *mult;
+    /* NULL, or the footprints of openings the camera sees in slivers of pixels: there the
+     * samples are aimed at the opening and weighted (run/focus.h). */
+    const struct film_focus *focus;
 } render_job;
 
 /* The samples pixel p takes in job: spp x job->mult[p] (or spp). */
 static inline uint32_t render_pixel_spp(const render_job *job, int spp, uint64_t p) {
     return (uint32_t)spp * (job->mult ? (uint32_t)job->mult[p] : 1u);
+}
+
+/* The samples the whole image takes in job: render_pixel_spp summed over the W x H pixels. */
+static inline uint64_t render_image_spp(const render_job *job, int spp, int width, int height) {
+    uint64_t total = 0;
+    for (uint64_t p = 0; p < (uint64_t)width * (uint64_t)height; p++) total += render_pixel_spp(job, spp, p);
+    return total;
 }
 
 /* What a checkpointed or snapshotted render adds to the job (zero it, then set fields). */
