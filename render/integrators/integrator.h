@@ -63,6 +63,8 @@ extern "C" {
 typedef struct sample_id {
     uint64_t pixel, seed;
     int k, count, strata;
+    int focused; /* the camera's focus aimed it (run/focus.h): its film point is not uniform
+                  * in stratum k, so nothing may be drawn from that stratum in its place */
 } sample_id;
 
 typedef struct integrator integrator;

@@ -68,7 +68,7 @@ static void trace_samples(const scene *s, const integrator *it, const render_job
             double px, py, fw = focus_film_point(job->focus, x, y, ((ks % strata) + jx) / strata,
                                                  ((ks / strata) + jy) / strata, &px, &py);
             ray r = camera_ray(c, px, py);
-            sample_id id = {sm->pixel, job->seed, ks, c->spp, strata};
+            sample_id id = {sm->pixel, job->seed, ks, c->spp, strata, fw != 1};
             lk_tl_smp = sm;
             rgb Li = it->li(it, s, r, &g, &id, scratch);
             if (fw != 1) Li = v3_scale(Li, fw);

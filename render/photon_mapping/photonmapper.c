@@ -560,7 +560,7 @@ rgb pm__li(const integrator *self, const scene *s, ray r, rng *g, const sample_i
     int m = st->cfg.emission_strata;
     double cw = stride_weight(id, st->cfg.caustic_stride, 0x6361757374696373ULL); /* "caustics" */
     int split = 0; /* the parts the m x m extra rays take (pm_sample.c, EMISSION and DIRECT STRATA) */
-    if (m > 0 && id && id->strata > 0) {
+    if (m > 0 && id && id->strata > 0 && !id->focused) { /* a focused sample collects its own */
         int in = id->pixel < st->emit.pixels;
         if (!st->emit.mask || (in && st->emit.mask[id->pixel])) split |= EYE_EMIT;
         if (st->emit.direct && in && st->emit.direct[id->pixel]) split |= EYE_DIRECT0;

@@ -61,7 +61,8 @@ int focus_build(film_focus *f, const camera *c, const port *ports, int nports);
 void focus_free(film_focus *f);
 
 /* The film position (*px, *py) of the sample at stratified point (u, v) in [0, 1)^2 of pixel
- * (x, y), and its weight (1 where the pixel has no focus, or f is NULL). */
+ * (x, y), and its weight: 1 where the pixel has no focus (or f is NULL), never 1 where it has
+ * one (at most 2/3 in the footprint, 2 outside it). */
 double focus_film_point(const film_focus *f, int x, int y, double u, double v, double *px, double *py);
 
 /* The weight 1 / q of the pixel-local point (lx, ly) of a focused pixel's polygon p (as above). */

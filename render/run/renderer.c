@@ -123,7 +123,7 @@ static void render_tile(loop *L, int tile, void *scratch) {
                 double px, py, fw = focus_film_point(L->job->focus, x, y, ((ks % n) + jx) / n,
                                                      ((ks / n) + jy) / n, &px, &py);
                 ray r = camera_ray(c, px, py);
-                sample_id id = {pixel, L->job->seed, ks, c->spp, n};
+                sample_id id = {pixel, L->job->seed, ks, c->spp, n, fw != 1}; /* never 1 when focused */
                 rgb Li = L->it->li(L->it, L->s, r, &g, &id, scratch);
                 if (fw != 1) Li = v3_scale(Li, fw);
                 double *sum = st->sum + 3 * pixel;
