@@ -26,12 +26,14 @@ static camera test_camera(void) {
     return c;
 }
 
-/* Three ports: a quad of about 1.5 pixels, turned in its plane and tilted; a small
- * disc; one behind the eye. */
-static void test_ports(port *p) {
+/* The test camera and three ports: a quad of about 1.5 pixels, turned in its plane and
+ * tilted; a small disc; one behind the eye. The focus table of the first n of them into *f. */
+static int test_focus(camera *c, port *p, int n, film_focus *f) {
+    *c = test_camera();
     p[0] = port_quad(v3(0.3, 0.2, 10), v3(0.9, 0.3, 0.1), v3(-0.25, 0.8, 0.2));
     p[1] = port_disc(v3(-1.5, 0.8, 8), v3(0.3, 0.2, 1), 0.05);
     p[2] = port_quad(v3(0, 0, -5), v3(1, 0, 0), v3(0, 1, 0));
+    return focus_build(f, c, p, n);
 }
 
 /* The share of a G x G grid of the pixel's film points whose camera rays cross pt. */
@@ -52,11 +54,10 @@ static double ray_share(const camera *c, const port *pt, int x, int y, int G) {
  * rays all land in its pixel's polygon (the square around it); the port behind the eye gives
  * none. */
 TEST(render_focus_footprint_against_rays) {
-    camera c = test_camera();
+    camera c;
     port p[3];
-    test_ports(p);
     film_focus f;
-    ASSERT(focus_build(&f, &c, p, 1) == 0);
+    ASSERT(test_focus(&c, p, 1, &f) == 0);
     int focused = 0, bad = 0;
     for (int y = 0; y < c.height; y++)
         for (int x = 0; x < c.width; x++) {
@@ -103,11 +104,10 @@ TEST(render_focus_footprint_against_rays) {
  * The focused estimate of the bright sliver must also have at most a tenth of the plain
  * stratified samples' variance (the reason for aiming). */
 TEST(render_focus_samples_unbiased) {
-    camera c = test_camera();
+    camera c;
     port p[3];
-    test_ports(p);
     film_focus f;
-    ASSERT(focus_build(&f, &c, p, 2) == 0);
+    ASSERT(test_focus(&c, p, 2, &f) == 0);
     ASSERT(f.npolys >= 3);
     const int n = 8, R = 2000;
     int bad = 0;

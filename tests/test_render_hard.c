@@ -147,7 +147,7 @@ TEST(render_hard_shelf_glass_regions) {
  * -0.66..+4.79% (+1.0%); the pixels by the corner of the white and the red wall read about +6%
  * over those 21 renders, but path tracing itself moves them -1.2% and +5.4% against the
  * reference at 1M and 512K spp (a pixel's path-traced noise is still +-10% at 1M spp), so that
- * is not shown to be a bias either (these checks ran before the dark-side rule). The bounds:
+ * is not shown to be a bias either (these checks ran before the dark-side rule). The bounds then:
  * whole 5%, patch 5%, walls 5% (the target set for this scene); the walls' bound is 2.2 of
  * their standard deviations above their mean, so a new seed would land outside it about 1 time in 60 (a
  * normal law), and the test's seed 1 reads +1.10%.
@@ -163,11 +163,17 @@ TEST(render_hard_shelf_glass_regions) {
  * outside the 5% bounds: with the offset a new seed lands outside one about 1 time in 13 (a
  * normal law on these twelve; one of the twelve did), so
  * the fixed seed 1 keeps this a check of the estimators, and the spread is measured here by hand
- * (the 2% the issue asks for is not met over seeds). */
+ * (the 2% the issue asks for is not met over seeds).
+ * AT 9ae7966 (the camera's focus, run/focus.h: the two top-row pixels that see the big room
+ * through the hole aim half their samples at it) seeds 1-12 read whole -1.47..-0.16% (mean
+ * -0.80), patch -1.69..-0.88% (mean -1.28), walls -1.20..+1.15% (mean +0.09); seed 1, the
+ * test's: -0.66, -0.98, +0.25%. Every seed is within the issue's 2%, so the bounds are 2%. The
+ * patch keeps the photon map's offset above (-1.28% here), so a new seed would land outside
+ * its bound now and then; the fixed seed keeps the test a check of the estimators. */
 TEST(render_hard_pinhole_room_regions) {
-    const region r[] = {{"whole image", 0, 0, 8, 8, 0.05},
-                        {"lit patch", 2, 6, 6, 8, 0.05},
-                        {"walls and ceiling", 0, 0, 8, 5, 0.05}};
+    const region r[] = {{"whole image", 0, 0, 8, 8, 0.02},
+                        {"lit patch", 2, 6, 6, 8, 0.02},
+                        {"walls and ceiling", 0, 0, 8, 5, 0.02}};
     char scn[1024], ref[1024], pm[1024], cmd[4096], want[256] = "", got[256] = "";
     snprintf(scn, sizeof scn, "%s/data/scenes/pinhole_room.json", pm_test_source_dir());
     snprintf(ref, sizeof ref, "%s/data/reference-hard/pinhole_room.pfm", pm_test_source_dir());
