@@ -33,6 +33,7 @@
 #define GG_PATCH_SPREAD 2.0  /* a bright patch's disc: this many RMS distances of its hits */
 #define GG_PATCH_MAX 0.3     /* a bright patch's disc at most this share of the scene's size */
 #define GG_PATCH_SHARE 0.25  /* a bright patch carries at least this share of the probed light */
+#define GG_PATCH_THROUGH 0.5 /* A PATCH BEHIND THE PORT: at least this share of its light crosses the port */
 #define GG_SEED 0x676174686572ULL /* "gather" */
 #define GG_CHEAP_EVERY 4   /* the cheap test (gather_guide.h): every 4th of the pilot's points */
 #define GG_CHEAP_G 8       /* with 8 x 8 probes each (the pilot: GG_G x GG_G) */
@@ -258,11 +259,34 @@ static int gg_find_patch(const size_t nj, const gg_probe *pr, const double *v, s
     return *rms > 0;
 }
 
+/* A PATCH BEHIND THE PORT (gather_guide.h): of the light of the bright rays whose hits lie
+ * within 3 RMS of the patch's centre c (the hits gg_find_patch kept), the share whose ray from
+ * its point to its hit crosses the port pt. */
+static double gg_patch_through(const port *pt, const guide_point *pts, const size_t *tp, size_t nj,
+                               const gg_probe *pr, const double *v, size_t G2, vec3 c, double rms) {
+    double w = 0, thru = 0;
+    for (size_t j = 0; j < nj; j++) {
+        double t = 0;
+        for (size_t i = 0; i < G2; i++) t += v[j * G2 + i];
+        for (size_t i = 0; i < G2 && t > 0; i++) {
+            const gg_probe *p = &pr[j * G2 + i];
+            if (!p->found || !(p->base > t / GG_OUTLIER)) continue;
+            vec3 y = v3(p->y[0], p->y[1], p->y[2]), x = pts[tp[j]].h.p, d = v3_sub(y, x);
+            if (v3_len2(v3_sub(y, c)) > 9 * rms * rms) continue;
+            double len = v3_len(d), tc, cp;
+            w += p->base;
+            if (len > 0 && port_cross(pt, x, v3_scale(d, 1 / len), &tc, &cp) && tc < len) thru += p->base;
+        }
+    }
+    return w > 0 ? thru / w : 0;
+}
+
 /* BRIGHT PATCHES: when no opening fits in a scene with ports, the patch of the bright rays'
  * hits: 1 with gg's centre, radius and lit set, and its evidence in pw; 0 with why not in pw
  * ("; no bright patch..."). size: the scene's largest side. */
-static int gg_patch(gather_guide *gg, size_t nj, const gg_probe *pr, const double *v, size_t G2, double all,
-                    double size, char *pw, size_t cap, size_t *hits) {
+static int gg_patch(gather_guide *gg, const port *pt, const guide_point *pts, const size_t *tp, size_t nj,
+                    const gg_probe *pr, const double *v, size_t G2, double all, double size, char *pw, size_t cap,
+                    size_t *hits) {
     size_t n = 0;
     double share = 0, rms = 0;
     vec3 c = v3s(0);
@@ -273,6 +297,13 @@ static int gg_patch(gather_guide *gg, size_t nj, const gg_probe *pr, const doubl
         return 0;
     }
     double r = GG_PATCH_SPREAD * rms;
+    double thru = pt ? gg_patch_through(pt, pts, tp, nj, pr, v, G2, c, rms) : 0;
+    if (thru >= GG_PATCH_THROUGH) {
+        snprintf(pw, cap, "; no bright patch: %.0f%% of the light of the bright rays that end within radius %.3g of "
+                 "(%.4g, %.4g, %.4g) comes through the photon port (at least %.0f%%: the port is the tighter aim)",
+                 100 * thru, r, c.x, c.y, c.z, 100 * GG_PATCH_THROUGH);
+        return 0;
+    }
     if (!(r <= GG_PATCH_MAX * size && share >= GG_PATCH_SHARE)) {
         snprintf(pw, cap, "; no bright patch: their hits spread over radius %.3g (at most %.3g) with %.1f%% of the "
                  "probed light (at least %.0f%%)", r, GG_PATCH_MAX * size, 100 * share, 100 * GG_PATCH_SHARE);
@@ -438,7 +469,7 @@ static int gg_round(const gather_guide_probe *probe, const scene *s, const guide
     if (fit < 0) return PM_ENOMEM;
     f->opening = fit && f->nline >= GG_MIN_LINES && GG_AP_SPREAD * f->rms <= 0.02 * size && f->rms > 0;
     f->patch = !f->opening && patches &&
-               gg_patch(gg, nj, gl->pr, gl->v, G2, f->all, size, f->pw, sizeof f->pw, &f->hits);
+               gg_patch(gg, probe->port, pts, tp, nj, gl->pr, gl->v, G2, f->all, size, f->pw, sizeof f->pw, &f->hits);
     return 0;
 }
 

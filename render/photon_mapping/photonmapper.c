@@ -293,8 +293,8 @@ int pm__gg_read(void *user, const scene *s, const guide_point *pt, vec3 d, rng *
     int found;
     vec3 ny = v3_dot(din, y.ng) <= 0 ? y.ng : v3_neg(y.ng);
     rgb Lo = lookup_radiance_ex(st, s, &y, v3_neg(din), &found, 0);
-    if (!found || st->sides.indirect_only) {
-        direct_options o = {DIRECT_BSDF_FULL, 0, NULL, NULL, -1, NULL, {0, 0, 0}};
+    if (!found || st->sides.indirect_only) { /* as the passes read it: through the port too (direct.h) */
+        direct_options o = {DIRECT_BSDF_FULL, 0, NULL, NULL, -1, st->dport, st->dport_lit};
         Lo = v3_add(Lo, direct_light_surface_guided(s, scene_material(s, &y), &y, ny, v3_neg(din), g, &o,
                                                     st->plan.guide));
     }

@@ -411,6 +411,9 @@ static void port_direct_decide(mapper_state *st, const scene *s, char *why, size
 static int camera_side_decisions(mapper_state *st, const scene *s, char *err, size_t errcap) {
     int rc;
     double t0;
+    /* first: the gather guide's probes read the direct light as the passes will (pm__gg_read) */
+    char dwhy[400];
+    port_direct_decide(st, s, dwhy, sizeof dwhy);
     t0 = stats_now();
     {
         const char *why = !st->plan.final_gather.on || st->direct_vis ? "no final gather"
@@ -426,8 +429,6 @@ static int camera_side_decisions(mapper_state *st, const scene *s, char *err, si
     }
     stats_time_add("Time/Gather guide pilot", stats_now() - t0);
     printf("  gather guide: %s\n", st->gg.reason);
-    char dwhy[400];
-    port_direct_decide(st, s, dwhy, sizeof dwhy);
     printf("  direct light through the port: %s\n", dwhy);
     t0 = stats_now();
     if ((rc = sample_decide(st, s, err, errcap)) < 0) return rc;
