@@ -35,7 +35,13 @@
 # median (of an even count, the mean of the middle two) and the best; and the ratio of the
 # means, the same from the seeds' mean corrected MSE and mean CPU-s. A seed with a run below the
 # reference's noise or without CPU time, or without a run of either mode, has no ratio (two
-# runs of one mode and seed are an error).
+# runs of one mode and seed are an error). LOWER BOUNDS: a photon-mapping run whose corrected
+# MSE is under the reference's noise (a difference of two close figures) counts with its whole
+# MSE instead, which includes that noise and so can only overstate its error: its seed's ratio
+# is a lower bound ("at least"), and so is every figure it can lower (the worst when it is that
+# seed's, the median when a bound lies at or below it, the best and the ratio of the means when
+# there is one). A bound of 10x or more meets the target; one under 10x leaves it not judged.
+# At a sample count the same LOWER BOUNDS hold, run by run (below).
 # "10x met" judges the worst: a sample count or the budget meets the target only when every
 # seed's ratio is 10 or more (at a sample count, every photon-mapping run's), whatever the mean
 # says; when a seed has no ratio and the others meet it, it is "not judged".
@@ -156,10 +162,11 @@ for s in $scenes; do
           pe = ""; pt = ""; r = ""
           if (mode[i] == "pm") {
             pe = sprintf("%.4g", c * k / cpu[i])
-            if (e > 0) { pt = sprintf("%.3g", k * c / e); r = sprintf("%.2fx", k * c / e / cpu[i]) }
-            if (e > 0 && (!(spp[i] in worst) || k * c / e / cpu[i] < worst[spp[i]])) worst[spp[i]] = k * c / e / cpu[i]
-            if (e > 0 && (!(spp[i] in best) || k * c / e / cpu[i] > best[spp[i]])) best[spp[i]] = k * c / e / cpu[i]
-            if (e > 0) { se[spp[i]] += e; sc[spp[i]] += cpu[i]; sn[spp[i]]++ }
+            u = e < noise ? mse[i] : e; b = u != e; al = b ? "at least " : "" # LOWER BOUNDS
+            if (u > 0) { pt = sprintf("%s%.3g", al, k * c / u); r = sprintf("%s%.2fx", al, k * c / u / cpu[i]) }
+            if (u > 0 && (!(spp[i] in worst) || k * c / u / cpu[i] < worst[spp[i]])) { worst[spp[i]] = k * c / u / cpu[i]; wb[spp[i]] = b }
+            if (u > 0 && (!(spp[i] in best) || k * c / u / cpu[i] > best[spp[i]])) best[spp[i]] = k * c / u / cpu[i]
+            if (u > 0) { se[spp[i]] += u; sc[spp[i]] += cpu[i]; sn[spp[i]]++; if (b) mb[spp[i]] = 1 }
             else below[spp[i]]++
             if (!(spp[i] in seen)) { seen[spp[i]] = 1; order[++no] = spp[i] }
           }
@@ -170,11 +177,11 @@ for s in $scenes; do
         q = order[j]
         if (sn[q] > 0) {
           ratio = k * c / (se[q] / sn[q]) / (sc[q] / sn[q])
-          printf " %d spp, %.3g CPU-s, ratio %.2fx (the worst run %.2fx)%s", q, sc[q] / sn[q], ratio, worst[q], j < no ? ";" : "."
-          printf "%s %d %.6g %.6g %.6g %d %.6g\n", s, q, ratio, sc[q] / sn[q], worst[q], below[q], best[q] >> sf
+          printf " %d spp, %.3g CPU-s, ratio %s%.2fx (the worst run %s%.2fx)%s", q, sc[q] / sn[q], mb[q] ? "at least " : "", ratio, wb[q] ? "at least " : "", worst[q], j < no ? ";" : "."
+          printf "%s %d %.6g %.6g %.6g %d %.6g %d %d\n", s, q, ratio, sc[q] / sn[q], worst[q], below[q], best[q], wb[q], mb[q] >> sf
         } else {
           printf " %d spp: every run below the reference'"'"'s noise%s", q, j < no ? ";" : "."
-          printf "%s %d NA 0 NA %d NA\n", s, q, below[q] >> sf
+          printf "%s %d NA 0 NA %d NA 0 0\n", s, q, below[q] >> sf
         }
       }
       printf "\n"
@@ -194,11 +201,13 @@ for s in $scenes; do
         e = mse[i] - noise
         ce = e > 0 ? sprintf("%.4g", e) : "< ref"
         printf "| %s | %d | %d | %d | %.2f | %.2f | %.4g | %s |\n", mode[i], seed[i], passes[i], pspp[i], cpu[i], wall[i], mse[i], ce
-        if (e > 0) { se[mode[i]] += e; sc[mode[i]] += cpu[i]; sn[mode[i]]++ } else low[mode[i]]++
+        # LOWER BOUNDS: a photon-mapping run under the noise of the reference counts with its whole MSE
+        u = mode[i] == "pm" && e < noise ? mse[i] : e
+        if (u > 0) { se[mode[i]] += u; sc[mode[i]] += cpu[i]; sn[mode[i]]++; if (u != e) rmb = 1 } else low[mode[i]]++
         q = seed[i] + 0
         if (!(q in has)) { has[q] = 1; sd[++ns] = q }
         if (got[mode[i], q]) { printf "gen-hard-scenes-md: budget.csv has two %s runs of %s, seed %d\n", mode[i], s, q > "/dev/stderr"; exit 2 }
-        E[mode[i], q] = e; C[mode[i], q] = cpu[i]; got[mode[i], q] = 1
+        E[mode[i], q] = e; M[mode[i], q] = mse[i]; C[mode[i], q] = cpu[i]; got[mode[i], q] = 1
       }
       for (i = 2; i <= ns; i++) for (j = i; j > 1 && sd[j] < sd[j - 1]; j--) { t = sd[j]; sd[j] = sd[j - 1]; sd[j - 1] = t }
       rm = "NA"
@@ -210,31 +219,42 @@ for s in $scenes; do
       for (j = 1; j <= ns; j++) {
         q = sd[j]
         if (!got["pm", q] || !got["path", q]) why = got["pm", q] ? "no path-traced run" : "no photon-mapping run"
-        else if (E["pm", q] <= 0 || E["path", q] <= 0) why = "a run below the reference'"'"'s noise"
+        else if (M["pm", q] <= 0 || E["path", q] <= 0) why = "a run below the reference'"'"'s noise"
         else if (C["pm", q] <= 0 || C["path", q] <= 0) why = "a run without CPU time"
         else why = ""
         if (why != "") { printf "| %d | %s | | no ratio |\n", q, why; nm++; miss = miss (miss == "" ? "" : ", ") q; continue }
-        mr = E["path", q] / E["pm", q]; cr = C["path", q] / C["pm", q]
-        printf "| %d | %.2f | %.2f | %.2fx |\n", q, mr, cr, mr * cr
-        rv[++nr] = mr * cr; rs[nr] = q; if (mr * cr < 10) below++
+        b = E["pm", q] < noise
+        mr = E["path", q] / (b ? M["pm", q] : E["pm", q]); cr = C["path", q] / C["pm", q]
+        al = b ? "at least " : ""
+        printf "| %d | %s%.2f | %.2f | %s%.2fx |\n", q, al, mr, cr, al, mr * cr
+        rv[++nr] = mr * cr; rs[nr] = q; lb[nr] = b; nb += b
+        if (mr * cr < 10) { if (b) lowb++; else below++ }
       }
       for (i = 2; i <= nr; i++)
-        for (j = i; j > 1 && rv[j] < rv[j - 1]; j--) { t = rv[j]; rv[j] = rv[j - 1]; rv[j - 1] = t; t = rs[j]; rs[j] = rs[j - 1]; rs[j - 1] = t }
+        for (j = i; j > 1 && rv[j] < rv[j - 1]; j--) {
+          t = rv[j]; rv[j] = rv[j - 1]; rv[j - 1] = t; t = rs[j]; rs[j] = rs[j - 1]; rs[j - 1] = t
+          t = lb[j]; lb[j] = lb[j - 1]; lb[j - 1] = t
+        }
       printf "\n"
       if (nr == 0) {
         printf "No seed has a ratio (seed%s %s): the 10x target is not judged at this budget.\n\n", nm == 1 ? "" : "s", miss
-        printf "%s %s %d 0 NA 0 NA NA 0 %s %d\n", s, T, ns, rm, nm >> sf
+        printf "%s %s %d 0 NA 0 NA NA 0 %s %d 0 0 0 0\n", s, T, ns, rm, nm >> sf
         exit
       }
       med = nr % 2 ? rv[(nr + 1) / 2] : (rv[nr / 2] + rv[nr / 2 + 1]) / 2
-      printf "Over the %d seed%s with a ratio: the worst, seed %d, %.2fx; the median %.2fx; the best, seed %d, %.2fx", nr, nr == 1 ? "" : "s", rs[1], rv[1], med, rs[nr], rv[nr]
-      if (rm != "NA") printf ". The ratio of the means: path tracing'"'"'s mean corrected MSE %.4g in %.3g CPU-s, photon mapping'"'"'s %.4g in %.3g CPU-s, %.2fx", se["path"] / sn["path"], sc["path"] / sn["path"], se["pm"] / sn["pm"], sc["pm"] / sn["pm"], rm
+      # LOWER BOUNDS: an order statistic is a bound when a bound lies at or below it (the best: any)
+      lbw = lb[1]; lbm = 0; lbb = nb > 0; lbr = rm != "NA" && rmb
+      for (j = 1; j <= nr; j++) if (lb[j] && rv[j] <= med) lbm = 1
+      if (nb) printf "%d seed%s ratio%s a lower bound (\"at least\"): photon mapping'"'"'s corrected MSE is under the reference'"'"'s own noise (%.3g), a difference of two close figures, so its whole MSE is used instead, which can only overstate its error.\n\n", nb, nb == 1 ? "'"'"'s" : "s'"'"'", nb == 1 ? " is" : "s are", noise
+      printf "Over the %d seed%s with a ratio: the worst, seed %d, %s%.2fx; the median %s%.2fx; the best, seed %d, %s%.2fx", nr, nr == 1 ? "" : "s", rs[1], lbw ? "at least " : "", rv[1], lbm ? "at least " : "", med, rs[nr], lbb ? "at least " : "", rv[nr]
+      if (rm != "NA") printf ". The ratio of the means: path tracing'"'"'s mean corrected MSE %.4g in %.3g CPU-s, photon mapping'"'"'s %.4g%s in %.3g CPU-s, %s%.2fx", se["path"] / sn["path"], sc["path"] / sn["path"], se["pm"] / sn["pm"], lbr ? " (with the whole MSE of the seeds under the noise)" : "", sc["pm"] / sn["pm"], lbr ? "at least " : "", rm
       else printf ". No ratio of the means (a run below the reference'"'"'s noise, or no CPU time)"
       if (below) printf ". %d of the %d seeds below 10x: the 10x target is not met at this budget (the worst seed decides%s).\n", below, nr, (rm != "NA" && rm >= 10) ? sprintf(", though the ratio of the means, %.2fx, is above it", rm) : ""
+      else if (lowb) printf ". %d of the %d seeds ha%s a lower bound under 10x: the 10x target is not judged at this budget.\n", lowb, nr, lowb == 1 ? "s" : "ve"
       else if (nm) printf ". Every seed with a ratio is at 10x or more, but seed%s %s ha%s none: the 10x target is not judged at this budget.\n", nm == 1 ? "" : "s", miss, nm == 1 ? "s" : "ve"
-      else printf ". Every seed at 10x or more: the 10x target is met at this budget, on these seeds.\n"
+      else printf ". Every seed at 10x or more%s: the 10x target is met at this budget, on these seeds.\n", nb ? " (by a lower bound where the seed has one)" : ""
       printf "\n"
-      printf "%s %s %d %d %.6g %d %.6g %.6g %d %s %d\n", s, T, ns, nr, rv[1], rs[1], med, rv[nr], rs[nr], rm == "NA" ? "NA" : sprintf("%.6g", rm), nm >> sf
+      printf "%s %s %d %d %.6g %d %.6g %.6g %d %s %d %d %d %d %d\n", s, T, ns, nr, rv[1], rs[1], med, rv[nr], rs[nr], rm == "NA" ? "NA" : sprintf("%.6g", rm), nm, lbw, lbm, lbb, lbr >> sf
     }' "$dir/runs.csv" "$budget_csv"
 done
 echo "## Against the target"
@@ -246,9 +266,9 @@ echo "|---|---:|---:|---:|---:|---:|---:|---|"
 for s in $scenes; do
   awk -v s="$s" -v nf="$notes" '
     FNR == 1 { file++ }
-    file == 1 && $1 == s { n++; q[n] = $2; r[n] = $3; w[n] = $5; lo[n] = $6; hi[n] = $7 }
-    file == 2 && $1 == s { hb = 1; T = $2; nr = $4; bw = $5; bws = $6; bm = $7; bb = $8; bbs = $9; bmeans = $10; bmiss = $11 }
-    function cell(i) { return i > n ? "-" : r[i] == "NA" ? "n/a" : sprintf("%.2fx (%d spp), worst %.2fx", r[i], q[i], w[i]) }
+    file == 1 && $1 == s { n++; q[n] = $2; r[n] = $3; w[n] = $5; lo[n] = $6; hi[n] = $7; fw[n] = $8 ? "at least " : ""; fr[n] = $9 ? "at least " : "" }
+    file == 2 && $1 == s { hb = 1; T = $2; nr = $4; bw = $5; bws = $6; bm = $7; bb = $8; bbs = $9; bmeans = $10; bmiss = $11; lw = $12 ? "at least " : ""; lm = $13 ? "at least " : ""; lbst = $14 ? "at least " : ""; lr = $15 ? "at least " : "" }
+    function cell(i) { return i > n ? "-" : r[i] == "NA" ? "n/a" : sprintf("%s%.2fx (%d spp), worst %s%.2fx", fr[i], r[i], q[i], fw[i], w[i]) }
     function add(l, x) { return l (l == "" ? "" : ", ") x }
     function r2(x) { return sprintf("%.2f", x) + 0 }
     function outside(m, lo, hi) { return r2(m) < r2(lo) || r2(m) > r2(hi) }
@@ -260,10 +280,12 @@ for s in $scenes; do
         printf "%s at %s s (%.2fx; its seeds %.2fx to %.2fx)\n", s, T, bmeans, bw, bb >> nf
       met = ""; unj = ""
       for (i = 1; i <= n; i++) if (r[i] != "NA" && w[i] >= 10) { if (lo[i]) unj = add(unj, "at " q[i] " spp"); else met = add(met, "at " q[i] " spp") }
+        else if (r[i] != "NA" && fw[i] != "") unj = add(unj, "at " q[i] " spp")
       if (hb && nr > 0 && bw >= 10) { if (bmiss) unj = add(unj, "at " T " s"); else met = add(met, "at " T " s") }
+      else if (hb && nr > 0 && lw != "") unj = add(unj, "at " T " s")
       v = met == "" ? "" : "yes, " met
       if (unj != "") v = v (v == "" ? "" : "; ") "not judged " unj
-      if (hb && nr > 0) b = sprintf("%.2fx (seed %d) | %.2fx | %.2fx (seed %d) | %s", bw, bws, bm, bb, bbs, bmeans == "NA" ? "n/a" : sprintf("%.2fx", bmeans))
+      if (hb && nr > 0) b = sprintf("%s%.2fx (seed %d) | %s%.2fx | %s%.2fx (seed %d) | %s", lw, bw, bws, lm, bm, lbst, bb, bbs, bmeans == "NA" ? "n/a" : sprintf("%s%.2fx", lr, bmeans))
       else b = hb ? "n/a | n/a | n/a | n/a" : "- | - | - | -"
       printf "| %s | %s | %s | %s | %s |\n", s, cell(1), cell(2), b, v == "" ? "no" : v
     }' "$summary" "$bsummary"
@@ -281,8 +303,8 @@ if [ -s "$bsummary" ]; then
   echo
   awk -v seeds="$(seeds_in "$budget_csv")" '
     { T = $2; nsc++ }
-    $4 == 0 || ($11 > 0 && $5 >= 10) { unj = unj (unj == "" ? "" : ", ") $1; next }
-    $5 >= 10 { nmet++; met = met (met == "" ? "" : ", ") sprintf("%s (worst seed %.2fx)", $1, $5); next }
+    $4 == 0 || ($11 > 0 && $5 >= 10) || ($12 && $5 < 10) { unj = unj (unj == "" ? "" : ", ") $1; next }
+    $5 >= 10 { nmet++; met = met (met == "" ? "" : ", ") sprintf("%s (worst seed %s%.2fx)", $1, $12 ? "at least " : "", $5); next }
     { not = not (not == "" ? "" : ", ") sprintf("%s (%.2fx, seed %d)", $1, $5, $6) }
     END {
       printf "\"10x met\" judges the worst seed: a sample count or the budget meets the target only where every"

@@ -53,25 +53,26 @@ TEST(docs_readme_hard_scenes_block_is_generated) {
  * at 1000 spp in 1 CPU-s with MSE 1e-4 (c = 0.1, k = 0.001 CPU-s per spp, so k c = 1e-4),
  * photon mapping at 100 spp in 1 CPU-s with MSE 4e-6 (seed 1: 25x) and PM2 (seed 2). At the
  * budget of 10 s, seeds 1 to 3, both modes 10 CPU-s, path tracing's MSE 1e-3 for each seed,
- * photon mapping's 5e-5, B2 and 4e-5 (seeds 1, 2, 3: ratios 20x, 1e-3 / B2 and 25x). */
-static int write_synth(const char *dir, double pm2, double b2) {
+ * photon mapping's 5e-5, B2 and 4e-5 (seeds 1, 2, 3: ratios 20x, 1e-3 / B2 and 25x).
+ * write_synth_ref: the same with a reference of nref spp. */
+static int write_synth_ref(const char *dir, double pm2, double b2, double nref) {
     char path[4096];
     FILE *f;
     snprintf(path, sizeof path, "%s/runs.csv", dir);
     if (!(f = fopen(path, "w"))) return -1;
     fprintf(f, "scene,mode,width,spp,seed,cpu_s,wall_s,mse,ref_spp\n");
-    fprintf(f, "synth,pm,4,100,1,1.00,1.00,4e-06,1000000000000\n");
-    fprintf(f, "synth,path,4,1000,1,1.00,1.00,0.0001,1000000000000\n");
-    fprintf(f, "synth,pm,4,100,2,1.00,1.00,%g,1000000000000\n", pm2);
-    fprintf(f, "synth,path,4,1000,2,1.00,1.00,0.0001,1000000000000\n");
+    fprintf(f, "synth,pm,4,100,1,1.00,1.00,4e-06,%g\n", nref);
+    fprintf(f, "synth,path,4,1000,1,1.00,1.00,0.0001,%g\n", nref);
+    fprintf(f, "synth,pm,4,100,2,1.00,1.00,%g,%g\n", pm2, nref);
+    fprintf(f, "synth,path,4,1000,2,1.00,1.00,0.0001,%g\n", nref);
     fclose(f);
     snprintf(path, sizeof path, "%s/budget.csv", dir);
     if (!(f = fopen(path, "w"))) return -1;
     fprintf(f, "scene,mode,width,budget_s,seed,passes,pass_spp,cpu_s,wall_s,mse,ref_spp\n");
     const double pm[3] = {5e-5, b2, 4e-5};
     for (int s = 0; s < 3; s++) {
-        fprintf(f, "synth,pm,4,10,%d,10,256,10.00,10.00,%g,1000000000000\n", s + 1, pm[s]);
-        fprintf(f, "synth,path,4,10,%d,90,256,10.00,10.00,0.001,1000000000000\n", s + 1);
+        fprintf(f, "synth,pm,4,10,%d,10,256,10.00,10.00,%g,%g\n", s + 1, pm[s], nref);
+        fprintf(f, "synth,path,4,10,%d,90,256,10.00,10.00,0.001,%g\n", s + 1, nref);
     }
     fclose(f);
     snprintf(path, sizeof path, "%s/measurement.txt", dir);
@@ -81,6 +82,8 @@ static int write_synth(const char *dir, double pm2, double b2) {
     fclose(f);
     return 0;
 }
+
+static int write_synth(const char *dir, double pm2, double b2) { return write_synth_ref(dir, pm2, b2, 1e12); }
 
 /* Oracle: the synthetic files of write_synth, whose ratios are known by construction.
  * 1. Budget seed 2 at 2e-4 (5x) and fixed seed 2 at 1.25e-5 (8x): at the budget the worst is
@@ -92,7 +95,15 @@ static int write_synth(const char *dir, double pm2, double b2) {
  *    so met at 100 spp (mean 1e-4 / 4.5e-6 = 22.22x) and at 10 s (the means 1e-3 / (1.7e-4 / 3)
  *    = 17.65x).
  * 3. Budget seed 2 at 0 (below the reference's noise: no ratio), the others at 20x and 25x: not
- *    judged at the budget. */
+ *    judged at the budget.
+ * 4. LOWER BOUNDS: a reference of 1e4 spp, so c = 1e-4 / (1/1000 + 1/1e4) = 0.0909 and the
+ *    reference's noise c / N_ref = 9.09e-6; path tracing's corrected MSE at the budget 9.909e-4.
+ *    Seed 1 at 5e-5 (corrected 4.091e-5: 24.22x), seed 3 at 4e-5 (3.091e-5: 32.06x), seed 2 at
+ *    1.2e-5 (corrected 2.9e-6, under the noise): at least 9.909e-4 / 1.2e-5 = 82.58x. The worst
+ *    and the median are exact (the bound lies above them), the best and the ratio of the means,
+ *    9.909e-4 / ((4.091e-5 + 1.2e-5 + 3.091e-5) / 3) = 35.47x, are bounds; met. At 100 spp
+ *    (k c = 9.091e-5) seed 1's 4e-6 is under the noise: at least 22.73x; seed 2's 5e-5, corrected
+ *    4.091e-5, 2.22x, the worst; the mean at least 9.091e-5 / ((4e-6 + 4.091e-5) / 2) = 4.05x. */
 TEST(docs_hard_scenes_budget_judges_the_worst_seed) {
     char cmd[8192], out[65536];
     const char *t = pm_test_tmpdir(), *src = pm_test_source_dir();
@@ -131,4 +142,18 @@ TEST(docs_hard_scenes_budget_judges_the_worst_seed) {
                                "n/a | yes, at 100 spp; not judged at 10 s |") &&
                    strstr(out, "but seed 2 has none: the 10x target is not judged at this budget."),
                "a seed without a ratio:\n%s", out);
+
+    ASSERT_EQ_INT(write_synth_ref(t, 5e-5, 1.2e-5, 1e4), 0);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "| 2 | at least 82.58 | 1.00 | at least 82.58x |") &&
+                   strstr(out, "| 1 | 24.22 | 1.00 | 24.22x |") && strstr(out, "| 3 | 32.06 | 1.00 | 32.06x |"),
+               "the seeds' ratios, seed 2's a bound:\n%s", out);
+    EXPECT_MSG(strstr(out, "1 seed's ratio is a lower bound (\"at least\")") &&
+                   strstr(out, "the worst, seed 1, 24.22x; the median 32.06x; the best, seed 2, at least 82.58x.") &&
+                   strstr(out, ", at least 35.47x. Every seed at 10x or more (by a lower bound where the seed has "
+                               "one): the 10x target is met"),
+               "the budget's sentence with a bound:\n%s", out);
+    EXPECT_MSG(strstr(out, "| synth | at least 4.05x (100 spp), worst 2.22x | - | 24.22x (seed 1) | 32.06x | at least 82.58x "
+                           "(seed 2) | at least 35.47x | yes, at 10 s |"),
+               "the target row with a bound:\n%s", out);
 }
