@@ -15,7 +15,6 @@
 #include "photonmap/common.h"
 #include "base/rng.h"
 #include "base/stats.h"
-#include "run/focus.h"
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -34,7 +33,7 @@ static void rec_free(lk_rec *r) {
 }
 
 /* Trace the camera samples smp[idx[0..n)] on the job's threads, each from its start, exactly as
- * renderer.c's render_tile traces sample k of a pixel (its random stream, jitter, camera ray).
+ * renderer.c's render_tile traces sample k of a pixel (render_camera_sample: its stream, jitter and ray).
  * A trace that made a query not answered before (rec->fresh) ran on guesses: the counters it
  * added on its thread are taken off and kept in rec->counted, to be added back if every guess
  * turns out to be the answer (its radiance is then the sample's), so the statistics count
@@ -62,13 +61,10 @@ static void trace_samples(const scene *s, const integrator *it, const render_job
             }
             memcpy(snap, cnt, sizeof snap);
             int x = (int)(sm->pixel % (uint64_t)c->width), y = (int)(sm->pixel / (uint64_t)c->width);
-            rng g = rng_stream(job->seed, sm->pixel, (uint64_t)sm->k);
-            double jx = rng_uniform(&g), jy = rng_uniform(&g);
-            int ks = sm->k % c->spp; /* its stratum (renderer.h, render_job.mult) */
-            double px, py, fw = focus_film_point(job->focus, x, y, ((ks % strata) + jx) / strata,
-                                                 ((ks / strata) + jy) / strata, &px, &py);
-            ray r = camera_ray(c, px, py);
-            sample_id id = {sm->pixel, job->seed, ks, c->spp, strata, fw != 1};
+            rng g;
+            ray r;
+            sample_id id;
+            double fw = render_camera_sample(job, c, x, y, (uint32_t)sm->k, strata, &g, &r, &id);
             lk_tl_smp = sm;
             rgb Li = it->li(it, s, r, &g, &id, scratch);
             if (fw != 1) Li = v3_scale(Li, fw);

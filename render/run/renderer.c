@@ -94,6 +94,18 @@ static int should_stop(loop *L) {
     return stop;
 }
 
+double render_camera_sample(const render_job *job, const camera *c, int x, int y, uint32_t k, int n, rng *g, ray *r,
+                            sample_id *id) {
+    uint64_t pixel = (uint64_t)y * (uint64_t)c->width + (uint64_t)x;
+    int ks = (int)(k % (uint32_t)c->spp); /* its stratum */
+    *g = rng_stream(job->seed, pixel, (uint64_t)k);
+    double jx = rng_uniform(g), jy = rng_uniform(g);
+    double px, py, fw = focus_film_point(job->focus, x, y, ((ks % n) + jx) / n, ((ks / n) + jy) / n, &px, &py);
+    *r = camera_ray(c, px, py);
+    *id = (sample_id){pixel, job->seed, ks, c->spp, n, fw != 1}; /* fw is never 1 when focused */
+    return fw;
+}
+
 /* Samples of one tile, one sample index at a time, until it is done or the loop stops. */
 static void render_tile(loop *L, int tile, void *scratch) {
     const camera *c = &L->s->cam;
@@ -112,18 +124,15 @@ static void render_tile(loop *L, int tile, void *scratch) {
         }
     for (uint32_t k = kmin; k < kmax; k++) {
         uint64_t bad = 0, did = 0;
-        int ks = (int)(k % (uint32_t)c->spp); /* its stratum (renderer.h, render_job.mult) */
         for (int y = y0; y < y1; y++) {
             for (int x = x0; x < x1; x++) {
                 uint64_t pixel = (uint64_t)y * (uint64_t)c->width + (uint64_t)x;
                 if (st->count[pixel] > k) continue; /* done before a resume */
                 if (k >= render_pixel_spp(L->job, c->spp, pixel)) continue;
-                rng g = rng_stream(L->job->seed, pixel, (uint64_t)k);
-                double jx = rng_uniform(&g), jy = rng_uniform(&g);
-                double px, py, fw = focus_film_point(L->job->focus, x, y, ((ks % n) + jx) / n,
-                                                     ((ks / n) + jy) / n, &px, &py);
-                ray r = camera_ray(c, px, py);
-                sample_id id = {pixel, L->job->seed, ks, c->spp, n, fw != 1}; /* never 1 when focused */
+                rng g;
+                ray r;
+                sample_id id;
+                double fw = render_camera_sample(L->job, c, x, y, k, n, &g, &r, &id);
                 rgb Li = L->it->li(L->it, L->s, r, &g, &id, scratch);
                 if (fw != 1) Li = v3_scale(Li, fw);
                 double *sum = st->sum + 3 * pixel;

@@ -84,6 +84,13 @@ static inline uint64_t render_image_spp(const render_job *job, int spp, int widt
     return total;
 }
 
+/* Camera sample k of pixel (x, y) in job, n x n strata (sample k lies in stratum k mod spp,
+ * render_job.mult): its stream *g, past the film jitter, its ray *r and its id *id. Returns the
+ * weight its radiance is multiplied by: the camera's focus weight (run/focus.h), 1 unfocused.
+ * render_tile and render-mpi's tiles (mpi/lk_tiles.c) both take their samples here. */
+double render_camera_sample(const render_job *job, const camera *c, int x, int y, uint32_t k, int n, rng *g, ray *r,
+                            sample_id *id);
+
 /* What a checkpointed or snapshotted render adds to the job (zero it, then set fields). */
 typedef struct render_control {
     render_state *state; /* NULL: a private, empty one; else continue from it and keep it */
