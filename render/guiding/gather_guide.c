@@ -133,6 +133,33 @@ static gg_probe gg_probe_at(const gather_guide_probe *probe, const scene *s, con
     return pr;
 }
 
+/* Point j's probed light: the sum of its G2 probes' values v. */
+static double gg_point_light(const double *v, size_t j, size_t G2) {
+    double t = 0;
+    for (size_t i = 0; i < G2; i++) t += v[j * G2 + i];
+    return t;
+}
+
+/* The bright rays (gather_guide.h, DECISION): the probes that read the map and carry over 1/GG_OUTLIER
+ * of their point's light. From {pr, v, nj, G2}: the next one (its point in j), NULL at the end. */
+typedef struct gg_bright {
+    const gg_probe *pr;
+    const double *v;
+    size_t nj, G2, j, i; /* i: the next probe of point j to look at */
+    double t;            /* point j's probed light */
+} gg_bright;
+
+static const gg_probe *gg_bright_next(gg_bright *b) {
+    for (; b->j < b->nj; b->j++, b->i = 0) {
+        if (b->i == 0) b->t = gg_point_light(b->v, b->j, b->G2);
+        while (b->i < b->G2 && b->t > 0) {
+            const gg_probe *p = &b->pr[b->j * b->G2 + b->i++];
+            if (p->found && p->base > b->t / GG_OUTLIER) return p;
+        }
+    }
+    return NULL;
+}
+
 /* The point nearest the n lines (x[i], unit d[i]) (least squares) into *c; 0 if they are
  * (nearly) parallel. *rms: the lines' RMS distance from it. use[i] = 0 leaves line i out. */
 static int gg_nearest_point(const vec3 *x, const vec3 *d, const unsigned char *use, size_t n, vec3 *c, double *rms) {
@@ -178,28 +205,20 @@ static int gg_nearest_point(const vec3 *x, const vec3 *d, const unsigned char *u
 static int gg_find_opening(const guide_point *pts, const size_t *jp, size_t nj, const gg_probe *pr, const double *v,
                            size_t G2, size_t *nline, double *all, double *bright, vec3 *c, double *rms, vec3 *lit) {
     size_t cap = (nj ? nj : 1) * 8, n = 0;
-    vec3 *lx = calloc(cap, sizeof *lx), *ld = calloc(cap, sizeof *ld);
-    unsigned char *use = calloc(cap, 1);
-    if (!lx || !ld || !use) {
+    vec3 *lx = calloc(2 * cap, sizeof *lx), *ld = lx ? lx + cap : NULL; /* the lines: points, directions */
+    unsigned char *use = lx ? calloc(cap, 1) : NULL;
+    if (!use) {
         free(lx);
-        free(ld);
-        free(use);
         return PM_ENOMEM;
     }
     *all = *bright = 0;
-    for (size_t j = 0; j < nj; j++) {
-        double t = 0;
-        for (size_t i = 0; i < G2; i++) t += v[j * G2 + i];
-        *all += t;
-        for (size_t i = 0; i < G2 && t > 0; i++) {
-            const gg_probe *p = &pr[j * G2 + i];
-            if (!p->found || !(p->base > t / GG_OUTLIER) || n >= cap) continue;
-            vec3 x = pts[jp[j]].h.p;
-            lx[n] = x;
-            ld[n] = v3_norm(v3_sub(v3(p->y[0], p->y[1], p->y[2]), x));
-            use[n++] = 1;
-            *bright += p->base;
-        }
+    for (size_t j = 0; j < nj; j++) *all += gg_point_light(v, j, G2);
+    gg_bright b = {.pr = pr, .v = v, .nj = nj, .G2 = G2};
+    for (const gg_probe *p; n < cap && (p = gg_bright_next(&b));) {
+        vec3 x = lx[n] = pts[jp[b.j]].h.p;
+        ld[n] = v3_norm(v3_sub(v3(p->y[0], p->y[1], p->y[2]), x));
+        use[n++] = 1;
+        *bright += p->base;
     }
     int fit = gg_nearest_point(lx, ld, use, n, c, rms);
     if (fit) { /* again without the lines far from the first fit (another source of bright rays) */
@@ -217,7 +236,6 @@ static int gg_find_opening(const guide_point *pts, const size_t *jp, size_t nj, 
     *lit = v3_len2(sum) > 0 ? v3_norm(sum) : v3s(0);
     *nline = n;
     free(lx);
-    free(ld);
     free(use);
     return fit;
 }
@@ -236,19 +254,14 @@ static int gg_find_patch(const size_t nj, const gg_probe *pr, const double *v, s
         vec3 sum = v3s(0);
         double w = 0, s2 = 0;
         size_t m = 0;
-        for (size_t j = 0; j < nj; j++) {
-            double t = 0;
-            for (size_t i = 0; i < G2; i++) t += v[j * G2 + i];
-            for (size_t i = 0; i < G2 && t > 0; i++) {
-                const gg_probe *p = &pr[j * G2 + i];
-                if (!p->found || !(p->base > t / GG_OUTLIER)) continue;
-                vec3 y = v3(p->y[0], p->y[1], p->y[2]);
-                if (pass && v3_len2(v3_sub(y, *c)) > 9 * *rms * *rms) continue;
-                sum = v3_add(sum, v3_scale(y, p->base));
-                s2 += p->base * v3_len2(y);
-                w += p->base;
-                m++;
-            }
+        gg_bright b = {.pr = pr, .v = v, .nj = nj, .G2 = G2};
+        for (const gg_probe *p; (p = gg_bright_next(&b));) {
+            vec3 y = v3(p->y[0], p->y[1], p->y[2]);
+            if (pass && v3_len2(v3_sub(y, *c)) > 9 * *rms * *rms) continue;
+            sum = v3_add(sum, v3_scale(y, p->base));
+            s2 += p->base * v3_len2(y);
+            w += p->base;
+            m++;
         }
         if (!(w > 0) || m < GG_MIN_LINES) return 0;
         *c = v3_scale(sum, 1 / w);
@@ -265,18 +278,13 @@ static int gg_find_patch(const size_t nj, const gg_probe *pr, const double *v, s
 static double gg_patch_through(const port *pt, const guide_point *pts, const size_t *tp, size_t nj,
                                const gg_probe *pr, const double *v, size_t G2, vec3 c, double rms) {
     double w = 0, thru = 0;
-    for (size_t j = 0; j < nj; j++) {
-        double t = 0;
-        for (size_t i = 0; i < G2; i++) t += v[j * G2 + i];
-        for (size_t i = 0; i < G2 && t > 0; i++) {
-            const gg_probe *p = &pr[j * G2 + i];
-            if (!p->found || !(p->base > t / GG_OUTLIER)) continue;
-            vec3 y = v3(p->y[0], p->y[1], p->y[2]), x = pts[tp[j]].h.p, d = v3_sub(y, x);
-            if (v3_len2(v3_sub(y, c)) > 9 * rms * rms) continue;
-            double len = v3_len(d), tc, cp;
-            w += p->base;
-            if (len > 0 && port_cross(pt, x, v3_scale(d, 1 / len), &tc, &cp) && tc < len) thru += p->base;
-        }
+    gg_bright b = {.pr = pr, .v = v, .nj = nj, .G2 = G2};
+    for (const gg_probe *p; (p = gg_bright_next(&b));) {
+        vec3 y = v3(p->y[0], p->y[1], p->y[2]), x = pts[tp[b.j]].h.p, d = v3_sub(y, x);
+        if (v3_len2(v3_sub(y, c)) > 9 * rms * rms) continue;
+        double len = v3_len(d), tc, cp;
+        w += p->base;
+        if (len > 0 && port_cross(pt, x, v3_scale(d, 1 / len), &tc, &cp) && tc < len) thru += p->base;
     }
     return w > 0 ? thru / w : 0;
 }

@@ -411,7 +411,7 @@ static void port_direct_decide(mapper_state *st, const scene *s, char *why, size
 static int camera_side_decisions(mapper_state *st, const scene *s, char *err, size_t errcap) {
     int rc;
     double t0;
-    /* first: the gather guide's probes read the direct light as the passes will (pm__gg_read) */
+    /* decided first, printed after the gather guide's line */
     char dwhy[400];
     port_direct_decide(st, s, dwhy, sizeof dwhy);
     t0 = stats_now();
