@@ -300,7 +300,10 @@ bench-quick: $(BENCH_DEPS)
 # ---- results -------------------------------------------------------------------------------
 # Photon mapping against long path-traced references (data/reference/, not in git).
 # First photon mapping at its defaults against path tracing at equal CPU time (make-equal-time.sh;
-# 96x96 references of its scenes made in data/reference/et96/ when missing), then the
+# 96x96 references of its scenes made in data/reference/et96/ when missing: about 350, 330
+# and 670 CPU-s for cornell_box, cornell_spheres and water_caustic at 32768 spp, 1,340 for
+# volumetric_caustic at 16384; a quieter reference leaves fewer runs whose ratio is only a
+# lower bound, gen-equal-time-md.sh), then the
 # correctness and time-to-error sections at 128x128 (make-results.sh), the media section, every
 # shipped scene small (make-survey.sh, its 32x32 references made when missing) and the hard
 # scenes (make-hard-scenes.sh, docs/HARD_SCENES.md).
@@ -308,8 +311,8 @@ ET_SCENES ?= cornell_box cornell_spheres water_caustic volumetric_caustic
 results: $(RENDER_BIN)
 	@command -v gnuplot >/dev/null 2>&1 || sh scripts/install-deps.sh --bench
 	@for s in $(ET_SCENES); do [ -f data/reference/et96/$$s.pfm ] || \
-	    REF_RES=96 REF_OUT=data/reference/et96 REF_SPP_cornell_spheres=8192 REF_SPP_water_caustic=2048 \
-	    REF_SPP_cornell_box=8192 REF_SPP_volumetric_caustic=16384 \
+	    REF_RES=96 REF_OUT=data/reference/et96 REF_SPP_cornell_spheres=32768 REF_SPP_water_caustic=32768 \
+	    REF_SPP_cornell_box=32768 REF_SPP_volumetric_caustic=16384 \
 	    PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-reference.sh $$s || exit 1; done
 	ET_SCENES="$(ET_SCENES)" PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-equal-time.sh
 	PM_BUILD_DIR=$(abspath $(BUILD)) sh scripts/make-survey.sh

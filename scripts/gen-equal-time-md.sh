@@ -11,9 +11,11 @@
 #   c       the path tracer's variance constant, least squares of MSE = c (1/spp + 1/N_ref)
 #           over the path-traced runs (N_ref: the reference's spp);
 #   corrected RMSE = sqrt(MSE - c / N_ref) (the reference's own noise taken out; a run below
-#           that noise is shown as "< ref", and its ratio is a lower bound, ">= R": its
-#           uncorrected MSE is taken as its error, which can only overstate it, so path
-#           tracing's time for it can only be understated);
+#           that noise is shown as "< ref"). A run whose corrected MSE is under that noise (a
+#           small difference of two close figures; "< ref" included) has a lower bound for a
+#           ratio, ">= R": its uncorrected MSE is taken as its error, which can only overstate
+#           it, so path tracing's time for it can only be understated (the rule of
+#           gen-hard-scenes-md.sh, LOWER BOUNDS);
 #   path's time model: CPU = a + b spp, least squares over the path-traced runs (calibration
 #           runs included);
 #   for each pm run: path's spp for its corrected error, c / E^2, the CPU time the model gives
@@ -115,9 +117,10 @@ echo "a photon-mapping run's error comes from the fits (path's error and time ag
 echo "that time over the photon-mapping run's own: above 1, photon mapping reached the error sooner."
 echo "Where the reference's noise is most of a run's mean squared error (the share column), the corrected"
 echo "RMSE is a small difference of two larger figures, and c comes from a few path-traced runs: read"
-echo "those ratios as rough. A run whose mean squared error is below the reference's noise has no corrected"
-echo "RMSE (\"< ref\"); its ratio, written \">= R\", takes its uncorrected RMSE as its error, which can only"
-echo "overstate the error, so R is a lower bound (under the same fits of path tracing's error and time)."
+echo "those ratios as rough. A run whose corrected mean squared error is under the reference's noise (a"
+echo "share above 50%; \"< ref\": its whole mean squared error is) has its ratio written \">= R\": it takes"
+echo "its uncorrected RMSE as its error, which can only overstate the error, so R is a lower bound (under"
+echo "the same fits of path tracing's error and time)."
 if [ -n "$(m before)" ]; then
   echo "Rows \"pm, before\" are the same runs with the renderer of $(m before) (its defaults then)."
 fi
@@ -181,13 +184,14 @@ for s in $scenes; do
         for (i = 1; i <= n; i++) if (mode[i] == want) {
           e2 = rmse[i] ^ 2 - c / nref
           if (e2 > 0) { cr = sprintf("%.4g", sqrt(e2)) } else { cr = "< ref" }
-          pt = ""; r = ""
-          if (want == "pm" && !(e2 > 0) && rmse[i] > 0) {
-            # a lower bound: the uncorrected MSE overstates the error (see the header)
+          pt = ""; r = ""; exact = e2 > c / nref
+          if (want != "path" && !exact && rmse[i] > 0) {
+            # a lower bound: the corrected MSE is under the noise of the reference, and the
+            # uncorrected MSE overstates the error (see the header)
             t = a + b * (c / rmse[i] ^ 2); pt = sprintf(">= %.3g", t); r = sprintf(">= %.2fx", t / cpu[i])
-            printf "%s LB %.6g\n", s, t / cpu[i] >> rf
-          } else if (want == "pm" && !(e2 > 0)) printf "%s NA\n", s >> rf
-          if (want != "path" && e2 > 0) {
+            if (want == "pm") printf "%s LB %.6g\n", s, t / cpu[i] >> rf
+          } else if (want == "pm" && !exact) printf "%s NA\n", s >> rf
+          if (want != "path" && exact) {
             t = a + b * (c / e2); pt = sprintf("%.3g", t); r = sprintf("%.2fx", t / cpu[i])
             if (want == "pm") {
               if (t / cpu[i] < worst) worst = t / cpu[i]
@@ -238,8 +242,8 @@ for s in $scenes; do
     END { lbs = nl ? sprintf(", %d by a lower bound (>= %.2fx)", nl, lb) : ""
           if (miss) printf "| %s | %sx | %.2fx | %.2fx | %d | no |\n", s, t, lo, hi, na
           else if (n && !lbmiss && na == nl) printf "| %s | %sx | %.2fx | %.2fx | %d | yes%s |\n", s, t, lo, hi, na, lbs
-          else if (!n && nl && !lbmiss && na == nl) printf "| %s | %sx | >= %.2fx | - | %d | yes, every run by a lower bound (>= %.2fx): its error is below the reference'"'"'s noise |\n", s, t, lb, na, lb
-          else printf "| %s | %sx | %s | %s | %d | not measured: %d photon-mapping run%s an error below the reference'"'"'s own noise%s (a longer reference is needed) |\n", s, t, n ? sprintf("%.2fx", lo) : "-", n ? sprintf("%.2fx", hi) : "-", na, na, na == 1 ? " had" : "s had", lbmiss ? sprintf(", and its lower bound (>= %.2fx) is under the target", lb) : "" }' "$ratios"
+          else if (!n && nl && !lbmiss && na == nl) printf "| %s | %sx | >= %.2fx | - | %d | yes, every run by a lower bound (>= %.2fx): its corrected error is below the reference'"'"'s noise |\n", s, t, lb, na, lb
+          else printf "| %s | %sx | %s | %s | %d | not measured: %d photon-mapping run%s a corrected error below the reference'"'"'s own noise%s (a longer reference is needed) |\n", s, t, n ? sprintf("%.2fx", lo) : "-", n ? sprintf("%.2fx", hi) : "-", na, na, na == 1 ? " had" : "s had", lbmiss ? sprintf(", and its lower bound (>= %.2fx) is under the target", lb) : "" }' "$ratios"
 done
 echo
 echo "The targets are for 2 threads at the scenes' own size and budgets of 10 s and more; this"
