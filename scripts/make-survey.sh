@@ -9,14 +9,17 @@
 #
 # The references: SV_RES x SV_RES path-traced images in data/reference/sSV_RES/ (SV_REF_DIR),
 # made by scripts/make-reference.sh where one is missing or its scene file changed, each at
-# about SV_REF_CPU CPU-s (default 20): a 64-spp path run times the scene first, and the
+# about SV_REF_CPU CPU-s (default 60): a 64-spp path run times the scene first, and the
 # reference's spp is what SV_REF_CPU buys, at least 1024. --refs-only: make the missing
 # references and stop.
 #
 # What it shows: the small size and budgets weigh photon mapping's fixed costs (the plan's
 # pilots, the photon passes, precomputed irradiance) far more than a render at a scene's own
 # size does; read a ratio below 1 here as "not ahead at this size", not as the scene's verdict.
-# It takes about 15 minutes on 2 idle cores once the references exist (about 5 more to make them).
+# It takes about 15 minutes on 2 idle cores once the references exist (about 15 more to make them:
+# at 60 CPU-s a reference's noise is about an eighth of path tracing's error at the 8 CPU-s
+# budget, so a photon-mapping run up to about 7 times ahead there keeps a corrected error above
+# it and a ratio that is not only a lower bound, gen-equal-time-md.sh).
 #
 # The misses, larger: the scenes that did not meet their target at this size, or that it could
 # not measure (no run above the reference's noise; the verdict column of the targets' table,
@@ -36,7 +39,7 @@ here=$(cd "$(dirname "$0")/.." && pwd)
 bin="${PM_BUILD_DIR:-$here/build/release}/render"
 res="${SV_RES:-32}"
 refdir="${SV_REF_DIR:-$here/data/reference/s$res}"
-refcpu="${SV_REF_CPU:-20}"
+refcpu="${SV_REF_CPU:-60}"
 refs_only=0
 case "${1:-}" in
   -h|--help) awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; exit 0 ;;
