@@ -123,7 +123,8 @@ The default build and `make test` never compile `render/mpi/` and need no MPI.
   and Halton point, so every rank ends with exactly the maps of a one-process run (replicated
   mode). m grows with the batches still needed (at most 16) so rounds are few, and falls to
   1 near the end, so at most R - 1 batches are traced past the stopping point.
-- **Pixel pass.** Rank 0 keeps a queue of the 16x16 tiles. A worker asks for a chunk (one
+- **Pixel pass.** Rank 0 keeps a queue of the tiles (16x16; finer in an image of fewer than 16 such
+  tiles, renderer.h). A worker asks for a chunk (one
   tile per thread, fewer as the queue empties) and asks for the next one before it starts
   rendering, so it does not wait for rank 0; rank 0 renders chunks of its own in between.
   A tile's per-pixel sums are made in sample order on one rank, as in `render`, and rank 0

@@ -2,7 +2,8 @@
  *
  * Oracles: the furnace (radiance Le/(1-rho) everywhere), direct lighting of a Lambertian
  * plane by a point light, a square area light and a directional light (closed forms),
- * bit-identical films for 1 and 2 threads, and auto exposure against sorted luminances.
+ * bit-identical films for 1 and 2 threads, the tile grid's partition of the image, and auto
+ * exposure against sorted luminances.
  * Images are tiny so the suite stays fast.
  */
 #include <stdlib.h>
@@ -168,6 +169,42 @@ TEST(render_same_image_any_thread_count) {
      * could not fail; the other checks ran. */
     SKIP("built without OpenMP (OPENMP=0): 1 and 2 threads are the same program here");
 #endif
+}
+
+/* Oracle: the tile grid (renderer.h) partitions the image, every pixel in exactly one tile,
+ * for every size from 1 x 1 to 70 x 70 and a few large ones; images of at least
+ * RENDER_MIN_TILES tiles of RENDER_TILE keep that side, smaller ones are cut finer until they
+ * have that many tiles or a side of 2 (hand-counted cases below). Before, a 16 x 16 image was
+ * one tile, which one thread rendered while the other waited. */
+TEST(render_tile_grid_partitions_the_image) {
+    static unsigned char seen[70 * 70];
+    for (int w = 1; w <= 70; w++)
+        for (int h = 1; h <= 70; h++) {
+            render_grid g = render_grid_of(w, h);
+            ASSERT(g.side >= 2 && g.side <= RENDER_TILE);
+            ASSERT(g.side == RENDER_TILE || g.side == 2 || g.tiles_x * g.tiles_y >= RENDER_MIN_TILES);
+            memset(seen, 0, sizeof seen);
+            for (int t = 0; t < g.tiles_x * g.tiles_y; t++) {
+                int x0, y0, x1, y1;
+                render_grid_tile(&g, w, h, t, &x0, &y0, &x1, &y1);
+                ASSERT(x0 >= 0 && y0 >= 0 && x1 <= w && y1 <= h && x0 < x1 && y0 < y1);
+                ASSERT(x1 - x0 <= g.side && y1 - y0 <= g.side);
+                for (int y = y0; y < y1; y++)
+                    for (int x = x0; x < x1; x++) seen[y * w + x]++;
+            }
+            for (int i = 0; i < w * h; i++) ASSERT_EQ_INT(seen[i], 1);
+        }
+    struct { int w, h, side, tx, ty; } want[] = {
+        {16, 16, 4, 4, 4},  {8, 8, 2, 4, 4},      {32, 32, 8, 4, 4},     {64, 64, 16, 4, 4},
+        {96, 96, 16, 6, 6}, {128, 96, 16, 8, 6},  {1, 1, 2, 1, 1},       {40, 24, 4, 10, 6},
+        {2000, 10, 16, 125, 1}, {10, 2000, 16, 1, 125}, {3, 100, 4, 1, 25},
+    };
+    for (size_t i = 0; i < sizeof want / sizeof want[0]; i++) {
+        render_grid g = render_grid_of(want[i].w, want[i].h);
+        ASSERT_EQ_INT(g.side, want[i].side);
+        ASSERT_EQ_INT(g.tiles_x, want[i].tx);
+        ASSERT_EQ_INT(g.tiles_y, want[i].ty);
+    }
 }
 
 /* Oracle: a PFM written and read back is bit-identical; --compare of a file with itself

@@ -205,8 +205,8 @@ int lk_render_tiles(const scene *s, const integrator *it, const render_job *job,
     const camera *c = &s->cam;
     if (!lk.ready) return render_tiles(s, it, job, st, tiles, n); /* no photon maps to look up */
     if (st->width != c->width || st->height != c->height || st->spp != c->spp) return PM_EINVAL;
-    int tiles_x = (c->width + RENDER_TILE - 1) / RENDER_TILE;
-    int ntiles = tiles_x * ((c->height + RENDER_TILE - 1) / RENDER_TILE);
+    render_grid grid = render_grid_of(c->width, c->height);
+    int ntiles = grid.tiles_x * grid.tiles_y;
     for (int i = 0; i < n; i++)
         if (tiles[i] < 0 || tiles[i] >= ntiles) return PM_EINVAL;
     /* The samples still to do, tile by tile, pixel by pixel, in sample order, a block at a
@@ -220,9 +220,9 @@ int lk_render_tiles(const scene *s, const integrator *it, const render_job *job,
     for (;;) {
         size_t m = 0;
         while (m < LK_BLOCK && ti < n) {
-            int x0 = (tiles[ti] % tiles_x) * RENDER_TILE, y0 = (tiles[ti] / tiles_x) * RENDER_TILE;
-            int w = c->width - x0 < RENDER_TILE ? c->width - x0 : RENDER_TILE;
-            int h = c->height - y0 < RENDER_TILE ? c->height - y0 : RENDER_TILE;
+            int x0, y0, x1, y1;
+            render_grid_tile(&grid, c->width, c->height, tiles[ti], &x0, &y0, &x1, &y1);
+            int w = x1 - x0, h = y1 - y0;
             if (px >= w * h) {
                 ti++;
                 px = 0;

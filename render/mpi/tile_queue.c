@@ -42,12 +42,9 @@ typedef struct tile_box {
 } tile_box;
 
 static tile_box tile_of(const camera *c, int tile) {
-    int tx = (c->width + RENDER_TILE - 1) / RENDER_TILE;
+    render_grid g = render_grid_of(c->width, c->height);
     tile_box b;
-    b.x0 = (tile % tx) * RENDER_TILE;
-    b.y0 = (tile / tx) * RENDER_TILE;
-    b.x1 = b.x0 + RENDER_TILE < c->width ? b.x0 + RENDER_TILE : c->width;
-    b.y1 = b.y0 + RENDER_TILE < c->height ? b.y0 + RENDER_TILE : c->height;
+    render_grid_tile(&g, c->width, c->height, tile, &b.x0, &b.y0, &b.x1, &b.y1);
     return b;
 }
 
@@ -247,8 +244,8 @@ int tq_root(const scene *s, const integrator *it, const render_job *job, render_
     q.s = s;
     q.job = job;
     q.st = st;
-    int tx = (c->width + RENDER_TILE - 1) / RENDER_TILE;
-    q.ntiles = tx * ((c->height + RENDER_TILE - 1) / RENDER_TILE);
+    render_grid grid = render_grid_of(c->width, c->height);
+    q.ntiles = grid.tiles_x * grid.tiles_y;
     q.per_rank = dist_calloc((size_t)size, sizeof *q.per_rank, DIST_PH_PIXELS);
     q.todo = dist_malloc((size_t)q.ntiles * sizeof *q.todo, DIST_PH_PIXELS);
     int threads = job->threads > 0 ? job->threads : 1;

@@ -62,13 +62,31 @@ void render_state_to_film(const render_state *st, film *f) {
         }
 }
 
+render_grid render_grid_of(int width, int height) {
+    render_grid g = {RENDER_TILE, 0, 0};
+    for (;;) {
+        g.tiles_x = (width + g.side - 1) / g.side;
+        g.tiles_y = (height + g.side - 1) / g.side;
+        if (g.side <= 2 || (int64_t)g.tiles_x * g.tiles_y >= RENDER_MIN_TILES) return g;
+        g.side /= 2;
+    }
+}
+
+void render_grid_tile(const render_grid *g, int width, int height, int tile, int *x0, int *y0, int *x1, int *y1) {
+    *x0 = (tile % g->tiles_x) * g->side;
+    *y0 = (tile / g->tiles_x) * g->side;
+    *x1 = *x0 + g->side < width ? *x0 + g->side : width;
+    *y1 = *y0 + g->side < height ? *y0 + g->side : height;
+}
+
 typedef struct loop {
     const scene *s;
     const integrator *it;
     const render_job *job;
     const render_control *ctl;
     render_state *st;
-    int tiles_x, stat_nonfinite;
+    render_grid grid;
+    int stat_nonfinite;
     progress prog;
     _Atomic int stop;
     double due;          /* stats_now() time of the next periodic pause, or INFINITY */
@@ -77,9 +95,10 @@ typedef struct loop {
 
 static int tile_done(const loop *L, int tile) {
     const render_state *st = L->st;
-    int x0 = (tile % L->tiles_x) * RENDER_TILE, y0 = (tile / L->tiles_x) * RENDER_TILE;
-    for (int y = y0; y < y0 + RENDER_TILE && y < st->height; y++)
-        for (int x = x0; x < x0 + RENDER_TILE && x < st->width; x++)
+    int x0, y0, x1, y1;
+    render_grid_tile(&L->grid, st->width, st->height, tile, &x0, &y0, &x1, &y1);
+    for (int y = y0; y < y1; y++)
+        for (int x = x0; x < x1; x++)
             if (st->count[(size_t)y * (size_t)st->width + (size_t)x] <
                 render_pixel_spp(L->job, st->spp, (uint64_t)y * (uint64_t)st->width + (uint64_t)x))
                 return 0;
@@ -110,9 +129,8 @@ double render_camera_sample(const render_job *job, const camera *c, int x, int y
 static void render_tile(loop *L, int tile, void *scratch) {
     const camera *c = &L->s->cam;
     render_state *st = L->st;
-    int x0 = (tile % L->tiles_x) * RENDER_TILE, y0 = (tile / L->tiles_x) * RENDER_TILE;
-    int x1 = x0 + RENDER_TILE < c->width ? x0 + RENDER_TILE : c->width;
-    int y1 = y0 + RENDER_TILE < c->height ? y0 + RENDER_TILE : c->height;
+    int x0, y0, x1, y1;
+    render_grid_tile(&L->grid, c->width, c->height, tile, &x0, &y0, &x1, &y1);
     int n = c->strata;
     uint32_t kmin = UINT32_MAX, kmax = 0;
     for (int y = y0; y < y1; y++)
@@ -185,8 +203,8 @@ int render_image_ctl(const scene *s, const integrator *it, const render_job *job
     L.job = job;
     L.ctl = ctl;
     L.st = st;
-    L.tiles_x = (c->width + RENDER_TILE - 1) / RENDER_TILE;
-    int ntiles = L.tiles_x * ((c->height + RENDER_TILE - 1) / RENDER_TILE);
+    L.grid = render_grid_of(c->width, c->height);
+    int ntiles = L.grid.tiles_x * L.grid.tiles_y;
     L.stat_nonfinite = stats_register("Film/Non-finite samples");
     int64_t total = (int64_t)render_image_spp(job, c->spp, c->width, c->height);
     int64_t done = (int64_t)render_state_done(st);
@@ -271,14 +289,14 @@ int render_tiles(const scene *s, const integrator *it, const render_job *job, re
     L.job = job;
     L.ctl = &none;
     L.st = st;
-    L.tiles_x = (c->width + RENDER_TILE - 1) / RENDER_TILE;
-    int all = L.tiles_x * ((c->height + RENDER_TILE - 1) / RENDER_TILE);
+    L.grid = render_grid_of(c->width, c->height);
+    int all = L.grid.tiles_x * L.grid.tiles_y;
     for (int i = 0; i < ntiles; i++)
         if (tiles[i] < 0 || tiles[i] >= all) return PM_EINVAL;
     L.stat_nonfinite = stats_register("Film/Non-finite samples");
     L.due = INFINITY;
     L.pause_at = -1;
-    progress_begin(&L.prog, "Rendering", (int64_t)ntiles * RENDER_TILE * RENDER_TILE * c->spp, 1);
+    progress_begin(&L.prog, "Rendering", (int64_t)ntiles * L.grid.side * L.grid.side * c->spp, 1);
     _Atomic int next = 0;
 #ifdef _OPENMP
     int nthreads = job->threads > 0 ? job->threads : omp_get_max_threads();

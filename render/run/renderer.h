@@ -35,7 +35,23 @@
 extern "C" {
 #endif
 
+/* Tiles: the image is cut into square tiles that threads (and MPI ranks) take one at a time.
+ * RENDER_TILE is the largest side; an image of fewer than RENDER_MIN_TILES such tiles is cut
+ * finer (the side halved, down to 2), so that a small image (16 x 16: one tile of 16) still
+ * keeps two threads busy. The grid depends on the image's size alone, and each pixel's samples
+ * are summed in sample order by whichever thread takes its tile, so the image is the same for
+ * any thread count, process count and tile side. */
 #define RENDER_TILE 16
+#define RENDER_MIN_TILES 16
+
+typedef struct render_grid {
+    int side;       /* a tile's side in pixels (the last row and column may be narrower) */
+    int tiles_x, tiles_y;
+} render_grid;
+
+render_grid render_grid_of(int width, int height);
+/* Tile `tile` (row-major) of the grid: pixels [x0, x1) x [y0, y1). */
+void render_grid_tile(const render_grid *g, int width, int height, int tile, int *x0, int *y0, int *x1, int *y1);
 
 typedef struct render_state {
     int width, height, spp;
@@ -108,7 +124,7 @@ int render_image(const scene *s, const integrator *it, const render_job *job, fi
 int render_image_ctl(const scene *s, const integrator *it, const render_job *job,
                      const render_control *ctl, film *out);
 
-/* Render the listed tiles (indices row-major over the RENDER_TILE grid) completely into st,
+/* Render the listed tiles (indices row-major over render_grid_of's grid) completely into st,
  * threads taking the next tile as in render_image; no film, progress, pauses or timers. Each
  * pixel gets exactly the sums render_image gives it, so a distributed render (render/mpi/)
  * can hand tiles to any process and copy the sums into one state. 0, or PM_EINVAL for a
