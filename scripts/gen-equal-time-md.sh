@@ -32,6 +32,14 @@
 # the survey's section: the targets' table alone (a measurement.txt with follow_up_of RES: the
 # section of the survey's misses measured again larger, scripts/make-survey.sh).
 #
+#   scripts/gen-equal-time-md.sh --survey-readme [DIR [DIR2]]
+# rewrites README.md's block between "<!-- survey summary" and "<!-- end of survey summary -->"
+# with the survey's verdicts in words, counted from the targets' tables of DIR (default
+# docs/results/survey) and of its follow-up DIR2 (default docs/results/survey96): which scenes
+# meet their target, which only by lower bounds, which cannot be compared or measured, which
+# miss and by how much. Every figure and name is the tables'; nothing else is said.
+# --survey-readme-block prints the block instead (tests/test_docs.c compares README.md's with it).
+#
 #   scripts/gen-equal-time-md.sh --misses [DIR]
 # the scenes of the survey in DIR whose verdict is "no" or "not measured", one per line (what
 # make-survey.sh measures again larger).
@@ -56,6 +64,60 @@ if [ "${1:-}" = --readme ]; then
     }' "$tmpd" > "$tmpr"
   readme_put "<!-- make run comparison" "<!-- end of make run comparison -->"
   echo "gen-equal-time-md: README.md's make run comparison rewritten" >&2
+  exit 0
+fi
+if [ "${1:-}" = --survey-readme ] || [ "${1:-}" = --survey-readme-block ]; then
+  mode=$1
+  shift
+  d1="${1:-$here/docs/results/survey}" d2="${2:-$here/docs/results/survey96}"
+  readme_doc "$0" --survey "$d1"
+  words() { # the targets' table on stdin, in words; $1: the size, $2: the follow-up's (or empty)
+    awk -F'|' -v size="$1" -v again="$2" -v stamp="$3" '
+      BEGIN { sq = "\047" }
+      function join(a, n,    i, t) { t = ""; for (i = 1; i <= n; i++) t = t (i == 1 ? "" : (i == n ? " and " : ", ")) a[i]; return t }
+      function lb(v) { return match(v, />= [0-9.]+x/) ? substr(v, RSTART, RLENGTH) : "?" }
+      function range(lo, hi) { return (hi == "-" || hi == lo) ? lo : lo "-" hi }
+      /^\| [a-z0-9_]+ \|/ && $3 ~ /x/ {
+        for (i = 2; i <= 7; i++) gsub(/^ +| +$/, "", $i)
+        n++; sc = $2; tg = $3; lo = $4; hi = $5; v = $7
+        if (v == "yes") { ny++; yes[ny] = sc " " range(lo, hi) }
+        else if (v ~ /^yes, every run by a lower bound/) { nb++; bnd[nb] = sc " " lb(v) }
+        else if (v ~ /^yes, /) { ns++; some[ns] = sc " " range(lo, hi) " and " lb(v) " by a lower bound" }
+        else if (v ~ /^not comparable/) { nc++; nocmp[nc] = sc }
+        else if (v ~ /^not measured/) { nm++; nmeas[nm] = sc " (" (lo ~ /^[0-9]/ ? range(lo, hi) " where its runs are above the reference" sq "s noise, but its lower bound, " : "its lower bound, ") lb(v) ", is under its " tg " target)" }
+        else { nn++; miss[nn] = sc " (" range(lo, hi) ", target " tg ")" }
+      }
+      END {
+        if (again == "") {
+          printf "In the %sx%s survey (docs/RESULTS.md, \"Every shipped scene, small\", stamp %s), %d of the %d scenes meet their ", size, size, stamp, ny + nb + ns, n
+          printf "target: %d at every run (%s)", ny, join(yes, ny)
+          if (nb) printf "; %d only by lower bounds, their photon-mapping runs%s corrected error being under the reference%ss own noise (%s)", nb, sq, sq, join(bnd, nb)
+          if (ns) printf "; %d with some runs by a lower bound (%s)", ns, join(some, ns)
+          printf ".\n"
+        } else {
+          printf "Measured again at %sx%s (docs/RESULTS.md, \"The small survey%ss misses, at %sx%s\", stamp %s):", size, size, sq, size, size, stamp
+          if (ny + nb + ns) printf " %s meet%s the target (%s%s%s%s%s).", (ny + nb + ns == 1 ? "one" : ny + nb + ns), (ny + nb + ns == 1 ? "s" : ""), join(yes, ny), (ny && nb ? "; " : ""), (nb ? "by lower bounds: " join(bnd, nb) : ""), ((ny || nb) && ns ? "; " : ""), join(some, ns)
+          printf "\n"
+        }
+        if (nc) printf "%d cannot be compared, as path tracing cannot render their light (%s).\n", nc, join(nocmp, nc)
+        if (nm) printf "%d %s not measured: %s.\n", nm, nm == 1 ? "is" : "are", join(nmeas, nm)
+        if (nn) printf "%d miss%s it: %s.\n", nn, nn == 1 ? "es" : "", join(miss, nn)
+      }'
+  }
+  s1=$(sh "$0" --survey "$d1" | awk '/^Measured sources \(stamp /' | sed 's/^Measured sources (stamp \([^)]*\)).*/\1/')
+  r1=$(awk '$1 == "resolution" { print $2; exit }' "$d1/measurement.txt")
+  {
+    sh "$0" --survey "$d1" | words "$r1" "" "$s1" | fold -s -w 100 | sed 's/ *$//'
+    if [ -f "$d2/measurement.txt" ]; then
+      s2=$(sh "$0" --survey "$d2" | awk '/^Measured sources \(stamp /' | sed 's/^Measured sources (stamp \([^)]*\)).*/\1/')
+      r2=$(awk '$1 == "resolution" { print $2; exit }' "$d2/measurement.txt")
+      echo
+      sh "$0" --survey "$d2" | words "$r2" "$r1" "$s2" | fold -s -w 100 | sed 's/ *$//'
+    fi
+  } > "$tmpr"
+  if [ "$mode" = --survey-readme-block ]; then cat "$tmpr"; exit 0; fi
+  readme_put "<!-- survey summary" "<!-- end of survey summary -->"
+  echo "gen-equal-time-md: README.md's survey summary rewritten" >&2
   exit 0
 fi
 if [ "${1:-}" = --misses ]; then

@@ -67,11 +67,15 @@ done
 out="${SV_OUT:-$here/docs/results/survey}"
 ET_RES="$res" ET_SCENES="$*" ET_BUDGETS="${SV_BUDGETS:-2 8}" ET_PROG_SCENES= ET_REF_DIR="$refdir" \
   ET_OUT="$out" sh "$here/scripts/make-equal-time.sh"
+# README.md's survey summary, from the tables just measured (only for the default outputs: a
+# survey written elsewhere, a test's, leaves the README alone)
+summary() { [ -n "${SV_OUT:-}" ] || sh "$here/scripts/gen-equal-time-md.sh" --survey-readme; }
 follow="${SV_FOLLOW_RES-96}"
-[ -n "$follow" ] || exit 0
+if [ -z "$follow" ]; then summary; exit 0; fi
 misses=$(sh "$here/scripts/gen-equal-time-md.sh" --misses "$out")
 if [ -z "$misses" ]; then
   echo "make-survey: every scene met its target at ${res}x$res; no follow-up at ${follow}x$follow" >&2
+  summary
   exit 0
 fi
 echo "make-survey: missed at ${res}x$res, measured again at ${follow}x$follow:" $misses >&2
@@ -82,3 +86,4 @@ SV_RES="$follow" SV_BUDGETS="${SV_FOLLOW_BUDGETS:-4 12 40}" SV_REF_CPU="${SV_FOL
   SV_REF_DIR="${SV_FOLLOW_REF_DIR:-$here/data/reference/et$follow}" SV_OUT="$fout" SV_FOLLOW_RES= \
   sh "$0" $misses
 echo "follow_up_of $res" >> "$fout/measurement.txt"
+summary
