@@ -23,28 +23,9 @@ TEST(docs_hard_scenes_md_regenerates_exactly) {
 /* Oracle: README.md's hard scenes block is what `scripts/gen-hard-scenes-md.sh --readme-block`
  * prints from docs/hard_scenes/ now (its figures were typed by hand before, and went stale). */
 TEST(docs_readme_hard_scenes_block_is_generated) {
-    char cmd[4096], gen[16384], path[1024], line[2048], block[16384] = "";
+    char cmd[4096];
     snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-hard-scenes-md.sh' --readme-block", pm_test_source_dir());
-    ASSERT_EQ_INT(pm_test_run(cmd, gen, sizeof gen), 0);
-    ASSERT_MSG(strstr(gen, "| pinhole_room |") != NULL, "generator printed: %s", gen);
-    snprintf(path, sizeof path, "%s/README.md", pm_test_source_dir());
-    FILE *f = fopen(path, "r");
-    ASSERT_MSG(f != NULL, "cannot open %s", path);
-    size_t len = 0;
-    int in = 0, seen = 0;
-    while (fgets(line, sizeof line, f)) {
-        if (strncmp(line, "<!-- end of hard scenes -->", 27) == 0) break;
-        if (in) {
-            size_t l = strlen(line);
-            if (len + l < sizeof block) memcpy(block + len, line, l + 1), len += l;
-        }
-        if (strncmp(line, "<!-- hard scenes", 16) == 0) in = seen = 1;
-    }
-    fclose(f);
-    ASSERT_MSG(seen, "README.md has no \"<!-- hard scenes\" block");
-    EXPECT_MSG(strcmp(block, gen) == 0,
-               "README.md's hard scenes block is not the generated one (run scripts/gen-hard-scenes-md.sh "
-               "--readme):\n--- README:\n%s--- generated:\n%s", block, gen);
+    expect_readme_block(cmd, "| pinhole_room |", "<!-- hard scenes", "<!-- end of hard scenes -->", "scripts/gen-hard-scenes-md.sh --readme");
 }
 
 
@@ -54,8 +35,9 @@ TEST(docs_readme_hard_scenes_block_is_generated) {
  * photon mapping at 100 spp in 1 CPU-s with MSE 4e-6 (seed 1: 25x) and PM2 (seed 2). At the
  * budget of 10 s, seeds 1 to 3, both modes 10 CPU-s, path tracing's MSE 1e-3 for each seed,
  * photon mapping's 5e-5, B2 and 4e-5 (seeds 1, 2, 3: ratios 20x, 1e-3 / B2 and 25x).
- * write_synth_ref: the same with a reference of nref spp. */
-static int write_synth_ref(const char *dir, double pm2, double b2, double nref) {
+ * write_synth_ref: the same with a reference of nref spp; write_synth_budget: with the budget's
+ * three photon-mapping MSEs given. */
+static int write_synth_budget(const char *dir, double pm2, const double pm[3], double nref) {
     char path[4096];
     FILE *f;
     snprintf(path, sizeof path, "%s/runs.csv", dir);
@@ -69,7 +51,6 @@ static int write_synth_ref(const char *dir, double pm2, double b2, double nref) 
     snprintf(path, sizeof path, "%s/budget.csv", dir);
     if (!(f = fopen(path, "w"))) return -1;
     fprintf(f, "scene,mode,width,budget_s,seed,passes,pass_spp,cpu_s,wall_s,mse,ref_spp\n");
-    const double pm[3] = {5e-5, b2, 4e-5};
     for (int s = 0; s < 3; s++) {
         fprintf(f, "synth,pm,4,10,%d,10,256,10.00,10.00,%g,%g\n", s + 1, pm[s], nref);
         fprintf(f, "synth,path,4,10,%d,90,256,10.00,10.00,0.001,%g\n", s + 1, nref);
@@ -81,6 +62,11 @@ static int write_synth_ref(const char *dir, double pm2, double b2, double nref) 
                "ref_synth 1000000000000 spp, 4 x 4, 1 CPU-s\n");
     fclose(f);
     return 0;
+}
+
+static int write_synth_ref(const char *dir, double pm2, double b2, double nref) {
+    const double pm[3] = {5e-5, b2, 4e-5};
+    return write_synth_budget(dir, pm2, pm, nref);
 }
 
 static int write_synth(const char *dir, double pm2, double b2) { return write_synth_ref(dir, pm2, b2, 1e12); }
@@ -156,4 +142,33 @@ TEST(docs_hard_scenes_budget_judges_the_worst_seed) {
     EXPECT_MSG(strstr(out, "| synth | at least 4.05x (100 spp), worst 2.22x | - | 24.22x (seed 1) | 32.06x | at least 82.58x "
                            "(seed 2) | at least 35.47x | yes, at 10 s |"),
                "the target row with a bound:\n%s", out);
+}
+
+/* Oracle: LOWER BOUNDS under 10x, by construction. A reference of 300 spp: c = 1e-4 / (1/1000 +
+ * 1/300) = 0.02308, the reference's noise c / 300 = 7.692e-5, path tracing's corrected MSE at the
+ * budget 1e-3 - 7.692e-5 = 9.231e-4. Seed 2's photon mapping at 1e-4 (corrected 2.31e-5, under
+ * the noise): at least 9.231e-4 / 1e-4 = 9.23x, a bound under 10x.
+ * 1. Seed 1 at 1.5692e-4 (corrected 8.0e-5: 11.54x) and seed 3 at 1.8e-4 (1.0308e-4: 8.96x, an
+ *    exact ratio under 10x): not met, whatever the bound (the case "bound and exact < 10").
+ * 2. Seed 3 at 1.6e-4 instead (8.308e-5: 11.11x): every exact ratio at 10x or more and one
+ *    bound under it, so the target is not judged (the bound cannot say which side it is on). */
+TEST(docs_hard_scenes_bound_under_10x_is_not_judged_unless_an_exact_seed_misses) {
+    char cmd[8192], out[65536];
+    const char *t = pm_test_tmpdir(), *src = pm_test_source_dir();
+    const double miss[3] = {1.5692e-4, 1e-4, 1.8e-4}, judged[3] = {1.5692e-4, 1e-4, 1.6e-4};
+    ASSERT_EQ_INT(write_synth_budget(t, 5e-6, miss, 300), 0);
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-hard-scenes-md.sh' '%s'", src, t);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "| 1 | 11.54 | 1.00 | 11.54x |") && strstr(out, "| 2 | at least 9.23 | 1.00 | at least 9.23x |") &&
+                   strstr(out, "| 3 | 8.96 | 1.00 | 8.96x |"),
+               "the seeds' ratios:\n%s", out);
+    EXPECT_MSG(strstr(out, "1 of the 3 seeds below 10x: the 10x target is not met at this budget") &&
+                   strstr(out, "not met by synth (8.96x, seed 3)"),
+               "an exact seed under 10x: not met:\n%s", out);
+    ASSERT_EQ_INT(write_synth_budget(t, 5e-6, judged, 300), 0);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "| 3 | 11.11 | 1.00 | 11.11x |") &&
+                   strstr(out, "1 of the 3 seeds has a lower bound under 10x: the 10x target is not judged at this budget."),
+               "only the bound under 10x: not judged:\n%s", out);
+    EXPECT_MSG(!strstr(out, "the 10x target is met") && !strstr(out, "the 10x target is not met"), "neither:\n%s", out);
 }
