@@ -104,15 +104,14 @@ if [ "${1:-}" = --survey-readme ] || [ "${1:-}" = --survey-readme-block ]; then
         if (nn) printf "%d miss%s it: %s.\n", nn, nn == 1 ? "es" : "", join(miss, nn)
       }'
   }
-  s1=$(sh "$0" --survey "$d1" | awk '/^Measured sources \(stamp /' | sed 's/^Measured sources (stamp \([^)]*\)).*/\1/')
-  r1=$(awk '$1 == "resolution" { print $2; exit }' "$d1/measurement.txt")
+  # readme_doc left DIR's table in $tmpd and its stamp in $stampline; DIR2's is made once here
+  r1=$(measured_key "$d1" resolution)
   {
-    sh "$0" --survey "$d1" | words "$r1" "" "$s1" | fold -s -w 100 | sed 's/ *$//'
+    words "$r1" "" "$stampline" < "$tmpd" | fold -s -w 100 | sed 's/ *$//'
     if [ -f "$d2/measurement.txt" ]; then
-      s2=$(sh "$0" --survey "$d2" | awk '/^Measured sources \(stamp /' | sed 's/^Measured sources (stamp \([^)]*\)).*/\1/')
-      r2=$(awk '$1 == "resolution" { print $2; exit }' "$d2/measurement.txt")
       echo
-      sh "$0" --survey "$d2" | words "$r2" "$r1" "$s2" | fold -s -w 100 | sed 's/ *$//'
+      sh "$0" --survey "$d2" | words "$(measured_key "$d2" resolution)" "$r1" "$(measured_key "$d2" commit | cut -d' ' -f1)" |
+        fold -s -w 100 | sed 's/ *$//'
     fi
   } > "$tmpr"
   if [ "$mode" = --survey-readme-block ]; then cat "$tmpr"; exit 0; fi
