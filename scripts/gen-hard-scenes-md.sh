@@ -1,6 +1,7 @@
 #!/bin/sh
 # gen-hard-scenes-md.sh: docs/HARD_SCENES.md, from what scripts/make-hard-scenes.sh measured
-# (runs.csv, plan_*.txt, measurement.txt).
+# (runs.csv, plan_*.txt, measurement.txt; and ceiling/, when there, the last section's, by
+# scripts/gen-gather-ceiling-md.sh).
 #
 #   scripts/gen-hard-scenes-md.sh [DIR]      DIR: default docs/hard_scenes
 #
@@ -9,8 +10,8 @@
 #
 #   scripts/gen-hard-scenes-md.sh --readme [DIR]
 # rewrites README.md's block between "<!-- hard scenes" and "<!-- end of hard scenes -->" with
-# the document's "Against the target" table, its "10x met" line and its verdict on
-# pinhole_room's region means: the figures of the document, nothing else (the seeds it names
+# the document's "Against the target" table, its "10x met" line, its verdict on pinhole_room's
+# region means and the ceilings' sentence: the figures of the document, nothing else (the seeds it names
 # are read from DIR's CSV, as the document's are).
 #   scripts/gen-hard-scenes-md.sh --readme-block [DIR]
 # prints that block instead (tests/test_docs_hard.c compares it with README.md's).
@@ -75,6 +76,8 @@ if [ "${1:-}" = --readme ] || [ "${1:-}" = --readme-block ]; then
     sec == "Against the target" && /^\|/ { tab[++n] = $0 }
     sec == "Against the target" && /^"10x met" judges/ { verdict = $0 }
     sec ~ /region means/ && /^At [0-9]/ { regions = $0 }
+    sec == "The final gather'"'"'s ceiling" && /^Measured sources/ { cst = $0; sub(/^Measured sources \(stamp /, "", cst); sub(/\).*/, "", cst) }
+    sec == "The final gather'"'"'s ceiling" && /^Ceilings / { ceil = $0 }
     END {
       printf "Measured by `scripts/make-hard-scenes.sh` (docs/HARD_SCENES.md, stamp %s): time to equal\n", stamp
       printf "error against path tracing at the defaults, %s threads. At a sample count: the mean of %s\n", nthreads, fseeds
@@ -82,6 +85,7 @@ if [ "${1:-}" = --readme ] || [ "${1:-}" = --readme-block ]; then
       for (i = 1; i <= n; i++) print tab[i]
       if (verdict != "") printf "\n%s\n", verdict
       if (regions != "") printf "\npinhole_room'"'"'s region means against the reference (the 2%% target). %s\n", regions
+      if (ceil != "") printf "\nThe final gather'"'"'s ceiling (docs/HARD_SCENES.md, stamp %s): photon mapping'"'"'s camera samples alone, with its maps loaded instead of traced, against path tracing at the budget. %s\n", cst, ceil
     }' "$tmpd" > "$tmpr"
   grep -q '^|---' "$tmpr" || { echo "gen-hard-scenes-md: no table in the document" >&2; exit 2; }
   if [ "$mode" = --readme-block ]; then cat "$tmpr"; exit 0; fi
@@ -343,4 +347,8 @@ if [ -f "$regions_csv" ] && [ "$(wc -l < "$regions_csv")" -gt 1 ]; then
       if (out) printf " %d of the %d region means are outside 2%%: the target is not met at this budget.\n", out, ns * nr
       else printf " All %d region means are within 2%%: the target is met at this budget, on these seeds.\n", ns * nr
     }' "$regions_csv"
+fi
+if [ -f "$dir/ceiling/runs.csv" ]; then
+  echo
+  sh "$here/scripts/gen-gather-ceiling-md.sh" "$dir/ceiling" "$bsummary"
 fi

@@ -74,10 +74,7 @@ stamp=$(commit_stamp "$here" "$bin") || exit 2
 info() { ref_info "$refdir" "$1" "$2"; }
 for name in $scenes; do
   scene="$here/data/scenes/$name.json"
-  case $(ref_state "$refdir" "$name" "$scene") in
-    missing) echo "make-equal-time: no reference for $name in $refdir: REF_RES=$res REF_OUT=$refdir scripts/make-reference.sh $name" >&2; exit 2 ;;
-    stale) echo "make-equal-time: $scene changed since its reference was rendered" >&2; exit 2 ;;
-  esac
+  ref_require make-equal-time "$refdir" "$name" "$scene" "REF_RES=$res REF_OUT=$refdir scripts/make-reference.sh $name"
   [ "$(info "$name" width)" = "$res" ] || {
     echo "make-equal-time: $refdir/$name is $(info "$name" width) wide, not $res: REF_RES=$res REF_OUT=$refdir scripts/make-reference.sh $name" >&2; exit 2; }
 done

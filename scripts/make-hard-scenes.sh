@@ -41,6 +41,10 @@
 # tests/test_render_hard.c) into regions.csv (scene, budget_s, seed, passes, cpu_s, region,
 # ref_mean, mean, rel). Skipped when pinhole_room is not among HS_SCENES.
 #
+# Then the final gather's ceiling (scripts/measure-gather-ceiling.sh, into HS_OUT/ceiling; about
+# 20 minutes for the five scenes; not with --quick or HS_CEILING=0): photon mapping's camera
+# samples alone, with its maps loaded instead of traced, against path tracing at the same budget.
+#
 # Output (HS_OUT, default docs/hard_scenes): runs.csv (scene, mode, width, spp, seed, cpu_s,
 # wall_s, mse, ref_spp), plan_NAME.txt (pm's plan lines for ports and the gather guide, as
 # printed, seed 1 at the lower spp), measurement.txt (commit stamp, date, machine, load,
@@ -84,10 +88,7 @@ counts() { # NAME -> "PM_SPP_1 PM_SPP_2 PATH_SPP"
 for name in $scenes; do
   scene="$here/data/scenes/$name.json"
   counts "$name" > /dev/null
-  case $(ref_state "$refdir" "$name" "$scene") in
-    missing) echo "make-hard-scenes: no reference for $name in $refdir" >&2; exit 2 ;;
-    stale) echo "make-hard-scenes: $scene changed since its reference was rendered" >&2; exit 2 ;;
-  esac
+  ref_require make-hard-scenes "$refdir" "$name" "$scene"
 done
 
 # The images are scratch; the CSV is written as the runs end into $out.partial (kept if the
@@ -191,6 +192,10 @@ mkdir -p "$out"
 cp "$out.partial/"* "$out/"
 rm -rf "$out.partial"
 echo "make-hard-scenes: wrote $out" >&2
+if [ $quick = 0 ] && [ "${HS_CEILING:-1}" != 0 ]; then
+  GC_SCENES="$scenes" GC_OUT="$out/ceiling" GC_THREADS="$threads" GC_BUDGET="$budget" \
+    sh "$here/scripts/measure-gather-ceiling.sh"
+fi
 if [ $quick = 0 ] && [ -z "${HS_OUT:-}" ]; then
   sh "$here/scripts/gen-hard-scenes-md.sh" "$out" > "$here/docs/HARD_SCENES.md"
   echo "make-hard-scenes: wrote docs/HARD_SCENES.md" >&2

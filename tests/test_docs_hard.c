@@ -4,6 +4,7 @@
  * files whose ratios are known by construction, "10x met" judges the worst seed, not the mean.
  * (Split from tests/test_docs.c, which keeps the other documents.)
  */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -171,4 +172,136 @@ TEST(docs_hard_scenes_bound_under_10x_is_not_judged_unless_an_exact_seed_misses)
                    strstr(out, "1 of the 3 seeds has a lower bound under 10x: the 10x target is not judged at this budget."),
                "only the bound under 10x: not judged:\n%s", out);
     EXPECT_MSG(!strstr(out, "the 10x target is met") && !strstr(out, "the 10x target is not met"), "neither:\n%s", out);
+}
+
+/* Write a synthetic ceiling/ (scripts/measure-gather-ceiling.sh's files) into DIR/ceiling: scene
+ * "synth", a reference of 1e12 spp (its noise is nothing at four digits). Path tracing at 10 s,
+ * seeds 1 to 4, 1000 spp, MSE 1e-4, 2e-4, 3e-4 and 1e-2 (MSE x s: 1e-3, 2e-3, 3e-3, 0.1; the
+ * median 2.5e-3). The oracle with a map of 1000 photons at 1/1: seeds 1 to 3 in 2, 3 and 2.5 s
+ * (T = 2.5), MSE MSE11 each, the pairs' squared differences 2.5e-6 F, 2.5e-6 F and 1e-6 F (V = 1e-6
+ * F, the calmest pair's 5e-7 F); with a map of 10 at 4/2: seeds 1 and 2 in 2 and 3 s, MSE 1e-3
+ * each, the pair's 4e-4 (V = 2e-4: the ceiling 2.5e-3 / (2e-4 x 2.5) = 5x, up to 5x; the rest
+ * 8e-4, so with the map's error at 10 s 2.5e-3 / (5e-4 + 8e-3) = 0.29x). */
+static int write_synth_ceiling(const char *dir, double f, double mse11) {
+    char path[4096];
+    FILE *fp;
+    snprintf(path, sizeof path, "mkdir -p '%s/ceiling'", dir);
+    if (system(path) != 0) return -1;
+    snprintf(path, sizeof path, "%s/ceiling/runs.csv", dir);
+    if (!(fp = fopen(path, "w"))) return -1;
+    fprintf(fp, "scene,kind,photons,setting,seed,seed_b,spp,render_s,mse,ref_spp\n");
+    const double t11[3] = {2, 3, 2.5};
+    for (int s = 0; s < 3; s++) fprintf(fp, "synth,oracle,1000,1/1,%d,,4096,%g,%g,1e12\n", s + 1, t11[s], mse11);
+    fprintf(fp, "synth,pair,1000,1/1,1,2,4096,,%g,1e12\nsynth,pair,1000,1/1,1,3,4096,,%g,1e12\n", 2.5e-6 * f, 2.5e-6 * f);
+    fprintf(fp, "synth,pair,1000,1/1,2,3,4096,,%g,1e12\n", 1e-6 * f);
+    fprintf(fp, "synth,oracle,10,4/2,1,,1024,2,0.001,1e12\nsynth,oracle,10,4/2,2,,1024,3,0.001,1e12\n");
+    fprintf(fp, "synth,pair,10,4/2,1,2,1024,,0.0004,1e12\n");
+    const double path_mse[4] = {1e-4, 2e-4, 3e-4, 1e-2};
+    for (int s = 0; s < 4; s++) fprintf(fp, "synth,path,,,%d,,1000,10,%g,1e12\n", s + 1, path_mse[s]);
+    fclose(fp);
+    snprintf(path, sizeof path, "%s/ceiling/measurement.txt", dir);
+    if (!(fp = fopen(path, "w"))) return -1;
+    fprintf(fp, "commit c0ffee1-test\ndate 1999-12-25 23:59 UTC\nmachine 2 cores\nload 0 0 0\nthreads 2\n"
+                "photons 1000 10\nbudget 10\nseeds 3\n");
+    fclose(fp);
+    return 0;
+}
+
+/* Oracle: the ceiling section on write_synth_ceiling's files, whose figures are known by
+ * construction, beside write_synth's budget (seed ratios 20x, 5x, 25x: the median 20x).
+ * 1. F 1, MSE11 6e-6: 1/1's ceiling 2.5e-3 / (1e-6 x 2.5) = 1000x, up to 2000x; its rest 6e-6 -
+ *    1e-6 = 5e-6, so with the map's error 2.5e-3 / (2.5e-6 + 10 x 5e-6) = 47.62x. "yes".
+ * 2. F 400: 1/1's V 4e-4, its ceiling 2.5x, up to 5x, its rest negative (the map's error counts
+ *    as 0: 2.5x); the best ceiling is 4/2's 5x, up to 5x: "no", and the measured median, 20x, is
+ *    above it, which the section must say.
+ * 3. F 160: 1/1's V 1.6e-4, its ceiling 6.25x, up to 12.5x: "at the edge". */
+TEST(docs_hard_scenes_ceiling_follows_the_data) {
+    char cmd[8192], out[65536];
+    const char *t = pm_test_tmpdir(), *src = pm_test_source_dir();
+    ASSERT_EQ_INT(write_synth(t, 1.25e-5, 2e-4), 0);
+    ASSERT_EQ_INT(write_synth_ceiling(t, 1, 6e-6), 0);
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-hard-scenes-md.sh' '%s'", src, t);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "## The final gather's ceiling\n\nMeasured sources (stamp c0ffee1-test): "), "the section:\n%s", out);
+    EXPECT_MSG(strstr(out, "| synth | 0.0025 | 1000 | 1/1 | 4096 | 2.50 | 1e-06 (5e-07) | 5e-06 | 1000.00x (2000.00x) | 47.62x |") &&
+                   strstr(out, "| synth | 0.0025 | 10 | 4/2 | 1024 | 2.50 | 0.0002 (0.0002) | 0.0008 | 5.00x (5.00x) | 0.29x |"),
+               "the rows:\n%s", out);
+    EXPECT_MSG(strstr(out, "| synth | 1000.00x (1/1, 1000 photons; up to 2000.00x) | 47.62x (1/1, 1000 photons) | "
+                           "20.00x (5.00x to 25.00x) | yes |") &&
+                   strstr(out, "Ceilings at 10x or more: synth (1000.00x). No scene's measured median is above its ceiling."),
+               "the verdict, yes:\n%s", out);
+    EXPECT_MSG(!strstr(out, "Ceilings under 10x") && !strstr(out, "At the edge"), "only yes:\n%s", out);
+
+    ASSERT_EQ_INT(write_synth_ceiling(t, 400, 6e-6), 0);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "| synth | 0.0025 | 1000 | 1/1 | 4096 | 2.50 | 0.0004 (0.0002) | -0.000394 | 2.50x (5.00x) | 2.50x |") &&
+                   strstr(out, "| synth | 5.00x (4/2, 10 photons; up to 5.00x) | 2.50x (1/1, 1000 photons) | "
+                               "20.00x (5.00x to 25.00x) | no |"),
+               "the rows, no:\n%s", out);
+    EXPECT_MSG(strstr(out, "Ceilings under 10x: synth (5.00x, up to 5.00x). There even the calmest pair") &&
+                   strstr(out, "Measured above the ceiling (the ceiling's premise fails there, or one of the two is noise): "
+                               "synth (20.00x against up to 5.00x)."),
+               "the verdict, no, and a median above it:\n%s", out);
+
+    ASSERT_EQ_INT(write_synth_ceiling(t, 160, 6e-6), 0);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "| synth | 6.25x (1/1, 1000 photons; up to 12.50x) | 6.25x (1/1, 1000 photons) | "
+                           "20.00x (5.00x to 25.00x) | at the edge |") &&
+                   strstr(out, "At the edge of 10x: synth (6.25x, up to 12.50x; with the map's error 6.25x)."),
+               "the verdict, at the edge:\n%s", out);
+}
+
+/* Oracle: scripts/measure-gather-ceiling.sh --quick on door_ajar (2 seeds, 1 s budgets), its
+ * files checked against what they claim to be: one row per run, positive times and errors, path
+ * tracing's sample count at least one pass of 256 (16 x 16 at --time: at least 65536 samples a
+ * pass); the pair's error is the two oracle images' distance, so its root obeys the triangle
+ * inequality with their errors against the reference (RMSE is a metric), and the seeds differ
+ * (above 0); and the section generated from them has the scene's row. */
+TEST(docs_gather_ceiling_quick_run_is_consistent) {
+    char cmd[8192], out[65536], path[4096], line[512];
+    const char *t = pm_test_tmpdir(), *src = pm_test_source_dir();
+    snprintf(cmd, sizeof cmd,
+             "cd '%s' && PM_BUILD_DIR='%s' GC_OUT='%s/ceiling' PM_BENCH_COMMIT=test-run sh scripts/measure-gather-ceiling.sh "
+             "--quick 2>&1",
+             src, pm_test_build_dir(), t);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    snprintf(path, sizeof path, "%s/ceiling/runs.csv", t);
+    FILE *f = fopen(path, "r");
+    ASSERT_MSG(f != NULL, "no runs.csv:\n%s", out);
+    ASSERT_MSG(fgets(line, sizeof line, f) && !strcmp(line, "scene,kind,photons,setting,seed,seed_b,spp,render_s,mse,ref_spp\n"),
+               "header: %s", line);
+    int oracle = 0, pair = 0, pathn = 0;
+    double om[3] = {0}, pm = -1;
+    while (fgets(line, sizeof line, f)) {
+        char kind[16] = "";
+        int seed = 0, seedb = 0;
+        double spp = 0, secs = 0, mse = -1, np = 0;
+        if (sscanf(line, "door_ajar,oracle,%lf,1/1,%d,,%lf,%lf,%lf,262144", &np, &seed, &spp, &secs, &mse) == 5) {
+            snprintf(kind, sizeof kind, "oracle");
+            EXPECT_MSG(np == 200000 && seed >= 1 && seed <= 2 && spp >= 256 && secs > 0 && mse > 0, "oracle row: %s", line);
+            if (seed >= 1 && seed <= 2) om[seed] = mse;
+            oracle++;
+        } else if (sscanf(line, "door_ajar,pair,%lf,1/1,%d,%d,%lf,,%lf,262144", &np, &seed, &seedb, &spp, &mse) == 5) {
+            EXPECT_MSG(seed == 1 && seedb == 2 && mse > 0, "pair row: %s", line);
+            pm = mse;
+            pair++;
+        } else if (sscanf(line, "door_ajar,path,,,%d,,%lf,%lf,%lf,262144", &seed, &spp, &secs, &mse) == 4) {
+            EXPECT_MSG(spp >= 256 && secs > 0 && secs < 3 && mse > 0, "path row: %s", line);
+            pathn++;
+        } else
+            EXPECT_MSG(0, "a row of no kind: %s", line);
+    }
+    fclose(f);
+    EXPECT_MSG(oracle == 2 && pair == 1 && pathn == 2, "rows: %d oracle, %d pair, %d path", oracle, pair, pathn);
+    EXPECT_MSG(pm > 0 && sqrt(pm) <= sqrt(om[1]) + sqrt(om[2]) + 1e-12, "the pair's RMSE %g against the runs' %g and %g",
+               sqrt(pm), sqrt(om[1]), sqrt(om[2]));
+    snprintf(cmd, sizeof cmd, "cat '%s/ceiling/measurement.txt'", t);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "commit test-run\n") && strstr(out, "photons 200000\n") && strstr(out, "budget 1\n") &&
+                   strstr(out, "seeds 2\n"),
+               "measurement.txt:\n%s", out);
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-gather-ceiling-md.sh' '%s/ceiling'", src, t);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "| door_ajar | ") && strstr(out, "| 200000 | 1/1 | ") && strstr(out, "(1/1, 200000 photons; up to "),
+               "the section:\n%s", out);
 }
