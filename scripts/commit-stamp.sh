@@ -70,3 +70,13 @@ commit_stamp() { # ROOT BINARY...
     echo "$cs_head"
   fi
 }
+
+# measured_lines STAMP THREADS: the first lines of a measurement.txt (commit, date, machine, the
+# load at the end, threads), as make-hard-scenes.sh and measure-gather-ceiling.sh write them.
+measured_lines() {
+  echo "commit $1"
+  echo "date $(date -u '+%Y-%m-%d %H:%M UTC')"
+  echo "machine $(nproc) cores, $(awk -F': ' '/model name/ { print $2; exit }' /proc/cpuinfo)"
+  echo "load $(cut -d' ' -f1-3 /proc/loadavg) (1, 5, 15 min, at the end)"
+  echo "threads $2"
+}

@@ -178,11 +178,7 @@ for name in $scenes; do
   fi
 done
 {
-  echo "commit $stamp"
-  echo "date $(date -u '+%Y-%m-%d %H:%M UTC')"
-  echo "machine $(nproc) cores, $(awk -F': ' '/model name/ { print $2; exit }' /proc/cpuinfo)"
-  echo "load $(cut -d' ' -f1-3 /proc/loadavg) (1, 5, 15 min, at the end)"
-  echo "threads $threads"
+  measured_lines "$stamp" "$threads"
   for name in $scenes; do
     echo "ref_$name $(info "$name" spp) spp, $(info "$name" width) x $(info "$name" height), $(info "$name" cpu_seconds) CPU-s"
   done
