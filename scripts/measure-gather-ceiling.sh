@@ -20,15 +20,20 @@
 # the camera side's alone. Path tracing runs beside it, at `--time GC_BUDGET` (default 10 s),
 # the same seeds.
 #
-# The ceiling (computed by gen-hard-scenes-md.sh, per gather setting): path tracing's error
-# times its rendering time (the median over the seeds; its error includes the reference's
-# noise, which only raises it) over the oracle's variance times its rendering time (their
+# The ceiling (computed by scripts/gen-gather-ceiling-md.sh, per map and gather setting; its
+# header has the details): path tracing's error, less the reference's noise, times its rendering
+# time (the median over the seeds) over the oracle's variance times its rendering time (their
 # means): how many times less time than path tracing the camera side alone needs for the same
 # squared error. Everything is in the oracle's favour: its maps cost no time, they carry no
 # noise of their own into its variance, and their bias is not counted. Photon mapping at the
 # defaults pays for its maps and their noise on top, so its ratio in the budget table should
 # not exceed the ceiling; where it does, the ceiling's premise (that the camera samples cost
 # and vary as they do here) fails, and the section says so.
+#
+# The maps' share of the time: photon mapping at the defaults (`--mode pm --time GC_BUDGET`, the
+# same seeds) spends part of its passes tracing maps and the rest on the camera samples; its
+# statistics' "Rendering" over "Passes: all passes" is the camera's share, which scales the
+# ceiling to what the camera samples get at the defaults (gen-gather-ceiling-md.sh).
 #
 # Maps of two sizes (GC_PHOTONS, default "2000000 50000"): about what photon mapping traces in
 # a 10 s budget on these scenes, all in one map, and about one pass's map. A coarser map's
@@ -39,10 +44,11 @@
 # takes about GC_SECONDS (default 5) of rendering.
 #
 # Output (GC_OUT, default docs/hard_scenes/ceiling): runs.csv (scene, kind, photons, setting,
-# seed, seed_b, spp, render_s, mse, ref_spp; path tracing's spp counts its adaptive samples too;
-# kind "oracle": a loaded-map run against the reference,
-# "pair": two oracle runs against each other (seed and seed_b), "path": path tracing at the
-# budget against the reference), measurement.txt (commit stamp, date, machine, load, threads,
+# seed, seed_b, spp, render_s, mse, ref_spp, passes_s; kind "oracle": a loaded-map run against
+# the reference, "pair": two oracle runs against each other (seed and seed_b), "path": path
+# tracing at the budget against the reference, "pm": photon mapping at the defaults at the
+# budget, its render_s the camera samples' seconds and passes_s its passes' (maps and camera);
+# the budget runs' spp count their adaptive samples too), measurement.txt (commit stamp, date, machine, load, threads,
 # photons, budget). GC_SCENES (default the five hard scenes), GC_THREADS (default 2).
 # --quick: door_ajar only (or GC_SCENES), 2 seeds, 1/1 only, 200000 photons, 1 s budgets, into
 # build/gather-ceiling-quick (or GC_OUT).
@@ -83,7 +89,7 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 mkdir -p "$out.partial"
 csv="$out.partial/runs.csv"
-echo "scene,kind,photons,setting,seed,seed_b,spp,render_s,mse,ref_spp" > "$csv"
+echo "scene,kind,photons,setting,seed,seed_b,spp,render_s,mse,ref_spp,passes_s" > "$csv"
 
 # go NAME LOG ARGS...: render NAME at its reference's size into $work/img.pfm, log in LOG;
 # sets secs (the rendering time the summary line prints).
@@ -99,6 +105,11 @@ go() {
 }
 mse_of() { # A.pfm B.pfm
   "$bin" --compare "$1" "$2" | awk '$1 == "rmse" { printf "%.6g", $2 * $2 }'
+}
+# stat NAME LOG: the figure of the statistics line NAME (its words, then the figure) in LOG
+stat() {
+  awk -v k="$1" '{ l = $0; sub(/^ +/, "", l) } index(l, k) == 1 && substr(l, length(k) + 1) ~ /^ +[0-9.]+( s)?$/ {
+    n = split(l, f, " "); v = f[n] == "s" ? f[n - 1] : f[n]; print v; exit }' "$2"
 }
 
 for name in $scenes; do
@@ -122,7 +133,7 @@ for name in $scenes; do
         go "$name" "$work/log" --mode pm --spp "$spp" --seed "$s" $pm
         cp "$work/img.pfm" "$work/oracle_$s.pfm"
         m=$(mse_of "$work/img.pfm" "$ref")
-        echo "$name,oracle,$np,$set,$s,,$spp,$secs,$m,$refspp" >> "$csv"
+        echo "$name,oracle,$np,$set,$s,,$spp,$secs,$m,$refspp," >> "$csv"
         echo "measure-gather-ceiling: $name oracle $np photons $set seed $s: $spp spp, rendering $secs s, MSE $m" >&2
         s=$((s + 1))
       done
@@ -130,7 +141,7 @@ for name in $scenes; do
       while [ "$a" -lt "$seeds" ]; do
         b=$((a + 1))
         while [ "$b" -le "$seeds" ]; do
-          echo "$name,pair,$np,$set,$a,$b,$spp,,$(mse_of "$work/oracle_$a.pfm" "$work/oracle_$b.pfm"),$refspp" >> "$csv"
+          echo "$name,pair,$np,$set,$a,$b,$spp,,$(mse_of "$work/oracle_$a.pfm" "$work/oracle_$b.pfm"),$refspp," >> "$csv"
           b=$((b + 1))
         done
         a=$((a + 1))
@@ -138,16 +149,25 @@ for name in $scenes; do
     done
     rm -rf "$work/maps"
   done
+  px=$(( $(ref_info "$refdir" "$name" width) * $(ref_info "$refdir" "$name" height) ))
   s=1
   while [ "$s" -le "$seeds" ]; do
-    go "$name" "$work/log" --mode path --time "$budget" --seed "$s"
-    m=$(mse_of "$work/img.pfm" "$ref")
-    # its samples a pixel (the passes' and the adaptive ones), from the statistics' count
-    spp=$(awk -v px="$(( $(ref_info "$refdir" "$name" width) * $(ref_info "$refdir" "$name" height) ))" \
-      '$1 == "Samples" { printf "%.6g", $2 / px; exit }' "$work/log")
-    [ -n "$spp" ] || { echo "measure-gather-ceiling: $name path: no sample count in its statistics" >&2; exit 1; }
-    echo "$name,path,,,$s,,$spp,$secs,$m,$refspp" >> "$csv"
-    echo "measure-gather-ceiling: $name path --time $budget seed $s: rendering $secs s, MSE $m" >&2
+    for mode in pm path; do
+      go "$name" "$work/log" --mode $mode --time "$budget" --seed "$s"
+      m=$(mse_of "$work/img.pfm" "$ref")
+      # samples a pixel (the passes' and the adaptive ones), from the statistics' count
+      spp=$(awk -v px="$px" '$1 == "Samples" { printf "%.6g", $2 / px; exit }' "$work/log")
+      [ -n "$spp" ] || { echo "measure-gather-ceiling: $name $mode: no sample count in its statistics" >&2; exit 1; }
+      if [ $mode = pm ]; then
+        secs=$(stat Rendering "$work/log")
+        all=$(stat "Passes: all passes" "$work/log")
+        [ -n "$secs" ] && [ -n "$all" ] || { echo "measure-gather-ceiling: $name pm: no pass times in its statistics" >&2; exit 1; }
+      else
+        all=
+      fi
+      echo "$name,$mode,,,$s,,$spp,$secs,$m,$refspp,$all" >> "$csv"
+      echo "measure-gather-ceiling: $name $mode --time $budget seed $s: rendering $secs s${all:+ of the passes' $all s}, MSE $m" >&2
+    done
     s=$((s + 1))
   done
 done

@@ -181,7 +181,9 @@ TEST(docs_hard_scenes_bound_under_10x_is_not_judged_unless_an_exact_seed_misses)
  * (T = 2.5), MSE MSE11 each, the pairs' squared differences 2.5e-6 F, 2.5e-6 F and 1e-6 F (V = 1e-6
  * F, the calmest pair's 5e-7 F); with a map of 10 at 4/2: seeds 1 and 2 in 2 and 3 s, MSE 1e-3
  * each, the pair's 4e-4 (V = 2e-4: the ceiling 2.5e-3 / (2e-4 x 2.5) = 5x, up to 5x; the rest
- * 8e-4, so with the map's error at 10 s 2.5e-3 / (5e-4 + 8e-3) = 0.29x). */
+ * 8e-4, so with the map's error at 10 s 2.5e-3 / (5e-4 + 8e-3) = 0.29x). Photon mapping at the
+ * defaults, seeds 1 to 4: its camera samples 5, 6, 6 and 7 s of its passes' 10 s (the median
+ * share 60%). */
 static int write_synth_ceiling(const char *dir, double f, double mse11) {
     char path[4096];
     FILE *fp;
@@ -189,15 +191,18 @@ static int write_synth_ceiling(const char *dir, double f, double mse11) {
     if (system(path) != 0) return -1;
     snprintf(path, sizeof path, "%s/ceiling/runs.csv", dir);
     if (!(fp = fopen(path, "w"))) return -1;
-    fprintf(fp, "scene,kind,photons,setting,seed,seed_b,spp,render_s,mse,ref_spp\n");
+    fprintf(fp, "scene,kind,photons,setting,seed,seed_b,spp,render_s,mse,ref_spp,passes_s\n");
     const double t11[3] = {2, 3, 2.5};
-    for (int s = 0; s < 3; s++) fprintf(fp, "synth,oracle,1000,1/1,%d,,4096,%g,%g,1e12\n", s + 1, t11[s], mse11);
-    fprintf(fp, "synth,pair,1000,1/1,1,2,4096,,%g,1e12\nsynth,pair,1000,1/1,1,3,4096,,%g,1e12\n", 2.5e-6 * f, 2.5e-6 * f);
-    fprintf(fp, "synth,pair,1000,1/1,2,3,4096,,%g,1e12\n", 1e-6 * f);
-    fprintf(fp, "synth,oracle,10,4/2,1,,1024,2,0.001,1e12\nsynth,oracle,10,4/2,2,,1024,3,0.001,1e12\n");
-    fprintf(fp, "synth,pair,10,4/2,1,2,1024,,0.0004,1e12\n");
-    const double path_mse[4] = {1e-4, 2e-4, 3e-4, 1e-2};
-    for (int s = 0; s < 4; s++) fprintf(fp, "synth,path,,,%d,,1000,10,%g,1e12\n", s + 1, path_mse[s]);
+    for (int s = 0; s < 3; s++) fprintf(fp, "synth,oracle,1000,1/1,%d,,4096,%g,%g,1e12,\n", s + 1, t11[s], mse11);
+    fprintf(fp, "synth,pair,1000,1/1,1,2,4096,,%g,1e12,\nsynth,pair,1000,1/1,1,3,4096,,%g,1e12,\n", 2.5e-6 * f, 2.5e-6 * f);
+    fprintf(fp, "synth,pair,1000,1/1,2,3,4096,,%g,1e12,\n", 1e-6 * f);
+    fprintf(fp, "synth,oracle,10,4/2,1,,1024,2,0.001,1e12,\nsynth,oracle,10,4/2,2,,1024,3,0.001,1e12,\n");
+    fprintf(fp, "synth,pair,10,4/2,1,2,1024,,0.0004,1e12,\n");
+    const double path_mse[4] = {1e-4, 2e-4, 3e-4, 1e-2}, pm_cam[4] = {5, 6, 7, 6};
+    for (int s = 0; s < 4; s++) {
+        fprintf(fp, "synth,pm,,,%d,,256,%g,0.01,1e12,10\n", s + 1, pm_cam[s]);
+        fprintf(fp, "synth,path,,,%d,,1000,10,%g,1e12,\n", s + 1, path_mse[s]);
+    }
     fclose(fp);
     snprintf(path, sizeof path, "%s/ceiling/measurement.txt", dir);
     if (!(fp = fopen(path, "w"))) return -1;
@@ -214,7 +219,9 @@ static int write_synth_ceiling(const char *dir, double f, double mse11) {
  * 2. F 400: 1/1's V 4e-4, its ceiling 2.5x, up to 5x, its rest negative (the map's error counts
  *    as 0: 2.5x); the best ceiling is 4/2's 5x, up to 5x: "no", and the measured median, 20x, is
  *    above it, which the section must say.
- * 3. F 160: 1/1's V 1.6e-4, its ceiling 6.25x, up to 12.5x: "at the edge". */
+ * 3. F 160: 1/1's V 1.6e-4, its ceiling 6.25x, up to 12.5x; in the defaults' time (60%) 3.75x,
+ *    up to 7.5x: "no, in the defaults' time".
+ * 4. F 80: 1/1's ceiling 12.5x, up to 25x; 7.5x and 15x in the defaults' time: "at the edge". */
 TEST(docs_hard_scenes_ceiling_follows_the_data) {
     char cmd[8192], out[65536];
     const char *t = pm_test_tmpdir(), *src = pm_test_source_dir();
@@ -226,8 +233,8 @@ TEST(docs_hard_scenes_ceiling_follows_the_data) {
     EXPECT_MSG(strstr(out, "| synth | 0.0025 | 1000 | 1/1 | 4096 | 2.50 | 1e-06 (5e-07) | 5e-06 | 1000.00x (2000.00x) | 47.62x |") &&
                    strstr(out, "| synth | 0.0025 | 10 | 4/2 | 1024 | 2.50 | 0.0002 (0.0002) | 0.0008 | 5.00x (5.00x) | 0.29x |"),
                "the rows:\n%s", out);
-    EXPECT_MSG(strstr(out, "| synth | 1000.00x (1/1, 1000 photons; up to 2000.00x) | 47.62x (1/1, 1000 photons) | "
-                           "20.00x (5.00x to 25.00x) | yes |") &&
+    EXPECT_MSG(strstr(out, "| synth | 1000.00x (1/1, 1000 photons; up to 2000.00x) | 60%: 600.00x (up to 1200.00x) | "
+                           "47.62x (1/1, 1000 photons) | 20.00x (5.00x to 25.00x) | yes |") &&
                    strstr(out, "Ceilings at 10x or more: synth (1000.00x). No scene's measured median is above its ceiling."),
                "the verdict, yes:\n%s", out);
     EXPECT_MSG(!strstr(out, "Ceilings under 10x") && !strstr(out, "At the edge"), "only yes:\n%s", out);
@@ -235,8 +242,8 @@ TEST(docs_hard_scenes_ceiling_follows_the_data) {
     ASSERT_EQ_INT(write_synth_ceiling(t, 400, 6e-6), 0);
     ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
     EXPECT_MSG(strstr(out, "| synth | 0.0025 | 1000 | 1/1 | 4096 | 2.50 | 0.0004 (0.0002) | -0.000394 | 2.50x (5.00x) | 2.50x |") &&
-                   strstr(out, "| synth | 5.00x (4/2, 10 photons; up to 5.00x) | 2.50x (1/1, 1000 photons) | "
-                               "20.00x (5.00x to 25.00x) | no |"),
+                   strstr(out, "| synth | 5.00x (4/2, 10 photons; up to 5.00x) | 60%: 3.00x (up to 3.00x) | "
+                               "2.50x (1/1, 1000 photons) | 20.00x (5.00x to 25.00x) | no |"),
                "the rows, no:\n%s", out);
     EXPECT_MSG(strstr(out, "Ceilings under 10x: synth (5.00x, up to 5.00x). There even the calmest pair") &&
                    strstr(out, "Measured above the ceiling (the ceiling's premise fails there, or one of the two is noise): "
@@ -245,16 +252,25 @@ TEST(docs_hard_scenes_ceiling_follows_the_data) {
 
     ASSERT_EQ_INT(write_synth_ceiling(t, 160, 6e-6), 0);
     ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
-    EXPECT_MSG(strstr(out, "| synth | 6.25x (1/1, 1000 photons; up to 12.50x) | 6.25x (1/1, 1000 photons) | "
-                           "20.00x (5.00x to 25.00x) | at the edge |") &&
-                   strstr(out, "At the edge of 10x: synth (6.25x, up to 12.50x; with the map's error 6.25x)."),
+    EXPECT_MSG(strstr(out, "| synth | 6.25x (1/1, 1000 photons; up to 12.50x) | 60%: 3.75x (up to 7.50x) | "
+                           "6.25x (1/1, 1000 photons) | 20.00x (5.00x to 25.00x) | no, in the defaults' time |") &&
+                   strstr(out, "Under 10x in the time the defaults leave the camera samples: synth (6.25x, up to 12.50x; "
+                               "the camera samples get 60% of the passes' time: 3.75x, up to 7.50x)."),
+               "the verdict, no in the defaults' time:\n%s", out);
+
+    ASSERT_EQ_INT(write_synth_ceiling(t, 80, 6e-6), 0);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "| synth | 12.50x (1/1, 1000 photons; up to 25.00x) | 60%: 7.50x (up to 15.00x) | "
+                           "12.50x (1/1, 1000 photons) | 20.00x (5.00x to 25.00x) | at the edge |") &&
+                   strstr(out, "At the edge of 10x: synth (7.50x, up to 15.00x, in the defaults' time).") &&
+                   strstr(out, "No scene's measured median is above its ceiling."),
                "the verdict, at the edge:\n%s", out);
 }
 
 /* Oracle: scripts/measure-gather-ceiling.sh --quick on door_ajar (2 seeds, 1 s budgets), its
  * files checked against what they claim to be: one row per run, positive times and errors, path
  * tracing's sample count at least one pass of 256 (16 x 16 at --time: at least 65536 samples a
- * pass); the pair's error is the two oracle images' distance, so its root obeys the triangle
+ * pass; photon mapping's camera time inside its passes'); the pair's error is the two oracle images' distance, so its root obeys the triangle
  * inequality with their errors against the reference (RMSE is a metric), and the seeds differ
  * (above 0); and the section generated from them has the scene's row. */
 TEST(docs_gather_ceiling_quick_run_is_consistent) {
@@ -268,31 +284,36 @@ TEST(docs_gather_ceiling_quick_run_is_consistent) {
     snprintf(path, sizeof path, "%s/ceiling/runs.csv", t);
     FILE *f = fopen(path, "r");
     ASSERT_MSG(f != NULL, "no runs.csv:\n%s", out);
-    ASSERT_MSG(fgets(line, sizeof line, f) && !strcmp(line, "scene,kind,photons,setting,seed,seed_b,spp,render_s,mse,ref_spp\n"),
+    ASSERT_MSG(fgets(line, sizeof line, f) &&
+                   !strcmp(line, "scene,kind,photons,setting,seed,seed_b,spp,render_s,mse,ref_spp,passes_s\n"),
                "header: %s", line);
-    int oracle = 0, pair = 0, pathn = 0;
+    int oracle = 0, pair = 0, pathn = 0, pmn = 0;
     double om[3] = {0}, pm = -1;
     while (fgets(line, sizeof line, f)) {
         char kind[16] = "";
         int seed = 0, seedb = 0;
-        double spp = 0, secs = 0, mse = -1, np = 0;
-        if (sscanf(line, "door_ajar,oracle,%lf,1/1,%d,,%lf,%lf,%lf,262144", &np, &seed, &spp, &secs, &mse) == 5) {
+        double spp = 0, secs = 0, mse = -1, np = 0, all = 0;
+        if (sscanf(line, "door_ajar,oracle,%lf,1/1,%d,,%lf,%lf,%lf,262144,", &np, &seed, &spp, &secs, &mse) == 5) {
             snprintf(kind, sizeof kind, "oracle");
             EXPECT_MSG(np == 200000 && seed >= 1 && seed <= 2 && spp >= 256 && secs > 0 && mse > 0, "oracle row: %s", line);
             if (seed >= 1 && seed <= 2) om[seed] = mse;
             oracle++;
-        } else if (sscanf(line, "door_ajar,pair,%lf,1/1,%d,%d,%lf,,%lf,262144", &np, &seed, &seedb, &spp, &mse) == 5) {
+        } else if (sscanf(line, "door_ajar,pair,%lf,1/1,%d,%d,%lf,,%lf,262144,", &np, &seed, &seedb, &spp, &mse) == 5) {
             EXPECT_MSG(seed == 1 && seedb == 2 && mse > 0, "pair row: %s", line);
             pm = mse;
             pair++;
-        } else if (sscanf(line, "door_ajar,path,,,%d,,%lf,%lf,%lf,262144", &seed, &spp, &secs, &mse) == 4) {
+        } else if (sscanf(line, "door_ajar,path,,,%d,,%lf,%lf,%lf,262144,", &seed, &spp, &secs, &mse) == 4) {
             EXPECT_MSG(spp >= 256 && secs > 0 && secs < 3 && mse > 0, "path row: %s", line);
             pathn++;
+        } else if (sscanf(line, "door_ajar,pm,,,%d,,%lf,%lf,%lf,262144,%lf", &seed, &spp, &secs, &mse, &all) == 5) {
+            EXPECT_MSG(spp >= 256 && secs > 0 && all > secs && all < 3 && mse > 0, "pm row (its camera inside its passes): %s", line);
+            pmn++;
         } else
             EXPECT_MSG(0, "a row of no kind: %s", line);
     }
     fclose(f);
-    EXPECT_MSG(oracle == 2 && pair == 1 && pathn == 2, "rows: %d oracle, %d pair, %d path", oracle, pair, pathn);
+    EXPECT_MSG(oracle == 2 && pair == 1 && pathn == 2 && pmn == 2, "rows: %d oracle, %d pair, %d path, %d pm", oracle, pair,
+               pathn, pmn);
     EXPECT_MSG(pm > 0 && sqrt(pm) <= sqrt(om[1]) + sqrt(om[2]) + 1e-12, "the pair's RMSE %g against the runs' %g and %g",
                sqrt(pm), sqrt(om[1]), sqrt(om[2]));
     snprintf(cmd, sizeof cmd, "cat '%s/ceiling/measurement.txt'", t);
