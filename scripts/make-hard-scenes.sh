@@ -42,7 +42,7 @@
 # ref_mean, mean, rel). Skipped when pinhole_room is not among HS_SCENES.
 #
 # Then the final gather's ceiling (scripts/measure-gather-ceiling.sh, into HS_OUT/ceiling; about
-# 20 minutes for the five scenes; not with --quick or HS_CEILING=0): photon mapping's camera
+# 25 minutes for the five scenes; not with --quick or HS_CEILING=0): photon mapping's camera
 # samples alone, with its maps loaded instead of traced, against path tracing at the same budget.
 #
 # Output (HS_OUT, default docs/hard_scenes): runs.csv (scene, mode, width, spp, seed, cpu_s,
