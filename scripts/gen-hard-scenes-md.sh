@@ -77,7 +77,7 @@ if [ "${1:-}" = --readme ] || [ "${1:-}" = --readme-block ]; then
     sec == "Against the target" && /^"10x met" judges/ { verdict = $0 }
     sec ~ /region means/ && /^At [0-9]/ { regions = $0 }
     sec == "The final gather'"'"'s ceiling" && /^Measured sources/ { cst = $0; sub(/^Measured sources \(stamp /, "", cst); sub(/\).*/, "", cst) }
-    sec == "The final gather'"'"'s ceiling" && /^Ceilings / { ceil = $0 }
+    sec == "The final gather'"'"'s ceiling" && /^(Ceilings |Under 10x |At the edge )/ { ceil = $0 }
     END {
       printf "Measured by `scripts/make-hard-scenes.sh` (docs/HARD_SCENES.md, stamp %s): time to equal\n", stamp
       printf "error against path tracing at the defaults, %s threads. At a sample count: the mean of %s\n", nthreads, fseeds

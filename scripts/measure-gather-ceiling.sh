@@ -35,8 +35,8 @@
 # statistics' "Rendering" over "Passes: all passes" is the camera's share, which scales the
 # ceiling to what the camera samples get at the defaults (gen-gather-ceiling-md.sh).
 #
-# Maps of two sizes (GC_PHOTONS, default "2000000 50000"): about what photon mapping traces in
-# a 10 s budget on these scenes, all in one map, and about one pass's map. A coarser map's
+# Maps of two sizes (GC_PHOTONS, default "2000000 50000"): about what photon mapping traced in
+# all over a 10 s run of door_ajar (38 passes of about 53,000), and about one pass's map. A coarser map's
 # estimates are smoother, so the gathers that read it may vary less; the ceiling takes the best
 # of both. Settings: the gathers' rays per camera sample, gather_rays/secondary_rays 1/1 and 4/2
 # (the ends of the three the sample pilot chooses from), each forced (`--pm`); per map and

@@ -265,6 +265,13 @@ TEST(docs_hard_scenes_ceiling_follows_the_data) {
         for (int w = 0; w < 3 && cases[c].want[w]; w++)
             EXPECT_MSG(strstr(out, cases[c].want[w]), "case F = %g: no\n%s\nin:\n%s", cases[c].f, cases[c].want[w], out);
     }
+    /* README's block takes the ceilings' paragraph whatever verdict opens it (the last case's: at the edge) */
+    snprintf(cmd, sizeof cmd, "sh '%s/scripts/gen-hard-scenes-md.sh' --readme-block '%s'", src, t);
+    ASSERT_EQ_INT(pm_test_run(cmd, out, sizeof out), 0);
+    EXPECT_MSG(strstr(out, "\nThe final gather's ceiling (docs/HARD_SCENES.md, stamp c0ffee1-test): ") &&
+                   strstr(out, "against path tracing at the budget. At the edge of 10x: synth (7.50x, up to 15.00x, in the "
+                               "defaults' time)."),
+               "README block:\n%s", out);
 }
 
 /* Oracle: scripts/measure-gather-ceiling.sh --quick on door_ajar (2 seeds, 1 s budgets), its
